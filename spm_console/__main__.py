@@ -1,0 +1,3 @@
+from spm_console.cli.main import main
+
+raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""Headless command-line interface (an API: data on stdout, diagnostics on stderr)."""

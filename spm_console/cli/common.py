@@ -1,0 +1,73 @@
+"""Shared helpers of the CLI command modules: options, parsing, output."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any
+
+import numpy as np
+
+from spm_console.errors import BadInputError
+from spm_console.profile import DEFAULT_PROFILE, Profile, load_profile
+
+
+def add_common(p: argparse.ArgumentParser) -> None:
+    """--profile and --json, taken by every command."""
+    p.add_argument(
+        "--profile", default=str(DEFAULT_PROFILE),
+        help=f"profile TOML file (default {DEFAULT_PROFILE})",
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def profile_of(args: argparse.Namespace) -> Profile:
+    return load_profile(args.profile)
+
+
+def finite3(values: list[float] | None, what: str) -> np.ndarray:
+    """Validate three finite numbers given on the command line (degrees)."""
+    if values is None or len(values) != 3:
+        raise BadInputError(f"{what}: expected three angles in degrees")
+    if not all(math.isfinite(v) for v in values):
+        raise BadInputError(f"{what}: angles must be finite numbers, got {values}")
+    return np.asarray(values, float)
+
+
+def to_jsonable(obj: Any) -> Any:
+    """numpy arrays and scalars -> lists and floats (NaN/inf -> None)."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, float | np.floating):
+        f = float(obj)
+        return f if math.isfinite(f) else None
+    return obj
+
+
+def emit(args: argparse.Namespace, data: dict[str, Any], human: str) -> None:
+    """JSON on stdout with --json, otherwise the human-readable text."""
+    if getattr(args, "json", False):
+        sys.stdout.write(json.dumps(to_jsonable(data)) + "\n")
+    else:
+        sys.stdout.write(human.rstrip("\n") + "\n")
+    sys.stdout.flush()
+
+
+def info(msg: str) -> None:
+    """A diagnostic line on stderr."""
+    sys.stderr.write(msg.rstrip("\n") + "\n")
+    sys.stderr.flush()
+
+
+def fmt_vec(v: Any, digits: int = 4) -> str:
+    return "[" + ", ".join(f"{float(x):.{digits}f}" for x in np.ravel(v)) + "]"

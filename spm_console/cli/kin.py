@@ -1,0 +1,154 @@
+"""``fk`` and ``ik`` commands."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spm_console.cli.common import add_common, emit, finite3, fmt_vec, profile_of
+from spm_console.core.assess import assess
+from spm_console.core.ik import ik, ik_rpy
+from spm_console.core.kinematics import FkResult, SpmModel
+from spm_console.core.links import LinkModel
+from spm_console.core.model import link_model_of, model_of
+from spm_console.core.modes import assembly_modes
+from spm_console.errors import BadInputError, ExitCode, UnreachableError
+from spm_console.profile import Profile
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser("fk", help="unique forward kinematics (home assembly mode)")
+    add_common(p)
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--theta", nargs=3, type=float, metavar=("T1", "T2", "T3"), help="motor angles, deg")
+    g.add_argument("--theta-file", type=Path, metavar="CSV", help="one θ (3 columns, deg) per row")
+    p.add_argument("--from", dest="from_theta", nargs=3, type=float, metavar=("T1", "T2", "T3"),
+                   help="continue from this known configuration (itself tracked from home)")
+    p.add_argument("--all-modes", action="store_true", help="also list every assembly mode")
+    p.set_defaults(func=cmd_fk)
+
+    q = sub.add_parser("ik", help="inverse kinematics in the home working modes")
+    add_common(q)
+    h = q.add_mutually_exclusive_group(required=True)
+    h.add_argument("--v", nargs=9, type=float, metavar="V", help="v1x v1y v1z v2x … v3z")
+    h.add_argument("--rpy", nargs=3, type=float, metavar=("R", "P", "Y"),
+                   help="roll pitch yaw from home, deg: R = Rz(Y) Ry(P) Rx(R)")
+    q.set_defaults(func=cmd_ik)
+
+
+def fk_record(profile: Profile, model: SpmModel, links: LinkModel, r: FkResult) -> dict[str, Any]:
+    """The JSON record of one FK result (SPEC §5 keys)."""
+    if not r.ok or r.pose is None:
+        return {"ok": False, "reason": r.reason, "path_min_zeta": r.path_min_zeta}
+    ws = profile.workspace
+    a = assess(model, links, r.pose, ws.zeta_min, (ws.theta_min_deg, ws.theta_max_deg))
+    return {
+        "ok": True,
+        "theta_deg": r.pose.theta_deg,
+        "v": r.pose.v,
+        "n": r.pose.n,
+        "zeta": r.pose.zeta,
+        "residual": r.pose.residual,
+        "min_link_distance_mm": a.min_link_distance_mm,
+        "closest_pair": a.closest_pair,
+        "feasible": a.feasible,
+        "reason": a.reason,
+        "path_min_zeta": r.path_min_zeta,
+    }
+
+
+def _read_theta_file(path: Path) -> np.ndarray:
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise BadInputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    rows = []
+    for n, row in enumerate(csv.reader(text.splitlines()), start=1):
+        cells = [c.strip() for c in row if c.strip()]
+        if not cells or cells[0].startswith("#"):
+            continue
+        try:
+            vals = [float(c) for c in cells]
+        except ValueError:
+            if n == 1:
+                continue  # header
+            raise BadInputError(f"{path}:{n}: not three numbers: {row}") from None
+        if len(vals) != 3 or not all(math.isfinite(x) for x in vals):
+            raise BadInputError(f"{path}:{n}: expected three finite angles in degrees, got {row}")
+        rows.append(vals)
+    if not rows:
+        raise BadInputError(f"{path}: no θ rows")
+    return np.asarray(rows)
+
+
+def cmd_fk(args: argparse.Namespace) -> int:
+    profile = profile_of(args)
+    model, links = model_of(profile), link_model_of(profile)
+    t_from = R_from = None
+    if args.from_theta is not None:
+        r0 = model.track(np.radians(finite3(args.from_theta, "--from")))
+        if not r0.ok or r0.pose is None:
+            raise UnreachableError(f"--from configuration: {r0.reason}")
+        t_from, R_from = r0.pose.theta, r0.pose.R
+    if args.theta_file is not None:
+        T = _read_theta_file(args.theta_file)
+        results = model.track_batch(np.radians(T), t_from, R_from)
+        recs = [fk_record(profile, model, links, r) for r in results]
+        human = "\n".join(
+            f"θ={fmt_vec(t, 2)}  " + (f"n={fmt_vec(rec['n'])} ζ={rec['zeta']:.3f}" if rec["ok"] else rec["reason"])
+            for t, rec in zip(T, recs, strict=True)
+        )
+        emit(args, {"results": recs}, human)  # type: ignore[dict-item]
+        return int(ExitCode.OK if all(r["ok"] for r in recs) else ExitCode.UNREACHABLE)
+    theta = finite3(args.theta, "--theta")
+    r = model.track(np.radians(theta), t_from, R_from)
+    if not r.ok or r.pose is None:
+        raise UnreachableError(f"θ = {fmt_vec(theta, 2)}°: {r.reason}")
+    rec = fk_record(profile, model, links, r)
+    lines = [
+        f"θ        = {fmt_vec(theta, 2)} deg",
+        *(f"v{i + 1}       = {fmt_vec(r.pose.v[i])}" for i in range(3)),
+        f"n        = {fmt_vec(r.pose.n)}",
+        f"ζ        = {r.pose.zeta:.4f}",
+        f"residual = {r.pose.residual:.1e}",
+        f"closest links = {rec['min_link_distance_mm']:.1f} mm ({rec['closest_pair']})",
+        "feasible" if rec["feasible"] else f"NOT feasible: {rec['reason']}",
+    ]
+    if args.all_modes:
+        modes = assembly_modes(model, r.pose.theta, r.pose.R)
+        rec["modes"] = [
+            {"v": m.v, "n": m.n, "zeta": m.zeta, "residual": m.residual,
+             "home_connected": m.home_connected, "same_sides": m.same_sides}
+            for m in modes
+        ]
+        lines.append(f"{len(modes)} assembly modes:")
+        for k, m in enumerate(modes, 1):
+            tag = "  <- home-connected" if m.home_connected else ""
+            lines.append(f"  {k}: n={fmt_vec(m.n)} ζ={m.zeta:.3f}{tag}")
+    emit(args, rec, "\n".join(lines))
+    return int(ExitCode.OK)
+
+
+def cmd_ik(args: argparse.Namespace) -> int:
+    profile = profile_of(args)
+    model = model_of(profile)
+    if args.v is not None:
+        vals = np.asarray(args.v, float)
+        if not np.all(np.isfinite(vals)):
+            raise BadInputError("--v: values must be finite")
+        res = ik(model, vals.reshape(3, 3))
+    else:
+        rpy = finite3(args.rpy, "--rpy")
+        res = ik_rpy(model, *np.radians(rpy))
+    rec = {
+        "theta_deg": res.theta_deg,
+        "theta_other_mode_deg": np.degrees(res.both[:, 1]),
+        "v": res.v,
+    }
+    emit(args, rec, f"θ = {fmt_vec(res.theta_deg, 3)} deg (home working modes)")
+    return int(ExitCode.OK)

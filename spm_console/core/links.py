@@ -1,0 +1,104 @@
+"""Link segment model (18)-(23) and closed-form segment-segment distances (QP 24).
+
+Lengths in mm. Points are stacked (..., 3 legs, 3 xyz). A pair of segments of
+different legs collides when their distance is below 2δ (paper Sec. IV-B).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import combinations, product
+
+import numpy as np
+from numpy.typing import NDArray
+
+F = NDArray[np.float64]
+
+SEGMENT_ENDS = {"AB": ("A", "B"), "BC": ("B", "C"), "DE": ("D", "E"), "EF": ("E", "F")}
+
+
+def _unit(x: F) -> F:
+    return np.asarray(x / np.linalg.norm(x, axis=-1, keepdims=True))
+
+
+@dataclass(frozen=True)
+class LinkModel:
+    """Radii of the points A..F (mm), capsule radius δ (mm) and the segments checked."""
+
+    oa: float
+    ob: float
+    oc: float
+    od: float
+    oe: float
+    of: float
+    delta: float
+    segments: tuple[str, ...]
+
+    def points(self, u: F, w: F, v: F) -> dict[str, F]:
+        """Points A..F of every leg, eqs. (18)-(23): each (..., 3, 3), mm."""
+        uu = np.broadcast_to(u, w.shape)
+        return {
+            "A": uu * self.oa,
+            "B": _unit(uu + w) * self.ob,
+            "C": w * self.oc,
+            "D": w * self.od,
+            "E": _unit(v + w) * self.oe,
+            "F": v * self.of,
+        }
+
+    def pairs(self) -> list[tuple[int, str, int, str]]:
+        """(leg i, segment, leg j, segment) for every checked pair of different legs."""
+        return [
+            (i, s1, j, s2)
+            for i, j in combinations(range(3), 2)
+            for s1, s2 in product(self.segments, self.segments)
+        ]
+
+    def pair_distances(self, u: F, w: F, v: F) -> F:
+        """Distance of every checked segment pair: (..., n_pairs), mm."""
+        pts = self.points(u, w, v)
+        P1, Q1, P2, Q2 = [], [], [], []
+        for i, s1, j, s2 in self.pairs():
+            a1, b1 = SEGMENT_ENDS[s1]
+            a2, b2 = SEGMENT_ENDS[s2]
+            P1.append(pts[a1][..., i, :])
+            Q1.append(pts[b1][..., i, :])
+            P2.append(pts[a2][..., j, :])
+            Q2.append(pts[b2][..., j, :])
+        return segment_distance(
+            np.stack(P1, -2), np.stack(Q1, -2), np.stack(P2, -2), np.stack(Q2, -2)
+        )
+
+    def min_distance(self, u: F, w: F, v: F) -> tuple[F, NDArray[np.int64]]:
+        """Closest inter-leg link distance (mm) and the index of that pair in :meth:`pairs`."""
+        d = self.pair_distances(u, w, v)
+        return d.min(-1), np.argmin(d, -1)
+
+
+def segment_distance(p1: F, q1: F, p2: F, q2: F, eps: float = 1e-12) -> F:
+    """Exact minimum distance between segments [p1, q1] and [p2, q2] (..., 3) -> (...).
+
+    Minimizes ‖(p1 + s d1) − (p2 + t d2)‖ over s, t ∈ [0, 1] in closed form,
+    handling zero-length and parallel segments (the QP (24) without a solver).
+    """
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = np.einsum("...k,...k->...", d1, d1)
+    e = np.einsum("...k,...k->...", d2, d2)
+    f = np.einsum("...k,...k->...", d2, r)
+    c = np.einsum("...k,...k->...", d1, r)
+    b = np.einsum("...k,...k->...", d1, d2)
+    a_pt, e_pt = a <= eps, e <= eps
+    a_s = np.where(a_pt, 1.0, a)
+    e_s = np.where(e_pt, 1.0, e)
+    denom = a * e - b * b
+    par = denom <= eps * np.maximum(a * e, eps)
+    s = np.where(par, 0.0, np.clip((b * f - c * e) / np.where(par, 1.0, denom), 0.0, 1.0))
+    t = (b * s + f) / e_s
+    lo, hi = t < 0.0, t > 1.0
+    s = np.where(lo, np.clip(-c / a_s, 0.0, 1.0), np.where(hi, np.clip((b - c) / a_s, 0.0, 1.0), s))
+    t = np.clip(t, 0.0, 1.0)
+    # degenerate segments
+    s = np.where(a_pt, 0.0, np.where(e_pt, np.clip(-c / a_s, 0.0, 1.0), s))
+    t = np.where(a_pt, np.where(e_pt, 0.0, np.clip(f / e_s, 0.0, 1.0)), np.where(e_pt, 0.0, t))
+    diff = (p1 + s[..., None] * d1) - (p2 + t[..., None] * d2)
+    return np.asarray(np.linalg.norm(diff, axis=-1))

@@ -1,0 +1,55 @@
+"""Rotation helpers, vectorized over leading batch dimensions (radians)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+F = NDArray[np.float64]
+
+
+def skew(w: F) -> F:
+    """Cross-product matrix [w]x of vectors ``w`` (..., 3) -> (..., 3, 3)."""
+    z = np.zeros(w.shape[:-1])
+    return np.stack(
+        [
+            np.stack([z, -w[..., 2], w[..., 1]], -1),
+            np.stack([w[..., 2], z, -w[..., 0]], -1),
+            np.stack([-w[..., 1], w[..., 0], z], -1),
+        ],
+        -2,
+    )
+
+
+def expm_so3(w: F) -> F:
+    """Rodrigues' formula: rotation matrices exp([w]x) for rotation vectors (..., 3)."""
+    th = np.linalg.norm(w, axis=-1)[..., None, None]
+    K = skew(w)
+    small = th < 1e-8
+    ths = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th**2 / 6.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - th**2 / 24.0, (1.0 - np.cos(ths)) / ths**2)
+    eye = np.broadcast_to(np.eye(3), K.shape)
+    return eye + a * K + b * (K @ K)
+
+
+def rpy_matrix(roll: F | float, pitch: F | float, yaw: F | float) -> F:
+    """R = Rz(yaw) @ Ry(pitch) @ Rx(roll) (fixed-axis roll, pitch, yaw), radians."""
+    r, p, y = np.broadcast_arrays(
+        np.asarray(roll, float), np.asarray(pitch, float), np.asarray(yaw, float)
+    )
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    rows = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
+    return np.stack([np.stack(row, -1) for row in rows], -2)
+
+
+def matrix_rpy(R: F) -> F:
+    """Inverse of :func:`rpy_matrix`: (..., 3, 3) -> (..., 3) [roll, pitch, yaw], radians."""
+    pitch = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
+    roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    return np.stack([roll, pitch, yaw], -1)

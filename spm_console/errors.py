@@ -1,0 +1,91 @@
+"""Error types and the one mapping from error to process exit code.
+
+The headless CLI is an API: every operator-facing failure is an ``SpmError``
+subclass carrying a distinct :class:`ExitCode`. Nothing here imports UI or I/O.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+
+class ExitCode(IntEnum):
+    """Process exit codes of ``spm-console`` (documented in README)."""
+
+    OK = 0
+    INTERNAL = 1
+    USAGE = 2
+    PROFILE_ERROR = 3
+    BAD_INPUT = 4
+    UNREACHABLE = 5
+    INFEASIBLE = 6
+    SOLVER_FAILED = 7
+    CACHE_ERROR = 8
+    PLAN_MISMATCH = 9
+    BUS_ERROR = 10
+    ASSERTION_FAILED = 11
+    STOP_ESTOP = 20
+    STOP_TRACKING = 21
+    STOP_COMM = 22
+    STOP_HW_ERROR = 23
+    STOP_REGION = 24
+    STOP_LIMIT = 25
+    INTERRUPTED = 130
+
+
+class SpmError(Exception):
+    """Base class of every error shown to an operator (message, no traceback)."""
+
+    exit_code: ExitCode = ExitCode.INTERNAL
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+        self.message = message
+
+
+class ProfileError(SpmError):
+    """A profile file is missing, unreadable or invalid (names file, key, reason)."""
+
+    exit_code = ExitCode.PROFILE_ERROR
+
+
+class BadInputError(SpmError):
+    """A value given by the operator is malformed or out of range."""
+
+    exit_code = ExitCode.BAD_INPUT
+
+
+class UnreachableError(SpmError):
+    """No solution in the home assembly/working mode (e.g. the path crosses a singularity)."""
+
+    exit_code = ExitCode.UNREACHABLE
+
+
+class InfeasibleError(SpmError):
+    """A configuration or problem violates the workspace / planning constraints."""
+
+    exit_code = ExitCode.INFEASIBLE
+
+
+class SolverError(SpmError):
+    """A numerical solver failed to produce a certified answer."""
+
+    exit_code = ExitCode.SOLVER_FAILED
+
+
+class CacheError(SpmError):
+    """A cache file is corrupt or unreadable."""
+
+    exit_code = ExitCode.CACHE_ERROR
+
+
+class PlanMismatchError(SpmError):
+    """A plan file does not match the profile, or is corrupt."""
+
+    exit_code = ExitCode.PLAN_MISMATCH
+
+
+class BusError(SpmError):
+    """The servo bus cannot be opened, or a servo is absent or of the wrong model."""
+
+    exit_code = ExitCode.BUS_ERROR

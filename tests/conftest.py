@@ -1,0 +1,37 @@
+"""Shared fixtures. Tests run from the project root (profiles/ is relative to it)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+os.chdir(ROOT)
+
+
+@pytest.fixture(scope="session")
+def root() -> Path:
+    return ROOT
+
+
+@pytest.fixture(scope="session")
+def agile():  # type: ignore[no-untyped-def]
+    from spm_console.profile import load_profile
+
+    return load_profile(ROOT / "profiles" / "agile_wrist.toml")
+
+
+@pytest.fixture(scope="session")
+def coaxial():  # type: ignore[no-untyped-def]
+    from spm_console.profile import load_profile
+
+    return load_profile(ROOT / "profiles" / "coaxial_spm.toml")
+
+
+@pytest.fixture(scope="session")
+def agile_model(agile):  # type: ignore[no-untyped-def]
+    from spm_console.core.model import model_of
+
+    return model_of(agile)
