@@ -1,0 +1,1 @@
+"""Devices: Dynamixel protocol codec (pure), serial transport, servo bus, emulated bus."""
