@@ -219,7 +219,8 @@ class SpmModel:
         alive = np.ones(B, bool)
         reason = [""] * B
         minz = np.ones(B)
-        paths: list[list[list[float]]] = [[list(np.degrees(t0))] for _ in range(B)] if keep_path else [[] for _ in range(B)]
+        start = [list(np.degrees(t0))] if keep_path else []
+        paths: list[list[list[float]]] = [list(start) for _ in range(B)]
         geom = self.geom
         for k in range(1, n + 1):
             a = np.flatnonzero(alive)
@@ -233,8 +234,8 @@ class SpmModel:
             J1 = j1_matrix(v_old, w_old)
             rhs = j2_diag(self.u, v_old, w_old) * dth
             with np.errstate(all="ignore"):
-                om = np.linalg.solve(J1, rhs[..., None])[..., 0]
-            om = np.where(np.isfinite(om), om, 0.0)
+                om_raw = np.linalg.solve(J1, rhs[..., None])[..., 0]
+            om: F = np.where(np.isfinite(om_raw), om_raw, 0.0).astype(np.float64)
             Rp = expm_so3(om) @ R[a]
             w_new = geom.w(th_new)
             Rc, res = newton(geom, w_new, Rp, self.v_home)
@@ -266,15 +267,15 @@ class SpmModel:
             R[a[ok]] = orthonormalize(Rc[ok])
             th[a[ok]] = th_new[ok]
             if keep_path:
-                for j in a[ok]:
-                    paths[j].append(list(np.degrees(th[j])))
+                for jj in a[ok]:
+                    paths[int(jj)].append(list(np.degrees(th[jj])))
         results = []
-        for b in range(B):
-            pose = self.pose(th[b], R[b])
+        for row in range(B):
+            pose = self.pose(th[row], R[row])
             results.append(
                 FkResult(
-                    ok=bool(alive[b]), pose=pose, reason=reason[b],
-                    path_min_zeta=float(minz[b]), steps=n, path_theta_deg=paths[b],
+                    ok=bool(alive[row]), pose=pose, reason=reason[row],
+                    path_min_zeta=float(minz[row]), steps=n, path_theta_deg=paths[row],
                 )
             )
         return results

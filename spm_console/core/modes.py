@@ -143,11 +143,18 @@ def home_model(geom: SpmGeometry, theta_home_rad: F, sign_seed: F) -> SpmModel:
     )
 
 
-def seeded_solve(geom: SpmGeometry, theta: F, x0: F) -> tuple[F, bool]:
-    """The paper's Algorithm 1: solve (3)-(5) for the nine components of v by
-    ``scipy.optimize.fsolve`` (MINPACK hybrid/dogleg) from ``x0``. Returns (v, converged)."""
-    w = geom.w(np.asarray(theta, float))
-    c2, c3 = geom.cos_alpha2, geom.cos_alpha3
+def _seeded_equations(geom: SpmGeometry, theta: F) -> tuple[F, float, float]:
+    return geom.w(np.asarray(theta, float)), geom.cos_alpha2, geom.cos_alpha3
+
+
+def seeded_solve(geom: SpmGeometry, theta: F, x0: F, method: str = "hybr") -> tuple[F, bool]:
+    """The paper's Algorithm 1: solve (3)-(5) for the nine components of v from ``x0``.
+
+    ``method="hybr"``: ``scipy.optimize.fsolve`` (MINPACK hybrid dogleg, like MATLAB's
+    trust-region-dogleg); ``method="newton"``: plain undamped Newton (like the paper's
+    Maple check). Returns (v as rows, converged).
+    """
+    w, c2, c3 = _seeded_equations(geom, theta)
 
     def eqs(x: F) -> F:
         v = x.reshape(3, 3)
@@ -159,6 +166,31 @@ def seeded_solve(geom: SpmGeometry, theta: F, x0: F) -> tuple[F, bool]:
             ]
         )
 
-    x, _info, ier, _msg = fsolve(eqs, np.asarray(x0, float), full_output=True, xtol=1e-13)
+    def jac(x: F) -> F:
+        v = x.reshape(3, 3)
+        J = np.zeros((9, 9))
+        for i in range(3):
+            J[i, 3 * i : 3 * i + 3] = w[i]
+            J[6 + i, 3 * i : 3 * i + 3] = 2 * v[i]
+        for r, (i, j) in enumerate(((0, 1), (0, 2), (1, 2))):
+            J[3 + r, 3 * i : 3 * i + 3] = v[j]
+            J[3 + r, 3 * j : 3 * j + 3] = v[i]
+        return J
+
+    x = np.asarray(x0, float).copy()
+    if method == "newton":
+        for _ in range(100):
+            f = eqs(x)
+            if np.abs(f).max() < 1e-14:
+                break
+            try:
+                x = x - np.linalg.solve(jac(x), f)
+            except np.linalg.LinAlgError:
+                break
+            if not np.all(np.isfinite(x)):
+                break
+        ok = bool(np.all(np.isfinite(x)) and np.abs(eqs(x)).max() < 1e-9)
+        return x.reshape(3, 3), ok
+    x, _info, ier, _msg = fsolve(eqs, x, fprime=jac, full_output=True, xtol=1e-13)
     v = np.asarray(x).reshape(3, 3)
     return v, bool(ier == 1 and np.abs(eqs(x)).max() < 1e-9)
