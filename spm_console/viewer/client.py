@@ -1,0 +1,77 @@
+"""A small meshcat client: drawing commands over ZeroMQ with timeouts.
+
+meshcat's own ``Visualizer`` pulls in IPython and PIL and blocks forever when the
+server is gone; this client sends the same commands (``meshcat.commands``,
+msgpack-encoded, three frames) and gives up after a timeout instead.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import umsgpack
+import zmq
+from meshcat.commands import Delete, SetObject, SetProperty, SetTransform
+from meshcat.path import Path
+
+from spm_console.viewer.process import ViewerError
+
+#: Reply timeout of one command, ms.
+REPLY_TIMEOUT_MS = 2000
+
+
+def path_of(name: str) -> Path:
+    """meshcat path /meshcat/<name>; a name starting with '/' is absolute (e.g. /Cameras/…)."""
+    parts = [p for p in name.split("/") if p]
+    return Path(tuple(parts) if name.startswith("/") else ("meshcat", *parts))
+
+
+class MeshcatClient:
+    """REQ socket to the server; one command at a time, from one thread."""
+
+    def __init__(self, zmq_url: str, timeout_ms: int = REPLY_TIMEOUT_MS) -> None:
+        self.zmq_url = zmq_url
+        self.timeout_ms = timeout_ms
+        self._ctx = zmq.Context()
+        self._sock = self._connect()
+        self.sent = 0
+        """Commands acknowledged by the server."""
+
+    def _connect(self) -> zmq.Socket[Any]:
+        s = self._ctx.socket(zmq.REQ)
+        s.setsockopt(zmq.LINGER, 0)
+        s.setsockopt(zmq.RCVTIMEO, self.timeout_ms)
+        s.setsockopt(zmq.SNDTIMEO, self.timeout_ms)
+        s.connect(self.zmq_url)
+        return s
+
+    def _send(self, command: Any) -> None:
+        data = command.lower()
+        try:
+            self._sock.send_multipart(
+                [data["type"].encode(), data["path"].encode(), umsgpack.packb(data)]
+            )
+            self._sock.recv()
+        except zmq.ZMQError as exc:
+            # a REQ socket is unusable after a missed reply: start a fresh one
+            self._sock.close(0)
+            self._sock = self._connect()
+            raise ViewerError(f"3D viewer did not answer ({exc})") from None
+        self.sent += 1
+
+    def set_object(self, name: str, geometry: Any, material: Any = None) -> None:
+        self._send(SetObject(geometry, material, path_of(name)))
+
+    def set_transform(self, name: str, matrix: np.ndarray) -> None:
+        self._send(SetTransform(np.asarray(matrix, float), path_of(name)))
+
+    def set_property(self, name: str, key: str, value: Any) -> None:
+        self._send(SetProperty(key, value, path_of(name)))
+
+    def delete(self, name: str) -> None:
+        self._send(Delete(path_of(name)))
+
+    def close(self) -> None:
+        self._sock.close(0)
+        self._ctx.term()
