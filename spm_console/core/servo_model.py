@@ -56,3 +56,65 @@ def discretize(p: float, ts: float, method: Discretization = "zoh") -> ServoMode
     A = np.asarray(sys_d.A, float)
     B = np.asarray(sys_d.B, float).reshape(2)
     return ServoModel(p=p, ts=ts, method=method, A=A, B=B)
+
+
+def exact_step(p: float, tau: float) -> tuple[F, F]:
+    """Exact (ZOH) transition of (27) over ``tau`` seconds: x(t+τ) = Φ x(t) + Γ θ*.
+
+    Closed form for the double pole at −p: Φ = e^{−pτ} [[1+pτ, τ], [−p²τ, 1−pτ]],
+    Γ = [1 − e^{−pτ}(1+pτ), p²τ e^{−pτ}]. Returns (Φ (2, 2), Γ (2,)).
+    """
+    e = float(np.exp(-p * tau))
+    Phi = e * np.array([[1.0 + p * tau, tau], [-p * p * tau, 1.0 - p * tau]])
+    Gam = np.array([1.0 - e * (1.0 + p * tau), p * p * tau * e])
+    return Phi, Gam
+
+
+def substeps(p: float, ts: float, k: int) -> tuple[F, F]:
+    """Exact ZOH matrices at the sub-sample instants j·Ts/k, j = 1..k−1.
+
+    Returns (Phis (k−1, 2, 2), Gams (k−1, 2)); empty for k = 1.
+    """
+    if k < 1:
+        raise ValueError(f"sub-samples per interval must be ≥ 1, got {k}")
+    mats = [exact_step(p, j * ts / k) for j in range(1, k)]
+    Phis = np.array([m[0] for m in mats]).reshape(k - 1, 2, 2)
+    Gams = np.array([m[1] for m in mats]).reshape(k - 1, 2)
+    return Phis, Gams
+
+
+def simulate(model: ServoModel, x0: F, reference: F) -> F:
+    """Discrete simulation of (28) for every joint.
+
+    ``x0``: (J, 2) initial [θ, θ̇] per joint (deg, deg/s); ``reference``: (N+1, J) θ*(k), deg
+    (θ*(N) is the reference held after the end). Returns states (N+1, J, 2).
+    """
+    ref = np.asarray(reference, float)
+    x = np.empty((ref.shape[0], ref.shape[1], 2))
+    x[0] = np.asarray(x0, float)
+    for k in range(ref.shape[0] - 1):
+        x[k + 1] = x[k] @ model.A.T + ref[k][:, None] * model.B[None, :]
+    return x
+
+
+def simulate_continuous(p: float, ts: float, x0: F, reference: F, points: int) -> tuple[F, F]:
+    """Exact continuous response of (27) under the piecewise-constant references.
+
+    ``points`` ≥ 1 instants per interval (t = k·Ts + j·Ts/points, j = 0..points−1) plus the
+    last sample. Returns (t (M,), states (M, J, 2)) with M = N·points + 1.
+    """
+    ref = np.asarray(reference, float)
+    n = ref.shape[0] - 1
+    Phi1, Gam1 = exact_step(p, ts)
+    Phis, Gams = substeps(p, ts, points)
+    xs = np.empty((n * points + 1, ref.shape[1], 2))
+    x = np.asarray(x0, float).copy()
+    for k in range(n):
+        xs[k * points] = x
+        u = ref[k][:, None]
+        for j in range(points - 1):
+            xs[k * points + j + 1] = x @ Phis[j].T + u * Gams[j][None, :]
+        x = x @ Phi1.T + u * Gam1[None, :]
+    xs[-1] = x
+    t = np.arange(n * points + 1) * (ts / points)
+    return t, xs

@@ -1,0 +1,88 @@
+"""Minimum-velocity-norm references, eq. (30), solved by OSQP with screening."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.planning.osqp_solve import QpOutcome, solve_screened
+from spm_console.core.planning.problem import Layout, PlanProblem
+from spm_console.core.planning.qp_build import QpData, build
+from spm_console.core.planning.result import PlanResult
+from spm_console.core.planning.verify import check
+from spm_console.core.region import Region
+from spm_console.core.servo_model import ServoModel
+from spm_console.errors import InfeasibleError, SolverError
+
+F = NDArray[np.float64]
+
+
+def straight_guess(problem: PlanProblem) -> F:
+    """A z vector moving along the straight segment at constant speed (screening guess)."""
+    N = problem.N
+    L = Layout(N)
+    s, g = problem.start_deg, problem.goal_deg
+    frac = np.arange(N + 1)[:, None] / N
+    th = s + (g - s) * frac
+    om = np.tile((g - s) / (N * problem.model.ts), (N + 1, 1))
+    om[0] = om[-1] = 0.0
+    z = np.empty(L.n)
+    x = np.hstack([th, om])
+    z[: 6 * (N + 1)] = x.ravel()
+    z[6 * (N + 1):] = th[:N].ravel()
+    return z
+
+
+def run_qp(problem: PlanProblem, guess: F | None = None) -> tuple[QpData, QpOutcome]:
+    """Build and solve the QP of ``problem`` (after checking start and goal are in P)."""
+    problem.check_endpoints()
+    data = build(problem)
+    out = solve_screened(data, straight_guess(problem) if guess is None else guess)
+    return data, out
+
+
+def finish(problem: PlanProblem, data: QpData, out: QpOutcome, t0: float,
+           qp_extra: int = 0) -> PlanResult:
+    """Turn a solved QP into a verified :class:`PlanResult` (raises if it does not verify)."""
+    assert out.z is not None
+    ref, pos_z, vel_z = data.layout.unpack(out.z, problem.goal_deg)
+    report, pos, vel = check(problem, ref, pos_z, vel_z)
+    if not report.ok:
+        raise SolverError(
+            f"the solution does not satisfy its constraints to 1e-6 (goal error "
+            f"{report.goal_error_deg:.2e}°, region {report.region_violation_deg:.2e}°, speed "
+            f"{report.speed_excess_degps:.2e}°/s); solver status unpolished={not out.polished}")
+    info = {"rounds": out.rounds, "rows_used": out.rows_used, "rows_total": out.rows_total,
+            "iterations": out.iterations, "polished": out.polished, "solver": "osqp",
+            "qp_seconds": out.seconds}
+    return PlanResult("optimal", problem, ref, pos, vel, float((vel**2).sum()),
+                      time.perf_counter() - t0, out.qp_count + qp_extra, report, info)
+
+
+def solve_problem(problem: PlanProblem, guess: F | None = None) -> PlanResult:
+    """Solve (30) for ``problem``; raises InfeasibleError / SolverError with the reason."""
+    t0 = time.perf_counter()
+    data, out = run_qp(problem, guess)
+    if out.status == "infeasible":
+        extra = f" under v_max = {problem.vmax_degps}°/s" if problem.vmax_degps else ""
+        raise InfeasibleError(
+            f"no reference reaches the goal in N = {problem.N} steps ({problem.N * problem.model.ts:g} s)"
+            f"{extra} inside the region; use more steps or 'plan mintime'")
+    if out.status != "solved":
+        raise SolverError(f"OSQP failed on the MVN problem (N = {problem.N}): {out.status}")
+    return finish(problem, data, out, t0)
+
+
+def solve_mvn(model: ServoModel, start_deg: F, goal_deg: F, N: int, region: Region,
+              vmax: float | None = None, intersample: int = 1, hold_first: bool = True,
+              ref_lo_deg: F | None = None, ref_hi_deg: F | None = None) -> PlanResult:
+    """Minimum-velocity-norm references (30) from ``start_deg`` to ``goal_deg`` in N steps.
+
+    Angles in degrees, ``vmax`` in deg/s (None: no speed bound), ``intersample`` K ≥ 1
+    also enforces (30d, e) at K−1 instants inside every interval.
+    """
+    pb = PlanProblem(model, np.asarray(start_deg, float), np.asarray(goal_deg, float), N, region,
+                     vmax, intersample, hold_first, ref_lo_deg, ref_hi_deg)
+    return solve_problem(pb)

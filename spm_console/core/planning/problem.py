@@ -1,0 +1,125 @@
+"""The planning problem (30): data, validation and the variable layout of the QP.
+
+Units: θ, θ*, in degrees; θ̇ in deg/s; time in seconds. Samples k = 0..N.
+Conventions (paper eq. 30): θ(0) = start, θ̇(0) = 0, θ(N) = goal, θ̇(N) = 0, the
+final reference θ*(N) = goal (so the wrist stays at rest after N), and — as (30b)
+is printed — θ*(0) = θ(0) (``hold_first``; set False to let the first reference move).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.region import Region
+from spm_console.core.servo_model import ServoModel, substeps
+from spm_console.errors import BadInputError, InfeasibleError
+
+F = NDArray[np.float64]
+
+#: Tolerance on start/goal membership of P (deg of distance to a face).
+ENDPOINT_TOL_DEG = 1e-6
+
+
+@dataclass(frozen=True)
+class PlanProblem:
+    """One instance of (30) for three joints sharing the servo model."""
+
+    model: ServoModel
+    """Discrete servo model (28) with its p and Ts."""
+    start_deg: F
+    """(3,) θ(0), deg."""
+    goal_deg: F
+    """(3,) θ(N), deg."""
+    N: int
+    """Number of intervals (duration N·Ts)."""
+    region: Region
+    """Region P (30e), θ in degrees."""
+    vmax_degps: float | None = None
+    """Speed bound (30d) at the samples, deg/s; None = no bound."""
+    intersample: int = 1
+    """K ≥ 1: also enforce (30d, e) at the instants k·Ts + j·Ts/K, j = 1..K−1."""
+    hold_first: bool = True
+    """(30b) as printed: θ*(0) = θ(0)."""
+    ref_lo_deg: F | None = None
+    """(3,) optional lower bounds on every reference θ*(k), deg (servo limits)."""
+    ref_hi_deg: F | None = None
+    """(3,) optional upper bounds on every reference θ*(k), deg."""
+
+    def __post_init__(self) -> None:
+        s = np.asarray(self.start_deg, float).reshape(-1)
+        g = np.asarray(self.goal_deg, float).reshape(-1)
+        if s.shape != (3,) or g.shape != (3,) or not (np.all(np.isfinite(s)) and np.all(np.isfinite(g))):
+            raise BadInputError("start and goal must be three finite angles in degrees")
+        object.__setattr__(self, "start_deg", s)
+        object.__setattr__(self, "goal_deg", g)
+        if int(self.N) != self.N or self.N < 2:
+            raise BadInputError(f"steps N must be an integer ≥ 2, got {self.N}")
+        if self.vmax_degps is not None and not (np.isfinite(self.vmax_degps) and self.vmax_degps > 0):
+            raise BadInputError(f"vmax must be a positive finite speed in deg/s, got {self.vmax_degps}")
+        if int(self.intersample) != self.intersample or not 1 <= self.intersample <= 100:
+            raise BadInputError(f"intersample K must be an integer in 1..100, got {self.intersample}")
+        if self.intersample > 1 and self.model.method != "zoh":
+            raise BadInputError("intersample constraints need the exact (zoh) servo model")
+        for name in ("ref_lo_deg", "ref_hi_deg"):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, np.broadcast_to(np.asarray(v, float), (3,)).copy())
+
+    def with_steps(self, n: int) -> PlanProblem:
+        """The same problem with another horizon N."""
+        return PlanProblem(self.model, self.start_deg, self.goal_deg, n, self.region,
+                           self.vmax_degps, self.intersample, self.hold_first,
+                           self.ref_lo_deg, self.ref_hi_deg)
+
+    def check_endpoints(self) -> None:
+        """Raise :class:`InfeasibleError` when start or goal is outside P (or refs bounds)."""
+        for name, th in (("start", self.start_deg), ("goal", self.goal_deg)):
+            viol = float(self.region.violation_deg(th))
+            if viol > ENDPOINT_TOL_DEG:
+                rows = np.flatnonzero(self.region.slack(th) / np.linalg.norm(self.region.A, axis=1)
+                                      < -ENDPOINT_TOL_DEG)
+                raise InfeasibleError(
+                    f"{name} θ = {np.round(th, 4).tolist()}° is outside the region P by "
+                    f"{viol:.4g}° (half-spaces {rows.tolist()[:8]}); choose a region that contains it")
+        for name, th in (("start", self.start_deg), ("goal", self.goal_deg)):
+            if self.ref_lo_deg is not None and np.any(th < self.ref_lo_deg - 1e-9):
+                raise InfeasibleError(f"{name} θ = {th.tolist()}° is below the reference limits "
+                                      f"{self.ref_lo_deg.tolist()}°")
+            if self.ref_hi_deg is not None and np.any(th > self.ref_hi_deg + 1e-9):
+                raise InfeasibleError(f"{name} θ = {th.tolist()}° is above the reference limits "
+                                      f"{self.ref_hi_deg.tolist()}°")
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Indices of the QP variables: θ(k), θ̇(k) for k = 0..N, then θ*(k) for k = 0..N−1."""
+
+    N: int
+
+    @property
+    def n(self) -> int:
+        return 6 * (self.N + 1) + 3 * self.N
+
+    def th(self, k: NDArray[np.int64] | int, i: NDArray[np.int64] | int) -> NDArray[np.int64]:
+        return np.asarray(6 * np.asarray(k) + np.asarray(i))
+
+    def om(self, k: NDArray[np.int64] | int, i: NDArray[np.int64] | int) -> NDArray[np.int64]:
+        return np.asarray(6 * np.asarray(k) + 3 + np.asarray(i))
+
+    def u(self, k: NDArray[np.int64] | int, i: NDArray[np.int64] | int) -> NDArray[np.int64]:
+        return np.asarray(6 * (self.N + 1) + 3 * np.asarray(k) + np.asarray(i))
+
+    def unpack(self, z: F, goal_deg: F) -> tuple[F, F, F]:
+        """(reference (N+1, 3) with θ*(N) = goal, position (N+1, 3), velocity (N+1, 3))."""
+        x = z[: 6 * (self.N + 1)].reshape(self.N + 1, 6)
+        u = z[6 * (self.N + 1):].reshape(self.N, 3)
+        ref = np.vstack([u, goal_deg[None, :]])
+        return ref, x[:, :3].copy(), x[:, 3:].copy()
+
+
+def sub_matrices(problem: PlanProblem) -> tuple[F, F]:
+    """Exact ZOH matrices at the K−1 sub-sample instants (empty for K = 1)."""
+    return substeps(problem.model.p, problem.model.ts, problem.intersample)

@@ -1,0 +1,125 @@
+"""Honest checks of a planned reference: simulate the model and measure every constraint.
+
+The positions and velocities reported in a plan are those of the servo model
+driven by the references (not the optimizer's internal states); this module
+computes them and the worst violation of each constraint at the samples, and
+the worst speed and region excursion of the continuous motion between samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.planning.problem import PlanProblem
+from spm_console.core.servo_model import simulate, simulate_continuous
+
+F = NDArray[np.float64]
+
+#: Every constraint must hold at the samples to this tolerance (deg, deg/s).
+SAMPLE_TOL = 1e-6
+#: Points per interval of the between-sample simulation (at least 10).
+BETWEEN_POINTS = 20
+
+
+@dataclass(frozen=True)
+class ConstraintReport:
+    """Worst violations of (30b–f) at the samples and of (30d, e) between samples."""
+
+    start_error_deg: float
+    """max |θ(0) − start| (always 0: the simulation starts there)."""
+    goal_error_deg: float
+    """max |θ(N) − goal|, deg."""
+    final_speed_degps: float
+    """max |θ̇(N)|, deg/s."""
+    model_mismatch: float
+    """max |optimizer states − simulated states| (deg and deg/s)."""
+    region_violation_deg: float
+    """Largest distance outside P at the samples, deg."""
+    speed_excess_degps: float
+    """max(|θ̇(k)| − v_max, 0) at the samples, deg/s (0 without a bound)."""
+    reference_excess_deg: float
+    """Largest excursion of θ*(k) beyond the optional reference limits, deg."""
+    max_speed_samples_degps: float
+    """max |θ̇(k)| at the samples, deg/s."""
+    max_speed_between_degps: float
+    """max |θ̇(t)| of the continuous motion (27), deg/s."""
+    speed_excess_between_degps: float
+    """max(|θ̇(t)| − v_max, 0) between samples, deg/s."""
+    region_violation_between_deg: float
+    """Largest distance outside P of the continuous motion, deg."""
+    intersample_violation: float
+    """With K > 1: worst region (deg) or speed (deg/s) violation at the enforced sub-samples."""
+    points_per_interval: int
+    ok: bool
+    """All sample constraints hold to :data:`SAMPLE_TOL`."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def simulate_plan(problem: PlanProblem, reference: F) -> tuple[F, F]:
+    """(positions (N+1, 3) deg, velocities (N+1, 3) deg/s) of the model under ``reference``."""
+    x0 = np.column_stack([problem.start_deg, np.zeros(3)])
+    xs = simulate(problem.model, x0, reference)
+    return xs[..., 0].copy(), xs[..., 1].copy()
+
+
+def check(problem: PlanProblem, reference: F, position: F | None = None,
+          velocity: F | None = None) -> tuple[ConstraintReport, F, F]:
+    """Simulate ``reference`` and measure its constraints; returns (report, θ, θ̇)."""
+    pos, vel = simulate_plan(problem, reference)
+    mismatch = 0.0
+    if position is not None:
+        mismatch = max(mismatch, float(np.abs(position - pos).max()))
+    if velocity is not None:
+        mismatch = max(mismatch, float(np.abs(velocity - vel).max()))
+    vmax = problem.vmax_degps
+    region = problem.region
+    reg_viol = float(region.violation_deg(pos).max())
+    speed = float(np.abs(vel).max())
+    speed_ex = max(0.0, speed - vmax) if vmax is not None else 0.0
+    ref_ex = 0.0
+    k0 = 1 if problem.hold_first else 0
+    free = reference[k0:-1]
+    if problem.ref_lo_deg is not None and free.size:
+        ref_ex = max(ref_ex, float((problem.ref_lo_deg - free).max()))
+    if problem.ref_hi_deg is not None and free.size:
+        ref_ex = max(ref_ex, float((free - problem.ref_hi_deg).max()))
+    ref_ex = max(ref_ex, 0.0)
+    hold_err = float(np.abs(reference[0] - problem.start_deg).max()) if problem.hold_first else 0.0
+    goal_err = max(float(np.abs(pos[-1] - problem.goal_deg).max()),
+                   float(np.abs(reference[-1] - problem.goal_deg).max()))
+
+    pts = problem.intersample * int(np.ceil(BETWEEN_POINTS / problem.intersample))
+    x0 = np.column_stack([problem.start_deg, np.zeros(3)])
+    _, xs = simulate_continuous(problem.model.p, problem.model.ts, x0, reference, pts)
+    vb = float(np.abs(xs[..., 1]).max())
+    rb = float(region.violation_deg(xs[..., 0]).max())
+    sub_viol = 0.0
+    if problem.intersample > 1:
+        sub = xs[:: pts // problem.intersample]
+        sub_viol = float(region.violation_deg(sub[..., 0]).max())
+        if vmax is not None:
+            sub_viol = max(sub_viol, float(np.abs(sub[..., 1]).max()) - vmax)
+    report = ConstraintReport(
+        start_error_deg=hold_err,
+        goal_error_deg=goal_err,
+        final_speed_degps=float(np.abs(vel[-1]).max()),
+        model_mismatch=mismatch,
+        region_violation_deg=reg_viol,
+        speed_excess_degps=speed_ex,
+        reference_excess_deg=ref_ex,
+        max_speed_samples_degps=speed,
+        max_speed_between_degps=vb,
+        speed_excess_between_degps=max(0.0, vb - vmax) if vmax is not None else 0.0,
+        region_violation_between_deg=rb,
+        intersample_violation=max(sub_viol, 0.0),
+        points_per_interval=pts,
+        ok=max(hold_err, goal_err, float(np.abs(vel[-1]).max()), reg_viol, speed_ex, ref_ex,
+               sub_viol) <= SAMPLE_TOL,
+    )
+    return report, pos, vel
