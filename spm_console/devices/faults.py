@@ -1,0 +1,102 @@
+"""Faults the emulated servo bus injects on demand, and their command-line syntax.
+
+``KIND[:ARG][@SECONDS]`` — for example ``unplug@1.0`` (no reply at all from 1 s on),
+``stall:2@0.5`` (joint 2 stops moving at 0.5 s), ``drop:0.05`` (5 % of replies
+lost), ``corrupt:0.02`` (2 % of replies with a broken CRC/checksum),
+``delay:0.03@1.0`` (replies 30 ms late from 1 s on), ``hwerror:1@0.5`` (joint 1's
+servo raises an overload alert and drops torque at 0.5 s). Times are seconds after
+the emulator's clock starts (see ``EmulatorHandle.start_clock``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from spm_console.errors import BadInputError
+
+KINDS = ("unplug", "stall", "drop", "corrupt", "delay", "hwerror")
+
+_USAGE = (
+    "expected KIND[:ARG][@SECONDS] with KIND one of unplug, stall:JOINT, drop:RATE, "
+    "corrupt:RATE, delay:SECONDS, hwerror:JOINT (e.g. 'unplug@1.0', 'stall:2@0.5', "
+    "'drop:0.05', 'delay:0.03@1.0')"
+)
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """One fault of the emulated bus."""
+
+    kind: str
+    """'unplug' | 'stall' | 'drop' | 'corrupt' | 'delay' | 'hwerror'."""
+    at_s: float = 0.0
+    """When it starts, seconds after the emulator's clock starts."""
+    joint: int | None = None
+    """1-based joint for 'stall' / 'hwerror'."""
+    rate: float | None = None
+    """Probability per reply for 'drop' / 'corrupt'."""
+    delay_s: float | None = None
+    """Extra reply delay for 'delay', seconds."""
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise BadInputError(f"unknown fault kind {self.kind!r}: {_USAGE}")
+        if not (math.isfinite(self.at_s) and self.at_s >= 0.0):
+            raise BadInputError(f"fault {self.kind}: start time must be ≥ 0 s, got {self.at_s}")
+        if self.kind in ("stall", "hwerror") and self.joint not in (1, 2, 3):
+            raise BadInputError(f"fault {self.kind}: needs a joint 1, 2 or 3, got {self.joint}")
+        if self.kind in ("drop", "corrupt") and not (
+            self.rate is not None and math.isfinite(self.rate) and 0.0 < self.rate <= 1.0
+        ):
+            raise BadInputError(f"fault {self.kind}: needs a rate in (0, 1], got {self.rate}")
+        if self.kind == "delay" and not (
+            self.delay_s is not None and math.isfinite(self.delay_s) and 0.0 < self.delay_s <= 10.0
+        ):
+            raise BadInputError(f"fault delay: needs a delay in (0, 10] s, got {self.delay_s}")
+
+    def __str__(self) -> str:
+        arg = {"stall": self.joint, "hwerror": self.joint, "drop": self.rate,
+               "corrupt": self.rate, "delay": self.delay_s}.get(self.kind)
+        text = self.kind + (f":{arg}" if arg is not None else "")
+        return text + (f"@{self.at_s:g}" if self.at_s else "")
+
+
+def _number(text: str, what: str, whole: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise BadInputError(f"fault {whole!r}: {what} {text!r} is not a number; {_USAGE}") from None
+    if not math.isfinite(value):
+        raise BadInputError(f"fault {whole!r}: {what} must be finite")
+    return value
+
+
+def parse_fault(text: str) -> FaultSpec:
+    """Parse ``KIND[:ARG][@SECONDS]``; BadInputError names what is wrong."""
+    whole = text
+    text = text.strip()
+    if not text:
+        raise BadInputError(f"empty fault: {_USAGE}")
+    at_s = 0.0
+    if "@" in text:
+        text, at = text.split("@", 1)
+        at_s = _number(at, "start time", whole)
+    kind, _, arg = text.partition(":")
+    kind = kind.strip().lower()
+    if kind not in KINDS:
+        raise BadInputError(f"fault {whole!r}: unknown kind {kind!r}; {_USAGE}")
+    if kind == "unplug":
+        if arg:
+            raise BadInputError(f"fault {whole!r}: unplug takes no argument; {_USAGE}")
+        return FaultSpec("unplug", at_s)
+    if not arg:
+        raise BadInputError(f"fault {whole!r}: {kind} needs an argument; {_USAGE}")
+    if kind in ("stall", "hwerror"):
+        j = _number(arg, "joint", whole)
+        if j != int(j):
+            raise BadInputError(f"fault {whole!r}: joint must be 1, 2 or 3")
+        return FaultSpec(kind, at_s, joint=int(j))
+    if kind == "delay":
+        return FaultSpec(kind, at_s, delay_s=_number(arg, "delay", whole))
+    return FaultSpec(kind, at_s, rate=_number(arg, "rate", whole))
