@@ -1,0 +1,377 @@
+"""The real-time execution loop: references out, positions in, every Ts.
+
+Cycle k starts at the absolute deadline t0 + k·Ts (no cumulative drift; a late
+cycle does not shift the next ones). In each cycle:
+
+1. sync-write θ*(k);
+2. sync-read θ(k) (one immediate retry on a failed read; a cycle whose reads all
+   fail counts as a communication failure);
+3. Kalman update with θ*(k−1) as input and θ(k) as measurement
+   (:class:`~spm_console.core.estimation.KalmanVelocity`);
+4. the model's open-loop prediction (the 'simulated' curve);
+5. safety checks (:mod:`spm_console.run.safety`), telemetry to ``on_sample`` and
+   the run log.
+
+Any stop — E-stop request, tracking error, n consecutive communication failures,
+servo hardware error, position outside the region + margin or outside the servo
+limits — applies the profile's ``safety.stop_action`` at once (hold: the measured
+position becomes the goal, written again at the next deadline; torque_off) and
+ends the run with that stop's exit code. Degrees and seconds throughout.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
+from spm_console.core.plan import Plan
+from spm_console.core.servo_model import discretize
+from spm_console.devices.base import CommError, ServoBus
+from spm_console.errors import BadInputError, BusError, ExitCode, SpmError
+from spm_console.profile import Profile
+from spm_console.run.runlog import RunLog
+from spm_console.run.safety import SafetyMonitor, StopReason
+from spm_console.run.sample import Sample
+from spm_console.run.stats import run_stats
+
+F = NDArray[np.float64]
+BusFailure = (CommError, OSError)
+"""What counts as one failed bus transaction (a serial exception is an OSError)."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One part of a run: a phase name and the plan streamed in it."""
+
+    phase: str
+    plan: Plan
+
+
+@dataclass
+class ExecutionResult:
+    """What a run did (STYLE §8: an object, not a tuple)."""
+
+    outcome: Literal["completed", "stopped"]
+    exit_code: ExitCode
+    message: str
+    log_dir: Path | None
+    stop: StopReason | None = None
+    final_deg: F | None = None
+    """Last measured position, deg."""
+    stats: dict[str, Any] = field(default_factory=dict)
+    """Sample count, jitter, bus time, retries, tracking RMS …"""
+
+    @property
+    def ok(self) -> bool:
+        return self.outcome == "completed"
+
+
+class Executor:
+    """Streams plans to a :class:`ServoBus` under the profile's safety rules.
+
+    ``on_sample`` is called from the loop thread after every cycle (keep it quick);
+    :meth:`request_estop` may be called from any thread.
+    """
+
+    def __init__(
+        self,
+        profile: Profile,
+        bus: ServoBus,
+        *,
+        log: RunLog | None = None,
+        on_sample: Callable[[Sample], None] | None = None,
+        on_start: Callable[[], None] | None = None,
+        read_retries: int = 1,
+        hw_poll_every: int = 1,
+        start_tolerance_deg: float = 1.0,
+        spin_s: float = 0.0015,
+        clock: Callable[[], float] = time.perf_counter,
+    ) -> None:
+        self.profile = profile
+        self.bus = bus
+        self.log = log
+        self.on_sample = on_sample
+        self.on_start = on_start
+        self.read_retries = read_retries
+        self.hw_poll_every = max(1, hw_poll_every)
+        self.start_tolerance_deg = start_tolerance_deg
+        self.spin_s = spin_s
+        self.clock = clock
+        self.ts = profile.servo.ts_s
+        self.model = discretize(profile.servo.p, self.ts, profile.servo.discretization)
+        self.lo = np.array([j.min_deg for j in profile.bus.joints])
+        self.hi = np.array([j.max_deg for j in profile.bus.joints])
+        self._estop = threading.Event()
+        self._estop_reason = ""
+        self._t0 = 0.0
+        self.samples: list[Sample] = []
+
+    # ------------------------------------------------------------------ control
+    def request_estop(self, reason: str = "operator request") -> None:
+        """Thread-safe: stop at once (wakes the loop if it is waiting for a deadline)."""
+        self._estop_reason = reason
+        self._estop.set()
+
+    def _now(self) -> float:
+        return self.clock() - self._t0
+
+    def _event(self, name: str, /, **data: Any) -> None:
+        if self.log is not None:
+            self.log.event(name, self._now(), **data)
+
+    def _wait_until(self, deadline: float) -> None:
+        """Sleep (interruptible by E-stop), then spin the last ``spin_s`` for precision."""
+        while True:
+            rem = deadline - self.clock()
+            if rem <= 0.0 or self._estop.is_set():
+                return
+            if rem > self.spin_s:
+                self._estop.wait(rem - self.spin_s)
+            else:
+                time.sleep(0)
+
+    # ------------------------------------------------------------------ checks
+    def check_plan(self, segments: Sequence[Segment]) -> None:
+        """Refuse plans with the wrong Ts or references outside the servo limits."""
+        if not segments:
+            raise BadInputError("nothing to execute: no plan segments")
+        for seg in segments:
+            plan = seg.plan
+            if abs(plan.Ts - self.ts) > 1e-9:
+                raise BadInputError(
+                    f"{seg.phase}: plan sampled at Ts = {plan.Ts} s but the profile's servo "
+                    f"runs at Ts = {self.ts} s; re-plan with this profile"
+                )
+            ref = plan.reference_deg
+            if ref.ndim != 2 or ref.shape[1] != 3 or not np.all(np.isfinite(ref)):
+                raise BadInputError(f"{seg.phase}: references must be finite (N+1, 3) angles")
+            bad = (ref < self.lo) | (ref > self.hi)
+            if bad.any():
+                k, i = (int(x) for x in np.argwhere(bad)[0])
+                raise BadInputError(
+                    f"{seg.phase}: reference θ{i + 1}({k}) = {ref[k, i]:.2f}° is outside the "
+                    f"servo limits [{self.lo[i]:.1f}, {self.hi[i]:.1f}]°; nothing was moved"
+                )
+
+    def read_initial(self, attempts: int = 3) -> F:
+        """Measured position before any motion; BusError if the servos stay silent."""
+        last = ""
+        for _ in range(attempts):
+            try:
+                return np.asarray(self.bus.read_position_deg(), float)
+            except BusFailure as exc:
+                last = str(exc) or type(exc).__name__
+        raise BusError(f"no position reply from the servos after {attempts} tries ({last}); "
+                       "check power, wiring, baud rate and ids (`spm-console servo ping`)")
+
+    # ------------------------------------------------------------------ the loop
+    def run(self, segments: Sequence[Segment], theta0_deg: F | None = None) -> ExecutionResult:
+        """Execute the segments back to back; returns when done or stopped."""
+        self.check_plan(segments)
+        theta0 = self.read_initial() if theta0_deg is None else np.asarray(theta0_deg, float)
+        start = segments[0].plan.reference_deg[0]
+        gap = float(np.abs(theta0 - start).max())
+        if gap > self.start_tolerance_deg:
+            raise BadInputError(
+                f"the wrist is at θ = {np.round(theta0, 2).tolist()}° but the plan starts at "
+                f"{np.round(start, 2).tolist()}° ({gap:.2f}° away, tolerance "
+                f"{self.start_tolerance_deg}°); move there first (execute adds an approach move)"
+            )
+        refs = np.vstack([s.plan.reference_deg for s in segments])
+        phases = [s.phase for s in segments for _ in range(s.plan.N + 1)]
+        regions = [s.plan.region for s in segments for _ in range(s.plan.N + 1)]
+        self._event("start", theta0_deg=theta0, cycles=len(refs),
+                    segments=[(s.phase, s.plan.kind, s.plan.N) for s in segments])
+        stop: StopReason | None = None
+        try:
+            stop = self._preflight(theta0)
+            if stop is None:
+                stop = self._loop(refs, phases, regions, theta0)
+        except KeyboardInterrupt:
+            stop = SafetyMonitor.estop("interrupted (Ctrl-C)", self._now(), len(self.samples))
+            self._apply_stop(stop, self._hold_target(theta0), deadline=None)
+        except BaseException as exc:
+            # A bug: leave the robot safe and the log complete, then re-raise.
+            with contextlib.suppress(Exception):
+                self._apply_stop(SafetyMonitor.estop(f"internal error: {exc!r}", self._now(),
+                                                     len(self.samples)),
+                                 self._hold_target(theta0), deadline=None)
+            self._finish("error", ExitCode.INTERNAL, f"internal error: {exc!r}", None)
+            raise
+        if stop is None:
+            msg = f"executed {len(refs)} cycles ({len(refs) * self.ts:.2f} s)"
+            self._event("done", message=msg)
+            return self._finish("completed", ExitCode.OK, msg, None)
+        return self._finish("stopped", stop.exit_code, stop.message, stop)
+
+    def _preflight(self, theta0: F) -> StopReason | None:
+        """Hardware errors before motion; then seed the goal at θ0 and torque on."""
+        safety = SafetyMonitor(self.profile)
+        try:
+            hw = self.bus.hardware_errors()
+        except BusFailure as exc:
+            return StopReason("comm", f"cannot read the servos' hardware error status: {exc}",
+                              0.0, 0)
+        reason = safety.hardware(hw, 0.0, 0)
+        if reason is not None:
+            self._event("fault", kind=reason.kind, message=reason.message, errors=hw)
+            return reason
+        try:
+            self.bus.write_goal_deg(theta0)  # reseed the goal before torque on: no lunge
+            self.bus.set_torque(True)
+        except BusFailure as exc:
+            raise BusError(f"cannot enable torque: {exc}") from None
+        self._event("torque_on", goal_deg=theta0)
+        return None
+
+    def _loop(self, refs: F, phases: list[str], regions: list[Any], theta0: F) -> StopReason | None:
+        safety = SafetyMonitor(self.profile)
+        self.safety = safety
+        kf = KalmanVelocity(self.model, theta0, self.profile.estimation.measurement_noise_deg,
+                            self.profile.estimation.process_noise_deg)
+        fd = FiniteDifference(self.ts)
+        pred = ModelPredictor(self.model, theta0)
+        last_good = theta0.copy()
+        self._t0 = self.clock() + 0.002
+        if self.on_start is not None:
+            self.on_start()
+        for k in range(len(refs)):
+            deadline = self._t0 + k * self.ts
+            self._wait_until(deadline)
+            t_start = self.clock()
+            t = t_start - self._t0
+            if self._estop.is_set():
+                estop = SafetyMonitor.estop(self._estop_reason, t, k)
+                self._apply_stop(estop, self._hold_target(last_good), deadline + self.ts)
+                return estop
+            ref = refs[k]
+            z, retries, detail = self._cycle_io(ref)
+            bus_s = self.clock() - t_start
+            if z is not None:
+                last_good = z
+            filt, vel = (kf.position_deg, kf.velocity_degps) if k == 0 else kf.step(refs[k - 1], z)
+            fdv = fd.step(z)
+            p_pos, p_vel = pred.position_deg, pred.velocity_degps
+            stop: StopReason | None = safety.comm(z is not None, retries, t, k, detail)
+            if stop is None and z is not None:
+                stop = safety.position(z, p_pos, regions[k], t, k)
+            if stop is None and k % self.hw_poll_every == 0:
+                stop = self._poll_hw(safety, t, k)
+            meas = z if z is not None else np.full(3, np.nan)
+            err = float(np.abs(meas - p_pos).max()) if z is not None else float("nan")
+            sample = Sample(t=t, k=k, phase=phases[k], reference_deg=ref, measured_deg=meas,
+                            predicted_deg=p_pos, predicted_velocity_degps=p_vel,
+                            filtered_deg=filt, velocity_degps=vel, fd_velocity_degps=fdv.copy(),
+                            tracking_error_deg=err, bus_s=bus_s, late_s=t_start - deadline,
+                            retries=retries)
+            self._publish(sample)
+            if stop is not None:
+                self._apply_stop(stop, self._hold_target(last_good), deadline + self.ts)
+                return stop
+            pred.advance(ref)
+        return None
+
+    def _cycle_io(self, ref: F) -> tuple[F | None, int, str]:
+        """Write θ*(k), read θ(k) with retries: (θ or None, failed attempts, last error)."""
+        detail = ""
+        try:
+            self.bus.write_goal_deg(ref)
+        except BusFailure as exc:
+            detail = f"write failed: {exc}"
+            self._event("comm_retry", op="write", error=str(exc))
+        failed = 0
+        for _ in range(1 + self.read_retries):
+            try:
+                return np.asarray(self.bus.read_position_deg(), float), failed, ""
+            except BusFailure as exc:
+                failed += 1
+                detail = str(exc) or type(exc).__name__
+                self._event("comm_retry", op="read", error=detail)
+        self._event("comm_fail", error=detail, attempts=failed)
+        return None, failed, detail
+
+    def _poll_hw(self, safety: SafetyMonitor, t: float, k: int) -> StopReason | None:
+        try:
+            errors = self.bus.hardware_errors()
+        except BusFailure as exc:
+            self._event("comm_retry", op="hardware_errors", error=str(exc))
+            return None
+        return safety.hardware(errors, t, k)
+
+    def _publish(self, sample: Sample) -> None:
+        self.samples.append(sample)
+        if self.log is not None:
+            self.log.sample(sample)
+        if self.on_sample is not None:
+            try:
+                self.on_sample(sample)
+            except Exception as exc:  # a UI bug must not stop the servo loop
+                self._event("callback_error", error=repr(exc))
+                self.on_sample = None
+
+    # ------------------------------------------------------------------ stopping
+    def _hold_target(self, measured: F) -> F:
+        return np.clip(measured, self.lo, self.hi)
+
+    def _apply_stop(self, stop: StopReason, hold: F, deadline: float | None) -> None:
+        """The profile's stop action, issued now (and the hold goal again at ``deadline``)."""
+        self._event("fault", kind=stop.kind, message=stop.message, detected_t=stop.t, k=stop.k)
+        action = self.profile.safety.stop_action
+        t_issue = self._now()
+        notes: list[str] = []
+        if action == "hold":
+            for attempt in range(2):
+                try:
+                    self.bus.write_goal_deg(hold)
+                except (*BusFailure, SpmError) as exc:
+                    notes.append(f"hold write {attempt + 1} failed: {exc}")
+                if attempt == 0 and deadline is not None:
+                    self._wait_until_plain(deadline)
+        else:
+            for attempt in range(3):
+                try:
+                    self.bus.set_torque(False)
+                    break
+                except (*BusFailure, SpmError) as exc:
+                    notes.append(f"torque off {attempt + 1} failed: {exc}")
+        t_done = self._now()
+        if notes and stop.kind == "comm":
+            notes.append("the servos' Bus Watchdog stops them if the link is down")
+        self._event("stop", kind=stop.kind, action=action, hold_deg=hold if action == "hold"
+                    else None, detected_t=stop.t, issued_t=t_issue, done_t=t_done, notes=notes,
+                    exit_code=int(stop.exit_code))
+        self.stop_timing = (stop.t, t_issue, t_done)
+
+    def _wait_until_plain(self, deadline: float) -> None:
+        while (rem := deadline - self.clock()) > 0:
+            time.sleep(min(rem, 0.002))
+
+    def _finish(self, outcome: str, code: ExitCode, message: str,
+                stop: StopReason | None) -> ExecutionResult:
+        stats = run_stats(self.samples, self.ts)
+        if hasattr(self, "safety"):
+            stats.update(comm_retries=self.safety.comm_retries,
+                         comm_failed_cycles=self.safety.comm_failed_cycles)
+        if stop is not None:
+            stats["stop"] = {"kind": stop.kind, "detected_t": stop.t, "k": stop.k}
+            timing = getattr(self, "stop_timing", None)
+            if timing is not None:
+                stats["stop"].update(issued_t=timing[1], done_t=timing[2])
+        if self.log is not None:
+            self.log.finish(outcome, int(code), message, stats)
+        final = next((s.measured_deg for s in reversed(self.samples) if s.read_ok), None)
+        return ExecutionResult(
+            outcome="completed" if outcome == "completed" else "stopped",
+            exit_code=code, message=message,
+            log_dir=self.log.path if self.log is not None else None,
+            stop=stop, final_deg=final, stats=stats,
+        )

@@ -1,0 +1,96 @@
+"""Simple executor plans built here: straight-line moves (homing, approach) and a
+clearly-named synthetic smooth plan for tests and benchmarks.
+
+Optimal plans (MVN, minimum time) come from the planning module; these are the
+plain motions the executor needs around them. Each plan carries the servo
+model's positions and velocities under its references (model (28), at rest at the
+start), like a solved plan. Degrees, deg/s, seconds.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.estimation import ModelPredictor
+from spm_console.core.plan import Plan
+from spm_console.core.region import Region
+from spm_console.core.servo_model import ServoModel, discretize
+from spm_console.profile import Profile
+
+F = NDArray[np.float64]
+
+
+def servo_model_of(profile: Profile) -> ServoModel:
+    s = profile.servo
+    return discretize(s.p, s.ts_s, s.discretization)
+
+
+def limits_region(profile: Profile) -> Region:
+    """The box of the servo software limits (bus.joints min/max), deg."""
+    lo = np.array([j.min_deg for j in profile.bus.joints])
+    hi = np.array([j.max_deg for j in profile.bus.joints])
+    return Region(np.vstack([np.eye(3), -np.eye(3)]), np.concatenate([hi, -lo]))
+
+
+def settle_samples(profile: Profile) -> int:
+    """Samples to hold the final reference: 10/p s, when (27)'s lag is below 1e-3 of a step."""
+    return max(1, math.ceil(10.0 / profile.servo.p / profile.servo.ts_s))
+
+
+def plan_from_references(
+    profile: Profile,
+    reference_deg: F,
+    kind: Literal["synthetic", "homing"],
+    region: Region | None = None,
+    extra: dict[str, object] | None = None,
+) -> Plan:
+    """Wrap references (N+1, 3) with the model's simulated positions and velocities."""
+    model = servo_model_of(profile)
+    ref = np.asarray(reference_deg, float)
+    pred = ModelPredictor(model, ref[0])
+    pos = np.empty_like(ref)
+    vel = np.empty_like(ref)
+    for k in range(len(ref)):
+        pos[k], vel[k] = pred.position_deg, pred.velocity_degps
+        pred.advance(ref[k])
+    return Plan(
+        kind=kind, Ts=model.ts, reference_deg=ref, position_deg=pos, velocity_degps=vel,
+        region=region if region is not None else limits_region(profile),
+        model=model.to_dict(), profile_hash=profile.digest(), extra=dict(extra or {}),
+    )
+
+
+def line_plan(profile: Profile, start_deg: F, goal_deg: F, speed_degps: float) -> Plan:
+    """Straight line in θ from start to goal, the farthest joint at ``speed_degps``.
+
+    References ramp at constant speed (all joints arrive together), then hold the
+    goal for :func:`settle_samples`. The model (27) is critically damped, so its
+    speed under a ramp rises monotonically to the ramp speed and never exceeds it.
+    """
+    a = np.asarray(start_deg, float)
+    b = np.asarray(goal_deg, float)
+    ts = profile.servo.ts_s
+    dist = float(np.abs(b - a).max())
+    n_move = max(1, math.ceil(dist / speed_degps / ts))
+    s = np.minimum(np.arange(n_move + 1 + settle_samples(profile)) / n_move, 1.0)
+    ref = a + s[:, None] * (b - a)
+    return plan_from_references(profile, ref, "homing",
+                                extra={"speed_degps": speed_degps, "move_samples": n_move})
+
+
+def synthetic_plan(profile: Profile, start_deg: F, goal_deg: F, duration_s: float) -> Plan:
+    """SYNTHETIC (not optimal): quintic minimum-jerk references from start to goal in
+    ``duration_s``, then the goal held while the servos settle. For tests and benchmarks
+    when no solved plan is at hand."""
+    a = np.asarray(start_deg, float)
+    b = np.asarray(goal_deg, float)
+    ts = profile.servo.ts_s
+    n_move = max(1, round(duration_s / ts))
+    s = np.minimum(np.arange(n_move + 1 + settle_samples(profile)) / n_move, 1.0)
+    shape = 10 * s**3 - 15 * s**4 + 6 * s**5
+    ref = a + shape[:, None] * (b - a)
+    return plan_from_references(profile, ref, "synthetic", extra={"duration_s": duration_s})

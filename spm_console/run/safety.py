@@ -1,0 +1,156 @@
+"""Safety checks of the executor (pure logic over the profile's ``safety`` section).
+
+Each check returns a :class:`StopReason` (kind, exit code, operator message) or
+``None``. The executor applies the profile's stop action when one fires.
+Angles in degrees, times in seconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.region import Region
+from spm_console.errors import ExitCode
+from spm_console.profile import Profile
+
+F = NDArray[np.float64]
+
+StopKind = Literal["estop", "tracking", "comm", "hw_error", "region", "limit"]
+
+EXIT_CODES: dict[str, ExitCode] = {
+    "estop": ExitCode.STOP_ESTOP,
+    "tracking": ExitCode.STOP_TRACKING,
+    "comm": ExitCode.STOP_COMM,
+    "hw_error": ExitCode.STOP_HW_ERROR,
+    "region": ExitCode.STOP_REGION,
+    "limit": ExitCode.STOP_LIMIT,
+}
+
+#: Hardware Error Status bits of the MX-106 (address 70, protocol 2.0).
+HW_ERROR_BITS = {
+    0: "input voltage",
+    2: "overheating",
+    3: "motor encoder",
+    4: "electrical shock",
+    5: "overload",
+}
+
+
+def describe_hw_error(bits: int) -> str:
+    names = [name for b, name in HW_ERROR_BITS.items() if bits & (1 << b)]
+    other = bits & ~sum(1 << b for b in HW_ERROR_BITS)
+    if other:
+        names.append(f"unknown bits 0x{other:02X}")
+    return ", ".join(names) or "none"
+
+
+@dataclass(frozen=True)
+class StopReason:
+    """Why the executor stops."""
+
+    kind: StopKind
+    message: str
+    """Operator message: what happened, where, and what to do."""
+    t: float
+    """Detection time since the run's first deadline, s."""
+    k: int
+    """Cycle of detection."""
+
+    @property
+    def exit_code(self) -> ExitCode:
+        return EXIT_CODES[self.kind]
+
+
+def _vec(v: F, digits: int = 2) -> str:
+    return "[" + ", ".join(f"{float(x):.{digits}f}" for x in np.ravel(v)) + "]"
+
+
+class SafetyMonitor:
+    """Stateful checks: tracking, region, servo limits, communication, hardware errors."""
+
+    def __init__(self, profile: Profile) -> None:
+        self.cfg = profile.safety
+        self.lo = np.array([j.min_deg for j in profile.bus.joints])
+        self.hi = np.array([j.max_deg for j in profile.bus.joints])
+        self.ids = [j.id for j in profile.bus.joints]
+        self.comm_streak = 0
+        """Consecutive failed cycles."""
+        self.comm_failed_cycles = 0
+        self.comm_retries = 0
+        self.max_tracking_error_deg = 0.0
+
+    def comm(self, ok: bool, retries: int, t: float, k: int, detail: str = "") -> StopReason | None:
+        """Count one cycle's bus outcome; stop after ``comm_failures`` failed cycles in a row."""
+        self.comm_retries += retries
+        if ok:
+            self.comm_streak = 0
+            return None
+        self.comm_streak += 1
+        self.comm_failed_cycles += 1
+        n = self.cfg.comm_failures
+        if self.comm_streak >= n:
+            return StopReason(
+                "comm",
+                f"communication lost: {n} consecutive bus cycles without a valid reply "
+                f"(last: {detail or 'no status packet'}); check the cable, power and port",
+                t, k,
+            )
+        return None
+
+    def position(
+        self, measured: F, predicted: F, region: Region, t: float, k: int
+    ) -> StopReason | None:
+        """Servo limits, then region P + margin, then tracking error against the model."""
+        out = (measured < self.lo) | (measured > self.hi)
+        if out.any():
+            i = int(np.argmax(out))
+            return StopReason(
+                "limit",
+                f"joint {i + 1} measured at {measured[i]:.2f}° is outside its servo limits "
+                f"[{self.lo[i]:.1f}, {self.hi[i]:.1f}]° (θ = {_vec(measured)}°)",
+                t, k,
+            )
+        excursion = float(region.violation_deg(measured))
+        if excursion > self.cfg.region_margin_deg:
+            return StopReason(
+                "region",
+                f"position θ = {_vec(measured)}° left the plan's region by {excursion:.2f}° "
+                f"(margin {self.cfg.region_margin_deg:.2f}°)",
+                t, k,
+            )
+        err = np.abs(measured - predicted)
+        e = float(err.max())
+        self.max_tracking_error_deg = max(self.max_tracking_error_deg, e)
+        if e > self.cfg.tracking_error_deg:
+            i = int(np.argmax(err))
+            return StopReason(
+                "tracking",
+                f"tracking error on joint {i + 1}: measured {measured[i]:.2f}° vs model "
+                f"{predicted[i]:.2f}° ({e:.2f}° > {self.cfg.tracking_error_deg:.2f}°); "
+                "the joint is blocked, overloaded or the servo model is wrong",
+                t, k,
+            )
+        return None
+
+    def hardware(self, errors: list[int], t: float, k: int) -> StopReason | None:
+        """Any non-zero Hardware Error Status stops."""
+        bad = [(i, e) for i, e in enumerate(errors) if e]
+        if not bad:
+            return None
+        parts = [f"joint {i + 1} (id {self.ids[i]}): {describe_hw_error(e)} (0x{e:02X})"
+                 for i, e in bad]
+        return StopReason(
+            "hw_error",
+            "servo hardware error: " + "; ".join(parts)
+            + ". The servo must be rebooted (its goal reseeded to the measured position) "
+            "before torque can come back",
+            t, k,
+        )
+
+    @staticmethod
+    def estop(reason: str, t: float, k: int) -> StopReason:
+        return StopReason("estop", f"E-stop: {reason}", t, k)

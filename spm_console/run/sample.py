@@ -1,0 +1,51 @@
+"""One executor cycle's telemetry (what the UI and the run log receive)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+F = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Sample:
+    """Telemetry of cycle k. Angles in degrees, velocities in deg/s, times in seconds.
+
+    ``measured_deg`` is NaN when the bus read of this cycle failed (after retries).
+    """
+
+    t: float
+    """Time of the cycle's start since the run's first deadline, s."""
+    k: int
+    """Cycle index over the whole run (all phases)."""
+    phase: str
+    """Which segment of the run: 'homing', 'approach', 'plan'."""
+    reference_deg: F
+    """θ*(k) sent this cycle (3,)."""
+    measured_deg: F
+    """θ(k) read back (3,), NaN when the read failed."""
+    predicted_deg: F
+    """Model (28) simulated open loop from the start under the references (3,)."""
+    predicted_velocity_degps: F
+    """Model velocity (3,)."""
+    filtered_deg: F
+    """Kalman-filtered position (3,)."""
+    velocity_degps: F
+    """Kalman-filtered velocity (3,)."""
+    fd_velocity_degps: F
+    """Backward finite difference of the measured positions (3,), the baseline."""
+    tracking_error_deg: float
+    """max_i |measured − predicted| (NaN when the read failed)."""
+    bus_s: float
+    """Time spent on the bus this cycle (write + read + retries), s."""
+    late_s: float
+    """How late the cycle started after its absolute deadline, s."""
+    retries: int = 0
+    """Read retries needed this cycle."""
+
+    @property
+    def read_ok(self) -> bool:
+        return bool(np.all(np.isfinite(self.measured_deg)))

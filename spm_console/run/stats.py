@@ -1,0 +1,48 @@
+"""Summary statistics of an executed run (timing, bus, tracking), from its samples."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from spm_console.run.sample import Sample
+
+
+def _pct(x: np.ndarray, q: float) -> float:
+    return float(np.percentile(x, q)) if x.size else float("nan")
+
+
+def run_stats(samples: Sequence[Sample], ts: float) -> dict[str, Any]:
+    """Jitter (ms), bus time per cycle (ms), retries, tracking vs model (deg) of a run.
+
+    Period jitter is |t(k) − t(k−1) − Ts| between consecutive cycle starts;
+    lateness is how late each cycle started after its absolute deadline.
+    """
+    n = len(samples)
+    out: dict[str, Any] = {"samples": n, "duration_s": n * ts}
+    if n == 0:
+        return out
+    t = np.array([s.t for s in samples])
+    late = np.array([s.late_s for s in samples]) * 1e3
+    bus = np.array([s.bus_s for s in samples]) * 1e3
+    jit = np.abs(np.diff(t) - ts) * 1e3
+    ok = np.array([s.read_ok for s in samples])
+    meas = np.array([s.measured_deg for s in samples])
+    pred = np.array([s.predicted_deg for s in samples])
+    err = (meas - pred)[ok]
+    out.update(
+        jitter_ms={"p50": _pct(jit, 50), "p99": _pct(jit, 99),
+                   "max": float(jit.max()) if jit.size else float("nan")},
+        late_ms={"p50": _pct(late, 50), "p99": _pct(late, 99), "max": float(late.max())},
+        bus_ms={"mean": float(bus.mean()), "p99": _pct(bus, 99), "max": float(bus.max())},
+        overruns=int((late > ts * 1e3).sum()),
+        failed_reads=int((~ok).sum()),
+        read_retries=int(sum(s.retries for s in samples)),
+        tracking_rms_deg=float(np.sqrt(np.mean(err**2))) if err.size else float("nan"),
+        tracking_rms_per_joint_deg=(np.sqrt(np.mean(err**2, axis=0)).tolist()
+                                    if err.size else []),
+        tracking_max_deg=float(np.abs(err).max()) if err.size else float("nan"),
+    )
+    return out

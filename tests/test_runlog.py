@@ -1,0 +1,120 @@
+"""Run logs: round trip, outcome rewrite, truncated lines, and a SIGKILLed writer."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.errors import BadInputError
+from spm_console.run.runlog import COLUMNS, LOGS_ENV, RunLog, list_runs, load_run, logs_root
+from spm_console.run.sample import Sample
+
+
+def _sample(k: int, ok: bool = True) -> Sample:
+    base = 100.0 + k
+    return Sample(
+        t=k * 0.02, k=k, phase="plan", reference_deg=np.array([base, base + 1, base + 2]),
+        measured_deg=np.array([base, base, base]) if ok else np.full(3, np.nan),
+        predicted_deg=np.full(3, base + 0.1), predicted_velocity_degps=np.full(3, 5.0),
+        filtered_deg=np.full(3, base + 0.05), velocity_degps=np.array([1.0, 2.0, 3.0]),
+        fd_velocity_degps=np.full(3, 4.0), tracking_error_deg=0.1 if ok else float("nan"),
+        bus_s=0.0012, late_s=0.0001, retries=0 if ok else 2,
+    )
+
+
+def test_round_trip(tmp_path: Path) -> None:
+    log = RunLog.create("execute", "agile_wrist", "abc123", [{"kind": "mvn", "N": 3}],
+                        root=tmp_path, flush_every=2)
+    for k in range(4):
+        log.sample(_sample(k, ok=k != 2))
+    log.event("comm_retry", 0.04, op="read", error="timeout")
+    meta0 = json.loads((log.path / "meta.json").read_text())
+    assert meta0["outcome"] == "running" and meta0["profile"]["hash"] == "abc123"
+    log.finish("completed", 0, "done", {"samples": 4})
+    run = load_run(log.path)
+    assert run.rows == 4 and not run.truncated
+    assert run.meta["outcome"] == "completed" and run.meta["exit_code"] == 0
+    assert run.meta["versions"]["numpy"] == np.__version__
+    assert "start_time" in run.meta and run.meta["end_time"]
+    assert np.allclose(run.vec("ref")[3], [103, 104, 105])
+    assert np.isnan(run.vec("meas")[2]).all() and run.columns["retries"][2] == 2
+    assert np.allclose(run.vec("vel")[0], [1, 2, 3])
+    assert run.events == [{"t": 0.04, "event": "comm_retry", "op": "read", "error": "timeout"}]
+    assert run.phase == ["plan"] * 4
+    assert [r.name for r in list_runs(tmp_path)] == [log.path.name]
+    assert load_run(log.path.name, root=tmp_path).path == log.path
+
+
+def test_truncated_last_line_is_dropped(tmp_path: Path) -> None:
+    log = RunLog.create("execute", "p", "h", [], root=tmp_path)
+    for k in range(3):
+        log.sample(_sample(k))
+    log.close()
+    with (log.path / "samples.csv").open("a") as fh:
+        fh.write("0.06,3,plan,103")  # killed mid-row
+    with (log.path / "events.jsonl").open("a") as fh:
+        fh.write('{"t": 0.1, "eve')
+    run = load_run(log.path)
+    assert run.rows == 3 and run.truncated
+    assert run.meta["outcome"] == "running"
+
+
+def test_unique_folders_and_env_root(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(LOGS_ENV, str(tmp_path / "elsewhere"))
+    assert logs_root() == tmp_path / "elsewhere"
+    a = RunLog.create("home", "p", "h", [])
+    b = RunLog.create("home", "p", "h", [])
+    assert a.path != b.path and a.path.parent == tmp_path / "elsewhere"
+    a.close()
+    b.close()
+    with pytest.raises(BadInputError, match="no run"):
+        load_run("nope")
+
+
+WRITER = """
+import sys, time, numpy as np
+from spm_console.run.runlog import RunLog
+from spm_console.run.sample import Sample
+log = RunLog.create("execute", "p", "h", [], root=sys.argv[1], flush_every=10)
+print(log.path, flush=True)
+k = 0
+while True:
+    v = np.full(3, float(k))
+    log.sample(Sample(t=k * 0.02, k=k, phase="plan", reference_deg=v, measured_deg=v,
+        predicted_deg=v, predicted_velocity_degps=v, filtered_deg=v, velocity_degps=v,
+        fd_velocity_degps=v, tracking_error_deg=0.0, bus_s=0.001, late_s=0.0))
+    if k % 7 == 0:
+        log.event("tick", k * 0.02, k=k)
+    if k == 35:
+        print("flushed", flush=True)
+    k += 1
+    time.sleep(0.002)
+"""
+
+
+def test_sigkill_leaves_a_readable_log(tmp_path: Path) -> None:
+    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path)],
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    path = Path(proc.stdout.readline().strip())
+    assert proc.stdout.readline().strip() == "flushed"
+    time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=10)
+    assert proc.returncode == -signal.SIGKILL
+    run = load_run(path)
+    assert run.meta["outcome"] == "running"  # never finished: shows as such
+    assert run.rows >= 30  # everything up to the last flush (every 10 rows)
+    ks = run.columns["k"]
+    assert np.array_equal(ks, np.arange(len(ks)))  # complete rows, in order, no holes
+    assert np.allclose(run.vec("meas")[:, 0], ks)
+    assert run.events and all(e["event"] == "tick" for e in run.events)
+    assert list(COLUMNS) == (path / "samples.csv").read_text().splitlines()[0].split(",")
