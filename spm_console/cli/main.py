@@ -13,6 +13,7 @@ from spm_console.errors import ExitCode, SpmError
 #: Command modules; each defines ``register(subparsers)`` and sets ``func`` on its parsers.
 COMMAND_MODULES = [
     "spm_console.cli.kin",
+    "spm_console.cli.servo",
 ]
 
 
