@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import linprog
+from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 F = NDArray[np.float64]
 
@@ -43,6 +45,59 @@ class Region:
         A = np.vstack([np.eye(3), -np.eye(3)])
         b = np.concatenate([np.full(3, hi_deg), np.full(3, -lo_deg)])
         return cls(A, b)
+
+    def normalized(self) -> Region:
+        """The same polytope with unit-norm rows (slack then reads in degrees)."""
+        n = np.linalg.norm(self.A, axis=1)
+        return Region(self.A / n[:, None], self.b / n)
+
+    def chebyshev(self) -> tuple[F, float]:
+        """Centre and radius (deg) of the largest ball inside (LP); radius < 0 if empty."""
+        n = np.linalg.norm(self.A, axis=1)
+        A_ub = np.hstack([self.A, n[:, None]])
+        res = linprog(np.r_[0.0, 0.0, 0.0, -1.0], A_ub=A_ub, b_ub=self.b,
+                      bounds=[(None, None)] * 3 + [(None, None)], method="highs")
+        if res.status != 0:
+            return np.full(3, np.nan), -1.0
+        return np.asarray(res.x[:3]), float(res.x[3])
+
+    def redundant_rows(self, tol: float = 1e-7) -> list[int]:
+        """Rows that can be removed without changing the polytope (one LP per row,
+        removed one at a time so duplicated rows keep one copy)."""
+        keep = list(range(self.halfspaces))
+        out = []
+        for k in range(self.halfspaces):
+            others = [j for j in keep if j != k]
+            # maximize a_k θ over the others, capped just above b_k to stay bounded
+            A_ub = np.vstack([self.A[others], self.A[k]])
+            b_ub = np.r_[self.b[others], self.b[k] + 1.0]
+            res = linprog(-self.A[k], A_ub=A_ub, b_ub=b_ub, bounds=[(None, None)] * 3,
+                          method="highs")
+            if res.status == 0 and -res.fun <= self.b[k] + tol * np.linalg.norm(self.A[k]):
+                out.append(k)
+                keep.remove(k)
+        return out
+
+    def without_redundant(self, tol: float = 1e-7) -> Region:
+        """The polytope with every redundant half-space removed."""
+        drop = set(self.redundant_rows(tol))
+        keep = [k for k in range(self.halfspaces) if k not in drop]
+        return Region(self.A[keep], self.b[keep])
+
+    def vertices(self) -> F:
+        """Vertices (n, 3) of the bounded polytope, deg (qhull)."""
+        c, r = self.chebyshev()
+        if r <= 0:
+            return np.zeros((0, 3))
+        hs = HalfspaceIntersection(np.hstack([self.A, -self.b[:, None]]), c)
+        return np.asarray(hs.intersections)
+
+    def volume(self) -> float:
+        """Volume of the bounded polytope, deg³ (0 if empty or flat)."""
+        V = self.vertices()
+        if len(V) < 4:
+            return 0.0
+        return float(ConvexHull(V).volume)
 
     def to_dict(self) -> dict[str, list[list[float]] | list[float]]:
         return {"A": self.A.tolist(), "b": self.b.tolist()}

@@ -1,0 +1,197 @@
+"""``workspace build | show | check | region | verify`` (SPEC §5)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from spm_console.cli.common import add_common, emit, finite3, fmt_vec, info, profile_of
+from spm_console.core.model import link_model_of, model_of
+from spm_console.core.region_build import region_containing
+from spm_console.core.workspace import Workspace, check_theta
+from spm_console.core.workspace_verify import verify_region
+from spm_console.errors import BadInputError, ExitCode
+from spm_console.workspace_cache import CacheInfo, load_or_build
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser("workspace", help="workspace grid, feasible region P, checks")
+    wsub = p.add_subparsers(dest="ws_command", metavar="ACTION", required=True)
+
+    b = wsub.add_parser("build", help="build (or load) the workspace and its region P")
+    _common(b)
+    b.add_argument("--force", action="store_true", help="rebuild even if the cache matches")
+    b.set_defaults(func=cmd_build)
+
+    s = wsub.add_parser("show", help="counts and region P of the cached workspace")
+    _common(s)
+    s.add_argument("--plot", type=Path, metavar="FILE.png", help="save a Fig. 5-like picture")
+    s.set_defaults(func=cmd_show)
+
+    c = wsub.add_parser("check", help="is θ feasible (and inside P)? exit 6 if not feasible")
+    _common(c)
+    c.add_argument("--theta", nargs=3, type=float, required=True, metavar=("T1", "T2", "T3"),
+                   help="motor angles, deg")
+    c.set_defaults(func=cmd_check)
+
+    r = wsub.add_parser("region", help="print P, or a region containing two configurations")
+    _common(r)
+    r.add_argument("--contain", nargs=6, type=float, metavar="DEG",
+                   help="θa (3 values) then θb (3 values), deg")
+    r.add_argument("--out", type=Path, metavar="FILE.json", help="also write {A, b} to a file")
+    r.set_defaults(func=cmd_region)
+
+    v = wsub.add_parser("verify", help="sample P uniformly and check every point exactly")
+    _common(v)
+    v.add_argument("--samples", type=int, default=100_000, help="number of samples (≥ 1)")
+    v.add_argument("--seed", type=int, default=0, help="random seed")
+    v.set_defaults(func=cmd_verify)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    add_common(p)
+    p.add_argument("--cache-dir", type=Path, default=None,
+                   help="cache directory (default $SPM_CONSOLE_CACHE or ~/.cache/spm_console)")
+
+
+def _progress(stage: str, frac: float) -> None:
+    sys.stderr.write(f"\rbuilding workspace: {stage:7s} {100 * frac:5.1f} %")
+    if stage == "done":
+        sys.stderr.write("\n")
+    sys.stderr.flush()
+
+
+def _load(args: argparse.Namespace, force: bool = False) -> tuple[Workspace, CacheInfo]:
+    profile = profile_of(args)
+    prog = _progress if sys.stderr.isatty() else None
+    ws, ci = load_or_build(profile, args.cache_dir, force=force, progress=prog)
+    if not ci.hit:
+        info(f"workspace built in {ci.build_seconds:.2f} s ({ci.rebuilt_because})")
+    if ci.write_error:
+        info(f"warning: {ci.write_error}")
+    return ws, ci
+
+
+def summary(ws: Workspace, ci: CacheInfo) -> dict[str, Any]:
+    """The SPEC §5 record of a workspace."""
+    return {
+        **ws.counts(),
+        "seconds": ws.seconds,
+        "region_seconds": ws.region_seconds,
+        "cache": {"path": str(ci.path), "hit": ci.hit, "rebuilt_because": ci.rebuilt_because,
+                  "load_seconds": ci.load_seconds, "key": ci.key},
+        "region": ws.region.to_dict(),
+        "halfspaces": ws.region.halfspaces,
+        "coverage": ws.coverage(),
+        "grid": {"min_deg": ws.range_deg()[0], "max_deg": ws.range_deg()[1],
+                 "step_deg": ws.step_deg, "zeta_min": ws.zeta_min,
+                 "min_link_distance_mm": ws.min_distance_mm},
+    }
+
+
+def _human(rec: dict[str, Any]) -> str:
+    c = rec["cache"]
+    src = "cache hit" if c["hit"] else f"built ({c['rebuilt_because']})"
+    return "\n".join([
+        f"grid {rec['grid']['min_deg']:g}..{rec['grid']['max_deg']:g}° step "
+        f"{rec['grid']['step_deg']:g}°: {rec['nodes']} nodes",
+        f"feasible {rec['feasible']}, singular {rec['singular']}, colliding {rec['colliding']} "
+        f"(unreached {rec['unreached']}, disconnected {rec['disconnected']})",
+        f"region P: {rec['halfspaces']} half-spaces, covers {100 * rec['coverage']:.1f} % of "
+        f"feasible nodes",
+        f"build {rec['seconds']:.2f} s (region {rec['region_seconds']:.2f} s); {src}: {c['path']}",
+    ])
+
+
+def cmd_build(args: argparse.Namespace) -> int:
+    ws, ci = _load(args, force=args.force)
+    rec = summary(ws, ci)
+    emit(args, rec, _human(rec))
+    return int(ExitCode.OK)
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    ws, ci = _load(args)
+    rec = summary(ws, ci)
+    if args.plot is not None:
+        from spm_console.report.plot_workspace import plot_workspace
+
+        plot_workspace(ws, args.plot)
+        rec["plot"] = str(args.plot)
+        info(f"wrote {args.plot}")
+    emit(args, rec, _human(rec))
+    return int(ExitCode.OK)
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    theta = finite3(args.theta, "--theta")
+    ws, _ = _load(args)
+    c = check_theta(ws, theta)
+    rec = {
+        "theta_deg": c.theta_deg, "feasible": c.feasible, "in_region": c.in_region,
+        "usable": c.usable, "reason": c.reason, "zeta": c.zeta,
+        "min_link_distance_mm": c.min_link_mm, "closest_pair": c.closest_pair,
+        "in_range": c.in_range, "connected": c.connected,
+        "region_slack_deg": c.region_slack_deg,
+    }
+    head = "feasible" + ("" if c.in_region else " but outside P") if c.feasible else "NOT feasible"
+    lines = [f"θ = {fmt_vec(theta, 2)} deg: {head}"]
+    if c.zeta is not None:
+        lines.append(f"ζ = {c.zeta:.3f}, closest links {c.min_link_mm:.1f} mm ({c.closest_pair})")
+    if c.reason:
+        lines.append(c.reason)
+    emit(args, rec, "\n".join(lines))
+    return int(ExitCode.OK if c.feasible else ExitCode.INFEASIBLE)
+
+
+def cmd_region(args: argparse.Namespace) -> int:
+    ws, _ = _load(args)
+    if args.contain is None:
+        region, cached = ws.region, True
+        rec: dict[str, Any] = {}
+    else:
+        vals = list(args.contain)
+        a = finite3(vals[:3], "--contain θa")
+        b = finite3(vals[3:], "--contain θb")
+        region = region_containing(ws, a, b)
+        cached = region is ws.region
+        rec = {"theta_a_deg": a, "theta_b_deg": b}
+    feas = ws.theta_deg()[ws.feasible]
+    cov = float(region.contains(feas, tol=1e-7).mean()) if len(feas) else 0.0
+    rec.update({"region": region.to_dict(), "halfspaces": region.halfspaces,
+                "cached_region": cached, "coverage": cov})
+    if args.out is not None:
+        try:
+            args.out.write_text(json.dumps(region.to_dict()) + "\n")
+        except OSError as exc:
+            raise BadInputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
+    human = (f"{'cached P' if cached else 'new region'}: {region.halfspaces} half-spaces, "
+             f"covers {100 * cov:.1f} % of feasible nodes")
+    emit(args, rec, human)
+    return int(ExitCode.OK)
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    if args.samples < 1:
+        raise BadInputError("--samples must be at least 1")
+    ws, _ = _load(args)
+    assert ws.profile is not None
+    r = verify_region(ws, model_of(ws.profile), link_model_of(ws.profile), n=args.samples,
+                      seed=args.seed)
+    rec = {
+        "samples": r.samples, "infeasible": r.infeasible,
+        "fraction_infeasible": r.fraction_infeasible, "fk_failures": r.fk_failures,
+        "singular": r.singular, "colliding": r.colliding, "min_zeta": r.min_zeta,
+        "min_link_distance_mm": r.min_link_mm, "min_link_pair": r.min_link_pair,
+        "worst_theta_deg": r.worst_theta_deg, "worst_violation": r.worst_violation,
+        "seconds": r.seconds, "halfspaces": ws.region.halfspaces,
+    }
+    human = (f"{r.samples} samples in P: {r.infeasible} infeasible "
+             f"({100 * r.fraction_infeasible:.3f} %); min ζ {r.min_zeta:.3f} "
+             f"(ζ_min {ws.zeta_min:g}), min link distance {r.min_link_mm:.1f} mm "
+             f"(2δ {ws.min_distance_mm:g} mm, {r.min_link_pair}); {r.seconds:.1f} s")
+    emit(args, rec, human)
+    return int(ExitCode.OK if r.infeasible == 0 else ExitCode.ASSERTION_FAILED)

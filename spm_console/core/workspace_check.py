@@ -1,0 +1,237 @@
+"""Exact pointwise checks against a built workspace: FK by continuation from the
+nearest solved grid node, ζ, link distances, grid range, home connectivity, P.
+
+Continuation from a grid node (its pose was itself tracked from home by the flood
+fill) to a point within the node's cell is a short predictor-corrector path; it is
+refused, like :meth:`SpmModel.track`, when det J1 or a J2 diagonal entry changes
+sign or ζ drops below the path floor. Angles in degrees at the interface.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.jacobian import conditioning_index, j1_matrix, j2_diag
+from spm_console.core.kinematics import (
+    PATH_ZETA_FLOOR,
+    SpmModel,
+    newton,
+    orthonormalize,
+    platform_axes,
+)
+from spm_console.core.links import LinkModel
+from spm_console.core.rotations import expm_so3
+
+if TYPE_CHECKING:
+    from spm_console.core.workspace import Workspace
+
+F = NDArray[np.float64]
+B = NDArray[np.bool_]
+
+#: Largest continuation step from a grid node, rad.
+STEP_RAD = np.radians(0.5)
+#: Points per chunk in batched checks (bounds memory).
+CHUNK = 20_000
+
+
+def track_from(model: SpmModel, th0: F, R0: F, th1: F, steps: int) -> tuple[F, B]:
+    """Vectorized continuation, row k from (th0[k], R0[k]) to th1[k] (rad) in ``steps``
+    equal steps. Returns (R (n, 3, 3), ok (n,)); ok is False where the corrector
+    failed or the path left the home assembly/working modes."""
+    R = R0.copy()
+    th = th0.copy()
+    ok = np.isfinite(R).all((-2, -1))
+    R[~ok] = np.eye(3)
+    u, geom = model.u, model.geom
+    for k in range(1, steps + 1):
+        th_new = th0 + (th1 - th0) * (k / steps)
+        w_old = geom.w(th)
+        v_old = platform_axes(R, model.v_home)
+        rhs = j2_diag(u, v_old, w_old) * (th_new - th)
+        with np.errstate(all="ignore"):
+            om = np.linalg.solve(j1_matrix(v_old, w_old), rhs[..., None])[..., 0]
+        Rp = expm_so3(np.where(np.isfinite(om), om, 0.0)) @ R
+        w_new = geom.w(th_new)
+        Rc, res = newton(geom, w_new, Rp, model.v_home)
+        Rc = orthonormalize(np.where(np.isfinite(Rc), Rc, np.eye(3)))
+        v = platform_axes(Rc, model.v_home)
+        z = conditioning_index(u, v, w_new)
+        d1 = np.linalg.det(j1_matrix(v, w_new)) * model.det_j1_sign
+        d2 = j2_diag(u, v, w_new) * model.working_signs
+        corr = np.linalg.norm(Rc - Rp, axis=(-2, -1))
+        good = (res < 1e-10) & (corr < 0.05) & (d1 > 0) & (d2 > 0).all(-1) & (z >= PATH_ZETA_FLOOR)
+        ok &= good
+        R, th = Rc, th_new
+    return R, np.asarray(ok, bool)
+
+
+@dataclass(frozen=True)
+class PointChecks:
+    """Exact checks of many θ (arrays of length n)."""
+
+    theta_deg: F
+    in_range: B
+    """Inside the grid box."""
+    start_feasible: B
+    """The node the continuation started from is home-connected feasible."""
+    fk_ok: B
+    """FK tracked to θ in the home modes."""
+    R: F
+    """Solved rotations (n, 3, 3) (meaningful where fk_ok)."""
+    zeta: F
+    """ζ (0 where FK failed)."""
+    min_link_mm: F
+    """Closest inter-leg link distance, mm (NaN where FK failed)."""
+    closest_pair: NDArray[np.int64]
+    """Index into LinkModel.pairs() (−1 where FK failed)."""
+
+    def pointwise_ok(self, zeta_min: float, dist_min: float) -> B:
+        with np.errstate(invalid="ignore"):
+            return np.asarray(
+                self.in_range & self.fk_ok & (self.zeta >= zeta_min)
+                & (self.min_link_mm >= dist_min)
+            )
+
+
+def _start_nodes(ws: Workspace, th_deg: F) -> tuple[NDArray[np.int64], B]:
+    """Flat index of the grid node to continue from for each θ, and whether it is
+    home-connected feasible. Preference: feasible corners of θ's cell (nearest
+    first), then any reached corner, then the nearest node."""
+    shape = ws.shape
+    a0 = np.array([a[0] for a in ws.axes_deg])
+    rel = (th_deg - a0) / ws.step_deg
+    base = np.floor(rel).astype(np.int64)
+    frac = rel - base
+    klass = ws.klass.ravel()
+    best = np.full(len(th_deg), -1, np.int64)
+    score = np.full(len(th_deg), np.inf)
+    for corner in range(8):
+        off = np.array([(corner >> i) & 1 for i in range(3)])
+        idx = np.clip(base + off, 0, np.array(shape) - 1)
+        flat = np.ravel_multi_index(idx.T, shape)
+        dist = np.abs(frac - off).sum(-1)
+        k = klass[flat]
+        pen = np.where(k == 0, 0.0, np.where(np.isfinite(ws.R.reshape(-1, 9)[flat]).all(-1), 10.0,
+                                             np.inf))
+        s = dist + pen
+        better = s < score
+        best[better], score[better] = flat[better], s[better]
+    fallback = ~np.isfinite(score)
+    if fallback.any():
+        near = np.clip(np.rint(rel[fallback]).astype(np.int64), 0, np.array(shape) - 1)
+        best[fallback] = np.ravel_multi_index(near.T, shape)
+    feas = klass[best] == 0
+    return best, np.asarray(feas)
+
+
+def check_points(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F) -> PointChecks:
+    """Exact checks of θ (n, 3) deg, continuation from the nearest solved grid node."""
+    th_deg = np.atleast_2d(np.asarray(theta_deg, float))
+    n = len(th_deg)
+    lo, hi = ws.range_deg()
+    in_range = np.all((th_deg >= lo - 1e-9) & (th_deg <= hi + 1e-9), -1)
+    node, feas = _start_nodes(ws, th_deg)
+    R_nodes = ws.R.reshape(-1, 3, 3)
+    node_th = np.radians(ws.theta_deg().reshape(-1, 3)[node])
+    th = np.radians(th_deg)
+    R_all = np.empty((n, 3, 3))
+    ok_all = np.zeros(n, bool)
+    for s in range(0, n, CHUNK):
+        sl = slice(s, s + CHUNK)
+        span = float(np.abs(th[sl] - node_th[sl]).max()) if n else 0.0
+        steps = max(1, int(np.ceil(span / STEP_RAD)))
+        R, ok = track_from(model, node_th[sl], R_nodes[node[sl]], th[sl], steps)
+        R_all[sl], ok_all[sl] = R, ok
+    # poses from home for rows whose start node was unreached
+    for k in np.flatnonzero(~np.isfinite(R_nodes[node]).all((-2, -1))):
+        r = model.track(th[k])
+        ok_all[k] = r.ok
+        if r.pose is not None:
+            R_all[k] = r.pose.R
+    w = model.geom.w(th)
+    v = platform_axes(R_all, model.v_home)
+    zeta = np.where(ok_all, conditioning_index(model.u, v, w), 0.0)
+    dmin = np.full(n, np.nan)
+    pair = np.full(n, -1, np.int64)
+    idx = np.flatnonzero(ok_all)
+    for s in range(0, len(idx), 1024):
+        sel = idx[s : s + 1024]
+        d = links.pair_distances(model.u, w[sel], v[sel])
+        dmin[sel] = d.min(-1)
+        pair[sel] = d.argmin(-1)
+    return PointChecks(th_deg, in_range, feas, ok_all, R_all, zeta, dmin, pair)
+
+
+def pair_name(links: LinkModel, k: int) -> str:
+    i, s1, j, s2 = links.pairs()[int(k)]
+    return f"leg{i + 1} {s1} - leg{j + 1} {s2}"
+
+
+@dataclass(frozen=True)
+class ThetaCheck:
+    """Is one configuration usable, and if not, why (θ in degrees, mm)."""
+
+    theta_deg: F
+    feasible: bool
+    """In the grid range, FK tracked in the home modes, ζ ≥ ζ_min, links ≥ 2δ apart,
+    and continued from a home-connected feasible grid node."""
+    in_region: bool
+    """Inside the cached convex region P."""
+    reason: str
+    """Why not feasible / not in P (empty when both hold)."""
+    zeta: float | None
+    min_link_mm: float | None
+    closest_pair: str
+    in_range: bool
+    connected: bool
+    region_slack_deg: float
+    """Smallest b − Aθ over P's (unit-norm) rows: negative outside P, deg."""
+    v: F | None
+    """Top axes v1..v3 (rows) when FK succeeded."""
+
+    @property
+    def usable(self) -> bool:
+        """Feasible and inside P: a planner can start or end there."""
+        return self.feasible and self.in_region
+
+
+def check_one(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F) -> ThetaCheck:
+    """Check one θ (deg) against the workspace and its region P."""
+    th = np.asarray(theta_deg, float).reshape(3)
+    pc = check_points(ws, model, links, th[None])
+    zmin, dlim = ws.zeta_min, ws.min_distance_mm
+    lo, hi = ws.range_deg()
+    reasons = []
+    fk_ok = bool(pc.fk_ok[0])
+    z = float(pc.zeta[0]) if fk_ok else None
+    d = float(pc.min_link_mm[0]) if fk_ok else None
+    pair = pair_name(links, int(pc.closest_pair[0])) if fk_ok else ""
+    if not bool(pc.in_range[0]):
+        reasons.append(f"outside the workspace grid [{lo:g}, {hi:g}]°")
+    if not fk_ok:
+        reasons.append("no FK solution in the home assembly mode reachable without crossing "
+                       "a singularity")
+    else:
+        assert z is not None and d is not None
+        if z < zmin:
+            reasons.append(f"singular: ζ = {z:.3f} < ζ_min = {zmin:g}")
+        if d < dlim:
+            reasons.append(f"links collide: {pair} at {d:.1f} mm < 2δ = {dlim:.1f} mm")
+    point_ok = not reasons
+    connected = bool(pc.start_feasible[0])
+    if point_ok and not connected:
+        reasons.append("not connected to home through feasible grid nodes")
+    slack = float(ws.region.normalized().slack(th).min())
+    in_region = slack >= -1e-9
+    if not in_region:
+        reasons.append(f"outside the region P by {-slack:.2f}° (try `workspace region --contain`)")
+    v = platform_axes(pc.R[0], model.v_home) if fk_ok else None
+    return ThetaCheck(
+        theta_deg=th, feasible=point_ok and connected, in_region=in_region,
+        reason="; ".join(reasons), zeta=z, min_link_mm=d, closest_pair=pair,
+        in_range=bool(pc.in_range[0]), connected=connected, region_slack_deg=slack, v=v,
+    )

@@ -1,0 +1,210 @@
+"""On-disk cache of built workspaces: one ``.npz`` file per profile name.
+
+The file stores a key (SHA-256 over everything the result depends on: geometry,
+home, links, workspace grid and thresholds, algorithm constants, format version).
+A different key means stale: rebuild and overwrite. A corrupt or truncated file
+(zip CRC, missing arrays, wrong shapes) gives a clear message and is rebuilt.
+Writes are atomic: a temporary file in the same directory, fsync, ``os.replace``.
+
+Default directory: ``$SPM_CONSOLE_CACHE`` if set, else ``~/.cache/spm_console``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import tempfile
+import time
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spm_console.core import region_build
+from spm_console.core import workspace as core_ws
+from spm_console.core.kinematics import NEWTON_TOL, PATH_ZETA_FLOOR
+from spm_console.core.region import Region
+from spm_console.core.workspace import Progress, Workspace, build_workspace
+from spm_console.errors import CacheError
+from spm_console.profile import Profile
+
+ENV_VAR = "SPM_CONSOLE_CACHE"
+_ARRAYS = ("axis0", "axis1", "axis2", "zeta", "min_link_mm", "closest_pair", "R", "klass",
+           "region_A", "region_b", "meta")
+
+
+@dataclass(frozen=True)
+class CacheInfo:
+    """How a workspace was obtained."""
+
+    path: Path
+    """The cache file."""
+    key: str
+    """Cache key (hex SHA-256)."""
+    hit: bool
+    """True when loaded from the file without rebuilding."""
+    rebuilt_because: str
+    """Empty on a hit; otherwise why it was built ("no cache file", "stale key", "forced",
+    or the corruption found)."""
+    load_seconds: float
+    """Time spent reading the file (0 if none was read), s."""
+    build_seconds: float
+    """Time spent building (0 on a hit), s."""
+    write_error: str = ""
+    """Why the rebuilt result could not be saved (empty if it was)."""
+
+
+def default_cache_dir() -> Path:
+    env = os.environ.get(ENV_VAR)
+    return Path(env) if env else Path.home() / ".cache" / "spm_console"
+
+
+def cache_key(profile: Profile) -> str:
+    """SHA-256 over the profile sections and constants the workspace depends on."""
+    blob = json.dumps({
+        "format": core_ws.FORMAT_VERSION,
+        "sections": profile.section_digest("geometry", "home", "links", "workspace"),
+        "constants": {
+            "path_zeta_floor": PATH_ZETA_FLOOR, "newton_tol": NEWTON_TOL,
+            "connectivity": core_ws.CONNECTIVITY, "volume_tol": region_build.VOLUME_TOL,
+            "max_iters": region_build.MAX_ITERS,
+        },
+    }, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def cache_path(profile: Profile, cache_dir: Path | None = None) -> Path:
+    d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in profile.name)
+    return d / f"workspace-{safe}.npz"
+
+
+def save(ws: Workspace, path: Path, key: str) -> None:
+    """Write atomically (temp file + fsync + rename); raises CacheError on failure."""
+    meta = {
+        "key": key, "format": core_ws.FORMAT_VERSION, "step_deg": ws.step_deg,
+        "zeta_min": ws.zeta_min, "min_distance_mm": ws.min_distance_mm,
+        "home_index": list(ws.home_index), "seconds": ws.seconds,
+        "region_seconds": ws.region_seconds, "region_info": ws.region_info,
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(
+                f, axis0=ws.axes_deg[0], axis1=ws.axes_deg[1], axis2=ws.axes_deg[2],
+                zeta=ws.zeta, min_link_mm=ws.min_link_mm, closest_pair=ws.closest_pair,
+                R=ws.R, klass=ws.klass, region_A=ws.region.A, region_b=ws.region.b,
+                meta=np.array(json.dumps(meta)),
+            )
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+        with contextlib.suppress(OSError):
+            dfd = os.open(path.parent, os.O_RDONLY)
+            try:
+                os.fsync(dfd)
+            finally:
+                os.close(dfd)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise CacheError(f"cannot write workspace cache {path}: {exc.strerror or exc}") from None
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def read_key(path: Path) -> str:
+    """The key stored in a cache file (CacheError if unreadable)."""
+    return str(_read(path, arrays=("meta",))["meta"]["key"])
+
+
+def _read(path: Path, arrays: tuple[str, ...] = _ARRAYS) -> dict[str, Any]:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [a for a in arrays if a not in z.files]
+            if missing:
+                raise CacheError(f"workspace cache {path} is corrupt: missing {', '.join(missing)}")
+            out: dict[str, Any] = {a: z[a] for a in arrays}
+        out["meta"] = json.loads(str(out["meta"]))
+        return out
+    except CacheError:
+        raise
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, json.JSONDecodeError,
+            UnicodeDecodeError) as exc:
+        raise CacheError(f"workspace cache {path} is corrupt or truncated: "
+                         f"{type(exc).__name__}: {exc}") from None
+
+
+def load(path: Path, profile: Profile, key: str) -> Workspace:
+    """Read a cache file; CacheError if corrupt, ``KeyError`` if its key differs,
+    FileNotFoundError if there is none."""
+    if not path.is_file():
+        raise FileNotFoundError(str(path))
+    d = _read(path)
+    meta = d["meta"]
+    if meta.get("key") != key:
+        raise KeyError("stale key")
+    axes = (np.asarray(d["axis0"], float), np.asarray(d["axis1"], float),
+            np.asarray(d["axis2"], float))
+    shape = tuple(len(a) for a in axes)
+    checks = {"zeta": shape, "min_link_mm": shape, "closest_pair": shape, "klass": shape,
+              "R": (*shape, 3, 3)}
+    for name, want in checks.items():
+        if d[name].shape != want:
+            raise CacheError(f"workspace cache {path} is corrupt: {name} has shape "
+                             f"{d[name].shape}, expected {want}")
+    try:
+        region = Region.from_dict({"A": d["region_A"], "b": d["region_b"]})
+        home = tuple(int(i) for i in meta["home_index"])
+        return Workspace(
+            axes_deg=axes, step_deg=float(meta["step_deg"]), zeta=d["zeta"],
+            min_link_mm=d["min_link_mm"], closest_pair=d["closest_pair"], R=d["R"],
+            klass=d["klass"], region=region, zeta_min=float(meta["zeta_min"]),
+            min_distance_mm=float(meta["min_distance_mm"]),
+            home_index=(home[0], home[1], home[2]), seconds=float(meta["seconds"]),
+            region_seconds=float(meta["region_seconds"]),
+            region_info={k: float(v) for k, v in meta["region_info"].items()}, profile=profile,
+        )
+    except (KeyError, ValueError, TypeError, IndexError) as exc:
+        raise CacheError(f"workspace cache {path} is corrupt: bad metadata ({exc})") from None
+
+
+def load_or_build(
+    profile: Profile, cache_dir: Path | str | None = None, force: bool = False,
+    progress: Progress | None = None,
+) -> tuple[Workspace, CacheInfo]:
+    """The profile's workspace from the cache, or built (and cached) when missing,
+    stale, corrupt or ``force``. ``progress(stage, fraction)`` reports a build."""
+    path = cache_path(profile, Path(cache_dir) if cache_dir is not None else None)
+    key = cache_key(profile)
+    why = "forced"
+    load_s = 0.0
+    if not force:
+        t0 = time.perf_counter()
+        try:
+            ws = load(path, profile, key)
+            load_s = time.perf_counter() - t0
+            return ws, CacheInfo(path, key, True, "", load_s, 0.0)
+        except FileNotFoundError:
+            why = "no cache file"
+        except KeyError:
+            why = "stale key (profile or algorithm changed)"
+        except CacheError as exc:
+            why = exc.message
+        load_s = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    ws = build_workspace(profile, progress)
+    build_s = time.perf_counter() - t1
+    write_error = ""
+    try:
+        save(ws, path, key)
+    except CacheError as exc:
+        write_error = exc.message
+    return ws, CacheInfo(path, key, False, why, load_s, build_s, write_error)
