@@ -14,6 +14,7 @@ from spm_console.errors import ExitCode, SpmError
 COMMAND_MODULES = [
     "spm_console.cli.kin",
     "spm_console.cli.servo",
+    "spm_console.cli.workspace",
 ]
 
 
