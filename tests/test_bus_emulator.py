@@ -1,0 +1,163 @@
+"""Our DynamixelBus against the emulated MX-106 bus, over a real pseudo-terminal."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from spm_console.core.servo_model import continuous
+from spm_console.devices.base import CommError, ServoBus
+from spm_console.devices.bus import DynamixelBus, LimitError, open_bus
+from spm_console.devices.emulator import EmulatorHandle, start_emulator
+from spm_console.errors import BusError
+from spm_console.profile import Profile
+
+
+def protocol1(profile: Profile) -> Profile:
+    bus = profile.bus.model_copy(update={"protocol": "1.0", "model_number": 320})
+    return profile.model_copy(update={"bus": bus})
+
+
+@pytest.fixture(params=["2.0", "1.0"])
+def rig(request: pytest.FixtureRequest, agile: Profile) -> Iterator[tuple[EmulatorHandle,
+                                                                          DynamixelBus]]:
+    prof = agile if request.param == "2.0" else protocol1(agile)
+    em = start_emulator(prof)
+    bus = open_bus(prof, em.port)
+    yield em, bus
+    bus.close()
+    em.stop()
+
+
+def test_bus_is_a_servo_bus(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    assert isinstance(rig[1], ServoBus)
+
+
+def test_ping_all_checks_the_model(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    em, bus = rig
+    st = bus.ping_all()
+    want = 321 if bus.protocol == "2.0" else 320
+    assert [(s.id, s.model_number, s.hardware_error) for s in st] == [(i, want, 0) for i in (1, 2, 3)]
+
+
+def test_wrong_model_and_absent_servo_are_bus_errors(rig: tuple[EmulatorHandle, DynamixelBus],
+                                                     agile: Profile) -> None:
+    em, bus = rig
+    wrong = bus.profile.model_copy(update={"bus": bus.profile.bus.model_copy(
+        update={"model_number": 1030})})
+    other = open_bus(wrong, em.port)
+    try:
+        with pytest.raises(BusError, match="model"):
+            other.ping_all()
+    finally:
+        other.close()
+    t0 = time.perf_counter()
+    with pytest.raises(BusError, match="no status packet from servo id 7"):
+        bus.ping(7)
+    assert time.perf_counter() - t0 < 0.5
+
+
+def test_read_home_and_initial_pose(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    em, bus = rig
+    assert np.allclose(bus.read_position_deg(), [135, 135, 135], atol=360 / 4096)
+    em.set_joint_deg([100.0, 120.5, 150.25])
+    assert np.allclose(bus.read_position_deg(), [100.0, 120.5, 150.25], atol=0.5 * 360 / 4096)
+
+
+def test_goal_outside_limits_refused_not_clamped(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    em, bus = rig
+    bus.set_torque(True)
+    with pytest.raises(LimitError, match="joint 2.*outside its limits") as info:
+        bus.write_goal_deg([135.0, 160.5, 135.0])
+    assert info.value.joint == 2 and info.value.limits_deg == (60.0, 160.0)
+    with pytest.raises(LimitError):
+        bus.write_goal_deg([59.9, 135.0, 135.0])
+    with pytest.raises(Exception, match="finite"):
+        bus.write_goal_deg([float("nan"), 135.0, 135.0])
+    time.sleep(0.05)
+    assert [bus.read(i, "goal_position") for i in bus.ids] == [2048, 2048, 2048]
+    assert np.allclose(em.joint_deg(), 135.0)
+
+
+def test_torque_off_servo_does_not_move(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    em, bus = rig
+    bus.write_goal_deg([140.0, 130.0, 135.0])
+    time.sleep(0.15)
+    assert np.allclose(em.joint_deg(), 135.0)
+    assert bus.torque() == [False, False, False]
+
+
+def test_step_follows_closed_loop_model(rig: tuple[EmulatorHandle, DynamixelBus],
+                                        agile: Profile) -> None:
+    em, bus = rig
+    bus.set_torque(True)
+    em.start_clock()
+    bus.write_goal_deg([140.0, 130.0, 135.0])
+    time.sleep(0.25)
+    meas = bus.read_position_deg()
+    truth = em.true_state()
+    assert np.allclose(meas, [140.0, 130.0, 135.0], atol=0.1)  # settled (p = 32 rad/s)
+    # every recorded step of the truth obeys exp(Ac dt) of model (27), independently computed
+    Ac, _ = continuous(agile.servo.p)
+    t, pos, vel = truth["t"], truth["position_deg"], truth["velocity_degps"]
+    # the goal the servos got: whole ticks (140° is tick 2104.89 -> 2105 = 140.0098°)
+    goal = np.array([m.to_deg(g) for m, g in zip(bus.maps, bus.goal_ticks([140, 130, 135]),
+                                                  strict=True)])
+    k0 = int(np.argmax(np.abs(vel[:, 0]) > 0))  # first sample after the goal arrived
+    assert k0 > 0 and t[-1] - t[k0] > 0.2
+    for k in range(k0, len(t) - 1):
+        dt = t[k + 1] - t[k]
+        Phi = expm(Ac * dt)
+        for j in range(2):  # joints that moved
+            x = np.array([pos[k, j] - goal[j], vel[k, j]])
+            x1 = Phi @ x
+            assert x1[0] + goal[j] == pytest.approx(pos[k + 1, j], abs=1e-9)
+            assert x1[1] == pytest.approx(vel[k + 1, j], abs=1e-6)
+    # measured = true position quantized to 4096 ticks per turn
+    assert np.all(np.abs(meas - pos[-1]) <= 0.5 * 360 / 4096 + 1e-9)
+
+
+def test_many_cycles_no_comm_error(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    em, bus = rig
+    bus.set_torque(True)
+    for k in range(100):
+        theta = 135.0 + 5.0 * np.sin(0.1 * k + np.array([0.0, 2.0, 4.0]))
+        bus.write_goal_deg(theta)
+        bus.read_position_deg()
+    assert em.stats.dropped == em.stats.corrupted == 0
+    assert em.stats.rejected_bytes == 0
+
+
+def test_register_access_rules(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    em, bus = rig
+    bus.write(1, "return_delay_time", 0)
+    bus.set_torque(True)
+    with pytest.raises(BusError, match="access error|range error"):
+        bus.write(1, "return_delay_time", 5)  # EEPROM is locked while torque is on
+    with pytest.raises(Exception, match="read-only"):
+        bus.write(1, "present_position", 5)
+    assert bus.read(2, "model_number") == (321 if bus.protocol == "2.0" else 320)
+
+
+def test_comm_error_is_prompt_when_a_servo_is_missing(agile: Profile) -> None:
+    prof = agile.model_copy(update={"bus": agile.bus.model_copy(update={"joints": (
+        agile.bus.joints[0], agile.bus.joints[1],
+        agile.bus.joints[2].model_copy(update={"id": 9}))})})
+    with start_emulator(agile) as em:
+        bus = open_bus(prof, em.port)
+        t0 = time.perf_counter()
+        with pytest.raises(CommError, match="2 of 3"):
+            bus.read_position_deg()
+        assert time.perf_counter() - t0 < 3 * prof.bus.timeout_s + 0.05
+        bus.close()
+
+
+def test_open_bus_on_missing_port(agile: Profile) -> None:
+    with pytest.raises(BusError, match="cannot open serial port /dev/does-not-exist"):
+        open_bus(agile, "/dev/does-not-exist")
+    with pytest.raises(BusError, match="no serial port"):
+        open_bus(agile, "")
