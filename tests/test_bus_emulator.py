@@ -38,7 +38,7 @@ def test_bus_is_a_servo_bus(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
 
 
 def test_ping_all_checks_the_model(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
-    em, bus = rig
+    _em, bus = rig
     st = bus.ping_all()
     want = 321 if bus.protocol == "2.0" else 320
     assert [(s.id, s.model_number, s.hardware_error) for s in st] == [(i, want, 0) for i in (1, 2, 3)]
@@ -71,7 +71,7 @@ def test_read_home_and_initial_pose(rig: tuple[EmulatorHandle, DynamixelBus]) ->
 def test_goal_outside_limits_refused_not_clamped(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
     em, bus = rig
     bus.set_torque(True)
-    with pytest.raises(LimitError, match="joint 2.*outside its limits") as info:
+    with pytest.raises(LimitError, match=r"joint 2.*outside its limits") as info:
         bus.write_goal_deg([135.0, 160.5, 135.0])
     assert info.value.joint == 2 and info.value.limits_deg == (60.0, 160.0)
     with pytest.raises(LimitError):
@@ -133,10 +133,10 @@ def test_many_cycles_no_comm_error(rig: tuple[EmulatorHandle, DynamixelBus]) -> 
 
 
 def test_register_access_rules(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
-    em, bus = rig
+    _em, bus = rig
     bus.write(1, "return_delay_time", 0)
     bus.set_torque(True)
-    with pytest.raises(BusError, match="access error|range error"):
+    with pytest.raises(BusError, match=r"access error|range error"):
         bus.write(1, "return_delay_time", 5)  # EEPROM is locked while torque is on
     with pytest.raises(Exception, match="read-only"):
         bus.write(1, "present_position", 5)

@@ -178,7 +178,7 @@ def test_fault_times_rebase_on_start_clock(agile: Profile) -> None:
 
 
 def test_bus_watchdog_stops_a_servo_when_the_host_goes_quiet(agile: Profile) -> None:
-    with rig(agile) as (em, bus):
+    with rig(agile) as (_em, bus):
         assert bus.set_watchdog(100) == 5
         bus.set_torque(True)
         bus.write_goal_deg([150.0, 150.0, 150.0])
