@@ -44,8 +44,9 @@ from spm_console.run.sample import Sample
 from spm_console.run.stats import run_stats
 
 F = NDArray[np.float64]
-BusFailure = (CommError, OSError)
-"""What counts as one failed bus transaction (a serial exception is an OSError)."""
+BusFailure = (CommError, OSError, BusError)
+"""What counts as one failed bus transaction (a serial exception is an OSError; a status
+packet carrying an error number raises BusError)."""
 
 
 @dataclass(frozen=True)
@@ -91,7 +92,7 @@ class Executor:
         on_sample: Callable[[Sample], None] | None = None,
         on_start: Callable[[], None] | None = None,
         read_retries: int = 1,
-        hw_poll_every: int = 1,
+        hw_poll_every: int = 25,
         start_tolerance_deg: float = 1.0,
         spin_s: float = 0.0015,
         clock: Callable[[], float] = time.perf_counter,
@@ -112,7 +113,8 @@ class Executor:
         self.hi = np.array([j.max_deg for j in profile.bus.joints])
         self._estop = threading.Event()
         self._estop_reason = ""
-        self._t0 = 0.0
+        self.t0 = 0.0
+        """perf_counter time of the first deadline (t = 0 of the samples)."""
         self.samples: list[Sample] = []
 
     # ------------------------------------------------------------------ control
@@ -122,7 +124,7 @@ class Executor:
         self._estop.set()
 
     def _now(self) -> float:
-        return self.clock() - self._t0
+        return self.clock() - self.t0
 
     def _event(self, name: str, /, **data: Any) -> None:
         if self.log is not None:
@@ -213,23 +215,33 @@ class Executor:
             return self._finish("completed", ExitCode.OK, msg, None)
         return self._finish("stopped", stop.exit_code, stop.message, stop)
 
+    def _retry(self, what: str, fn: Callable[[], Any], attempts: int = 10) -> Any:
+        """A set-up transaction, retried on isolated losses; BusError when all fail."""
+        last: Exception | None = None
+        for _ in range(attempts):
+            try:
+                return fn()
+            except BusFailure as exc:
+                last = exc
+                self._event("comm_retry", op=what, error=str(exc))
+        raise BusError(f"cannot {what} after {attempts} tries: {last}; nothing moved")
+
     def _preflight(self, theta0: F) -> StopReason | None:
-        """Hardware errors before motion; then seed the goal at θ0 and torque on."""
-        safety = SafetyMonitor(self.profile)
-        try:
-            hw = self.bus.hardware_errors()
-        except BusFailure as exc:
-            return StopReason("comm", f"cannot read the servos' hardware error status: {exc}",
-                              0.0, 0)
-        reason = safety.hardware(hw, 0.0, 0)
+        """Hardware errors before motion; watchdog; seed the goal at θ0 and torque on."""
+        hw = self._retry("read the hardware error status", self.bus.hardware_errors)
+        reason = SafetyMonitor(self.profile).hardware(hw, 0.0, 0)
         if reason is not None:
             self._event("fault", kind=reason.kind, message=reason.message, errors=hw)
             return reason
-        try:
-            self.bus.write_goal_deg(theta0)  # reseed the goal before torque on: no lunge
-            self.bus.set_torque(True)
-        except BusFailure as exc:
-            raise BusError(f"cannot enable torque: {exc}") from None
+        watchdog_ms = self.profile.safety.watchdog_ms
+        set_watchdog = getattr(self.bus, "set_watchdog", None)
+        if set_watchdog is not None and watchdog_ms > 0:
+            # also clears a watchdog tripped after an earlier run (2.0; no-op on 1.0)
+            units = self._retry("set the Bus Watchdog", lambda: set_watchdog(watchdog_ms))
+            self._event("watchdog", ms=watchdog_ms, units=units)
+        # reseed the goal before torque on: no lunge (a sync write has no reply to confirm)
+        self._retry("write the goal", lambda: self.bus.write_goal_deg(theta0))
+        self._retry("enable torque", lambda: self.bus.set_torque(True))
         self._event("torque_on", goal_deg=theta0)
         return None
 
@@ -241,14 +253,14 @@ class Executor:
         fd = FiniteDifference(self.ts)
         pred = ModelPredictor(self.model, theta0)
         last_good = theta0.copy()
-        self._t0 = self.clock() + 0.002
+        self.t0 = self.clock() + 0.002
         if self.on_start is not None:
             self.on_start()
         for k in range(len(refs)):
-            deadline = self._t0 + k * self.ts
+            deadline = self.t0 + k * self.ts
             self._wait_until(deadline)
             t_start = self.clock()
-            t = t_start - self._t0
+            t = t_start - self.t0
             if self._estop.is_set():
                 estop = SafetyMonitor.estop(self._estop_reason, t, k)
                 self._apply_stop(estop, self._hold_target(last_good), deadline + self.ts)
@@ -262,10 +274,10 @@ class Executor:
             fdv = fd.step(z)
             p_pos, p_vel = pred.position_deg, pred.velocity_degps
             stop: StopReason | None = safety.comm(z is not None, retries, t, k, detail)
+            if stop is None and (self._alerted() or k % self.hw_poll_every == 0):
+                stop = self._poll_hw(safety, t, k)
             if stop is None and z is not None:
                 stop = safety.position(z, p_pos, regions[k], t, k)
-            if stop is None and k % self.hw_poll_every == 0:
-                stop = self._poll_hw(safety, t, k)
             meas = z if z is not None else np.full(3, np.nan)
             err = float(np.abs(meas - p_pos).max()) if z is not None else float("nan")
             sample = Sample(t=t, k=k, phase=phases[k], reference_deg=ref, measured_deg=meas,
@@ -298,6 +310,11 @@ class Executor:
                 self._event("comm_retry", op="read", error=detail)
         self._event("comm_fail", error=detail, attempts=failed)
         return None, failed, detail
+
+    def _alerted(self) -> bool:
+        """The alert flag of the last status packets, when the bus exposes it (``alerts``)."""
+        alerts = getattr(self.bus, "alerts", None)
+        return isinstance(alerts, dict) and any(alerts.values())
 
     def _poll_hw(self, safety: SafetyMonitor, t: float, k: int) -> StopReason | None:
         try:

@@ -26,7 +26,7 @@ from spm_console.core.model import model_of
 from spm_console.errors import UnreachableError
 from spm_console.profile import Profile
 from spm_console.run.executor import ExecutionResult, Executor, Segment
-from spm_console.run.plans import line_plan
+from spm_console.run.plans import line_plan, plan_summary
 
 F = NDArray[np.float64]
 
@@ -73,6 +73,8 @@ def home(executor: Executor) -> HomingResult:
     start_pose = check_assembly_mode(profile, theta0)
     target = np.asarray(profile.home.theta_deg, float)
     plan = line_plan(profile, theta0, target, profile.safety.home_speed_degps)
+    if executor.log is not None:
+        executor.log.meta["plans"] = [plan_summary(plan) | {"phase": "homing"}]
     result = executor.run([Segment("homing", plan)], theta0_deg=theta0)
     pose = None
     if result.final_deg is not None:

@@ -10,7 +10,7 @@ start), like a solved plan. Degrees, deg/s, seconds.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,6 +19,7 @@ from spm_console.core.estimation import ModelPredictor
 from spm_console.core.plan import Plan
 from spm_console.core.region import Region
 from spm_console.core.servo_model import ServoModel, discretize
+from spm_console.plan_file import plan_hash
 from spm_console.profile import Profile
 
 F = NDArray[np.float64]
@@ -60,7 +61,7 @@ def plan_from_references(
     return Plan(
         kind=kind, Ts=model.ts, reference_deg=ref, position_deg=pos, velocity_degps=vel,
         region=region if region is not None else limits_region(profile),
-        model=model.to_dict(), profile_hash=profile.digest(), extra=dict(extra or {}),
+        model=model.to_dict(), profile_hash=plan_hash(profile), extra=dict(extra or {}),
     )
 
 
@@ -94,3 +95,13 @@ def synthetic_plan(profile: Profile, start_deg: F, goal_deg: F, duration_s: floa
     shape = 10 * s**3 - 15 * s**4 + 6 * s**5
     ref = a + shape[:, None] * (b - a)
     return plan_from_references(profile, ref, "synthetic", extra={"duration_s": duration_s})
+
+
+def plan_summary(plan: Plan, source: str | None = None) -> dict[str, Any]:
+    """What a run's meta.json records about a plan (angles in degrees)."""
+    return {
+        "source": source, "kind": plan.kind, "N": plan.N, "Ts": plan.Ts,
+        "duration_s": plan.duration_s, "start_deg": plan.reference_deg[0].tolist(),
+        "goal_deg": plan.reference_deg[-1].tolist(), "cost": plan.cost,
+        "halfspaces": plan.region.halfspaces, "profile_hash": plan.profile_hash,
+    }

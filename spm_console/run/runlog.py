@@ -112,6 +112,7 @@ class RunLog:
         self._csv.writerow(COLUMNS)
         self._samples.flush()
         self._pending = 0
+        self.finished = False
         self.sample_count = 0
         self.event_count = 0
 
@@ -198,6 +199,7 @@ class RunLog:
             events=self.event_count,
         )
         _write_json_atomic(self.path / "meta.json", self.meta)
+        self.finished = True
         self.close()
 
     def close(self) -> None:

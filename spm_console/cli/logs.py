@@ -1,0 +1,87 @@
+"""``logs`` (list runs) and ``logs show RUN [--plot FILE.png]``."""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spm_console.cli.common import add_common, emit
+from spm_console.errors import BadInputError, ExitCode
+from spm_console.run.runlog import list_runs, load_run
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser("logs", help="list run logs, or show one (with a plot)")
+    add_common(p)
+    p.add_argument("--logs", metavar="DIR", help="log root (default: $SPM_CONSOLE_LOGS or logs/)")
+    lsub = p.add_subparsers(dest="logs_command", metavar="ACTION")
+    s = lsub.add_parser("show", help="summary of one run; --plot draws it (paper Figs. 7-10)")
+    # same options after 'show' too; SUPPRESS keeps values given before 'show'
+    s.add_argument("--profile", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+    s.add_argument("--json", action="store_true", default=argparse.SUPPRESS,
+                   help="print one JSON object on stdout")
+    s.add_argument("--logs", metavar="DIR", default=argparse.SUPPRESS,
+                   help="log root (default: $SPM_CONSOLE_LOGS or logs/)")
+    s.add_argument("run", metavar="RUN", help="run folder name or path, or 'last'")
+    s.add_argument("--plot", type=Path, metavar="FILE.png", help="write the figure here")
+    s.set_defaults(func=cmd_show)
+    p.set_defaults(func=cmd_list)
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    runs = list_runs(args.logs)
+    rows = []
+    for r in runs:
+        m = r.meta
+        rows.append({"run": r.name, "path": str(r.path), "kind": m.get("kind"),
+                     "start_time": m.get("start_time"), "outcome": m.get("outcome"),
+                     "exit_code": m.get("exit_code"), "samples": m.get("samples"),
+                     "message": m.get("message", "")})
+    human = "\n".join(
+        f"{d['run']:34} {d['kind'] or '?':8} {d['outcome'] or '?':10} "
+        f"{'' if d['exit_code'] is None else d['exit_code']:>3}  {(d['message'] or '')[:70]}"
+        for d in rows) or "no runs logged yet"
+    emit(args, {"runs": rows}, human)
+    return int(ExitCode.OK)
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    run = load_run(args.run, args.logs)
+    m = run.meta
+    counts = Counter(e.get("event", "?") for e in run.events)
+    faults = [e for e in run.events if e.get("event") in ("fault", "stop", "refused")]
+    data: dict[str, Any] = {
+        "run": run.path.name, "path": str(run.path), "meta": m, "rows": run.rows,
+        "truncated": run.truncated, "events": dict(counts), "faults": faults,
+    }
+    lines = [
+        f"run {run.path.name}: {m.get('kind')} — {m.get('outcome')} "
+        f"(exit {m.get('exit_code')}) {m.get('message', '')}",
+        f"profile {m.get('profile', {}).get('name')} ({str(m.get('profile', {}).get('hash'))[:12]}…),"
+        f" started {m.get('start_time')}",
+        f"{run.rows} samples{' (last line truncated)' if run.truncated else ''}; events: "
+        + (", ".join(f"{k} {v}" for k, v in counts.items()) or "none"),
+    ]
+    lines += [f"  t={e.get('t', 0):.3f} s {e.get('event')}: {e.get('message', e.get('kind', ''))}"
+              for e in faults]
+    if run.rows:
+        ok = np.all(np.isfinite(run.vec("meas")), axis=1)
+        err = (run.vec("meas") - run.vec("pred"))[ok]
+        if err.size:
+            rms = float(np.sqrt(np.mean(err**2)))
+            data["tracking_rms_deg"] = rms
+            lines.append(f"measured vs model: RMS {rms:.3f}°, max {np.abs(err).max():.3f}°")
+    if args.plot is not None:
+        if args.plot.suffix.lower() not in (".png", ".svg", ".pdf"):
+            raise BadInputError(f"--plot {args.plot}: use a .png, .svg or .pdf file name")
+        from spm_console.report.plot_run import plot_run
+
+        plot_run(run, args.plot)
+        data["plot"] = str(args.plot)
+        lines.append(f"plot: {args.plot}")
+    emit(args, data, "\n".join(lines))
+    return int(ExitCode.OK)

@@ -1,0 +1,102 @@
+"""``home`` and ``execute``: move the wrist (real bus or ``--sim``), log the run.
+
+Exit codes: 0 done; a stop ends with its own code (20 E-stop, 21 tracking error,
+22 communication lost, 23 servo hardware error, 24 left the region, 25 servo
+limit); refusals before motion use the usual codes (4 bad input, 5 unreachable
+pose, 9 plan mismatch, 10 bus error).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from spm_console.cli.common import add_common, emit, finite3, fmt_vec, info, profile_of
+from spm_console.devices.faults import parse_fault
+from spm_console.plan_file import load_plan
+from spm_console.run.executor import ExecutionResult
+from spm_console.run.session import RunRequest, execute_plan, run_homing
+
+
+def _bus_opts(p: argparse.ArgumentParser) -> None:
+    add_common(p)
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--sim", action="store_true",
+                   help="start an emulated servo bus on a pseudo-terminal and use it")
+    g.add_argument("--port", metavar="DEV",
+                   help="serial device (default: the profile's bus.port; empty = --sim)")
+    p.add_argument("--fault", action="append", default=[], metavar="KIND[@SECONDS]",
+                   help="with --sim: inject a fault, e.g. unplug@1.0, stall:2@0.5, drop:0.05, "
+                        "corrupt:0.02, delay:0.03@1.0, hwerror:1@0.5 (repeatable; seconds "
+                        "after the run starts)")
+    p.add_argument("--sim-start", nargs=3, type=float, metavar=("T1", "T2", "T3"),
+                   help="with --sim: power-on joint angles of the emulated servos, deg")
+    p.add_argument("--logs", metavar="DIR",
+                   help="log root (default: $SPM_CONSOLE_LOGS or logs/)")
+
+
+def register(sub: Any) -> None:
+    h = sub.add_parser("home", help="read the pose, check the assembly mode, move home slowly")
+    _bus_opts(h)
+    h.set_defaults(func=cmd_home)
+
+    e = sub.add_parser("execute", help="stream a plan to the servos every Ts, with safe stops")
+    _bus_opts(e)
+    e.add_argument("--plan", required=True, type=Path, metavar="FILE", help="plan file (JSON)")
+    e.add_argument("--no-approach", action="store_true",
+                   help="refuse instead of moving to the plan's start first")
+    e.set_defaults(func=cmd_execute)
+
+
+def _request(args: argparse.Namespace) -> RunRequest:
+    faults = [parse_fault(f) for f in args.fault]
+    start = finite3(args.sim_start, "--sim-start") if args.sim_start is not None else None
+    return RunRequest(port=args.port, sim=args.sim, faults=faults, sim_start_deg=start,
+                      approach=not getattr(args, "no_approach", False), log_root=args.logs)
+
+
+def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any]) -> int:
+    st = res.stats
+    data: dict[str, Any] = {
+        "outcome": res.outcome, "exit_code": int(res.exit_code), "message": res.message,
+        "log_dir": str(res.log_dir) if res.log_dir else None, "final_deg": res.final_deg,
+        "stop": st.get("stop"), "stats": st, **extra,
+    }
+    lines = [f"{res.outcome}: {res.message}"]
+    if res.final_deg is not None:
+        lines.append(f"final θ = {fmt_vec(res.final_deg, 2)} deg")
+    if st.get("samples"):
+        j, b = st["jitter_ms"], st["bus_ms"]
+        lines.append(
+            f"{st['samples']} cycles; measured vs model RMS {st['tracking_rms_deg']:.3f}°, max "
+            f"{st['tracking_max_deg']:.3f}°; jitter p99 {j['p99']:.2f} ms; bus {b['mean']:.2f} ms"
+            f"/cycle; retries {st.get('comm_retries', 0)}, failed cycles "
+            f"{st.get('comm_failed_cycles', 0)}")
+    if res.log_dir:
+        lines.append(f"log: {res.log_dir}")
+    emit(args, data, "\n".join(lines))
+    if not res.ok:
+        info(f"stopped: {res.message}")
+    return int(res.exit_code)
+
+
+def cmd_execute(args: argparse.Namespace) -> int:
+    profile = profile_of(args)
+    plan = load_plan(args.plan, profile)
+    req = _request(args)
+    res = execute_plan(profile, plan, req, source=str(args.plan))
+    return _report(args, res, {"plan": str(args.plan), "kind": plan.kind, "N": plan.N})
+
+
+def cmd_home(args: argparse.Namespace) -> int:
+    profile = profile_of(args)
+    r = run_homing(profile, _request(args))
+    pose = r.pose
+    extra = {
+        "start_deg": r.start_deg,
+        "home_deg": list(profile.home.theta_deg),
+        "pose": None if pose is None else {"theta_deg": pose.theta_deg, "v": pose.v,
+                                           "n": pose.n, "zeta": pose.zeta},
+    }
+    return _report(args, r.execution, extra)
