@@ -90,11 +90,18 @@ def simulate(model: ServoModel, x0: F, reference: F) -> F:
     (θ*(N) is the reference held after the end). Returns states (N+1, J, 2).
     """
     ref = np.asarray(reference, float)
-    x = np.empty((ref.shape[0], ref.shape[1], 2))
-    x[0] = np.asarray(x0, float)
-    for k in range(ref.shape[0] - 1):
-        x[k + 1] = x[k] @ model.A.T + ref[k][:, None] * model.B[None, :]
-    return x
+    (a, b), (c, d) = model.A.tolist()
+    b0, b1 = model.B.tolist()
+    out = np.empty((ref.shape[0], ref.shape[1], 2))
+    x0 = np.asarray(x0, float)
+    for i in range(ref.shape[1]):  # scalar recursion: far faster than tiny numpy ops
+        th, om = float(x0[i, 0]), float(x0[i, 1])
+        col = [(th, om)]
+        for u in ref[:-1, i].tolist():
+            th, om = a * th + b * om + b0 * u, c * th + d * om + b1 * u
+            col.append((th, om))
+        out[:, i, :] = col
+    return out
 
 
 def simulate_continuous(p: float, ts: float, x0: F, reference: F, points: int) -> tuple[F, F]:
@@ -106,15 +113,13 @@ def simulate_continuous(p: float, ts: float, x0: F, reference: F, points: int) -
     ref = np.asarray(reference, float)
     n = ref.shape[0] - 1
     Phi1, Gam1 = exact_step(p, ts)
+    exact = ServoModel(p=p, ts=ts, method="zoh", A=Phi1, B=Gam1)
+    xk = simulate(exact, x0, ref)  # (N+1, J, 2) at the samples
     Phis, Gams = substeps(p, ts, points)
-    xs = np.empty((n * points + 1, ref.shape[1], 2))
-    x = np.asarray(x0, float).copy()
-    for k in range(n):
-        xs[k * points] = x
-        u = ref[k][:, None]
-        for j in range(points - 1):
-            xs[k * points + j + 1] = x @ Phis[j].T + u * Gams[j][None, :]
-        x = x @ Phi1.T + u * Gam1[None, :]
-    xs[-1] = x
+    # inside interval k: x = Φ_j x(k) + Γ_j θ*(k)
+    inner = (np.einsum("jab,kib->kjia", Phis, xk[:n])
+             + Gams[None, :, None, :] * ref[:n, None, :, None])
+    xs = np.concatenate([xk[:n, None], inner], axis=1).reshape(n * points, ref.shape[1], 2)
+    xs = np.concatenate([xs, xk[n:]], axis=0)
     t = np.arange(n * points + 1) * (ts / points)
     return t, xs

@@ -7,10 +7,10 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.planning.osqp_solve import QpOutcome, solve_screened
 from spm_console.core.planning.problem import Layout, PlanProblem
-from spm_console.core.planning.qp_build import QpData, build
+from spm_console.core.planning.qp_build import Equalities, Pool, equalities
 from spm_console.core.planning.result import PlanResult
+from spm_console.core.planning.screening import QpOutcome, solve_qp
 from spm_console.core.planning.verify import check
 from spm_console.core.region import Region
 from spm_console.core.servo_model import ServoModel
@@ -35,28 +35,38 @@ def straight_guess(problem: PlanProblem) -> F:
     return z
 
 
-def run_qp(problem: PlanProblem, guess: F | None = None) -> tuple[QpData, QpOutcome]:
-    """Build and solve the QP of ``problem`` (after checking start and goal are in P)."""
+def run_qp(problem: PlanProblem, guess: F | None = None) -> tuple[Equalities, QpOutcome]:
+    """Build and solve the QP of ``problem`` (after checking start and goal are in P).
+
+    OSQP first; if it reports infeasibility or fails, Clarabel decides (with a checked
+    infeasibility certificate).
+    """
     problem.check_endpoints()
-    data = build(problem)
-    out = solve_screened(data, straight_guess(problem) if guess is None else guess)
-    return data, out
+    eq = equalities(problem)
+    pool = Pool(problem)
+    g = straight_guess(problem) if guess is None else guess
+    out = solve_qp(eq, pool, g)
+    if out.status != "solved":
+        first = out
+        out = solve_qp(eq, pool, g, backend="clarabel", try_active_set=False)
+        out.solver_calls += first.solver_calls
+        out.kkt_solves += first.kkt_solves
+        out.seconds += first.seconds
+    return eq, out
 
 
-def finish(problem: PlanProblem, data: QpData, out: QpOutcome, t0: float,
+def finish(problem: PlanProblem, eq: Equalities, out: QpOutcome, t0: float,
            qp_extra: int = 0) -> PlanResult:
     """Turn a solved QP into a verified :class:`PlanResult` (raises if it does not verify)."""
     assert out.z is not None
-    ref, pos_z, vel_z = data.layout.unpack(out.z, problem.goal_deg)
+    ref, pos_z, vel_z = eq.layout.unpack(out.z, problem.goal_deg)
     report, pos, vel = check(problem, ref, pos_z, vel_z)
     if not report.ok:
         raise SolverError(
             f"the solution does not satisfy its constraints to 1e-6 (goal error "
             f"{report.goal_error_deg:.2e}°, region {report.region_violation_deg:.2e}°, speed "
-            f"{report.speed_excess_degps:.2e}°/s); solver status unpolished={not out.polished}")
-    info = {"rounds": out.rounds, "rows_used": out.rows_used, "rows_total": out.rows_total,
-            "iterations": out.iterations, "polished": out.polished, "solver": "osqp",
-            "qp_seconds": out.seconds}
+            f"{report.speed_excess_degps:.2e}°/s); method {out.method}")
+    info = out.info()
     return PlanResult("optimal", problem, ref, pos, vel, float((vel**2).sum()),
                       time.perf_counter() - t0, out.qp_count + qp_extra, report, info)
 
@@ -64,15 +74,16 @@ def finish(problem: PlanProblem, data: QpData, out: QpOutcome, t0: float,
 def solve_problem(problem: PlanProblem, guess: F | None = None) -> PlanResult:
     """Solve (30) for ``problem``; raises InfeasibleError / SolverError with the reason."""
     t0 = time.perf_counter()
-    data, out = run_qp(problem, guess)
+    eq, out = run_qp(problem, guess)
     if out.status == "infeasible":
         extra = f" under v_max = {problem.vmax_degps}°/s" if problem.vmax_degps else ""
         raise InfeasibleError(
             f"no reference reaches the goal in N = {problem.N} steps ({problem.N * problem.model.ts:g} s)"
-            f"{extra} inside the region; use more steps or 'plan mintime'")
+            f"{extra} inside the region (certified by Clarabel); use more steps or 'plan mintime'")
     if out.status != "solved":
-        raise SolverError(f"OSQP failed on the MVN problem (N = {problem.N}): {out.status}")
-    return finish(problem, data, out, t0)
+        raise SolverError(f"the QP solvers failed on the MVN problem (N = {problem.N}): "
+                          f"{out.status} {out.detail}")
+    return finish(problem, eq, out, t0)
 
 
 def solve_mvn(model: ServoModel, start_deg: F, goal_deg: F, N: int, region: Region,

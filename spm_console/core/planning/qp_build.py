@@ -1,12 +1,15 @@
-"""Sparse matrices of the QP (30) for OSQP: min ½ zᵀPz + qᵀz s.t. l ≤ Az ≤ u.
+"""Sparse matrices of the QP (30): min ½ zᵀPz s.t. C z = d (equalities), lo ≤ G z ≤ hi (pool).
 
-The constraints come in two parts:
+* Equalities: boundary conditions (30b, c), dynamics (30f) and θ*(0) = θ(0).
+* The inequality *pool*: region rows (30e) and speed rows (30d) at the samples
+  k = 1..N−1, optional bounds on the references, and with K > 1 the region and
+  speed rows at the sub-sample instants. Most pool rows are inactive at the
+  optimum, so the pool is evaluated densely on a trajectory (:meth:`Pool.slack`)
+  and only the rows that matter are assembled (:meth:`Pool.rows`).
 
-* the *base*: boundary conditions (30b, c), dynamics (30f), θ*(0) = θ(0), the speed
-  bound (30d) at the samples and optional bounds on the references — always present;
-* the *candidates*: region rows (30e) at the samples k = 1..N−1 and, with K > 1, the
-  region and speed rows at the sub-sample instants — mostly inactive at the optimum, so
-  the solver screens them (``G z ≤ h`` with lower bounds ``g_lo``, see ``osqp_solve``).
+Variable layout: see :class:`~spm_console.core.planning.problem.Layout`.
+Pool families: 0 region at samples, 1 region between samples, 2 speed between
+samples, 3 speed at samples, 4 reference bounds.
 """
 
 from __future__ import annotations
@@ -22,189 +25,205 @@ from spm_console.core.planning.problem import Layout, PlanProblem, sub_matrices
 F = NDArray[np.float64]
 I = NDArray[np.int64]
 
-INF = np.inf
+FAMILY_NAMES = ("region", "region_between", "speed_between", "speed", "reference_bound")
 
 
 @dataclass(frozen=True)
-class QpData:
-    """The assembled QP; rows of ``G`` carry a (family, k, j, index) label for reports."""
+class Equalities:
+    """Cost and equality constraints of (30)."""
 
     layout: Layout
     P: sp.csc_matrix
-    """(n, n) cost: 2 on every θ̇ variable (cost Σ θ̇ᵀθ̇, (deg/s)²)."""
-    q: F
-    A: sp.csc_matrix
-    """Base rows."""
-    l: F
-    u: F
-    G: sp.csr_matrix
-    """Candidate rows: g_lo ≤ G z ≤ g_hi."""
-    g_lo: F
-    g_hi: F
-    g_family: I
-    """0 = region at a sample, 1 = region between samples, 2 = speed between samples."""
-    g_k: I
-    """Sample index k of each candidate row (the interval k for sub-samples)."""
-    g_scale: F
-    """Divide a row's slack by this to get deg (region rows: |a_r|) or deg/s (speed rows)."""
+    """(n, n): 2 on every θ̇ variable — the cost Σ_k θ̇(k)ᵀθ̇(k), (deg/s)²."""
+    C: sp.csc_matrix
+    """(m_e, n) equality rows."""
+    d: F
+    """(m_e,) right-hand sides."""
 
 
-def _coo(rows: list[I], cols: list[I], vals: list[F], shape: tuple[int, int]) -> sp.csc_matrix:
-    r = np.concatenate(rows) if rows else np.zeros(0, np.int64)
-    c = np.concatenate(cols) if cols else np.zeros(0, np.int64)
-    v = np.concatenate(vals) if vals else np.zeros(0)
-    return sp.csc_matrix(sp.coo_matrix((v, (r, c)), shape=shape))
-
-
-def build(problem: PlanProblem) -> QpData:
+def equalities(problem: PlanProblem) -> Equalities:
     N = problem.N
     L = Layout(N)
     n = L.n
     Am, Bm = problem.model.A, problem.model.B
-    s, g = problem.start_deg, problem.goal_deg
     J = np.arange(3)
-
-    # cost Σ_k θ̇(k)ᵀθ̇(k): P = 2 I on the θ̇ variables
     om_all = L.om(np.repeat(np.arange(N + 1), 3), np.tile(J, N + 1)).ravel()
-    P = sp.csc_matrix(sp.coo_matrix((np.full(om_all.size, 2.0), (om_all, om_all)), shape=(n, n)))
-    q = np.zeros(n)
+    P = sp.csc_matrix((np.full(om_all.size, 2.0), (om_all, om_all)), shape=(n, n))
 
     rows: list[I] = []
     cols: list[I] = []
     vals: list[F] = []
-    lo: list[F] = []
-    hi: list[F] = []
+    rhs: list[F] = []
     m = 0
 
-    def add(r: I, c: I, v: F) -> None:
-        rows.append(np.asarray(r, np.int64).ravel())
+    def add(r: I, c: I, v: F | float) -> None:
+        r = np.asarray(r, np.int64).ravel()
+        rows.append(r)
         cols.append(np.asarray(c, np.int64).ravel())
-        vals.append(np.asarray(v, float).ravel())
+        vals.append(np.broadcast_to(np.asarray(v, float), r.shape).ravel())
 
-    # boundary conditions: θ(0)=s, θ̇(0)=0, θ(N)=g, θ̇(N)=0  (12 rows)
-    bc_cols = np.concatenate([L.th(0, J), L.om(0, J), L.th(N, J), L.om(N, J)])
-    add(m + np.arange(12), bc_cols, np.ones(12))
-    bc = np.concatenate([s, np.zeros(3), g, np.zeros(3)])
-    lo.append(bc)
-    hi.append(bc)
+    # θ(0) = start, θ̇(0) = 0, θ(N) = goal, θ̇(N) = 0
+    add(m + np.arange(12), np.concatenate([L.th(0, J), L.om(0, J), L.th(N, J), L.om(N, J)]), 1.0)
+    rhs.append(np.concatenate([problem.start_deg, np.zeros(3), problem.goal_deg, np.zeros(3)]))
     m += 12
-    if problem.hold_first:
-        add(m + J, L.u(0, J), np.ones(3))
-        lo.append(s)
-        hi.append(s)
+    if problem.hold_first:  # (30b) as printed: θ*(0) = θ(0)
+        add(m + J, L.u(0, J), 1.0)
+        rhs.append(problem.start_deg)
         m += 3
-
-    # dynamics x_i(k+1) − A x_i(k) − B θ*_i(k) = 0, rows (k, i, component)
-    kk, ii = np.meshgrid(np.arange(N), J, indexing="ij")
-    kk, ii = kk.ravel(), ii.ravel()
-    base = m + 6 * kk + 2 * ii  # row of the position equation; +1 velocity
-    for c, var_next in ((0, L.th), (1, L.om)):
-        r = base + c
-        add(r, var_next(kk + 1, ii), np.ones(kk.size))
-        add(r, L.th(kk, ii), np.full(kk.size, -Am[c, 0]))
-        add(r, L.om(kk, ii), np.full(kk.size, -Am[c, 1]))
-        add(r, L.u(kk, ii), np.full(kk.size, -Bm[c]))
-    lo.append(np.zeros(6 * N))
-    hi.append(np.zeros(6 * N))
+    # dynamics x_i(k+1) − A x_i(k) − B θ*_i(k) = 0; rows ordered (k, i, component)
+    kg, ig = np.meshgrid(np.arange(N), J, indexing="ij")
+    kk, ii = kg.ravel(), ig.ravel()
+    base = m + 6 * kk + 2 * ii
+    for c, nxt in ((0, L.th), (1, L.om)):
+        add(base + c, nxt(kk + 1, ii), 1.0)
+        add(base + c, L.th(kk, ii), -Am[c, 0])
+        add(base + c, L.om(kk, ii), -Am[c, 1])
+        add(base + c, L.u(kk, ii), -Bm[c])
+    rhs.append(np.zeros(6 * N))
     m += 6 * N
-
-    # speed bound at the samples k = 1..N−1 (30d)
-    if problem.vmax_degps is not None and N > 1:
-        ks, js = np.meshgrid(np.arange(1, N), J, indexing="ij")
-        cnt = ks.size
-        add(m + np.arange(cnt), L.om(ks.ravel(), js.ravel()), np.ones(cnt))
-        lo.append(np.full(cnt, -problem.vmax_degps))
-        hi.append(np.full(cnt, problem.vmax_degps))
-        m += cnt
-
-    # optional bounds on the free references θ*(k)
-    if problem.ref_lo_deg is not None or problem.ref_hi_deg is not None:
-        k0 = 1 if problem.hold_first else 0
-        ks, js = np.meshgrid(np.arange(k0, N), J, indexing="ij")
-        cnt = ks.size
-        add(m + np.arange(cnt), L.u(ks.ravel(), js.ravel()), np.ones(cnt))
-        lo_v = problem.ref_lo_deg if problem.ref_lo_deg is not None else np.full(3, -INF)
-        hi_v = problem.ref_hi_deg if problem.ref_hi_deg is not None else np.full(3, INF)
-        lo.append(np.tile(lo_v, N - k0))
-        hi.append(np.tile(hi_v, N - k0))
-        m += cnt
-
-    A = _coo(rows, cols, vals, (m, n))
-    G, g_lo, g_hi, fam, gk, scale = _candidates(problem, L)
-    return QpData(L, P, q, A, np.concatenate(lo), np.concatenate(hi), G, g_lo, g_hi, fam, gk,
-                  scale)
+    C = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(m, n))
+    return Equalities(L, P, C, np.concatenate(rhs))
 
 
-def _candidates(problem: PlanProblem, L: Layout) -> tuple[sp.csr_matrix, F, F, I, I, F]:
-    """Region rows at samples 1..N−1, then region and speed rows between samples."""
-    N = problem.N
-    Ap, bp = problem.region.A, problem.region.b
-    nr = Ap.shape[0]
-    anorm = np.linalg.norm(Ap, axis=1)
-    scale: list[F] = []
-    rows: list[I] = []
-    cols: list[I] = []
-    vals: list[F] = []
-    lo: list[F] = []
-    hi: list[F] = []
-    fam: list[I] = []
-    kss: list[I] = []
-    m = 0
+class Pool:
+    """The inequality rows of (30d, e) (and their sub-sample versions), evaluated lazily."""
 
-    # region at the samples: a_r · θ(k) ≤ b_r
-    ks = np.arange(1, N)
-    kr, rr = np.meshgrid(ks, np.arange(nr), indexing="ij")
-    kr, rr = kr.ravel(), rr.ravel()
-    cnt = kr.size
-    for i in range(3):
-        rows.append(m + np.arange(cnt))
-        cols.append(L.th(kr, i))
-        vals.append(Ap[rr, i])
-    lo.append(np.full(cnt, -INF))
-    hi.append(bp[rr])
-    fam.append(np.zeros(cnt, np.int64))
-    kss.append(kr)
-    scale.append(anorm[rr])
-    m += cnt
+    def __init__(self, problem: PlanProblem) -> None:
+        self.pb = problem
+        N = problem.N
+        self.L = Layout(N)
+        self.Ap = np.asarray(problem.region.A, float)
+        self.bp = np.asarray(problem.region.b, float)
+        self.nr = self.Ap.shape[0]
+        self.ApT = np.ascontiguousarray(self.Ap.T)
+        anorm = np.linalg.norm(self.Ap, axis=1)
+        self.Phis, self.Gams = sub_matrices(problem)
+        self.K1 = self.Phis.shape[0]
+        self.k0 = 1 if problem.hold_first else 0
+        v = problem.vmax_degps
+        has_ref = problem.ref_lo_deg is not None or problem.ref_hi_deg is not None
+        sizes = [
+            (N - 1) * self.nr,
+            N * self.K1 * self.nr,
+            N * self.K1 * 3 if v is not None else 0,
+            (N - 1) * 3 if v is not None else 0,
+            (N - self.k0) * 3 if has_ref else 0,
+        ]
+        self.sizes = sizes
+        self.offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.m = int(self.offsets[-1])
+        inf = np.inf
+        rlo = problem.ref_lo_deg if problem.ref_lo_deg is not None else np.full(3, -inf)
+        rhi = problem.ref_hi_deg if problem.ref_hi_deg is not None else np.full(3, inf)
+        vv = v if v is not None else inf
+        self.lo = np.concatenate([
+            np.full(sizes[0], -inf), np.full(sizes[1], -inf), np.full(sizes[2], -vv),
+            np.full(sizes[3], -vv), np.tile(rlo, sizes[4] // 3)])
+        self.hi = np.concatenate([
+            np.tile(self.bp, N - 1), np.tile(self.bp, N * self.K1), np.full(sizes[2], vv),
+            np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3)])
+        self.scale = np.concatenate([
+            np.tile(anorm, N - 1), np.tile(anorm, N * self.K1), np.ones(sizes[2] + sizes[3] + sizes[4])])
+        self.family = np.repeat(np.arange(5), sizes)
 
-    Phis, Gams = sub_matrices(problem)
-    if Phis.shape[0]:
-        K1 = Phis.shape[0]
-        # region between samples: a_r · (Φ_j[0] x_i(k) + Γ_j[0] θ*_i(k)) ≤ b_r, k = 0..N−1
-        kq, jq, rq = np.meshgrid(np.arange(N), np.arange(K1), np.arange(nr), indexing="ij")
-        kq, jq, rq = kq.ravel(), jq.ravel(), rq.ravel()
-        cnt = kq.size
-        for i in range(3):
-            a = Ap[rq, i]
-            for var, coef in ((L.th, Phis[jq, 0, 0]), (L.om, Phis[jq, 0, 1])):
-                rows.append(m + np.arange(cnt))
-                cols.append(var(kq, i))
-                vals.append(a * coef)
-            rows.append(m + np.arange(cnt))
-            cols.append(L.u(kq, i))
-            vals.append(a * Gams[jq, 0])
-        lo.append(np.full(cnt, -INF))
-        hi.append(bp[rq])
-        fam.append(np.ones(cnt, np.int64))
-        kss.append(kq)
-        scale.append(anorm[rq])
-        m += cnt
-        if problem.vmax_degps is not None:
-            kv, jv, iv = np.meshgrid(np.arange(N), np.arange(K1), np.arange(3), indexing="ij")
-            kv, jv, iv = kv.ravel(), jv.ravel(), iv.ravel()
-            cnt = kv.size
-            for var, coef in ((L.th, Phis[jv, 1, 0]), (L.om, Phis[jv, 1, 1]), (L.u, Gams[jv, 1])):
-                rows.append(m + np.arange(cnt))
-                cols.append(var(kv, iv))
-                vals.append(coef)
-            v = problem.vmax_degps
-            lo.append(np.full(cnt, -v))
-            hi.append(np.full(cnt, v))
-            fam.append(np.full(cnt, 2, np.int64))
-            kss.append(kv)
-            scale.append(np.ones(cnt))
-            m += cnt
+    def _split(self, z: F) -> tuple[F, F, F]:
+        N = self.pb.N
+        x = z[: 6 * (N + 1)].reshape(N + 1, 6)
+        return x[:, :3], x[:, 3:], z[6 * (N + 1):].reshape(N, 3)
 
-    G = sp.csr_matrix(_coo(rows, cols, vals, (m, L.n)))
-    return (G, np.concatenate(lo), np.concatenate(hi), np.concatenate(fam), np.concatenate(kss),
-            np.concatenate(scale))
+    def values(self, z: F) -> F:
+        """G z for every pool row: (m,)."""
+        th, om, u = self._split(z)
+        N = self.pb.N
+        parts = [(th[1:N] @ self.ApT).ravel()]
+        if self.K1:
+            Ph, Ga = self.Phis, self.Gams
+            ths = (th[:N, None, :] * Ph[None, :, 0, 0, None] + om[:N, None, :] * Ph[None, :, 0, 1, None]
+                   + u[:, None, :] * Ga[None, :, 0, None])
+            parts.append((ths @ self.ApT).ravel())
+            if self.sizes[2]:
+                oms = (th[:N, None, :] * Ph[None, :, 1, 0, None]
+                       + om[:N, None, :] * Ph[None, :, 1, 1, None] + u[:, None, :] * Ga[None, :, 1, None])
+                parts.append(oms.ravel())
+        if self.sizes[3]:
+            parts.append(om[1:N].ravel())
+        if self.sizes[4]:
+            parts.append(u[self.k0:].ravel())
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def slack(self, z: F) -> F:
+        """Normalized slack (deg for region rows, deg/s for speed rows); < 0 = violated."""
+        gz = self.values(z)
+        with np.errstate(invalid="ignore"):
+            s = np.minimum(self.hi - gz, gz - self.lo)
+        return np.asarray(s / self.scale)
+
+    def rows(self, idx: I) -> sp.csr_matrix:
+        """The pool rows ``idx`` as a sparse (len(idx), n) matrix."""
+        idx = np.asarray(idx, np.int64)
+        L = self.L
+        fam = self.family[idx]
+        rows: list[I] = []
+        cols: list[I] = []
+        vals: list[F] = []
+        pos = np.arange(idx.size)
+        for f in range(5):
+            sel = fam == f
+            if not sel.any():
+                continue
+            loc = idx[sel] - self.offsets[f]
+            rp = pos[sel]
+            if f == 0:
+                k, r = loc // self.nr + 1, loc % self.nr
+                for i in range(3):
+                    rows.append(rp)
+                    cols.append(L.th(k, i))
+                    vals.append(self.Ap[r, i])
+            elif f == 1:
+                kj, r = loc // self.nr, loc % self.nr
+                k, j = kj // self.K1, kj % self.K1
+                for i in range(3):
+                    a = self.Ap[r, i]
+                    for var, coef in ((L.th, self.Phis[j, 0, 0]), (L.om, self.Phis[j, 0, 1]),
+                                      (L.u, self.Gams[j, 0])):
+                        rows.append(rp)
+                        cols.append(var(k, i))
+                        vals.append(a * coef)
+            elif f == 2:
+                kj, i = loc // 3, loc % 3
+                k, j = kj // self.K1, kj % self.K1
+                for var, coef in ((L.th, self.Phis[j, 1, 0]), (L.om, self.Phis[j, 1, 1]),
+                                  (L.u, self.Gams[j, 1])):
+                    rows.append(rp)
+                    cols.append(var(k, i))
+                    vals.append(coef)
+            elif f == 3:
+                rows.append(rp)
+                cols.append(L.om(loc // 3 + 1, loc % 3))
+                vals.append(np.ones(loc.size))
+            else:
+                rows.append(rp)
+                cols.append(L.u(loc // 3 + self.k0, loc % 3))
+                vals.append(np.ones(loc.size))
+        if not rows:
+            return sp.csr_matrix((idx.size, L.n))
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(idx.size, L.n))
+
+    def describe(self, i: int) -> str:
+        """Human name of pool row ``i`` (e.g. 'region half-space 12 at k = 40')."""
+        f = int(self.family[i])
+        loc = int(i - self.offsets[f])
+        if f == 0:
+            return f"region half-space {loc % self.nr} at k = {loc // self.nr + 1}"
+        if f == 1:
+            kj = loc // self.nr
+            return (f"region half-space {loc % self.nr} between samples k = {kj // self.K1}, "
+                    f"sub-sample {kj % self.K1 + 1}")
+        if f == 2:
+            kj = loc // 3
+            return f"speed of joint {loc % 3 + 1} between k = {kj // self.K1}, sub-sample {kj % self.K1 + 1}"
+        if f == 3:
+            return f"speed of joint {loc % 3 + 1} at k = {loc // 3 + 1}"
+        return f"reference bound of joint {loc % 3 + 1} at k = {loc // 3 + self.k0}"

@@ -1,0 +1,98 @@
+"""Exact refinement on an active set: KKT solves with an optimality certificate.
+
+Given a working set W of pool rows held at one of their bounds, solve the
+equality-constrained QP exactly (sparse LU of the KKT matrix). If the result
+satisfies every pool row and every multiplier of W has the right sign, the KKT
+conditions hold and the point is optimal for the full problem (convex QP) — a
+certificate independent of the solver that proposed W. Otherwise violated rows
+join W and wrong-signed rows leave it, a few times, before giving up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from spm_console.core.planning.qp_build import Equalities, Pool
+
+F = NDArray[np.float64]
+I = NDArray[np.int64]
+
+#: Primal tolerance on pool rows (deg, deg/s) and relative tolerance on multipliers.
+PRIMAL_TOL = 1e-9
+DUAL_TOL = 1e-9
+
+
+@dataclass
+class ActiveSetResult:
+    """Outcome of :func:`refine`."""
+
+    ok: bool
+    """True when the KKT conditions hold (optimal)."""
+    z: F | None
+    active: I = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Pool rows at a bound at the end."""
+    side: I = field(default_factory=lambda: np.zeros(0, np.int64))
+    """+1 at the upper bound, −1 at the lower bound."""
+    multipliers: F = field(default_factory=lambda: np.zeros(0))
+    solves: int = 0
+    max_violation: float = np.inf
+    """Largest pool-row violation at z (normalized units)."""
+    min_dual: float = -np.inf
+    """Smallest sign-corrected multiplier over W, relative to the largest (≥ −tol when ok)."""
+
+
+def eqp(eq: Equalities, pool: Pool, active: I, side: I) -> tuple[F, F] | None:
+    """Minimize ½zᵀPz subject to the equalities and W at its bounds; (z, multipliers of W)."""
+    n = eq.layout.n
+    Cw = pool.rows(active)
+    C = sp.vstack([eq.C, Cw], format="csc")
+    rhs_w = np.where(side > 0, pool.hi[active], pool.lo[active])
+    K = sp.bmat([[eq.P, C.T], [C, None]], format="csc")
+    rhs = np.concatenate([np.zeros(n), eq.d, rhs_w])
+    try:
+        lu = spla.splu(K, permc_spec="COLAMD")
+        sol = lu.solve(rhs)
+    except RuntimeError:  # singular: W dependent or over-determined
+        return None
+    if not np.all(np.isfinite(sol)):
+        return None
+    return sol[:n], sol[n + eq.C.shape[0]:]
+
+
+def refine(eq: Equalities, pool: Pool, active: I | None = None, side: I | None = None,
+           max_solves: int = 8) -> ActiveSetResult:
+    """Active-set iterations from W = (active, side); see the module docstring."""
+    act = np.zeros(0, np.int64) if active is None else np.asarray(active, np.int64)
+    sd = np.zeros(0, np.int64) if side is None else np.asarray(side, np.int64)
+    last: ActiveSetResult = ActiveSetResult(False, None)
+    for it in range(1, max_solves + 1):
+        out = eqp(eq, pool, act, sd)
+        if out is None:
+            return ActiveSetResult(False, last.z, act, sd, solves=it)
+        z, lam = out
+        gz = pool.values(z)
+        up = (gz - pool.hi) / pool.scale
+        dn = (pool.lo - gz) / pool.scale
+        up[act[sd > 0]] = -np.inf  # rows in W are satisfied with equality by construction
+        dn[act[sd < 0]] = -np.inf
+        viol = np.maximum(up, dn)
+        maxv = float(viol.max()) if viol.size else 0.0
+        signed = lam * sd
+        lam_ref = max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
+        mind = float(signed.min() / lam_ref) if lam.size else 0.0
+        last = ActiveSetResult(False, z, act, sd, lam, it, maxv, mind)
+        bad_p = np.flatnonzero(viol > PRIMAL_TOL)
+        bad_d = signed < -DUAL_TOL * lam_ref
+        if not bad_p.size and not bad_d.any():
+            last.ok = True
+            return last
+        keep = ~bad_d
+        new_side = np.where(up[bad_p] > dn[bad_p], 1, -1)
+        act = np.concatenate([act[keep], bad_p])
+        sd = np.concatenate([sd[keep], new_side])
+    return last

@@ -1,0 +1,149 @@
+"""Solve the QP (30) for one N: exact active set first, then a screened QP solver.
+
+1. From a warm working set (empty by default: most pool rows are inactive at the
+   optimum) a few exact KKT solves (:mod:`active_set`) often end with an optimality
+   certificate already.
+2. Otherwise a QP solver (OSQP, or Clarabel when an infeasibility certificate may be
+   needed) solves the QP on the *screened* pool: the rows nearly active along the
+   current point, plus every row the last solution violates, round after round —
+   each reduced QP is a relaxation, so a solution satisfying the whole pool is
+   optimal, and an infeasibility certificate of a reduced QP proves the full problem
+   infeasible. The solver's active set then seeds the exact refinement, which
+   certifies the optimum to round-off.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.planning.active_set import refine
+from spm_console.core.planning.clarabel_solve import Certificate, solve_clarabel
+from spm_console.core.planning.osqp_solve import solve_osqp
+from spm_console.core.planning.qp_build import Equalities, Pool
+
+F = NDArray[np.float64]
+I = NDArray[np.int64]
+
+Backend = Literal["osqp", "clarabel"]
+
+#: Screening margins: a pool row this close to its bound joins the reduced QP.
+REGION_MARGIN_DEG = 1.0
+SPEED_MARGIN_DEGPS = 2.0
+#: A pool row violated by more than this (deg or deg/s) triggers another round.
+SCREEN_TOL = 1e-7
+MAX_ROUNDS = 10
+
+
+@dataclass
+class QpOutcome:
+    """Result of one solve of (30) for a fixed N."""
+
+    status: str
+    """'solved', 'infeasible' or 'failed'."""
+    z: F | None
+    method: str
+    """'active-set' (exact KKT solves only) or '<backend>+active-set' or '<backend>'."""
+    solver_calls: int
+    """Calls of the QP solver (OSQP or Clarabel)."""
+    kkt_solves: int
+    rounds: int
+    rows_used: int
+    rows_total: int
+    iterations: int
+    certified: bool
+    """Optimality verified by the KKT conditions (exact refinement)."""
+    seconds: float
+    active: I = field(default_factory=lambda: np.zeros(0, np.int64))
+    side: I = field(default_factory=lambda: np.zeros(0, np.int64))
+    certificate: Certificate | None = None
+    """Infeasibility certificate (Clarabel backend)."""
+    detail: str = ""
+
+    @property
+    def qp_count(self) -> int:
+        """QPs solved: solver calls, or 1 for a pure active-set solve."""
+        return max(self.solver_calls, 1)
+
+    def info(self) -> dict[str, Any]:
+        return {"method": self.method, "solver_calls": self.solver_calls,
+                "kkt_solves": self.kkt_solves, "rounds": self.rounds, "rows_used": self.rows_used,
+                "rows_total": self.rows_total, "solver_iterations": self.iterations,
+                "kkt_certified": self.certified, "qp_seconds": self.seconds}
+
+
+def margins(pool: Pool) -> F:
+    return np.where((pool.family == 2) | (pool.family == 3), SPEED_MARGIN_DEGPS, REGION_MARGIN_DEG)
+
+
+def solve_qp(eq: Equalities, pool: Pool, guess: F, active: I | None = None,
+             side: I | None = None, backend: Backend = "osqp",
+             try_active_set: bool = True) -> QpOutcome:
+    """Solve (30); ``guess`` (a z vector) seeds the screening, (active, side) the refinement."""
+    t0 = time.perf_counter()
+    kkt = 0
+    if try_active_set:
+        r = refine(eq, pool, active, side)
+        kkt += r.solves
+        if r.ok:
+            return QpOutcome("solved", r.z, "active-set", 0, kkt, 0, r.active.size, pool.m, 0, True,
+                             time.perf_counter() - t0, r.active, r.side)
+        if r.z is not None:
+            guess = r.z
+    mg = margins(pool)
+    total = pool.m
+    sl0 = pool.slack(guess)
+    chosen = np.flatnonzero(sl0 < mg) if total else np.zeros(0, np.int64)
+    if active is not None and len(active):
+        chosen = np.union1d(chosen, active)
+    z_prev: F = guess
+    calls = iters = 0
+    z: F | None = None
+    y: F | None = None
+    rounds = 0
+    for rounds in range(1, MAX_ROUNDS + 2):
+        if rounds > MAX_ROUNDS:
+            chosen = np.arange(total)
+        if backend == "osqp":
+            o = solve_osqp(eq, pool, chosen, z_prev)
+            calls += 1
+            iters += o.iterations
+            status, z, y, detail, cert = o.status, o.z, o.y_pool, o.detail, None
+        else:
+            c = solve_clarabel(eq, pool, chosen)
+            calls += 1
+            iters += c.iterations
+            status, z, y, detail, cert = c.status, c.z, c.y_pool, c.detail, c.certificate
+        if status != "solved":
+            return QpOutcome(status, None, backend, calls, kkt, rounds, chosen.size, total, iters,
+                             False, time.perf_counter() - t0, certificate=cert, detail=detail)
+        assert z is not None
+        if chosen.size == total:
+            break
+        sl = pool.slack(z)
+        bad = sl < -SCREEN_TOL
+        bad[chosen] = False
+        if not bad.any():
+            break
+        near = sl < mg
+        near[chosen] = True
+        chosen = np.flatnonzero(near | bad)
+        z_prev = z
+    assert z is not None and y is not None
+    # exact refinement on the solver's active set
+    ymax = float(np.abs(y).max()) if y.size else 0.0
+    sl = pool.slack(z)[chosen]
+    on = (np.abs(y) > 1e-6 * max(ymax, 1.0)) & (sl < 1e-4)
+    act = chosen[on]
+    sd = np.where(y[on] > 0, 1, -1).astype(np.int64)
+    r2 = refine(eq, pool, act, sd)
+    kkt += r2.solves
+    if r2.ok:
+        return QpOutcome("solved", r2.z, f"{backend}+active-set", calls, kkt, rounds, chosen.size,
+                         total, iters, True, time.perf_counter() - t0, r2.active, r2.side)
+    return QpOutcome("solved", z, backend, calls, kkt, rounds, chosen.size, total, iters, False,
+                     time.perf_counter() - t0, act, sd)
