@@ -161,3 +161,34 @@ def test_open_bus_on_missing_port(agile: Profile) -> None:
         open_bus(agile, "/dev/does-not-exist")
     with pytest.raises(BusError, match="no serial port"):
         open_bus(agile, "")
+
+
+def test_emulator_survives_line_garbage(agile: Profile) -> None:
+    import serial
+
+    with start_emulator(agile) as em:
+        raw = serial.Serial(em.port, 1_000_000, timeout=0.05)
+        raw.write(b"\xff\xff\xfd\x00\x01\xff\xff" + bytes(range(256)) + b"\xff\xff\xfd")
+        raw.write(bytes.fromhex("FF FF FD 00 01 07 00 02 84 00 04 00 1D 15"))  # e-manual READ
+        reply = raw.read(15)
+        raw.close()
+        # the READ after the garbage is answered with a valid status (position 2048)
+        assert reply[:9] == bytes.fromhex("FF FF FD 00 01 08 00 55 00")
+        assert int.from_bytes(reply[9:13], "little") == 2048
+        assert em.stats.rejected_bytes > 0 and em.running
+        bus = open_bus(agile, em.port)
+        assert np.allclose(bus.read_position_deg(), 135.0)
+        bus.close()
+
+
+def test_a_stale_partial_header_does_not_hold_the_line(agile: Profile) -> None:
+    import serial
+
+    with start_emulator(agile) as em:
+        raw = serial.Serial(em.port, 1_000_000, timeout=0.05)
+        raw.write(bytes.fromhex("FF FF FD 00 01 E8 03"))  # a header announcing 1000 bytes
+        time.sleep(0.05)
+        raw.close()
+        bus = open_bus(agile, em.port)
+        assert np.allclose(bus.read_position_deg(), 135.0)
+        bus.close()

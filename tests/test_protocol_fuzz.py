@@ -139,3 +139,33 @@ def test_decoder1_rejects_any_single_byte_corruption(pair: tuple[bytes, int],
     bad = bytearray(raw)
     bad[i] = new
     assert p1.Decoder1(expect_params=n).feed(bytes(bad)) == []
+
+
+# --- the emulated servos answer any instruction without crashing -----------------------
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([1, 2, 3, 7, p2.BROADCAST_ID]),
+                          st.sampled_from([0x01, 0x02, 0x03, 0x08, 0x82, 0x83, 0x92])
+                          | st.integers(0, 255).filter(lambda i: i != p2.STATUS),
+                          params | ff_heavy), min_size=1, max_size=8))
+def test_emulated_servos_survive_any_instruction(cmds: list[tuple[int, int, bytes]]) -> None:
+    from spm_console.devices.control_table import MX106_P1, MX106_P2
+    from spm_console.devices.emulated_dispatch import dispatch1, dispatch2
+    from spm_console.devices.emulated_servo import EmulatedServo
+
+    for table, dispatch, codec, dec in ((MX106_P2, dispatch2, p2, p2.Decoder2()),
+                                        (MX106_P1, dispatch1, p1, p1.Decoder1())):
+        servos = {i: EmulatedServo(table, i, 32.22, 2048.0, 0.0) for i in (1, 2, 3)}
+        for k, (ident, inst, body) in enumerate(cmds):
+            if codec is p1 and len(body) > 250:
+                continue
+            raw = codec.instruction(ident, inst, body)
+            (pkt,) = dec.feed(raw)
+            for s in servos.values():
+                s.advance(0.01 * (k + 1))
+            for rid, reply in dispatch(servos, pkt):  # type: ignore[operator]
+                assert rid in servos
+                got = (p2.Decoder2() if codec is p2 else p1.Decoder1()).feed(reply)
+                assert len(got) == 1 and got[0].id == rid
+        for s in servos.values():
+            assert 0.0 <= s.pos < 4096.0 or not s.torque

@@ -40,6 +40,9 @@ F = NDArray[np.float64]
 
 #: Longest sleep of the serving thread when idle (also the idle recording interval), s.
 IDLE_S = 0.005
+#: A partial packet older than this when new bytes arrive is dropped (like the firmware's
+#: byte-to-byte timeout), so a garbage header with a huge length cannot hold the line.
+GAP_S = 0.01
 
 
 @dataclass
@@ -91,6 +94,7 @@ class EmulatorHandle:
         self._fired: set[int] = set()
         self._frng = random.Random(profile.emulator.seed + 1)
         self._pending: list[tuple[float, bytes]] = []
+        self._last_rx = 0.0
         self.stats = EmulatorStats()
         self._lock = threading.RLock()
         self._stop = threading.Event()
@@ -229,6 +233,10 @@ class EmulatorHandle:
             self._stop.set()
 
     def _handle(self, data: bytes, now: float) -> None:
+        if self._decoder.pending and now - self._last_rx > GAP_S:
+            self.stats.rejected_bytes += self._decoder.pending
+            self._decoder.reset()
+        self._last_rx = now
         before = self._decoder.skipped
         packets = self._decoder.feed(data)
         self.stats.rejected_bytes += self._decoder.skipped - before
