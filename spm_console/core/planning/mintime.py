@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.plan import Plan
 from spm_console.core.planning.clarabel_solve import Certificate
 from spm_console.core.planning.mvn import finish, straight_guess
 from spm_console.core.planning.problem import Layout, PlanProblem
@@ -56,6 +57,14 @@ class MintimeResult:
     solve_seconds: float
     trace: list[dict[str, Any]] = field(default_factory=list)
     """Every N examined: verdict, method, seconds."""
+
+    def to_plan(self, kind: Literal["mintime"] = "mintime", profile_hash: str = "",
+                extra: dict[str, Any] | None = None) -> Plan:
+        """The plan at N* with the search and the N*−1 certificate recorded."""
+        ex = {"n_minus_1_infeasible": self.record(), "search_seconds": self.solve_seconds}
+        ex.update(extra or {})
+        plan = self.plan.to_plan(kind, profile_hash, ex)
+        return replace(plan, solve_seconds=self.solve_seconds, qp_count=self.qp_count)
 
     def record(self) -> dict[str, Any]:
         """What a plan file keeps about N*−1."""

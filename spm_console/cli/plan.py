@@ -1,0 +1,265 @@
+"""``plan mvn``, ``plan mintime``, ``plan show`` and ``identify`` commands."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spm_console.cli.common import add_common, emit, finite3, fmt_vec, info, profile_of
+from spm_console.core.identify import identify
+from spm_console.core.plan import Plan
+from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
+from spm_console.core.region import Region
+from spm_console.core.servo_model import discretize
+from spm_console.errors import BadInputError, ExitCode
+from spm_console.plan_file import load_plan, plan_hash, plan_to_dict, save_plan
+from spm_console.profile import Profile
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser("plan", help="optimal servo references: MVN (30), minimum time (31)")
+    psub = p.add_subparsers(dest="plan_command", metavar="ACTION", required=True)
+
+    m = psub.add_parser("mvn", help="minimum-velocity-norm references in N steps")
+    _problem_args(m)
+    m.add_argument("--steps", type=int, default=150, metavar="N", help="intervals N (default 150)")
+    m.add_argument("--vmax", type=float, default=None, metavar="V",
+                   help="speed bound at the samples, deg/s (default: none, as in the paper)")
+    m.set_defaults(func=cmd_mvn)
+
+    t = psub.add_parser("mintime", help="minimum-time references under a speed bound")
+    _problem_args(t)
+    t.add_argument("--vmax", type=float, default=None, metavar="V",
+                   help="speed bound, deg/s (default: the profile's limits.vmax_degps)")
+    t.set_defaults(func=cmd_mintime)
+
+    s = psub.add_parser("show", help="check a plan file against the profile and summarize it")
+    add_common(s)
+    s.add_argument("file", type=Path, metavar="FILE")
+    s.add_argument("--plot", type=Path, metavar="FILE.png", help="save a Figs. 7–10-like plot")
+    s.set_defaults(func=cmd_show)
+
+    i = sub.add_parser("identify", help="fit the servo pole p (and a delay) to a logged response")
+    add_common(i)
+    src = i.add_mutually_exclusive_group(required=True)
+    src.add_argument("--run", metavar="RUN", help="an executed run (folder or name under the logs)")
+    src.add_argument("--csv", type=Path, metavar="FILE",
+                     help="CSV with a header: t, ref1[, ref2, ref3], meas1[, meas2, meas3]")
+    i.add_argument("--logs", type=Path, default=None, help="log root for --run")
+    i.add_argument("--delay", action="store_true", help="also fit a pure delay")
+    i.set_defaults(func=cmd_identify)
+
+
+def _problem_args(p: argparse.ArgumentParser) -> None:
+    add_common(p)
+    p.add_argument("--start", nargs=3, type=float, required=True, metavar=("T1", "T2", "T3"),
+                   help="start motor angles, deg")
+    p.add_argument("--goal", nargs=3, type=float, required=True, metavar=("T1", "T2", "T3"),
+                   help="goal motor angles, deg")
+    p.add_argument("--intersample", type=int, default=1, metavar="K",
+                   help="also enforce speed and region at K−1 instants inside each interval")
+    p.add_argument("--region", type=Path, default=None, metavar="FILE.json",
+                   help="region {A, b} (θ in deg) instead of the workspace's P")
+    p.add_argument("--cache-dir", type=Path, default=None, help="workspace cache directory")
+    p.add_argument("--free-first", action="store_true",
+                   help="let θ*(0) move (the paper's (30b) holds θ*(0) = θ(0))")
+    p.add_argument("--no-ref-limits", action="store_true",
+                   help="do not bound the references by the servo limits of the profile")
+    p.add_argument("--out", type=Path, default=None, metavar="FILE", help="write the plan (JSON)")
+    p.add_argument("--plot", type=Path, default=None, metavar="FILE.png", help="save a plot")
+
+
+def _region_file(path: Path) -> Region:
+    try:
+        d = json.loads(path.read_text())
+    except OSError as exc:
+        raise BadInputError(f"--region {path}: cannot read: {exc.strerror or exc}") from None
+    except json.JSONDecodeError as exc:
+        raise BadInputError(f"--region {path}: not valid JSON: {exc}") from None
+    if isinstance(d, dict) and "region" in d and isinstance(d["region"], dict):
+        d = d["region"]
+    if not isinstance(d, dict):
+        raise BadInputError(f"--region {path}: expected an object with A and b")
+    try:
+        return Region.from_dict(d)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise BadInputError(f"--region {path}: {exc}") from None
+
+
+def resolve_region(args: argparse.Namespace, profile: Profile, s: np.ndarray,
+                   g: np.ndarray) -> tuple[Region, str]:
+    """The region to plan in: a file, the cached P, or one built around the segment."""
+    if args.region is not None:
+        return _region_file(args.region), f"file {args.region}"
+    from spm_console.core.region_build import region_containing
+    from spm_console.workspace_cache import load_or_build
+
+    ws, ci = load_or_build(profile, args.cache_dir)
+    if not ci.hit:
+        info(f"workspace built in {ci.build_seconds:.1f} s ({ci.rebuilt_because})")
+    region = region_containing(ws, s, g)  # raises InfeasibleError with the reason
+    return region, "workspace P" if region is ws.region else "region built around the segment"
+
+
+def _problem(args: argparse.Namespace, profile: Profile, n: int, vmax: float | None
+             ) -> tuple[PlanProblem, str]:
+    s = finite3(args.start, "--start")
+    g = finite3(args.goal, "--goal")
+    if args.intersample < 1:
+        raise BadInputError(f"--intersample must be ≥ 1, got {args.intersample}")
+    region, source = resolve_region(args, profile, s, g)
+    sv = profile.servo
+    model = discretize(sv.p, sv.ts_s, sv.discretization)
+    lo = hi = None
+    if not args.no_ref_limits:
+        lo = np.array([j.min_deg for j in profile.bus.joints])
+        hi = np.array([j.max_deg for j in profile.bus.joints])
+        for name, th in (("--start", s), ("--goal", g)):
+            if np.any(th < lo) or np.any(th > hi):
+                raise BadInputError(f"{name} {th.tolist()}° is outside the servo limits "
+                                    f"{lo.tolist()}..{hi.tolist()}°")
+    pb = PlanProblem(model, s, g, n, region, vmax, args.intersample, not args.free_first, lo, hi)
+    return pb, source
+
+
+def summary(plan: Plan, out: Path | None, source: str) -> dict[str, Any]:
+    d = plan_to_dict(plan)
+    rec = {k: d[k] for k in ("kind", "Ts", "N", "duration_s", "cost", "solve_seconds", "qp_count")}
+    rec.update({"out": str(out) if out else None, "region_source": source,
+                "halfspaces": plan.region.halfspaces, "check": plan.extra.get("check"),
+                "solver": plan.extra.get("solver"), "start_deg": plan.position_deg[0],
+                "goal_deg": plan.position_deg[-1]})
+    if "n_minus_1_infeasible" in plan.extra:
+        rec["n_minus_1_infeasible"] = plan.extra["n_minus_1_infeasible"]
+    return rec
+
+
+def _human(plan: Plan, out: Path | None, source: str) -> str:
+    c = plan.extra.get("check") or {}
+    lines = [
+        f"{plan.kind}: N = {plan.N} ({plan.duration_s:.2f} s), cost {plan.cost:.6g} (deg/s)², "
+        f"{plan.qp_count} QP(s), {1e3 * plan.solve_seconds:.1f} ms",
+        f"region: {source}, {plan.region.halfspaces} half-spaces",
+        f"at the samples: max |θ̇| {c.get('max_speed_samples_degps', float('nan')):.3f} deg/s, "
+        f"region violation {c.get('region_violation_deg', float('nan')):.2e} deg",
+        f"between samples: max |θ̇| {c.get('max_speed_between_degps', float('nan')):.3f} deg/s, "
+        f"region violation {c.get('region_violation_between_deg', float('nan')):.3g} deg",
+    ]
+    cert = (plan.extra.get("n_minus_1_infeasible") or {}).get("certificate")
+    if cert:
+        lines.append(f"N−1 = {plan.N - 1} infeasible: Farkas certificate excludes ‖x‖∞ < "
+                     f"{cert['excluded_radius']:.3g}")
+    if out:
+        lines.append(f"written to {out}")
+    return "\n".join(lines)
+
+
+def _finish(args: argparse.Namespace, plan: Plan, source: str) -> int:
+    if args.out is not None:
+        try:
+            save_plan(plan, args.out)
+        except OSError as exc:
+            raise BadInputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
+    if args.plot is not None:
+        _plot(plan, args.plot)
+    emit(args, summary(plan, args.out, source), _human(plan, args.out, source))
+    return int(ExitCode.OK)
+
+
+def _plot(plan: Plan, path: Path) -> None:
+    from spm_console.report.plot_plan import plot_plan
+
+    try:
+        plot_plan(plan, path)
+    except OSError as exc:
+        raise BadInputError(f"--plot {path}: cannot write: {exc.strerror or exc}") from None
+
+
+def cmd_mvn(args: argparse.Namespace) -> int:
+    profile = profile_of(args)
+    pb, source = _problem(args, profile, args.steps, args.vmax)
+    res = solve_problem(pb)
+    return _finish(args, res.to_plan("mvn", plan_hash(profile)), source)
+
+
+def cmd_mintime(args: argparse.Namespace) -> int:
+    profile = profile_of(args)
+    vmax = profile.limits.vmax_degps if args.vmax is None else args.vmax
+    pb, source = _problem(args, profile, 2, vmax)
+    res = solve_mintime_problem(pb)
+    return _finish(args, res.to_plan("mintime", plan_hash(profile)), source)
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    profile = profile_of(args)
+    plan = load_plan(args.file, profile)
+    if args.plot is not None:
+        _plot(plan, args.plot)
+    d = plan_to_dict(plan)
+    human = _human(plan, None, "stored in the plan") + (
+        f"\nstart {fmt_vec(plan.position_deg[0], 2)} deg → goal {fmt_vec(plan.position_deg[-1], 2)} deg")
+    emit(args, d, human)
+    return int(ExitCode.OK)
+
+
+def _read_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise BadInputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    rows = list(csv.reader(line for line in text.splitlines() if line.strip()
+                           and not line.startswith("#")))
+    if len(rows) < 2:
+        raise BadInputError(f"{path}: expected a header line and data rows")
+    head = [h.strip() for h in rows[0]]
+    try:
+        data = np.array([[float(c) for c in r] for r in rows[1:]], float)
+    except ValueError:
+        raise BadInputError(f"{path}: every data cell must be a number") from None
+    if data.ndim != 2 or data.shape[1] != len(head):
+        raise BadInputError(f"{path}: every row needs {len(head)} cells")
+    return _columns(dict(zip(head, data.T, strict=True)), str(path))
+
+
+def _columns(cols: dict[str, np.ndarray], src: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    if "t" not in cols:
+        raise BadInputError(f"{src}: missing column 't'")
+    joints = [i for i in (1, 2, 3) if f"ref{i}" in cols and f"meas{i}" in cols]
+    if not joints and "ref" in cols and "meas" in cols:
+        return cols["t"], cols["ref"][:, None], cols["meas"][:, None]
+    if not joints:
+        raise BadInputError(f"{src}: needs columns ref1/meas1 (… ref3/meas3) or ref/meas")
+    ref = np.column_stack([cols[f"ref{i}"] for i in joints])
+    meas = np.column_stack([cols[f"meas{i}"] for i in joints])
+    ok = np.isfinite(cols["t"]) & np.isfinite(ref).all(1) & np.isfinite(meas).all(1)
+    return cols["t"][ok], ref[ok], meas[ok]
+
+
+def cmd_identify(args: argparse.Namespace) -> int:
+    profile = profile_of(args)
+    if args.csv is not None:
+        t, ref, meas = _read_csv(args.csv)
+        src = str(args.csv)
+    else:
+        from spm_console.run.runlog import load_run
+
+        run = load_run(args.run, args.logs)
+        t, ref, meas = _columns(dict(run.columns), str(run.path))
+        src = str(run.path)
+    res = identify(t, ref, meas, fit_delay=args.delay)
+    rec = res.to_dict()
+    rec.update({"source": src, "profile_p": profile.servo.p,
+                "relative_to_profile": res.p / profile.servo.p - 1.0})
+    human = (f"p = {res.p:.3f} ± {res.p_std:.3f} rad/s (profile {profile.servo.p:g}, "
+             f"{100 * (res.p / profile.servo.p - 1):+.1f} %)"
+             + (f", delay {1e3 * res.delay_s:.1f} ms" if res.fit_delay else "")
+             + f"; RMS residual {res.rms_deg:.4f} deg over {res.samples} samples × {res.joints} joints")
+    emit(args, rec, human)
+    sys.stdout.flush()
+    return int(ExitCode.OK)
