@@ -196,3 +196,28 @@ def test_bus_watchdog_stops_a_servo_when_the_host_goes_quiet(agile: Profile) -> 
             time.sleep(0.02)
             bus.read_position_deg()
         assert np.allclose(bus.read_position_deg(), 150.0, atol=0.1)
+
+
+def test_protocol1_hardware_error_and_no_reboot(agile: Profile) -> None:
+    prof = agile.model_copy(update={"bus": agile.bus.model_copy(
+        update={"protocol": "1.0", "model_number": 320})})
+    with rig(prof, "hwerror:2@0") as (_em, bus):
+        time.sleep(0.02)
+        bus.read_position_deg()
+        assert bus.alerts == {1: 0, 2: 0x20, 3: 0}  # overload bit of the 1.0 status byte
+        assert bus.hardware_errors() == [0, 0x20, 0]
+        assert bus.describe_hardware_error(0x20) == "overload"
+        with pytest.raises(BusError, match="no REBOOT"):
+            bus.reboot()
+        assert bus.set_watchdog(100) == 0  # no Bus Watchdog on 1.0
+
+
+def test_position_noise_is_what_the_profile_says(agile: Profile) -> None:
+    noisy = agile.model_copy(update={"emulator": agile.emulator.model_copy(
+        update={"noise_deg": 0.3})})
+    with rig(noisy) as (_em, bus):
+        reads = np.array([bus.read_position_deg() for _ in range(300)])
+    assert reads.std(axis=0) == pytest.approx([0.3, 0.3, 0.3], rel=0.2)
+    assert abs(reads.mean() - 135.0) < 0.05
+    steps = np.diff(np.unique(reads)) / (360 / 4096)  # readings are whole ticks
+    assert np.allclose(steps, np.round(steps))
