@@ -78,10 +78,43 @@ class Region:
                 keep.remove(k)
         return out
 
-    def without_redundant(self, tol: float = 1e-7) -> Region:
-        """The polytope with every redundant half-space removed."""
-        drop = set(self.redundant_rows(tol))
-        keep = [k for k in range(self.halfspaces) if k not in drop]
+    def facet_rows(self, tol: float = 1e-7) -> list[int]:
+        """Rows that define a facet (2-D face) of the bounded, full-dimensional polytope,
+        one row per facet: found from the vertices (qhull), no LP. A row is redundant
+        exactly when it defines no facet."""
+        V = self.vertices()
+        if len(V) < 4:
+            return list(range(self.halfspaces))
+        n = np.linalg.norm(self.A, axis=1)
+        An, bn = self.A / n[:, None], self.b / n
+        scale = max(1.0, float(np.abs(V).max()))
+        tight = np.abs(V @ An.T - bn) <= tol * scale  # (n_vertices, n_rows)
+        out: list[int] = []
+        seen: list[tuple[F, float]] = []
+        for k in range(self.halfspaces):
+            T = V[tight[:, k]]
+            if len(T) < 3:
+                continue
+            sv = np.linalg.svd(T - T.mean(0), compute_uv=False)
+            if sv[1] <= 1e3 * tol * scale:
+                continue
+            if any(np.abs(a - An[k]).max() < 1e-9 and abs(c - bn[k]) < 1e-9 * scale
+                   for a, c in seen):
+                continue
+            seen.append((An[k], float(bn[k])))
+            out.append(k)
+        return out
+
+    def without_redundant(self, tol: float = 1e-7, method: str = "vertices") -> Region:
+        """The polytope with every redundant half-space removed.
+
+        ``method="vertices"`` keeps the facet-defining rows (qhull, fast);
+        ``"lp"`` solves one LP per row (slow, independent check)."""
+        if method == "lp":
+            drop = set(self.redundant_rows(tol))
+            keep = [k for k in range(self.halfspaces) if k not in drop]
+        else:
+            keep = self.facet_rows(tol)
         return Region(self.A[keep], self.b[keep])
 
     def vertices(self) -> F:

@@ -46,6 +46,8 @@ B = NDArray[np.bool_]
 VOLUME_TOL = 0.02
 #: Maximum IRIS iterations.
 MAX_ITERS = 6
+#: Feasible nodes used as the objective of the heuristics (random subset beyond this).
+OBJECTIVE_POINTS = 60_000
 #: Tolerance (deg) for "a node lies in P".
 INSIDE_TOL_DEG = 1e-7
 
@@ -65,9 +67,12 @@ class RegionBuild:
     log_volume: float
     """log det of the last inscribed ellipsoid (scaled coordinates)."""
     seconds: float
+    iris_planes: int = 0
+    """Non-redundant planes IRIS produced before any reduction to the cap."""
 
     def info(self) -> dict[str, float]:
         return {
+            "iris_planes": float(self.iris_planes),
             "coverage": self.coverage, "iterations": float(self.iterations),
             "obstacles": float(self.obstacles), "halfspaces": float(self.region.halfspaces),
             "log_volume": self.log_volume, "seconds": self.seconds,
@@ -226,29 +231,39 @@ def _iris(
     bbox = np.ones(6)
     E = Ellipsoid(E0_deg[0] / frame.s, frame.to_x(E0_deg[1]))
     feas_pts = theta_deg[feasible]
+    # objective points of the heuristics: a fixed random subset (exact coverage at the end)
+    rng = np.random.default_rng(0)
+    obj = feas_pts if len(feas_pts) <= OBJECTIVE_POINTS else feas_pts[
+        rng.choice(len(feas_pts), OBJECTIVE_POINTS, replace=False)]
     best: RegionBuild | None = None
     it = 0
     for it in range(1, MAX_ITERS + 1):
         Ap, bp = separating_planes(E, Q, half, req)
         cand = frame.region(np.vstack([Abox, Ap]), np.r_[bbox, bp]).without_redundant()
+        raw_planes = cand.halfspaces
         if cand.halfspaces > max_halfspaces:
-            cand = reduce_halfspaces(cand, frame, Q, half, req, max_halfspaces, feas_pts)
-        cov = float(_inside(cand, feas_pts).mean()) if len(feas_pts) else 0.0
+            cand = reduce_halfspaces(cand, frame, Q, half, req, max_halfspaces, obj)
+        cov = float(_inside(cand, obj).mean()) if len(obj) else 0.0
         # next ellipsoid inside the candidate, in scaled coordinates
         Ax = cand.A * frame.s
         bx = cand.b - cand.A @ frame.c
         E_new = inscribed_ellipsoid(Ax, bx)
         grow = E_new.log_volume - E.log_volume
         if best is None or cov > best.coverage:
-            best = RegionBuild(cand, cov, it, len(Q), E_new.log_volume, 0.0)
+            best = RegionBuild(cand, cov, it, len(Q), E_new.log_volume, 0.0, raw_planes)
         if progress is not None:
             progress(it / MAX_ITERS)
         E = E_new
         if it > 1 and grow < np.log1p(VOLUME_TOL):
             break
     assert best is not None
-    return RegionBuild(best.region, best.coverage, it, best.obstacles, best.log_volume,
-                       time.perf_counter() - t0)
+    cov = float(_inside(best.region, feas_pts).mean()) if len(feas_pts) else 0.0
+    return RegionBuild(best.region, cov, it, best.obstacles, best.log_volume,
+                       time.perf_counter() - t0, best.iris_planes)
+
+
+def _is_box_row(a: F) -> bool:
+    return int(np.count_nonzero(np.abs(a) > 1e-12)) == 1
 
 
 def reduce_halfspaces(
@@ -256,43 +271,47 @@ def reduce_halfspaces(
 ) -> Region:
     """Drop planes until ≤ max_n, handing each dropped plane's obstacles to the other
     planes by lowering their offsets (never cutting a required point); each drop
-    is the one that loses the fewest of ``pts`` (deg)."""
+    is the one that loses the fewest of ``pts`` (deg). Grid-box rows are kept."""
     A, b = region.A.copy(), region.b.copy()
     Qd = Q * frame.s + frame.c
     hd = half * frame.s
     reqd = req * frame.s + frame.c
+    tol = INSIDE_TOL_DEG
     while len(b) > max_n:
-        mins = Qd @ A.T - hd * np.abs(A).sum(1)  # (n_obs, n_planes) min of a·θ over the cube
+        n = len(b)
+        mins = Qd @ A.T - hd * np.abs(A).sum(1)  # (n_obs, n) min of a·θ over each cube
         excl = mins >= b - 1e-9
         nex = excl.sum(1)
+        req_max = (reqd @ A.T).max(0) if len(reqd) else np.full(n, -np.inf)
+        out = pts @ A.T > b + tol  # (n_pts, n)
+        nviol = out.sum(1)
         best: F | None = None
-        best_k = -1
-        best_loss = np.inf
-        req_max = (reqd @ A.T).max(0) if len(reqd) else np.full(len(b), -np.inf)
-        for k in range(len(b)):
-            if np.allclose(np.abs(A[k]), 1.0) and np.count_nonzero(np.abs(A[k]) > 0.5) == 1:
-                continue  # keep the grid box
+        best_k, best_loss = -1, np.inf
+        for k in range(n):
+            if _is_box_row(A[k]):
+                continue
             sole = np.flatnonzero(excl[:, k] & (nex == 1))
             nb = b.copy()
-            ok = True
-            for r in sole:
-                gain = np.where((mins[r] >= req_max) & (np.arange(len(b)) != k),
-                                mins[r] - nb, -np.inf)
-                j = int(np.argmax(gain))
-                if not np.isfinite(gain[j]):
-                    ok = False
-                    break
-                nb[j] = min(nb[j], mins[r, j])
-            if not ok:
-                continue
-            keep = np.arange(len(b)) != k
-            loss = float((~np.all(pts @ A[keep].T <= nb[keep] + INSIDE_TOL_DEG, -1)).sum())
+            if len(sole):
+                gain = mins[sole] - b  # ≤ 0: how far plane j must move to exclude r
+                ok = (mins[sole] >= req_max) & (np.arange(n) != k)
+                gain = np.where(ok, gain, -np.inf)
+                j = np.argmax(gain, axis=1)
+                if not np.isfinite(gain[np.arange(len(sole)), j]).all():
+                    continue
+                np.minimum.at(nb, j, mins[sole, j])
+            # points inside after: no violation except possibly k, and inside moved planes
+            cand = (nviol - out[:, k]) == 0
+            moved = np.flatnonzero(nb < b)
+            inside_after = cand.copy()
+            if len(moved):
+                inside_after[cand] = (pts[cand] @ A[moved].T <= nb[moved] + tol).all(1)
+            loss = float((nviol == 0).sum() - inside_after.sum())
             if loss < best_loss:
-                best_loss, best = loss, nb.copy()
-                best_k = k
+                best_loss, best, best_k = loss, nb, k
         if best is None:
             break
-        keep = np.arange(len(b)) != best_k
+        keep = np.arange(n) != best_k
         reduced = Region(A[keep], best[keep]).without_redundant()
         A, b = reduced.A, reduced.b
     return Region(A, b)
