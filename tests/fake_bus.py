@@ -15,14 +15,33 @@ from spm_console.devices.base import CommError, ServoStatus
 TICK = 360.0 / 4096
 
 
+class SimClock:
+    """A simulated clock: ``sleep`` advances it; nothing else does (deterministic timing)."""
+
+    def __init__(self) -> None:
+        self.t = 1000.0
+
+    def __call__(self) -> float:
+        return self.t
+
+    def sleep(self, dt: float) -> None:
+        self.t += max(0.0, dt)
+
+
 class FakeBus:
-    def __init__(self, theta0_deg: np.ndarray, p: float = 32.22) -> None:
+    def __init__(self, theta0_deg: np.ndarray, p: float = 32.22,
+                 clock: SimClock | None = None, io_s: float = 0.0004,
+                 timeout_s: float = 0.004) -> None:
         self.p = p
+        self.clock = clock
+        self.now = clock if clock is not None else time.perf_counter
+        self.io_s = io_s
+        self.timeout_s = timeout_s
         self.x = np.zeros((2, 3))
         self.x[0] = np.asarray(theta0_deg, float)
         self.goal = self.x[0].copy()
         self.torque = False
-        self.t_last = time.perf_counter()
+        self.t_last = self.now()
         self.lock = threading.Lock()
         self.t_start: float | None = None
         self.fail_reads_after: float | None = None  # every read fails from this time on
@@ -32,18 +51,20 @@ class FakeBus:
         self.hw_error_after: float | None = None
         self.push_after: float | None = None  # external push of joint 1 by +push_deg
         self.push_deg = 0.0
+        self.expose_alerts = False  # like DynamixelBus.alerts (status packets' alert bit)
+        self.alerts: dict[int, int] = {}
         self.reads = 0
         self.writes: list[tuple[float, np.ndarray]] = []
         self.torque_calls: list[tuple[float, bool]] = []
 
     def _elapsed(self) -> float:
-        return 0.0 if self.t_start is None else time.perf_counter() - self.t_start
+        return 0.0 if self.t_start is None else self.now() - self.t_start
 
     def start_clock(self) -> None:
-        self.t_start = time.perf_counter()
+        self.t_start = self.now()
 
     def _advance(self) -> None:
-        now = time.perf_counter()
+        now = self.now()
         dt, self.t_last = now - self.t_last, now
         if not self.torque or dt <= 0:
             return
@@ -76,14 +97,21 @@ class FakeBus:
             self.goal = np.asarray(theta_deg, float).copy()
             self.writes.append((self._elapsed(), self.goal.copy()))
 
+    def _spend(self, dt: float) -> None:
+        if self.clock is not None:
+            self.clock.sleep(dt)
+
     def read_position_deg(self) -> np.ndarray:
         with self.lock:
             self._advance()
             self.reads += 1
-            if self.reads in self.fail_read_calls:
+            if self.reads in self.fail_read_calls or (
+                    self.fail_reads_after is not None and self._elapsed() >= self.fail_reads_after):
+                self._spend(self.timeout_s)
                 raise CommError("no status packet from id 2 (timeout)")
-            if self.fail_reads_after is not None and self._elapsed() >= self.fail_reads_after:
-                raise CommError("no status packet from id 1 (timeout)")
+            self._spend(self.io_s)
+            if self.expose_alerts:
+                self.alerts = {i + 1: int(e != 0) for i, e in enumerate(self.hardware_errors())}
             return np.round(self.x[0] / TICK) * TICK
 
     def hardware_errors(self) -> list[int]:

@@ -96,6 +96,7 @@ class Executor:
         start_tolerance_deg: float = 1.0,
         spin_s: float = 0.0015,
         clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], None] | None = None,
     ) -> None:
         self.profile = profile
         self.bus = bus
@@ -107,6 +108,8 @@ class Executor:
         self.start_tolerance_deg = start_tolerance_deg
         self.spin_s = spin_s
         self.clock = clock
+        self.sleep = sleep
+        """Replaces the real waiting when given (tests drive a simulated clock with it)."""
         self.ts = profile.servo.ts_s
         self.model = discretize(profile.servo.p, self.ts, profile.servo.discretization)
         self.lo = np.array([j.min_deg for j in profile.bus.joints])
@@ -136,7 +139,9 @@ class Executor:
             rem = deadline - self.clock()
             if rem <= 0.0 or self._estop.is_set():
                 return
-            if rem > self.spin_s:
+            if self.sleep is not None:
+                self.sleep(rem)
+            elif rem > self.spin_s:
                 self._estop.wait(rem - self.spin_s)
             else:
                 time.sleep(0)
@@ -263,7 +268,9 @@ class Executor:
             t = t_start - self.t0
             if self._estop.is_set():
                 estop = SafetyMonitor.estop(self._estop_reason, t, k)
-                self._apply_stop(estop, self._hold_target(last_good), deadline + self.ts)
+                # woken before this cycle's deadline: the repeat goes out at that deadline
+                repeat_at = deadline if t_start < deadline else deadline + self.ts
+                self._apply_stop(estop, self._hold_target(last_good), repeat_at)
                 return estop
             ref = refs[k]
             z, retries, detail = self._cycle_io(ref)
@@ -370,7 +377,7 @@ class Executor:
 
     def _wait_until_plain(self, deadline: float) -> None:
         while (rem := deadline - self.clock()) > 0:
-            time.sleep(min(rem, 0.002))
+            (self.sleep or time.sleep)(min(rem, 0.002))
 
     def _finish(self, outcome: str, code: ExitCode, message: str,
                 stop: StopReason | None) -> ExecutionResult:

@@ -65,22 +65,34 @@ def plan_from_references(
     )
 
 
+def quantization_speed_margin(profile: Profile) -> float:
+    """Speed (deg/s) one tick of goal quantization can add: a 1-tick step into (27) peaks
+    at tick·p/e in velocity (the double pole's step response, at t = 1/p)."""
+    tick = 360.0 / profile.bus.ticks_per_turn
+    return tick * profile.servo.p / math.e
+
+
 def line_plan(profile: Profile, start_deg: F, goal_deg: F, speed_degps: float) -> Plan:
-    """Straight line in θ from start to goal, the farthest joint at ``speed_degps``.
+    """Straight line in θ from start to goal, no joint faster than ``speed_degps``.
 
     References ramp at constant speed (all joints arrive together), then hold the
     goal for :func:`settle_samples`. The model (27) is critically damped, so its
-    speed under a ramp rises monotonically to the ramp speed and never exceeds it.
+    speed under a ramp rises monotonically to the ramp speed and never exceeds it;
+    the ramp runs :func:`quantization_speed_margin` below the bound because the
+    servos receive whole ticks, not the exact ramp.
     """
     a = np.asarray(start_deg, float)
     b = np.asarray(goal_deg, float)
     ts = profile.servo.ts_s
+    margin = quantization_speed_margin(profile)
+    ramp = speed_degps - margin if speed_degps > 2 * margin else speed_degps / 2
     dist = float(np.abs(b - a).max())
-    n_move = max(1, math.ceil(dist / speed_degps / ts))
+    n_move = max(1, math.ceil(dist / ramp / ts))
     s = np.minimum(np.arange(n_move + 1 + settle_samples(profile)) / n_move, 1.0)
     ref = a + s[:, None] * (b - a)
     return plan_from_references(profile, ref, "homing",
-                                extra={"speed_degps": speed_degps, "move_samples": n_move})
+                                extra={"speed_bound_degps": speed_degps, "ramp_degps": ramp,
+                                       "move_samples": n_move})
 
 
 def synthetic_plan(profile: Profile, start_deg: F, goal_deg: F, duration_s: float) -> Plan:
