@@ -16,6 +16,7 @@ COMMAND_MODULES = [
     "spm_console.cli.servo",
     "spm_console.cli.workspace",
     "spm_console.cli.plan",
+    "spm_console.cli.tui",
     "spm_console.cli.run",
     "spm_console.cli.logs",
 ]

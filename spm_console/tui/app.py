@@ -1,0 +1,197 @@
+"""The operator console app and its one startup factory, :func:`make_app`.
+
+The CLI (``spm-console tui``), the tests and the benchmark all build the app here,
+so they exercise what operators run (STYLE §3).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import signal
+import threading
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, ClassVar
+
+from textual import work
+from textual.actions import SkipAction
+from textual.app import App
+from textual.binding import Binding, BindingType
+from textual.reactive import reactive
+from textual.screen import Screen
+
+from spm_console.profile import Profile
+from spm_console.tui.messages import Telemetry
+from spm_console.tui.screens.connect import ConnectScreen
+from spm_console.tui.screens.execute import ExecuteScreen
+from spm_console.tui.screens.fk import FkScreen
+from spm_console.tui.screens.logs import LogsScreen
+from spm_console.tui.screens.plan import PlanScreen
+from spm_console.tui.screens.workspace import WorkspaceScreen
+from spm_console.tui.session import Session
+from spm_console.tui.widgets.estop import ESTOP_KEY
+from spm_console.tui.widgets.steps import STEPS
+from spm_console.viewer.view import MeshcatView, NullView, WristView
+
+_STEPS_GROUP = Binding.Group("steps", compact=True)
+#: Shortest interval between two telemetry updates of the UI, s.
+TELEMETRY_EVERY_S = 0.1
+
+
+class SpmConsoleApp(App[int]):
+    """Six step screens (Textual modes) over one :class:`Session`."""
+
+    TITLE = "spm-console"
+    CSS_PATH = "app.tcss"
+    ENABLE_COMMAND_PALETTE = False
+    MODES: ClassVar[dict[str, str | Callable[[], Screen[Any]]]] = {
+        "connect": ConnectScreen,
+        "fk": FkScreen,
+        "workspace": WorkspaceScreen,
+        "plan": PlanScreen,
+        "execute": ExecuteScreen,
+        "logs": LogsScreen,
+    }
+    BINDINGS: ClassVar[list[BindingType]] = [
+        *(Binding(s.key, f"step('{s.mode}')", s.title, group=_STEPS_GROUP) for s in STEPS),
+        Binding("q", "quit_console", "Quit"),
+        Binding(ESTOP_KEY, "estop", "E-STOP", priority=True, key_display="SPACE"),
+    ]
+
+    moving: reactive[bool] = reactive(False)
+    """True while the wrist moves (homing or execution): E-stop shown, steps locked."""
+
+    def __init__(self, session: Session, view: WristView, start_viewer: bool = True) -> None:
+        super().__init__()
+        self.session = session
+        self.view = view
+        self._start_viewer = start_viewer and isinstance(view, MeshcatView)
+        self.viewer_url: str | None = None
+        self.fk_done = False
+        self.live_samples: list[Any] = []
+        self._closed = False
+
+    # ------------------------------------------------------------------ lifecycle
+    def on_mount(self) -> None:
+        self.switch_mode("connect")
+        if threading.current_thread() is threading.main_thread():
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, self._on_sigterm)
+        if self._start_viewer:
+            self._launch_viewer()
+
+    def _on_sigterm(self) -> None:
+        """SIGTERM: stop any motion, shut the viewer, leave cleanly."""
+        self.session.estop("SIGTERM")
+        self.shutdown()
+        self.exit(143)
+
+    @work(thread=True, exit_on_error=False, group="viewer")
+    def _launch_viewer(self) -> None:
+        assert isinstance(self.view, MeshcatView)
+        try:
+            url = self.view.start()
+        except Exception as exc:  # the console works without the view
+            msg = getattr(exc, "message", str(exc))
+            self.call_from_thread(self.notify, f"3D view unavailable: {msg}", severity="warning",
+                                  markup=False)
+            return
+        self.call_from_thread(self._viewer_ready, url)
+
+    def _viewer_ready(self, url: str) -> None:
+        self.viewer_url = url
+        if self.session.theta_deg is not None:
+            self.view.show_theta(self.session.theta_deg)
+        self.refresh_screen()
+
+    def shutdown(self) -> None:
+        """Stop motion, close the bus and the viewer (idempotent; also on SIGTERM)."""
+        if self._closed:
+            return
+        self._closed = True
+        self.session.close()
+        self.view.close()
+
+    def on_unmount(self) -> None:
+        self.shutdown()
+
+    # ------------------------------------------------------------------ actions
+    def action_step(self, mode: str) -> None:
+        if self.moving:
+            self.notify("The wrist is moving: wait, or press SPACE to stop it.",
+                        severity="warning")
+            return
+        self.switch_mode(mode)
+
+    def action_quit_console(self) -> None:
+        if self.moving:
+            self.notify("The wrist is moving: press SPACE to stop it before quitting.",
+                        severity="warning")
+            return
+        self.shutdown()
+        self.exit(0)
+
+    def action_estop(self) -> None:
+        if not self.session.estop("operator E-stop (SPACE)"):
+            raise SkipAction()
+        self.notify("E-STOP sent: the wrist holds still.", severity="error", timeout=6)
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action == "estop":
+            return self.moving
+        if action == "step" and self.moving:
+            return None  # shown dimmed: locked while moving
+        return True
+
+    def watch_moving(self, moving: bool) -> None:
+        self.refresh_bindings()
+        self.refresh_screen()
+
+    # ------------------------------------------------------------------ helpers for screens
+    def telemetry_sink(self, screen: Screen[Any]) -> Callable[[Any], None]:
+        """Callback for the executor thread: keep every sample, move the 3D view (it
+        throttles itself) and tell ``screen`` at most every ``TELEMETRY_EVERY_S`` (the
+        servo loop must not wait for the UI; Telemetry messages also coalesce)."""
+        samples = self.live_samples
+        view = self.view
+        last = [-1.0]
+
+        def on_sample(sample: Any) -> None:
+            samples.append(sample)
+            if sample.read_ok:
+                view.show_theta(sample.measured_deg)
+            if sample.t - last[0] >= TELEMETRY_EVERY_S:
+                last[0] = sample.t
+                screen.post_message(Telemetry(sample))
+
+        return on_sample
+
+    def after_motion(self, result: Any) -> None:
+        if result.final_deg is not None:
+            self.view.show_theta(result.final_deg)
+
+    def refresh_screen(self) -> None:
+        screen = self.screen
+        refresh = getattr(screen, "refresh_view", None)
+        if callable(refresh) and screen.is_mounted:
+            refresh()
+
+
+def make_app(
+    profile: Profile,
+    port: str | None = None,
+    sim: bool = True,
+    viewer: bool = True,
+    *,
+    logs_root: Path | None = None,
+    cache_dir: Path | None = None,
+    faults: Sequence[Any] = (),
+    initial_deg: Sequence[float] | None = None,
+) -> SpmConsoleApp:
+    """The console for ``profile`` on a serial ``port`` or the emulated bus (``sim``), with
+    or without the meshcat view. Nothing is opened until the app runs."""
+    session = Session(profile, port=port, sim=sim and port is None, logs_root=logs_root,
+                      cache_dir=cache_dir, faults=faults, initial_deg=initial_deg)
+    view: WristView = MeshcatView(profile) if viewer else NullView()
+    return SpmConsoleApp(session, view, start_viewer=viewer)

@@ -1,0 +1,127 @@
+"""Step 2: FK check — θ (or an orientation) in, the unique pose and its quality out."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Vertical
+from textual.content import Content
+from textual.widgets import Input, Static
+
+from spm_console.tui.screens.base import StepScreen
+from spm_console.tui.screens.connect import fmt_deg
+from spm_console.tui.widgets.angles import AnglesInput
+
+
+def fmt_vec(v: Any, digits: int = 4) -> str:
+    return "[" + ", ".join(f"{float(x):+.{digits}f}" for x in np.ravel(v)) + "]"
+
+
+def fk_text(rec: dict[str, Any]) -> str:
+    """The FK record as aligned lines (the numbers of ``spm-console fk``)."""
+    lines = [f"θ        = {fmt_deg(rec['theta_deg'])}"]
+    lines += [f"v{i + 1}       = {fmt_vec(rec['v'][i])}" for i in range(3)]
+    lines += [
+        f"n        = {fmt_vec(rec['n'])}",
+        f"ζ        = {rec['zeta']:.4f}",
+        f"residual = {rec['residual']:.1e}",
+        f"closest links = {rec['min_link_distance_mm']:.1f} mm ({rec['closest_pair']})",
+        "FEASIBLE" if rec["feasible"] else f"NOT FEASIBLE: {rec['reason']}",
+    ]
+    modes = rec.get("modes")
+    if modes is not None:
+        lines.append(f"{len(modes)} assembly modes at this θ:")
+        for k, m in enumerate(modes, 1):
+            tag = "  ← home-connected (the unique solution)" if m["home_connected"] else ""
+            lines.append(f"  {k}: n = {fmt_vec(m['n'], 3)}  ζ = {m['zeta']:.3f}{tag}")
+    return "\n".join(lines)
+
+
+class FkScreen(StepScreen):
+    MODE = "fk"
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("f", "fk", "FK of θ"),
+        Binding("i", "ik", "IK from r/p/y"),
+        Binding("m", "modes", "All modes"),
+        Binding("c", "current", "Current θ"),
+        Binding("tab", "app.focus_next", "Edit fields", show=True),
+        Binding("escape", "leave_field", "Leave field"),
+    ]
+
+    def compose_body(self) -> ComposeResult:
+        home = self.session.profile.home.theta_deg
+        with Vertical(classes="body"):
+            yield AnglesInput("Motor angles θ (deg)", ("θ1", "θ2", "θ3"), home, id="theta")
+            yield AnglesInput("Orientation from home (deg)", ("roll", "pitch", "yaw"),
+                              (0.0, 0.0, 0.0), id="rpy")
+            yield Static(id="fk-result", markup=False, classes="result")
+
+    def on_mount(self) -> None:
+        if self.session.theta_deg is not None:
+            self.query_one("#theta", AnglesInput).set_values(self.session.theta_deg)
+        self.query_one("#fk-result", Static).update(Content(
+            "Enter θ and press f (or Enter), or an orientation and press i."))
+
+    def action_leave_field(self) -> None:
+        self.set_focus(None)
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        event.stop()
+        parent = event.input.parent
+        if isinstance(parent, AnglesInput) and parent.id == "rpy":
+            self.action_ik()
+        else:
+            self.action_fk()
+
+    def _theta(self) -> list[float] | None:
+        try:
+            return self.query_one("#theta", AnglesInput).values()
+        except Exception as exc:  # BadInputError
+            self.status.error(getattr(exc, "message", str(exc)))
+            return None
+
+    def action_fk(self, all_modes: bool = False) -> None:
+        theta = self._theta()
+        if theta is None:
+            return
+        what = "all assembly modes" if all_modes else "FK"
+        self.run_blocking("fk", lambda: self.session.fk(theta, all_modes=all_modes),
+                          f"solving {what} of θ = {fmt_deg(theta)} …")
+
+    def action_modes(self) -> None:
+        self.action_fk(all_modes=True)
+
+    def action_ik(self) -> None:
+        try:
+            rpy = self.query_one("#rpy", AnglesInput).values()
+        except Exception as exc:
+            self.status.error(getattr(exc, "message", str(exc)))
+            return
+
+        def go() -> dict[str, Any]:
+            theta = self.session.ik(rpy)
+            rec = self.session.fk(theta)
+            rec["from_rpy"] = rpy
+            return rec
+
+        self.run_blocking("ik", go, f"solving IK of roll/pitch/yaw = {fmt_deg(rpy)} …")
+
+    def action_current(self) -> None:
+        if self.session.theta_deg is None:
+            self.status.error("current θ unknown: connect first (press 1, then c)")
+            return
+        self.query_one("#theta", AnglesInput).set_values(self.session.theta_deg)
+        self.action_fk()
+
+    def handle_done(self, op: str, result: Any) -> None:
+        rec = result
+        if op == "ik":
+            self.query_one("#theta", AnglesInput).set_values(rec["theta_deg"], digits=3)
+        self.query_one("#fk-result", Static).update(Content(fk_text(rec)))
+        self.console.fk_done = True
+        self.console.view.show_theta(np.asarray(rec["theta_deg"], float))
+        verdict = "feasible" if rec["feasible"] else "not feasible"
+        self.status.ok(f"FK solved: ζ = {rec['zeta']:.3f}, {verdict} (shown in the 3D view)")

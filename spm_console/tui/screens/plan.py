@@ -1,0 +1,190 @@
+"""Step 4: plan a motion — start and goal (θ, orientation, home or current pose), MVN or
+minimum time, solved in a worker; result table and plots."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Horizontal, Vertical
+from textual.content import Content
+from textual.widgets import Input, Label, Select, Static
+
+from spm_console.core.plan import Plan
+from spm_console.errors import BadInputError
+from spm_console.tui.screens.base import StepScreen
+from spm_console.tui.screens.connect import fmt_deg
+from spm_console.tui.session import PoseSpec
+from spm_console.tui.widgets.angles import AnglesInput
+from spm_console.tui.widgets.plot import PlotView, joint_series
+
+POSE_KINDS = [("current pose", "current"), ("home", "home"), ("motor angles θ", "theta"),
+              ("orientation r/p/y", "rpy")]
+METHODS = [("minimum velocity norm (MVN)", "mvn"), ("minimum time", "mintime")]
+#: Default goal: the θ of the paper's eq. (32) example, deg.
+DEFAULT_GOAL_DEG = (95.0, 110.0, 105.0)
+PLOTS = ("positions", "velocities")
+
+
+def plan_text(plan: Plan, info: dict[str, Any]) -> str:
+    chk = plan.extra.get("check", {})
+    vmax = info.get("vmax_degps")
+    lines = [
+        f"{plan.kind.upper()}  from {info.get('start', '?')} {fmt_deg(plan.reference_deg[0])}",
+        f"      to {info.get('goal', '?')} {fmt_deg(plan.reference_deg[-1])}",
+        f"N = {plan.N} steps × Ts = {plan.Ts:g} s = {plan.duration_s:.2f} s   "
+        f"cost Σ|dθ/dt|² = {plan.cost:.1f} (deg/s)²",
+        f"solved in {plan.solve_seconds:.2f} s, {plan.qp_count} QP(s)",
+        f"max |dθ/dt| at samples {float(np.abs(plan.velocity_degps).max()):.1f}°/s"
+        + (f" (v_max {vmax:g}°/s)" if vmax else ""),
+    ]
+    if chk:
+        between = chk.get("max_speed_between_degps")
+        if between is not None:
+            lines.append(f"between samples: max |dθ/dt| {between:.1f}°/s, outside P by "
+                         f"{chk.get('region_violation_between_deg', 0.0):.2g}°")
+        lines.append("constraints verified" if chk.get("ok") else "constraints NOT verified")
+    if "infeasible_N" in plan.extra or "n_minus_1_infeasible" in plan.extra:
+        lines.append("N − 1 steps is infeasible (minimum time certified)")
+    return "\n".join(lines)
+
+
+class PlanScreen(StepScreen):
+    MODE = "plan"
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("s", "solve", "Solve"),
+        Binding("p", "next_plot", "Plot"),
+        Binding("w", "save", "Save plan"),
+        Binding("tab", "app.focus_next", "Edit fields"),
+        Binding("escape", "leave_field", "Leave field"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.plot_kind = 0
+
+    def compose_body(self) -> ComposeResult:
+        prof = self.session.profile
+        with Horizontal(classes="body"):
+            with Vertical(id="plan-form"):
+                yield Label("Start")
+                yield Select(POSE_KINDS, value="current", allow_blank=False, id="start-kind")
+                yield AnglesInput("  values", ("a1", "a2", "a3"), prof.home.theta_deg,
+                                  id="start-values")
+                yield Label("Goal")
+                yield Select(POSE_KINDS, value="theta", allow_blank=False, id="goal-kind")
+                yield AnglesInput("  values", ("a1", "a2", "a3"), DEFAULT_GOAL_DEG,
+                                  id="goal-values")
+                yield Label("Method")
+                yield Select(METHODS, value="mvn", allow_blank=False, id="method")
+                with Horizontal(classes="param"):
+                    yield Label("steps N", classes="param-label")
+                    yield Input("150", type="integer", id="steps")
+                with Horizontal(classes="param"):
+                    yield Label("v_max °/s", classes="param-label")
+                    yield Input(f"{prof.limits.vmax_degps:g}", type="number", id="vmax")
+            with Vertical(id="plan-result"):
+                yield Static(id="plan-text", markup=False, classes="result")
+                yield PlotView(id="plan-plot")
+
+    def on_mount(self) -> None:
+        self.query_one("#plan-text", Static).update(Content(
+            "Choose start and goal, then press s to solve."))
+        if self.session.plan is not None:
+            self.show_plan()
+
+    def action_leave_field(self) -> None:
+        self.set_focus(None)
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        event.stop()
+        self.action_solve()
+
+    def _spec(self, which: str) -> PoseSpec:
+        kind = self.query_one(f"#{which}-kind", Select).value
+        if kind in ("current", "home"):
+            return PoseSpec(kind)
+        v = self.query_one(f"#{which}-values", AnglesInput).values()
+        return PoseSpec(kind, (v[0], v[1], v[2]))  # type: ignore[arg-type]
+
+    def _params(self) -> tuple[str, int, float]:
+        method = str(self.query_one("#method", Select).value)
+        try:
+            steps = int(self.query_one("#steps", Input).value)
+        except ValueError:
+            raise BadInputError("steps N must be a whole number (e.g. 150)") from None
+        try:
+            vmax = float(self.query_one("#vmax", Input).value)
+        except ValueError:
+            raise BadInputError("v_max must be a speed in °/s (e.g. 50)") from None
+        return method, steps, vmax
+
+    def action_solve(self) -> None:
+        try:
+            start, goal = self._spec("start"), self._spec("goal")
+            method, steps, vmax = self._params()
+        except BadInputError as exc:
+            self.status.error(exc.message)
+            return
+        name = "MVN" if method == "mvn" else "minimum-time"
+        self.run_blocking(
+            "solve",
+            lambda: self.session.solve_plan(method, start, goal, steps, vmax),  # type: ignore[arg-type]
+            f"solving the {name} problem ({start.describe()} → {goal.describe()}) …")
+
+    def action_next_plot(self) -> None:
+        self.plot_kind = (self.plot_kind + 1) % len(PLOTS)
+        self.show_plot()
+
+    def action_save(self) -> None:
+        plan = self.session.plan
+        if plan is None:
+            self.status.error("no plan yet: press s to solve one")
+            return
+
+        def save() -> Path:
+            import time
+
+            from spm_console.plan_file import save_plan
+
+            path = Path("plans") / f"{time.strftime('%Y%m%d-%H%M%S')}-{plan.kind}.json"
+            path.parent.mkdir(exist_ok=True)
+            save_plan(plan, path)
+            return path
+
+        self.run_blocking("save", save, "saving the plan …")
+
+    def handle_done(self, op: str, result: Any) -> None:
+        if op == "solve":
+            self.show_plan()
+            plan = result
+            self.console.view.show_path(plan.position_deg)
+            self.status.ok(f"solved in {plan.solve_seconds:.2f} s: {plan.duration_s:.2f} s of "
+                           "motion. Press 5 to execute it (path previewed in the 3D view)")
+        elif op == "save":
+            self.status.ok(f"plan saved to {result}")
+
+    def show_plan(self) -> None:
+        plan = self.session.plan
+        if plan is None:
+            return
+        self.query_one("#plan-text", Static).update(
+            Content(plan_text(plan, self.session.plan_info)))
+        self.show_plot()
+
+    def show_plot(self) -> None:
+        plan = self.session.plan
+        view = self.query_one("#plan-plot", PlotView)
+        if plan is None:
+            return
+        t = np.arange(plan.N + 1) * plan.Ts
+        if PLOTS[self.plot_kind] == "positions":
+            series = joint_series("θ*", plan.reference_deg, faint=True)
+            series += joint_series("θ", plan.position_deg)
+            view.plot("references θ* (dots), model positions θ [deg]", t, series)
+        else:
+            view.plot("model velocities dθ/dt [deg/s]", t,
+                      joint_series("dθ/dt ", plan.velocity_degps))

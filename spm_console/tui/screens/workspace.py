@@ -1,0 +1,173 @@
+"""Step 3: the workspace — load it from the cache (or build it with a progress bar),
+its counts and region P, and a pointwise check of θ."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Vertical
+from textual.content import Content
+from textual.widgets import Input, ProgressBar, Static
+
+from spm_console.tui.messages import Progress
+from spm_console.tui.screens.base import StepScreen
+from spm_console.tui.screens.connect import fmt_deg
+from spm_console.tui.widgets.angles import AnglesInput
+from spm_console.tui.widgets.confirm import ConfirmScreen
+
+STAGES = {"fk": "FK over the grid", "links": "link distances", "region": "convex region P",
+          "done": "done"}
+
+
+def workspace_text(ws: Any, info: Any) -> str:
+    c = ws.counts()
+    lo, hi = ws.range_deg()
+    region = ws.region
+    span = region_box(region)
+    if info.hit:
+        how = f"loaded from the cache in {info.load_seconds:.2f} s ({info.path})"
+    else:
+        how = f"built in {info.build_seconds:.1f} s ({info.rebuilt_because}); cached at {info.path}"
+        if info.write_error:
+            how += f" — NOT saved: {info.write_error}"
+    lines = [
+        how,
+        f"grid         θ ∈ [{lo:g}, {hi:g}]° step {ws.step_deg:g}°: {c['nodes']} nodes",
+        f"feasible     {c['feasible']}  (home-connected, ζ ≥ {ws.zeta_min:g}, links ≥ "
+        f"{ws.min_distance_mm:g} mm apart)",
+        f"singular     {c['singular']}   colliding {c['colliding']}   unreached "
+        f"{c['unreached']}   disconnected {c['disconnected']}",
+        f"region P     {region.halfspaces} half-spaces, covers {100 * ws.coverage():.1f}% of the "
+        "feasible nodes",
+    ]
+    if span is not None:
+        lines.append("P spans      " + "  ".join(
+            f"θ{i + 1} ∈ [{span[0][i]:.1f}, {span[1][i]:.1f}]°" for i in range(3)))
+    return "\n".join(lines)
+
+
+def region_box(region: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """Bounding box of P (deg) by six small LPs; None if scipy cannot bound it."""
+    from scipy.optimize import linprog
+
+    lo, hi = np.zeros(3), np.zeros(3)
+    for i in range(3):
+        for sign, out in ((1.0, lo), (-1.0, hi)):
+            c = np.zeros(3)
+            c[i] = sign
+            r = linprog(c, A_ub=region.A, b_ub=region.b, bounds=[(None, None)] * 3,
+                        method="highs")
+            if r.status != 0:
+                return None
+            out[i] = r.x[i]
+    return lo, hi
+
+
+def check_text(chk: Any) -> str:
+    verdict = "USABLE for planning" if chk.usable else "NOT usable"
+    lines = [f"θ = {fmt_deg(chk.theta_deg)}: {verdict}"]
+    if chk.zeta is not None:
+        lines.append(f"  ζ = {chk.zeta:.3f}, closest links {chk.min_link_mm:.1f} mm "
+                     f"({chk.closest_pair})")
+    lines.append(f"  feasible: {'yes' if chk.feasible else 'no'}   inside P: "
+                 f"{'yes' if chk.in_region else 'no'} (slack {chk.region_slack_deg:+.2f}°)")
+    if chk.reason:
+        lines.append(f"  why: {chk.reason}")
+    return "\n".join(lines)
+
+
+class WorkspaceScreen(StepScreen):
+    MODE = "workspace"
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("l", "load", "Load"),
+        Binding("b", "rebuild", "Rebuild"),
+        Binding("k", "check", "Check θ"),
+        Binding("tab", "app.focus_next", "Edit fields"),
+        Binding("escape", "leave_field", "Leave field"),
+    ]
+
+    def compose_body(self) -> ComposeResult:
+        with Vertical(classes="body"):
+            yield Static(id="ws-info", markup=False, classes="result")
+            yield ProgressBar(total=100, id="ws-progress", show_eta=False)
+            yield Static(id="ws-stage", markup=False)
+            yield AnglesInput("Check θ (deg)", ("θ1", "θ2", "θ3"), (95.0, 110.0, 105.0),
+                              id="check-theta")
+            yield Static(id="ws-check", markup=False, classes="result")
+
+    def on_mount(self) -> None:
+        self.query_one("#ws-progress").display = False
+        if self.session.workspace is None:
+            self.action_load()
+        else:
+            self.show_workspace()
+
+    def action_leave_field(self) -> None:
+        self.set_focus(None)
+
+    def action_load(self, force: bool = False) -> None:
+        def progress(stage: str, fraction: float) -> None:
+            self.post_message(Progress(stage, fraction))
+
+        bar = self.query_one("#ws-progress", ProgressBar)
+        bar.update(progress=0)
+        bar.display = True
+        self.run_blocking("load", lambda: self.session.load_workspace(progress, force=force),
+                          "rebuilding the workspace …" if force else
+                          "loading the workspace (building it if there is no cache) …")
+
+    def action_rebuild(self) -> None:
+        body = ("Rebuild the workspace from scratch? It takes a while (the cache is replaced "
+                "when done); the console stays usable meanwhile.")
+        self.app.push_screen(ConfirmScreen("Rebuild the workspace?", body),
+                             lambda yes: self.action_load(force=True) if yes else None)
+
+    def on_progress(self, message: Progress) -> None:
+        message.stop()
+        self.query_one("#ws-progress", ProgressBar).update(progress=100 * message.fraction)
+        self.query_one("#ws-stage", Static).update(
+            Content(f"building: {STAGES.get(message.stage, message.stage)} "
+                    f"({100 * message.fraction:.0f}%)"))
+
+    def on_input_submitted(self, event: Input.Submitted) -> None:
+        event.stop()
+        self.action_check()
+
+    def action_check(self) -> None:
+        try:
+            theta = self.query_one("#check-theta", AnglesInput).values()
+        except Exception as exc:
+            self.status.error(getattr(exc, "message", str(exc)))
+            return
+        if self.session.workspace is None:
+            self.status.error("no workspace yet: press l to load it")
+            return
+        self.run_blocking("check", lambda: self.session.check_theta(theta),
+                          f"checking θ = {fmt_deg(theta)} …")
+
+    def handle_done(self, op: str, result: Any) -> None:
+        if op == "load":
+            self.query_one("#ws-progress").display = False
+            self.query_one("#ws-stage", Static).update("")
+            self.show_workspace()
+            info = self.session.cache_info
+            self.status.ok("workspace ready (" + ("from the cache" if info.hit else "built")
+                           + "): press 4 to plan a motion")
+        elif op == "check":
+            self.query_one("#ws-check", Static).update(Content(check_text(result)))
+            self.status.ok("usable" if result.usable else f"not usable: {result.reason}")
+            if result.v is not None:
+                self.console.view.show_theta(np.asarray(result.theta_deg, float))
+
+    def handle_failed(self, op: str, message: str) -> None:
+        if op == "load":
+            self.query_one("#ws-progress").display = False
+
+    def show_workspace(self) -> None:
+        ws, info = self.session.workspace, self.session.cache_info
+        if ws is None or info is None:
+            return
+        self.query_one("#ws-info", Static).update(Content(workspace_text(ws, info)))

@@ -1,0 +1,352 @@
+"""One operator session: the state behind the console and its blocking operations.
+
+No Textual here: the TUI calls these methods from worker threads and the
+headless script runner (:mod:`spm_console.script`) calls them directly, so both
+drive the same core, bus, executor and safety checks. Every method raises
+:class:`~spm_console.errors.SpmError` subclasses for operator errors. Angles in
+degrees, time in seconds, lengths in mm.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.ik import ik_rpy
+from spm_console.core.model import link_model_of, model_of
+from spm_console.core.modes import assembly_modes
+from spm_console.core.plan import Plan
+from spm_console.devices.base import ServoBus, ServoStatus
+from spm_console.errors import BadInputError, BusError, SpmError, UnreachableError
+from spm_console.profile import Profile
+
+if TYPE_CHECKING:
+    from spm_console.devices.emulator import EmulatorHandle
+    from spm_console.devices.faults import FaultSpec
+    from spm_console.run.executor import ExecutionResult, Executor
+    from spm_console.run.sample import Sample
+
+F = NDArray[np.float64]
+SampleCallback = Callable[["Sample"], None]
+ProgressCallback = Callable[[str, float], None]
+
+
+def theta3(values: Sequence[float] | F, what: str) -> F:
+    """Three finite angles (deg) or BadInputError naming ``what``."""
+    try:
+        a = np.asarray(values, float).reshape(-1)
+    except (TypeError, ValueError):
+        raise BadInputError(f"{what}: expected three angles in degrees, got {values!r}") from None
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise BadInputError(f"{what}: expected three finite angles in degrees, got {values!r}")
+    return a
+
+
+@dataclass(frozen=True)
+class PoseSpec:
+    """How the operator gave a configuration: motor angles, an orientation, or 'current'."""
+
+    kind: Literal["theta", "rpy", "current", "home"]
+    values: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """θ1..θ3 (deg) for 'theta'; roll, pitch, yaw from home (deg) for 'rpy'."""
+
+    def describe(self) -> str:
+        v = ", ".join(f"{x:g}" for x in self.values)
+        return {"theta": f"θ = [{v}]°", "rpy": f"roll/pitch/yaw = [{v}]°",
+                "current": "current pose", "home": "home"}[self.kind]
+
+
+@dataclass
+class BusState:
+    """What the connect step found."""
+
+    port: str
+    emulated: bool
+    statuses: list[ServoStatus] = field(default_factory=list)
+
+
+class Session:
+    """Profile, bus, workspace, plan and runs of one operator session (thread-safe enough:
+    one motion at a time, E-stop from any thread)."""
+
+    def __init__(
+        self,
+        profile: Profile,
+        port: str | None = None,
+        sim: bool = True,
+        logs_root: Path | None = None,
+        cache_dir: Path | None = None,
+        faults: Sequence[FaultSpec] = (),
+        initial_deg: Sequence[float] | None = None,
+    ) -> None:
+        self.profile = profile
+        self.model = model_of(profile)
+        self.links = link_model_of(profile)
+        self.port = port or (None if sim else (profile.bus.port or None))
+        if not sim and not self.port:
+            raise BadInputError("no serial port: give --port DEV, set bus.port in the profile, "
+                                "or use --sim for the emulated bus")
+        self.sim = self.port is None
+        self.logs_root = logs_root
+        self.cache_dir = cache_dir
+        self.faults = tuple(faults)
+        self.initial_deg = initial_deg
+        self.bus: ServoBus | None = None
+        self.bus_state: BusState | None = None
+        self.emulator: EmulatorHandle | None = None
+        self.theta_deg: F | None = None
+        """Last measured motor angles, deg (None before connecting)."""
+        self.homed = False
+        self.workspace: Any = None
+        self.cache_info: Any = None
+        self.plan: Plan | None = None
+        self.plan_info: dict[str, Any] = {}
+        self.last_run: ExecutionResult | None = None
+        self.motion_total_s = 0.0
+        """Planned duration of the running (or last) motion, s."""
+        self._executor: Executor | None = None
+        self._motion = threading.Lock()
+        self.moving = threading.Event()
+        """Set while a motion (homing or execution) runs."""
+
+    # ------------------------------------------------------------------ bus
+    @property
+    def bus_label(self) -> str:
+        return "emulated bus" if self.sim else f"serial port {self.port}"
+
+    def connect(self) -> BusState:
+        """Open the bus (starting the emulator in sim mode), ping the servos, read θ."""
+        from spm_console.devices.bus import open_bus
+
+        self.disconnect()
+        port = self.port
+        if self.sim:
+            from spm_console.devices.emulator import start_emulator
+
+            self.emulator = start_emulator(self.profile, self.faults, record=False,
+                                           initial_deg=self.initial_deg)
+            port = self.emulator.port
+        assert port is not None
+        try:
+            self.bus = open_bus(self.profile, port)
+            statuses = self.bus.ping_all()
+            self.bus_state = BusState(port=port, emulated=self.sim, statuses=list(statuses))
+            self.read_position()
+        except SpmError:
+            self.disconnect()
+            raise
+        except OSError as exc:
+            self.disconnect()
+            raise BusError(f"{port}: {exc.strerror or exc}") from None
+        return self.bus_state
+
+    def require_bus(self) -> ServoBus:
+        if self.bus is None:
+            raise BusError("not connected to the servos: connect first (step 1)")
+        return self.bus
+
+    def read_position(self) -> F:
+        from spm_console.devices.base import CommError
+
+        bus = self.require_bus()
+        last = ""
+        for _ in range(3):
+            try:
+                self.theta_deg = np.asarray(bus.read_position_deg(), float)
+                return self.theta_deg
+            except (CommError, OSError) as exc:
+                last = str(exc) or type(exc).__name__
+        raise BusError(f"no position reply from the servos after 3 tries ({last})")
+
+    def disconnect(self) -> None:
+        bus, self.bus = self.bus, None
+        if bus is not None:
+            with contextlib.suppress(OSError, SpmError):
+                bus.close()
+        emu, self.emulator = self.emulator, None
+        if emu is not None:
+            emu.stop()
+        self.bus_state = None
+        self.homed = False
+
+    # ------------------------------------------------------------------ motion
+    def _executor_for(self, kind: str, plans: list[dict[str, Any]],
+                      on_sample: SampleCallback | None) -> Executor:
+        from spm_console.run.executor import Executor
+        from spm_console.run.runlog import RunLog
+
+        log = RunLog.create(kind, self.profile.name, self.profile.digest(), plans,
+                            root=self.logs_root, extra={"bus": self.bus_label})
+        return Executor(self.profile, self.require_bus(), log=log, on_sample=on_sample)
+
+    def _run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
+        if not self._motion.acquire(blocking=False):
+            raise BadInputError("a motion is already running")
+        self.moving.set()
+        try:
+            result = fn()
+        finally:
+            self._executor = None
+            self.moving.clear()
+            self._motion.release()
+        if result.final_deg is not None:
+            self.theta_deg = np.asarray(result.final_deg, float)
+        self.last_run = result
+        return result
+
+    def home(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
+        """Move home at the profile's homing speed (after the assembly-mode check)."""
+        from spm_console.run.homing import check_assembly_mode, home
+
+        theta0 = self.read_position()
+        check_assembly_mode(self.profile, theta0)  # refuse before a log folder is made
+
+        from spm_console.run.plans import line_plan
+
+        self.motion_total_s = line_plan(self.profile, theta0, np.asarray(self.profile.home.theta_deg),
+                                        self.profile.safety.home_speed_degps).duration_s
+
+        def go() -> ExecutionResult:
+            ex = self._executor_for("home", [{"kind": "homing"}], on_sample)
+            self._executor = ex
+            return home(ex).execution
+
+        result = self._run_motion(go)
+        self.homed = result.ok
+        return result
+
+    def execute(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
+        """Execute the current plan (with a straight approach move to its start if needed)."""
+        from spm_console.run.executor import Segment
+        from spm_console.run.homing import approach_segment
+
+        if self.plan is None:
+            raise BadInputError("no plan to execute: solve one first (step 4)")
+        if not self.homed:
+            raise BadInputError("the wrist is not homed: home it first (step 1)")
+        plan = self.plan
+        theta0 = self.read_position()
+        segments = []
+        if float(np.abs(theta0 - plan.reference_deg[0]).max()) > 0.5:
+            segments.append(approach_segment(self.profile, theta0, plan.reference_deg[0]))
+        segments.append(Segment("plan", plan))
+        self.motion_total_s = sum((s.plan.N + 1) * s.plan.Ts for s in segments)
+        summary = [{"phase": s.phase, "kind": s.plan.kind, "N": s.plan.N, "Ts": s.plan.Ts}
+                   for s in segments]
+
+        def go() -> ExecutionResult:
+            ex = self._executor_for("execute", summary, on_sample)
+            self._executor = ex
+            return ex.run(segments, theta0_deg=theta0)
+
+        result = self._run_motion(go)
+        self.plan_info["executed"] = True
+        return result
+
+    def estop(self, reason: str = "operator E-stop") -> bool:
+        """Stop the running motion at once (any thread). False when nothing moves."""
+        ex = self._executor
+        if ex is None:
+            return False
+        ex.request_estop(reason)
+        return True
+
+    # ------------------------------------------------------------------ kinematics
+    def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> dict[str, Any]:
+        """Unique FK record (``fk --json`` keys) of θ (deg), from home by continuation."""
+        from spm_console.cli.kin import fk_record
+
+        th = theta3(theta_deg, "θ")
+        r = self.model.track(np.radians(th))
+        if not r.ok or r.pose is None:
+            raise UnreachableError(f"θ = {np.round(th, 2).tolist()}°: {r.reason}")
+        rec = fk_record(self.profile, self.model, self.links, r)
+        if all_modes:
+            rec["modes"] = [
+                {"n": m.n, "zeta": m.zeta, "home_connected": m.home_connected}
+                for m in assembly_modes(self.model, r.pose.theta, r.pose.R)
+            ]
+        return rec
+
+    def ik(self, rpy_deg: Sequence[float] | F) -> F:
+        """θ (deg) for roll, pitch, yaw (deg) from the home orientation."""
+        r, p, y = np.radians(theta3(rpy_deg, "roll/pitch/yaw"))
+        return np.asarray(ik_rpy(self.model, r, p, y).theta_deg, float)
+
+    def resolve(self, spec: PoseSpec) -> F:
+        """Motor angles (deg) of a pose given as θ, as an orientation, as home or 'current'."""
+        if spec.kind == "theta":
+            return theta3(spec.values, "θ")
+        if spec.kind == "rpy":
+            return self.ik(spec.values)
+        if spec.kind == "home":
+            return np.asarray(self.profile.home.theta_deg, float)
+        if self.theta_deg is None:
+            raise BadInputError("current pose unknown: connect to the servos first (step 1)")
+        return self.theta_deg.copy()
+
+    # ------------------------------------------------------------------ workspace
+    def load_workspace(self, progress: ProgressCallback | None = None,
+                       force: bool = False) -> Any:
+        """Load the cached workspace of the profile, or build (and cache) it."""
+        from spm_console.workspace_cache import load_or_build
+
+        self.workspace, self.cache_info = load_or_build(
+            self.profile, cache_dir=self.cache_dir, force=force, progress=progress)
+        return self.workspace
+
+    def require_workspace(self) -> Any:
+        if self.workspace is None:
+            raise BadInputError("no workspace loaded: load or build it first (step 3)")
+        return self.workspace
+
+    def check_theta(self, theta_deg: Sequence[float] | F) -> Any:
+        """Is θ (deg) feasible and inside P (``core.workspace.check_theta`` -> ThetaCheck)."""
+        from spm_console.core.workspace import check_theta
+
+        return check_theta(self.require_workspace(), theta3(theta_deg, "θ"))
+
+    # ------------------------------------------------------------------ planning
+    def solve_plan(
+        self,
+        method: Literal["mvn", "mintime"],
+        start: PoseSpec,
+        goal: PoseSpec,
+        steps: int = 150,
+        vmax_degps: float | None = None,
+    ) -> Plan:
+        """MVN (30) in ``steps`` intervals or minimum time (31) under ``vmax_degps``,
+        inside the workspace region P and the servo limits. Stores and returns the plan."""
+        from spm_console.core.planning import solve_mintime, solve_mvn
+        from spm_console.core.region_build import region_containing
+        from spm_console.plan_file import plan_hash
+        from spm_console.run.plans import servo_model_of
+
+        ws = self.require_workspace()
+        s, g = self.resolve(start), self.resolve(goal)
+        lo = np.array([j.min_deg for j in self.profile.bus.joints])
+        hi = np.array([j.max_deg for j in self.profile.bus.joints])
+        model = servo_model_of(self.profile)
+        vmax = self.profile.limits.vmax_degps if vmax_degps is None else vmax_degps
+        region = region_containing(ws, s, g)
+        if method == "mvn":
+            plan = solve_mvn(model, s, g, int(steps), region, vmax, ref_lo_deg=lo,
+                             ref_hi_deg=hi).to_plan("mvn", profile_hash=plan_hash(self.profile))
+        else:
+            plan = solve_mintime(model, s, g, region, vmax, ref_lo_deg=lo, ref_hi_deg=hi
+                                 ).to_plan("mintime", profile_hash=plan_hash(self.profile))
+        self.plan = plan
+        self.plan_info = {"method": method, "start": start.describe(), "goal": goal.describe(),
+                          "start_deg": s, "goal_deg": g, "vmax_degps": vmax}
+        return plan
+
+    def close(self) -> None:
+        self.estop("console closing")
+        self.disconnect()
