@@ -126,7 +126,10 @@ class DynamixelBus:
         return r.hardware
 
     def hardware_errors(self) -> list[int]:
-        """Hardware Error Status of each joint (2.0 register 70; 1.0 status bits)."""
+        """Hardware Error Status of each joint (2.0: one sync read of register 70; 1.0: the
+        hardware bits of each servo's status byte)."""
+        if self.protocol == "2.0":
+            return self.sync_read("hardware_error_status")
         return [self._hardware_error(i) for i in self.ids]
 
     def describe_hardware_error(self, bits: int) -> str:

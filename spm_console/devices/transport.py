@@ -6,6 +6,12 @@ previous one (so a sync read of three servos waits at most 3 × timeout). The wa
 sleeps in ``select`` on the port's file descriptor (no busy loop). A lock makes
 transactions atomic when a UI thread and the executor share the bus. Low-latency
 mode (FTDI/U2D2) is requested best-effort; it raises on a pty and is skipped.
+
+Limits, stated plainly: Dynamixel status packets carry no sequence number. Input
+is flushed before each instruction, so replies that arrive late are discarded, but
+a complete set of replies delayed by almost exactly the time between two
+transactions would be taken for the current one. The executor's model-prediction
+check is the guard against such stale data.
 """
 
 from __future__ import annotations
