@@ -25,6 +25,10 @@ I = NDArray[np.int64]
 #: Primal tolerance on pool rows (deg, deg/s) and relative tolerance on multipliers.
 PRIMAL_TOL = 1e-9
 DUAL_TOL = 1e-9
+#: KKT regularization (primal σ, dual δ) removed by iterative refinement.
+REG_PRIMAL = 1e-9
+REG_DUAL = 1e-9
+REFINE_STEPS = 12
 
 
 @dataclass
@@ -47,19 +51,36 @@ class ActiveSetResult:
 
 
 def eqp(eq: Equalities, pool: Pool, active: I, side: I) -> tuple[F, F] | None:
-    """Minimize ½zᵀPz subject to the equalities and W at its bounds; (z, multipliers of W)."""
+    """Minimize ½zᵀPz subject to the equalities and W at its bounds; (z, multipliers of W).
+
+    The KKT matrix is factored with a tiny regularization ([[P + σI, Cᵀ], [C, −δI]] is
+    quasi-definite, so the factorization exists even when rows of W are redundant), and
+    iterative refinement removes its effect. None when the system has no solution
+    (W over-determined or inconsistent).
+    """
     n = eq.layout.n
     Cw = pool.rows(active)
+    m = eq.C.shape[0] + Cw.shape[0]
+    if m > n:
+        return None
     C = sp.vstack([eq.C, Cw], format="csc")
     rhs_w = np.where(side > 0, pool.hi[active], pool.lo[active])
     K = sp.bmat([[eq.P, C.T], [C, None]], format="csc")
+    reg = sp.diags(np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)]), format="csc")
     rhs = np.concatenate([np.zeros(n), eq.d, rhs_w])
     try:
-        lu = spla.splu(K, permc_spec="COLAMD")
-        sol = lu.solve(rhs)
-    except RuntimeError:  # singular: W dependent or over-determined
+        lu = spla.splu(K + reg, permc_spec="COLAMD")
+    except RuntimeError:
         return None
-    if not np.all(np.isfinite(sol)):
+    sol = lu.solve(rhs)
+    scale = max(1.0, float(np.abs(rhs).max()))
+    for _ in range(REFINE_STEPS):
+        res = rhs - K @ sol
+        if float(np.abs(res).max()) <= 1e-12 * scale:
+            break
+        sol = sol + lu.solve(res)
+    res = rhs - K @ sol
+    if not np.all(np.isfinite(sol)) or float(np.abs(res).max()) > 1e-9 * scale:
         return None
     return sol[:n], sol[n + eq.C.shape[0]:]
 

@@ -37,6 +37,8 @@ SPEED_MARGIN_DEGPS = 2.0
 #: A pool row violated by more than this (deg or deg/s) triggers another round.
 SCREEN_TOL = 1e-7
 MAX_ROUNDS = 10
+#: Exact KKT solves tried before calling the QP solver.
+FIRST_SOLVES = 4
 
 
 @dataclass
@@ -81,13 +83,13 @@ def margins(pool: Pool) -> F:
 
 
 def solve_qp(eq: Equalities, pool: Pool, guess: F, active: I | None = None,
-             side: I | None = None, backend: Backend = "osqp",
+             side: I | None = None, backend: Backend = "clarabel",
              try_active_set: bool = True) -> QpOutcome:
     """Solve (30); ``guess`` (a z vector) seeds the screening, (active, side) the refinement."""
     t0 = time.perf_counter()
     kkt = 0
     if try_active_set:
-        r = refine(eq, pool, active, side)
+        r = refine(eq, pool, active, side, max_solves=FIRST_SOLVES)
         kkt += r.solves
         if r.ok:
             return QpOutcome("solved", r.z, "active-set", 0, kkt, 0, r.active.size, pool.m, 0, True,
