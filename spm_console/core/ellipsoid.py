@@ -7,6 +7,7 @@ should pass well-scaled coordinates (order 1).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import cvxpy as cp
@@ -50,7 +51,9 @@ def inscribed_ellipsoid(A: F, b: F) -> Ellipsoid:
     last: Exception | None = None
     for solver in (cp.CLARABEL, cp.SCS):
         try:
-            prob.solve(solver=solver)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)  # accuracy is checked below
+                prob.solve(solver=solver)
         except cp.error.SolverError as exc:  # pragma: no cover - solver-specific
             last = exc
             continue

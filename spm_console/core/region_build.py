@@ -47,7 +47,7 @@ VOLUME_TOL = 0.02
 #: Maximum IRIS iterations.
 MAX_ITERS = 6
 #: Feasible nodes used as the objective of the heuristics (random subset beyond this).
-OBJECTIVE_POINTS = 60_000
+OBJECTIVE_POINTS = 20_000
 #: Tolerance (deg) for "a node lies in P".
 INSIDE_TOL_DEG = 1e-7
 
@@ -103,8 +103,8 @@ def obstacle_nodes(feasible: B, theta_deg: F) -> F:
 def closest_on_boxes(M: F, c: F, lo: F, hi: F) -> tuple[F, F]:
     """argmin and min of (x − c)ᵀ M (x − c) over each box [lo_k, hi_k] (k rows of (n, 3)).
 
-    Exact: the minimizer lies in the relative interior of a face, an edge or at a
-    vertex; every face's unconstrained minimizer and every edge's clipped
+    Exact: the minimizer is the centre (if inside) or lies in the relative interior
+    of a face, an edge or at a vertex; every face's unconstrained minimizer and every edge's clipped
     minimizer is a candidate, the best feasible one wins (vertices are covered by
     the clipped edges).
     """
@@ -121,6 +121,7 @@ def closest_on_boxes(M: F, c: F, lo: F, hi: F) -> tuple[F, F]:
         best[better] = val[better]
         arg[better] = x[better]
 
+    consider(np.broadcast_to(c, (n, 3)).copy())  # centre inside the box
     for k in range(3):  # faces x_k = const
         f = [i for i in range(3) if i != k]
         gain = np.linalg.solve(M[np.ix_(f, f)], M[f, k])
@@ -197,6 +198,9 @@ def separating_planes(E: Ellipsoid, Q: F, half: float, req: F) -> tuple[F, F]:
             continue
         a = M @ (X[k] - E.d)
         b = float(a @ X[k])
+        if np.linalg.norm(a) < 1e-12:  # centre on the cube's boundary: push away from it
+            a = Q[k] - E.d
+            b = float((_corners(lo[k], hi[k]) @ a).min())
         if len(req) and (req @ a > b - 1e-12).any():
             alt = _keeping_plane(req, lo[k], hi[k], a)
             if alt is None:
@@ -241,8 +245,6 @@ def _iris(
         Ap, bp = separating_planes(E, Q, half, req)
         cand = frame.region(np.vstack([Abox, Ap]), np.r_[bbox, bp]).without_redundant()
         raw_planes = cand.halfspaces
-        if cand.halfspaces > max_halfspaces:
-            cand = reduce_halfspaces(cand, frame, Q, half, req, max_halfspaces, obj)
         cov = float(_inside(cand, obj).mean()) if len(obj) else 0.0
         # next ellipsoid inside the candidate, in scaled coordinates
         Ax = cand.A * frame.s
@@ -257,8 +259,9 @@ def _iris(
         if it > 1 and grow < np.log1p(VOLUME_TOL):
             break
     assert best is not None
-    cov = float(_inside(best.region, feas_pts).mean()) if len(feas_pts) else 0.0
-    return RegionBuild(best.region, cov, it, best.obstacles, best.log_volume,
+    final = reduce_halfspaces(best.region, frame, Q, half, req, max_halfspaces, obj)
+    cov = float(_inside(final, feas_pts).mean()) if len(feas_pts) else 0.0
+    return RegionBuild(final, cov, it, best.obstacles, best.log_volume,
                        time.perf_counter() - t0, best.iris_planes)
 
 
@@ -269,50 +272,67 @@ def _is_box_row(a: F) -> bool:
 def reduce_halfspaces(
     region: Region, frame: _Frame, Q: F, half: float, req: F, max_n: int, pts: F
 ) -> Region:
-    """Drop planes until ≤ max_n, handing each dropped plane's obstacles to the other
-    planes by lowering their offsets (never cutting a required point); each drop
-    is the one that loses the fewest of ``pts`` (deg). Grid-box rows are kept."""
+    """Greedy plane removal: drop a plane and hand the obstacles only it excluded to
+    the other planes by lowering their offsets (never cutting a required point).
+    Each round drops the plane that loses the fewest of ``pts`` (deg) — often a
+    net gain, since the freed region can exceed what the lowered planes cut.
+    Rounds continue while there are more than ``max_n`` rows or a drop gains.
+    Grid-box rows are kept."""
     A, b = region.A.copy(), region.b.copy()
+    box = frame.region(np.vstack([np.eye(3), -np.eye(3)]), np.ones(6))
     Qd = Q * frame.s + frame.c
     hd = half * frame.s
     reqd = req * frame.s + frame.c
     tol = INSIDE_TOL_DEG
-    while len(b) > max_n:
+    while True:
         n = len(b)
         mins = Qd @ A.T - hd * np.abs(A).sum(1)  # (n_obs, n) min of a·θ over each cube
         excl = mins >= b - 1e-9
         nex = excl.sum(1)
         req_max = (reqd @ A.T).max(0) if len(reqd) else np.full(n, -np.inf)
-        out = pts @ A.T > b + tol  # (n_pts, n)
-        nviol = out.sum(1)
-        best: F | None = None
-        best_k, best_loss = -1, np.inf
+        slk = b[:, None] - A @ pts.T  # slack, (n, n_pts): one row per plane
+        nviol = (slk < -tol).sum(0)
+        S_in = slk[:, nviol == 0]
+        S_one = slk[:, nviol == 1]
+        only = np.argmin(S_one, axis=0) if S_one.shape[1] else np.zeros(0, int)
+        # first the offsets each drop needs, then the losses on the points that matter
+        moves: list[tuple[int, F]] = []
         for k in range(n):
             if _is_box_row(A[k]):
                 continue
             sole = np.flatnonzero(excl[:, k] & (nex == 1))
             nb = b.copy()
             if len(sole):
-                gain = mins[sole] - b  # ≤ 0: how far plane j must move to exclude r
                 ok = (mins[sole] >= req_max) & (np.arange(n) != k)
-                gain = np.where(ok, gain, -np.inf)
+                gain = np.where(ok, mins[sole] - b, -np.inf)
                 j = np.argmax(gain, axis=1)
                 if not np.isfinite(gain[np.arange(len(sole)), j]).all():
                     continue
                 np.minimum.at(nb, j, mins[sole, j])
-            # points inside after: no violation except possibly k, and inside moved planes
-            cand = (nviol - out[:, k]) == 0
+            moves.append((k, nb))
+        if not moves:
+            break
+        reach = max(float((b - nb).max()) for _, nb in moves) + tol
+        S_in = S_in[:, S_in.min(0) < reach]
+        best: F | None = None
+        best_k, best_loss = -1, np.inf
+        for k, nb in moves:
             moved = np.flatnonzero(nb < b)
-            inside_after = cand.copy()
-            if len(moved):
-                inside_after[cand] = (pts[cand] @ A[moved].T <= nb[moved] + tol).all(1)
-            loss = float((nviol == 0).sum() - inside_after.sum())
+            shift = b[moved] - nb[moved]
+            freed = S_one[:, only == k]
+            lost = np.zeros(S_in.shape[1], bool)
+            kept = np.ones(freed.shape[1], bool)
+            for jj, sh in zip(moved, shift, strict=True):
+                lost |= S_in[jj] < sh - tol
+                kept &= freed[jj] >= sh - tol
+            loss = float(lost.sum() - kept.sum())
             if loss < best_loss:
                 best_loss, best, best_k = loss, nb, k
-        if best is None:
+        if best is None or (n <= max_n and best_loss >= 0):
             break
         keep = np.arange(n) != best_k
-        reduced = Region(A[keep], best[keep]).without_redundant()
+        # the grid box may have been redundant only because of the dropped plane
+        reduced = Region(np.vstack([A[keep], box.A]), np.r_[best[keep], box.b]).without_redundant()
         A, b = reduced.A, reduced.b
     return Region(A, b)
 

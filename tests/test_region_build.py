@@ -1,0 +1,149 @@
+"""The convex region P: inside P', no redundant rows, ≤ 64 rows, coverage, containment."""
+
+from __future__ import annotations
+
+import warnings
+
+import cvxpy as cp
+import numpy as np
+import pytest
+
+from spm_console.core.region import Region
+from spm_console.core.region_build import (
+    build_region,
+    closest_on_boxes,
+    region_containing,
+)
+from spm_console.core.workspace import Workspace
+from spm_console.errors import InfeasibleError
+from tests.ws_helpers import MINTIME_START, MVN_GOAL, MVN_START, agile_workspace
+
+
+@pytest.fixture(scope="module")
+def ws() -> Workspace:
+    return agile_workspace()
+
+
+def open_cubes_hit(region: Region, centers: np.ndarray, half: float) -> np.ndarray:
+    """Separating-axis test (exact for convex polytopes): True where P meets the open
+    cube of half-width ``half`` around a centre. Independent of how P was built."""
+    V = region.vertices()
+    An = region.normalized()
+    tight = np.abs(V @ An.A.T - An.b) < 1e-7
+    edges = []
+    for i in range(len(V)):
+        for j in range(i + 1, len(V)):
+            if (tight[i] & tight[j]).sum() >= 2 and np.linalg.norm(V[i] - V[j]) > 1e-9:
+                edges.append(V[j] - V[i])
+    axes = [*An.A, *np.eye(3)]
+    for e in edges:
+        for k in range(3):
+            c = np.cross(e, np.eye(3)[k])
+            if np.linalg.norm(c) > 1e-9:
+                axes.append(c / np.linalg.norm(c))
+    separated = np.zeros(len(centers), bool)
+    for n in axes:
+        p = V @ n
+        c = centers @ n
+        r = half * np.abs(n).sum()
+        separated |= (p.max() <= c - r + 1e-9) | (p.min() >= c + r - 1e-9)
+    return ~separated
+
+
+def assert_inside_p_prime(region: Region, ws: Workspace) -> None:
+    th = ws.theta_deg()
+    bad = th[~ws.feasible]
+    hit = open_cubes_hit(region, bad, ws.step_deg)
+    assert not hit.any(), f"P meets the cube of infeasible node {bad[np.argmax(hit)]}"
+    lo, hi = ws.range_deg()
+    V = region.vertices()
+    assert V.min() >= lo - 1e-7 and V.max() <= hi + 1e-7
+
+
+def test_sat_detects_a_hit(ws: Workspace) -> None:
+    """The checker itself can fail: the grid box meets infeasible cubes."""
+    box = Region.box(*ws.range_deg())
+    assert open_cubes_hit(box, ws.theta_deg()[~ws.feasible], ws.step_deg).any()
+
+
+def test_default_region(ws: Workspace) -> None:
+    P = ws.region
+    assert_inside_p_prime(P, ws)
+    assert P.halfspaces <= 64
+    assert P.redundant_rows() == []  # LP check, independent of the facet test used to build
+    feas = ws.theta_deg()[ws.feasible]
+    cov = float(np.all(feas @ P.A.T <= P.b + 1e-7, axis=1).mean())
+    assert cov >= 0.85
+    assert cov == pytest.approx(ws.coverage())
+    for t in ((135.0, 135.0, 135.0), MVN_START, MINTIME_START):
+        assert P.contains(np.array(t)), t
+
+
+def test_region_containing_start_and_goal(ws: Workspace) -> None:
+    a, b = np.array(MVN_START), np.array(MVN_GOAL)
+    assert not ws.region.contains(b)  # the goal is outside the default P
+    R = region_containing(ws, a, b)
+    assert R.contains(np.stack([a, b]), tol=1e-7).all()
+    assert_inside_p_prime(R, ws)
+    assert R.halfspaces <= 64
+    assert R.redundant_rows() == []
+    # the whole segment is inside (convexity) and so is a fair share of the workspace
+    s = np.linspace(0, 1, 50)[:, None]
+    assert R.contains(a + s * (b - a), tol=1e-7).all()
+    feas = ws.theta_deg()[ws.feasible]
+    assert R.contains(feas, tol=1e-7).mean() > 0.6
+
+
+def test_region_containing_returns_cached_p(ws: Workspace) -> None:
+    R = region_containing(ws, np.array(MVN_START), np.array(MINTIME_START))
+    assert R is ws.region
+
+
+def test_region_containing_refuses_infeasible_segment(ws: Workspace) -> None:
+    with pytest.raises(InfeasibleError) as e:
+        region_containing(ws, np.array(MVN_START), np.array([150.0, 70.0, 70.0]))
+    msg = e.value.message
+    assert "leaves the feasible set at θ ≈" in msg
+    assert "singular (ζ =" in msg or "links collide" in msg or "unreachable" in msg
+    with pytest.raises(InfeasibleError, match="outside the workspace grid"):
+        region_containing(ws, np.array(MVN_START), np.array([100.0, 100.0, 170.0]))
+
+
+def test_halfspace_cap_is_honoured(ws: Workspace) -> None:
+    res = build_region(ws, max_halfspaces=24)
+    assert res.region.halfspaces <= 24
+    assert_inside_p_prime(res.region, ws)
+    assert res.region.contains(ws.theta_deg()[ws.home_index])
+    assert res.coverage > 0.85
+
+
+def test_closest_point_on_boxes_matches_qp() -> None:
+    rng = np.random.default_rng(4)
+    L = rng.normal(size=(3, 3))
+    M = L @ L.T + 0.2 * np.eye(3)
+    c = rng.normal(size=3)
+    lo = rng.uniform(-3, 3, (150, 3))
+    hi = lo + rng.uniform(0.0, 2.0, (150, 3))
+    xb, val = closest_on_boxes(M, c, lo, hi)
+    x = cp.Variable(3)
+    lo_p, hi_p = cp.Parameter(3), cp.Parameter(3)
+    prob = cp.Problem(cp.Minimize(cp.quad_form(x - c, M)), [x >= lo_p, x <= hi_p])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for k in range(len(lo)):
+            lo_p.value, hi_p.value = lo[k], hi[k]
+            prob.solve(solver=cp.CLARABEL)
+            assert val[k] == pytest.approx(prob.value, abs=1e-6, rel=1e-6)
+    assert np.all(xb >= lo - 1e-12) and np.all(xb <= hi + 1e-12)
+
+
+def test_region_helpers() -> None:
+    box = Region.box(0.0, 2.0)
+    assert box.volume() == pytest.approx(8.0)
+    c, r = box.chebyshev()
+    assert np.allclose(c, 1.0) and r == pytest.approx(1.0)
+    extra = Region(np.vstack([box.A, [[1.0, 1.0, 1.0]], box.A[:1] * 3]),
+                   np.r_[box.b, 10.0, box.b[:1] * 3])
+    assert sorted(extra.redundant_rows()) in ([6, 7], [0, 6])
+    assert extra.without_redundant().halfspaces == 6
+    assert extra.without_redundant(method="lp").halfspaces == 6
