@@ -14,6 +14,12 @@ Noise model (profile section ``estimation``):
   this diagonal form is the most robust to a reference that lands up to a few
   ms late, which is what a real bus does.)
 
+A bus read does not happen exactly at k·Ts: it lands δ later (bus time, or a
+retry after a timeout). With ``offset_s = δ`` the measurement model becomes
+θ(kTs + δ) = [Φ(δ) x(k) + Γ(δ) θ*(k)]₁ — the exact response of (27) over δ with
+the new reference already applied — and the estimates are reported at that
+same instant, so they compare directly with the measurement.
+
 :class:`FiniteDifference` is the plain backward difference of the measured
 positions, the baseline the filter is compared with.
 """
@@ -26,7 +32,7 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 
-from spm_console.core.servo_model import ServoModel
+from spm_console.core.servo_model import ServoModel, exact_step
 
 F = NDArray[np.float64]
 
@@ -66,24 +72,40 @@ class KalmanVelocity:
             kf.P = np.diag([measurement_noise_deg**2, velocity0_std_degps**2])
             self.filters.append(kf)
 
-    def step(self, reference_prev_deg: F, measured_deg: F | None) -> tuple[F, F]:
-        """Predict with θ*(k−1), update with θ(k); returns (θ̂(k), θ̇̂(k)) in deg, deg/s."""
+    def step(
+        self,
+        reference_prev_deg: F,
+        measured_deg: F | None,
+        reference_deg: F | None = None,
+        offset_s: float = 0.0,
+    ) -> tuple[F, F]:
+        """Predict with θ*(k−1), update with the position measured δ = ``offset_s`` after k·Ts.
+
+        ``reference_deg`` is θ*(k), in force during δ (needed when δ > 0). Returns
+        (θ̂, θ̇̂) at the measurement instant k·Ts + δ, deg and deg/s.
+        """
         ref = np.asarray(reference_prev_deg, float).reshape(3)
         z = None if measured_deg is None else np.asarray(measured_deg, float).reshape(3)
+        shifted = offset_s > 0.0 and reference_deg is not None
+        u = np.asarray(reference_deg if shifted else ref, float).reshape(3)
+        Phi, Gam = exact_step(self.model.p, offset_s) if shifted else (np.eye(2), np.zeros(2))
+        H = Phi[:1, :]
         for i, kf in enumerate(self.filters):
             kf.predict(u=ref[i])
             if z is not None:
-                kf.update(z[i])
-        return self.position_deg, self.velocity_degps
+                kf.update(z[i] - Gam[0] * u[i], H=H)
+        x = np.array([kf.x[:, 0] for kf in self.filters])  # (3, 2) at k·Ts
+        at = x @ Phi.T + np.outer(u, Gam)
+        return at[:, 0], at[:, 1]
 
     @property
     def position_deg(self) -> F:
-        """Filtered positions θ̂ (3,), deg."""
+        """Filtered positions θ̂(k) at the sample instant (3,), deg."""
         return np.array([kf.x[0, 0] for kf in self.filters])
 
     @property
     def velocity_degps(self) -> F:
-        """Filtered velocities θ̇̂ (3,), deg/s."""
+        """Filtered velocities θ̇̂(k) at the sample instant (3,), deg/s."""
         return np.array([kf.x[1, 0] for kf in self.filters])
 
     @property
@@ -135,6 +157,14 @@ class ModelPredictor:
     @property
     def velocity_degps(self) -> F:
         return self.x[1].copy()
+
+    def at_offset(self, reference_deg: F, offset_s: float) -> tuple[F, F]:
+        """Model position and velocity δ = ``offset_s`` after the sample, θ*(k) applied."""
+        if offset_s <= 0.0:
+            return self.position_deg, self.velocity_degps
+        Phi, Gam = exact_step(self.model.p, offset_s)
+        at = self.x.T @ Phi.T + np.outer(np.asarray(reference_deg, float).reshape(3), Gam)
+        return at[:, 0], at[:, 1]
 
     def advance(self, reference_deg: F) -> None:
         """x(k+1) = A x(k) + B θ*(k) for the three joints."""

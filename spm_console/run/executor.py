@@ -119,6 +119,9 @@ class Executor:
         self.t0 = 0.0
         """perf_counter time of the first deadline (t = 0 of the samples)."""
         self.samples: list[Sample] = []
+        self._last_good = np.zeros(3)
+        self._torque_on = False
+        self._watchdog_armed = False
 
     # ------------------------------------------------------------------ control
     def request_estop(self, reason: str = "operator request") -> None:
@@ -196,6 +199,9 @@ class Executor:
         refs = np.vstack([s.plan.reference_deg for s in segments])
         phases = [s.phase for s in segments for _ in range(s.plan.N + 1)]
         regions = [s.plan.region for s in segments for _ in range(s.plan.N + 1)]
+        self.t0 = self.clock()  # set-up events: time since run() began (the loop resets t0)
+        self._last_good = theta0.copy()
+        self._torque_on = False
         self._event("start", theta0_deg=theta0, cycles=len(refs),
                     segments=[(s.phase, s.plan.kind, s.plan.N) for s in segments])
         stop: StopReason | None = None
@@ -205,20 +211,38 @@ class Executor:
                 stop = self._loop(refs, phases, regions, theta0)
         except KeyboardInterrupt:
             stop = SafetyMonitor.estop("interrupted (Ctrl-C)", self._now(), len(self.samples))
-            self._apply_stop(stop, self._hold_target(theta0), deadline=None)
+            self._apply_stop(stop, self._hold_target(self._last_good), deadline=None)
         except BaseException as exc:
-            # A bug: leave the robot safe and the log complete, then re-raise.
-            with contextlib.suppress(Exception):
-                self._apply_stop(SafetyMonitor.estop(f"internal error: {exc!r}", self._now(),
-                                                     len(self.samples)),
-                                 self._hold_target(theta0), deadline=None)
-            self._finish("error", ExitCode.INTERNAL, f"internal error: {exc!r}", None)
+            # Leave the robot safe and the log complete, then re-raise.
+            spm = isinstance(exc, SpmError)
+            msg = exc.message if isinstance(exc, SpmError) else f"internal error: {exc!r}"
+            if self._torque_on:
+                with contextlib.suppress(Exception):
+                    self._apply_stop(SafetyMonitor.estop(msg, self._now(), len(self.samples)),
+                                     self._hold_target(self._last_good), deadline=None)
+            code = exc.exit_code if isinstance(exc, SpmError) else ExitCode.INTERNAL
+            self._finish("refused" if spm and not self.samples else "error", code, msg, None)
             raise
+        self._release_watchdog()
         if stop is None:
             msg = f"executed {len(refs)} cycles ({len(refs) * self.ts:.2f} s)"
             self._event("done", message=msg)
             return self._finish("completed", ExitCode.OK, msg, None)
         return self._finish("stopped", stop.exit_code, stop.message, stop)
+
+    def _release_watchdog(self) -> None:
+        """After the run: Bus Watchdog off, so the servos keep their last goal (done or hold).
+
+        If the bus does not answer, the watchdog stays armed and stops the servos itself.
+        """
+        set_watchdog = getattr(self.bus, "set_watchdog", None)
+        if set_watchdog is None or not self._watchdog_armed:
+            return
+        try:
+            set_watchdog(0)
+            self._event("watchdog", ms=0, units=0)
+        except BusFailure as exc:
+            self._event("watchdog_left_armed", error=str(exc))
 
     def _retry(self, what: str, fn: Callable[[], Any], attempts: int = 10) -> Any:
         """A set-up transaction, retried on isolated losses; BusError when all fail."""
@@ -243,9 +267,11 @@ class Executor:
         if set_watchdog is not None and watchdog_ms > 0:
             # also clears a watchdog tripped after an earlier run (2.0; no-op on 1.0)
             units = self._retry("set the Bus Watchdog", lambda: set_watchdog(watchdog_ms))
+            self._watchdog_armed = bool(units)
             self._event("watchdog", ms=watchdog_ms, units=units)
         # reseed the goal before torque on: no lunge (a sync write has no reply to confirm)
         self._retry("write the goal", lambda: self.bus.write_goal_deg(theta0))
+        self._torque_on = True  # from here on a failure must apply the stop action
         self._retry("enable torque", lambda: self.bus.set_torque(True))
         self._event("torque_on", goal_deg=theta0)
         return None
@@ -273,24 +299,28 @@ class Executor:
                 self._apply_stop(estop, self._hold_target(last_good), repeat_at)
                 return estop
             ref = refs[k]
-            z, retries, detail = self._cycle_io(ref)
+            z, retries, detail, t_read = self._cycle_io(ref)
+            offset = min(max(t_read - deadline, 0.0), self.ts) if z is not None else 0.0
             bus_s = self.clock() - t_start
             if z is not None:
-                last_good = z
-            filt, vel = (kf.position_deg, kf.velocity_degps) if k == 0 else kf.step(refs[k - 1], z)
+                last_good = self._last_good = z
+            filt, vel = ((kf.position_deg, kf.velocity_degps) if k == 0
+                         else kf.step(refs[k - 1], z, ref, offset))
             fdv = fd.step(z)
             p_pos, p_vel = pred.position_deg, pred.velocity_degps
+            p_read = pred.at_offset(ref, offset)[0]  # the model when the position was read
             stop: StopReason | None = safety.comm(z is not None, retries, t, k, detail)
             if stop is None and (self._alerted() or k % self.hw_poll_every == 0):
                 stop = self._poll_hw(safety, t, k)
             if stop is None and z is not None:
-                stop = safety.position(z, p_pos, regions[k], t, k)
+                stop = safety.position(z, p_read, regions[k], t, k)
             meas = z if z is not None else np.full(3, np.nan)
-            err = float(np.abs(meas - p_pos).max()) if z is not None else float("nan")
+            err = float(np.abs(meas - p_read).max()) if z is not None else float("nan")
             sample = Sample(t=t, k=k, phase=phases[k], reference_deg=ref, measured_deg=meas,
                             predicted_deg=p_pos, predicted_velocity_degps=p_vel,
                             filtered_deg=filt, velocity_degps=vel, fd_velocity_degps=fdv.copy(),
                             tracking_error_deg=err, bus_s=bus_s, late_s=t_start - deadline,
+                            read_offset_s=offset,
                             retries=retries)
             self._publish(sample)
             if stop is not None:
@@ -299,8 +329,11 @@ class Executor:
             pred.advance(ref)
         return None
 
-    def _cycle_io(self, ref: F) -> tuple[F | None, int, str]:
-        """Write θ*(k), read θ(k) with retries: (θ or None, failed attempts, last error)."""
+    def _cycle_io(self, ref: F) -> tuple[F | None, int, str, float]:
+        """Write θ*(k), read θ(k) with retries.
+
+        Returns (θ or None, failed attempts, last error, clock time the good read was sent).
+        """
         detail = ""
         try:
             self.bus.write_goal_deg(ref)
@@ -310,13 +343,14 @@ class Executor:
         failed = 0
         for _ in range(1 + self.read_retries):
             try:
-                return np.asarray(self.bus.read_position_deg(), float), failed, ""
+                t_read = self.clock()
+                return np.asarray(self.bus.read_position_deg(), float), failed, "", t_read
             except BusFailure as exc:
                 failed += 1
                 detail = str(exc) or type(exc).__name__
                 self._event("comm_retry", op="read", error=detail)
         self._event("comm_fail", error=detail, attempts=failed)
-        return None, failed, detail
+        return None, failed, detail, float("nan")
 
     def _alerted(self) -> bool:
         """The alert flag of the last status packets, when the bus exposes it (``alerts``)."""

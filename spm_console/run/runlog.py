@@ -46,9 +46,11 @@ _VEC = ("ref", "meas", "pred", "pred_vel", "filt", "vel", "fd_vel")
 COLUMNS: tuple[str, ...] = (
     "t", "k", "phase",
     *(f"{name}{i}" for name in _VEC for i in (1, 2, 3)),
-    "track_err", "bus_ms", "late_ms", "retries",
+    "track_err", "bus_ms", "late_ms", "retries", "read_ms",
 )
-"""samples.csv header: ref = θ*, meas = θ, pred = model, filt = Kalman θ̂, vel = Kalman θ̇̂."""
+"""samples.csv header: ref = θ*, meas = θ, pred = model at k·Ts, filt / vel = Kalman θ̂ / θ̇̂
+at the read instant, fd_vel = finite differences, track_err = max |θ − model at the read
+instant|, read_ms = read instant after k·Ts."""
 
 
 def logs_root(root: str | Path | None = None) -> Path:
@@ -168,7 +170,7 @@ class RunLog:
                     s.filtered_deg, s.velocity_degps, s.fd_velocity_degps):
             row.extend(_fmt(float(x)) for x in vec)
         row += [_fmt(s.tracking_error_deg), _fmt(s.bus_s * 1e3), _fmt(s.late_s * 1e3),
-                str(s.retries)]
+                str(s.retries), _fmt(s.read_offset_s * 1e3)]
         self._csv.writerow(row)
         self.sample_count += 1
         self._pending += 1

@@ -32,19 +32,22 @@ class Sample:
     predicted_velocity_degps: F
     """Model velocity (3,)."""
     filtered_deg: F
-    """Kalman-filtered position (3,)."""
+    """Kalman-filtered position (3,) at the read instant k·Ts + read_offset_s."""
     velocity_degps: F
-    """Kalman-filtered velocity (3,)."""
+    """Kalman-filtered velocity (3,) at the read instant."""
     fd_velocity_degps: F
     """Backward finite difference of the measured positions (3,), the baseline."""
     tracking_error_deg: float
-    """max_i |measured − predicted| (NaN when the read failed)."""
+    """max_i |measured − model at the read instant| (NaN when the read failed); the
+    safety check's quantity."""
     bus_s: float
     """Time spent on the bus this cycle (write + read + retries), s."""
     late_s: float
     """How late the cycle started after its absolute deadline, s."""
     retries: int = 0
     """Read retries needed this cycle."""
+    read_offset_s: float = 0.0
+    """When the (successful) read was sent, after the cycle's deadline k·Ts, s."""
 
     @property
     def read_ok(self) -> bool:
