@@ -19,6 +19,7 @@ COMMAND_MODULES = [
     "spm_console.cli.tui",
     "spm_console.cli.run",
     "spm_console.cli.logs",
+    "spm_console.cli.reproduce",
 ]
 
 
