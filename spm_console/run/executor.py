@@ -25,15 +25,12 @@ import contextlib
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
-from spm_console.core.plan import Plan
 from spm_console.core.servo_model import discretize
 from spm_console.devices.base import CommError, ServoBus
 from spm_console.errors import BadInputError, BusError, ExitCode, SpmError
@@ -41,39 +38,13 @@ from spm_console.profile import Profile
 from spm_console.run.runlog import RunLog
 from spm_console.run.safety import SafetyMonitor, StopReason
 from spm_console.run.sample import Sample
+from spm_console.run.segments import ExecutionResult, Segment, check_segments
 from spm_console.run.stats import run_stats
 
 F = NDArray[np.float64]
 BusFailure = (CommError, OSError, BusError)
 """What counts as one failed bus transaction (a serial exception is an OSError; a status
 packet carrying an error number raises BusError)."""
-
-
-@dataclass(frozen=True)
-class Segment:
-    """One part of a run: a phase name and the plan streamed in it."""
-
-    phase: str
-    plan: Plan
-
-
-@dataclass
-class ExecutionResult:
-    """What a run did (STYLE §8: an object, not a tuple)."""
-
-    outcome: Literal["completed", "stopped"]
-    exit_code: ExitCode
-    message: str
-    log_dir: Path | None
-    stop: StopReason | None = None
-    final_deg: F | None = None
-    """Last measured position, deg."""
-    stats: dict[str, Any] = field(default_factory=dict)
-    """Sample count, jitter, bus time, retries, tracking RMS …"""
-
-    @property
-    def ok(self) -> bool:
-        return self.outcome == "completed"
 
 
 class Executor:
@@ -152,25 +123,7 @@ class Executor:
     # ------------------------------------------------------------------ checks
     def check_plan(self, segments: Sequence[Segment]) -> None:
         """Refuse plans with the wrong Ts or references outside the servo limits."""
-        if not segments:
-            raise BadInputError("nothing to execute: no plan segments")
-        for seg in segments:
-            plan = seg.plan
-            if abs(plan.Ts - self.ts) > 1e-9:
-                raise BadInputError(
-                    f"{seg.phase}: plan sampled at Ts = {plan.Ts} s but the profile's servo "
-                    f"runs at Ts = {self.ts} s; re-plan with this profile"
-                )
-            ref = plan.reference_deg
-            if ref.ndim != 2 or ref.shape[1] != 3 or not np.all(np.isfinite(ref)):
-                raise BadInputError(f"{seg.phase}: references must be finite (N+1, 3) angles")
-            bad = (ref < self.lo) | (ref > self.hi)
-            if bad.any():
-                k, i = (int(x) for x in np.argwhere(bad)[0])
-                raise BadInputError(
-                    f"{seg.phase}: reference θ{i + 1}({k}) = {ref[k, i]:.2f}° is outside the "
-                    f"servo limits [{self.lo[i]:.1f}, {self.hi[i]:.1f}]°; nothing was moved"
-                )
+        check_segments(segments, self.ts, self.lo, self.hi)
 
     def read_initial(self, attempts: int = 3) -> F:
         """Measured position before any motion; BusError if the servos stay silent."""
