@@ -192,6 +192,7 @@ def make_app(
     """The console for ``profile`` on a serial ``port`` or the emulated bus (``sim``), with
     or without the meshcat view. Nothing is opened until the app runs."""
     session = Session(profile, port=port, sim=sim and port is None, logs_root=logs_root,
-                      cache_dir=cache_dir, faults=faults, initial_deg=initial_deg)
+                      cache_dir=cache_dir, faults=faults, initial_deg=initial_deg,
+                      emulator_process=True)
     view: WristView = MeshcatView(profile) if viewer else NullView()
     return SpmConsoleApp(session, view, start_viewer=viewer)

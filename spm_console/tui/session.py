@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from spm_console.devices.faults import FaultSpec
     from spm_console.run.executor import ExecutionResult, Executor
     from spm_console.run.sample import Sample
+    from spm_console.tui.emulator_child import EmulatorChild
 
 F = NDArray[np.float64]
 SampleCallback = Callable[["Sample"], None]
@@ -85,6 +86,7 @@ class Session:
         cache_dir: Path | None = None,
         faults: Sequence[FaultSpec] = (),
         initial_deg: Sequence[float] | None = None,
+        emulator_process: bool = False,
     ) -> None:
         self.profile = profile
         self.model = model_of(profile)
@@ -98,9 +100,12 @@ class Session:
         self.cache_dir = cache_dir
         self.faults = tuple(faults)
         self.initial_deg = initial_deg
+        self.emulator_process = emulator_process
+        """Run the emulated bus in a child process (the console: its UI thread must not
+        delay the emulator's replies) rather than in a thread of this process."""
         self.bus: ServoBus | None = None
         self.bus_state: BusState | None = None
-        self.emulator: EmulatorHandle | None = None
+        self.emulator: EmulatorHandle | EmulatorChild | None = None
         self.theta_deg: F | None = None
         """Last measured motor angles, deg (None before connecting)."""
         self.homed = False
@@ -127,7 +132,17 @@ class Session:
 
         self.disconnect()
         port = self.port
-        if self.sim:
+        if self.sim and self.emulator_process:
+            from spm_console.tui.emulator_child import EmulatorChild
+
+            child = EmulatorChild(self.profile, self.faults, self.initial_deg)
+            self.emulator = child
+            try:
+                port = child.launch()
+            except SpmError as exc:
+                self.disconnect()
+                raise BusError(exc.message) from None
+        elif self.sim:
             from spm_console.devices.emulator import start_emulator
 
             self.emulator = start_emulator(self.profile, self.faults, record=False,
@@ -136,8 +151,8 @@ class Session:
         assert port is not None
         try:
             self.bus = open_bus(self.profile, port)
-            statuses = self.bus.ping_all()
-            self.bus_state = BusState(port=port, emulated=self.sim, statuses=list(statuses))
+            statuses = [self._with_health(st) for st in self.bus.ping_all()]
+            self.bus_state = BusState(port=port, emulated=self.sim, statuses=statuses)
             self.read_position()
         except SpmError:
             self.disconnect()
@@ -146,6 +161,22 @@ class Session:
             self.disconnect()
             raise BusError(f"{port}: {exc.strerror or exc}") from None
         return self.bus_state
+
+    def _with_health(self, st: ServoStatus) -> ServoStatus:
+        """Add temperature (°C) and input voltage (V) when the bus can read registers."""
+        from dataclasses import replace
+
+        from spm_console.devices.base import CommError
+
+        read = getattr(self.bus, "read", None)
+        if read is None:
+            return st
+        volt_reg = "present_input_voltage" if self.profile.bus.protocol == "2.0" else "present_voltage"
+        try:
+            return replace(st, temperature_c=float(read(st.id, "present_temperature")),
+                           voltage_v=0.1 * float(read(st.id, volt_reg)))
+        except (CommError, OSError, KeyError, SpmError):
+            return st  # health registers are informative only
 
     def require_bus(self) -> ServoBus:
         if self.bus is None:

@@ -1,8 +1,9 @@
-"""Start and stop the loopback meshcat server (:mod:`spm_console.viewer.server`) as a child.
+"""Helper processes of the console: started as children, stopped on exit and on SIGTERM.
 
-The child is stopped by :meth:`ViewerServer.stop` (called by the console on exit
-and on SIGTERM, and registered with :mod:`atexit`); if the console is killed
-outright the child notices its parent is gone and exits by itself.
+:class:`ChildProcess` runs ``python -m MODULE --parent PID …``; the child prints one
+JSON line on stdout when it is ready and watches its parent, so it never outlives a
+killed console. :class:`ViewerServer` is the loopback meshcat server
+(:mod:`spm_console.viewer.server`).
 """
 
 from __future__ import annotations
@@ -13,32 +14,29 @@ import os
 import subprocess
 import sys
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from spm_console.errors import SpmError
 
-#: Seconds to wait for the server to report its URLs.
+#: Seconds to wait for a child to report that it is ready.
 START_TIMEOUT_S = 15.0
 
 
 class ViewerError(SpmError):
-    """The 3D viewer could not be started (the console keeps working without it)."""
+    """A helper process (3D viewer, emulator child) failed or does not answer."""
 
 
-@dataclass(frozen=True)
-class ViewerUrls:
-    zmq_url: str
-    """Where drawing commands go (tcp://127.0.0.1:…)."""
-    web_url: str
-    """What the operator opens in a browser (http://127.0.0.1:…/static/)."""
+class ChildProcess:
+    """One helper child process announcing itself with a JSON line."""
 
-
-class ViewerServer:
-    """One meshcat server child process."""
-
-    def __init__(self) -> None:
+    def __init__(self, module: str, args: Sequence[str] = (), what: str = "helper") -> None:
+        self.module = module
+        self.args = list(args)
+        self.what = what
         self._proc: subprocess.Popen[bytes] | None = None
-        self.urls: ViewerUrls | None = None
+        self.info: dict[str, Any] | None = None
 
     @property
     def pid(self) -> int | None:
@@ -48,35 +46,45 @@ class ViewerServer:
     def running(self) -> bool:
         return self._proc is not None and self._proc.poll() is None
 
-    def start(self, timeout_s: float = START_TIMEOUT_S) -> ViewerUrls:
-        """Spawn the server and wait for its URLs (blocking: call from a worker thread)."""
-        if self.urls is not None and self.running:
-            return self.urls
-        cmd = [sys.executable, "-u", "-m", "spm_console.viewer.server", "--parent", str(os.getpid())]
+    def start(self, stdin: bytes = b"", timeout_s: float = START_TIMEOUT_S) -> dict[str, Any]:
+        """Spawn the child, send ``stdin``, wait for its JSON line (blocking)."""
+        cmd = [sys.executable, "-u", "-m", self.module, "--parent", str(os.getpid()), *self.args]
         self._proc = subprocess.Popen(
-            cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+            cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
             start_new_session=True,  # Ctrl-C in the terminal does not reach it; we stop it
         )
         atexit.register(self.stop)
+        assert self._proc.stdin is not None
+        try:
+            self._proc.stdin.write(stdin)
+            self._proc.stdin.close()
+        except OSError:
+            pass  # it died at once: reported below
         line = self._read_line(timeout_s)
         try:
             data = json.loads(line)
-            self.urls = ViewerUrls(str(data["zmq_url"]), str(data["web_url"]))
-        except (ValueError, KeyError, TypeError):
+            if not isinstance(data, dict):
+                raise ValueError(line)
+        except ValueError:
             self.stop()
-            raise ViewerError(f"3D viewer did not start (said {line[:200]!r})") from None
-        return self.urls
+            raise ViewerError(f"{self.what} did not start (said {line[:300]!r})") from None
+        if "error" in data:
+            self.stop()
+            raise ViewerError(f"{self.what}: {data['error']}")
+        self.info = data
+        return data
 
     def _read_line(self, timeout_s: float) -> str:
-        assert self._proc is not None and self._proc.stdout is not None
+        proc = self._proc
+        assert proc is not None and proc.stdout is not None
+        stdout = proc.stdout
         out: list[bytes] = []
-        reader = threading.Thread(target=lambda: out.append(self._proc.stdout.readline()),  # type: ignore[union-attr]
-                                  daemon=True)
+        reader = threading.Thread(target=lambda: out.append(stdout.readline()), daemon=True)
         reader.start()
         reader.join(timeout_s)
         if not out:
             self.stop()
-            raise ViewerError(f"3D viewer did not start within {timeout_s:.0f} s")
+            raise ViewerError(f"{self.what} did not start within {timeout_s:.0f} s")
         return out[0].decode("utf-8", "replace").strip()
 
     def stop(self, timeout_s: float = 2.0) -> None:
@@ -94,3 +102,30 @@ class ViewerServer:
         if proc.stdout is not None:
             proc.stdout.close()
         atexit.unregister(self.stop)
+
+
+@dataclass(frozen=True)
+class ViewerUrls:
+    zmq_url: str
+    """Where drawing commands go (tcp://127.0.0.1:…)."""
+    web_url: str
+    """What the operator opens in a browser (http://127.0.0.1:…/static/)."""
+
+
+class ViewerServer(ChildProcess):
+    """The meshcat server child (bound to 127.0.0.1)."""
+
+    def __init__(self) -> None:
+        super().__init__("spm_console.viewer.server", what="3D viewer")
+        self.urls: ViewerUrls | None = None
+
+    def start_server(self, timeout_s: float = START_TIMEOUT_S) -> ViewerUrls:
+        if self.urls is not None and self.running:
+            return self.urls
+        data = self.start(timeout_s=timeout_s)
+        try:
+            self.urls = ViewerUrls(str(data["zmq_url"]), str(data["web_url"]))
+        except KeyError:
+            self.stop()
+            raise ViewerError(f"3D viewer said {data!r}, not its URLs") from None
+        return self.urls

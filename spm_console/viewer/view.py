@@ -111,7 +111,7 @@ class MeshcatView:
         """Start the server, draw the wrist at home; returns the URL (blocking, ~1 s)."""
         from spm_console.viewer.client import MeshcatClient
 
-        urls = self.server.start()
+        urls = self.server.start_server()
         client = MeshcatClient(urls.zmq_url)
         self._client = client
         try:

@@ -113,9 +113,8 @@ class ConnectScreen(StepScreen):
         if s.bus_state is None:
             info = (f"Bus: {s.bus_label} (protocol {p.protocol}, {p.baud} baud) — not connected")
         else:
-            port = s.bus_state.port
-            info = (f"Bus: {s.bus_label} at {port} (protocol {p.protocol}, {p.baud} baud), "
-                    f"profile {s.profile.name}")
+            info = (f"Bus: {s.bus_label} (protocol {p.protocol}, {p.baud} baud), "
+                    f"profile {s.profile.name}: {len(s.bus_state.statuses)} servos answer")
         self.query_one("#bus-info", Static).update(Content(info))
         table = self.query_one("#servos", DataTable)
         table.clear()

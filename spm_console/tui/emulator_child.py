@@ -1,0 +1,81 @@
+"""The emulated servo bus in a child process, for the console.
+
+Real servos answer whatever the console's threads are doing; an emulator sharing
+the console's interpreter (and its GIL) with the UI may miss the bus's 4 ms reply
+timeout. So the console runs :func:`~spm_console.devices.emulator.start_emulator`
+here, in its own process: ``python -m spm_console.tui.emulator_child --parent PID``
+reads the profile (JSON) and options on stdin, prints ``{"port": ...}`` and serves
+until it is terminated or its parent is gone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import threading
+from collections.abc import Sequence
+from typing import Any
+
+from spm_console.profile import Profile
+from spm_console.viewer.process import ChildProcess
+
+#: How often the child checks that its parent is alive, s.
+PARENT_POLL_S = 0.5
+
+
+class EmulatorChild(ChildProcess):
+    """Handle of the child: ``port`` to open, ``stop()`` when done."""
+
+    def __init__(self, profile: Profile, faults: Sequence[Any] = (),
+                 initial_deg: Sequence[float] | None = None) -> None:
+        super().__init__("spm_console.tui.emulator_child", what="emulated servo bus")
+        self.request = {
+            "profile": profile.model_dump(mode="json"),
+            "faults": [str(f) for f in faults],
+            "initial_deg": None if initial_deg is None else [float(x) for x in initial_deg],
+        }
+        self.port = ""
+
+    def launch(self) -> str:
+        info = self.start(json.dumps(self.request).encode())
+        self.port = str(info["port"])
+        return self.port
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from spm_console.devices.emulator import start_emulator
+    from spm_console.devices.faults import parse_fault
+    from spm_console.errors import SpmError
+    from spm_console.profile import parse_profile
+
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--parent", type=int, default=0, help="exit when this process is gone")
+    args = parser.parse_args(argv)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        req = json.loads(sys.stdin.read())
+        profile = parse_profile(req["profile"], "profile")
+        faults = [parse_fault(f) for f in req.get("faults", [])]
+        em = start_emulator(profile, faults, record=False, initial_deg=req.get("initial_deg"))
+    except (SpmError, ValueError, KeyError) as exc:
+        msg = getattr(exc, "message", str(exc))
+        sys.stdout.write(json.dumps({"error": msg}) + "\n")
+        return 1
+    sys.stdout.write(json.dumps({"port": em.port}) + "\n")
+    sys.stdout.flush()
+    try:
+        while not stop.wait(PARENT_POLL_S) and em.running:
+            if args.parent and os.getppid() != args.parent:
+                break
+    finally:
+        em.stop()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,34 @@
+"""Fixtures of the console tests: the app from the one factory, on the emulated bus,
+without the 3D view, with its own log folder and a workspace cache built once."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from spm_console.profile import Profile
+from spm_console.tui.app import SpmConsoleApp, make_app
+
+
+@pytest.fixture(scope="session")
+def ws_cache(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
+    """A workspace cache folder holding the Agile Wrist workspace (built once per run)."""
+    from spm_console.workspace_cache import load_or_build
+
+    d = tmp_path_factory.mktemp("ws-cache")
+    load_or_build(agile, cache_dir=d)
+    return d
+
+
+@pytest.fixture
+def console(agile: Profile, ws_cache: Path, tmp_path: Path) -> Callable[..., SpmConsoleApp]:
+    """``console(initial_deg=..., faults=...)`` -> a fresh app (emulated bus, no viewer)."""
+
+    def build(initial_deg: Sequence[float] | None = None, **kw: Any) -> SpmConsoleApp:
+        return make_app(agile, sim=True, viewer=False, logs_root=tmp_path / "logs",
+                        cache_dir=ws_cache, initial_deg=initial_deg, **kw)
+
+    return build

@@ -1,0 +1,37 @@
+"""Helpers of the console tests: wait for workers, read widget text."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+from textual.pilot import Pilot
+from textual.widgets import Static
+
+from spm_console.tui.app import SpmConsoleApp
+
+
+async def settle(pilot: Pilot[Any], timeout_s: float = 30.0) -> None:
+    """Wait until no worker runs and no screen operation is pending (their results posted
+    and handled), polling the workers rather than sleeping a fixed time."""
+    app = pilot.app
+    loop = asyncio.get_running_loop()
+    t_end = loop.time() + timeout_s
+    quiet = 0
+    while quiet < 3:  # three consecutive idle checks: nothing queued behind the last one
+        await pilot.pause()
+        busy = any(w.is_running for w in app.workers) or bool(getattr(app.screen, "busy_op", ""))
+        quiet = 0 if busy else quiet + 1
+        if busy:
+            await asyncio.wait_for(app.workers.wait_for_complete(), max(0.1, t_end - loop.time()))
+        if loop.time() > t_end:
+            raise TimeoutError("the console did not settle")
+
+
+def text_of(app: SpmConsoleApp, selector: str) -> str:
+    """Plain text of a Static on the current screen."""
+    return str(app.screen.query_one(selector, Static).render())
+
+
+def status_of(app: SpmConsoleApp) -> str:
+    return text_of(app, "#status")

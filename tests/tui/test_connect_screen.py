@@ -1,0 +1,92 @@
+"""Step 1 on the emulated bus: servo status table, homing with confirmation, E-stop."""
+
+from __future__ import annotations
+
+import numpy as np
+from textual.widgets import DataTable
+
+from spm_console.errors import ExitCode
+from spm_console.run.runlog import list_runs
+from tests.tui.helpers import settle, status_of, text_of
+
+SIZE = (120, 36)
+
+
+async def test_connects_on_start_and_lists_each_servo(console) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        table = app.screen.query_one("#servos", DataTable)
+        assert table.row_count == 3
+        rows = [table.get_row_at(i) for i in range(3)]
+        assert [r[1] for r in rows] == ["1", "2", "3"]  # ids from the profile
+        assert all(r[2] == "321" for r in rows)  # MX-106 on protocol 2.0
+        assert all(r[6] == "none" for r in rows)  # no hardware error
+        assert "3 servos answer" in status_of(app)
+        assert "press h to home" in text_of(app, "#hint-line")
+
+
+async def test_home_asks_first_and_no_moves_nothing(console, tmp_path) -> None:
+    app = console(initial_deg=(125.0, 140.0, 130.0))
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        assert app.session.bus is not None, status_of(app)
+        before = app.session.read_position()
+        await pilot.press("h")
+        assert type(app.screen).__name__ == "ConfirmScreen"
+        await pilot.press("n")
+        await settle(pilot)
+        assert "nothing moved" in status_of(app)
+        assert not app.session.homed
+        assert list_runs(tmp_path / "logs") == []
+        np.testing.assert_allclose(app.session.read_position(), before, atol=0.1)
+
+
+async def test_home_moves_to_home_and_logs_the_run(console, tmp_path) -> None:
+    app = console(initial_deg=(115.0, 145.0, 130.0))
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("h", "y")
+        await pilot.pause()
+        assert app.moving  # E-stop banner up while it moves
+        assert app.screen.query_one(".estop-banner").display
+        await settle(pilot)
+        assert not app.moving
+        assert app.session.homed, status_of(app)
+        np.testing.assert_allclose(app.session.theta_deg, [135, 135, 135], atol=0.2)
+        runs = list_runs(tmp_path / "logs")
+        assert len(runs) == 1 and runs[0].meta["outcome"] == "completed"
+        assert str(runs[0].path) in status_of(app)
+        assert "press 2" in text_of(app, "#hint-line")
+
+
+async def test_space_stops_homing_and_says_so(console, tmp_path) -> None:
+    app = console(initial_deg=(100.0, 150.0, 120.0))  # 35° away: ~1.8 s at 20°/s
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("h", "y")
+        await pilot.pause(0.4)
+        assert app.moving
+        await pilot.press("space")
+        await settle(pilot)
+        assert not app.moving and not app.session.homed
+        run = app.session.last_run
+        assert run is not None and run.exit_code == ExitCode.STOP_ESTOP
+        assert "homing stopped" in status_of(app)
+        assert list_runs(tmp_path / "logs")[0].meta["outcome"] == "stopped"
+        # the wrist holds where it was stopped, short of home
+        assert np.abs(app.session.read_position() - 135.0).max() > 5.0
+
+
+async def test_unreachable_start_is_refused_with_a_reason(console, tmp_path) -> None:
+    # θ1 far out: the straight path from home crosses a singularity or leaves the limits
+    app = console(initial_deg=(62.0, 158.0, 62.0))
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("h", "y")
+        await settle(pilot)
+        assert not app.session.homed
+        msg = status_of(app)
+        assert "Traceback" not in msg and msg, msg
+        assert list_runs(tmp_path / "logs") == [] or \
+            list_runs(tmp_path / "logs")[0].meta["outcome"] != "completed"
