@@ -48,10 +48,12 @@ def run_qp(problem: PlanProblem, guess: F | None = None,
     pool = Pool(problem)
     g = straight_guess(problem) if guess is None else guess
     out = solve_qp(eq, pool, g, backend=backend)
-    if out.status == "failed":
+    if out.status == "failed" or (out.status == "solved" and not out.certified):
         first = out
         other: Backend = "osqp" if backend == "clarabel" else "clarabel"
-        out = solve_qp(eq, pool, g, backend=other, try_active_set=False)
+        second = solve_qp(eq, pool, g, backend=other, try_active_set=False)
+        if second.status == "solved" or first.status == "failed":
+            out = second
         out.solver_calls += first.solver_calls
         out.kkt_solves += first.kkt_solves
         out.seconds += first.seconds

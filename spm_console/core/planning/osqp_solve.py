@@ -42,17 +42,23 @@ class OsqpOutcome:
     detail: str
 
 
-def solve_osqp(eq: Equalities, pool: Pool, chosen: I, z0: F | None) -> OsqpOutcome:
-    """min ½zᵀPz s.t. C z = d, lo ≤ G z ≤ hi on the rows ``chosen`` (warm-started at z0)."""
+def solve_osqp(eq: Equalities, pool: Pool, chosen: I, z0: F | None,
+               tight: bool = False) -> OsqpOutcome:
+    """min ½zᵀPz s.t. C z = d, lo ≤ G z ≤ hi on the rows ``chosen`` (warm-started at z0).
+
+    ``tight``: tolerances 1e-9 and a larger iteration budget (a second try)."""
     t0 = time.perf_counter()
     A = sp.vstack([eq.C, pool.rows(chosen)], format="csc")
     lo = np.concatenate([eq.d, pool.lo[chosen]])
     hi = np.concatenate([eq.d, pool.hi[chosen]])
     solver = osqp.OSQP()
-    solver.setup(eq.P, np.zeros(eq.layout.n), A, lo, hi, **OSQP_SETTINGS)
+    settings = dict(OSQP_SETTINGS)
+    if tight:
+        settings.update(eps_abs=1e-9, eps_rel=1e-9, max_iter=100000)
+    solver.setup(eq.P, np.zeros(eq.layout.n), A, lo, hi, **settings)
     if z0 is not None:
         solver.warm_start(x=z0)
-    res = solver.solve()
+    res = solver.solve(raise_error=False)
     st = str(res.info.status)
     it = int(res.info.iter)
     pol = int(res.info.status_polish) == 1

@@ -137,15 +137,27 @@ def solve_qp(eq: Equalities, pool: Pool, guess: F, active: I | None = None,
         z_prev = z
     assert z is not None and y is not None
     # exact refinement on the solver's active set
-    ymax = float(np.abs(y).max()) if y.size else 0.0
-    sl = pool.slack(z)[chosen]
-    on = (np.abs(y) > 1e-6 * max(ymax, 1.0)) & (sl < 1e-4)
-    act = chosen[on]
-    sd = np.where(y[on] > 0, 1, -1).astype(np.int64)
-    r2 = refine(eq, pool, act, sd)
+    r2 = refine(eq, pool, *_active_of(pool, z, y, chosen))
     kkt += r2.solves
+    if not r2.ok and backend == "osqp":  # OSQP's active set was not clean: once more, tighter
+        o = solve_osqp(eq, pool, chosen, z, tight=True)
+        calls += 1
+        iters += o.iterations
+        if o.status == "solved" and o.z is not None and o.y_pool is not None:
+            z, y = o.z, o.y_pool
+            r2 = refine(eq, pool, *_active_of(pool, z, y, chosen))
+            kkt += r2.solves
     if r2.ok:
         return QpOutcome("solved", r2.z, f"{backend}+active-set", calls, kkt, rounds, chosen.size,
                          total, iters, True, time.perf_counter() - t0, r2.active, r2.side)
+    act, sd = _active_of(pool, z, y, chosen)
     return QpOutcome("solved", z, backend, calls, kkt, rounds, chosen.size, total, iters, False,
                      time.perf_counter() - t0, act, sd)
+
+
+def _active_of(pool: Pool, z: F, y: F, chosen: I) -> tuple[I, I]:
+    """Rows of ``chosen`` with a significant multiplier and (nearly) zero slack, and their side."""
+    ymax = float(np.abs(y).max()) if y.size else 0.0
+    sl = pool.slack(z)[chosen]
+    on = (np.abs(y) > 1e-6 * max(ymax, 1.0)) & (sl < 1e-4)
+    return chosen[on], np.where(y[on] > 0, 1, -1).astype(np.int64)

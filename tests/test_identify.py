@@ -1,0 +1,81 @@
+"""Identification of p (and a delay) from step responses and runs, quantized like the servos."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spm_console.core.identify import identify, response
+from spm_console.core.servo_model import discretize, simulate
+from spm_console.errors import BadInputError
+
+TICK_DEG = 360.0 / 4096
+TS = 0.02
+
+
+def _quantize(x: np.ndarray) -> np.ndarray:
+    return np.round(x / TICK_DEG) * TICK_DEG
+
+
+def _steps(n: int = 60) -> tuple[np.ndarray, np.ndarray]:
+    t = np.arange(n) * TS
+    ref = np.tile([100.0, 120.0, 90.0], (n, 1))
+    ref[5:] = [130.0, 100.0, 95.0]
+    ref[35:] = [110.0, 105.0, 120.0]
+    return t, ref
+
+
+def test_response_agrees_with_the_discrete_model() -> None:
+    t, ref = _steps()
+    m = discretize(32.22, TS)
+    xs = simulate(m, np.column_stack([ref[0], np.zeros(3)]), ref)
+    assert response(32.22, 0.0, t, ref, ref[0]) == pytest.approx(xs[..., 0], abs=1e-9)
+
+
+@pytest.mark.parametrize("p_true", [12.0, 32.22, 80.0])
+def test_recovers_p_within_2_percent_from_quantized_data(p_true: float) -> None:
+    t, ref = _steps()
+    rng = np.random.default_rng(7)
+    clean = response(p_true, 0.0, t, ref, ref[0])
+    meas = _quantize(clean + rng.normal(0.0, 0.02, clean.shape))
+    res = identify(t, ref, meas)
+    assert abs(res.p / p_true - 1) < 0.02
+    assert res.rms_deg < 0.06
+    assert res.joints == 3 and res.samples == 60
+
+
+def test_delay_is_fitted_when_asked() -> None:
+    t, ref = _steps()
+    clean = response(32.22, 0.008, t, ref, ref[0])
+    meas = _quantize(clean)
+    plain = identify(t, ref, meas)
+    with_delay = identify(t, ref, meas, fit_delay=True)
+    assert abs(with_delay.p / 32.22 - 1) < 0.02
+    assert with_delay.delay_s == pytest.approx(0.008, abs=0.002)
+    assert with_delay.rms_deg < plain.rms_deg / 3  # ignoring the delay biases p and the fit
+    assert abs(plain.p / 32.22 - 1) > 0.05
+
+
+def test_single_joint_step_and_irregular_times() -> None:
+    rng = np.random.default_rng(1)
+    t = np.cumsum(rng.uniform(0.018, 0.022, 50))
+    ref = np.where(np.arange(50) < 4, 135.0, 160.0)
+    meas = _quantize(response(32.22, 0.0, t, ref[:, None], np.array([135.0]))[:, 0])
+    res = identify(t, ref, meas)
+    assert abs(res.p / 32.22 - 1) < 0.02
+
+
+def test_bad_input_is_refused() -> None:
+    t, ref = _steps(10)
+    with pytest.raises(BadInputError, match="never moves"):
+        identify(t, np.full((10, 3), 1.0), np.full((10, 3), 1.0))
+    with pytest.raises(BadInputError, match="increasing"):
+        identify(t[::-1], ref, ref)
+    with pytest.raises(BadInputError, match="rows"):
+        identify(t, ref[:5], ref)
+    with pytest.raises(BadInputError, match="at least 5"):
+        identify(t[:3], ref[:3], ref[:3])
+    bad = ref.copy()
+    bad[2, 1] = np.nan
+    with pytest.raises(BadInputError, match="non-finite"):
+        identify(t, ref, bad)
