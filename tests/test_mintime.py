@@ -27,7 +27,7 @@ def test_paper_experiment_in_the_grid_box(K: int, expected: int) -> None:
     """Paper: [70, 90, 80]° → goal, v_max = 50°/s, reported N = 76 with its (wrong) eq. (35)
     model and its region. Ours (ZOH p = 32.22): joint 2 travels 65° — 1.3 s at 50°/s."""
     res = solve_mintime(MODEL, START_MT, GOAL, BOX, 50.0, intersample=K)
-    assert res.N == expected
+    assert expected == res.N
     assert res.plan.check.ok
     assert res.certificate is not None and res.certificate.valid
     assert res.certificate.excluded_radius >= 1e4

@@ -103,7 +103,7 @@ def test_infeasible_horizon_is_refused_with_the_reason() -> None:
 
 def test_endpoints_outside_the_region_are_refused() -> None:
     small = Region.box(80.0, 150.0)
-    with pytest.raises(InfeasibleError, match="start .* outside the region P"):
+    with pytest.raises(InfeasibleError, match=r"start .* outside the region P"):
         solve_mvn(MODEL, START, GOAL, 150, Region.box(90.0, 160.0))
     with pytest.raises(InfeasibleError, match="outside the region P"):
         solve_mvn(MODEL, START, GOAL, 150, small)
