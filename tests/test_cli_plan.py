@@ -1,0 +1,142 @@
+"""plan mvn | mintime | show and identify as an API: JSON keys, files, exit codes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.cli.main import main
+from spm_console.core.identify import response
+from spm_console.core.planning import PlanProblem
+from spm_console.core.planning.reference import solve_reference
+from spm_console.core.region import Region
+from spm_console.core.servo_model import discretize
+from spm_console.errors import ExitCode
+from tests.planning_cases import polytope
+
+START = ["127.53", "83.23", "85.25"]
+GOAL = ["66.80", "155.00", "131.48"]
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def region_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    p = tmp_path_factory.mktemp("region") / "region.json"
+    p.write_text(json.dumps({"region": polytope().to_dict(), "halfspaces": 61}))
+    return p
+
+
+def test_mvn_writes_a_plan_that_show_accepts(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                             region_file: Path) -> None:
+    out = tmp_path / "mvn.json"
+    png = tmp_path / "mvn.png"
+    code, so, _ = run(capsys, "plan", "mvn", "--start", *START, "--goal", *GOAL, "--steps", "150",
+                      "--region", str(region_file), "--out", str(out), "--plot", str(png), "--json")
+    assert code == 0
+    rec = json.loads(so)
+    assert rec["kind"] == "mvn" and rec["N"] == 150 and rec["check"]["ok"]
+    assert rec["region_source"].startswith("file") and rec["halfspaces"] == 61
+    assert png.stat().st_size > 10_000
+    code, so, _ = run(capsys, "plan", "show", str(out), "--json")
+    assert code == 0
+    d = json.loads(so)
+    assert np.asarray(d["position_deg"]).shape == (151, 3)
+    assert d["cost"] == pytest.approx(rec["cost"])
+    code, so, _ = run(capsys, "plan", "show", str(out))
+    assert code == 0 and "mvn: N = 150" in so and "between samples" in so
+
+
+def test_mintime_records_the_certificate(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    box = tmp_path / "box.json"
+    box.write_text(json.dumps(Region.box(65.0, 155.0).to_dict()))
+    out = tmp_path / "mt.json"
+    code, so, _ = run(capsys, "plan", "mintime", "--start", "70", "90", "80", "--goal", *GOAL,
+                      "--vmax", "50", "--region", str(box), "--out", str(out), "--json")
+    assert code == 0
+    rec = json.loads(so)
+    assert rec["kind"] == "mintime" and rec["N"] == 65
+    cert = rec["n_minus_1_infeasible"]
+    assert cert["N"] == 64 and cert["certificate"]["valid"]
+    assert json.loads(out.read_text())["n_minus_1_infeasible"]["N"] == 64
+
+
+def test_errors_have_distinct_exit_codes(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                         region_file: Path) -> None:
+    code, _, err = run(capsys, "plan", "mvn", "--start", *START, "--goal", *GOAL, "--steps", "40",
+                       "--vmax", "50", "--region", str(region_file))
+    assert code == ExitCode.INFEASIBLE and "N = 40" in err
+    small = tmp_path / "small.json"
+    small.write_text(json.dumps(Region.box(90.0, 150.0).to_dict()))
+    code, _, err = run(capsys, "plan", "mvn", "--start", *START, "--goal", *GOAL,
+                       "--region", str(small))
+    assert code == ExitCode.INFEASIBLE and "outside the region P" in err
+    code, _, err = run(capsys, "plan", "mvn", "--start", "10", "83", "85", "--goal", *GOAL,
+                       "--region", str(region_file))
+    assert code == ExitCode.BAD_INPUT and "servo limits" in err
+    code, _, err = run(capsys, "plan", "mvn", "--start", *START, "--goal", *GOAL,
+                       "--steps", "1", "--region", str(region_file))
+    assert code == ExitCode.BAD_INPUT
+    junk = tmp_path / "junk.json"
+    junk.write_text("{not json")
+    code, _, err = run(capsys, "plan", "mvn", "--start", *START, "--goal", *GOAL,
+                       "--region", str(junk))
+    assert code == ExitCode.BAD_INPUT and "not valid JSON" in err
+    code, _, err = run(capsys, "plan", "show", str(junk))
+    assert code == ExitCode.PLAN_MISMATCH and "not valid JSON" in err
+    code, _, err = run(capsys, "plan", "show", str(tmp_path / "missing.json"))
+    assert code == ExitCode.PLAN_MISMATCH
+
+
+def test_identify_from_csv(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    t = np.arange(60) * 0.02
+    ref = np.tile([100.0, 120.0, 90.0], (60, 1))
+    ref[5:] = [130.0, 100.0, 95.0]
+    tick = 360.0 / 4096
+    meas = np.round(response(30.0, 0.0, t, ref, ref[0]) / tick) * tick
+    f = tmp_path / "step.csv"
+    rows = ["t,ref1,ref2,ref3,meas1,meas2,meas3"]
+    rows += [",".join(f"{v:.6f}" for v in (t[k], *ref[k], *meas[k])) for k in range(60)]
+    f.write_text("\n".join(rows) + "\n")
+    code, so, _ = run(capsys, "identify", "--csv", str(f), "--json")
+    assert code == 0
+    d = json.loads(so)
+    assert abs(d["p"] / 30.0 - 1) < 0.02 and d["joints"] == 3
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,x\n0,1\n")
+    code, _, err = run(capsys, "identify", "--csv", str(bad))
+    assert code == ExitCode.BAD_INPUT and "ref1" in err
+
+
+@pytest.fixture(scope="module")
+def cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("wscache")
+
+
+def test_paper_experiments_with_the_real_workspace(capsys: pytest.CaptureFixture[str],
+                                                    cache_dir: Path, tmp_path: Path) -> None:
+    """MVN: the goal is outside the cached P, so a region around the segment is built and
+    the plan is optimal (cvxpy + Clarabel agree). Minimum time: the segment from [70, 90, 80]°
+    passes within Δ of a singular node with our link model — refused with the reason."""
+    out = tmp_path / "mvn.json"
+    code, so, err = run(capsys, "plan", "mvn", "--start", *START, "--goal", *GOAL,
+                        "--cache-dir", str(cache_dir), "--out", str(out), "--json")
+    assert code == 0, err
+    rec = json.loads(so)
+    assert rec["region_source"] == "region built around the segment" and rec["check"]["ok"]
+    d = json.loads(out.read_text())
+    region = Region.from_dict(d["region"])
+    pb = PlanProblem(discretize(32.22, 0.02), np.array(START, float), np.array(GOAL, float), 150,
+                     region, ref_lo_deg=np.full(3, 60.0), ref_hi_deg=np.full(3, 160.0))
+    ref = solve_reference(pb)
+    assert abs(rec["cost"] - ref.cost) <= 1e-4 * ref.cost
+    code, _, err = run(capsys, "plan", "mintime", "--start", "70", "90", "80", "--goal", *GOAL,
+                       "--vmax", "50", "--cache-dir", str(cache_dir))
+    assert code == ExitCode.INFEASIBLE and "singular" in err

@@ -1,0 +1,96 @@
+"""Plan files: round trip, and refusal of mismatched or corrupt files (PlanMismatchError)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from spm_console.core.planning import solve_mvn
+from spm_console.core.servo_model import discretize
+from spm_console.errors import ExitCode, PlanMismatchError
+from spm_console.plan_file import load_plan, plan_hash, save_plan
+from spm_console.profile import Profile
+from tests.planning_cases import GOAL, START, polytope
+
+SPEC_KEYS = ("kind", "Ts", "N", "reference_deg", "position_deg", "velocity_degps", "cost",
+             "solve_seconds", "qp_count", "region", "model")
+
+
+@pytest.fixture(scope="module")
+def plan_path(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
+    sv = agile.servo
+    res = solve_mvn(discretize(sv.p, sv.ts_s, sv.discretization), START, GOAL, 60, polytope())
+    path = tmp_path_factory.mktemp("plans") / "mvn.json"
+    save_plan(res.to_plan("mvn", plan_hash(agile)), path)
+    return path
+
+
+def _edit(src: Path, dst: Path, fn: Any) -> Path:
+    d = json.loads(src.read_text())
+    fn(d)
+    dst.write_text(json.dumps(d))
+    return dst
+
+
+def test_round_trip_and_spec_keys(plan_path: Path, agile: Profile) -> None:
+    d = json.loads(plan_path.read_text())
+    for key in SPEC_KEYS:
+        assert key in d
+    assert set(d["model"]) >= {"A", "B", "p", "discretization"}
+    assert set(d["region"]) == {"A", "b"}
+    assert np.asarray(d["reference_deg"]).shape == (61, 3)
+    plan = load_plan(plan_path, agile)
+    assert plan.N == 60 and plan.kind == "mvn" and plan.Ts == 0.02
+    assert plan.reference_deg[-1] == pytest.approx(GOAL)
+    assert plan.extra["check"]["ok"] is True
+    assert plan.region.halfspaces == polytope().halfspaces
+
+
+def test_other_profile_is_refused(plan_path: Path, agile: Profile, coaxial: Profile) -> None:
+    with pytest.raises(PlanMismatchError, match="another profile") as exc:
+        load_plan(plan_path, coaxial)
+    assert exc.value.exit_code == ExitCode.PLAN_MISMATCH
+    changed = agile.model_copy(update={"servo": agile.servo.model_copy(update={"p": 30.0})})
+    with pytest.raises(PlanMismatchError, match="another profile"):
+        load_plan(plan_path, changed)
+    # a change that does not shape plans (safety thresholds) keeps them valid
+    safer = agile.model_copy(update={"safety": agile.safety.model_copy(
+        update={"tracking_error_deg": 1.0})})
+    assert load_plan(plan_path, safer).N == 60
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda d: d.update(Ts=0.01), "Ts"),
+    (lambda d: d["model"].update(p=30.0), "servo model"),
+    (lambda d: d["model"].update(A=[[1, 0], [0, 1]]), "matrices"),
+    (lambda d: d["reference_deg"][20].__setitem__(1, d["reference_deg"][20][1] + 0.5), "disagree"),
+    (lambda d: d["position_deg"][30].__setitem__(0, 0.0), "disagree"),
+    (lambda d: d.update(N=59), "N = 59"),
+    (lambda d: d.pop("velocity_degps"), "missing key 'velocity_degps'"),
+    (lambda d: d.update(reference_deg=[[1, 2]] * 61), "3 columns"),
+    (lambda d: d.update(kind="teleport"), "unknown plan kind"),
+    (lambda d: d.update(version=99), "version"),
+    (lambda d: d.update(format="other"), "not a spm_console plan"),
+    (lambda d: d["region"].update(b=[1.0]), "region"),
+])
+def test_mismatched_or_edited_files_are_refused(plan_path: Path, agile: Profile, tmp_path: Path,
+                                                edit: Any, message: str) -> None:
+    bad = _edit(plan_path, tmp_path / "bad.json", edit)
+    with pytest.raises(PlanMismatchError, match=message):
+        load_plan(bad, agile)
+
+
+def test_corrupt_and_missing_files(plan_path: Path, agile: Profile, tmp_path: Path) -> None:
+    trunc = tmp_path / "trunc.json"
+    trunc.write_text(plan_path.read_text()[:500])
+    with pytest.raises(PlanMismatchError, match="not valid JSON"):
+        load_plan(trunc, agile)
+    with pytest.raises(PlanMismatchError, match="cannot read"):
+        load_plan(tmp_path / "nope.json", agile)
+    nan = _edit(plan_path, tmp_path / "nan.json", lambda d: d["velocity_degps"][3].__setitem__(0, None))
+    with pytest.raises(PlanMismatchError):
+        load_plan(nan, agile)
