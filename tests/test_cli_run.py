@@ -1,0 +1,194 @@
+"""``home``, ``execute`` and ``logs`` as operators and scripts run them (emulated bus)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.cli.main import main
+from spm_console.errors import ExitCode
+from spm_console.plan_file import save_plan
+from spm_console.profile import Profile
+from spm_console.run.plans import synthetic_plan
+from spm_console.run.runlog import load_run
+from tests.exec_helpers import PAPER_START
+
+GOAL = np.array([100.0, 120.0, 110.0])
+
+
+@pytest.fixture(scope="module")
+def plan_file(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
+    path = tmp_path_factory.mktemp("plans") / "short.json"
+    save_plan(synthetic_plan(agile, PAPER_START, GOAL, 1.0), path)
+    return path
+
+
+def _json(capsys: pytest.CaptureFixture[str]) -> dict:  # type: ignore[type-arg]
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 1, out  # --json: exactly one object on stdout
+    return json.loads(out[0])  # type: ignore[no-any-return]
+
+
+def test_execute_sim_completes(plan_file: Path, tmp_path: Path,
+                               capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["execute", "--plan", str(plan_file), "--sim", "--json", "--logs", str(tmp_path)])
+    d = _json(capsys)
+    assert code == 0 and d["outcome"] == "completed" and d["exit_code"] == 0
+    assert np.allclose(d["final_deg"], GOAL, atol=0.15)
+    assert d["stats"]["samples"] == d["N"] + 1 and d["stats"]["tracking_rms_deg"] < 0.5
+    run = load_run(d["log_dir"])
+    assert run.meta["outcome"] == "completed" and run.meta["sim"] is True
+    assert run.meta["plans"][0]["source"] == str(plan_file)
+    assert run.meta["profile"]["name"] == "agile_wrist" and len(run.meta["profile"]["hash"]) == 64
+
+
+@pytest.mark.parametrize(("fault", "code", "text"), [
+    ("stall:2@0.4", ExitCode.STOP_TRACKING, "tracking error on joint 2"),
+    ("unplug@0.4", ExitCode.STOP_COMM, "communication lost"),
+    ("hwerror:1@0.4", ExitCode.STOP_HW_ERROR, "overload"),
+])
+def test_execute_fault_exit_codes(plan_file: Path, tmp_path: Path,
+                                  capsys: pytest.CaptureFixture[str],
+                                  fault: str, code: ExitCode, text: str) -> None:
+    rc = main(["execute", "--plan", str(plan_file), "--sim", "--fault", fault, "--json",
+               "--logs", str(tmp_path)])
+    captured = capsys.readouterr()
+    d = json.loads(captured.out)
+    assert rc == int(code) == d["exit_code"] and d["outcome"] == "stopped"
+    assert text in d["message"] and text in captured.err  # the reason on stderr too
+    assert d["stop"]["done_t"] - d["stop"]["detected_t"] <= 0.04
+    run = load_run(d["log_dir"])
+    assert run.meta["exit_code"] == int(code) and run.meta["faults"] == [fault]
+
+
+def test_execute_adds_an_approach_move(plan_file: Path, tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["execute", "--plan", str(plan_file), "--sim", "--sim-start", "122", "90", "88",
+               "--json", "--logs", str(tmp_path)])
+    d = _json(capsys)
+    assert rc == 0, d["message"]
+    run = load_run(d["log_dir"])
+    assert [p["phase"] for p in run.meta["plans"]] == ["approach", "plan"]
+    assert run.phase[0] == "approach" and run.phase[-1] == "plan"
+    assert np.allclose(run.vec("meas")[0], [122, 90, 88], atol=0.1)
+    rc = main(["execute", "--plan", str(plan_file), "--sim", "--sim-start", "122", "90", "88",
+               "--no-approach", "--logs", str(tmp_path)])
+    assert rc == int(ExitCode.BAD_INPUT)
+    assert "approach move disabled" in capsys.readouterr().err
+
+
+def test_home_sim(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["home", "--sim", "--sim-start", "128", "140", "130", "--json",
+               "--logs", str(tmp_path)])
+    d = _json(capsys)
+    assert rc == 0 and np.allclose(d["final_deg"], [135, 135, 135], atol=0.1)
+    assert np.allclose(d["pose"]["n"], [0, 0, 1], atol=2e-3)
+    assert np.allclose(d["start_deg"], [128, 140, 130], atol=0.1)
+
+
+def test_home_refuses_an_unknown_assembly_mode(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["home", "--sim", "--sim-start", "62", "62", "158", "--logs", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert rc == int(ExitCode.UNREACHABLE), err
+    assert "not reachable from home in the known assembly mode" in err and "Traceback" not in err
+    run = load_run("last", tmp_path)
+    assert run.meta["outcome"] == "refused" and run.meta["exit_code"] == int(ExitCode.UNREACHABLE)
+    assert run.rows == 0
+
+
+@pytest.mark.parametrize(("argv", "code", "text"), [
+    (["--fault", "stall:9@1"], ExitCode.BAD_INPUT, "needs a joint 1, 2 or 3"),
+    (["--fault", "wobble"], ExitCode.BAD_INPUT, "unknown kind"),
+    (["--port", "/dev/null", "--fault", "unplug@1"], ExitCode.BAD_INPUT, "add --sim"),
+    (["--port", "/nonexistent/ttyUSB9"], ExitCode.BUS_ERROR, "/nonexistent/ttyUSB9"),
+])
+def test_bad_options_are_refused_with_a_reason(plan_file: Path, tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str],
+                                               argv: list[str], code: ExitCode, text: str) -> None:
+    rc = main(["execute", "--plan", str(plan_file), *argv, "--logs", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert rc == int(code), err
+    assert text in err and "Traceback" not in err
+
+
+def test_bad_plan_files(tmp_path: Path, plan_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["execute", "--plan", str(tmp_path / "missing.json"), "--sim"])
+    assert rc == int(ExitCode.PLAN_MISMATCH)
+    broken = tmp_path / "broken.json"
+    broken.write_text(plan_file.read_text()[:500])
+    rc = main(["execute", "--plan", str(broken), "--sim"])
+    assert rc == int(ExitCode.PLAN_MISMATCH)
+    err = capsys.readouterr().err
+    assert "broken.json" in err and "Traceback" not in err
+
+
+def test_logs_list_and_show_with_plot(plan_file: Path, tmp_path: Path,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    main(["execute", "--plan", str(plan_file), "--sim", "--fault", "stall:3@0.5",
+          "--logs", str(tmp_path)])
+    capsys.readouterr()
+    assert main(["logs", "--json", "--logs", str(tmp_path)]) == 0
+    runs = _json(capsys)["runs"]
+    assert len(runs) == 1 and runs[0]["exit_code"] == int(ExitCode.STOP_TRACKING)
+    png = tmp_path / "fig" / "run.png"
+    assert main(["logs", "--logs", str(tmp_path), "show", runs[0]["run"], "--plot", str(png),
+                 "--json"]) == 0
+    d = _json(capsys)
+    assert d["meta"]["outcome"] == "stopped" and d["events"]["stop"] == 1
+    assert d["tracking_rms_deg"] > 0.0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
+    assert main(["logs", "show", "nope", "--logs", str(tmp_path)]) == int(ExitCode.BAD_INPUT)
+
+
+def _spawn(args: list[str], logs: Path) -> subprocess.Popen[str]:
+    env = {**os.environ, "SPM_CONSOLE_LOGS": str(logs)}
+    return subprocess.Popen([sys.executable, "-m", "spm_console", *args], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_rows(logs: Path, rows: int, timeout: float = 20.0) -> Path:
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        runs = [p for p in logs.glob("*") if (p / "samples.csv").is_file()]
+        if runs and len((runs[0] / "samples.csv").read_text().splitlines()) > rows:
+            return runs[0]
+        time.sleep(0.05)
+    raise AssertionError("the run did not start")
+
+
+def test_sigint_is_an_estop(tmp_path: Path, agile: Profile) -> None:
+    plan = tmp_path / "long.json"
+    save_plan(synthetic_plan(agile, PAPER_START, GOAL, 4.0), plan)
+    proc = _spawn(["execute", "--plan", str(plan), "--sim", "--json"], tmp_path / "logs")
+    run_dir = _wait_for_rows(tmp_path / "logs", 20)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=20)
+    assert proc.returncode == int(ExitCode.STOP_ESTOP), err
+    d = json.loads(out)
+    assert "E-stop: signal SIGINT" in d["message"] and d["stats"]["samples"] < 150
+    run = load_run(run_dir)
+    assert run.meta["outcome"] == "stopped" and run.rows == d["stats"]["samples"]
+
+
+def test_sigkill_leaves_a_readable_log(tmp_path: Path, agile: Profile) -> None:
+    plan = tmp_path / "long.json"
+    save_plan(synthetic_plan(agile, PAPER_START, GOAL, 4.0), plan)
+    proc = _spawn(["execute", "--plan", str(plan), "--sim"], tmp_path / "logs")
+    run_dir = _wait_for_rows(tmp_path / "logs", 40)
+    proc.kill()
+    proc.communicate(timeout=20)
+    run = load_run(run_dir)
+    assert run.meta["outcome"] == "running"  # never finished, and says so
+    assert run.rows >= 40
+    assert np.array_equal(run.columns["k"], np.arange(run.rows))
+    assert np.isfinite(run.vec("meas")).all() and np.isfinite(run.vec("vel")).all()
+    assert [e["event"] for e in run.events][:3] == ["start", "watchdog", "torque_on"]
