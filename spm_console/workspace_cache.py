@@ -91,8 +91,11 @@ def save(ws: Workspace, path: Path, key: str) -> None:
         "home_index": list(ws.home_index), "seconds": ws.seconds,
         "region_seconds": ws.region_seconds, "region_info": ws.region_info,
     }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise CacheError(f"cannot write workspace cache {path}: {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "wb") as f:
             np.savez(

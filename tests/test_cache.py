@@ -1,0 +1,153 @@
+"""Workspace cache: hit, stale key, corrupt/truncated files, atomic writes."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console import workspace_cache as wc
+from spm_console.errors import CacheError
+from spm_console.workspace_cache import cache_key, cache_path, load_or_build, save
+from tests.ws_helpers import ROOT, agile_profile, coarse_workspace, with_step
+
+
+@pytest.fixture()
+def coarse(monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-untyped-def]
+    """Builds return the prebuilt 5° workspace (counted), so tests stay fast."""
+    prof = with_step(agile_profile(), 5.0)
+    calls = []
+
+    def fake_build(profile, progress=None):  # type: ignore[no-untyped-def]
+        calls.append(profile)
+        return coarse_workspace()
+
+    monkeypatch.setattr(wc, "build_workspace", fake_build)
+    return prof, calls
+
+
+def _same(a, b) -> None:  # type: ignore[no-untyped-def]
+    for name in ("zeta", "min_link_mm", "closest_pair", "R", "klass"):
+        assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=name != "klass"
+                              and name != "closest_pair")
+    assert np.array_equal(a.region.A, b.region.A) and np.array_equal(a.region.b, b.region.b)
+    assert a.home_index == b.home_index and a.counts() == b.counts()
+
+
+def test_miss_then_hit(tmp_path: Path, coarse) -> None:  # type: ignore[no-untyped-def]
+    prof, calls = coarse
+    ws1, i1 = load_or_build(prof, tmp_path)
+    assert not i1.hit and i1.rebuilt_because == "no cache file" and i1.path.is_file()
+    ws2, i2 = load_or_build(prof, tmp_path)
+    assert i2.hit and i2.rebuilt_because == "" and len(calls) == 1
+    _same(ws1, ws2)
+    assert ws2.profile is prof
+    _, i3 = load_or_build(prof, tmp_path, force=True)
+    assert not i3.hit and i3.rebuilt_because == "forced" and len(calls) == 2
+
+
+def test_env_var_sets_the_directory(tmp_path: Path, coarse, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    prof, _ = coarse
+    monkeypatch.setenv("SPM_CONSOLE_CACHE", str(tmp_path / "env"))
+    _, info = load_or_build(prof)
+    assert info.path.parent == tmp_path / "env" and info.path.is_file()
+
+
+def test_key_depends_on_what_matters() -> None:
+    base = agile_profile()
+    k = cache_key(base)
+    assert cache_key(with_step(base, 5.0)) != k
+    ws = base.workspace.model_copy(update={"zeta_min": 0.3})
+    assert cache_key(base.model_copy(update={"workspace": ws})) != k
+    links = base.links.model_copy(update={"delta_mm": 12.0})
+    assert cache_key(base.model_copy(update={"links": links})) != k
+    servo = base.servo.model_copy(update={"p": 30.0})
+    assert cache_key(base.model_copy(update={"servo": servo})) == k  # not a workspace input
+
+
+def test_stale_key_rebuilds(tmp_path: Path, coarse) -> None:  # type: ignore[no-untyped-def]
+    prof, calls = coarse
+    load_or_build(prof, tmp_path)
+    ws = prof.workspace.model_copy(update={"zeta_min": 0.3})
+    changed = prof.model_copy(update={"workspace": ws})
+    assert cache_path(changed, tmp_path) == cache_path(prof, tmp_path)  # same file name
+    _, info = load_or_build(changed, tmp_path)
+    assert not info.hit and info.rebuilt_because.startswith("stale key")
+    assert wc.read_key(info.path) == cache_key(changed)
+    assert len(calls) == 2
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "empty", "flip"])
+def test_corrupt_file_rebuilds_with_message(tmp_path: Path, coarse, damage: str) -> None:  # type: ignore[no-untyped-def]
+    prof, calls = coarse
+    _, info = load_or_build(prof, tmp_path)
+    raw = info.path.read_bytes()
+    if damage == "truncate":
+        info.path.write_bytes(raw[: len(raw) // 2])
+    elif damage == "garbage":
+        info.path.write_bytes(b"not a zip file at all" * 10)
+    elif damage == "empty":
+        info.path.write_bytes(b"")
+    else:  # flip bytes inside the R array: only the zip CRC can notice
+        pos = raw.find(b"R.npy")
+        assert pos > 0
+        mid = bytearray(raw)
+        for i in range(pos + 2000, pos + 2010):
+            mid[i] ^= 0xFF
+        info.path.write_bytes(bytes(mid))
+    with pytest.raises(CacheError, match="corrupt"):
+        wc.load(info.path, prof, cache_key(prof))
+    _, info2 = load_or_build(prof, tmp_path)
+    assert not info2.hit and "corrupt" in info2.rebuilt_because
+    assert str(info.path) in info2.rebuilt_because
+    assert len(calls) == 2
+    _, info3 = load_or_build(prof, tmp_path)  # repaired
+    assert info3.hit
+
+
+def test_unwritable_directory_still_returns_a_workspace(tmp_path: Path, coarse) -> None:  # type: ignore[no-untyped-def]
+    prof, _ = coarse
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    ws, info = load_or_build(prof, blocker / "sub")
+    assert ws.counts()["nodes"] == 19**3
+    assert "cannot write workspace cache" in info.write_error
+
+
+_WRITER = """
+import sys
+from pathlib import Path
+sys.path.insert(0, {root!r})
+from tests.ws_helpers import coarse_workspace
+from spm_console.workspace_cache import save
+ws = coarse_workspace()
+print("ready", flush=True)
+while True:
+    save(ws, Path({path!r}), "key")
+"""
+
+
+def test_kill_during_writes_leaves_a_whole_file(tmp_path: Path) -> None:
+    """SIGKILL a process that rewrites the cache in a loop: the file at the final path
+    is always a complete, loadable cache (or absent), never half-written."""
+    path = tmp_path / "workspace-x.npz"
+    save(coarse_workspace(), path, "key")
+    proc = subprocess.Popen([sys.executable, "-c", _WRITER.format(root=str(ROOT), path=str(path))],
+                            stdout=subprocess.PIPE, cwd=ROOT)
+    assert proc.stdout is not None
+    assert proc.stdout.readline().strip() == b"ready"
+    rng = np.random.default_rng(0)
+    time.sleep(0.3 + float(rng.uniform(0, 0.3)))
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    prof = with_step(agile_profile(), 5.0)
+    ws = wc.load(path, prof, "key")
+    assert ws.counts() == coarse_workspace().counts()
+    # leftover temp files are never taken for the cache
+    assert all(p.suffix == ".tmp" for p in tmp_path.iterdir() if p != path)
