@@ -104,20 +104,26 @@ def simulate(model: ServoModel, x0: F, reference: F) -> F:
     return out
 
 
-def simulate_continuous(p: float, ts: float, x0: F, reference: F, points: int) -> tuple[F, F]:
+def simulate_continuous(p: float, ts: float, x0: F, reference: F, points: int,
+                        samples: F | None = None) -> tuple[F, F]:
     """Exact continuous response of (27) under the piecewise-constant references.
 
     ``points`` ≥ 1 instants per interval (t = k·Ts + j·Ts/points, j = 0..points−1) plus the
-    last sample. Returns (t (M,), states (M, J, 2)) with M = N·points + 1.
+    last sample. ``samples``: the exact (ZOH) states at the samples if already known.
+    Returns (t (M,), states (M, J, 2)) with M = N·points + 1.
     """
     ref = np.asarray(reference, float)
     n = ref.shape[0] - 1
-    Phi1, Gam1 = exact_step(p, ts)
-    exact = ServoModel(p=p, ts=ts, method="zoh", A=Phi1, B=Gam1)
-    xk = simulate(exact, x0, ref)  # (N+1, J, 2) at the samples
+    if samples is None:
+        Phi1, Gam1 = exact_step(p, ts)
+        exact = ServoModel(p=p, ts=ts, method="zoh", A=Phi1, B=Gam1)
+        xk = simulate(exact, x0, ref)  # (N+1, J, 2) at the samples
+    else:
+        xk = np.asarray(samples, float)
     Phis, Gams = substeps(p, ts, points)
-    # inside interval k: x = Φ_j x(k) + Γ_j θ*(k)
-    inner = (np.einsum("jab,kib->kjia", Phis, xk[:n])
+    # inside interval k: x = Φ_j x(k) + Γ_j θ*(k); shapes (k, j, i, a)
+    xa = xk[:n, None, :, None, :]  # (n, 1, J, 1, 2)
+    inner = ((Phis[None, :, None, :, :] * xa).sum(-1)
              + Gams[None, :, None, :] * ref[:n, None, :, None])
     xs = np.concatenate([xk[:n, None], inner], axis=1).reshape(n * points, ref.shape[1], 2)
     xs = np.concatenate([xs, xk[n:]], axis=0)

@@ -63,13 +63,20 @@ def eqp(eq: Equalities, pool: Pool, active: I, side: I) -> tuple[F, F] | None:
     m = eq.C.shape[0] + Cw.shape[0]
     if m > n:
         return None
-    C = sp.vstack([eq.C, Cw], format="csc")
     rhs_w = np.where(side > 0, pool.hi[active], pool.lo[active])
-    K = sp.bmat([[eq.P, C.T], [C, None]], format="csc")
-    reg = sp.diags(np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)]), format="csc")
+    # K = [[P, Cᵀ], [C, 0]] assembled from triplets (much cheaper than sparse.bmat)
+    Pc = eq.P.tocoo()
+    Cc = sp.vstack([eq.C, Cw], format="coo") if Cw.shape[0] else eq.C.tocoo()
+    diag = np.arange(n + m)
+    rows = np.concatenate([Pc.row, Cc.row + n, Cc.col, diag])
+    cols = np.concatenate([Pc.col, Cc.col, Cc.row + n, diag])
+    regv = np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)])
+    vals = np.concatenate([Pc.data, Cc.data, Cc.data])
+    K = sp.csc_matrix((vals, (rows[:-n - m], cols[:-n - m])), shape=(n + m, n + m))
+    Kr = sp.csc_matrix((np.concatenate([vals, regv]), (rows, cols)), shape=(n + m, n + m))
     rhs = np.concatenate([np.zeros(n), eq.d, rhs_w])
     try:
-        lu = spla.splu(K + reg, permc_spec="COLAMD")
+        lu = spla.splu(Kr, permc_spec="COLAMD")
     except RuntimeError:
         return None
     sol = lu.solve(rhs)

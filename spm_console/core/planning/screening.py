@@ -32,8 +32,8 @@ I = NDArray[np.int64]
 Backend = Literal["osqp", "clarabel"]
 
 #: Screening margins: a pool row this close to its bound joins the reduced QP.
-REGION_MARGIN_DEG = 1.0
-SPEED_MARGIN_DEGPS = 2.0
+REGION_MARGIN_DEG = 0.3
+SPEED_MARGIN_DEGPS = 0.5
 #: A pool row violated by more than this (deg or deg/s) triggers another round.
 SCREEN_TOL = 1e-7
 MAX_ROUNDS = 10

@@ -105,7 +105,8 @@ def check(problem: PlanProblem, reference: F, position: F | None = None,
 
     pts = problem.intersample * int(np.ceil(BETWEEN_POINTS / problem.intersample))
     x0 = np.column_stack([problem.start_deg, np.zeros(3)])
-    _, xs = simulate_continuous(problem.model.p, problem.model.ts, x0, reference, pts)
+    known = np.stack([pos, vel], axis=-1) if problem.model.method == "zoh" else None
+    _, xs = simulate_continuous(problem.model.p, problem.model.ts, x0, reference, pts, known)
     vb = float(np.abs(xs[..., 1]).max())
     rb = float(region_violation(region, xs[..., 0]).max())
     sub_viol = 0.0
