@@ -14,11 +14,12 @@ Noise model (profile section ``estimation``):
   this diagonal form is the most robust to a reference that lands up to a few
   ms late, which is what a real bus does.)
 
-A bus read does not happen exactly at k·Ts: it lands δ later (bus time, or a
-retry after a timeout). With ``offset_s = δ`` the measurement model becomes
-θ(kTs + δ) = [Φ(δ) x(k) + Γ(δ) θ*(k)]₁ — the exact response of (27) over δ with
-the new reference already applied — and the estimates are reported at that
-same instant, so they compare directly with the measurement.
+A real loop is not on the ideal grid: θ*(k) reaches the servos when it is written
+(a little after k·Ts, much later in a late cycle) and θ(k) is read after that
+(bus time; a retry after a timeout). :meth:`KalmanVelocity.step_timed` therefore
+propagates (27) exactly over the actual spans — θ*(k−1) until the write, θ*(k)
+until the read — and keeps the estimate at the measurement instant, so it
+compares directly with the measurement whatever the timing.
 
 :class:`FiniteDifference` is the plain backward difference of the measured
 positions, the baseline the filter is compared with.
@@ -26,6 +27,7 @@ positions, the baseline the filter is compared with.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,45 +69,50 @@ class KalmanVelocity:
             kf.B = model.B.reshape(2, 1).copy()
             kf.H = np.array([[1.0, 0.0]])
             kf.R = np.array([[measurement_noise_deg**2]])
-            kf.Q = process_noise(model.ts, process_noise_deg)
+            kf.Q = self._q = process_noise(model.ts, process_noise_deg)
             kf.x = np.array([[theta0[i]], [0.0]])
             kf.P = np.diag([measurement_noise_deg**2, velocity0_std_degps**2])
             self.filters.append(kf)
 
-    def step(
-        self,
-        reference_prev_deg: F,
-        measured_deg: F | None,
-        reference_deg: F | None = None,
-        offset_s: float = 0.0,
-    ) -> tuple[F, F]:
-        """Predict with θ*(k−1), update with the position measured δ = ``offset_s`` after k·Ts.
-
-        ``reference_deg`` is θ*(k), in force during δ (needed when δ > 0). Returns
-        (θ̂, θ̇̂) at the measurement instant k·Ts + δ, deg and deg/s.
-        """
+    def step(self, reference_prev_deg: F, measured_deg: F | None) -> tuple[F, F]:
+        """Ideal timing: predict over Ts with θ*(k−1), update with θ(k) measured at k·Ts."""
         ref = np.asarray(reference_prev_deg, float).reshape(3)
         z = None if measured_deg is None else np.asarray(measured_deg, float).reshape(3)
-        shifted = offset_s > 0.0 and reference_deg is not None
-        u = np.asarray(reference_deg if shifted else ref, float).reshape(3)
-        Phi, Gam = exact_step(self.model.p, offset_s) if shifted else (np.eye(2), np.zeros(2))
-        H = Phi[:1, :]
         for i, kf in enumerate(self.filters):
             kf.predict(u=ref[i])
             if z is not None:
-                kf.update(z[i] - Gam[0] * u[i], H=H)
-        x = np.array([kf.x[:, 0] for kf in self.filters])  # (3, 2) at k·Ts
-        at = x @ Phi.T + np.outer(u, Gam)
-        return at[:, 0], at[:, 1]
+                kf.update(z[i])
+        return self.position_deg, self.velocity_degps
+
+    def step_timed(self, spans: Sequence[tuple[float, F]], measured_deg: F | None
+                   ) -> tuple[F, F]:
+        """Actual timing: propagate exactly through ``spans`` = [(duration s, θ* held), …]
+        from the last estimate's instant to the measurement's, then update with it.
+
+        The state then lives at the measurement instant; process noise scales with the
+        elapsed time (Q per Ts). Returns (θ̂, θ̇̂) there, deg and deg/s.
+        """
+        z = None if measured_deg is None else np.asarray(measured_deg, float).reshape(3)
+        for dt, u in spans:
+            if dt <= 0.0:
+                continue
+            Phi, Gam = exact_step(self.model.p, dt)
+            u3 = np.asarray(u, float).reshape(3)
+            for i, kf in enumerate(self.filters):
+                kf.predict(u=u3[i], B=Gam.reshape(2, 1), F=Phi, Q=self._q * (dt / self.model.ts))
+        if z is not None:
+            for i, kf in enumerate(self.filters):
+                kf.update(z[i])
+        return self.position_deg, self.velocity_degps
 
     @property
     def position_deg(self) -> F:
-        """Filtered positions θ̂(k) at the sample instant (3,), deg."""
+        """Filtered positions θ̂ at the last estimate's instant (3,), deg."""
         return np.array([kf.x[0, 0] for kf in self.filters])
 
     @property
     def velocity_degps(self) -> F:
-        """Filtered velocities θ̇̂(k) at the sample instant (3,), deg/s."""
+        """Filtered velocities θ̇̂ at the last estimate's instant (3,), deg/s."""
         return np.array([kf.x[1, 0] for kf in self.filters])
 
     @property
@@ -124,17 +131,23 @@ class FiniteDifference:
     ts: float
     """Sampling interval, s."""
     _last: F | None = None
+    _t: float | None = None
     _gap: int = 1
     velocity_degps: F = field(default_factory=lambda: np.zeros(3))
 
-    def step(self, measured_deg: F | None) -> F:
+    def step(self, measured_deg: F | None, t: float | None = None) -> F:
+        """Difference with the last good measurement; over the actual time when ``t`` (s)
+        of each measurement is given, else over the missed samples × Ts."""
         if measured_deg is None:
             self._gap += 1
             return self.velocity_degps
         z = np.asarray(measured_deg, float).reshape(3)
         if self._last is not None:
-            self.velocity_degps = (z - self._last) / (self._gap * self.ts)
-        self._last = z
+            dt = self._gap * self.ts
+            if t is not None and self._t is not None and t > self._t:
+                dt = t - self._t
+            self.velocity_degps = (z - self._last) / dt
+        self._last, self._t = z, t
         self._gap = 1
         return self.velocity_degps
 
@@ -142,7 +155,8 @@ class FiniteDifference:
 class ModelPredictor:
     """Open-loop simulation of the model (28) under the references: the 'simulated' curves.
 
-    Seeded at rest at the measured start position; :meth:`advance` applies θ*(k).
+    Seeded at rest at the measured start position; :meth:`advance` applies θ*(k) for one
+    ideal period, :meth:`propagate` follows the actual timing.
     """
 
     def __init__(self, model: ServoModel, theta0_deg: F) -> None:
@@ -158,13 +172,12 @@ class ModelPredictor:
     def velocity_degps(self) -> F:
         return self.x[1].copy()
 
-    def at_offset(self, reference_deg: F, offset_s: float) -> tuple[F, F]:
-        """Model position and velocity δ = ``offset_s`` after the sample, θ*(k) applied."""
-        if offset_s <= 0.0:
-            return self.position_deg, self.velocity_degps
-        Phi, Gam = exact_step(self.model.p, offset_s)
-        at = self.x.T @ Phi.T + np.outer(np.asarray(reference_deg, float).reshape(3), Gam)
-        return at[:, 0], at[:, 1]
+    def propagate(self, spans: Sequence[tuple[float, F]]) -> None:
+        """Exact response of (27) through [(duration s, θ* held), …] (actual timing)."""
+        for dt, u in spans:
+            if dt > 0.0:
+                Phi, Gam = exact_step(self.model.p, dt)
+                self.x = Phi @ self.x + np.outer(Gam, np.asarray(u, float).reshape(3))
 
     def advance(self, reference_deg: F) -> None:
         """x(k+1) = A x(k) + B θ*(k) for the three joints."""

@@ -6,9 +6,12 @@ cycle does not shift the next ones). In each cycle:
 1. sync-write θ*(k);
 2. sync-read θ(k) (one immediate retry on a failed read; a cycle whose reads all
    fail counts as a communication failure);
-3. Kalman update with θ*(k−1) as input and θ(k) as measurement
-   (:class:`~spm_console.core.estimation.KalmanVelocity`);
-4. the model's open-loop prediction (the 'simulated' curve);
+3. Kalman update with the references as input and θ(k) as measurement
+   (:class:`~spm_console.core.estimation.KalmanVelocity`), propagated over the
+   actual write and read instants (θ*(k−1) until θ*(k) is written, θ*(k) until the
+   read), so a late cycle or a retried read does not bias the estimate;
+4. the model's open-loop prediction: on the ideal grid (the plan's 'simulated'
+   curve, logged) and at the actual instants (what the tracking check compares);
 5. safety checks (:mod:`spm_console.run.safety`), telemetry to ``on_sample`` and
    the run log.
 
@@ -235,9 +238,11 @@ class Executor:
         kf = KalmanVelocity(self.model, theta0, self.profile.estimation.measurement_noise_deg,
                             self.profile.estimation.process_noise_deg)
         fd = FiniteDifference(self.ts)
-        pred = ModelPredictor(self.model, theta0)
+        pred = ModelPredictor(self.model, theta0)  # ideal grid: the plan's 'simulated' curve
+        pred_t = ModelPredictor(self.model, theta0)  # actual write/read times: safety's model
         last_good = theta0.copy()
         self.t0 = self.clock() + 0.002
+        t_state, u_prev = self.clock(), theta0  # at rest at θ0, goal θ0: any start time works
         if self.on_start is not None:
             self.on_start()
         for k in range(len(refs)):
@@ -252,16 +257,21 @@ class Executor:
                 self._apply_stop(estop, self._hold_target(last_good), repeat_at)
                 return estop
             ref = refs[k]
+            t_write = self.clock()
             z, retries, detail, t_read = self._cycle_io(ref)
-            offset = min(max(t_read - deadline, 0.0), self.ts) if z is not None else 0.0
-            bus_s = self.clock() - t_start
+            t_end = self.clock()
+            bus_s = t_end - t_start
+            t_meas = t_read if z is not None else t_end
+            # θ*(k−1) held until the write, θ*(k) from then to the measurement
+            spans = [(t_write - t_state, u_prev), (t_meas - t_write, ref)]
+            t_state, u_prev = t_meas, ref
             if z is not None:
                 last_good = self._last_good = z
-            filt, vel = ((kf.position_deg, kf.velocity_degps) if k == 0
-                         else kf.step(refs[k - 1], z, ref, offset))
-            fdv = fd.step(z)
+            filt, vel = kf.step_timed(spans, z)
+            fdv = fd.step(z, t_read if z is not None else None)
+            pred_t.propagate(spans)
             p_pos, p_vel = pred.position_deg, pred.velocity_degps
-            p_read = pred.at_offset(ref, offset)[0]  # the model when the position was read
+            p_read = pred_t.position_deg  # the model when the position was read
             stop: StopReason | None = safety.comm(z is not None, retries, t, k, detail)
             if stop is None and (self._alerted() or k % self.hw_poll_every == 0):
                 stop = self._poll_hw(safety, t, k)
@@ -273,7 +283,7 @@ class Executor:
                             predicted_deg=p_pos, predicted_velocity_degps=p_vel,
                             filtered_deg=filt, velocity_degps=vel, fd_velocity_degps=fdv.copy(),
                             tracking_error_deg=err, bus_s=bus_s, late_s=t_start - deadline,
-                            read_offset_s=offset,
+                            read_offset_s=(t_read - deadline) if z is not None else float("nan"),
                             retries=retries)
             self._publish(sample)
             if stop is not None:

@@ -47,7 +47,8 @@ class Sample:
     retries: int = 0
     """Read retries needed this cycle."""
     read_offset_s: float = 0.0
-    """When the (successful) read was sent, after the cycle's deadline k·Ts, s."""
+    """When the (successful) read was sent, after the cycle's deadline k·Ts, s (NaN when
+    the read failed)."""
 
     @property
     def read_ok(self) -> bool:
