@@ -79,3 +79,30 @@ def test_bad_input_is_refused() -> None:
     bad[2, 1] = np.nan
     with pytest.raises(BadInputError, match="non-finite"):
         identify(t, ref, bad)
+
+
+def test_recovers_p_from_the_emulated_bus(agile) -> None:  # type: ignore[no-untyped-def]
+    """Step responses read back through the emulator (real protocol over a pty, 4096 ticks)."""
+    import time
+
+    from spm_console.devices.bus import open_bus
+    from spm_console.devices.emulator import start_emulator
+
+    with start_emulator(agile) as emu, open_bus(agile, emu.port) as bus:
+        bus.set_torque(True)
+        home = np.array(agile.home.theta_deg)
+        step1, step2 = home + np.array([15.0, -10.0, 5.0]), home + np.array([-5.0, 8.0, -12.0])
+        plan = [home] * 3 + [step1] * 30 + [step2] * 30
+        ts, refs, meas = [], [], []
+        t_next = time.perf_counter()
+        for ref in plan:
+            while time.perf_counter() < t_next:
+                time.sleep(0.0005)
+            t_next += TS
+            ts.append(time.perf_counter())
+            meas.append(bus.read_position_deg())  # read, then send: the reference acts after t_k
+            bus.write_goal_deg(ref)
+            refs.append(ref)
+    res = identify(np.array(ts), np.array(refs), np.array(meas), fit_delay=True)
+    assert abs(res.p / agile.servo.p - 1) < 0.02
+    assert res.delay_s < 0.01
