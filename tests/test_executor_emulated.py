@@ -26,8 +26,10 @@ def test_paper_mvn_tracks_model_and_kalman_beats_finite_differences(
     run = run_on_emulator(agile, [Segment("plan", plan)], tmp_path)
     assert run.result.ok, run.result.message
     meas = np.array([s.measured_deg for s in run.samples])
-    assert len(meas) == plan.N + 1 and np.isfinite(meas).all()
-    rms = float(np.sqrt(np.mean((meas - plan.position_deg) ** 2)))
+    ok = np.isfinite(meas).all(axis=1)  # a read that timed out twice (a loaded host) is NaN
+    assert len(meas) == plan.N + 1 and ok.mean() >= 0.95
+    assert int((~ok).sum()) == run.result.stats["failed_reads"]
+    rms = float(np.sqrt(np.mean((meas - plan.position_deg)[ok] ** 2)))
     assert rms <= 0.5, rms
     assert np.allclose(meas[-1], plan.reference_deg[-1], atol=0.1)
 
@@ -45,7 +47,7 @@ def test_paper_mvn_tracks_model_and_kalman_beats_finite_differences(
 
     log = load_run(run.result.log_dir)  # type: ignore[arg-type]
     assert log.rows == plan.N + 1 and log.meta["outcome"] == "completed"
-    assert np.allclose(log.vec("meas"), meas, atol=1e-5)
+    assert np.allclose(log.vec("meas"), meas, atol=1e-5, equal_nan=True)
     assert {e["event"] for e in log.events} >= {"start", "watchdog", "torque_on", "done"}
 
 
