@@ -147,3 +147,26 @@ def test_region_helpers() -> None:
     assert sorted(extra.redundant_rows()) in ([6, 7], [0, 6])
     assert extra.without_redundant().halfspaces == 6
     assert extra.without_redundant(method="lp").halfspaces == 6
+
+
+def test_mintime_pair_needs_a_finer_grid(ws: Workspace) -> None:
+    """[70, 90, 80]° → goal: on the 2° grid the segment passes within Δ of a singular
+    node, though every point of it is feasible; the refusal says both."""
+    with pytest.raises(InfeasibleError) as e:
+        region_containing(ws, np.array(MINTIME_START), np.array(MVN_GOAL))
+    assert "singular" in e.value.message
+    assert "Checked exactly, the segment itself is feasible" in e.value.message
+
+
+@pytest.mark.slow
+def test_mintime_pair_on_the_1deg_grid() -> None:
+    from spm_console.core.workspace import build_workspace
+    from tests.ws_helpers import agile_profile, with_step
+
+    ws1 = build_workspace(with_step(agile_profile(), 1.0))
+    assert ws1.coverage() >= 0.85 and ws1.region.halfspaces <= 64
+    for start in (MINTIME_START, MVN_START):
+        R = region_containing(ws1, np.array(start), np.array(MVN_GOAL))
+        assert R.contains(np.array([start, MVN_GOAL]), tol=1e-7).all()
+        assert_inside_p_prime(R, ws1)
+        assert R.halfspaces <= 64

@@ -86,18 +86,22 @@ def check_segment(ws: Workspace, a: F, b: F) -> None:
     th = ws.theta_deg().reshape(-1, 3)
     bad = np.flatnonzero(ws.klass.ravel() != 0)
     t_in, _ = segment_entry(a, b, th[bad], ws.step_deg)
-    if np.isfinite(t_in).any():
-        j = int(np.argmin(t_in))
-        where = a + (b - a) * float(t_in[j])
-        raise InfeasibleError(
-            f"the straight segment {_fmt(a)}° → {_fmt(b)}° leaves the feasible set at "
-            f"θ ≈ {_fmt(where)}°: within Δ = {ws.step_deg:g}° of "
-            + node_reason(ws, int(bad[j]))
-        )
     n = max(2, int(np.ceil(np.abs(b - a).max() / (0.25 * ws.step_deg))) + 1)
     pts = a + (b - a) * np.linspace(0.0, 1.0, n)[:, None]
     pc = check_points(ws, model, links, pts)
     ok = pc.pointwise_ok(ws.zeta_min, ws.min_distance_mm)
+    if np.isfinite(t_in).any():
+        j = int(np.argmin(t_in))
+        where = a + (b - a) * float(t_in[j])
+        msg = (f"the straight segment {_fmt(a)}° → {_fmt(b)}° leaves the feasible set at "
+               f"θ ≈ {_fmt(where)}°: within Δ = {ws.step_deg:g}° of "
+               + node_reason(ws, int(bad[j])))
+        if ok.all():
+            msg += (f". Checked exactly, the segment itself is feasible (min ζ = "
+                    f"{pc.zeta.min():.3f}, closest links {np.nanmin(pc.min_link_mm):.1f} mm): "
+                    f"a finer workspace grid (smaller workspace.step_deg, e.g. 1°) can hold a "
+                    f"convex region containing both")
+        raise InfeasibleError(msg)
     if not ok.all():
         k = int(np.argmin(ok))
         if not pc.fk_ok[k]:
