@@ -58,7 +58,7 @@ def plot_workspace(ws: Workspace, path: Path | str, title: str = "") -> None:
     ax = fig.add_subplot(1, 3, 1, projection="3d")
     pts = th[shell]
     inP = ws.region.contains(pts, tol=1e-7)
-    ax.scatter(*pts[~inP].T, s=1, c="tab:orange", alpha=0.25, label="feasible, outside P")
+    ax.scatter(*pts[~inP].T, s=2, c="tab:orange", alpha=0.6, label="feasible, outside P")
     ax.scatter(*pts[inP].T, s=1, c="tab:green", alpha=0.15, label="feasible, inside P")
     faces = region_faces(ws.region)
     if faces:
@@ -73,7 +73,7 @@ def plot_workspace(ws: Workspace, path: Path | str, title: str = "") -> None:
                                 (ws.colliding & ~ws.singular, "tab:purple", "links collide")):
         p = th[mask]
         if len(p):
-            ax2.scatter(*p.T, s=1, c=colour, alpha=0.2, label=f"{label} ({len(p)})")
+            ax2.scatter(*p.T, s=2, c=colour, alpha=0.6, label=f"{label} ({len(p)})")
     ax2.set_title("infeasible nodes")
     _axes3(ax2, ws)
     ax2.legend(loc="upper left", fontsize=7, markerscale=6)
