@@ -45,6 +45,8 @@ from spm_console.run.segments import ExecutionResult, Segment, check_segments
 from spm_console.run.stats import run_stats
 
 F = NDArray[np.float64]
+SETUP_RETRY_PAUSE_S = 0.01
+"""Pause between set-up retries (before motion): late replies drain before the next try."""
 BusFailure = (CommError, OSError, BusError)
 """What counts as one failed bus transaction (a serial exception is an OSError; a status
 packet carrying an error number raises BusError)."""
@@ -128,14 +130,16 @@ class Executor:
         """Refuse plans with the wrong Ts or references outside the servo limits."""
         check_segments(segments, self.ts, self.lo, self.hi)
 
-    def read_initial(self, attempts: int = 3) -> F:
+    def read_initial(self, attempts: int = 5) -> F:
         """Measured position before any motion; BusError if the servos stay silent."""
         last = ""
-        for _ in range(attempts):
+        for n in range(attempts):
             try:
                 return np.asarray(self.bus.read_position_deg(), float)
             except BusFailure as exc:
                 last = str(exc) or type(exc).__name__
+                if n + 1 < attempts:
+                    (self.sleep or time.sleep)(SETUP_RETRY_PAUSE_S)
         raise BusError(f"no position reply from the servos after {attempts} tries ({last}); "
                        "check power, wiring, baud rate and ids (`spm-console servo ping`)")
 
@@ -209,6 +213,7 @@ class Executor:
             except BusFailure as exc:
                 last = exc
                 self._event("comm_retry", op=what, error=str(exc))
+                (self.sleep or time.sleep)(SETUP_RETRY_PAUSE_S)
         raise BusError(f"cannot {what} after {attempts} tries: {last}; nothing moved")
 
     def _preflight(self, theta0: F) -> StopReason | None:
