@@ -41,7 +41,8 @@ def test_fk_theta_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
     f.write_text("t1,t2,t3\n95,110,105\n108,60,105\n135,135,135\n")
     code, out, _ = run(capsys, "fk", "--theta-file", str(f), "--json")
     assert code == 0
-    res = json.loads(out)["results"]
+    res = json.loads(out)
+    assert isinstance(res, list)
     assert len(res) == 3 and all(r["ok"] for r in res)
     np.testing.assert_allclose(res[2]["n"], [0, 0, 1], atol=1e-12)
 

@@ -54,7 +54,7 @@ def to_jsonable(obj: Any) -> Any:
     return obj
 
 
-def emit(args: argparse.Namespace, data: dict[str, Any], human: str) -> None:
+def emit(args: argparse.Namespace, data: dict[str, Any] | list[Any], human: str) -> None:
     """JSON on stdout with --json, otherwise the human-readable text."""
     if getattr(args, "json", False):
         sys.stdout.write(json.dumps(to_jsonable(data)) + "\n")

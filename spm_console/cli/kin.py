@@ -103,7 +103,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
             f"θ={fmt_vec(t, 2)}  " + (f"n={fmt_vec(rec['n'])} ζ={rec['zeta']:.3f}" if rec["ok"] else rec["reason"])
             for t, rec in zip(T, recs, strict=True)
         )
-        emit(args, {"results": recs}, human)
+        emit(args, recs, human)  # a JSON list, one record per row
         return int(ExitCode.OK if all(r["ok"] for r in recs) else ExitCode.UNREACHABLE)
     theta = finite3(args.theta, "--theta")
     r = model.track(np.radians(theta), t_from, R_from)
