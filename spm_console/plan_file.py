@@ -23,6 +23,7 @@ from spm_console.core.plan import Plan
 from spm_console.core.region import Region
 from spm_console.core.servo_model import discretize, simulate
 from spm_console.errors import PlanMismatchError
+from spm_console.jsonutil import to_jsonable
 from spm_console.profile import Profile
 
 FORMAT = "spm_console.plan"
@@ -37,23 +38,6 @@ KINDS = ("mvn", "mintime", "synthetic", "homing")
 def plan_hash(profile: Profile) -> str:
     """SHA-256 of the profile sections a plan depends on."""
     return profile.section_digest(*PLAN_SECTIONS)
-
-
-def _clean(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    if isinstance(obj, np.bool_ | bool):
-        return bool(obj)
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, float | np.floating):
-        f = float(obj)
-        return f if math.isfinite(f) else None
-    return obj
 
 
 def plan_to_dict(plan: Plan) -> dict[str, Any]:
@@ -78,7 +62,7 @@ def plan_to_dict(plan: Plan) -> dict[str, Any]:
     if "n_minus_1_infeasible" in plan.extra:
         d["n_minus_1_infeasible"] = plan.extra["n_minus_1_infeasible"]
     d["extra"] = {k: v for k, v in plan.extra.items() if k != "n_minus_1_infeasible"}
-    return dict(_clean(d))
+    return dict(to_jsonable(d))
 
 
 def save_plan(plan: Plan, path: str | Path) -> None:

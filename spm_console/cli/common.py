@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from spm_console.errors import BadInputError
+from spm_console.jsonutil import to_jsonable
 from spm_console.profile import DEFAULT_PROFILE, Profile, load_profile
 
 
@@ -34,24 +35,6 @@ def finite3(values: list[float] | None, what: str) -> np.ndarray:
     if not all(math.isfinite(v) for v in values):
         raise BadInputError(f"{what}: angles must be finite numbers, got {values}")
     return np.asarray(values, float)
-
-
-def to_jsonable(obj: Any) -> Any:
-    """numpy arrays and scalars -> lists and floats (NaN/inf -> None)."""
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, float | np.floating):
-        f = float(obj)
-        return f if math.isfinite(f) else None
-    return obj
 
 
 def emit(args: argparse.Namespace, data: dict[str, Any] | list[Any], human: str) -> None:

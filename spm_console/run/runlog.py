@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.errors import BadInputError
+from spm_console.jsonutil import to_jsonable
 from spm_console.run.sample import Sample
 
 F = NDArray[np.float64]
@@ -70,27 +71,10 @@ def package_versions() -> dict[str, str]:
     return out
 
 
-def _jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, float | np.floating):
-        f = float(obj)
-        return f if math.isfinite(f) else None
-    return obj
-
-
 def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     tmp = path.with_suffix(".json.tmp")
     with tmp.open("w") as fh:
-        json.dump(_jsonable(data), fh, indent=2)
+        json.dump(to_jsonable(data), fh, indent=2)
         fh.write("\n")
         fh.flush()
         os.fsync(fh.fileno())
@@ -180,7 +164,7 @@ class RunLog:
     def event(self, name: str, t: float, /, **data: Any) -> None:
         """Append one event line ``{"t", "event": name, **data}`` and flush it at once."""
         rec = {"t": round(t, 6), "event": name, **data}
-        self._events.write(json.dumps(_jsonable(rec)) + "\n")
+        self._events.write(json.dumps(to_jsonable(rec)) + "\n")
         self._events.flush()
         self.event_count += 1
 
