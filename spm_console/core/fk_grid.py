@@ -16,15 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.jacobian import conditioning_index, j1_matrix, j2_diag
-from spm_console.core.kinematics import (
-    PATH_ZETA_FLOOR,
-    SpmModel,
-    newton,
-    orthonormalize,
-    platform_axes,
-)
-from spm_console.core.rotations import expm_so3
+from spm_console.core.kinematics import PATH_ZETA_FLOOR, SpmModel, continuation_step, platform_axes
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
@@ -96,7 +88,6 @@ def track_grid(
                       valid.reshape(shape), res.reshape(shape), 0)
     R[s], zeta[s], res[s], valid[s] = r0.pose.R, r0.pose.zeta, r0.pose.residual, True
     waves = 0
-    u = model.u
     while True:
         V3 = valid.reshape(shape)
         Z3 = np.where(V3, zeta.reshape(shape), -1.0)
@@ -115,23 +106,9 @@ def track_grid(
         ci = np.array(np.unravel_index(cand, shape)).T
         dirs = np.asarray(_DIRS)[parent_dir.ravel()[cand]]
         par = np.ravel_multi_index((ci + dirs).T, shape)
-        th_p, th_c = TH[par], TH[cand]
-        Rp = R[par]
-        w_p = model.geom.w(th_p)
-        v_p = platform_axes(Rp, model.v_home)
-        rhs = j2_diag(u, v_p, w_p) * (th_c - th_p)
-        with np.errstate(all="ignore"):
-            om = np.linalg.solve(j1_matrix(v_p, w_p), rhs[..., None])[..., 0]
-        Rpred = expm_so3(np.where(np.isfinite(om), om, 0.0)) @ Rp
-        w_c = model.geom.w(th_c)
-        Rc, rc = newton(model.geom, w_c, Rpred, model.v_home)
-        Rc = orthonormalize(Rc)
-        v_c = platform_axes(Rc, model.v_home)
-        z = conditioning_index(u, v_c, w_c)
-        d1 = np.linalg.det(j1_matrix(v_c, w_c)) * model.det_j1_sign
-        d2 = j2_diag(u, v_c, w_c) * model.working_signs
-        corr = np.linalg.norm(Rc - Rpred, axis=(-2, -1))
-        good = (rc < 1e-10) & (corr < 0.05) & (d1 > 0) & (d2 > 0).all(-1) & (z >= zeta_floor)
+        st = continuation_step(model, TH[par], R[par], TH[cand])
+        good = st.good(zeta_floor)
+        z, Rc, rc = st.zeta, st.R, st.residual
         g = cand[good]
         R[g], zeta[g], res[g], valid[g] = Rc[good], z[good], rc[good], True
         if progress is not None:

@@ -221,30 +221,17 @@ class SpmModel:
         minz = np.ones(B)
         start = [list(np.degrees(t0))] if keep_path else []
         paths: list[list[list[float]]] = [list(start) for _ in range(B)]
-        geom = self.geom
         for k in range(1, n + 1):
             a = np.flatnonzero(alive)
             if len(a) == 0:
                 break
             th_new = t0 + d[a] * (k / n)
-            dth = th_new - th[a]
-            # predictor: J1 ω = J2 dθ
-            w_old = geom.w(th[a])
-            v_old = platform_axes(R[a], self.v_home)
-            J1 = j1_matrix(v_old, w_old)
-            rhs = j2_diag(self.u, v_old, w_old) * dth
-            with np.errstate(all="ignore"):
-                om_raw = np.linalg.solve(J1, rhs[..., None])[..., 0]
-            om: F = np.where(np.isfinite(om_raw), om_raw, 0.0).astype(np.float64)
-            Rp = expm_so3(om) @ R[a]
-            w_new = geom.w(th_new)
-            Rc, res = newton(geom, w_new, Rp, self.v_home)
-            # corrector must stay close to the predictor
-            corr = np.linalg.norm(Rc - Rp, axis=(-2, -1))
-            z, s1, s2 = self.mode_check(th_new, Rc)
+            st = continuation_step(self, th[a], R[a], th_new)
+            res, z, s1, s2 = st.residual, st.zeta, st.det_side, st.leg_sides
+            conv = st.converged
             minz[a] = np.minimum(minz[a], z)
             for j, b in enumerate(a):
-                if not np.isfinite(res[j]) or res[j] > 1e-10 or corr[j] > 0.05:
+                if not conv[j]:
                     alive[b] = False
                     reason[b] = (
                         f"corrector did not converge near θ = {_fmt(th_new[j])}° "
@@ -264,7 +251,7 @@ class SpmModel:
                         f"θ = {_fmt(th_new[j])}° (ζ = {z[j]:.2e})"
                     )
             ok = alive[a]
-            R[a[ok]] = orthonormalize(Rc[ok])
+            R[a[ok]] = st.R[ok]
             th[a[ok]] = th_new[ok]
             if keep_path:
                 for jj in a[ok]:
@@ -279,6 +266,50 @@ class SpmModel:
                 )
             )
         return results
+
+
+@dataclass(frozen=True)
+class Step:
+    """One predictor-corrector continuation step, vectorized over rows."""
+
+    R: F
+    """Corrected rotations (n, 3, 3), orthonormalized (identity where not finite)."""
+    residual: F
+    """Max |f| after Newton (n,)."""
+    correction: F
+    """‖R_corrected − R_predicted‖_F (n,): large means the corrector jumped."""
+    zeta: F
+    """ζ at the new pose (n,)."""
+    det_side: F
+    """det J1 times its home sign (n,): positive = same assembly mode."""
+    leg_sides: F
+    """J2 diagonal times the home signs (n, 3): positive = same working modes."""
+
+    @property
+    def converged(self) -> NDArray[np.bool_]:
+        return np.asarray(np.isfinite(self.residual) & (self.residual <= 1e-10) & (self.correction <= 0.05))
+
+    def good(self, zeta_floor: float = PATH_ZETA_FLOOR) -> NDArray[np.bool_]:
+        """Converged, in the home modes, and ζ ≥ ``zeta_floor``."""
+        return np.asarray(self.converged & (self.det_side > 0) & (self.leg_sides > 0).all(-1)
+                          & (self.zeta >= zeta_floor))
+
+
+def continuation_step(model: SpmModel, th_old: F, R_old: F, th_new: F) -> Step:
+    """Predict with J1 ω = J2 dθ from (θ_old, R_old), correct by Newton at θ_new (rad)."""
+    geom, u = model.geom, model.u
+    w_old = geom.w(th_old)
+    v_old = platform_axes(R_old, model.v_home)
+    rhs = j2_diag(u, v_old, w_old) * (th_new - th_old)
+    with np.errstate(all="ignore"):
+        om_raw = np.linalg.solve(j1_matrix(v_old, w_old), rhs[..., None])[..., 0]
+    om: F = np.where(np.isfinite(om_raw), om_raw, 0.0).astype(np.float64)
+    Rp = expm_so3(om) @ R_old
+    Rc, res = newton(geom, geom.w(th_new), Rp, model.v_home)
+    corr = np.linalg.norm(Rc - Rp, axis=(-2, -1))
+    Rc = orthonormalize(np.where(np.isfinite(Rc), Rc, np.eye(3)))
+    z, d1, d2 = model.mode_check(th_new, Rc)
+    return Step(Rc, res, corr, z, d1, d2)
 
 
 def _fmt(theta_rad: F) -> str:

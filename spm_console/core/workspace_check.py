@@ -15,16 +15,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.jacobian import conditioning_index, j1_matrix, j2_diag
-from spm_console.core.kinematics import (
-    PATH_ZETA_FLOOR,
-    SpmModel,
-    newton,
-    orthonormalize,
-    platform_axes,
-)
+from spm_console.core.jacobian import conditioning_index
+from spm_console.core.kinematics import SpmModel, continuation_step, platform_axes
 from spm_console.core.links import LinkModel
-from spm_console.core.rotations import expm_so3
 
 if TYPE_CHECKING:
     from spm_console.core.workspace import Workspace
@@ -46,26 +39,11 @@ def track_from(model: SpmModel, th0: F, R0: F, th1: F, steps: int) -> tuple[F, B
     th = th0.copy()
     ok = np.isfinite(R).all((-2, -1))
     R[~ok] = np.eye(3)
-    u, geom = model.u, model.geom
     for k in range(1, steps + 1):
         th_new = th0 + (th1 - th0) * (k / steps)
-        w_old = geom.w(th)
-        v_old = platform_axes(R, model.v_home)
-        rhs = j2_diag(u, v_old, w_old) * (th_new - th)
-        with np.errstate(all="ignore"):
-            om = np.linalg.solve(j1_matrix(v_old, w_old), rhs[..., None])[..., 0]
-        Rp = expm_so3(np.where(np.isfinite(om), om, 0.0)) @ R
-        w_new = geom.w(th_new)
-        Rc, res = newton(geom, w_new, Rp, model.v_home)
-        Rc = orthonormalize(np.where(np.isfinite(Rc), Rc, np.eye(3)))
-        v = platform_axes(Rc, model.v_home)
-        z = conditioning_index(u, v, w_new)
-        d1 = np.linalg.det(j1_matrix(v, w_new)) * model.det_j1_sign
-        d2 = j2_diag(u, v, w_new) * model.working_signs
-        corr = np.linalg.norm(Rc - Rp, axis=(-2, -1))
-        good = (res < 1e-10) & (corr < 0.05) & (d1 > 0) & (d2 > 0).all(-1) & (z >= PATH_ZETA_FLOOR)
-        ok &= good
-        R, th = Rc, th_new
+        st = continuation_step(model, th, R, th_new)
+        ok &= st.good()
+        R, th = st.R, th_new
     return R, np.asarray(ok, bool)
 
 
