@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import signal
 import threading
 from collections.abc import Callable, Sequence
@@ -145,6 +146,13 @@ class SpmConsoleApp(App[int]):
         return True
 
     def watch_moving(self, moving: bool) -> None:
+        # A full garbage collection of the console's objects holds the GIL for ~0.1 s,
+        # longer than the servo loop may wait (Ts = 20 ms): collect now, none while moving.
+        if moving:
+            gc.collect()
+            gc.disable()
+        else:
+            gc.enable()
         self.refresh_bindings()
         self.refresh_screen()
 

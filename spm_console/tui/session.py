@@ -24,14 +24,21 @@ from spm_console.core.model import link_model_of, model_of
 from spm_console.core.modes import assembly_modes
 from spm_console.core.plan import Plan
 from spm_console.devices.base import ServoBus, ServoStatus
-from spm_console.errors import BadInputError, BusError, SpmError, UnreachableError
+from spm_console.errors import (
+    BadInputError,
+    BusError,
+    InfeasibleError,
+    SpmError,
+    UnreachableError,
+)
 from spm_console.profile import Profile
 
 if TYPE_CHECKING:
     from spm_console.devices.emulator import EmulatorHandle
     from spm_console.devices.faults import FaultSpec
-    from spm_console.run.executor import ExecutionResult, Executor
+    from spm_console.run.executor import Executor
     from spm_console.run.sample import Sample
+    from spm_console.run.segments import ExecutionResult
     from spm_console.tui.emulator_child import EmulatorChild
 
 F = NDArray[np.float64]
@@ -255,8 +262,8 @@ class Session:
 
     def execute(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
         """Execute the current plan (with a straight approach move to its start if needed)."""
-        from spm_console.run.executor import Segment
         from spm_console.run.homing import approach_segment
+        from spm_console.run.segments import Segment
 
         if self.plan is None:
             raise BadInputError("no plan to execute: solve one first (step 4)")
@@ -366,6 +373,13 @@ class Session:
         hi = np.array([j.max_deg for j in self.profile.bus.joints])
         model = servo_model_of(self.profile)
         vmax = self.profile.limits.vmax_degps if vmax_degps is None else vmax_degps
+        from spm_console.core.workspace import check_theta
+
+        for name, th in (("start", s), ("goal", g)):
+            chk = check_theta(ws, th)
+            if not chk.feasible:
+                raise InfeasibleError(f"{name} θ = {np.round(th, 2).tolist()}° is not usable: "
+                                      f"{chk.reason}")
         region = region_containing(ws, s, g)
         if method == "mvn":
             plan = solve_mvn(model, s, g, int(steps), region, vmax, ref_lo_deg=lo,

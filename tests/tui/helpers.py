@@ -35,3 +35,28 @@ def text_of(app: SpmConsoleApp, selector: str) -> str:
 
 def status_of(app: SpmConsoleApp) -> str:
     return text_of(app, "#status")
+
+
+class MotionSpy:
+    """Records, without racing the motion, what the operator saw while the wrist moved:
+    the ``moving`` flag's values and whether the E-stop banner was up at each telemetry."""
+
+    def __init__(self) -> None:
+        self.moving: list[bool] = []
+        self.banner_at_telemetry: list[bool] = []
+        self.app: SpmConsoleApp | None = None
+
+    def attach(self, app: SpmConsoleApp) -> None:
+        self.app = app
+        def changed(moving: bool) -> None:
+            self.moving.append(moving)
+
+        app.watch(app, "moving", changed, init=False)
+
+    def hook(self, message: Any) -> None:
+        """``run_test(message_hook=spy.hook)``."""
+        from spm_console.tui.messages import Telemetry
+
+        if isinstance(message, Telemetry) and self.app is not None:
+            banners = self.app.screen.query(".estop-banner")
+            self.banner_at_telemetry.append(bool(banners) and bool(banners.first().display))

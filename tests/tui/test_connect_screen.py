@@ -7,7 +7,7 @@ from textual.widgets import DataTable
 
 from spm_console.errors import ExitCode
 from spm_console.run.runlog import list_runs
-from tests.tui.helpers import settle, status_of, text_of
+from tests.tui.helpers import MotionSpy, settle, status_of, text_of
 
 SIZE = (120, 36)
 
@@ -44,14 +44,15 @@ async def test_home_asks_first_and_no_moves_nothing(console, tmp_path) -> None:
 
 async def test_home_moves_to_home_and_logs_the_run(console, tmp_path) -> None:
     app = console(initial_deg=(115.0, 145.0, 130.0))
-    async with app.run_test(size=SIZE) as pilot:
+    spy = MotionSpy()
+    async with app.run_test(size=SIZE, message_hook=spy.hook) as pilot:
+        spy.attach(app)
         await settle(pilot)
         await pilot.press("h", "y")
-        await pilot.pause()
-        assert app.moving  # E-stop banner up while it moves
-        assert app.screen.query_one(".estop-banner").display
         await settle(pilot)
-        assert not app.moving
+        assert spy.moving == [True, False]
+        assert spy.banner_at_telemetry and all(spy.banner_at_telemetry)  # E-stop always shown
+        assert not app.screen.query_one(".estop-banner").display
         assert app.session.homed, status_of(app)
         np.testing.assert_allclose(app.session.theta_deg, [135, 135, 135], atol=0.2)
         runs = list_runs(tmp_path / "logs")
@@ -61,12 +62,11 @@ async def test_home_moves_to_home_and_logs_the_run(console, tmp_path) -> None:
 
 
 async def test_space_stops_homing_and_says_so(console, tmp_path) -> None:
-    app = console(initial_deg=(100.0, 150.0, 120.0))  # 35° away: ~1.8 s at 20°/s
+    app = console(initial_deg=(85.0, 150.0, 110.0))  # 50° away: 2.5 s at 20°/s
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
         await pilot.press("h", "y")
-        await pilot.pause(0.4)
-        assert app.moving
+        await pilot.pause(0.2)
         await pilot.press("space")
         await settle(pilot)
         assert not app.moving and not app.session.homed
@@ -74,8 +74,9 @@ async def test_space_stops_homing_and_says_so(console, tmp_path) -> None:
         assert run is not None and run.exit_code == ExitCode.STOP_ESTOP
         assert "homing stopped" in status_of(app)
         assert list_runs(tmp_path / "logs")[0].meta["outcome"] == "stopped"
-        # the wrist holds where it was stopped, short of home
-        assert np.abs(app.session.read_position() - 135.0).max() > 5.0
+        # stopped before the end of the move, and it holds there, short of home
+        assert run.stats["stop"]["detected_t"] < app.session.motion_total_s - 0.3
+        assert np.abs(app.session.read_position() - 135.0).max() > 2.0
 
 
 async def test_unreachable_start_is_refused_with_a_reason(console, tmp_path) -> None:

@@ -75,8 +75,9 @@ class ConnectScreen(StepScreen):
             self.status.ok("homing cancelled: nothing moved")
             return
         on_sample = self.console.telemetry_sink(self)
-        if self.run_blocking("home", lambda: self.session.home(on_sample), "homing …"):
-            self.console.moving = True
+        self.console.moving = True  # first: collects garbage before the loop starts
+        if not self.run_blocking("home", lambda: self.session.home(on_sample), "homing …"):
+            self.console.moving = False
 
     # ------------------------------------------------------------------ results
     def handle_done(self, op: str, result: Any) -> None:

@@ -92,9 +92,10 @@ class ExecuteScreen(StepScreen):
         self._last_plot = 0.0
         self.query_one("#exec-outcome", Static).update("")
         on_sample = self.console.telemetry_sink(self)
-        if self.run_blocking("execute", lambda: self.session.execute(on_sample),
+        self.console.moving = True  # first: collects garbage before the loop starts
+        if not self.run_blocking("execute", lambda: self.session.execute(on_sample),
                              "executing … SPACE stops the wrist"):
-            self.console.moving = True
+            self.console.moving = False
 
     def action_next_plot(self) -> None:
         self.plot_kind = (self.plot_kind + 1) % 2
@@ -103,7 +104,12 @@ class ExecuteScreen(StepScreen):
     # ------------------------------------------------------------------ live
     def on_telemetry(self, message: Telemetry) -> None:
         message.stop()
-        smp = message.sample
+        self.show_sample(message.sample)
+        if message.sample.t - self._last_plot >= PLOT_EVERY_S:
+            self._last_plot = message.sample.t
+            self.draw_plot()
+
+    def show_sample(self, smp: Any) -> None:
         t = self.query_one("#joints", DataTable)
         cols = list(t.columns.keys())
         for i in range(3):
@@ -116,9 +122,6 @@ class ExecuteScreen(StepScreen):
         self.query_one("#exec-clock", Static).update(Content(
             f"{smp.phase}: elapsed {smp.t:5.2f} s, remaining {max(total - smp.t, 0):5.2f} s"))
         self.query_one("#exec-progress", ProgressBar).update(progress=min(100, 100 * smp.t / total))
-        if smp.t - self._last_plot >= PLOT_EVERY_S:
-            self._last_plot = smp.t
-            self.draw_plot()
 
     def draw_plot(self) -> None:
         samples = list(self.console.live_samples)
@@ -142,6 +145,8 @@ class ExecuteScreen(StepScreen):
             return
         self.console.moving = False
         self.console.after_motion(result)
+        if self.console.live_samples:
+            self.show_sample(self.console.live_samples[-1])  # telemetry is throttled: the last
         self.draw_plot()
         self.query_one("#exec-outcome", Static).update(Content(outcome_text(result)))
         if result.ok:

@@ -124,4 +124,5 @@ class FkScreen(StepScreen):
         self.console.fk_done = True
         self.console.view.show_theta(np.asarray(rec["theta_deg"], float))
         verdict = "feasible" if rec["feasible"] else "not feasible"
-        self.status.ok(f"FK solved: ζ = {rec['zeta']:.3f}, {verdict} (shown in the 3D view)")
+        where = " (shown in the 3D view)" if self.console.viewer_url else ""
+        self.status.ok(f"FK solved: ζ = {rec['zeta']:.3f}, {verdict}{where}")

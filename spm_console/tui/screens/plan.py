@@ -162,8 +162,9 @@ class PlanScreen(StepScreen):
             self.show_plan()
             plan = result
             self.console.view.show_path(plan.position_deg)
+            where = " (path previewed in the 3D view)" if self.console.viewer_url else ""
             self.status.ok(f"solved in {plan.solve_seconds:.2f} s: {plan.duration_s:.2f} s of "
-                           "motion. Press 5 to execute it (path previewed in the 3D view)")
+                           f"motion. Press 5 to execute it{where}")
         elif op == "save":
             self.status.ok(f"plan saved to {result}")
 

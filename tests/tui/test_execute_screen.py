@@ -1,0 +1,96 @@
+"""Step 5 on the emulated bus: confirmation, live telemetry, E-stop, faults, the log."""
+
+from __future__ import annotations
+
+import numpy as np
+from textual.widgets import DataTable, Input
+
+from spm_console.devices.faults import parse_fault
+from spm_console.errors import ExitCode
+from spm_console.run.runlog import list_runs, load_run
+from tests.tui.helpers import MotionSpy, settle, status_of, text_of
+
+SIZE = (130, 42)
+
+
+async def _homed_with_plan(pilot, steps: int) -> None:  # type: ignore[no-untyped-def]
+    await settle(pilot)
+    await pilot.press("h", "y")
+    await settle(pilot)
+    assert pilot.app.session.homed, status_of(pilot.app)
+    await pilot.press("3")
+    await settle(pilot)
+    await pilot.press("4")
+    await pilot.pause()
+    pilot.app.screen.query_one("#steps", Input).value = str(steps)
+    await pilot.press("s")
+    await settle(pilot)
+    assert pilot.app.session.plan is not None, status_of(pilot.app)
+    await pilot.press("5")
+    await pilot.pause()
+
+
+async def test_execute_needs_a_plan(console) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("5", "x")
+        await settle(pilot)
+        assert "no plan" in status_of(app)
+        assert type(app.screen).__name__ == "ExecuteScreen"
+
+
+async def test_execute_runs_the_plan_live_and_logs_it(console, tmp_path) -> None:
+    app = console()
+    spy = MotionSpy()
+    async with app.run_test(size=SIZE, message_hook=spy.hook) as pilot:
+        spy.attach(app)
+        await _homed_with_plan(pilot, 100)
+        n_before = len(spy.banner_at_telemetry)
+        await pilot.press("x")
+        assert type(app.screen).__name__ == "ConfirmScreen", status_of(app)
+        await pilot.press("y", "1")  # steps are locked while the wrist moves
+        assert type(app.screen).__name__ == "ExecuteScreen"
+        await settle(pilot)
+        assert spy.moving == [True, False, True, False]  # homing, then the execution
+        assert len(spy.banner_at_telemetry) >= n_before + 5 and all(spy.banner_at_telemetry)
+        res = app.session.last_run
+        assert res is not None and res.ok, status_of(app)
+        np.testing.assert_allclose(res.final_deg, [95, 110, 105], atol=0.3)
+        table = app.screen.query_one("#joints", DataTable)
+        measured = [float(table.get_row_at(i)[2].strip().rstrip("°")) for i in range(3)]
+        np.testing.assert_allclose(measured, [95, 110, 105], atol=1.0)  # last telemetry shown
+        out = text_of(app, "#exec-outcome")
+        assert out.startswith("COMPLETED (exit code 0)") and str(res.log_dir) in out
+        run = load_run(res.log_dir)
+        assert run.meta["outcome"] == "completed" and run.rows >= 101
+        assert "press 6" in text_of(app, "#hint-line")
+
+
+async def test_space_is_an_estop_during_execution(console) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await _homed_with_plan(pilot, 150)  # 3 s of motion
+        await pilot.press("x", "y")
+        await pilot.pause(0.2)
+        await pilot.press("space")
+        await settle(pilot)
+        res = app.session.last_run
+        assert res is not None and res.exit_code == ExitCode.STOP_ESTOP
+        assert text_of(app, "#exec-outcome").startswith("STOPPED (exit code 20)")
+        assert load_run(res.log_dir).meta["outcome"] == "stopped"
+        # stopped before the end, and it holds short of the goal
+        assert res.stats["stop"]["detected_t"] < app.session.motion_total_s - 0.3
+        assert np.abs(app.session.read_position() - [95, 110, 105]).max() > 2.0
+
+
+async def test_a_stalled_joint_stops_the_run_with_the_reason(console, tmp_path) -> None:
+    app = console(faults=[parse_fault("stall:2")])
+    async with app.run_test(size=SIZE) as pilot:
+        await _homed_with_plan(pilot, 60)
+        await pilot.press("x", "y")
+        await settle(pilot)
+        res = app.session.last_run
+        assert res is not None and res.exit_code == ExitCode.STOP_TRACKING, status_of(app)
+        assert "joint 2" in status_of(app)
+        assert [r.meta["outcome"] for r in list_runs(tmp_path / "logs")] == ["completed", "stopped"]

@@ -1,0 +1,73 @@
+"""The whole flow on the emulated bus, keyboard only, as a new operator walks it:
+connect & home -> FK check -> workspace -> MVN plan -> execute -> logs."""
+
+from __future__ import annotations
+
+import numpy as np
+from textual.widgets import DataTable, Input
+
+from spm_console.run.runlog import list_runs
+from tests.tui.helpers import settle, status_of, text_of
+
+SIZE = (130, 42)
+
+
+async def test_whole_flow_by_keys(console, tmp_path) -> None:
+    app = console(initial_deg=(128.0, 140.0, 133.0))
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        hint = text_of(app, "#hint-line")
+        assert "press h to home" in hint
+
+        await pilot.press("h", "y")  # 1: home
+        await settle(pilot)
+        assert app.session.homed
+        assert "press 2" in text_of(app, "#hint-line")
+
+        await pilot.press("2", "f")  # 2: FK of the current pose
+        await settle(pilot)
+        assert "FEASIBLE" in text_of(app, "#fk-result")
+        assert "press 3" in text_of(app, "#hint-line")
+
+        await pilot.press("3")  # 3: workspace (cached)
+        await settle(pilot)
+        assert "press 4" in text_of(app, "#hint-line")
+
+        await pilot.press("4")  # 4: MVN plan, typed
+        await pilot.pause()
+        await pilot.press("tab")  # the fields come in order: start kind first
+        steps = app.screen.query_one("#steps", Input)
+        steps.focus()
+        steps.value = ""
+        await pilot.press(*"80", "enter")  # Enter in a field solves
+        await settle(pilot)
+        plan = app.session.plan
+        assert plan is not None and plan.N == 80, status_of(app)
+        await pilot.press("escape")
+        assert app.focused is None
+        assert "press 5" in text_of(app, "#hint-line")
+
+        await pilot.press("5", "x", "y")  # 5: execute
+        await settle(pilot)
+        res = app.session.last_run
+        assert res is not None and res.ok, status_of(app)
+        np.testing.assert_allclose(res.final_deg, plan.reference_deg[-1], atol=0.3)
+        assert "press 6" in text_of(app, "#hint-line")
+
+        await pilot.press("6")  # 6: the log
+        await settle(pilot)
+        table = app.screen.query_one("#runs", DataTable)
+        assert table.row_count == 2  # homing and the execution, newest first
+        assert table.get_row_at(0)[1] == "execute"
+        await pilot.press("enter")
+        await settle(pilot)
+        assert str(res.log_dir) in text_of(app, "#run-text")
+        assert app.screen.run is not None and app.screen.run.rows >= 81
+        await pilot.press("p", "j")  # other plot, other joint: no error
+        await settle(pilot)
+        assert "joint 2: velocities" in str(app.screen.query_one("#run-plot").render())
+
+        await pilot.press("q")
+    assert app.return_code == 0
+    assert len(list_runs(tmp_path / "logs")) == 2
+    assert app.session.bus is None and app.session.emulator is None  # closed on quit

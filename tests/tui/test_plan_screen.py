@@ -1,0 +1,84 @@
+"""Step 4: plans solved in a worker from the form; the same numbers as the core."""
+
+from __future__ import annotations
+
+import numpy as np
+from textual.widgets import Input, Select
+
+from spm_console.core.planning import solve_mvn
+from spm_console.core.region_build import region_containing
+from spm_console.run.plans import servo_model_of
+from spm_console.tui.widgets.angles import AnglesInput
+from tests.tui.helpers import settle, status_of, text_of
+
+SIZE = (130, 42)
+
+
+async def _to_plan(pilot) -> None:  # type: ignore[no-untyped-def]
+    await settle(pilot)
+    await pilot.press("3")  # the workspace (from the cache)
+    await settle(pilot)
+    await pilot.press("4")
+    await pilot.pause()
+
+
+async def test_mvn_from_current_pose_matches_the_core(console) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await _to_plan(pilot)
+        app.screen.query_one("#steps", Input).value = "60"
+        await pilot.press("s")
+        await settle(pilot)
+        plan = app.session.plan
+        assert plan is not None and plan.kind == "mvn" and plan.N == 60, status_of(app)
+        s = app.session
+        ref = solve_mvn(servo_model_of(s.profile), np.full(3, 135.0), [95, 110, 105], 60,
+                        region_containing(s.workspace, np.full(3, 135.0), np.array([95, 110, 105.])),
+                        s.profile.limits.vmax_degps)
+        np.testing.assert_allclose(plan.reference_deg, ref.reference_deg, atol=1e-6)
+        out = text_of(app, "#plan-text")
+        assert "N = 60 steps" in out and "constraints verified" in out
+        assert "press 5" in status_of(app).lower()
+
+
+async def test_minimum_time_from_an_orientation(console) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await _to_plan(pilot)
+        app.screen.query_one("#goal-kind", Select).value = "rpy"
+        app.screen.query_one("#goal-values", AnglesInput).set_values([10, 5, -15])
+        app.screen.query_one("#method", Select).value = "mintime"
+        await pilot.press("s")
+        await settle(pilot, timeout_s=120)
+        plan = app.session.plan
+        assert plan is not None and plan.kind == "mintime", status_of(app)
+        np.testing.assert_allclose(plan.reference_deg[-1], app.session.ik([10, 5, -15]), atol=1e-6)
+        assert float(np.abs(plan.velocity_degps).max()) <= 50.0 + 1e-6
+        assert "MINTIME" in text_of(app, "#plan-text")
+
+
+async def test_form_errors_are_messages(console) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await _to_plan(pilot)
+        app.screen.query_one("#steps", Input).value = ""
+        await pilot.press("s")
+        await settle(pilot)
+        assert "steps N must be a whole number" in status_of(app)
+        app.screen.query_one("#steps", Input).value = "100"
+        app.screen.query_one("#goal-values", AnglesInput).set_values([40, 135, 135])
+        await pilot.press("s")
+        await settle(pilot)
+        msg = status_of(app)
+        assert app.session.plan is None
+        assert msg.startswith("goal θ = [40.0, 135.0, 135.0]° is not usable"), msg
+        assert "outside the workspace grid" in msg
+
+
+async def test_without_workspace_says_which_step_is_missing(console) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("4", "s")
+        await settle(pilot)
+        assert "step 3" in status_of(app)
