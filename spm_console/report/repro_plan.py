@@ -51,7 +51,7 @@ def _execute(profile: Profile, plan: Plan, out: Path, fig: str, caption: str, se
 
 
 def plan_sections(profile: Profile, out: Path, settings: ReproSettings) -> list[Section]:
-    ws, _ = load_or_build(profile, cache_dir=out / "cache")
+    ws, _ = load_or_build(profile)
     return [_mvn(profile, ws, out, settings), _mintime(profile, ws, out, settings)]
 
 
@@ -119,7 +119,7 @@ def _mintime(profile: Profile, ws: Workspace, out: Path, settings: ReproSettings
             sec.seconds = time.perf_counter() - t0
             return sec
         fine = profile.model_copy(update={"workspace": profile.workspace.model_copy(update={"step_deg": 1.0})})
-        ws_fine, _ = load_or_build(fine, cache_dir=out / "cache")
+        ws_fine, _ = load_or_build(fine)
         region = region_containing(ws_fine, start, goal)
         grid_note = "1° grid"
         sec.text = (f"With the profile's grid, {why}. Halving Δ halves that conservatism: on a 1° grid "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tempfile
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -21,8 +22,9 @@ if TYPE_CHECKING:
 def workspace_sections(profile: Profile, out: Path, settings: ReproSettings) -> list[Section]:
     t0 = time.perf_counter()
     sec = Section("Workspace and convex region P (Sec. IV, VI-D, Fig. 5)", "workspace")
-    # a private cache: the build is timed from scratch, honestly
-    ws, info = load_or_build(profile, cache_dir=out / "cache", force=True)
+    # a throw-away cache: the build is timed from scratch, honestly
+    with tempfile.TemporaryDirectory(prefix="spm-repro-") as tmp:
+        ws, info = load_or_build(profile, cache_dir=tmp, force=True)
     counts = ws.counts()
     n = settings.verify_samples if not settings.quick else min(settings.verify_samples, 5_000)
     rep = verify_region(ws, model_of(profile), link_model_of(profile), n=n)
