@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 os.chdir(ROOT)
+
+# Tests never touch the operator's cache (~/.cache/spm_console) or the project's logs/:
+# one scratch directory per test session (subprocesses inherit it).
+_SCRATCH = Path(tempfile.mkdtemp(prefix="spm-tests-"))
+os.environ.setdefault("SPM_CONSOLE_CACHE", str(_SCRATCH / "cache"))
+os.environ.setdefault("SPM_CONSOLE_LOGS", str(_SCRATCH / "logs"))
 
 
 @pytest.fixture(scope="session")
