@@ -17,6 +17,7 @@ COMMAND_MODULES = [
     "spm_console.cli.workspace",
     "spm_console.cli.plan",
     "spm_console.cli.tui",
+    "spm_console.cli.script",
     "spm_console.cli.run",
     "spm_console.cli.logs",
     "spm_console.cli.reproduce",

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -392,6 +393,10 @@ class Session:
                           "start_deg": s, "goal_deg": g, "vmax_degps": vmax}
         return plan
 
-    def close(self) -> None:
-        self.estop("console closing")
+    def close(self, wait_s: float = 3.0) -> None:
+        """E-stop any motion, let the executor finish its stop and log, then disconnect."""
+        if self.estop("console closing"):
+            t_end = time.monotonic() + wait_s
+            while self.moving.is_set() and time.monotonic() < t_end:
+                time.sleep(0.01)
         self.disconnect()

@@ -1,0 +1,482 @@
+"""Headless scripted sessions: ``spm-console script FILE.toml``.
+
+A script is a TOML file with an optional ``[session]`` table and a list of
+``[[step]]`` tables run in order on one :class:`~spm_console.tui.session.Session`
+— the same core, bus, executor and safety checks as the console. Angles in
+degrees, time in seconds. Format (see ``examples/session.toml``)::
+
+    [session]
+    profile = "profiles/agile_wrist.toml"  # relative to the working directory
+    port = ""                 # serial device; "" or absent = the emulated bus
+    initial_deg = [130, 140, 133]          # emulated bus only: power-on θ
+    faults = ["stall:2@5.0"]  # emulated bus only: faults (seconds after connect)
+    logs = "logs"             # run log folder
+
+    [[step]]
+    do = "home"               # read θ, check the assembly mode, move home (logged)
+
+    [[step]]
+    do = "fk"                 # unique FK of θ, or of an orientation (IK first)
+    theta = [95, 110, 105]    # or: rpy = [10, 5, -15]
+    all_modes = false
+
+    [[step]]
+    do = "workspace"          # load the cached workspace (build it if missing)
+    rebuild = false
+    check = [95, 110, 105]    # optional: also check this θ
+
+    [[step]]
+    do = "plan"
+    method = "mvn"            # or "mintime"
+    start = "current"         # "current" | "home" | {theta = [...]} | {rpy = [...]}
+    goal = {theta = [95, 110, 105]}
+    steps = 150               # MVN horizon N
+    vmax = 50                 # deg/s (default: the profile's limits.vmax_degps)
+
+    [[step]]
+    do = "execute"            # the last plan (approach move first if needed)
+    allow_stop = false        # true: a safety stop is a result, not the end of the script
+
+    [[step]]
+    do = "wait"
+    seconds = 0.5
+
+    [[step]]
+    do = "assert"             # every given condition must hold, else exit code 11
+    outcome = "completed"     # of the last home/execute
+    exit_code = 0             # of the last home/execute
+    theta_near = [95, 110, 105]            # measured θ now, within tol_deg
+    tol_deg = 0.5
+    feasible = true           # of the last fk
+    zeta_min = 0.3            # the last fk's ζ is at least this
+    max_duration_s = 4.0      # the last plan lasts at most this
+
+Progress goes to stderr, one line per step; the summary is one JSON object on
+stdout: ``{"ok", "exit_code", "message", "steps": [{"index", "do", "ok", "seconds",
+"result" | "error"}], ...}``. The first failing step ends the script with its
+error's exit code (a safety stop with its stop code; a failed assertion with 11);
+the wrist is left as the executor's stop action leaves it.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import threading
+import time
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from spm_console.errors import BadInputError, ExitCode, SpmError
+from spm_console.profile import DEFAULT_PROFILE, Profile, load_profile
+from spm_console.tui.session import PoseSpec, Session
+
+Vec3 = tuple[float, float, float]
+
+
+class ScriptAssertionError(SpmError):
+    """A scripted ``assert`` step found a condition false."""
+
+    exit_code = ExitCode.ASSERTION_FAILED
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    @field_validator("*", mode="after")
+    @classmethod
+    def _finite(cls, v: Any) -> Any:
+        vals = v if isinstance(v, tuple) else (v,)
+        if any(isinstance(x, float) and not math.isfinite(x) for x in vals):
+            raise ValueError("must be finite")
+        return v
+
+
+class SessionSpec(_Model):
+    """The ``[session]`` table."""
+
+    profile: str | None = None
+    port: str = ""
+    initial_deg: Vec3 | None = None
+    faults: tuple[str, ...] = ()
+    logs: str | None = None
+
+
+class ThetaPose(_Model):
+    theta: Vec3
+
+
+class RpyPose(_Model):
+    rpy: Vec3
+
+
+PoseIn = Literal["current", "home"] | ThetaPose | RpyPose
+
+
+class HomeStep(_Model):
+    do: Literal["home"]
+
+
+class FkStep(_Model):
+    do: Literal["fk"]
+    theta: Vec3 | None = None
+    rpy: Vec3 | None = None
+    all_modes: bool = False
+
+
+class WorkspaceStep(_Model):
+    do: Literal["workspace"]
+    rebuild: bool = False
+    check: Vec3 | None = None
+
+
+class PlanStep(_Model):
+    do: Literal["plan"]
+    method: Literal["mvn", "mintime"] = "mvn"
+    start: PoseIn = "current"
+    goal: PoseIn
+    steps: int = Field(default=150, ge=2, le=100_000)
+    vmax: float | None = Field(default=None, gt=0.0)
+
+
+class ExecuteStep(_Model):
+    do: Literal["execute"]
+    allow_stop: bool = False
+
+
+class WaitStep(_Model):
+    do: Literal["wait"]
+    seconds: float = Field(ge=0.0, le=3600.0)
+
+
+class AssertStep(_Model):
+    do: Literal["assert"]
+    outcome: Literal["completed", "stopped"] | None = None
+    exit_code: int | None = None
+    theta_near: Vec3 | None = None
+    tol_deg: float = Field(default=0.5, gt=0.0)
+    feasible: bool | None = None
+    zeta_min: float | None = None
+    max_duration_s: float | None = None
+
+
+Step = Annotated[
+    HomeStep | FkStep | WorkspaceStep | PlanStep | ExecuteStep | WaitStep | AssertStep,
+    Field(discriminator="do"),
+]
+
+
+class Script(_Model):
+    session: SessionSpec = SessionSpec()
+    step: tuple[Step, ...] = Field(min_length=1)
+
+
+def _where(loc: tuple[int | str, ...], data: dict[str, Any]) -> str:
+    """'step 3 (plan) key goal' from a pydantic error location."""
+    if len(loc) >= 2 and loc[0] == "step" and isinstance(loc[1], int):
+        i = loc[1]
+        steps = data.get("step")
+        do = steps[i].get("do", "?") if isinstance(steps, list) and i < len(steps) and \
+            isinstance(steps[i], dict) else "?"
+        rest = [str(x) for x in loc[2:] if x not in ("home", "fk", "workspace", "plan", "execute",
+                                                    "wait", "assert")]
+        rest = [r for r in rest if r not in ("ThetaPose", "RpyPose") and not r.startswith("literal")]
+        return f"step {i + 1} ({do})" + (f" key '{'.'.join(rest)}'" if rest else "")
+    return "key '" + ".".join(str(x) for x in loc) + "'"
+
+
+def parse_script(text: str, source: str) -> Script:
+    """Validate a script; errors name the file, the step and the key."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise BadInputError(f"{source}: not valid TOML: {exc}") from None
+    try:
+        return Script.model_validate(data)
+    except ValidationError as exc:
+        seen: list[str] = []
+        for err in exc.errors():
+            loc = tuple(err["loc"])
+            if loc and isinstance(loc[-1], int) and len(loc) > 2:  # an item of a θ triple
+                loc = loc[:-1]
+                err = {**err, "type": "triple", "msg": "expected three finite numbers (degrees)"}
+            reason = {"extra_forbidden": "unknown key", "missing": "missing key",
+                      "union_tag_invalid": "unknown step kind (do = home, fk, workspace, "
+                      "plan, execute, wait or assert)"}.get(err["type"], err["msg"])
+            if loc == ("step",):
+                if data.get("step"):
+                    continue  # a consequence of the failing steps reported above
+                reason = "no [[step]] tables: nothing to do"
+            if (len(loc) >= 4 and loc[0] == "step" and loc[2] == "plan"
+                    and loc[3] in ("start", "goal") and err["type"] != "missing"):
+                loc = loc[:4]
+                reason = ('expected "current", "home", {theta = [θ1, θ2, θ3]} or '
+                          '{rpy = [roll, pitch, yaw]} (degrees)')
+            if isinstance(err.get("input"), float) and not math.isfinite(err["input"]):
+                reason = "must be a finite number"
+            line = f"{source}: {_where(loc, data)}: {reason}"
+            if line not in seen:
+                seen.append(line)
+        raise BadInputError("\n".join(seen[:8])) from None
+
+
+def load_script(path: str | Path) -> Script:
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BadInputError(f"{p}: cannot read script: {getattr(exc, 'strerror', None) or exc}") from None
+    return parse_script(text, str(p))
+
+
+def _pose(p: PoseIn) -> PoseSpec:
+    if isinstance(p, ThetaPose):
+        return PoseSpec("theta", p.theta)
+    if isinstance(p, RpyPose):
+        return PoseSpec("rpy", p.rpy)
+    return PoseSpec(p)
+
+
+def _vec(v: Any) -> list[float]:
+    return [round(float(x), 6) for x in np.ravel(v)]
+
+
+@dataclass
+class StepReport:
+    index: int
+    do: str
+    ok: bool
+    seconds: float
+    result: dict[str, Any] = field(default_factory=dict)
+    error: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {"index": self.index, "do": self.do, "ok": self.ok,
+                             "seconds": round(self.seconds, 4)}
+        if self.ok or self.result:
+            d["result"] = self.result
+        if self.error:
+            d["error"] = self.error
+        return d
+
+
+class ScriptRunner:
+    """Runs a :class:`Script` on a :class:`Session`; :meth:`run` returns the exit code."""
+
+    def __init__(self, script: Script, session: Session,
+                 progress: Callable[[str], None] | None = None) -> None:
+        self.script = script
+        self.session = session
+        self.progress = progress or (lambda line: None)
+        self.reports: list[StepReport] = []
+        self.last_fk: dict[str, Any] | None = None
+        self.exit_code = ExitCode.OK
+        self.message = ""
+        self._interrupted = False
+
+    def interrupt(self) -> None:
+        """Stop at once (any motion E-stopped) and skip the remaining steps (SIGTERM)."""
+        self._interrupted = True
+        self.session.estop("script interrupted")
+
+    def run(self) -> int:
+        steps = self.script.step
+        n = len(steps)
+        for i, step in enumerate(steps, start=1):
+            if self._interrupted:
+                self.exit_code, self.message = ExitCode.INTERRUPTED, "interrupted"
+                break
+            t0 = time.perf_counter()
+            try:
+                result, summary = self._do(step)
+            except SpmError as exc:
+                self.reports.append(StepReport(i, step.do, False, time.perf_counter() - t0,
+                                               getattr(exc, "result", {}), exc.message))
+                self.progress(f"[{i}/{n}] {step.do}: FAILED: {exc.message}")
+                self.exit_code, self.message = exc.exit_code, f"step {i} ({step.do}): {exc.message}"
+                break
+            except KeyboardInterrupt:
+                self.session.estop("interrupted")
+                self.exit_code, self.message = ExitCode.INTERRUPTED, f"step {i} interrupted"
+                break
+            self.reports.append(StepReport(i, step.do, True, time.perf_counter() - t0, result))
+            self.progress(f"[{i}/{n}] {step.do}: {summary}")
+        else:
+            self.message = f"{n} steps done"
+        return int(self.exit_code)
+
+    def summary(self) -> dict[str, Any]:
+        s = self.session
+        return {
+            "ok": self.exit_code == ExitCode.OK, "exit_code": int(self.exit_code),
+            "message": self.message, "profile": s.profile.name, "bus": s.bus_label,
+            "steps": [r.to_dict() for r in self.reports],
+        }
+
+    # ------------------------------------------------------------------ steps
+    def _do(self, step: Any) -> tuple[dict[str, Any], str]:
+        handler: Callable[[Any], tuple[dict[str, Any], str]] = getattr(self, f"_step_{step.do}")
+        return handler(step)
+
+    def _ensure_bus(self) -> None:
+        if self.session.bus is None:
+            st = self.session.connect()
+            self.progress(f"      connected: {len(st.statuses)} servos on the {self.session.bus_label}")
+
+    def _motion(self, res: Any, allow_stop: bool, what: str) -> tuple[dict[str, Any], str]:
+        rec = {"outcome": res.outcome, "exit_code": int(res.exit_code), "message": res.message,
+               "log_dir": str(res.log_dir) if res.log_dir else None,
+               "final_deg": None if res.final_deg is None else _vec(res.final_deg)}
+        if not res.ok and not allow_stop:
+            err = SpmError(f"{what} stopped: {res.message} (log {res.log_dir})")
+            err.exit_code = res.exit_code
+            err.result = rec  # type: ignore[attr-defined]
+            raise err
+        return rec, f"{res.outcome}: {res.message}; log {res.log_dir}"
+
+    def _step_home(self, step: HomeStep) -> tuple[dict[str, Any], str]:
+        self._ensure_bus()
+        return self._motion(self.session.home(), False, "homing")
+
+    def _step_fk(self, step: FkStep) -> tuple[dict[str, Any], str]:
+        if (step.theta is None) == (step.rpy is None):
+            raise BadInputError("fk step: give exactly one of theta or rpy")
+        theta = step.theta if step.theta is not None else self.session.ik(step.rpy)  # type: ignore[arg-type]
+        rec = self.session.fk(theta, all_modes=step.all_modes)
+        self.last_fk = rec
+        out = {"theta_deg": _vec(rec["theta_deg"]), "v": [_vec(r) for r in rec["v"]],
+               "n": _vec(rec["n"]), "zeta": float(rec["zeta"]), "residual": float(rec["residual"]),
+               "min_link_distance_mm": float(rec["min_link_distance_mm"]),
+               "feasible": bool(rec["feasible"]), "reason": rec["reason"]}
+        if "modes" in rec:
+            out["modes"] = len(rec["modes"])
+        verdict = "feasible" if rec["feasible"] else f"NOT feasible ({rec['reason']})"
+        return out, f"θ = {out['theta_deg']}° -> n = {out['n']}, ζ = {out['zeta']:.3f}, {verdict}"
+
+    def _step_workspace(self, step: WorkspaceStep) -> tuple[dict[str, Any], str]:
+        ws = self.session.load_workspace(force=step.rebuild)
+        info = self.session.cache_info
+        out: dict[str, Any] = {**ws.counts(), "halfspaces": ws.region.halfspaces,
+                               "cache": str(info.path), "cache_hit": bool(info.hit),
+                               "seconds": info.load_seconds + info.build_seconds}
+        text = (f"{out['feasible']} of {out['nodes']} nodes feasible, P has "
+                f"{out['halfspaces']} half-spaces ({'cached' if info.hit else 'built'})")
+        if step.check is not None:
+            chk = self.session.check_theta(step.check)
+            out["check"] = {"theta_deg": _vec(chk.theta_deg), "feasible": bool(chk.feasible),
+                            "in_region": bool(chk.in_region), "reason": chk.reason}
+            text += f"; θ = {list(step.check)}° " + ("usable" if chk.usable else f"not usable: {chk.reason}")
+        return out, text
+
+    def _step_plan(self, step: PlanStep) -> tuple[dict[str, Any], str]:
+        if self.session.workspace is None:
+            self.session.load_workspace()
+        if "current" in (step.start, step.goal):
+            self._ensure_bus()
+            self.session.read_position()
+        plan = self.session.solve_plan(step.method, _pose(step.start), _pose(step.goal),
+                                       step.steps, step.vmax)
+        out = {"kind": plan.kind, "N": plan.N, "Ts": plan.Ts, "duration_s": plan.duration_s,
+               "cost": plan.cost, "solve_seconds": plan.solve_seconds, "qp_count": plan.qp_count,
+               "start_deg": _vec(plan.reference_deg[0]), "goal_deg": _vec(plan.reference_deg[-1]),
+               "max_speed_degps": float(np.abs(plan.velocity_degps).max())}
+        return out, (f"{plan.kind} N = {plan.N} ({plan.duration_s:.2f} s), solved in "
+                     f"{plan.solve_seconds:.2f} s")
+
+    def _step_execute(self, step: ExecuteStep) -> tuple[dict[str, Any], str]:
+        self._ensure_bus()
+        if not self.session.homed:
+            raise BadInputError("execute step: the wrist is not homed (add a home step first)")
+        return self._motion(self.session.execute(), step.allow_stop, "execution")
+
+    def _step_wait(self, step: WaitStep) -> tuple[dict[str, Any], str]:
+        t_end = time.monotonic() + step.seconds
+        while not self._interrupted and (rem := t_end - time.monotonic()) > 0:
+            time.sleep(min(rem, 0.05))
+        return {"seconds": step.seconds}, f"waited {step.seconds:g} s"
+
+    def _step_assert(self, step: AssertStep) -> tuple[dict[str, Any], str]:
+        s = self.session
+        run = s.last_run
+        checks: list[tuple[str, bool, str]] = []
+        if step.outcome is not None or step.exit_code is not None:
+            if run is None:
+                raise ScriptAssertionError("assert: no home or execute step has run yet")
+            if step.outcome is not None:
+                checks.append(("outcome", run.outcome == step.outcome,
+                               f"outcome is {run.outcome!r}, expected {step.outcome!r}"))
+            if step.exit_code is not None:
+                checks.append(("exit_code", int(run.exit_code) == step.exit_code,
+                               f"exit code is {int(run.exit_code)}, expected {step.exit_code}"))
+        if step.theta_near is not None:
+            now = s.read_position() if s.bus is not None else None
+            if now is None:
+                raise ScriptAssertionError("assert theta_near: not connected to the servos")
+            dist = float(np.abs(now - np.asarray(step.theta_near)).max())
+            checks.append(("theta_near", dist <= step.tol_deg,
+                           f"θ = {_vec(now)}° is {dist:.3f}° from {list(step.theta_near)}° "
+                           f"(tolerance {step.tol_deg}°)"))
+        if step.feasible is not None or step.zeta_min is not None:
+            fk = self.last_fk
+            if fk is None:
+                raise ScriptAssertionError("assert: no fk step has run yet")
+            if step.feasible is not None:
+                checks.append(("feasible", bool(fk["feasible"]) == step.feasible,
+                               f"feasible is {bool(fk['feasible'])}" +
+                               (f" ({fk['reason']})" if fk["reason"] else "")))
+            if step.zeta_min is not None:
+                checks.append(("zeta_min", float(fk["zeta"]) >= step.zeta_min,
+                               f"ζ = {float(fk['zeta']):.4f}, expected ≥ {step.zeta_min}"))
+        if step.max_duration_s is not None:
+            if s.plan is None:
+                raise ScriptAssertionError("assert max_duration_s: no plan step has run yet")
+            checks.append(("max_duration_s", s.plan.duration_s <= step.max_duration_s + 1e-9,
+                           f"plan lasts {s.plan.duration_s:.3f} s, expected ≤ {step.max_duration_s} s"))
+        if not checks:
+            raise BadInputError("assert step: no condition given")
+        failed = [msg for _, ok, msg in checks if not ok]
+        result = {name: ok for name, ok, _ in checks}
+        if failed:
+            err = ScriptAssertionError("assertion failed: " + "; ".join(failed))
+            err.result = result  # type: ignore[attr-defined]
+            raise err
+        return result, "all hold: " + ", ".join(name for name, _, _ in checks)
+
+
+def session_for(script: Script, profile: Profile | None = None, port: str | None = None,
+                sim: bool = False, logs: Path | None = None) -> Session:
+    """The session a script runs on: command-line choices win over the ``[session]`` table."""
+    from spm_console.devices.faults import parse_fault
+
+    spec = script.session
+    if profile is None:
+        profile = load_profile(spec.profile or DEFAULT_PROFILE)
+    dev = None if sim else (port or spec.port or profile.bus.port or None)
+    faults = [parse_fault(f) for f in spec.faults]
+    if dev is not None and (faults or spec.initial_deg is not None):
+        raise BadInputError("[session] faults and initial_deg apply to the emulated bus only")
+    logs_dir = logs if logs is not None else (Path(spec.logs) if spec.logs else None)
+    return Session(profile, port=dev, sim=dev is None, logs_root=logs_dir, faults=faults,
+                   initial_deg=spec.initial_deg)
+
+
+def run_script(script: Script, session: Session, progress: Callable[[str], None]) -> ScriptRunner:
+    """Run with SIGTERM turned into an E-stop and a clean end; the session is closed after."""
+    runner = ScriptRunner(script, session, progress)
+    old = signal.getsignal(signal.SIGTERM)
+    in_main = threading.current_thread() is threading.main_thread()
+    if in_main:
+        signal.signal(signal.SIGTERM, lambda *_: runner.interrupt())
+    try:
+        runner.run()
+    finally:
+        if in_main:
+            signal.signal(signal.SIGTERM, old)
+        session.close()
+    return runner

@@ -1,0 +1,188 @@
+"""Headless scripted sessions: the example, results, assertions, faults, bad files, SIGTERM."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.cli.main import main
+from spm_console.errors import BadInputError, ExitCode
+from spm_console.run.runlog import list_runs
+from spm_console.script import load_script, parse_script
+
+ROOT = Path(__file__).resolve().parent.parent
+
+SHORT = """
+[session]
+initial_deg = [130.0, 138.0, 133.0]
+
+[[step]]
+do = "home"
+
+[[step]]
+do = "fk"
+rpy = [10.0, 5.0, -15.0]
+
+[[step]]
+do = "workspace"
+
+[[step]]
+do = "plan"
+goal = {theta = [120.0, 125.0, 128.0]}
+steps = 30
+
+[[step]]
+do = "execute"
+
+[[step]]
+do = "assert"
+outcome = "completed"
+exit_code = 0
+theta_near = [120.0, 125.0, 128.0]
+tol_deg = 0.5
+max_duration_s = 0.6
+"""
+
+
+@pytest.fixture(autouse=True)
+def _cache(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFactory) -> None:
+    """One workspace cache for this module (built by the first test that needs it)."""
+    d = tmp_path_factory.getbasetemp() / "script-ws-cache"
+    monkeypatch.setenv("SPM_CONSOLE_CACHE", str(d))
+
+
+def _run(tmp_path: Path, text: str, capsys: pytest.CaptureFixture[str], *extra: str
+         ) -> tuple[int, dict, str]:  # type: ignore[type-arg]
+    f = tmp_path / "s.toml"
+    f.write_text(text)
+    code = main(["script", str(f), "--logs", str(tmp_path / "logs"), *extra])
+    out, err = capsys.readouterr()
+    return code, json.loads(out), err
+
+
+def test_short_session_runs_every_step_and_reports_json(tmp_path, capsys, agile) -> None:
+    code, summary, err = _run(tmp_path, SHORT, capsys)
+    assert code == 0 and summary["ok"], err
+    steps = summary["steps"]
+    assert [s["do"] for s in steps] == ["home", "fk", "workspace", "plan", "execute", "assert"]
+    assert all(s["ok"] for s in steps)
+    # progress on stderr, one line per step
+    assert all(f"[{i}/6]" in err for i in range(1, 7))
+    # fk from an orientation: the IK solution, and its FK gives that orientation back
+    from spm_console.core.ik import ik_rpy
+    from spm_console.core.model import model_of
+
+    fk = steps[1]["result"]
+    expect = ik_rpy(model_of(agile), *np.radians([10.0, 5.0, -15.0])).theta_deg
+    np.testing.assert_allclose(fk["theta_deg"], expect, atol=1e-5)
+    plan = steps[3]["result"]
+    assert plan["kind"] == "mvn" and plan["N"] == 30
+    np.testing.assert_allclose(plan["start_deg"], [135, 135, 135], atol=0.1)  # "current" = home
+    ex = steps[4]["result"]
+    assert ex["outcome"] == "completed" and Path(ex["log_dir"]).is_dir()
+    assert [r.meta["outcome"] for r in list_runs(tmp_path / "logs")] == ["completed", "completed"]
+
+
+def test_failed_assertion_exits_11_and_stops_there(tmp_path, capsys) -> None:
+    text = SHORT + '\n[[step]]\ndo = "wait"\nseconds = 0\n'
+    text = text.replace("theta_near = [120.0, 125.0, 128.0]", "theta_near = [121.0, 125.0, 128.0]")
+    code, summary, err = _run(tmp_path, text, capsys)
+    assert code == ExitCode.ASSERTION_FAILED
+    last = summary["steps"][-1]
+    assert last["do"] == "assert" and not last["ok"]
+    assert "is 1.0" in last["error"] and "from [121.0, 125.0, 128.0]°" in last["error"]
+    assert last["result"] == {"outcome": True, "exit_code": True, "theta_near": False,
+                              "max_duration_s": True}
+    assert len(summary["steps"]) == 6  # the wait after it never ran
+    assert "FAILED" in err
+
+
+def test_a_stalled_joint_stops_the_script_with_the_stop_code(tmp_path, capsys) -> None:
+    text = SHORT.replace("[session]\n", "[session]\nfaults = [\"stall:2\"]\n")
+    code, summary, _ = _run(tmp_path, text, capsys)
+    assert code == ExitCode.STOP_TRACKING
+    ex = summary["steps"][-1]
+    assert ex["do"] == "execute" and not ex["ok"] and "joint 2" in ex["error"]
+    assert ex["result"]["outcome"] == "stopped"
+
+
+def test_allow_stop_turns_a_stop_into_a_result(tmp_path, capsys) -> None:
+    text = SHORT.replace("[session]\n", "[session]\nfaults = [\"stall:2\"]\n")
+    text = text.replace('do = "execute"', 'do = "execute"\nallow_stop = true')
+    a = text.index('[[step]]\ndo = "assert"')
+    text = text[:a] + '[[step]]\ndo = "assert"\noutcome = "stopped"\nexit_code = 21\n'
+    code, summary, _ = _run(tmp_path, text, capsys)
+    assert code == 0, summary
+    assert summary["steps"][-1]["result"] == {"outcome": True, "exit_code": True}
+
+
+@pytest.mark.parametrize(("text", "needle"), [
+    ('[[step]]\ndo = "dance"\n', "step 1 (dance): unknown step kind"),
+    ('[[step]]\ndo = "home"\n\n[[step]]\ndo = "plan"\nstart = "current"\n', "step 2 (plan) key 'goal': missing key"),
+    ('[[step]]\ndo = "wait"\nsecond = 1\n', "step 1 (wait) key 'second': unknown key"),
+    ('[[step]]\ndo = "fk"\ntheta = [1, 2]\n', "step 1 (fk) key 'theta'"),
+    ('[[step]]\ndo = "wait"\nseconds = nan\n', "step 1 (wait) key 'seconds'"),
+    ('[session]\nprofil = "x"\n[[step]]\ndo = "home"\n', "key 'session.profil': unknown key"),
+    ('step = [\n', "not valid TOML"),
+    ('[session]\n', "key 'step'"),
+])
+def test_bad_scripts_name_file_step_and_key(text: str, needle: str) -> None:
+    with pytest.raises(BadInputError) as exc:
+        parse_script(text, "bad.toml")
+    assert exc.value.message.startswith("bad.toml: "), exc.value.message
+    assert needle in exc.value.message, exc.value.message
+
+
+def test_bad_script_exit_code_and_no_traceback(tmp_path) -> None:
+    f = tmp_path / "bad.toml"
+    f.write_text('[[step]]\ndo = "dance"\n')
+    p = subprocess.run([sys.executable, "-m", "spm_console", "script", str(f)], cwd=ROOT,
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == ExitCode.BAD_INPUT
+    assert "unknown step kind" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_the_example_parses() -> None:
+    s = load_script(ROOT / "examples" / "session.toml")
+    assert [st.do for st in s.step][:3] == ["home", "fk", "assert"]
+
+
+@pytest.mark.slow
+def test_the_example_runs(tmp_path) -> None:
+    p = subprocess.run([sys.executable, "-m", "spm_console", "script", "examples/session.toml",
+                        "--logs", str(tmp_path)], cwd=ROOT, capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert json.loads(p.stdout)["ok"]
+
+
+def test_sigterm_stops_the_motion_and_ends_cleanly(tmp_path) -> None:
+    text = SHORT.replace("steps = 30", "steps = 400")  # 8 s of motion
+    f = tmp_path / "long.toml"
+    f.write_text(text)
+    env = {**os.environ, "SPM_CONSOLE_CACHE": os.environ["SPM_CONSOLE_CACHE"]}
+    p = subprocess.Popen([sys.executable, "-m", "spm_console", "script", str(f), "--logs",
+                          str(tmp_path / "logs")], cwd=ROOT, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, env=env)
+    t_end = time.monotonic() + 60
+    while time.monotonic() < t_end:  # wait until the execute step has started
+        runs = list_runs(tmp_path / "logs")
+        if any(r.meta.get("kind") == "execute" for r in runs):
+            break
+        time.sleep(0.05)
+    time.sleep(0.5)
+    p.send_signal(signal.SIGTERM)
+    out, err = p.communicate(timeout=30)
+    assert p.returncode == ExitCode.STOP_ESTOP, err
+    summary = json.loads(out)
+    assert summary["steps"][-1]["do"] == "execute" and not summary["steps"][-1]["ok"]
+    run = next(r for r in list_runs(tmp_path / "logs") if r.meta["kind"] == "execute")
+    assert run.meta["outcome"] == "stopped" and run.meta["exit_code"] == ExitCode.STOP_ESTOP
