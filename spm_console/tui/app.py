@@ -83,8 +83,12 @@ class SpmConsoleApp(App[int]):
             self._launch_viewer()
 
     def _on_sigterm(self) -> None:
-        """SIGTERM: stop any motion, shut the viewer, leave cleanly."""
+        """SIGTERM: stop any motion at once, then leave through the app's own message loop
+        (exiting straight from the signal callback leaves Textual hanging in its shutdown)."""
         self.session.estop("SIGTERM")
+        self.call_later(self._terminate)
+
+    def _terminate(self) -> None:
         self.shutdown()
         self.exit(143)
 

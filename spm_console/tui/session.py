@@ -125,6 +125,7 @@ class Session:
         self.motion_total_s = 0.0
         """Planned duration of the running (or last) motion, s."""
         self._executor: Executor | None = None
+        self._estop_sent = False
         self._motion = threading.Lock()
         self.moving = threading.Event()
         """Set while a motion (homing or execution) runs."""
@@ -228,6 +229,7 @@ class Session:
     def _run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
         if not self._motion.acquire(blocking=False):
             raise BadInputError("a motion is already running")
+        self._estop_sent = False
         self.moving.set()
         try:
             result = fn()
@@ -294,7 +296,9 @@ class Session:
         ex = self._executor
         if ex is None:
             return False
-        ex.request_estop(reason)
+        if not self._estop_sent:  # the first reason is the one logged
+            self._estop_sent = True
+            ex.request_estop(reason)
         return True
 
     # ------------------------------------------------------------------ kinematics

@@ -42,8 +42,8 @@ class ExecuteScreen(StepScreen):
                 with Vertical(id="exec-time"):
                     yield Static(id="exec-clock", markup=False)
                     yield ProgressBar(total=100, id="exec-progress", show_eta=False)
-            yield PlotView(id="exec-plot")
             yield Static(id="exec-outcome", markup=False, classes="result")
+            yield PlotView(id="exec-plot")
 
     def on_mount(self) -> None:
         t = self.query_one("#joints", DataTable)

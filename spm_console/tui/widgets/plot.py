@@ -84,6 +84,7 @@ def render_plot(title: str, x: F, series: Sequence[Series], width: int, height: 
     only: plotext keeps one global figure)."""
     import plotext as plt
 
+    plt.terminal.limit(False, False)  # the widget's size, not the terminal's, bounds the plot
     step = max(1, len(x) // MAX_POINTS)
     xs = np.asarray(x, float)[::step]
     fig = plt.figure

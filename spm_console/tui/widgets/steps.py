@@ -39,7 +39,7 @@ def done_steps(session: Session) -> set[str]:
         done.add("workspace")
     if session.plan is not None:
         done.add("plan")
-    if session.last_run is not None and session.plan is not None and session.homed:
+    if session.plan is not None and session.plan_info.get("executed"):
         done.add("execute")
     return done
 

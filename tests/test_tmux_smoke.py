@@ -1,0 +1,200 @@
+"""The real entry point in a real terminal: tmux runs ``spm-console tui`` and the test
+walks homing -> workspace -> plan -> execute by keystrokes, reading the screen with
+``capture-pane``. Also: the 3D viewer's URL is shown, it listens on loopback only, and
+its server goes away on quit and on SIGTERM."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from spm_console.run.runlog import list_runs
+
+ROOT = Path(__file__).resolve().parent.parent
+pytestmark = pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed")
+
+
+class Tmux:
+    """One private tmux server (its own socket) with one window running a command."""
+
+    def __init__(self, cmd: list[str], env: dict[str, str], size: tuple[int, int] = (140, 42)) -> None:
+        self.sock = f"spm-test-{uuid.uuid4().hex[:8]}"
+        envs = [f"{k}={v}" for k, v in env.items()]
+        # size the window first, then start the console in it: it reads its size at start
+        self._tmux("-f", "/dev/null", "new-session", "-d", "-s", "t", "-x", str(size[0]),
+                   "-y", str(size[1]), "sleep 600")
+        self._tmux("set-option", "-t", "t", "window-size", "manual")
+        self._tmux("resize-window", "-t", "t", "-x", str(size[0]), "-y", str(size[1]))
+        self._tmux("respawn-pane", "-k", "-t", "t", "env", "-i", *envs, *cmd)
+
+    def _tmux(self, *args: str) -> str:
+        return subprocess.run(["tmux", "-L", self.sock, *args], capture_output=True, text=True,
+                              check=True, timeout=10).stdout
+
+    def screen(self) -> str:
+        return self._tmux("capture-pane", "-p", "-t", "t")
+
+    def keys(self, *keys: str) -> None:
+        for k in keys:
+            self._tmux("send-keys", "-t", "t", k)
+            time.sleep(0.15)
+
+    def wait_for(self, pattern: str, timeout_s: float = 30.0) -> str:
+        t_end = time.monotonic() + timeout_s
+        text = ""
+        while time.monotonic() < t_end:
+            text = self.screen()
+            if re.search(pattern, text):
+                return text
+            time.sleep(0.1)
+        raise AssertionError(f"{pattern!r} not on screen after {timeout_s} s:\n{text}")
+
+    def pane_pid(self) -> int:
+        return int(self._tmux("display-message", "-p", "-t", "t", "#{pane_pid}").strip())
+
+    def alive(self) -> bool:
+        return subprocess.run(["tmux", "-L", self.sock, "has-session", "-t", "t"],
+                              capture_output=True).returncode == 0
+
+    def kill(self) -> None:
+        subprocess.run(["tmux", "-L", self.sock, "kill-server"], capture_output=True)
+
+
+@pytest.fixture
+def env(tmp_path: Path, ws_cache_dir: Path) -> dict[str, str]:
+    return {"SPM_CONSOLE_LOGS": str(tmp_path / "logs"), "SPM_CONSOLE_CACHE": str(ws_cache_dir),
+            "TERM": "xterm-256color", "COLORTERM": "truecolor", "PATH": os.environ["PATH"],
+            "HOME": os.environ.get("HOME", "/tmp")}
+
+
+@pytest.fixture(scope="module")
+def ws_cache_dir(tmp_path_factory: pytest.TempPathFactory, agile) -> Path:  # type: ignore[no-untyped-def]
+    from spm_console.workspace_cache import load_or_build
+
+    d = tmp_path_factory.mktemp("tmux-cache")
+    load_or_build(agile, cache_dir=d)
+    return d
+
+
+@pytest.fixture
+def tmux_console(env: dict[str, str]) -> Iterator[callable]:  # type: ignore[valid-type]
+    made: list[Tmux] = []
+
+    def start(*args: str) -> Tmux:
+        t = Tmux([sys.executable, "-m", "spm_console", "tui", *args], env)
+        made.append(t)
+        return t
+
+    yield start
+    for t in made:
+        t.kill()
+
+
+def _listening(port: int) -> list[str]:
+    """Local addresses listening on ``port`` (from /proc/net/tcp, tcp6)."""
+    out = []
+    for name in ("/proc/net/tcp", "/proc/net/tcp6"):
+        try:
+            lines = Path(name).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for ln in lines:
+            f = ln.split()
+            addr, p = f[1].rsplit(":", 1)
+            if int(p, 16) == port and f[3] == "0A":  # LISTEN
+                out.append(addr)
+    return out
+
+
+def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    t = tmux_console("--sim", "--no-viewer")
+    t.wait_for(r"press h to home")
+    assert "Traceback" not in t.screen()
+    t.keys("h")
+    t.wait_for(r"Home the wrist\?")
+    t.keys("y")
+    t.wait_for(r"homed: executed")
+    t.keys("3")
+    t.wait_for(r"workspace ready")
+    t.keys("4")
+    t.wait_for(r"press s to solve")
+    t.keys("s")
+    screen = t.wait_for(r"solved in .* Press 5 to execute")
+    assert "MVN" in screen and "N = 150 steps" in screen
+    t.keys("5", "x")
+    t.wait_for(r"Execute the plan\?")
+    t.keys("y")
+    live = t.wait_for(r"E-STOP: press SPACE")  # the banner is up while it moves
+    assert "elapsed" in live or "executing" in live
+    t.wait_for(r"COMPLETED \(exit code 0\)", timeout_s=30)
+    done = t.wait_for(r"^(?![\s\S]*E-STOP: press SPACE)", timeout_s=3)  # banner gone
+    m = re.search(r"log: (\S+)", done)
+    assert m is not None, done
+    t.keys("6")
+    t.wait_for(r"-execute")
+    t.keys("enter")
+    t.wait_for(r"outcome completed \(exit code 0\)")
+    t.keys("q")
+    t0 = time.monotonic()
+    while t.alive() and time.monotonic() - t0 < 10:
+        time.sleep(0.1)
+    assert not t.alive(), "the console did not quit on q"
+    assert [r.meta["outcome"] for r in list_runs(tmp_path / "logs")] == ["completed", "completed"]
+
+
+def _viewer_port(screen: str) -> int:
+    m = re.search(r"3D view: http://127\.0\.0\.1:(\d+)/static/", screen)
+    assert m is not None, screen
+    return int(m.group(1))
+
+
+def _wait_gone(port: int, timeout_s: float = 10.0) -> None:
+    t_end = time.monotonic() + timeout_s
+    while _listening(port) and time.monotonic() < t_end:
+        time.sleep(0.1)
+    assert not _listening(port), f"the viewer still listens on {port}"
+
+
+def test_viewer_url_shown_loopback_only_and_stopped_on_quit(tmux_console) -> None:  # type: ignore[no-untyped-def]
+    t = tmux_console("--sim")
+    screen = t.wait_for(r"3D view: http://127\.0\.0\.1:\d+/static/", timeout_s=30)
+    port = _viewer_port(screen)
+    addrs = _listening(port)
+    assert addrs and all(a in ("0100007F", "00000000000000000000000001000000") for a in addrs), addrs
+    t.keys("q")
+    _wait_gone(port)
+
+
+def test_sigterm_mid_motion_stops_the_wrist_the_console_and_its_viewer(  # type: ignore[no-untyped-def]
+        tmux_console, tmp_path) -> None:
+    t = tmux_console("--sim")
+    port = _viewer_port(t.wait_for(r"3D view: http://127\.0\.0\.1:\d+/static/", timeout_s=30))
+    t.wait_for(r"press h to home")
+    t.keys("h", "y")
+    t.wait_for(r"homed: executed")
+    t.keys("3")
+    t.wait_for(r"workspace ready")
+    t.keys("4", "s")
+    t.wait_for(r"solved in")
+    t.keys("5", "x", "y")
+    t.wait_for(r"E-STOP: press SPACE")
+    time.sleep(0.5)
+    os.kill(t.pane_pid(), signal.SIGTERM)
+    _wait_gone(port)
+    t0 = time.monotonic()
+    while t.alive() and time.monotonic() - t0 < 10:
+        time.sleep(0.1)
+    assert not t.alive()
+    runs = list_runs(tmp_path / "logs")
+    assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
+    assert runs[-1].meta["exit_code"] == 20 and "SIGTERM" in runs[-1].meta["message"]
