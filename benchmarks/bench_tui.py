@@ -1,0 +1,215 @@
+"""Console benchmarks: start to first screen (real entry point in tmux), and key-press
+latency while solving, building the workspace and executing (the app's own workers).
+
+Targets (issue 6): first screen ≤ 2 s with a cached workspace; key presses handled
+within 100 ms while busy. Baselines, same run, same method: a bare Textual app
+showing one line (start), and the console's key latency when idle.
+
+Start is measured from spawning ``python -m spm_console tui --sim --no-viewer`` in a
+tmux pane to the step bar appearing in ``capture-pane`` (polled every 10 ms).
+Latency is measured headless (``App.run_test``): the time from posting a key to the
+screen's action running, sampled every 50 ms while the operation runs.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from benchmarks.common import Row
+
+ROOT = Path(__file__).resolve().parent.parent
+PROFILE = ROOT / "profiles" / "agile_wrist.toml"
+BARE_APP = (
+    "from textual.app import App\n"
+    "from textual.widgets import Static\n"
+    "class A(App):\n"
+    "    def compose(self):\n"
+    "        yield Static('READY-BARE')\n"
+    "A().run()\n"
+)
+
+
+def _tmux_start_time(cmd: list[str], marker: str, env: dict[str, str]) -> float:
+    """Seconds from spawning ``cmd`` in a sized tmux pane to ``marker`` on screen."""
+    sock = f"spm-bench-{uuid.uuid4().hex[:8]}"
+
+    def tmux(*a: str) -> str:
+        return subprocess.run(["tmux", "-L", sock, *a], capture_output=True, text=True,
+                              timeout=10).stdout
+
+    tmux("-f", "/dev/null", "new-session", "-d", "-s", "b", "-x", "120", "-y", "36", "sleep 600")
+    try:
+        envs = [f"{k}={v}" for k, v in env.items()]
+        t0 = time.perf_counter()
+        tmux("respawn-pane", "-k", "-t", "b", "env", "-i", *envs, *cmd)
+        while time.perf_counter() - t0 < 30:
+            if marker in tmux("capture-pane", "-p", "-t", "b"):
+                return time.perf_counter() - t0
+            time.sleep(0.01)
+        return float("nan")
+    finally:
+        subprocess.run(["tmux", "-L", sock, "kill-server"], capture_output=True)
+
+
+def start_rows(cache: Path) -> list[Row]:
+    if shutil.which("tmux") is None:
+        return [Row("tui: start to first screen", float("nan"), "s", "≤ 2 s",
+                    note="tmux not installed: not measured")]
+    env = {"PATH": os.environ["PATH"], "HOME": os.environ.get("HOME", "/tmp"),
+           "TERM": "xterm-256color", "SPM_CONSOLE_CACHE": str(cache),
+           "SPM_CONSOLE_LOGS": str(cache / "logs")}
+    ours = [_tmux_start_time([sys.executable, "-m", "spm_console", "tui", "--sim",
+                              "--no-viewer"], "Connect & home", env) for _ in range(3)]
+    bare = [_tmux_start_time([sys.executable, "-c", BARE_APP], "READY-BARE", env)
+            for _ in range(3)]
+    best, base = min(ours), min(bare)
+    return [Row("tui: start to first screen (cached workspace)", best, "s", "≤ 2 s",
+                baseline=base, passed=best <= 2.0,
+                note=f"runs {[round(x, 2) for x in ours]} s; baseline: a bare Textual app "
+                     f"showing one line, {[round(x, 2) for x in bare]} s")]
+
+
+async def _latencies(app: Any, pilot: Any, key: str, action: str, busy: Callable[[], bool],
+                     max_samples: int = 40) -> list[float]:
+    """Press ``key`` every 50 ms while ``busy()``; seconds from the press to ``action``."""
+    screen = app.screen
+    orig = getattr(screen, action)
+    hits: list[float] = []
+
+    def probe(*a: Any, **k: Any) -> Any:
+        hits.append(time.perf_counter())
+        return orig(*a, **k)
+
+    setattr(screen, action, probe)
+    out: list[float] = []
+    try:
+        while busy() and len(out) < max_samples:
+            n = len(hits)
+            t0 = time.perf_counter()
+            app.post_message(_key(key))
+            while len(hits) == n and time.perf_counter() - t0 < 5:
+                await asyncio.sleep(0.001)
+            if len(hits) > n:
+                out.append(hits[-1] - t0)
+            await asyncio.sleep(0.05)
+    finally:
+        setattr(screen, action, orig)
+    return out
+
+
+def _key(key: str) -> Any:
+    from textual import events
+
+    return events.Key(key, key if len(key) == 1 else None)
+
+
+async def _latency_rows(cache: Path) -> list[Row]:
+    from textual.widgets import Input
+
+    from spm_console.profile import load_profile
+    from spm_console.tui.app import make_app
+    from spm_console.tui.session import PoseSpec
+
+    profile = load_profile(PROFILE)
+    app = make_app(profile, sim=True, viewer=False, logs_root=cache / "logs", cache_dir=cache)
+    rows: list[Row] = []
+    async with app.run_test(size=(120, 40)) as pilot:
+        async def settle() -> None:
+            await pilot.pause()
+            await app.workers.wait_for_complete()
+            await pilot.pause()
+
+        await settle()
+        await pilot.press("h", "y")
+        await settle()
+        await pilot.press("3")
+        await settle()
+        await pilot.press("4")
+        await settle()
+        screen = app.screen
+        screen.query_one("#steps", Input).value = "150"
+        await pilot.press("s")
+        await settle()
+
+        # idle baseline (plan screen, 'p' redraws the plot)
+        idle = await _latencies(app, pilot, "p", "action_next_plot", lambda: True, 20)
+
+        # while solving: MVN with N = 1500, solved back to back for ~3 s
+        session = app.session
+        t_end = time.perf_counter() + 3.0
+
+        def solves() -> int:
+            n = 0
+            while time.perf_counter() < t_end:
+                session.solve_plan("mvn", PoseSpec("home"), PoseSpec("theta", (95, 110, 105)),
+                                   1500, 50.0)
+                n += 1
+            return n
+
+        screen.run_blocking("bench-solve", solves, "solving (benchmark) …")
+        solving = await _latencies(app, pilot, "p", "action_next_plot",
+                                   lambda: bool(screen.busy_op))
+        await settle()
+        await pilot.press("s")  # back to a 150-step plan for the execution
+        await settle()
+
+        # while building the workspace (forced rebuild, with progress messages)
+        await pilot.press("3")
+        await settle()
+        ws_screen = app.screen
+        ws_screen.action_load(force=True)
+        building = await _latencies(app, pilot, "escape", "action_leave_field",
+                                    lambda: bool(ws_screen.busy_op))
+        await settle()
+
+        # while executing the 3 s plan (telemetry every Ts, plots)
+        await pilot.press("5", "x", "y")
+        await pilot.pause(0.2)
+        executing = await _latencies(app, pilot, "p", "action_next_plot", lambda: app.moving)
+        await settle()
+        run = session.last_run
+        late = run.stats.get("late_ms", {}).get("max", float("nan")) if run else float("nan")
+
+    base = statistics.quantiles(idle, n=20)[-1] if len(idle) >= 2 else max(idle, default=0)
+    for name, vals in (("solving", solving), ("building the workspace", building),
+                       ("executing", executing)):
+        if not vals:
+            rows.append(Row(f"tui: key latency while {name}", float("nan"), "s", "≤ 0.1 s",
+                            note="no samples (the operation ended too fast)"))
+            continue
+        worst = max(vals)
+        note = f"{len(vals)} presses, median {1e3 * statistics.median(vals):.1f} ms; baseline: p95 idle"
+        if name == "executing":
+            note += f"; servo loop max lateness {late:.1f} ms meanwhile"
+        rows.append(Row(f"tui: key latency while {name} (max)", worst, "s", "≤ 0.1 s",
+                        baseline=base, passed=worst <= 0.1, note=note))
+    return rows
+
+
+def run() -> list[Row]:
+    with tempfile.TemporaryDirectory(prefix="bench-tui-") as d:
+        cache = Path(d)
+        from spm_console.profile import load_profile
+        from spm_console.workspace_cache import load_or_build
+
+        load_or_build(load_profile(PROFILE), cache_dir=cache)  # "with a cached workspace"
+        rows = start_rows(cache)
+        rows += asyncio.run(_latency_rows(cache))
+    return rows
+
+
+if __name__ == "__main__":
+    from benchmarks.common import print_table
+
+    print_table(run())
