@@ -70,7 +70,7 @@ def start_rows(cache: Path) -> list[Row]:
            "TERM": "xterm-256color", "SPM_CONSOLE_CACHE": str(cache),
            "SPM_CONSOLE_LOGS": str(cache / "logs")}
     ours = [_tmux_start_time([sys.executable, "-m", "spm_console", "tui", "--sim",
-                              "--no-viewer"], "Connect & home", env) for _ in range(3)]
+                              "--no-viewer"], "Connect/home", env) for _ in range(3)]
     bare = [_tmux_start_time([sys.executable, "-c", BARE_APP], "READY-BARE", env)
             for _ in range(3)]
     best, base = min(ours), min(bare)

@@ -130,12 +130,12 @@ def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type
     t.wait_for(r"press s to solve")
     t.keys("s")
     screen = t.wait_for(r"solved in .* Press 5 to execute")
-    assert "MVN" in screen and "N = 150 steps" in screen
+    assert "MVN" in screen and "N = 150 × 0.02 s = 3.00 s" in screen
     t.keys("5", "x")
     t.wait_for(r"Execute the plan\?")
     t.keys("y")
     live = t.wait_for(r"E-STOP: press SPACE")  # the banner is up while it moves
-    assert "elapsed" in live or "executing" in live
+    assert "s to go" in live or "executing" in live
     t.wait_for(r"COMPLETED \(exit code 0\)", timeout_s=30)
     done = t.wait_for(r"^(?![\s\S]*E-STOP: press SPACE)", timeout_s=3)  # banner gone
     m = re.search(r"log: (\S+)", done)

@@ -41,9 +41,12 @@ class MotionSpy:
     """Records, without racing the motion, what the operator saw while the wrist moved:
     the ``moving`` flag's values and whether the E-stop banner was up at each telemetry."""
 
-    def __init__(self) -> None:
+    def __init__(self, press_while_moving: str = "") -> None:
         self.moving: list[bool] = []
         self.banner_at_telemetry: list[bool] = []
+        self.screens_at_telemetry: list[str] = []
+        self.press_while_moving = press_while_moving
+        """A key sent (once) at the first telemetry of a motion, e.g. a step key."""
         self.app: SpmConsoleApp | None = None
 
     def attach(self, app: SpmConsoleApp) -> None:
@@ -58,5 +61,11 @@ class MotionSpy:
         from spm_console.tui.messages import Telemetry
 
         if isinstance(message, Telemetry) and self.app is not None:
+            from textual import events
+
             banners = self.app.screen.query(".estop-banner")
             self.banner_at_telemetry.append(bool(banners) and bool(banners.first().display))
+            self.screens_at_telemetry.append(type(self.app.screen).__name__)
+            if self.press_while_moving:
+                key, self.press_while_moving = self.press_while_moving, ""
+                self.app.post_message(events.Key(key, key))

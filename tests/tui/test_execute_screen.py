@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import asyncio
+
 import numpy as np
-from textual.widgets import DataTable, Input
+from textual.widgets import DataTable
 
 from spm_console.devices.faults import parse_fault
 from spm_console.errors import ExitCode
@@ -14,18 +16,19 @@ SIZE = (130, 42)
 
 
 async def _homed_with_plan(pilot, steps: int) -> None:  # type: ignore[no-untyped-def]
+    """Homed, workspace loaded and an MVN plan solved — through the session the screens use
+    (those steps' screens have their own tests); then the execute screen."""
+    from spm_console.tui.session import PoseSpec
+
+    app = pilot.app
+    s = app.session
     await settle(pilot)
-    await pilot.press("h", "y")
-    await settle(pilot)
-    assert pilot.app.session.homed, status_of(pilot.app)
-    await pilot.press("3")
-    await settle(pilot)
-    await pilot.press("4")
-    await pilot.pause()
-    pilot.app.screen.query_one("#steps", Input).value = str(steps)
-    await pilot.press("s")
-    await settle(pilot)
-    assert pilot.app.session.plan is not None, status_of(pilot.app)
+    assert s.bus is not None, status_of(app)
+    await asyncio.to_thread(s.home)
+    assert s.homed
+    await asyncio.to_thread(s.load_workspace)
+    await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
+                            PoseSpec("theta", (95.0, 110.0, 105.0)), steps)
     await pilot.press("5")
     await pilot.pause()
 
@@ -45,14 +48,17 @@ async def test_execute_runs_the_plan_live_and_logs_it(console, tmp_path) -> None
     spy = MotionSpy()
     async with app.run_test(size=SIZE, message_hook=spy.hook) as pilot:
         spy.attach(app)
-        await _homed_with_plan(pilot, 100)
+        await _homed_with_plan(pilot, 50)
+        spy.press_while_moving = "1"  # steps are locked while the wrist moves
         n_before = len(spy.banner_at_telemetry)
         await pilot.press("x")
         assert type(app.screen).__name__ == "ConfirmScreen", status_of(app)
-        await pilot.press("y", "1")  # steps are locked while the wrist moves
-        assert type(app.screen).__name__ == "ExecuteScreen"
+        await pilot.press("y")
         await settle(pilot)
-        assert spy.moving == [True, False, True, False]  # homing, then the execution
+        assert type(app.screen).__name__ == "ExecuteScreen"
+        assert spy.press_while_moving == ""  # the key was sent during the motion
+        assert set(spy.screens_at_telemetry[n_before:]) == {"ExecuteScreen"}
+        assert spy.moving == [True, False]  # the execution (homing went through the session)
         assert len(spy.banner_at_telemetry) >= n_before + 5 and all(spy.banner_at_telemetry)
         res = app.session.last_run
         assert res is not None and res.ok, status_of(app)
@@ -63,7 +69,7 @@ async def test_execute_runs_the_plan_live_and_logs_it(console, tmp_path) -> None
         out = text_of(app, "#exec-outcome")
         assert out.startswith("COMPLETED (exit code 0)") and str(res.log_dir) in out
         run = load_run(res.log_dir)
-        assert run.meta["outcome"] == "completed" and run.rows >= 101
+        assert run.meta["outcome"] == "completed" and run.rows >= 51
         assert "press 6" in text_of(app, "#hint-line")
 
 

@@ -39,10 +39,10 @@ async def test_whole_flow_by_keys(console, tmp_path) -> None:
         steps = app.screen.query_one("#steps", Input)
         steps.focus()
         steps.value = ""
-        await pilot.press(*"80", "enter")  # Enter in a field solves
+        await pilot.press(*"60", "enter")  # Enter in a field solves
         await settle(pilot)
         plan = app.session.plan
-        assert plan is not None and plan.N == 80, status_of(app)
+        assert plan is not None and plan.N == 60, status_of(app)
         await pilot.press("escape")
         assert app.focused is None
         assert "press 5" in text_of(app, "#hint-line")
@@ -62,7 +62,7 @@ async def test_whole_flow_by_keys(console, tmp_path) -> None:
         await pilot.press("enter")
         await settle(pilot)
         assert str(res.log_dir) in text_of(app, "#run-text")
-        assert app.screen.run is not None and app.screen.run.rows >= 81
+        assert app.screen.run is not None and app.screen.run.rows >= 61
         await pilot.press("p", "j")  # other plot, other joint: no error
         await settle(pilot)
         assert "joint 2: velocities" in str(app.screen.query_one("#run-plot").render())

@@ -37,7 +37,7 @@ async def test_mvn_from_current_pose_matches_the_core(console) -> None:
                         s.profile.limits.vmax_degps)
         np.testing.assert_allclose(plan.reference_deg, ref.reference_deg, atol=1e-6)
         out = text_of(app, "#plan-text")
-        assert "N = 60 steps" in out and "constraints verified" in out
+        assert "N = 60 × 0.02 s = 1.20 s" in out and "constraints verified" in out
         assert "press 5" in status_of(app).lower()
 
 

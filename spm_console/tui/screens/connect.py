@@ -25,7 +25,7 @@ class ConnectScreen(StepScreen):
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("c", "connect", "Connect"),
         Binding("h", "home", "Home"),
-        Binding("r", "read", "Read θ"),
+        Binding("r", "read", "Read"),
     ]
 
     def compose_body(self) -> ComposeResult:

@@ -47,7 +47,7 @@ class ExecuteScreen(StepScreen):
 
     def on_mount(self) -> None:
         t = self.query_one("#joints", DataTable)
-        t.add_columns("joint", "reference θ*", "measured θ", "velocity (KF)", "tracking error")
+        t.add_columns("joint", "ref. θ*", "measured θ", "dθ/dt (KF)", "error")
         for i in range(3):
             t.add_row(str(i + 1), "-", "-", "-", "-", key=str(i))
         self.refresh_view()
@@ -113,14 +113,14 @@ class ExecuteScreen(StepScreen):
         t = self.query_one("#joints", DataTable)
         cols = list(t.columns.keys())
         for i in range(3):
-            vals = (f"{smp.reference_deg[i]:8.2f}°", f"{smp.measured_deg[i]:8.2f}°",
-                    f"{smp.velocity_degps[i]:8.1f}°/s",
-                    f"{smp.measured_deg[i] - smp.predicted_deg[i]:+6.2f}°")
+            vals = (f"{smp.reference_deg[i]:7.2f}°", f"{smp.measured_deg[i]:7.2f}°",
+                    f"{smp.velocity_degps[i]:6.1f}°/s",
+                    f"{smp.measured_deg[i] - smp.predicted_deg[i]:+5.2f}°")
             for c, v in zip(cols[1:], vals, strict=True):
                 t.update_cell(str(i), c, v)
         total = max(self.session.motion_total_s, 1e-9)
         self.query_one("#exec-clock", Static).update(Content(
-            f"{smp.phase}: elapsed {smp.t:5.2f} s, remaining {max(total - smp.t, 0):5.2f} s"))
+            f"{smp.phase}: {smp.t:5.2f} s done\n{max(total - smp.t, 0):5.2f} s to go"))
         self.query_one("#exec-progress", ProgressBar).update(progress=min(100, 100 * smp.t / total))
 
     def draw_plot(self) -> None:

@@ -43,12 +43,12 @@ def fk_text(rec: dict[str, Any]) -> str:
 class FkScreen(StepScreen):
     MODE = "fk"
     BINDINGS: ClassVar[list[BindingType]] = [
-        Binding("f", "fk", "FK of θ"),
-        Binding("i", "ik", "IK from r/p/y"),
-        Binding("m", "modes", "All modes"),
-        Binding("c", "current", "Current θ"),
-        Binding("tab", "app.focus_next", "Edit fields", show=True),
-        Binding("escape", "leave_field", "Leave field"),
+        Binding("f", "fk", "FK"),
+        Binding("i", "ik", "IK"),
+        Binding("m", "modes", "Modes"),
+        Binding("c", "current", "Current"),
+        Binding("tab", "app.focus_next", "Fields", show=True),
+        Binding("escape", "leave_field", "Leave"),
     ]
 
     def compose_body(self) -> ComposeResult:

@@ -33,18 +33,17 @@ def plan_text(plan: Plan, info: dict[str, Any]) -> str:
     chk = plan.extra.get("check", {})
     vmax = info.get("vmax_degps")
     lines = [
-        f"{plan.kind.upper()}  from {info.get('start', '?')} {fmt_deg(plan.reference_deg[0])}",
-        f"      to {info.get('goal', '?')} {fmt_deg(plan.reference_deg[-1])}",
-        f"N = {plan.N} steps × Ts = {plan.Ts:g} s = {plan.duration_s:.2f} s   "
-        f"cost Σ|dθ/dt|² = {plan.cost:.1f} (deg/s)²",
-        f"solved in {plan.solve_seconds:.2f} s, {plan.qp_count} QP(s)",
-        f"max |dθ/dt| at samples {float(np.abs(plan.velocity_degps).max()):.1f}°/s"
-        + (f" (v_max {vmax:g}°/s)" if vmax else ""),
+        f"{plan.kind.upper()}: {info.get('start', '?')} → {info.get('goal', '?')}",
+        f"{fmt_deg(plan.reference_deg[0])} → {fmt_deg(plan.reference_deg[-1])}",
+        f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
+        f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
+        f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
+        + (f" (v_max {vmax:g})" if vmax else ""),
     ]
     if chk:
         between = chk.get("max_speed_between_degps")
         if between is not None:
-            lines.append(f"between samples: max |dθ/dt| {between:.1f}°/s, outside P by "
+            lines.append(f"between samples: {between:.1f}°/s, outside P by "
                          f"{chk.get('region_violation_between_deg', 0.0):.2g}°")
         lines.append("constraints verified" if chk.get("ok") else "constraints NOT verified")
     if "infeasible_N" in plan.extra or "n_minus_1_infeasible" in plan.extra:
@@ -57,9 +56,9 @@ class PlanScreen(StepScreen):
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("s", "solve", "Solve"),
         Binding("p", "next_plot", "Plot"),
-        Binding("w", "save", "Save plan"),
-        Binding("tab", "app.focus_next", "Edit fields"),
-        Binding("escape", "leave_field", "Leave field"),
+        Binding("w", "save", "Save"),
+        Binding("tab", "app.focus_next", "Fields"),
+        Binding("escape", "leave_field", "Leave"),
     ]
 
     def __init__(self) -> None:

@@ -3,6 +3,7 @@ its counts and region P, and a pointwise check of θ."""
 
 from __future__ import annotations
 
+import functools
 from typing import Any, ClassVar
 
 import numpy as np
@@ -49,21 +50,29 @@ def workspace_text(ws: Any, info: Any) -> str:
     return "\n".join(lines)
 
 
-def region_box(region: Any) -> tuple[np.ndarray, np.ndarray] | None:
-    """Bounding box of P (deg) by six small LPs; None if scipy cannot bound it."""
+@functools.lru_cache(maxsize=4)
+def _box(A: bytes, b: bytes, n: int) -> tuple[np.ndarray, np.ndarray] | None:
     from scipy.optimize import linprog
 
+    region_A = np.frombuffer(A).reshape(n, 3)
+    region_b = np.frombuffer(b)
     lo, hi = np.zeros(3), np.zeros(3)
     for i in range(3):
         for sign, out in ((1.0, lo), (-1.0, hi)):
             c = np.zeros(3)
             c[i] = sign
-            r = linprog(c, A_ub=region.A, b_ub=region.b, bounds=[(None, None)] * 3,
+            r = linprog(c, A_ub=region_A, b_ub=region_b, bounds=[(None, None)] * 3,
                         method="highs")
             if r.status != 0:
                 return None
             out[i] = r.x[i]
     return lo, hi
+
+
+def region_box(region: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """Bounding box of P (deg) by six small LPs (cached per region); None if unbounded."""
+    A = np.ascontiguousarray(region.A, float)
+    return _box(A.tobytes(), np.ascontiguousarray(region.b, float).tobytes(), A.shape[0])
 
 
 def check_text(chk: Any) -> str:
@@ -84,9 +93,9 @@ class WorkspaceScreen(StepScreen):
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("l", "load", "Load"),
         Binding("b", "rebuild", "Rebuild"),
-        Binding("k", "check", "Check θ"),
-        Binding("tab", "app.focus_next", "Edit fields"),
-        Binding("escape", "leave_field", "Leave field"),
+        Binding("k", "check", "Check"),
+        Binding("tab", "app.focus_next", "Fields"),
+        Binding("escape", "leave_field", "Leave"),
     ]
 
     def compose_body(self) -> ComposeResult:

@@ -22,7 +22,7 @@ class Step:
 
 
 STEPS: tuple[Step, ...] = (
-    Step("1", "connect", "Connect & home"),
+    Step("1", "connect", "Connect/home"),
     Step("2", "fk", "FK check"),
     Step("3", "workspace", "Workspace"),
     Step("4", "plan", "Plan"),
@@ -76,6 +76,7 @@ class StepBar(Vertical):
     def compose(self) -> ComposeResult:
         yield Static(id="steps-line")
         yield Static(id="hint-line", markup=False)
+        yield Static(id="view-line", markup=False)
 
     def refresh_steps(self, session: Session, fk_done: bool, viewer_url: str | None) -> None:
         done = done_steps(session)
@@ -92,7 +93,8 @@ class StepBar(Vertical):
             else:
                 parts.append(Content(text))
             parts.append(Content("│"))
-        view = f"  3D view: {viewer_url}" if viewer_url else ""
-        parts.append(Content.styled(view, "cyan"))
-        self.query_one("#steps-line", Static).update(Content("").join(parts[:-2] + parts[-1:]))
+        self.query_one("#steps-line", Static).update(Content("").join(parts[:-1]))
+        view = self.query_one("#view-line", Static)
+        view.display = bool(viewer_url)
+        view.update(Content.styled(f" 3D view: {viewer_url} (open it in a browser)", "cyan"))
         self.query_one("#hint-line", Static).update(Content(next_hint(session, fk_done)))
