@@ -187,13 +187,13 @@ class MeshcatView:
             try:
                 if client is None:
                     continue
+                self.last_error = ""
                 if clear:
                     client.delete("path")
                 if path is not None:
                     self._draw_path(client, path)
                 if theta is not None:
                     self._update_theta(client, theta)
-                self.last_error = ""
             except ViewerError as exc:
                 self.last_error = exc.message
             finally:

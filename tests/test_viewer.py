@@ -1,0 +1,128 @@
+"""The meshcat view without a browser: parts from the link model, throttled latest-wins
+drawing, loopback-only server, and no server left behind (close, killed parent)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.core.model import link_model_of, model_of
+from spm_console.viewer import scene
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _listening(port: int) -> list[str]:
+    out = []
+    for name in ("/proc/net/tcp", "/proc/net/tcp6"):
+        try:
+            lines = Path(name).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for ln in lines:
+            f = ln.split()
+            if int(f[1].rsplit(":", 1)[1], 16) == port and f[3] == "0A":
+                out.append(f[1].rsplit(":", 1)[0])
+    return out
+
+
+def test_capsules_sit_on_the_link_points(agile) -> None:
+    model, links = model_of(agile), link_model_of(agile)
+    r = model.track(np.radians([95.0, 110.0, 105.0]))
+    assert r.ok and r.pose is not None
+    T = scene.pose_transforms(model, links, r.pose.theta, r.pose.R)
+    pts = links.points(model.u, model.geom.w(r.pose.theta), r.pose.v)
+    parts = scene.wrist_parts(model, links)
+    for i in range(3):
+        for s in scene.DRAWN_SEGMENTS:
+            a, b = scene.SEGMENT_ENDS[s]
+            M = T[f"legs/leg{i + 1}/{s}"]
+            half = 0.5 * parts.segment_length[s] * np.array([0.0, 1.0, 0.0])
+            ends = [M[:3, :3] @ (-half) + M[:3, 3], M[:3, :3] @ half + M[:3, 3]]
+            np.testing.assert_allclose(ends[0], pts[a][i] * scene.MM, atol=1e-9)
+            np.testing.assert_allclose(ends[1], pts[b][i] * scene.MM, atol=1e-9)
+            np.testing.assert_allclose(M[:3, :3].T @ M[:3, :3], np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(T["platform"][:3, :3], r.pose.R)
+    assert parts.delta == pytest.approx(agile.links.delta_mm * 1e-3)
+
+
+def test_drawing_is_throttled_and_keeps_the_latest_pose(agile) -> None:
+    from spm_console.viewer.view import MeshcatView
+
+    v = MeshcatView(agile, min_interval_s=0.1)
+    v.start()
+    try:
+        port = int(v.url.rsplit(":", 1)[1].split("/")[0])  # type: ignore[union-attr]
+        assert v.url.startswith("http://127.0.0.1:")  # type: ignore[union-attr]
+        assert _listening(port) and all(a == "0100007F" for a in _listening(port))
+        frames0 = v.frames
+        t0 = time.monotonic()
+        path = np.linspace([135.0, 135.0, 135.0], [95.0, 110.0, 105.0], 200)
+        for th in path:  # 200 requests as fast as possible (a telemetry burst)
+            v.show_theta(th)
+        assert time.monotonic() - t0 < 0.2  # callers never wait for the viewer
+        assert v.wait_idle(10.0)
+        elapsed = time.monotonic() - t0
+        drawn = v.frames - frames0
+        assert 1 <= drawn <= elapsed / 0.1 + 2
+        np.testing.assert_allclose(v.drawn_theta_deg, path[-1])  # the latest wins
+        assert v.last_error == ""
+    finally:
+        v.close()
+    time.sleep(0.2)
+    assert not _listening(port)
+
+
+def test_an_unreachable_pose_is_reported_not_drawn(agile) -> None:
+    from spm_console.viewer.view import MeshcatView
+
+    v = MeshcatView(agile, min_interval_s=0.01)
+    v.start()
+    try:
+        v.show_theta(np.array([65.0, 155.0, 65.0]))
+        assert v.wait_idle(10.0)
+        assert "cannot draw" in v.last_error
+        np.testing.assert_allclose(v.drawn_theta_deg, [135, 135, 135])
+    finally:
+        v.close()
+
+
+PARENT = """
+import json, sys, time
+from spm_console.profile import load_profile
+from spm_console.viewer.view import MeshcatView
+v = MeshcatView(load_profile("profiles/agile_wrist.toml"))
+url = v.start()
+print(json.dumps({"url": url, "server": v.server.pid}), flush=True)
+time.sleep(600)
+"""
+
+
+def test_server_does_not_outlive_a_killed_console() -> None:
+    p = subprocess.Popen([sys.executable, "-c", PARENT], cwd=ROOT, stdout=subprocess.PIPE,
+                         text=True)
+    try:
+        info = json.loads(p.stdout.readline())  # type: ignore[union-attr]
+        port = int(info["url"].rsplit(":", 1)[1].split("/")[0])
+        assert _listening(port)
+        os.kill(p.pid, signal.SIGKILL)  # no atexit, no cleanup: the child must notice
+        p.wait(5)
+        t_end = time.monotonic() + 5
+        while _listening(port) and time.monotonic() < t_end:
+            time.sleep(0.05)
+        assert not _listening(port)
+        with pytest.raises(ProcessLookupError):
+            for _ in range(50):
+                os.kill(info["server"], 0)
+                time.sleep(0.05)
+    finally:
+        if p.poll() is None:
+            p.kill()
