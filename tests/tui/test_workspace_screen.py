@@ -54,3 +54,30 @@ async def test_rebuild_asks_first(console) -> None:
         await pilot.press("n")
         await settle(pilot)
         assert text_of(app, "#ws-info").startswith("loaded from the cache")
+
+
+async def test_building_shows_progress_then_the_counts(agile, tmp_path) -> None:
+    """No cache yet: the workspace is built in a worker with a progress bar (a coarse 5° grid
+    keeps this quick), then cached."""
+    from spm_console.tui.app import make_app
+    from spm_console.tui.messages import Progress
+
+    coarse = agile.model_copy(update={"workspace": agile.workspace.model_copy(
+        update={"step_deg": 5.0})})
+    seen: list[tuple[str, float]] = []
+
+    def hook(message: object) -> None:
+        if isinstance(message, Progress):
+            seen.append((message.stage, message.fraction))
+
+    app = make_app(coarse, viewer=False, logs_root=tmp_path / "logs", cache_dir=tmp_path / "c")
+    async with app.run_test(size=SIZE, message_hook=hook) as pilot:
+        await settle(pilot)
+        await pilot.press("3")
+        await settle(pilot, timeout_s=120)
+        info = text_of(app, "#ws-info")
+        assert info.startswith("built in") and "no cache file" in info
+        assert "6859 nodes" in info  # 19³ nodes at 5°
+        assert {"fk", "links", "region"} <= {s for s, _ in seen}
+        assert not app.screen.query_one("#ws-progress").display  # hidden when done
+        assert any((tmp_path / "c").iterdir())  # cached for next time
