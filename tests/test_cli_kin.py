@@ -86,3 +86,26 @@ def test_python_m_entry_point() -> None:
         capture_output=True, text=True, check=True,
     )
     assert json.loads(out.stdout)["zeta"] == pytest.approx(1.0)
+
+
+def test_command_table_matches_registered_parsers() -> None:
+    """Each module registers exactly the commands the lazy table maps to it."""
+    import argparse
+    import importlib
+
+    from spm_console.cli.main import COMMAND_MODULES, COMMANDS
+
+    for mod in COMMAND_MODULES:
+        parser = argparse.ArgumentParser()
+        sub = parser.add_subparsers(dest="command")
+        importlib.import_module(mod).register(sub)
+        assert set(sub.choices) == {c for c, m in COMMANDS.items() if m == mod}, mod
+
+
+def test_tui_command_does_not_import_solvers() -> None:
+    code = (
+        "import sys\nfrom spm_console.cli.main import build_parser\nbuild_parser('tui')\n"
+        "print(','.join(m for m in ('cvxpy', 'matplotlib', 'control') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
