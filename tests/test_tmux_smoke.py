@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from spm_console.run.runlog import list_runs
+from tests.net_helpers import listening
 
 ROOT = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed")
@@ -100,22 +101,6 @@ def tmux_console(env: dict[str, str]) -> Iterator[callable]:  # type: ignore[val
         t.kill()
 
 
-def _listening(port: int) -> list[str]:
-    """Local addresses listening on ``port`` (from /proc/net/tcp, tcp6)."""
-    out = []
-    for name in ("/proc/net/tcp", "/proc/net/tcp6"):
-        try:
-            lines = Path(name).read_text().splitlines()[1:]
-        except OSError:
-            continue
-        for ln in lines:
-            f = ln.split()
-            addr, p = f[1].rsplit(":", 1)
-            if int(p, 16) == port and f[3] == "0A":  # LISTEN
-                out.append(addr)
-    return out
-
-
 def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type: ignore[no-untyped-def]
     t = tmux_console("--sim", "--no-viewer")
     t.wait_for(r"press h to home")
@@ -160,16 +145,16 @@ def _viewer_port(screen: str) -> int:
 
 def _wait_gone(port: int, timeout_s: float = 10.0) -> None:
     t_end = time.monotonic() + timeout_s
-    while _listening(port) and time.monotonic() < t_end:
+    while listening(port) and time.monotonic() < t_end:
         time.sleep(0.1)
-    assert not _listening(port), f"the viewer still listens on {port}"
+    assert not listening(port), f"the viewer still listens on {port}"
 
 
 def test_viewer_url_shown_loopback_only_and_stopped_on_quit(tmux_console) -> None:  # type: ignore[no-untyped-def]
     t = tmux_console("--sim")
     screen = t.wait_for(r"3D view: http://127\.0\.0\.1:\d+/static/", timeout_s=30)
     port = _viewer_port(screen)
-    addrs = _listening(port)
+    addrs = listening(port)
     assert addrs and all(a in ("0100007F", "00000000000000000000000001000000") for a in addrs), addrs
     t.keys("q")
     _wait_gone(port)

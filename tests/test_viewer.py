@@ -16,22 +16,9 @@ import pytest
 
 from spm_console.core.model import link_model_of, model_of
 from spm_console.viewer import scene
+from tests.net_helpers import listening
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def _listening(port: int) -> list[str]:
-    out = []
-    for name in ("/proc/net/tcp", "/proc/net/tcp6"):
-        try:
-            lines = Path(name).read_text().splitlines()[1:]
-        except OSError:
-            continue
-        for ln in lines:
-            f = ln.split()
-            if int(f[1].rsplit(":", 1)[1], 16) == port and f[3] == "0A":
-                out.append(f[1].rsplit(":", 1)[0])
-    return out
 
 
 def test_capsules_sit_on_the_link_points(agile) -> None:
@@ -62,7 +49,7 @@ def test_drawing_is_throttled_and_keeps_the_latest_pose(agile) -> None:
     try:
         port = int(v.url.rsplit(":", 1)[1].split("/")[0])  # type: ignore[union-attr]
         assert v.url.startswith("http://127.0.0.1:")  # type: ignore[union-attr]
-        assert _listening(port) and all(a == "0100007F" for a in _listening(port))
+        assert listening(port) and all(a == "0100007F" for a in listening(port))
         frames0 = v.frames
         t0 = time.monotonic()
         path = np.linspace([135.0, 135.0, 135.0], [95.0, 110.0, 105.0], 200)
@@ -78,7 +65,7 @@ def test_drawing_is_throttled_and_keeps_the_latest_pose(agile) -> None:
     finally:
         v.close()
     time.sleep(0.2)
-    assert not _listening(port)
+    assert not listening(port)
 
 
 def test_an_unreachable_pose_is_reported_not_drawn(agile) -> None:
@@ -112,13 +99,13 @@ def test_server_does_not_outlive_a_killed_console() -> None:
     try:
         info = json.loads(p.stdout.readline())  # type: ignore[union-attr]
         port = int(info["url"].rsplit(":", 1)[1].split("/")[0])
-        assert _listening(port)
+        assert listening(port)
         os.kill(p.pid, signal.SIGKILL)  # no atexit, no cleanup: the child must notice
         p.wait(5)
         t_end = time.monotonic() + 5
-        while _listening(port) and time.monotonic() < t_end:
+        while listening(port) and time.monotonic() < t_end:
             time.sleep(0.05)
-        assert not _listening(port)
+        assert not listening(port)
         with pytest.raises(ProcessLookupError):
             for _ in range(50):
                 os.kill(info["server"], 0)
