@@ -33,7 +33,8 @@ def register(sub: Any) -> None:
 
 def cmd_script(args: argparse.Namespace) -> int:
     from spm_console.profile import load_profile
-    from spm_console.script import load_script, run_script, session_for
+    from spm_console.script import run_script, session_for
+    from spm_console.script_format import load_script
 
     script = load_script(args.file)
     profile = load_profile(args.profile) if args.profile else None
