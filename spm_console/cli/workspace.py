@@ -143,6 +143,8 @@ def cmd_check(args: argparse.Namespace) -> int:
         lines.append(f"ζ = {c.zeta:.3f}, closest links {c.min_link_mm:.1f} mm ({c.closest_pair})")
     if c.reason:
         lines.append(c.reason)
+    if c.feasible and not c.in_region:
+        lines.append("a plan can still use it: `workspace region --contain` builds a region holding it")
     emit(args, rec, "\n".join(lines))
     return int(ExitCode.OK if c.feasible else ExitCode.INFEASIBLE)
 

@@ -206,7 +206,7 @@ def check_one(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F) ->
     slack = float(ws.region.normalized().slack(th).min())
     in_region = slack >= -1e-9
     if not in_region:
-        reasons.append(f"outside the region P by {-slack:.2f}° (try `workspace region --contain`)")
+        reasons.append(f"outside the region P by {-slack:.2f}°")
     v = platform_axes(pc.R[0], model.v_home) if fk_ok else None
     return ThetaCheck(
         theta_deg=th, feasible=point_ok and connected, in_region=in_region,
