@@ -199,3 +199,23 @@ def test_a_stale_partial_header_does_not_hold_the_line(agile: Profile) -> None:
         bus = open_bus(relaxed(agile), em.port)
         assert np.allclose(bus.read_position_deg(), 135.0)
         bus.close()
+
+
+def test_one_lost_ping_reply_is_retried_not_a_missing_servo(
+        rig: tuple[EmulatorHandle, DynamixelBus], monkeypatch: pytest.MonkeyPatch) -> None:
+    _, bus = rig
+    real_ping = bus.link.ping
+    lost = {"n": 0}
+
+    def flaky_ping(ident: int):  # type: ignore[no-untyped-def]
+        if lost["n"] < 2:  # the first two replies are lost (fewer than PING_ATTEMPTS)
+            lost["n"] += 1
+            raise CommError("no status packet (injected)")
+        return real_ping(ident)
+
+    monkeypatch.setattr(bus.link, "ping", flaky_ping)
+    assert [s.id for s in bus.ping_all()] == [1, 2, 3]
+    assert lost["n"] == 2
+    lost["n"] = -10  # now every reply is lost: the servo is reported absent
+    with pytest.raises(BusError, match="no status packet from servo id 1"):
+        bus.ping(1)

@@ -12,8 +12,11 @@ error reported by a servo raises :class:`BusError`.
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,6 +36,8 @@ from spm_console.devices.transport import SerialTransport
 from spm_console.errors import BadInputError, BusError
 from spm_console.profile import Profile
 
+T = TypeVar("T")
+
 F = NDArray[np.float64]
 
 
@@ -45,6 +50,22 @@ class LimitError(BadInputError):
         self.joint = joint
         self.value_deg = value_deg
         self.limits_deg = limits_deg
+
+
+#: Tries of a set-up transaction (ping, status read) before a servo counts as absent.
+PING_ATTEMPTS = 3
+
+
+def _retry(fn: Callable[[], T], attempts: int = PING_ATTEMPTS, pause_s: float = 0.005) -> T:
+    """Call ``fn``, retrying after a short pause when a reply is lost (CommError)."""
+    for k in range(attempts):
+        try:
+            return fn()
+        except CommError:
+            if k == attempts - 1:
+                raise
+            time.sleep(pause_s)
+    raise AssertionError("unreachable")
 
 
 class DynamixelBus:
@@ -91,9 +112,10 @@ class DynamixelBus:
     # --- ping / status ----------------------------------------------------------------
 
     def ping(self, ident: int) -> ServoStatus:
-        """Ping one id; BusError if it does not answer or is not the profile's model."""
+        """Ping one id; BusError if it does not answer (after :data:`PING_ATTEMPTS` tries:
+        one lost reply is not a missing servo) or is not the profile's model."""
         try:
-            model, fw, r = self.link.ping(ident)
+            model, fw, r = _retry(lambda: self.link.ping(ident))
         except CommError as exc:
             raise BusError(
                 f"no status packet from servo id {ident} on {self.port} ({exc}). Check power, "
@@ -113,7 +135,7 @@ class DynamixelBus:
         out = []
         for ident in self.ids:
             st = self.ping(ident)
-            hw = self._hardware_error(ident)
+            hw = _retry(functools.partial(self._hardware_error, ident))
             out.append(ServoStatus(id=st.id, model_number=st.model_number, firmware=st.firmware,
                                    hardware_error=hw))
         return out
