@@ -114,13 +114,16 @@ def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type
     t.keys("4")
     t.wait_for(r"press s to solve")
     t.keys("s")
-    screen = t.wait_for(r"solved in .* Press 5 to execute")
+    t.wait_for(r"solved in .* Press 5 to execute")
+    # the result panel may be painted a frame after the status line: wait for it, then check it
+    screen = t.wait_for(r"N = 150 × 0\.02 s = 3\.00 s")
     assert "MVN" in screen and "N = 150 × 0.02 s = 3.00 s" in screen
     t.keys("5", "x")
     t.wait_for(r"Execute the plan\?")
     t.keys("y")
-    live = t.wait_for(r"E-STOP: press SPACE")  # the banner is up while it moves
-    assert "s to go" in live or "executing" in live
+    # the banner is up while it moves: one screen shows both (panels may paint a frame apart)
+    live = t.wait_for(r"(?s)(?=.*E-STOP: press SPACE)(?=.*(s to go|executing))")
+    assert "E-STOP: press SPACE" in live and ("s to go" in live or "executing" in live)
     t.wait_for(r"COMPLETED \(exit code 0\)", timeout_s=30)
     done = t.wait_for(r"^(?![\s\S]*E-STOP: press SPACE)", timeout_s=3)  # banner gone
     m = re.search(r"log: (\S+)", done)
@@ -165,13 +168,19 @@ def test_sigterm_mid_motion_stops_the_wrist_the_console_and_its_viewer(  # type:
     t = tmux_console("--sim")
     port = _viewer_port(t.wait_for(r"3D view: http://127\.0\.0\.1:\d+/static/", timeout_s=30))
     t.wait_for(r"press h to home")
-    t.keys("h", "y")
+    t.keys("h")  # each key waits for the screen it needs: a key sent early would be lost
+    t.wait_for(r"Home the wrist\?")
+    t.keys("y")
     t.wait_for(r"homed: executed")
     t.keys("3")
     t.wait_for(r"workspace ready")
-    t.keys("4", "s")
+    t.keys("4")
+    t.wait_for(r"press s to solve")
+    t.keys("s")
     t.wait_for(r"solved in")
-    t.keys("5", "x", "y")
+    t.keys("5", "x")
+    t.wait_for(r"Execute the plan\?")
+    t.keys("y")
     t.wait_for(r"E-STOP: press SPACE")
     time.sleep(0.5)
     os.kill(t.pane_pid(), signal.SIGTERM)
