@@ -101,8 +101,9 @@ def tmux_console(env: dict[str, str]) -> Iterator[callable]:  # type: ignore[val
         t.kill()
 
 
-def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    t = tmux_console("--sim", "--no-viewer")
+def _home_and_solve(t) -> None:  # type: ignore[no-untyped-def]
+    """Home, load the workspace and solve the default MVN plan, key by key: each key waits
+    for the screen it needs (a key sent early would be lost)."""
     t.wait_for(r"press h to home")
     assert "Traceback" not in t.screen()
     t.keys("h")
@@ -115,12 +116,21 @@ def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type
     t.wait_for(r"press s to solve")
     t.keys("s")
     t.wait_for(r"solved in .* Press 5 to execute")
-    # the result panel may be painted a frame after the status line: wait for it, then check it
-    screen = t.wait_for(r"N = 150 × 0\.02 s = 3\.00 s")
-    assert "MVN" in screen and "N = 150 × 0.02 s = 3.00 s" in screen
+
+
+def _start_execution(t) -> None:  # type: ignore[no-untyped-def]
     t.keys("5", "x")
     t.wait_for(r"Execute the plan\?")
     t.keys("y")
+
+
+def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    t = tmux_console("--sim", "--no-viewer")
+    _home_and_solve(t)
+    # the result panel may be painted a frame after the status line: wait for it, then check it
+    screen = t.wait_for(r"N = 150 × 0\.02 s = 3\.00 s")
+    assert "MVN" in screen and "N = 150 × 0.02 s = 3.00 s" in screen
+    _start_execution(t)
     # the banner is up while it moves: one screen shows both (panels may paint a frame apart)
     live = t.wait_for(r"(?s)(?=.*E-STOP: press SPACE)(?=.*(s to go|executing))")
     assert "E-STOP: press SPACE" in live and ("s to go" in live or "executing" in live)
@@ -167,20 +177,8 @@ def test_sigterm_mid_motion_stops_the_wrist_the_console_and_its_viewer(  # type:
         tmux_console, tmp_path) -> None:
     t = tmux_console("--sim")
     port = _viewer_port(t.wait_for(r"3D view: http://127\.0\.0\.1:\d+/static/", timeout_s=30))
-    t.wait_for(r"press h to home")
-    t.keys("h")  # each key waits for the screen it needs: a key sent early would be lost
-    t.wait_for(r"Home the wrist\?")
-    t.keys("y")
-    t.wait_for(r"homed: executed")
-    t.keys("3")
-    t.wait_for(r"workspace ready")
-    t.keys("4")
-    t.wait_for(r"press s to solve")
-    t.keys("s")
-    t.wait_for(r"solved in")
-    t.keys("5", "x")
-    t.wait_for(r"Execute the plan\?")
-    t.keys("y")
+    _home_and_solve(t)
+    _start_execution(t)
     t.wait_for(r"E-STOP: press SPACE")
     time.sleep(0.5)
     os.kill(t.pane_pid(), signal.SIGTERM)
