@@ -8,7 +8,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from spm_console.core.model import link_model_of, model_of
 from spm_console.core.planning import solve_mintime, solve_mvn
 from spm_console.core.region_build import region_containing
 from spm_console.core.servo_model import discretize
@@ -89,16 +88,6 @@ def _mvn(profile: Profile, ws: Workspace, out: Path, settings: ReproSettings) ->
     return sec
 
 
-def _segment_exact(profile: Profile, a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    """Min ζ and min link distance (mm) along the straight segment, by continuation (exact)."""
-    m, lk = model_of(profile), link_model_of(profile)
-    pts = a + np.linspace(0.0, 1.0, 201)[:, None] * (b - a)
-    rs = m.track_batch(np.radians(pts))
-    z = min(r.pose.zeta for r in rs if r.pose is not None)
-    d = min(float(lk.min_distance(m.u, m.geom.w(r.pose.theta), r.pose.v)[0]) for r in rs if r.pose is not None)
-    return z, d
-
-
 def _mintime(profile: Profile, ws: Workspace, out: Path, settings: ReproSettings) -> Section:
     t0 = time.perf_counter()
     sec = Section("Minimum-time references (Sec. VI-E3, Figs. 9–10)", "mintime")
@@ -108,10 +97,9 @@ def _mintime(profile: Profile, ws: Workspace, out: Path, settings: ReproSettings
     try:
         region = region_containing(ws, start, goal)
     except InfeasibleError as exc:
-        z, d = _segment_exact(profile, start, goal)
+        # the workspace's segment check has already checked the segment exactly and says so
         why = (f"on the {profile.workspace.step_deg:g}° grid no convex region inside P′ contains both: "
-               f"{exc.message} (by our own continuation along 201 points of the segment: min ζ = {z:.3f}, "
-               f"closest links {d:.1f} mm); the cube criterion of P′ is conservative by up to Δ")
+               f"{exc.message}; the cube criterion of P′ is conservative by up to Δ")
         if settings.quick:
             sec.checks.append(Check("N* for [70, 90, 80]° → goal, v_max = 50°/s",
                                     f"{pv.MINTIME_N} ({pv.MINTIME_N * pv.TS_S:.2f} s)", "refused", None, None,
