@@ -1,27 +1,44 @@
-# Every target that runs code first creates/refreshes the local virtual environment.
+# Every target that runs code first creates/refreshes the local virtual environment,
+# installed exactly from uv.lock (nothing is resolved at install time).
+# Update the lock after changing a dependency: `make lock` (see the README).
 PY ?= python3
+UV_VERSION := 0.13.9
+UV_DIR := .uv
+UV := $(UV_DIR)/bin/uv
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# uv uses this interpreter and never downloads one; the environment lives in .venv.
+UV_ENV := UV_PROJECT_ENVIRONMENT=$(VENV) UV_PYTHON_DOWNLOADS=never UV_PYTHON=$(PY)
+PROFILE ?=
 
-.PHONY: run test test-all lint bench clean venv
+.PHONY: run test test-all test-slow lint bench clean venv lock
 
-$(STAMP): pyproject.toml
-	test -x $(BIN)/python || $(PY) -m venv $(VENV)
-	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[dev]'
+# uv itself, pinned, in its own small environment (pip from PyPI).
+$(UV):
+	$(PY) -m venv $(UV_DIR)
+	$(UV_DIR)/bin/python -m pip install -q uv==$(UV_VERSION)
+
+$(STAMP): pyproject.toml uv.lock | $(UV)
+	$(UV_ENV) $(UV) sync --frozen --extra dev --quiet
 	touch $(STAMP)
+
+lock: $(UV)
+	$(UV_ENV) $(UV) lock
 
 venv: $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/spm-console tui
+	$(BIN)/spm-console tui $(if $(PROFILE),--profile $(PROFILE))
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -m ''
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -m slow
 
 lint: $(STAMP)
 	$(BIN)/ruff check spm_console tests benchmarks
@@ -31,4 +48,4 @@ bench: $(STAMP)
 	$(BIN)/python -m benchmarks
 
 clean:
-	rm -rf $(VENV) .cache .mypy_cache .ruff_cache .pytest_cache
+	rm -rf $(VENV) $(UV_DIR) .cache .mypy_cache .ruff_cache .pytest_cache

@@ -17,6 +17,7 @@ import numpy as np
 
 from benchmarks.common import Row
 from spm_console.devices import protocol2 as p2
+from spm_console.devices.base import CommError
 from spm_console.devices.bus import open_bus
 from spm_console.devices.emulator import start_emulator
 from spm_console.profile import load_profile
@@ -24,22 +25,43 @@ from spm_console.profile import load_profile
 CYCLES = 400
 
 
-def _ours(port: str, prof: object) -> np.ndarray:
+WARMUP_TRIES = 3
+
+
+def _ours(port: str, prof: object, cycles: int = CYCLES) -> tuple[np.ndarray, int]:
+    """Cycle times (s) and the number of cycles whose reply timed out (counted, not raised)."""
     bus = open_bus(prof, port)  # type: ignore[arg-type]
-    bus.set_torque(True)
-    out = []
-    for k in range(CYCLES):
-        theta = 135.0 + 10.0 * np.sin(0.05 * k + np.array([0.0, 2.0, 4.0]))
-        t0 = time.perf_counter()
-        bus.write_goal_deg(theta)
-        bus.read_position_deg()
-        out.append(time.perf_counter() - t0)
-    bus.set_torque(False)
-    bus.close()
-    return np.asarray(out)
+    out, timeouts = [], 0
+    try:
+        bus.set_torque(True)
+        for k in range(cycles):
+            theta = 135.0 + 10.0 * np.sin(0.05 * k + np.array([0.0, 2.0, 4.0]))
+            t0 = time.perf_counter()
+            bus.write_goal_deg(theta)
+            try:
+                bus.read_position_deg()
+            except CommError:
+                timeouts += 1
+            out.append(time.perf_counter() - t0)
+        bus.set_torque(False)
+    finally:
+        bus.close()
+    return np.asarray(out), timeouts
 
 
-def _sdk(port: str) -> np.ndarray:
+def _warm_up(port: str, prof: object) -> None:
+    """A short run that must complete; retried, since one lost reply on a loaded host is no result."""
+    for attempt in range(1, WARMUP_TRIES + 1):
+        try:
+            _ours(port, prof, cycles=50)
+            return
+        except CommError:
+            if attempt == WARMUP_TRIES:
+                raise
+            time.sleep(0.1)
+
+
+def _sdk(port: str) -> tuple[np.ndarray, int]:
     import dynamixel_sdk as dxl
 
     ph = dxl.PortHandler(port)
@@ -65,9 +87,7 @@ def _sdk(port: str) -> np.ndarray:
         [sr.getData(i, 132, 4) for i in (1, 2, 3)]
         out.append(time.perf_counter() - t0)
     ph.closePort()
-    if fails:
-        raise RuntimeError(f"dynamixel-sdk baseline: {fails} failed sync reads")
-    return np.asarray(out)
+    return np.asarray(out), fails
 
 
 def _decoder_rate() -> float:
@@ -83,14 +103,18 @@ def _decoder_rate() -> float:
 def run() -> list[Row]:
     prof = load_profile("profiles/agile_wrist.toml")
     with start_emulator(prof, record=False) as em:
-        _ours(em.port, prof)  # warm-up
-        ours = _ours(em.port, prof)
-        sdk = _sdk(em.port)
+        _warm_up(em.port, prof)
+        ours, timeouts = _ours(em.port, prof)
+        sdk, sdk_fails = _sdk(em.port)
     p50, p99, mx = (float(np.percentile(ours, q)) * 1e3 for q in (50, 99, 100))
     b50, b99 = (float(np.percentile(sdk, q)) * 1e3 for q in (50, 99))
     rate = _decoder_rate()
     budget = prof.servo.ts_s * 1e3
     return [
+        Row("bus: cycles whose reply timed out (emulated)", timeouts, "",
+            f"0 of {CYCLES}", baseline=sdk_fails, passed=timeouts == 0,
+            note="a timed-out read counts here and its cycle time (up to the read timeout) stays in p50/p99; "
+                 "baseline = failed dynamixel-sdk sync reads in the same run"),
         Row("bus: sync write + sync read, p50 (emulated)", p50, "ms",
             f"≤ {0.1 * budget:.1f} ms (10 % of Ts)", baseline=b50, passed=p50 <= 0.1 * budget,
             note=f"{CYCLES} cycles, 3 servos, protocol 2.0 over a pty; baseline = dynamixel-sdk "

@@ -119,5 +119,9 @@ class FakeBus:
             return [0, 0x20, 0]
         return [0, 0, 0]
 
+    def drain_input(self, quiet_s: float) -> int:
+        self._spend(quiet_s)
+        return 0
+
     def close(self) -> None:
         pass

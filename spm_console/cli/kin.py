@@ -18,6 +18,7 @@ from spm_console.core.links import LinkModel
 from spm_console.core.model import link_model_of, model_of
 from spm_console.core.modes import assembly_modes
 from spm_console.errors import BadInputError, ExitCode, UnreachableError
+from spm_console.formatting import fmt_residual
 from spm_console.profile import Profile
 
 
@@ -115,7 +116,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
         *(f"v{i + 1}       = {fmt_vec(r.pose.v[i])}" for i in range(3)),
         f"n        = {fmt_vec(r.pose.n)}",
         f"ζ        = {r.pose.zeta:.4f}",
-        f"residual = {r.pose.residual:.1e}",
+        f"residual {fmt_residual(r.pose.residual)}",
         f"closest links = {rec['min_link_distance_mm']:.1f} mm ({rec['closest_pair']})",
         "feasible" if rec["feasible"] else f"NOT feasible: {rec['reason']}",
     ]

@@ -65,5 +65,27 @@ class ServoBus(Protocol):
         """Hardware Error Status of each joint's servo (0 = fine)."""
         ...
 
+    def drain_input(self, quiet_s: float) -> int:
+        """Discard late replies until the line is quiet for ``quiet_s``; bytes discarded."""
+        ...
+
     def close(self) -> None:
         ...
+
+
+#: Quiet time on the line before a set-up read is retried.
+SETUP_QUIET_S = 0.02
+
+
+def read_position_settled(bus: ServoBus, attempts: int) -> F:
+    """Present Position for set-up, never for the real-time loop: up to ``attempts`` tries,
+    the line drained between them, so a late reply to a failed try is not taken for the
+    next one's. Raises the last CommError/OSError when every try failed."""
+    for k in range(attempts):
+        try:
+            return np.asarray(bus.read_position_deg(), float)
+        except (CommError, OSError):
+            if k == attempts - 1:
+                raise
+            bus.drain_input(SETUP_QUIET_S)
+    raise AssertionError("unreachable")

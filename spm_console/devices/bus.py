@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import functools
 import math
-import time
 from collections.abc import Callable, Sequence
 from typing import TypeVar
 
@@ -56,15 +55,19 @@ class LimitError(BadInputError):
 PING_ATTEMPTS = 3
 
 
-def _retry(fn: Callable[[], T], attempts: int = PING_ATTEMPTS, pause_s: float = 0.005) -> T:
-    """Call ``fn``, retrying after a short pause when a reply is lost (CommError)."""
+#: Quiet time on the line before a set-up retry: late replies to the failed try drain first.
+RETRY_QUIET_S = 0.02
+
+
+def _retry(fn: Callable[[], T], drain: Callable[[float], object], attempts: int = PING_ATTEMPTS) -> T:
+    """Call ``fn``, retrying once the line is quiet when a reply is lost (CommError)."""
     for k in range(attempts):
         try:
             return fn()
         except CommError:
             if k == attempts - 1:
                 raise
-            time.sleep(pause_s)
+            drain(RETRY_QUIET_S)
     raise AssertionError("unreachable")
 
 
@@ -115,7 +118,7 @@ class DynamixelBus:
         """Ping one id; BusError if it does not answer (after :data:`PING_ATTEMPTS` tries:
         one lost reply is not a missing servo) or is not the profile's model."""
         try:
-            model, fw, r = _retry(lambda: self.link.ping(ident))
+            model, fw, r = _retry(lambda: self.link.ping(ident), self.drain_input)
         except CommError as exc:
             raise BusError(
                 f"no status packet from servo id {ident} on {self.port} ({exc}). Check power, "
@@ -135,7 +138,7 @@ class DynamixelBus:
         out = []
         for ident in self.ids:
             st = self.ping(ident)
-            hw = _retry(functools.partial(self._hardware_error, ident))
+            hw = _retry(functools.partial(self._hardware_error, ident), self.drain_input)
             out.append(ServoStatus(id=st.id, model_number=st.model_number, firmware=st.firmware,
                                    hardware_error=hw))
         return out
@@ -226,6 +229,10 @@ class DynamixelBus:
         """Present Position of the three joints, deg (sync read on 2.0, bulk read on 1.0)."""
         ticks = self.read_ticks()
         return np.array([m.to_deg(t) for m, t in zip(self.maps, ticks, strict=True)])
+
+    def drain_input(self, quiet_s: float) -> int:
+        """Discard late input until the line is quiet for ``quiet_s``; bytes discarded."""
+        return self.transport.drain(quiet_s)
 
     def hold(self) -> F:
         """Goal := measured position (stop where we are); returns that position (deg)."""

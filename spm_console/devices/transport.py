@@ -94,6 +94,28 @@ class SerialTransport:
         with self._lock:
             self._send(packet)
 
+    def drain(self, quiet_s: float, max_s: float = 0.25) -> int:
+        """Discard input until the line has been quiet for ``quiet_s`` (at most ``max_s``).
+
+        For set-up retries after a lost reply: late replies to the failed request are
+        still on their way and would otherwise be taken for the next request's. Returns
+        the number of bytes discarded. Not for the real-time loop (it waits).
+        """
+        dropped = 0
+        with self._lock:
+            fd = self._ser.fileno()
+            end = time.perf_counter() + max_s
+            while (left := end - time.perf_counter()) > 0:
+                try:
+                    ready, _, _ = select.select([fd], [], [], min(quiet_s, left))
+                    if not ready:
+                        break
+                    dropped += len(self._ser.read(self._ser.in_waiting or 1))
+                except (serial.SerialException, OSError) as exc:
+                    raise CommError(f"read from {self.port} failed: {exc}") from None
+        self.bytes_in += dropped
+        return dropped
+
     def _collect(self, decoder: StreamDecoder[P], count: int, timeout_s: float) -> list[P]:
         got: list[P] = []
         fd = self._ser.fileno()

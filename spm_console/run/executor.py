@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
 from spm_console.core.servo_model import discretize
-from spm_console.devices.base import CommError, ServoBus
+from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_settled
 from spm_console.errors import BadInputError, BusError, ExitCode, SpmError
 from spm_console.profile import Profile
 from spm_console.run.runlog import RunLog
@@ -45,8 +45,6 @@ from spm_console.run.segments import ExecutionResult, Segment, check_segments
 from spm_console.run.stats import run_stats
 
 F = NDArray[np.float64]
-SETUP_RETRY_PAUSE_S = 0.01
-"""Pause between set-up retries (before motion): late replies drain before the next try."""
 BusFailure = (CommError, OSError, BusError)
 """What counts as one failed bus transaction (a serial exception is an OSError; a status
 packet carrying an error number raises BusError)."""
@@ -132,14 +130,10 @@ class Executor:
 
     def read_initial(self, attempts: int = 5) -> F:
         """Measured position before any motion; BusError if the servos stay silent."""
-        last = ""
-        for n in range(attempts):
-            try:
-                return np.asarray(self.bus.read_position_deg(), float)
-            except BusFailure as exc:
-                last = str(exc) or type(exc).__name__
-                if n + 1 < attempts:
-                    (self.sleep or time.sleep)(SETUP_RETRY_PAUSE_S)
+        try:
+            return read_position_settled(self.bus, attempts)
+        except BusFailure as exc:
+            last = str(exc) or type(exc).__name__
         raise BusError(f"no position reply from the servos after {attempts} tries ({last}); "
                        "check power, wiring, baud rate and ids (`spm-console servo ping`)")
 
@@ -213,7 +207,7 @@ class Executor:
             except BusFailure as exc:
                 last = exc
                 self._event("comm_retry", op=what, error=str(exc))
-                (self.sleep or time.sleep)(SETUP_RETRY_PAUSE_S)
+                self.bus.drain_input(SETUP_QUIET_S)
         raise BusError(f"cannot {what} after {attempts} tries: {last}; nothing moved")
 
     def _preflight(self, theta0: F) -> StopReason | None:

@@ -193,17 +193,14 @@ class Session:
         return self.bus
 
     def read_position(self) -> F:
-        from spm_console.devices.base import CommError
+        from spm_console.devices.base import CommError, read_position_settled
 
         bus = self.require_bus()
-        last = ""
-        for _ in range(3):
-            try:
-                self.theta_deg = np.asarray(bus.read_position_deg(), float)
-                return self.theta_deg
-            except (CommError, OSError) as exc:
-                last = str(exc) or type(exc).__name__
-        raise BusError(f"no position reply from the servos after 3 tries ({last})")
+        try:
+            self.theta_deg = read_position_settled(bus, 3)
+        except (CommError, OSError) as exc:
+            raise BusError(f"no position reply from the servos after 3 tries ({exc})") from None
+        return self.theta_deg
 
     def disconnect(self) -> None:
         bus, self.bus = self.bus, None

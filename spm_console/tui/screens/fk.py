@@ -11,6 +11,7 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import Input, Static
 
+from spm_console.formatting import fmt_residual
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.connect import fmt_deg
 from spm_console.tui.widgets.angles import AnglesInput
@@ -27,7 +28,7 @@ def fk_text(rec: dict[str, Any]) -> str:
     lines += [
         f"n        = {fmt_vec(rec['n'])}",
         f"ζ        = {rec['zeta']:.4f}",
-        f"residual = {rec['residual']:.1e}",
+        f"residual {fmt_residual(rec['residual'])}",
         f"closest links = {rec['min_link_distance_mm']:.1f} mm ({rec['closest_pair']})",
         "FEASIBLE" if rec["feasible"] else f"NOT FEASIBLE: {rec['reason']}",
     ]
