@@ -65,7 +65,7 @@ def _one(prof: Profile, plan: Plan) -> dict[str, Any]:
     bus = open_bus(prof, emu.port)
     with tempfile.TemporaryDirectory() as tmp:
         log = RunLog.create("bench", prof.name, prof.digest(), [], root=tmp)
-        ex = Executor(prof, bus, log=log, on_start=emu.start_clock)
+        ex = Executor(prof, bus, workspace=load_or_build(prof)[0], log=log, on_start=emu.start_clock)
         try:
             result = ex.run([Segment("plan", plan)])
             truth = emu.true_state()

@@ -30,6 +30,7 @@ class ExitCode(IntEnum):
     STOP_HW_ERROR = 23
     STOP_REGION = 24
     STOP_LIMIT = 25
+    PLAN_REFUSED = 26
     INTERRUPTED = 130
 
 
@@ -89,3 +90,10 @@ class BusError(SpmError):
     """The servo bus cannot be opened, or a servo is absent or of the wrong model."""
 
     exit_code = ExitCode.BUS_ERROR
+
+
+class PlanRefusedError(SpmError):
+    """The runtime's own verification refused a plan before torque-on (the motion would
+    leave the certified feasible set, or exceed a speed, step or servo limit)."""
+
+    exit_code = ExitCode.PLAN_REFUSED

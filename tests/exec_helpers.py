@@ -22,6 +22,7 @@ from spm_console.run.executor import ExecutionResult, Executor, Segment
 from spm_console.run.plans import servo_model_of
 from spm_console.run.runlog import RunLog
 from spm_console.run.sample import Sample
+from tests.ws_helpers import agile_workspace
 
 PAPER_START = np.array([127.53, 83.23, 85.25])
 PAPER_GOAL = np.array([66.80, 155.00, 131.48])
@@ -51,13 +52,14 @@ def run_on_emulator(
 ) -> EmuRun:
     """Execute over a fresh emulator; ``after`` runs before the emulator is stopped."""
     start = segments[0].plan.reference_deg[0] if initial_deg is None else initial_deg
+    ws = agile_workspace()  # before the emulator's fault clock starts (a first build takes seconds)
     emu = start_emulator(profile, faults, record=True, initial_deg=list(start))
     bus = open_bus(profile, emu.port)
     try:
         log = RunLog.create("execute", profile.name, profile.digest(), [], root=tmp_path)
         holder: list[Executor] = []
         cb = None if on_sample is None else (lambda s: on_sample(holder[0], emu, s))
-        ex = Executor(profile, bus, log=log, on_start=emu.start_clock, on_sample=cb)
+        ex = Executor(profile, bus, workspace=ws, log=log, on_start=emu.start_clock, on_sample=cb)
         holder.append(ex)
         res = ex.run(list(segments))
         if after is not None:

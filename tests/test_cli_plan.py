@@ -58,14 +58,27 @@ def test_mintime_records_the_certificate(capsys: pytest.CaptureFixture[str], tmp
     box = tmp_path / "box.json"
     box.write_text(json.dumps(Region.box(65.0, 155.0).to_dict()))
     out = tmp_path / "mt.json"
-    code, so, _ = run(capsys, "plan", "mintime", "--start", "70", "90", "80", "--goal", *GOAL,
+    code, so, _ = run(capsys, "plan", "mintime", "--start", *START, "--goal", *GOAL,
                       "--vmax", "50", "--region", str(box), "--out", str(out), "--json")
     assert code == 0
     rec = json.loads(so)
-    assert rec["kind"] == "mintime" and rec["N"] == 65
+    assert rec["kind"] == "mintime" and rec["N"] == 72
     cert = rec["n_minus_1_infeasible"]
-    assert cert["N"] == 64 and cert["certificate"]["valid"]
-    assert json.loads(out.read_text())["n_minus_1_infeasible"]["N"] == 64
+    assert cert["N"] == 71 and cert["certificate"]["valid"]
+    assert json.loads(out.read_text())["n_minus_1_infeasible"]["N"] == 71
+
+
+def test_a_region_file_cannot_take_a_plan_outside_the_workspace(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    # the paper's minimum-time pair in the 65..155° box: the motion passes within Δ of a
+    # singular node, which the workspace does not certify -> refused (exit 26), no file
+    box = tmp_path / "box.json"
+    box.write_text(json.dumps(Region.box(65.0, 155.0).to_dict()))
+    out = tmp_path / "mt.json"
+    code, _, err = run(capsys, "plan", "mintime", "--start", "70", "90", "80", "--goal", *GOAL,
+                       "--vmax", "50", "--region", str(box), "--out", str(out))
+    assert code == ExitCode.PLAN_REFUSED
+    assert "does not certify" in err and not out.exists()
 
 
 def test_errors_have_distinct_exit_codes(capsys: pytest.CaptureFixture[str], tmp_path: Path,

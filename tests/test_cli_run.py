@@ -27,7 +27,7 @@ GOAL = np.array([100.0, 120.0, 110.0])
 @pytest.fixture(scope="module")
 def plan_file(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
     path = tmp_path_factory.mktemp("plans") / "short.json"
-    save_plan(synthetic_plan(agile, PAPER_START, GOAL, 1.0), path)
+    save_plan(synthetic_plan(agile, PAPER_START, GOAL, 1.5), path)
     return path
 
 
@@ -191,4 +191,5 @@ def test_sigkill_leaves_a_readable_log(tmp_path: Path, agile: Profile) -> None:
     assert run.rows >= 40
     assert np.array_equal(run.columns["k"], np.arange(run.rows))
     assert np.isfinite(run.vec("meas")).all() and np.isfinite(run.vec("vel")).all()
-    assert [e["event"] for e in run.events][:3] == ["start", "watchdog", "torque_on"]
+    assert [e["event"] for e in run.events][:5] == ["plan_verified", "start", "realtime", "watchdog",
+                                                   "torque_on"]

@@ -17,6 +17,7 @@ from spm_console.run.executor import Executor, Segment
 from spm_console.run.homing import home
 from spm_console.run.runlog import RunLog, load_run
 from tests.exec_helpers import paper_mvn, run_on_emulator, true_velocity_at_reads
+from tests.ws_helpers import agile_workspace
 
 
 def test_paper_mvn_tracks_model_and_kalman_beats_finite_differences(
@@ -56,11 +57,12 @@ def test_homing_over_the_bus_is_speed_bounded_and_seeds_fk(agile: Profile, tmp_p
     from spm_console.devices.emulator import start_emulator
 
     start = [110.0, 150.0, 125.0]
+    ws = agile_workspace()
     emu = start_emulator(agile, initial_deg=start)
     bus = open_bus(agile, emu.port)
     try:
         log = RunLog.create("home", agile.name, agile.digest(), [], root=tmp_path)
-        r = home(Executor(agile, bus, log=log, on_start=emu.start_clock))
+        r = home(Executor(agile, bus, workspace=ws, log=log, on_start=emu.start_clock))
         truth = emu.true_state()
     finally:
         bus.close()

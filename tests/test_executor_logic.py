@@ -11,13 +11,14 @@ import numpy as np
 import pytest
 
 from spm_console.core.region import Region
-from spm_console.errors import BadInputError, ExitCode, UnreachableError
+from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, UnreachableError
 from spm_console.profile import Profile
 from spm_console.run.executor import Executor, Segment
 from spm_console.run.homing import check_assembly_mode, home
 from spm_console.run.plans import line_plan, synthetic_plan
 from spm_console.run.runlog import RunLog, load_run
 from tests.fake_bus import FakeBus, SimClock
+from tests.ws_helpers import agile_workspace
 
 START = np.array([120.0, 100.0, 110.0])
 GOAL = np.array([140.0, 125.0, 95.0])
@@ -30,7 +31,7 @@ def _sim(start: np.ndarray) -> FakeBus:
 def _executor(profile: Profile, bus: FakeBus, tmp_path: Path, **kw) -> Executor:  # type: ignore[no-untyped-def]
     log = RunLog.create("execute", profile.name, profile.digest(), [], root=tmp_path)
     clock = {} if bus.clock is None else {"clock": bus.clock, "sleep": bus.clock.sleep}
-    return Executor(profile, bus, log=log, on_start=bus.start_clock, **clock, **kw)
+    return Executor(profile, bus, workspace=agile_workspace(), log=log, on_start=bus.start_clock, **clock, **kw)
 
 
 def _run(profile: Profile, bus: FakeBus, plan, tmp_path: Path, **kw):  # type: ignore[no-untyped-def]
@@ -50,7 +51,7 @@ def _with_safety(profile: Profile, **upd: object) -> Profile:
 
 
 def test_completes_with_drift_free_deadlines(agile: Profile, tmp_path: Path) -> None:
-    plan = synthetic_plan(agile, START, GOAL, 0.8)
+    plan = synthetic_plan(agile, START, GOAL, 1.0)
     bus = _sim(START)
     seen: list[int] = []
 
@@ -157,19 +158,24 @@ def test_hardware_error_stops(agile: Profile, tmp_path: Path, alerts: bool) -> N
 
 
 def test_region_exit_stops(agile: Profile, tmp_path: Path) -> None:
+    # an external push of joint 1 by 36°: from ~121° to ~157°, outside the grid (65..155°)
+    # but inside the servo limits (160°): the certified set, not the plan's region, stops it
     plan = synthetic_plan(agile, START, GOAL, 1.0)
-    tight = Region(np.array([[1.0, 0.0, 0.0]]), np.array([130.0]))  # θ1 ≤ 130°
+    tight = Region(np.array([[1.0, 0.0, 0.0]]), np.array([130.0]))  # what the file claims: ignored
     plan = type(plan)(**{**plan.__dict__, "region": tight})
-    ex, res = _run(agile, _sim(START), plan, tmp_path)
-    assert res.exit_code == ExitCode.STOP_REGION
-    assert ex.samples[-1].measured_deg[0] > 130.0 + agile.safety.region_margin_deg
-    assert ex.samples[-2].measured_deg[0] <= 130.0 + agile.safety.region_margin_deg
+    bus = _sim(START)
+    bus.push_after, bus.push_deg = 0.1, 36.0
+    ex, res = _run(agile, bus, plan, tmp_path)
+    assert res.exit_code == ExitCode.STOP_REGION, res.message
+    assert "certified feasible set" in res.message
+    assert ex.samples[-1].measured_deg[0] > 155.0
+    assert all(s.measured_deg[0] < 140.0 for s in ex.samples[:-1])
 
 
 def test_servo_limit_stops_and_hold_is_within_limits(agile: Profile, tmp_path: Path) -> None:
-    start = np.array([157.0, 100.0, 110.0])
+    start = np.array([150.0, 100.0, 110.0])
     bus = _sim(start)
-    bus.push_after, bus.push_deg = 0.2, 5.0  # an external push beyond the 160° limit
+    bus.push_after, bus.push_deg = 0.2, 12.0  # an external push beyond the 160° limit
     plan = synthetic_plan(agile, start, start, 0.6)
     _ex, res = _run(agile, bus, plan, tmp_path)
     assert res.exit_code == ExitCode.STOP_LIMIT and "joint 1" in res.message
@@ -189,11 +195,11 @@ def test_torque_off_stop_action(agile: Profile, tmp_path: Path) -> None:
 def test_refusals_move_nothing(agile: Profile, tmp_path: Path) -> None:
     bus = _sim(START)
     bad = synthetic_plan(agile, START, np.array([165.0, 100.0, 100.0]), 1.0)
-    with pytest.raises(BadInputError, match="servo limits"):
-        Executor(agile, bus).run([Segment("plan", bad)])
+    with pytest.raises(PlanRefusedError, match="servo limits"):
+        Executor(agile, bus, workspace=agile_workspace()).run([Segment("plan", bad)])
     far = synthetic_plan(agile, START + 5.0, GOAL, 1.0)
     with pytest.raises(BadInputError, match="plan starts at"):
-        Executor(agile, bus).run([Segment("plan", far)])
+        Executor(agile, bus, workspace=agile_workspace()).run([Segment("plan", far)])
     assert bus.writes == [] and bus.torque_calls == []
 
 

@@ -14,7 +14,7 @@ import pytest
 from spm_console.core.region import Region
 from spm_console.devices.emulator import EmulatorHandle
 from spm_console.devices.faults import FaultSpec, parse_fault
-from spm_console.errors import ExitCode
+from spm_console.errors import ExitCode, PlanRefusedError
 from spm_console.profile import Profile
 from spm_console.run.executor import Executor, Segment
 from spm_console.run.plans import synthetic_plan
@@ -109,13 +109,21 @@ def test_fault_stops_safely(agile: Profile, tmp_path: Path, name: str) -> None:
         assert np.allclose(stop["hold_deg"][0], agile.bus.joints[0].max_deg)
 
 
-def test_region_exit_stops_over_the_bus(agile: Profile, tmp_path: Path) -> None:
+def test_the_plan_files_region_is_not_believed(agile: Profile, tmp_path: Path) -> None:
+    # a region that excludes most of the motion: the runtime checks the motion against this
+    # profile's workspace instead, so the (certified) motion runs to the end ...
     plan = synthetic_plan(agile, PAPER_START, GOAL, 1.5)
     tight = Region(np.array([[-1.0, 0.0, 0.0]]), np.array([-115.0]))  # θ1 ≥ 115°
     plan = type(plan)(**{**plan.__dict__, "region": tight})
     run = run_on_emulator(agile, [Segment("plan", plan)], tmp_path)
-    _check_stop(run, ExitCode.STOP_REGION, "left the plan's region", agile.servo.ts_s)
+    assert run.result.ok, run.result.message
     assert run.samples[-1].measured_deg[0] < 115.0 - agile.safety.region_margin_deg
+    # ... and a box region around a motion the workspace does not certify is refused
+    box = Region.box(60.0, 160.0)
+    bad = synthetic_plan(agile, PAPER_START, np.array([158.0, 100.0, 110.0]), 1.5)
+    with pytest.raises(PlanRefusedError, match="does not certify"):
+        run_on_emulator(agile, [Segment("plan", type(bad)(**{**bad.__dict__, "region": box}))],
+                        tmp_path)
 
 
 @pytest.mark.parametrize("fault", ["drop:0.05", "corrupt:0.05"])

@@ -17,6 +17,7 @@ from spm_console.core.plan import Plan
 from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
 from spm_console.core.region import Region
 from spm_console.core.servo_model import discretize
+from spm_console.core.workspace import Workspace
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.plan_file import load_plan, plan_hash, plan_to_dict, save_plan
 from spm_console.profile import Profile
@@ -30,7 +31,8 @@ def register(sub: Any) -> None:
     _problem_args(m)
     m.add_argument("--steps", type=int, default=150, metavar="N", help="intervals N (default 150)")
     m.add_argument("--vmax", type=float, default=None, metavar="V",
-                   help="speed bound at the samples, deg/s (default: none, as in the paper)")
+                   help="speed bound at the samples, deg/s (default: the profile's limits.vmax_degps, "
+                        "which the executor enforces)")
     m.set_defaults(func=cmd_mvn)
 
     t = psub.add_parser("mintime", help="minimum-time references under a speed bound")
@@ -92,17 +94,23 @@ def _region_file(path: Path) -> Region:
         raise BadInputError(f"--region {path}: {exc}") from None
 
 
+def _workspace(args: argparse.Namespace, profile: Profile) -> Workspace:
+    from spm_console.workspace_cache import load_or_build
+
+    ws, ci = load_or_build(profile, args.cache_dir)
+    if not ci.hit:
+        info(f"workspace built in {ci.build_seconds:.1f} s ({ci.rebuilt_because})")
+    return ws
+
+
 def resolve_region(args: argparse.Namespace, profile: Profile, s: np.ndarray,
                    g: np.ndarray) -> tuple[Region, str]:
     """The region to plan in: a file, the cached P, or one built around the segment."""
     if args.region is not None:
         return _region_file(args.region), f"file {args.region}"
     from spm_console.core.region_build import region_containing
-    from spm_console.workspace_cache import load_or_build
 
-    ws, ci = load_or_build(profile, args.cache_dir)
-    if not ci.hit:
-        info(f"workspace built in {ci.build_seconds:.1f} s ({ci.rebuilt_because})")
+    ws = _workspace(args, profile)
     region = region_containing(ws, s, g)  # raises InfeasibleError with the reason
     return region, "workspace P" if region is ws.region else "region built around the segment"
 
@@ -160,7 +168,11 @@ def _human(plan: Plan, out: Path | None, source: str) -> str:
     return "\n".join(lines)
 
 
-def _finish(args: argparse.Namespace, plan: Plan, source: str) -> int:
+def _finish(args: argparse.Namespace, profile: Profile, plan: Plan, source: str) -> int:
+    from spm_console.run.plan_check import verify_plan
+
+    # the runtime's own check, whatever region the plan was solved in: emit only what executes
+    verify_plan(profile, _workspace(args, profile), plan)
     if args.out is not None:
         try:
             save_plan(plan, args.out)
@@ -183,9 +195,10 @@ def _plot(plan: Plan, path: Path) -> None:
 
 def cmd_mvn(args: argparse.Namespace) -> int:
     profile = profile_of(args)
-    pb, source = _problem(args, profile, args.steps, args.vmax)
+    vmax = profile.limits.vmax_degps if args.vmax is None else args.vmax
+    pb, source = _problem(args, profile, args.steps, vmax)
     res = solve_problem(pb)
-    return _finish(args, res.to_plan("mvn", plan_hash(profile)), source)
+    return _finish(args, profile, res.to_plan("mvn", plan_hash(profile)), source)
 
 
 def cmd_mintime(args: argparse.Namespace) -> int:
@@ -193,7 +206,7 @@ def cmd_mintime(args: argparse.Namespace) -> int:
     vmax = profile.limits.vmax_degps if args.vmax is None else args.vmax
     pb, source = _problem(args, profile, 2, vmax)
     res = solve_mintime_problem(pb)
-    return _finish(args, res.to_plan("mintime", plan_hash(profile)), source)
+    return _finish(args, profile, res.to_plan("mintime", plan_hash(profile)), source)
 
 
 def cmd_show(args: argparse.Namespace) -> int:

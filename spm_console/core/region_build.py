@@ -363,6 +363,10 @@ def region_containing(ws: Workspace, theta_a_deg: F, theta_b_deg: F) -> Region:
 
     a = np.asarray(theta_a_deg, float)
     b = np.asarray(theta_b_deg, float)
+    if not bool(ws.feasible.any()):
+        raise InfeasibleError("the workspace has no feasible node (every grid node is singular, "
+                              "colliding or unreachable): nothing can be planned in it; check the "
+                              "profile's links, δ and ζ_min")
     if bool(ws.region.contains(np.stack([a, b]), tol=1e-9).all()):
         return ws.region
     check_segment(ws, a, b)

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from spm_console.core.certify import CertifiedSet
 from spm_console.core.fk_grid import track_grid
 from spm_console.core.kinematics import PATH_ZETA_FLOOR, platform_axes
 from spm_console.core.links import LinkModel
@@ -150,6 +151,11 @@ class Workspace:
             "unreached": int((k == NodeClass.UNREACHED).sum()),
             "disconnected": int((k == NodeClass.DISCONNECTED).sum()),
         }
+
+    def certified_set(self) -> CertifiedSet:
+        """The grid's certified feasible set P′ (:mod:`spm_console.core.certify`)."""
+        return CertifiedSet(self.feasible, np.array([a[0] for a in self.axes_deg], float),
+                            float(self.step_deg))
 
     def index_of(self, theta_deg: F) -> tuple[int, int, int] | None:
         """Index of the grid node nearest θ (deg), or None outside the grid (by > Δ/2)."""

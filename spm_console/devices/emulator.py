@@ -35,6 +35,7 @@ from spm_console.devices.faults import FaultSpec
 from spm_console.devices.tick_map import JointMap, joint_maps
 from spm_console.errors import BusError
 from spm_console.profile import Profile
+from spm_console.realtime import EMULATOR_PRIORITY, RtGrant, request_realtime
 
 F = NDArray[np.float64]
 
@@ -108,6 +109,8 @@ class EmulatorHandle:
         self.port: str = os.ttyname(self._slave)
         for f in faults:
             self.inject(f)
+        self.realtime = RtGrant("normal", "not serving yet")
+        """The scheduling the serving thread got."""
         self._thread = threading.Thread(target=self._serve, name="spm-emulator", daemon=True)
         self._thread.start()
 
@@ -206,6 +209,7 @@ class EmulatorHandle:
     # --- serving thread ---------------------------------------------------------------
 
     def _serve(self) -> None:
+        self.realtime = request_realtime(EMULATOR_PRIORITY)
         try:
             while not self._stop.is_set():
                 timeout = IDLE_S

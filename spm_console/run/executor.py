@@ -35,13 +35,16 @@ from numpy.typing import NDArray
 
 from spm_console.core.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
 from spm_console.core.servo_model import discretize
+from spm_console.core.workspace import Workspace
 from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_settled
-from spm_console.errors import BadInputError, BusError, ExitCode, SpmError
+from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
 from spm_console.profile import Profile
+from spm_console.realtime import LOOP_PRIORITY, RtGrant, release_realtime, request_realtime
+from spm_console.run.plan_check import LINE_PHASES, PlanCheck, PlanVerifier
 from spm_console.run.runlog import RunLog
 from spm_console.run.safety import SafetyMonitor, StopReason
 from spm_console.run.sample import Sample
-from spm_console.run.segments import ExecutionResult, Segment, check_segments
+from spm_console.run.segments import ExecutionResult, Segment
 from spm_console.run.stats import run_stats
 
 F = NDArray[np.float64]
@@ -62,6 +65,7 @@ class Executor:
         profile: Profile,
         bus: ServoBus,
         *,
+        workspace: Workspace,
         log: RunLog | None = None,
         on_sample: Callable[[Sample], None] | None = None,
         on_start: Callable[[], None] | None = None,
@@ -74,6 +78,8 @@ class Executor:
     ) -> None:
         self.profile = profile
         self.bus = bus
+        self.verifier = PlanVerifier(profile, workspace)
+        """Checks every plan against this profile's workspace before torque-on."""
         self.log = log
         self.on_sample = on_sample
         self.on_start = on_start
@@ -96,6 +102,8 @@ class Executor:
         self._last_good = np.zeros(3)
         self._torque_on = False
         self._watchdog_armed = False
+        self.realtime = RtGrant("normal", "not running")
+        """The scheduling the loop thread got (logged as the "realtime" event)."""
 
     # ------------------------------------------------------------------ control
     def request_estop(self, reason: str = "operator request") -> None:
@@ -124,9 +132,19 @@ class Executor:
                 time.sleep(0)
 
     # ------------------------------------------------------------------ checks
-    def check_plan(self, segments: Sequence[Segment]) -> None:
-        """Refuse plans with the wrong Ts or references outside the servo limits."""
-        check_segments(segments, self.ts, self.lo, self.hi)
+    def check_plan(self, segments: Sequence[Segment]) -> PlanCheck:
+        """The runtime's own verification (:mod:`spm_console.run.plan_check`): refuses
+        with :class:`PlanRefusedError` (exit 26) before anything moves; logged."""
+        try:
+            check = self.verifier.verify(segments)
+        except PlanRefusedError as exc:
+            self._event("plan_refused", message=exc.message)
+            raise PlanRefusedError(f"{exc.message}; nothing moved") from None
+        self._event("plan_verified", points=check.points, segments=check.segments,
+                    max_speed_degps=check.max_speed_degps,
+                    max_reference_step_deg=check.max_reference_step_deg,
+                    ms=round(check.seconds * 1e3, 3))
+        return check
 
     def read_initial(self, attempts: int = 5) -> F:
         """Measured position before any motion; BusError if the servos stay silent."""
@@ -140,6 +158,7 @@ class Executor:
     # ------------------------------------------------------------------ the loop
     def run(self, segments: Sequence[Segment], theta0_deg: F | None = None) -> ExecutionResult:
         """Execute the segments back to back; returns when done or stopped."""
+        self.t0 = self.clock()  # set-up events: time since run() began (the loop resets t0)
         self.check_plan(segments)
         theta0 = self.read_initial() if theta0_deg is None else np.asarray(theta0_deg, float)
         start = segments[0].plan.reference_deg[0]
@@ -152,13 +171,16 @@ class Executor:
             )
         refs = np.vstack([s.plan.reference_deg for s in segments])
         phases = [s.phase for s in segments for _ in range(s.plan.N + 1)]
-        regions = [s.plan.region for s in segments for _ in range(s.plan.N + 1)]
-        self.t0 = self.clock()  # set-up events: time since run() began (the loop resets t0)
+        # planned segments stay in the certified set; runtime-built straight moves were
+        # checked exactly along their path instead (plan_check.LINE_PHASES)
+        regions = [s.phase not in LINE_PHASES for s in segments for _ in range(s.plan.N + 1)]
         self._last_good = theta0.copy()
         self._torque_on = False
         self._event("start", theta0_deg=theta0, cycles=len(refs),
                     segments=[(s.phase, s.plan.kind, s.plan.N) for s in segments])
         stop: StopReason | None = None
+        self.realtime = request_realtime(LOOP_PRIORITY)
+        self._event("realtime", policy=self.realtime.policy, detail=self.realtime.detail)
         try:
             stop = self._preflight(theta0)
             if stop is None:
@@ -177,6 +199,8 @@ class Executor:
             code = exc.exit_code if isinstance(exc, SpmError) else ExitCode.INTERNAL
             self._finish("refused" if spm and not self.samples else "error", code, msg, None)
             raise
+        finally:
+            release_realtime(self.realtime)
         self._release_watchdog()
         if stop is None:
             msg = f"executed {len(refs)} cycles ({len(refs) * self.ts:.2f} s)"
@@ -231,8 +255,8 @@ class Executor:
         self._event("torque_on", goal_deg=theta0)
         return None
 
-    def _loop(self, refs: F, phases: list[str], regions: list[Any], theta0: F) -> StopReason | None:
-        safety = SafetyMonitor(self.profile)
+    def _loop(self, refs: F, phases: list[str], regions: list[bool], theta0: F) -> StopReason | None:
+        safety = SafetyMonitor(self.profile, self.verifier.certified)
         self.safety = safety
         kf = KalmanVelocity(self.model, theta0, self.profile.estimation.measurement_noise_deg,
                             self.profile.estimation.process_noise_deg)

@@ -13,7 +13,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.region import Region
+from spm_console.core.certify import CertifiedSet
 from spm_console.errors import ExitCode
 from spm_console.profile import Profile
 
@@ -72,8 +72,16 @@ def _vec(v: F, digits: int = 2) -> str:
 class SafetyMonitor:
     """Stateful checks: tracking, region, servo limits, communication, hardware errors."""
 
-    def __init__(self, profile: Profile) -> None:
+    def __init__(self, profile: Profile, certified: CertifiedSet | None = None) -> None:
         self.cfg = profile.safety
+        self.certified = certified
+        """The workspace's certified set: where a planned motion's measured position must stay."""
+        self.region_half_width_deg = 0.0
+        if certified is not None:
+            # the margin relaxes the grid criterion (cube half-width Δ − margin), never
+            # below the Δ/2 that still needs a feasible node on every axis
+            step = certified.step_deg
+            self.region_half_width_deg = step - min(self.cfg.region_margin_deg, 0.45 * step)
         self.lo = np.array([j.min_deg for j in profile.bus.joints])
         self.hi = np.array([j.max_deg for j in profile.bus.joints])
         self.ids = [j.id for j in profile.bus.joints]
@@ -102,9 +110,10 @@ class SafetyMonitor:
         return None
 
     def position(
-        self, measured: F, predicted: F, region: Region, t: float, k: int
+        self, measured: F, predicted: F, in_workspace: bool, t: float, k: int
     ) -> StopReason | None:
-        """Servo limits, then region P + margin, then tracking error against the model."""
+        """Servo limits, then (``in_workspace``: a planned segment) the certified set with
+        the region margin, then tracking error against the model."""
         out = (measured < self.lo) | (measured > self.hi)
         if out.any():
             i = int(np.argmax(out))
@@ -114,12 +123,13 @@ class SafetyMonitor:
                 f"[{self.lo[i]:.1f}, {self.hi[i]:.1f}]° (θ = {_vec(measured)}°)",
                 t, k,
             )
-        excursion = float(region.violation_deg(measured))
-        if excursion > self.cfg.region_margin_deg:
+        if in_workspace and self.certified is not None and not bool(
+                self.certified.contains(measured, self.region_half_width_deg)):
             return StopReason(
                 "region",
-                f"position θ = {_vec(measured)}° left the plan's region by {excursion:.2f}° "
-                f"(margin {self.cfg.region_margin_deg:.2f}°)",
+                f"position θ = {_vec(measured)}° left the workspace's certified feasible set "
+                f"(region margin {self.cfg.region_margin_deg:.2f}°: no infeasible grid node "
+                f"within {self.region_half_width_deg:.2f}°)",
                 t, k,
             )
         err = np.abs(measured - predicted)

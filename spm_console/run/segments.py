@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -11,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.plan import Plan
-from spm_console.errors import BadInputError, ExitCode
+from spm_console.errors import ExitCode
 from spm_console.run.safety import StopReason
 
 F = NDArray[np.float64]
@@ -42,26 +41,3 @@ class ExecutionResult:
     @property
     def ok(self) -> bool:
         return self.outcome == "completed"
-
-
-def check_segments(segments: Sequence[Segment], ts: float, lo: F, hi: F) -> None:
-    """Refuse segments sampled at another Ts or with references outside [lo, hi] (deg)."""
-    if not segments:
-        raise BadInputError("nothing to execute: no plan segments")
-    for seg in segments:
-        plan = seg.plan
-        if abs(plan.Ts - ts) > 1e-9:
-            raise BadInputError(
-                f"{seg.phase}: plan sampled at Ts = {plan.Ts} s but the profile's servo "
-                f"runs at Ts = {ts} s; re-plan with this profile"
-            )
-        ref = plan.reference_deg
-        if ref.ndim != 2 or ref.shape[1] != 3 or not np.all(np.isfinite(ref)):
-            raise BadInputError(f"{seg.phase}: references must be finite (N+1, 3) angles")
-        bad = (ref < lo) | (ref > hi)
-        if bad.any():
-            k, i = (int(x) for x in np.argwhere(bad)[0])
-            raise BadInputError(
-                f"{seg.phase}: reference θ{i + 1}({k}) = {ref[k, i]:.2f}° is outside the "
-                f"servo limits [{lo[i]:.1f}, {hi[i]:.1f}]°; nothing was moved"
-            )

@@ -33,6 +33,7 @@ from spm_console.run.homing import HomingResult, approach_segment, home
 from spm_console.run.plans import plan_summary
 from spm_console.run.runlog import RunLog
 from spm_console.run.sample import Sample
+from spm_console.workspace_cache import load_or_build
 
 F = NDArray[np.float64]
 T = TypeVar("T")
@@ -114,6 +115,8 @@ class RunRequest:
     approach: bool = True
     """Move to the plan's start first when the wrist is elsewhere."""
     log_root: str | Path | None = None
+    cache_dir: str | Path | None = None
+    """Workspace cache folder (default: ``$SPM_CONSOLE_CACHE`` or ``~/.cache/spm_console``)."""
     on_sample: Callable[[Sample], None] | None = None
     on_executor: Callable[[Executor], None] | None = None
     """Called with the executor before it runs (to wire an E-stop button)."""
@@ -126,10 +129,13 @@ def _session(profile: Profile, kind: str, plans: list[dict[str, Any]], req: RunR
                         extra={"sim": req.sim or not (req.port or profile.bus.port),
                                "faults": [str(f) for f in req.faults]})
     try:
+        ws, info = load_or_build(profile, cache_dir=req.cache_dir)
+        log.meta["workspace"] = {"cache": str(info.path), "hit": info.hit, "key": info.key}
         with open_session(profile, req.port, req.sim, req.faults, req.sim_start_deg) as ses:
             log.meta["port"] = ses.port
             on_start = ses.emulator.start_clock if ses.emulator is not None else None
-            ex = Executor(profile, ses.bus, log=log, on_sample=req.on_sample, on_start=on_start)
+            ex = Executor(profile, ses.bus, workspace=ws, log=log, on_sample=req.on_sample,
+                          on_start=on_start)
             if req.on_executor is not None:
                 req.on_executor(ex)
             guard = estop_on_signals(ex) if req.handle_signals else contextlib.nullcontext()

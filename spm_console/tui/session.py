@@ -221,7 +221,8 @@ class Session:
 
         log = RunLog.create(kind, self.profile.name, self.profile.digest(), plans,
                             root=self.logs_root, extra={"bus": self.bus_label})
-        return Executor(self.profile, self.require_bus(), log=log, on_sample=on_sample)
+        ws = self.workspace if self.workspace is not None else self.load_workspace()
+        return Executor(self.profile, self.require_bus(), workspace=ws, log=log, on_sample=on_sample)
 
     def _run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
         if not self._motion.acquire(blocking=False):
@@ -389,6 +390,9 @@ class Session:
         else:
             plan = solve_mintime(model, s, g, region, vmax, ref_lo_deg=lo, ref_hi_deg=hi
                                  ).to_plan("mintime", profile_hash=plan_hash(self.profile))
+        from spm_console.run.plan_check import verify_plan
+
+        verify_plan(self.profile, ws, plan)  # exactly the executor's check: emit only what executes
         self.plan = plan
         self.plan_info = {"method": method, "start": start.describe(), "goal": goal.describe(),
                           "start_deg": s, "goal_deg": g, "vmax_degps": vmax}

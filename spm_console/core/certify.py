@@ -1,0 +1,67 @@
+"""The certified feasible set of a workspace grid, and pointwise membership in it.
+
+The grid certifies a configuration θ when every grid node n with |n − θ|∞ < h is a
+home-connected feasible node and lies on the grid (so θ is inside the grid box). With
+h = Δ (the grid step) this is exactly the paper's P′ on the grid: the complement of the
+open cubes of half-width Δ around every node that is not feasible — the set every region
+(P, and every region grown for a plan) is built inside, and the set the workspace
+verifier samples. A smaller h (Δ − margin, kept above Δ/2 so that every point has a node
+within h on each axis) is a looser test for measured positions near the boundary.
+
+Membership costs a floor and at most 8 table look-ups per point, whatever the grid size:
+it is the check the runtime applies to every sample of a plan and to the continuous motion
+between samples before anything moves. Angles in degrees.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+F = NDArray[np.float64]
+B = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class CertifiedSet:
+    """The feasible-node table of a grid (θ in degrees)."""
+
+    feasible: B
+    """(M1, M2, M3) home-connected feasible nodes."""
+    origin_deg: F
+    """(3,) θ of node [0, 0, 0], deg."""
+    step_deg: float
+    """Grid step Δ, deg."""
+
+    @property
+    def empty(self) -> bool:
+        return not bool(self.feasible.any())
+
+    def contains(self, theta_deg: F, half_width_deg: float | None = None) -> B:
+        """Which points (…, 3) are certified (see module docstring); ``half_width_deg``
+        defaults to Δ (the grid definition of P′) and must lie in (Δ/2, Δ]."""
+        h = self.step_deg if half_width_deg is None else float(half_width_deg)
+        if not 0.5 * self.step_deg < h <= self.step_deg:
+            raise ValueError(f"half width {h} must lie in ({0.5 * self.step_deg}, {self.step_deg}]")
+        th = np.asarray(theta_deg, float)
+        pts = th.reshape(-1, 3)
+        ok = np.all(np.isfinite(pts), axis=1)
+        u = (np.where(np.isfinite(pts), pts, 0.0) - self.origin_deg) / self.step_deg
+        lo = np.floor(u)
+        frac = u - lo
+        r = h / self.step_deg
+        # node lo qualifies when frac < r; node lo + 1 when 1 − frac < r (per axis)
+        want = (frac < r, (1.0 - frac) < r)
+        shape = np.array(self.feasible.shape)
+        base = lo.astype(np.int64)
+        for c in range(8):
+            off = np.array([(c >> 2) & 1, (c >> 1) & 1, c & 1])
+            needed = np.all(np.where(off == 1, want[1], want[0]), axis=1)
+            idx = base + off
+            inside = np.all((idx >= 0) & (idx < shape), axis=1)
+            safe = np.clip(idx, 0, shape - 1)
+            hit = self.feasible[safe[:, 0], safe[:, 1], safe[:, 2]]
+            ok &= ~needed | (inside & hit)
+        return ok.reshape(th.shape[:-1])

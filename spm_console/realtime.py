@@ -1,0 +1,72 @@
+"""Real-time scheduling for the threads that keep time: the servo loop and the emulated bus.
+
+:func:`request_realtime` asks the kernel to run the *calling thread* under SCHED_FIFO at a
+given priority (Linux scheduling is per thread); when that is not permitted it asks for a
+raised nice value instead, and otherwise leaves the thread as it is. Every outcome is
+returned as an :class:`RtGrant` so the caller can say in its log (and the console) what
+it got. :func:`release_realtime` gives the thread back its normal policy.
+
+The bounded work of a FIFO thread (one bus transaction, a few hundred microseconds, then a
+sleep until the next period) cannot starve the machine; the kernel's RT throttling (95 % by
+default) bounds it anyway. ``SPM_CONSOLE_REALTIME=0`` in the environment switches it off.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from dataclasses import dataclass
+
+#: SCHED_FIFO priorities (1..99): the emulated servos above the loop that talks to them.
+LOOP_PRIORITY = 40
+EMULATOR_PRIORITY = 45
+#: Nice value asked for when SCHED_FIFO is refused.
+FALLBACK_NICE = -10
+
+
+@dataclass(frozen=True)
+class RtGrant:
+    """What the calling thread got."""
+
+    policy: str
+    """"SCHED_FIFO", "nice", or "normal"."""
+    detail: str
+    """E.g. "SCHED_FIFO priority 40", or why it could not be had."""
+
+    @property
+    def realtime(self) -> bool:
+        return self.policy == "SCHED_FIFO"
+
+
+def _disabled() -> bool:
+    return os.environ.get("SPM_CONSOLE_REALTIME", "1").strip() in ("0", "no", "off", "false")
+
+
+def request_realtime(priority: int) -> RtGrant:
+    """SCHED_FIFO at ``priority`` for the calling thread, else a raised nice value."""
+    if _disabled():
+        return RtGrant("normal", "real-time scheduling switched off (SPM_CONSOLE_REALTIME=0)")
+    if not hasattr(os, "sched_setscheduler"):
+        return RtGrant("normal", "this platform has no sched_setscheduler")
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return RtGrant("SCHED_FIFO", f"SCHED_FIFO priority {priority}")
+    except OSError as exc:
+        refused = f"SCHED_FIFO refused ({exc.strerror or exc})"
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), FALLBACK_NICE)
+        return RtGrant("nice", f"{refused}; nice {FALLBACK_NICE}")
+    except OSError as exc:
+        return RtGrant("normal", f"{refused}; raising the priority refused too "
+                                 f"({exc.strerror or exc}): timing may suffer under load")
+
+
+def release_realtime(grant: RtGrant) -> None:
+    """Back to SCHED_OTHER / nice 0 for the calling thread (after :func:`request_realtime`)."""
+    try:
+        if grant.policy == "SCHED_FIFO":
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        elif grant.policy == "nice":
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 0)
+    except OSError:
+        pass  # lowering our own priority back can only fail if the thread is gone
