@@ -35,6 +35,32 @@ from spm_console.profile import Profile
 ENV_VAR = "SPM_CONSOLE_CACHE"
 _ARRAYS = ("axis0", "axis1", "axis2", "zeta", "min_link_mm", "closest_pair", "R", "klass",
            "region_A", "region_b", "meta")
+_DATA = _ARRAYS[:-1]
+
+
+def content_digest(arrays: dict[str, Any]) -> str:
+    """SHA-256 over every stored array (name, dtype, shape, bytes): an edited file is no hit."""
+    h = hashlib.sha256()
+    for name in _DATA:
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _consistent(ws: Workspace, profile: Profile) -> str:
+    """Why the stored workspace cannot be this profile's (empty when it can): the grid
+    axes are the profile's, and every node called feasible meets the stored thresholds."""
+    want = core_ws.grid_axes_deg(profile)
+    if any(a.shape != w.shape or not np.allclose(a, w, atol=1e-9) for a, w in
+           zip(ws.axes_deg, want, strict=True)):
+        return "grid axes differ from the profile's"
+    f = ws.feasible
+    with np.errstate(invalid="ignore"):
+        if f.any() and not (bool((ws.zeta[f] >= ws.zeta_min).all())
+                            and bool((ws.min_link_mm[f] >= ws.min_distance_mm).all())):
+            return "nodes marked feasible break the stored thresholds"
+    return ""
 
 
 @dataclass(frozen=True)
@@ -91,6 +117,10 @@ def save(ws: Workspace, path: Path, key: str) -> None:
         "home_index": list(ws.home_index), "seconds": ws.seconds,
         "region_seconds": ws.region_seconds, "region_info": ws.region_info,
     }
+    data: dict[str, np.ndarray] = {"axis0": ws.axes_deg[0], "axis1": ws.axes_deg[1], "axis2": ws.axes_deg[2],
+            "zeta": ws.zeta, "min_link_mm": ws.min_link_mm, "closest_pair": ws.closest_pair,
+            "R": ws.R, "klass": ws.klass, "region_A": ws.region.A, "region_b": ws.region.b}
+    meta["content"] = content_digest(data)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
@@ -98,12 +128,7 @@ def save(ws: Workspace, path: Path, key: str) -> None:
         raise CacheError(f"cannot write workspace cache {path}: {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "wb") as f:
-            np.savez(
-                f, axis0=ws.axes_deg[0], axis1=ws.axes_deg[1], axis2=ws.axes_deg[2],
-                zeta=ws.zeta, min_link_mm=ws.min_link_mm, closest_pair=ws.closest_pair,
-                R=ws.R, klass=ws.klass, region_A=ws.region.A, region_b=ws.region.b,
-                meta=np.array(json.dumps(meta)),
-            )
+            np.savez(f, meta=np.array(json.dumps(meta)), **data)  # type: ignore[arg-type]
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -154,6 +179,9 @@ def load(path: Path, profile: Profile, key: str) -> Workspace:
     meta = d["meta"]
     if meta.get("key") != key:
         raise KeyError("stale key")
+    if meta.get("content") != content_digest(d):
+        raise CacheError(f"workspace cache {path} was modified after it was written "
+                         "(content digest mismatch)")
     axes = (np.asarray(d["axis0"], float), np.asarray(d["axis1"], float),
             np.asarray(d["axis2"], float))
     shape = tuple(len(a) for a in axes)
@@ -166,7 +194,7 @@ def load(path: Path, profile: Profile, key: str) -> Workspace:
     try:
         region = Region.from_dict({"A": d["region_A"], "b": d["region_b"]})
         home = tuple(int(i) for i in meta["home_index"])
-        return Workspace(
+        ws = Workspace(
             axes_deg=axes, step_deg=float(meta["step_deg"]), zeta=d["zeta"],
             min_link_mm=d["min_link_mm"], closest_pair=d["closest_pair"], R=d["R"],
             klass=d["klass"], region=region, zeta_min=float(meta["zeta_min"]),
@@ -177,6 +205,10 @@ def load(path: Path, profile: Profile, key: str) -> Workspace:
         )
     except (KeyError, ValueError, TypeError, IndexError) as exc:
         raise CacheError(f"workspace cache {path} is corrupt: bad metadata ({exc})") from None
+    why = _consistent(ws, profile)
+    if why:
+        raise CacheError(f"workspace cache {path} does not fit the profile: {why}")
+    return ws
 
 
 def load_or_build(

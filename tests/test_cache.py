@@ -151,3 +151,35 @@ def test_kill_during_writes_leaves_a_whole_file(tmp_path: Path) -> None:
     assert ws.counts() == coarse_workspace().counts()
     # leftover temp files are never taken for the cache
     assert all(p.suffix == ".tmp" for p in tmp_path.iterdir() if p != path)
+
+
+@pytest.mark.parametrize("edit", ["region", "klass", "klass_and_digest"])
+def test_an_edited_cache_is_no_hit(tmp_path: Path, coarse, edit: str) -> None:  # type: ignore[no-untyped-def]
+    """Arrays replaced in a cache file (the region widened to the servo box, colliding nodes
+    marked feasible) are never used: the file is rebuilt with the reason."""
+    import json
+
+    import numpy as np
+
+    from spm_console.core.workspace import NodeClass
+
+    prof, _calls = coarse
+    _, info = load_or_build(prof, tmp_path)
+    with np.load(info.path) as z:
+        d = {k: z[k] for k in z.files}
+    meta = json.loads(str(d["meta"]))
+    if edit == "region":
+        d["region_A"] = np.vstack([np.eye(3), -np.eye(3)])
+        d["region_b"] = np.array([160.0, 160.0, 160.0, -60.0, -60.0, -60.0])
+    else:
+        d["klass"] = np.where(d["klass"] == NodeClass.COLLIDING, NodeClass.FEASIBLE, d["klass"])
+        if edit == "klass_and_digest":  # a forger who also recomputes the digest
+            meta["content"] = wc.content_digest(d)
+    d["meta"] = np.array(json.dumps(meta))
+    with open(info.path, "wb") as f:
+        np.savez(f, **d)
+    why = "does not fit the profile" if edit == "klass_and_digest" else "modified after it was written"
+    with pytest.raises(CacheError, match=why):
+        wc.load(info.path, prof, cache_key(prof))
+    _, info2 = load_or_build(prof, tmp_path)
+    assert not info2.hit and why in info2.rebuilt_because
