@@ -111,8 +111,14 @@ class WorkspaceScreen(StepScreen):
         self.query_one("#ws-progress").display = False
         if self.session.workspace is None:
             self.action_load()
-        else:
-            self.show_workspace()
+        else:  # already loaded (homing needs it: the runtime verifies every motion against it)
+            self._ready()
+
+    def _ready(self) -> None:
+        self.show_workspace()
+        info = self.session.cache_info
+        self.status.ok("workspace ready (" + ("from the cache" if info.hit else "built")
+                       + "): press 4 to plan a motion")
 
     def action_leave_field(self) -> None:
         self.set_focus(None)
@@ -161,10 +167,7 @@ class WorkspaceScreen(StepScreen):
         if op == "load":
             self.query_one("#ws-progress").display = False
             self.query_one("#ws-stage", Static).update("")
-            self.show_workspace()
-            info = self.session.cache_info
-            self.status.ok("workspace ready (" + ("from the cache" if info.hit else "built")
-                           + "): press 4 to plan a motion")
+            self._ready()
         elif op == "check":
             self.query_one("#ws-check", Static).update(Content(check_text(result)))
             self.status.ok("usable" if result.usable else f"not usable: {result.reason}")

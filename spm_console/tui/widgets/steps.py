@@ -56,6 +56,8 @@ def next_hint(session: Session, fk_done: bool = False) -> str:
         return "Next: press 2 for an FK check (or 3 for the workspace)."
     if session.workspace is None:
         return "Next: press 3 to load the workspace."
+    if session.plan is None and not fk_done:
+        return "Next: press 2 for an FK check, or 4 to plan a motion (s solves)."
     if session.plan is None:
         return "Next: press 4 to plan a motion (s solves)."
     run = session.last_run
