@@ -4,7 +4,7 @@
 module adds what one field alone cannot say — the θ grid fits in memory, the
 servo model is well sampled, the Bus Watchdog outlasts a sampling interval, δ is
 smaller than the link radii, the servo limits map onto the encoder, the home sign
-seed is the home's assembly mode — and turns pydantic errors into messages that
+seed is the home's assembly mode and the home is feasible — and turns pydantic errors into messages that
 name the file, the key, the value and the allowed range.
 
 Import order: ``profile`` imports this module; this module only imports the
@@ -213,12 +213,13 @@ def key_of(loc: Sequence[int | str]) -> str:
 
 
 def size_text(n_bytes: float) -> str:
-    """Bytes as kB/MB/GB/TB/PB (powers of 1000)."""
-    for unit in ("B", "kB", "MB", "GB", "TB", "PB"):
-        if n_bytes < 1000 or unit == "PB":
-            return f"{n_bytes:.3g} {unit}"
+    """Bytes as B/kB/MB/GB/TB/PB/EB (powers of 1000), 3 significant digits."""
+    units = ("B", "kB", "MB", "GB", "TB", "PB", "EB")
+    k = 0
+    while n_bytes >= 1000 and k < len(units) - 1:
         n_bytes /= 1000
-    raise AssertionError("unreachable")
+        k += 1
+    return f"{n_bytes:.3g} {units[k]}"
 
 
 # ---------------------------------------------------------------- cross-field physics
@@ -232,18 +233,21 @@ def grid_problems(prof: Profile) -> list[Problem]:
         return [Problem("workspace.theta_max_deg", hi,
                         f"must be greater than workspace.theta_min_deg = {num(lo)} "
                         f"(allowed: {num(lo)} < theta_max_deg ≤ {num(ANGLE_LIMIT_DEG)})")]
-    steps = (hi - lo) / step
-    per_axis = round(steps) + 1
-    nodes = per_axis**3
-    if nodes > MAX_GRID_NODES:
-        max_axis = math.floor(MAX_GRID_NODES ** (1 / 3) + 1e-9)
+    steps = (hi - lo) / step  # inf for a subnormal step
+    max_axis = math.floor(MAX_GRID_NODES ** (1 / 3) + 1e-9)
+    if not (steps < 1e6 and round(steps) + 1 <= max_axis):
+        if steps < 1e6:
+            per_axis = round(steps) + 1
+            count = f"{per_axis}³ = {per_axis**3:,} nodes"
+            need = size_text(per_axis**3 * BYTES_PER_NODE)
+        else:
+            count, need = f"{steps + 1:.3g} values per axis, more than 10^18 nodes", "more than 700 EB"
         return [Problem(
             "workspace.step_deg", step,
-            f"the grid {num(lo)}..{num(hi)}° in steps of {num(step)}° has {per_axis}³ = {nodes:,} "
-            f"nodes; building it would need ≈ {size_text(nodes * BYTES_PER_NODE)} of memory "
-            f"(≈ {BYTES_PER_NODE} B per node) (allowed: at most {MAX_GRID_NODES:,} nodes "
-            f"≈ {size_text(MAX_GRID_NODES * BYTES_PER_NODE)}, i.e. step_deg ≥ "
-            f"{(hi - lo) / (max_axis - 1):.4g}° for this range, or a narrower range)")]
+            f"the grid {num(lo)}..{num(hi)}° in steps of {num(step)}° has {count}; building it "
+            f"would need ≈ {need} of memory (≈ {BYTES_PER_NODE} B per node) (allowed: at most "
+            f"{MAX_GRID_NODES:,} nodes ≈ {size_text(MAX_GRID_NODES * BYTES_PER_NODE)}, i.e. "
+            f"step_deg ≥ {(hi - lo) / (max_axis - 1):.4g}° for this range, or a narrower range)")]
     if abs(steps - round(steps)) > 1e-9:
         return [Problem(
             "workspace.step_deg", step,
@@ -365,22 +369,29 @@ def seed_mismatches(seed: Sequence[int], v_home: Sequence[Sequence[float]]) -> l
 
 
 def check_home_mode(prof: Profile, source: str) -> None:
-    """The home pose exists, is not singular, and its signs are those of ``home.sign_seed``."""
-    from numpy.linalg import LinAlgError
+    """The home pose exists and is not singular, its signs are those of ``home.sign_seed``, and
+    it is feasible (ζ ≥ ζ_min, links apart, inside the grid range: the workspace grows from it)."""
+    import numpy as np
 
-    from spm_console.core.model import model_of  # the core takes a profile: import at call time
+    from spm_console.core.assess import assess
+    from spm_console.core.model import link_model_of, model_of  # they take a profile: import here
 
     theta = list(prof.home.theta_deg)
+    allowed_home = "(allowed: a home θ with a non-singular forward-kinematic solution)"
     try:
-        v = model_of(prof).v_home
+        with np.errstate(all="ignore"):  # degenerate geometries overflow inside the solver
+            model = model_of(prof)
     except ValueError as exc:  # home_model: no FK solution or a singular home; LinAlgError too
         what = (f"the forward kinematics at home cannot be solved for this geometry ({exc})"
-                if isinstance(exc, LinAlgError) else f"{exc} for this geometry")
+                if isinstance(exc, np.linalg.LinAlgError) else f"{exc} for this geometry")
+        raise ProfileError(Problem("home.theta_deg", theta, f"{what} {allowed_home}").line(source)) from None
+    if not (np.isfinite(model.v_home).all() and np.isfinite(model.working_signs).all()
+            and np.isfinite(model.det_j1_sign)):
         raise ProfileError(Problem(
             "home.theta_deg", theta,
-            f"{what} (allowed: a home θ with a non-singular forward-kinematic solution)").line(source)
-        ) from None
-    rows = [[float(x) for x in r] for r in v]
+            f"the forward kinematics at home gives no finite pose for this geometry {allowed_home}"
+        ).line(source))
+    rows = [[float(x) for x in r] for r in model.v_home]
     bad = seed_mismatches(prof.home.sign_seed, rows)
     if bad:
         comp = [f"v{k // 3 + 1}{'xyz'[k % 3]}" for k in bad]
@@ -391,3 +402,13 @@ def check_home_mode(prof: Profile, source: str) -> None:
             f"signs {show(home_signs(rows))} (v = {shown}); {', '.join(comp)} "
             f"{'differs' if len(comp) == 1 else 'differ'} "
             "(allowed: the home signs; a 0 there matches any seed entry)").line(source))
+    ws = prof.workspace
+    home = assess(model, link_model_of(prof), model.pose(model.theta_home, np.eye(3)), ws.zeta_min,
+                  (ws.theta_min_deg, ws.theta_max_deg))
+    if not home.feasible:
+        raise ProfileError(Problem(
+            "home.theta_deg", theta,
+            f"the home configuration is not feasible ({home.reason}): the workspace grows from home "
+            "(allowed: a home with ζ ≥ workspace.zeta_min, links of different legs at least "
+            "2·links.delta_mm apart, inside [workspace.theta_min_deg, workspace.theta_max_deg])"
+        ).line(source))
