@@ -185,12 +185,6 @@ class JointWiring(_Section):
     """Highest θ the servo may be commanded to (software limit), above min_deg, within ±360;
     its tick must lie in 0..ticks_per_turn−1."""
 
-    @model_validator(mode="after")
-    def _limits(self) -> JointWiring:
-        if self.max_deg <= self.min_deg:
-            raise ValueError("max_deg must be greater than min_deg")
-        return self
-
 
 class Bus(_Section):
     """Dynamixel servo bus."""
@@ -225,13 +219,13 @@ class Safety(_Section):
 
     tracking_error_deg: Real = Field(gt=0.0, le=30.0)
     """Largest |measured − model prediction| before a stop, deg: at least 2 encoder ticks
-    (2·360/ticks_per_turn, else quantization alone stops a run) and at most 30° (beyond,
-    a blocked joint is not caught before the links hit)."""
+    (2·360/ticks_per_turn, else quantization alone stops a run) and at most 30° (a larger
+    gap is a blocked joint or a wrong model, never normal tracking)."""
     comm_failures: Count = Field(ge=1, le=50)
     """Consecutive failed bus cycles before a stop, 1..50 (50 cycles of 20 ms = 1 s blind)."""
     region_margin_deg: Real = Field(ge=0.0, le=10.0)
-    """Allowed excursion outside the region P before a stop, deg, 0..10 (the grid step of
-    the paper is 2°; a wider margin switches the region check off)."""
+    """Allowed excursion outside the region P before a stop, deg, 0..10 (five of the paper's
+    2° grid steps; a wider margin would in effect switch the region check off)."""
     stop_action: Literal["hold", "torque_off"] = "hold"
     """What a stop does: hold the measured position, or switch torque off."""
     home_speed_degps: Real = Field(gt=0.0, le=360.0)

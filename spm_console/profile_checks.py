@@ -4,8 +4,8 @@
 module adds what one field alone cannot say — the θ grid fits in memory, the
 servo model is well sampled, the Bus Watchdog outlasts a sampling interval, δ is
 smaller than the link radii, the servo limits map onto the encoder, the home sign
-seed is the home's assembly mode and the home is feasible — and turns pydantic errors into messages that
-name the file, the key, the value and the allowed range.
+seed is the home's assembly mode and the home is feasible — and turns pydantic
+errors into messages that name the file, the key, the value and the allowed range.
 
 Import order: ``profile`` imports this module; this module only imports the
 core lazily (the core's ``model_of`` takes a profile), never at import time.
@@ -13,6 +13,7 @@ core lazily (the core's ``model_of`` takes a profile), never at import time.
 
 from __future__ import annotations
 
+import json
 import math
 import types
 from collections.abc import Sequence
@@ -28,8 +29,7 @@ if TYPE_CHECKING:
     from spm_console.profile import Profile
 
 #: Largest |angle| of any angle in a profile (θ, grid range, limits, η), deg: one turn
-#: either way is every configuration a servo can tell apart; beyond it cos/sin lose
-#: nothing but the grid and the limits become meaningless.
+#: either way covers every configuration; larger values only make grids and limits absurd.
 ANGLE_LIMIT_DEG = 360.0
 #: Largest θ grid, nodes. The shipped 2° grid has 46³ = 97,336 nodes and the 1° grid
 #: (reproduction) 91³ = 753,571; 2,000,000 allows up to 125 values per axis.
@@ -87,7 +87,7 @@ def show(value: object, limit: int = 80) -> str:
     elif isinstance(value, int):
         text = str(value)
     elif isinstance(value, str):
-        text = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        text = json.dumps(value, ensure_ascii=False)  # quoted, control characters escaped
     elif isinstance(value, list | tuple):
         text = "[" + ", ".join(show(v, limit) for v in value) + "]"
     elif isinstance(value, dict):
@@ -311,11 +311,17 @@ def link_problems(prof: Profile) -> list[Problem]:
 
 
 def wiring_problems(prof: Profile) -> list[Problem]:
-    """Tick offset inside one turn; the servo limits map onto 0..ticks_per_turn−1; home inside."""
+    """Limits ordered; tick offset inside one turn; the limits map onto 0..ticks_per_turn−1; home
+    inside the limits."""
     out = []
     tpt = prof.bus.ticks_per_turn
     for i, j in enumerate(prof.bus.joints):
         key = f"bus.joints[{i}]"
+        if j.max_deg <= j.min_deg:
+            out.append(Problem(f"{key}.max_deg", j.max_deg,
+                               f"must be greater than {key}.min_deg = {num(j.min_deg)} "
+                               f"(allowed: {num(j.min_deg)} < max_deg ≤ {num(ANGLE_LIMIT_DEG)})"))
+            continue
         if j.tick_offset >= tpt:
             out.append(Problem(f"{key}.tick_offset", j.tick_offset,
                                f"must be below bus.ticks_per_turn = {tpt} "

@@ -100,6 +100,7 @@ def agile_doc() -> dict[str, Any]:
         ("ticks_per_turn_1.toml", "bus.ticks_per_turn", "1", "256 ≤ ticks_per_turn ≤ 1048576"),
         ("baud_string.toml", "bus.baud", '"1000000"', "valid integer"),
         ("direction_bool.toml", "bus.joints[0].direction", "true", "one of 1, -1"),
+        ("joint_limits_reversed.toml", "bus.joints[0].max_deg", "50.0", "60 < max_deg ≤ 360"),
         ("tick_offset_off_encoder.toml", "bus.joints[0].max_deg", "160.0", "outside the servo's 0..4095"),
         ("tracking_error_inf.toml", "safety.tracking_error_deg", "inf", "0 < tracking_error_deg ≤ 30"),
         ("region_margin_inf.toml", "safety.region_margin_deg", "inf", "0 ≤ region_margin_deg ≤ 10"),
