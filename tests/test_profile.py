@@ -1,4 +1,6 @@
-"""Profiles: the shipped ones load; each kind of broken file names file, key and reason."""
+"""Profiles: the shipped ones load; each kind of broken or unphysical file raises ProfileError
+(exit 3) naming the file, the key, the value and the allowed range; no mutation of one number
+ends in anything else."""
 
 from __future__ import annotations
 
@@ -137,9 +139,8 @@ def test_unphysical_profile_names_file_key_value_range(
 
 def test_console_script_exits_3_without_traceback() -> None:
     fixture = "sign_seed_wrong.toml"  # the slowest path: the home check solves the kinematics
-    exe = Path(sys.executable).with_name("spm-console")
-    out = subprocess.run([str(exe), "fk", "--theta", "100", "100", "100", "--profile", str(DATA / fixture)],
-                         capture_output=True, text=True, timeout=120)
+    out = subprocess.run([sys.executable, "-m", "spm_console", "fk", "--theta", "100", "100", "100",
+                          "--profile", str(DATA / fixture)], capture_output=True, text=True, timeout=120)
     assert out.returncode == ExitCode.PROFILE_ERROR
     assert out.stderr.startswith(f"error: {DATA / fixture}: key '") and "Traceback" not in out.stderr
 
