@@ -3,30 +3,57 @@
 A profile holds everything that is specific to one built wrist: geometry, home
 pose, link model, workspace grid, servo model, bus wiring and safety limits.
 Angles are in degrees, lengths in mm, times in seconds. A broken file raises
-:class:`~spm_console.errors.ProfileError` naming the file, the key and the reason.
+:class:`~spm_console.errors.ProfileError` naming the file, the key, the value and
+the allowed range.
+
+Profiles are validated as physics, not only as types: every number is finite and
+strict (a bool or a string is never a number; an int is accepted for a float),
+every range below keeps the check that uses it meaningful, and the cross-field
+checks of :mod:`spm_console.profile_checks` (grid size, p·Ts, watchdog, δ, wiring,
+home assembly mode) run on load.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import math
 import tomllib
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError, model_validator
+from pydantic_core import PydanticCustomError
 
 from spm_console.errors import ProfileError
+from spm_console.profile_checks import ANGLE_LIMIT_DEG, check_home_mode, check_physics, validation_message
 
 #: The default profile, relative to the project root / working directory.
 DEFAULT_PROFILE = Path("profiles/agile_wrist.toml")
 
-Vec3 = tuple[float, float, float]
+#: A real number: float or int, never bool or str; finite (``allow_inf_nan=False`` below).
+Real = Annotated[float, Strict()]
+#: An integer: never bool, float or str.
+Count = Annotated[int, Strict()]
+#: An angle within one turn either way, deg.
+Angle = Annotated[float, Strict(), Field(ge=-ANGLE_LIMIT_DEG, le=ANGLE_LIMIT_DEG)]
+#: One entry of the sign seed.
+Sign = Annotated[int, Strict(), Field(ge=-1, le=1)]
+Vec3 = tuple[Angle, Angle, Angle]
+
+
+def _whole(value: object) -> object:
+    """Refuse a bool, float or str before a ``Literal`` of ints (which would accept them)."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise PydanticCustomError("int_type", "Input should be a valid integer")
+    return value
+
+
+#: +1 or −1, strictly an int.
+Direction = Annotated[Literal[1, -1], BeforeValidator(_whole)]
 
 
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class Meta(_Section):
@@ -41,50 +68,53 @@ class Meta(_Section):
 class Geometry(_Section):
     """SPM geometry (paper Sec. II): link arcs and pyramid angles, degrees."""
 
-    alpha1_deg: float = Field(gt=0.0, lt=180.0)
-    """Proximal link arc α1 (angle between u_i and w_i)."""
-    alpha2_deg: float = Field(gt=0.0, lt=180.0)
-    """Distal link arc α2 (angle between w_i and v_i)."""
-    beta_deg: float = Field(gt=0.0, lt=90.0)
-    """Top pyramid angle β (angle between v_i and the platform normal)."""
-    gamma_deg: float = Field(ge=0.0, lt=90.0)
-    """Base pyramid angle γ (angle between −u_i and the z axis); 0 = coaxial shafts."""
+    alpha1_deg: Real = Field(gt=0.0, lt=180.0)
+    """Proximal link arc α1 (angle between u_i and w_i), 0 < α1 < 180."""
+    alpha2_deg: Real = Field(gt=0.0, lt=180.0)
+    """Distal link arc α2 (angle between w_i and v_i), 0 < α2 < 180."""
+    beta_deg: Real = Field(gt=0.0, lt=90.0)
+    """Top pyramid angle β (angle between v_i and the platform normal), 0 < β < 90."""
+    gamma_deg: Real = Field(ge=0.0, lt=90.0)
+    """Base pyramid angle γ (angle between −u_i and the z axis), 0 ≤ γ < 90; 0 = coaxial shafts."""
     eta_deg: Vec3 = (0.0, 120.0, 240.0)
-    """Azimuth η_i of each leg's base axis, eq. (1)."""
+    """Azimuth η_i of each leg's base axis, eq. (1); each finite, within ±360."""
 
 
 class Home(_Section):
     """The known home configuration and assembly mode (paper Sec. III, VI-A)."""
 
     theta_deg: Vec3
-    """Motor angles θ at home."""
-    sign_seed: tuple[int, int, int, int, int, int, int, int, int]
-    """Signs of [v1x v1y v1z v2x ... v3z] at home, eq. (33); selects the home assembly mode."""
+    """Motor angles θ at home, each within ±360 and inside its servo limits; the home pose
+    there must exist and be non-singular."""
+    sign_seed: tuple[Sign, Sign, Sign, Sign, Sign, Sign, Sign, Sign, Sign]
+    """Signs (−1, 0, 1) of [v1x v1y v1z v2x ... v3z] at home, eq. (33); selects the home
+    assembly mode. Checked on load against v at home: each nonzero component of v must have
+    the seed's sign (a component with |v| ≤ 1e-6 matches any entry)."""
 
-    @model_validator(mode="after")
-    def _signs(self) -> Home:
-        if any(s not in (-1, 0, 1) for s in self.sign_seed):
-            raise ValueError("sign_seed entries must be -1, 0 or 1")
-        return self
+
+#: Largest link radius, mm (10 m: far beyond any wrist, small enough for exact squares).
+MAX_RADIUS_MM = 10_000.0
 
 
 class Links(_Section):
     """Segment model of the links for interference checks (paper Sec. IV-B), mm."""
 
-    oa_mm: float = Field(gt=0.0)
-    """|OA_i|: start of the proximal link along u_i, eq. (18)."""
-    ob_mm: float = Field(gt=0.0)
-    """|OB_i|: middle of the proximal link, eq. (19)."""
-    oc_mm: float = Field(gt=0.0)
-    """|OC_i|: end of the proximal link along w_i, eq. (20)."""
-    od_mm: float = Field(gt=0.0)
-    """|OD_i|: start of the distal link along w_i, eq. (21)."""
-    oe_mm: float = Field(gt=0.0)
-    """|OE_i|: middle of the distal link, eq. (22)."""
-    of_mm: float = Field(gt=0.0)
-    """|OF_i|: end of the distal link along v_i, eq. (23)."""
-    delta_mm: float = Field(gt=0.0)
-    """δ: radius of the capsule around each segment; links collide below 2δ."""
+    oa_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OA_i|: start of the proximal link along u_i, eq. (18); 0 < oa_mm ≤ 10,000 (10 m)."""
+    ob_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OB_i|: middle of the proximal link, eq. (19); 0 < ob_mm ≤ 10,000 (10 m)."""
+    oc_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OC_i|: end of the proximal link along w_i, eq. (20); 0 < oc_mm ≤ 10,000 (10 m)."""
+    od_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OD_i|: start of the distal link along w_i, eq. (21); 0 < od_mm ≤ 10,000 (10 m)."""
+    oe_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OE_i|: middle of the distal link, eq. (22); 0 < oe_mm ≤ 10,000 (10 m)."""
+    of_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OF_i|: end of the distal link along v_i, eq. (23); 0 < of_mm ≤ 10,000 (10 m)."""
+    delta_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """δ: radius of the capsule around each segment; links collide below 2δ. Must be smaller
+    than every radius (OA…OF) of the segments taking part, else the capsules swallow the
+    centre and every configuration collides."""
     segments: tuple[Literal["AB", "BC", "DE", "EF"], ...] = ("BC", "DE", "EF")
     """Segments taking part in the interference check (Agile Wrist: AB never collides)."""
 
@@ -98,25 +128,18 @@ class Links(_Section):
 class WorkspaceGrid(_Section):
     """Grid of motor configurations (paper eq. 25, Sec. VI-D), degrees."""
 
-    theta_min_deg: float
-    """Lowest grid value of each θ_i."""
-    theta_max_deg: float
-    """Highest grid value of each θ_i."""
-    step_deg: float = Field(gt=0.0, le=30.0)
-    """Grid spacing Δ."""
-    zeta_min: float = Field(gt=0.0, lt=1.0)
-    """Conditioning index threshold ζ_min below which a node is singular."""
-    max_halfspaces: int = Field(default=64, ge=4, le=512)
-    """Upper bound on the number of half-spaces of the convex region P."""
-
-    @model_validator(mode="after")
-    def _range(self) -> WorkspaceGrid:
-        if self.theta_max_deg <= self.theta_min_deg:
-            raise ValueError("theta_max_deg must be greater than theta_min_deg")
-        n = (self.theta_max_deg - self.theta_min_deg) / self.step_deg
-        if abs(n - round(n)) > 1e-9:
-            raise ValueError("the θ range must be a whole number of steps")
-        return self
+    theta_min_deg: Angle
+    """Lowest grid value of each θ_i, within ±360."""
+    theta_max_deg: Angle
+    """Highest grid value of each θ_i, within ±360 and above theta_min_deg."""
+    step_deg: Real = Field(gt=0.0, le=30.0)
+    """Grid spacing Δ, 0 < Δ ≤ 30; the range must be a whole number of steps and the grid
+    (range/Δ + 1)³ at most 2,000,000 nodes (≈ 1.4 GB to build, see
+    :data:`~spm_console.profile_checks.MAX_GRID_NODES`)."""
+    zeta_min: Real = Field(gt=0.0, lt=1.0)
+    """Conditioning index threshold ζ_min below which a node is singular, 0 < ζ_min < 1."""
+    max_halfspaces: Count = Field(default=64, ge=4, le=512)
+    """Upper bound on the number of half-spaces of the convex region P, 4..512."""
 
     @property
     def axis_deg(self) -> list[float]:
@@ -128,10 +151,13 @@ class WorkspaceGrid(_Section):
 class Servo(_Section):
     """Closed-loop servo model, eq. (27)-(28)."""
 
-    p: float = Field(gt=0.0, le=1000.0)
-    """Double real closed-loop pole at −p, rad/s."""
-    ts_s: float = Field(gt=0.0, le=1.0)
-    """Sampling (reference update) interval Ts, s."""
+    p: Real = Field(gt=0.0, le=1000.0)
+    """Double real closed-loop pole at −p, rad/s, 0 < p ≤ 1000, with 1e-3 ≤ p·Ts ≤ 20: below,
+    settling takes over 10,000 samples (homing plans hold ⌈10/(p·Ts)⌉ samples); above, the
+    sampled model (28) settles within e^−20 in one sample and has no dynamics left."""
+    ts_s: Real = Field(ge=0.001, le=1.0)
+    """Sampling (reference update) interval Ts, s, 1 ms ≤ Ts ≤ 1 s (one bus cycle of three
+    servos needs about a millisecond)."""
     discretization: Literal["zoh", "tustin"] = "zoh"
     """Discretization of (27): exact sampling (zoh) or Tustin."""
 
@@ -139,29 +165,25 @@ class Servo(_Section):
 class Limits(_Section):
     """Motion limits."""
 
-    vmax_degps: float = Field(gt=0.0, le=2000.0)
-    """Default joint speed bound θ̇_max, deg/s, eq. (30d)."""
+    vmax_degps: Real = Field(gt=0.0, le=2000.0)
+    """Default joint speed bound θ̇_max, deg/s, eq. (30d), 0 < θ̇_max ≤ 2000."""
 
 
 class JointWiring(_Section):
     """Mapping of one joint angle to its servo's ticks."""
 
-    id: int = Field(ge=0, le=252)
-    """Dynamixel ID of the servo driving this joint."""
-    tick_offset: int = Field(ge=0, le=4095)
-    """Tick value at θ = 0°, modulo 4096 ticks."""
-    direction: Literal[1, -1] = 1
+    id: Count = Field(ge=0, le=252)
+    """Dynamixel ID of the servo driving this joint, 0..252."""
+    tick_offset: Count = Field(ge=0, le=4095)
+    """Tick value at θ = 0°, modulo one turn: 0..4095 and below ``bus.ticks_per_turn``."""
+    direction: Direction = 1
     """+1 when ticks grow with θ, −1 otherwise."""
-    min_deg: float
-    """Lowest θ the servo may be commanded to (software limit)."""
-    max_deg: float
-    """Highest θ the servo may be commanded to (software limit)."""
-
-    @model_validator(mode="after")
-    def _limits(self) -> JointWiring:
-        if self.max_deg <= self.min_deg:
-            raise ValueError("max_deg must be greater than min_deg")
-        return self
+    min_deg: Angle
+    """Lowest θ the servo may be commanded to (software limit), within ±360; its tick
+    (tick_offset + direction·θ·ticks_per_turn/360) must lie in 0..ticks_per_turn−1."""
+    max_deg: Angle
+    """Highest θ the servo may be commanded to (software limit), above min_deg, within ±360;
+    its tick must lie in 0..ticks_per_turn−1."""
 
 
 class Bus(_Section):
@@ -171,14 +193,16 @@ class Bus(_Section):
     """Dynamixel protocol version spoken by the servos."""
     port: str = ""
     """Serial device (e.g. /dev/ttyUSB0); empty = use the emulated bus."""
-    baud: int = Field(default=1_000_000, gt=0)
-    """Baud rate, bit/s."""
-    timeout_s: float = Field(default=0.004, gt=0.0, le=1.0)
-    """Reply timeout for one status packet, s."""
-    model_number: int = 321
-    """Expected model number (MX-106: 321 on protocol 2.0, 320 on 1.0)."""
-    ticks_per_turn: int = Field(default=4096, gt=0)
-    """Encoder ticks per revolution."""
+    baud: Count = Field(default=1_000_000, ge=7_800, le=10_500_000)
+    """Baud rate, bit/s: 7,800..10,500,000 (Dynamixel rates span 7,843 bit/s on protocol 1.0
+    to 10.5 Mbit/s on the X series)."""
+    timeout_s: Real = Field(default=0.004, gt=0.0, le=1.0)
+    """Reply timeout for one status packet, s, 0 < timeout ≤ 1."""
+    model_number: Count = Field(default=321, ge=0, le=65535)
+    """Expected model number (MX-106: 321 on protocol 2.0, 320 on 1.0); a 2-byte register."""
+    ticks_per_turn: Count = Field(default=4096, ge=256, le=1 << 20)
+    """Encoder ticks per revolution, 256..1,048,576 (MX-106: 4096; coarser than 1.4°/tick
+    makes quantization swamp the tracking check)."""
     joints: tuple[JointWiring, JointWiring, JointWiring]
     """Wiring of joints 1..3."""
 
@@ -193,36 +217,44 @@ class Bus(_Section):
 class Safety(_Section):
     """Thresholds of the executor's safety checks."""
 
-    tracking_error_deg: float = Field(gt=0.0)
-    """Largest |measured − model prediction| before a stop, deg."""
-    comm_failures: int = Field(ge=1, le=100)
-    """Consecutive failed bus cycles before a stop."""
-    region_margin_deg: float = Field(ge=0.0)
-    """Allowed excursion outside the region P before a stop, deg."""
+    tracking_error_deg: Real = Field(gt=0.0, le=30.0)
+    """Largest |measured − model prediction| before a stop, deg: at least 2 encoder ticks
+    (2·360/ticks_per_turn, else quantization alone stops a run) and at most 30° (a larger
+    gap is a blocked joint or a wrong model, never normal tracking)."""
+    comm_failures: Count = Field(ge=1, le=50)
+    """Consecutive failed bus cycles before a stop, 1..50 (50 cycles of 20 ms = 1 s blind)."""
+    region_margin_deg: Real = Field(ge=0.0, le=10.0)
+    """Allowed excursion outside the region P before a stop, deg, 0..10 (five of the paper's
+    2° grid steps; a wider margin would in effect switch the region check off)."""
     stop_action: Literal["hold", "torque_off"] = "hold"
     """What a stop does: hold the measured position, or switch torque off."""
-    home_speed_degps: float = Field(gt=0.0, le=360.0)
-    """Speed bound of the homing move, deg/s."""
-    watchdog_ms: int = Field(default=100, ge=0, le=2540)
-    """Servo Bus Watchdog, ms (0 = off); protocol 2.0 only."""
+    home_speed_degps: Real = Field(gt=0.0, le=360.0)
+    """Speed bound of the homing move, deg/s, 0 < speed ≤ 360."""
+    watchdog_ms: Count = Field(default=100, ge=0, le=2540)
+    """Servo Bus Watchdog, ms (0 = off; unit 20 ms, at most 127 units); protocol 2.0 only.
+    When on, the value written (rounded to 20 ms) must last at least 2·Ts, or the servos
+    stop between two cycles."""
 
 
 class Estimation(_Section):
     """Kalman filter noise levels (per joint, model (28))."""
 
-    measurement_noise_deg: float = Field(gt=0.0)
-    """Standard deviation of a position measurement, deg (quantization ≈ 0.088/√12)."""
-    process_noise_deg: float = Field(gt=0.0)
-    """Standard deviation of the unmodelled position disturbance per step, deg."""
+    measurement_noise_deg: Real = Field(ge=1e-6, le=10.0)
+    """Standard deviation of a position measurement, deg (quantization ≈ 0.088/√12),
+    1e-6..10: the filter squares it (below, the covariance underflows; above, no
+    measurement is believed)."""
+    process_noise_deg: Real = Field(ge=1e-6, le=10.0)
+    """Standard deviation of the unmodelled position disturbance per step, deg, 1e-6..10
+    (the filter squares it and divides by Ts)."""
 
 
 class Emulator(_Section):
     """Defaults of the emulated servo bus."""
 
-    noise_deg: float = Field(default=0.0, ge=0.0)
-    """Standard deviation of position noise added before quantization, deg."""
-    seed: int = 0
-    """Random seed of the emulator's noise and faults."""
+    noise_deg: Real = Field(default=0.0, ge=0.0, le=10.0)
+    """Standard deviation of position noise added before quantization, deg, 0..10."""
+    seed: Count = Field(default=0, ge=0, le=(1 << 63) - 1)
+    """Random seed of the emulator's noise and faults, 0..2^63−1 (numpy refuses negatives)."""
 
 
 class Profile(_Section):
@@ -256,34 +288,21 @@ class Profile(_Section):
         return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def _key(loc: tuple[int | str, ...]) -> str:
-    parts: list[str] = []
-    for item in loc:
-        if isinstance(item, int):
-            parts.append(f"[{item}]")
-        else:
-            parts.append(("." if parts else "") + item)
-    return "".join(parts) or "(top level)"
-
-
 def parse_profile(data: dict[str, object], source: str) -> Profile:
-    """Validate a decoded TOML document; errors name ``source``, the key and the reason."""
+    """Validate a decoded TOML document: types, per-field ranges, then the cross-field physics
+    (:func:`~spm_console.profile_checks.check_physics`). Errors name ``source``, the key, the
+    value and the allowed range."""
     try:
-        return Profile.model_validate(data)
+        prof = Profile.model_validate(data)
     except ValidationError as exc:
-        lines = []
-        for err in exc.errors():
-            reason = err["msg"]
-            if err["type"] == "extra_forbidden":
-                reason = "unknown key"
-            elif err["type"] == "missing":
-                reason = "missing key"
-            lines.append(f"{source}: key '{_key(tuple(err['loc']))}': {reason}")
-        raise ProfileError("\n".join(lines)) from None
+        raise ProfileError(validation_message(exc, source, Profile)) from None
+    check_physics(prof, source)
+    return prof
 
 
 def load_profile(path: str | Path = DEFAULT_PROFILE) -> Profile:
-    """Read and validate a profile file."""
+    """Read and validate a profile file, including its home assembly mode
+    (:func:`~spm_console.profile_checks.check_home_mode`)."""
     p = Path(path)
     try:
         raw = p.read_bytes()
@@ -294,13 +313,5 @@ def load_profile(path: str | Path = DEFAULT_PROFILE) -> Profile:
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ProfileError(f"{p}: not valid TOML: {exc}") from None
     prof = parse_profile(data, str(p))
-    for i, j in enumerate(prof.bus.joints):
-        h = prof.home.theta_deg[i]
-        if not (j.min_deg <= h <= j.max_deg):
-            raise ProfileError(
-                f"{p}: key 'bus.joints[{i}]': home θ{i + 1} = {h}° is outside the servo limits "
-                f"[{j.min_deg}, {j.max_deg}]°"
-            )
-    if not all(math.isfinite(x) for x in prof.home.theta_deg):
-        raise ProfileError(f"{p}: key 'home.theta_deg': values must be finite")
+    check_home_mode(prof, str(p))
     return prof
