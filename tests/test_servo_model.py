@@ -91,3 +91,15 @@ def test_simulation_matches_python_control() -> None:
     t, xc = simulate_continuous(P, TS, x0, ref, 10)
     assert t.shape == (39 * 10 + 1,)
     assert xc[::10] == pytest.approx(xs, abs=1e-9)
+
+
+@pytest.mark.parametrize("method", ["zoh", "tustin"])
+@pytest.mark.parametrize(("p", "ts"), [(32.22, 0.02), (5.0, 0.001), (80.0, 0.05), (500.0, 0.02)])
+def test_closed_form_matches_python_control(method: str, p: float, ts: float) -> None:
+    """The core's closed forms against python-control's c2d (an independent implementation)."""
+    Ac, Bc = continuous(p)
+    sd = control.c2d(control.ss(Ac, Bc, [[1.0, 0.0]], [[0.0]]), ts,
+                     method="bilinear" if method == "tustin" else "zoh")
+    m = discretize(p, ts, method)  # type: ignore[arg-type]
+    np.testing.assert_allclose(m.A, np.asarray(sd.A), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(m.B, np.asarray(sd.B).reshape(2), rtol=1e-10, atol=1e-12)

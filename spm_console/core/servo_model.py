@@ -2,8 +2,9 @@
 
 Continuous model per joint, state x = [θ, θ̇] (deg, deg/s), input θ* (deg):
     ẋ = [[0, 1], [−p², −2p]] x + [0, p²] θ*,   double pole at −p (rad/s).
-Discretized with Ts by python-control: exact sampling (zero-order hold, the
-paper's Sec. V and our default) or Tustin. Note (SPEC §3): the paper's printed
+Discretized with Ts in closed form: exact sampling (zero-order hold, the paper's
+Sec. V and our default) or Tustin (bilinear). python-control's ``c2d`` is the
+independent cross-check in the tests; the core does not import it. Note (SPEC §3): the paper's printed
 eq. (35) is the Tustin discretization with the poles at +p — unstable; never used.
 """
 
@@ -12,7 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-import control
 import numpy as np
 from numpy.typing import NDArray
 
@@ -49,12 +49,16 @@ class ServoModel:
 
 
 def discretize(p: float, ts: float, method: Discretization = "zoh") -> ServoModel:
-    """Discretize (27) with python-control's ``c2d`` ('zoh' or 'tustin')."""
-    Ac, Bc = continuous(p)
-    sys_c = control.ss(Ac, Bc, np.array([[1.0, 0.0]]), np.zeros((1, 1)))
-    sys_d = control.c2d(sys_c, ts, method="bilinear" if method == "tustin" else "zoh")
-    A = np.asarray(sys_d.A, float)
-    B = np.asarray(sys_d.B, float).reshape(2)
+    """Discretize (27) in closed form: 'zoh' = :func:`exact_step` over Ts; 'tustin' =
+    A = (I − Ts/2·Ac)⁻¹(I + Ts/2·Ac), B = (I − Ts/2·Ac)⁻¹ Bc·Ts (the bilinear map of the
+    state equation, as python-control's ``c2d(method="bilinear")`` gives it)."""
+    if method == "tustin":
+        Ac, Bc = continuous(p)
+        M = np.eye(2) - 0.5 * ts * Ac
+        A = np.linalg.solve(M, np.eye(2) + 0.5 * ts * Ac)
+        B = np.linalg.solve(M, Bc * ts).reshape(2)
+    else:
+        A, B = exact_step(p, ts)
     return ServoModel(p=p, ts=ts, method=method, A=A, B=B)
 
 
