@@ -55,8 +55,8 @@ def discretize(p: float, ts: float, method: Discretization = "zoh") -> ServoMode
     if method == "tustin":
         Ac, Bc = continuous(p)
         M = np.eye(2) - 0.5 * ts * Ac
-        A = np.linalg.solve(M, np.eye(2) + 0.5 * ts * Ac)
-        B = np.linalg.solve(M, Bc * ts).reshape(2)
+        A = np.asarray(np.linalg.solve(M, np.eye(2) + 0.5 * ts * Ac), float)
+        B = np.asarray(np.linalg.solve(M, Bc * ts), float).reshape(2)
     else:
         A, B = exact_step(p, ts)
     return ServoModel(p=p, ts=ts, method=method, A=A, B=B)
