@@ -29,10 +29,10 @@ from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.region_build import region_containing
 from spm_console.devices.bus import open_bus
 from spm_console.devices.emulator import start_emulator
+from spm_console.models import servo_model_of
 from spm_console.plan_file import plan_hash
 from spm_console.profile import Profile, load_profile
 from spm_console.run.executor import Executor, Segment
-from spm_console.run.plans import servo_model_of
 from spm_console.run.runlog import RunLog
 from spm_console.workspace_cache import load_or_build
 

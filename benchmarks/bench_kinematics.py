@@ -14,8 +14,8 @@ import numpy as np
 
 from benchmarks.common import Row, timeit
 from spm_console.core.fk_grid import track_grid
-from spm_console.core.model import model_of
 from spm_console.core.modes import seeded_solve
+from spm_console.models import model_of
 from spm_console.profile import load_profile
 
 SAMPLE = 400

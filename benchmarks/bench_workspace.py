@@ -21,10 +21,9 @@ import numpy as np
 
 from benchmarks.common import Row
 from spm_console.core.links import SEGMENT_ENDS
-from spm_console.core.model import link_model_of, model_of
 from spm_console.core.modes import seeded_solve
-from spm_console.core.workspace import build_workspace
 from spm_console.core.workspace_verify import verify_region
+from spm_console.models import build_workspace, link_model_of, model_of
 from spm_console.profile import load_profile
 from spm_console.workspace_cache import load_or_build
 
@@ -35,7 +34,7 @@ _CHILD = """
 import json, resource, sys, time
 sys.path.insert(0, {root!r})
 from spm_console.profile import load_profile
-from spm_console.core.workspace import build_workspace
+from spm_console.models import build_workspace
 p = load_profile({profile!r})
 p = p.model_copy(update={{"workspace": p.workspace.model_copy(update={{"step_deg": 1.0}})}})
 t0 = time.perf_counter()

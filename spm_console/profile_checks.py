@@ -380,7 +380,7 @@ def check_home_mode(prof: Profile, source: str) -> None:
     import numpy as np
 
     from spm_console.core.assess import assess
-    from spm_console.core.model import link_model_of, model_of  # they take a profile: import here
+    from spm_console.models import link_model_of, model_of  # they take a profile: import here
 
     theta = list(prof.home.theta_deg)
     allowed_home = "(allowed: a home θ with a non-singular forward-kinematic solution)"

@@ -28,8 +28,9 @@ from spm_console.core import region_build
 from spm_console.core import workspace as core_ws
 from spm_console.core.kinematics import NEWTON_TOL, PATH_ZETA_FLOOR
 from spm_console.core.region import Region
-from spm_console.core.workspace import Progress, Workspace, build_workspace
+from spm_console.core.workspace import Progress, Workspace
 from spm_console.errors import CacheError
+from spm_console.models import build_workspace, grid_axes_deg, link_model_of, model_of
 from spm_console.profile import Profile
 
 ENV_VAR = "SPM_CONSOLE_CACHE"
@@ -51,7 +52,7 @@ def content_digest(arrays: dict[str, Any]) -> str:
 def _consistent(ws: Workspace, profile: Profile) -> str:
     """Why the stored workspace cannot be this profile's (empty when it can): the grid
     axes are the profile's, and every node called feasible meets the stored thresholds."""
-    want = core_ws.grid_axes_deg(profile)
+    want = grid_axes_deg(profile)
     if any(a.shape != w.shape or not np.allclose(a, w, atol=1e-9) for a, w in
            zip(ws.axes_deg, want, strict=True)):
         return "grid axes differ from the profile's"
@@ -201,7 +202,8 @@ def load(path: Path, profile: Profile, key: str) -> Workspace:
             min_distance_mm=float(meta["min_distance_mm"]),
             home_index=(home[0], home[1], home[2]), seconds=float(meta["seconds"]),
             region_seconds=float(meta["region_seconds"]),
-            region_info={k: float(v) for k, v in meta["region_info"].items()}, profile=profile,
+            region_info={k: float(v) for k, v in meta["region_info"].items()},
+            model=model_of(profile), links=link_model_of(profile),
         )
     except (KeyError, ValueError, TypeError, IndexError) as exc:
         raise CacheError(f"workspace cache {path} is corrupt: bad metadata ({exc})") from None

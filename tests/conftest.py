@@ -39,6 +39,6 @@ def coaxial():  # type: ignore[no-untyped-def]
 
 @pytest.fixture(scope="session")
 def agile_model(agile):  # type: ignore[no-untyped-def]
-    from spm_console.core.model import model_of
+    from spm_console.models import model_of
 
     return model_of(agile)

@@ -16,10 +16,10 @@ from spm_console.core.region import Region
 from spm_console.devices.bus import open_bus
 from spm_console.devices.emulator import EmulatorHandle, start_emulator
 from spm_console.devices.faults import FaultSpec
+from spm_console.models import servo_model_of
 from spm_console.plan_file import plan_hash
 from spm_console.profile import Profile
 from spm_console.run.executor import ExecutionResult, Executor, Segment
-from spm_console.run.plans import servo_model_of
 from spm_console.run.runlog import RunLog
 from spm_console.run.sample import Sample
 from tests.ws_helpers import agile_workspace

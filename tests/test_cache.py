@@ -14,6 +14,7 @@ import pytest
 
 from spm_console import workspace_cache as wc
 from spm_console.errors import CacheError
+from spm_console.models import link_model_of, model_of
 from spm_console.workspace_cache import cache_key, cache_path, load_or_build, save
 from tests.ws_helpers import ROOT, agile_profile, coarse_workspace, with_step
 
@@ -47,7 +48,7 @@ def test_miss_then_hit(tmp_path: Path, coarse) -> None:  # type: ignore[no-untyp
     ws2, i2 = load_or_build(prof, tmp_path)
     assert i2.hit and i2.rebuilt_because == "" and len(calls) == 1
     _same(ws1, ws2)
-    assert ws2.profile is prof
+    assert ws2.model is model_of(prof) and ws2.links == link_model_of(prof)  # attached on load
     _, i3 = load_or_build(prof, tmp_path, force=True)
     assert not i3.hit and i3.rebuilt_because == "forced" and len(calls) == 2
 

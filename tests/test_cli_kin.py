@@ -71,8 +71,8 @@ def test_ik_rpy_roundtrip(capsys: pytest.CaptureFixture[str]) -> None:
     th = json.loads(out)["theta_deg"]
     code, out, _ = run(capsys, "fk", "--theta", *map(str, th), "--json")
     v = np.array(json.loads(out)["v"])
-    from spm_console.core.model import model_of
     from spm_console.core.rotations import rpy_matrix
+    from spm_console.models import model_of
     from spm_console.profile import load_profile
 
     m = model_of(load_profile())

@@ -15,15 +15,16 @@ from spm_console.core.plan import Plan
 from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.region import Region
 from spm_console.core.region_build import region_containing
-from spm_console.core.workspace import Workspace, build_workspace
+from spm_console.core.workspace import Workspace
 from spm_console.errors import InfeasibleError, PlanRefusedError
+from spm_console.models import build_workspace, servo_model_of
 from spm_console.profile import Profile
 from spm_console.run.plan_check import (
     MAX_REFERENCE_STEP_DEG,
     PlanVerifier,
     verify_plan,
 )
-from spm_console.run.plans import plan_from_references, servo_model_of, synthetic_plan
+from spm_console.run.plans import plan_from_references, synthetic_plan
 from spm_console.run.segments import Segment
 from tests.ws_helpers import MVN_GOAL, MVN_START, agile_profile, agile_workspace, with_step
 

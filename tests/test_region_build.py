@@ -160,7 +160,7 @@ def test_mintime_pair_needs_a_finer_grid(ws: Workspace) -> None:
 
 @pytest.mark.slow
 def test_mintime_pair_on_the_1deg_grid() -> None:
-    from spm_console.core.workspace import build_workspace
+    from spm_console.models import build_workspace
     from tests.ws_helpers import agile_profile, with_step
 
     ws1 = build_workspace(with_step(agile_profile(), 1.0))

@@ -78,7 +78,7 @@ def test_short_session_runs_every_step_and_reports_json(tmp_path, capsys, agile)
     assert all(f"[{i}/6]" in err for i in range(1, 7))
     # fk from an orientation: the IK solution, and its FK gives that orientation back
     from spm_console.core.ik import ik_rpy
-    from spm_console.core.model import model_of
+    from spm_console.models import model_of
 
     fk = steps[1]["result"]
     expect = ik_rpy(model_of(agile), *np.radians([10.0, 5.0, -15.0])).theta_deg

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spm_console.core.model import link_model_of, model_of
+from spm_console.models import link_model_of, model_of
 from spm_console.viewer import scene
 from tests.net_helpers import listening
 

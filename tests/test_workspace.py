@@ -7,7 +7,6 @@ from collections import deque
 import numpy as np
 import pytest
 
-from spm_console.core.model import link_model_of, model_of
 from spm_console.core.workspace import (
     NodeClass,
     Workspace,
@@ -15,6 +14,7 @@ from spm_console.core.workspace import (
     classify,
     home_connected,
 )
+from spm_console.models import link_model_of, model_of
 from tests.ws_helpers import MVN_GOAL, MVN_START, agile_profile, agile_workspace
 
 

@@ -15,10 +15,10 @@ from spm_console.core.assess import assess
 from spm_console.core.ik import ik, ik_rpy
 from spm_console.core.kinematics import FkResult, SpmModel
 from spm_console.core.links import LinkModel
-from spm_console.core.model import link_model_of, model_of
 from spm_console.core.modes import assembly_modes
 from spm_console.errors import BadInputError, ExitCode, UnreachableError
 from spm_console.formatting import fmt_residual
+from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
 
 

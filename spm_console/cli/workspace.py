@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import Any
 
 from spm_console.cli.common import add_common, emit, finite3, fmt_vec, info, profile_of
-from spm_console.core.model import link_model_of, model_of
 from spm_console.core.region_build import region_containing
 from spm_console.core.workspace import Workspace, check_theta
 from spm_console.core.workspace_verify import verify_region
@@ -180,8 +179,8 @@ def cmd_verify(args: argparse.Namespace) -> int:
     if args.samples < 1:
         raise BadInputError("--samples must be at least 1")
     ws, _ = _load(args)
-    assert ws.profile is not None
-    r = verify_region(ws, model_of(ws.profile), link_model_of(ws.profile), n=args.samples,
+    model, links = ws.exact_models()
+    r = verify_region(ws, model, links, n=args.samples,
                       seed=args.seed)
     rec = {
         "samples": r.samples, "infeasible": r.infeasible,

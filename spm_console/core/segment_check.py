@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.model import link_model_of, model_of
 from spm_console.core.workspace_check import check_points, pair_name
 from spm_console.errors import InfeasibleError
 
@@ -55,8 +54,7 @@ def node_reason(ws: Workspace, flat: int) -> str:
     """Why a grid node is not feasible, in words."""
     from spm_console.core.workspace import NodeClass
 
-    assert ws.profile is not None
-    links = link_model_of(ws.profile)
+    _, links = ws.exact_models()
     idx = np.unravel_index(flat, ws.shape)
     th = ws.theta_deg()[idx]
     k = NodeClass(int(ws.klass[idx]))
@@ -74,8 +72,7 @@ def node_reason(ws: Workspace, flat: int) -> str:
 
 def check_segment(ws: Workspace, a: F, b: F) -> None:
     """Raise :class:`InfeasibleError` unless the straight segment a→b (deg) is feasible."""
-    assert ws.profile is not None
-    model, links = model_of(ws.profile), link_model_of(ws.profile)
+    model, links = ws.exact_models()
     lo, hi = ws.range_deg()
     for name, t in (("first", a), ("second", b)):
         if not np.all((t >= lo - 1e-9) & (t <= hi + 1e-9)):

@@ -25,12 +25,10 @@ from scipy import ndimage
 
 from spm_console.core.certify import CertifiedSet
 from spm_console.core.fk_grid import track_grid
-from spm_console.core.kinematics import PATH_ZETA_FLOOR, platform_axes
+from spm_console.core.kinematics import PATH_ZETA_FLOOR, SpmModel, platform_axes
 from spm_console.core.links import LinkModel
-from spm_console.core.model import link_model_of, model_of
 from spm_console.core.region import Region
 from spm_console.core.workspace_check import ThetaCheck, check_one
-from spm_console.profile import Profile
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
@@ -97,8 +95,16 @@ class Workspace:
     """Wall time of the region construction alone, s."""
     region_info: dict[str, float] = field(default_factory=dict)
     """Diagnostics of the region construction (iterations, coverage, ...)."""
-    profile: Profile | None = field(default=None, compare=False, repr=False)
-    """The profile it was built from (for exact checks); not stored in the cache."""
+    model: SpmModel | None = field(default=None, compare=False, repr=False)
+    """The kinematic model it was built from (for exact checks); not stored in the cache."""
+    links: LinkModel | None = field(default=None, compare=False, repr=False)
+    """The link model it was built from (for exact checks); not stored in the cache."""
+
+    def exact_models(self) -> tuple[SpmModel, LinkModel]:
+        """(kinematic model, link model) for exact checks; ValueError when not attached."""
+        if self.model is None or self.links is None:
+            raise ValueError("this workspace carries no kinematic/link model for exact checks")
+        return self.model, self.links
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -168,9 +174,21 @@ class Workspace:
         return (idx[0], idx[1], idx[2])
 
 
-def grid_axes_deg(profile: Profile) -> tuple[F, F, F]:
-    a = np.asarray(profile.workspace.axis_deg, float)
-    return (a, a.copy(), a.copy())
+@dataclass(frozen=True)
+class GridSpec:
+    """What a workspace build needs (built from a profile by ``spm_console.models``)."""
+
+    model: SpmModel
+    links: LinkModel
+    axes_deg: tuple[F, F, F]
+    """Grid values of θ1, θ2, θ3, deg."""
+    step_deg: float
+    zeta_min: float
+    max_halfspaces: int
+    home_deg: F
+    """Home θ, deg."""
+    box_deg: tuple[float, float]
+    """θ range of the grid box, deg."""
 
 
 def link_distances(
@@ -221,12 +239,11 @@ def _stage(progress: Progress | None, stage: str) -> Callable[[float], None] | N
     return lambda f: progress(stage, f)
 
 
-def build_grid(profile: Profile, progress: Progress | None = None) -> Workspace:
-    """Algorithm 2 over the profile's grid, without the region (``region`` = the grid box)."""
+def build_grid(spec: GridSpec, progress: Progress | None = None) -> Workspace:
+    """Algorithm 2 over the grid, without the region (``region`` = the grid box)."""
     t0 = time.perf_counter()
-    model, links = model_of(profile), link_model_of(profile)
-    ws = profile.workspace
-    axes_deg = grid_axes_deg(profile)
+    model, links = spec.model, spec.links
+    axes_deg = spec.axes_deg
     axes = (np.radians(axes_deg[0]), np.radians(axes_deg[1]), np.radians(axes_deg[2]))
     g = track_grid(model, axes, zeta_floor=PATH_ZETA_FLOOR, progress=_stage(progress, "fk"))
     shape = g.shape
@@ -241,45 +258,42 @@ def build_grid(profile: Profile, progress: Progress | None = None) -> Workspace:
     pair = np.full(reached.size, -1, np.int16)
     pair[reached] = k_r
     home = tuple(
-        int(np.argmin(np.abs(a - t))) for a, t in zip(axes_deg, profile.home.theta_deg, strict=True)
+        int(np.argmin(np.abs(a - t))) for a, t in zip(axes_deg, spec.home_deg, strict=True)
     )
-    klass = classify(g.zeta, dmin.reshape(shape), g.reached, ws.zeta_min, 2.0 * links.delta,
+    klass = classify(g.zeta, dmin.reshape(shape), g.reached, spec.zeta_min, 2.0 * links.delta,
                      (home[0], home[1], home[2]))
-    lo, hi = ws.theta_min_deg, ws.theta_max_deg
+    lo, hi = spec.box_deg
     return Workspace(
-        axes_deg=axes_deg, step_deg=ws.step_deg, zeta=g.zeta, min_link_mm=dmin.reshape(shape),
+        axes_deg=axes_deg, step_deg=spec.step_deg, zeta=g.zeta, min_link_mm=dmin.reshape(shape),
         closest_pair=pair.reshape(shape), R=g.R, klass=klass, region=Region.box(lo, hi),
-        zeta_min=ws.zeta_min, min_distance_mm=2.0 * links.delta,
+        zeta_min=spec.zeta_min, min_distance_mm=2.0 * links.delta,
         home_index=(home[0], home[1], home[2]), seconds=time.perf_counter() - t0,
-        profile=profile,
+        model=model, links=links,
     )
 
 
-def build_workspace(profile: Profile, progress: Progress | None = None) -> Workspace:
+def build_workspace(spec: GridSpec, progress: Progress | None = None) -> Workspace:
     """Grid (Algorithm 2) plus the convex region P; ``progress(stage, fraction)`` if given."""
     from dataclasses import replace
 
     from spm_console.core.region_build import build_region
 
     t0 = time.perf_counter()
-    ws = build_grid(profile, progress)
+    ws = build_grid(spec, progress)
     t1 = time.perf_counter()
-    res = build_region(ws, max_halfspaces=profile.workspace.max_halfspaces,
+    res = build_region(ws, max_halfspaces=spec.max_halfspaces,
                        progress=_stage(progress, "region"))
     t2 = time.perf_counter()
     out = replace(ws, region=res.region, seconds=t2 - t0, region_seconds=t2 - t1,
                   region_info={**res.info(),
-                               "max_halfspaces": float(profile.workspace.max_halfspaces)})
+                               "max_halfspaces": float(spec.max_halfspaces)})
     if progress is not None:
         progress("done", 1.0)
     return out
 
 
-def check_theta(ws_or_profile: Workspace | Profile, theta_deg: F) -> ThetaCheck:
-    """Is θ (deg) feasible, and inside P? Pass a loaded workspace (from
-    ``workspace_cache.load_or_build``); given a profile, the workspace is built
-    here (no cache: the core does no I/O)."""
-    ws = ws_or_profile if isinstance(ws_or_profile, Workspace) else build_workspace(ws_or_profile)
-    if ws.profile is None:
-        raise ValueError("check_theta: the workspace carries no profile")
-    return check_one(ws, model_of(ws.profile), link_model_of(ws.profile), theta_deg)
+def check_theta(ws: Workspace, theta_deg: F) -> ThetaCheck:
+    """Is θ (deg) feasible, and inside P? ``ws`` from ``workspace_cache.load_or_build``
+    (or ``models.build_workspace``): it carries the models the exact check needs."""
+    model, links = ws.exact_models()
+    return check_one(ws, model, links, theta_deg)

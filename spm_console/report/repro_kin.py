@@ -6,8 +6,8 @@ import time
 
 import numpy as np
 
-from spm_console.core.model import model_of
 from spm_console.core.servo_model import continuous, discretize
+from spm_console.models import model_of
 from spm_console.profile import Profile
 from spm_console.report import paper_values as pv
 from spm_console.report.repro_types import Check, Section

@@ -22,8 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.kinematics import Pose
-from spm_console.core.model import model_of
 from spm_console.errors import UnreachableError
+from spm_console.models import model_of
 from spm_console.profile import Profile
 from spm_console.run.executor import ExecutionResult, Executor, Segment
 from spm_console.run.plans import line_plan, plan_summary

@@ -36,12 +36,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.certify import CertifiedSet
-from spm_console.core.model import link_model_of, model_of
 from spm_console.core.plan import Plan
 from spm_console.core.servo_model import simulate_continuous
 from spm_console.core.workspace import Workspace
 from spm_console.core.workspace_check import check_points
 from spm_console.errors import PlanRefusedError
+from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
 from spm_console.run.segments import Segment
 

@@ -18,16 +18,11 @@ from numpy.typing import NDArray
 from spm_console.core.estimation import ModelPredictor
 from spm_console.core.plan import Plan
 from spm_console.core.region import Region
-from spm_console.core.servo_model import ServoModel, discretize
+from spm_console.models import servo_model_of
 from spm_console.plan_file import plan_hash
 from spm_console.profile import Profile
 
 F = NDArray[np.float64]
-
-
-def servo_model_of(profile: Profile) -> ServoModel:
-    s = profile.servo
-    return discretize(s.p, s.ts_s, s.discretization)
 
 
 def limits_region(profile: Profile) -> Region:

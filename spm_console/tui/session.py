@@ -21,7 +21,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.ik import ik_rpy
-from spm_console.core.model import link_model_of, model_of
 from spm_console.core.modes import assembly_modes
 from spm_console.core.plan import Plan
 from spm_console.devices.base import ServoBus, ServoStatus
@@ -32,6 +31,7 @@ from spm_console.errors import (
     SpmError,
     UnreachableError,
 )
+from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
 
 if TYPE_CHECKING:
@@ -367,8 +367,8 @@ class Session:
         inside the workspace region P and the servo limits. Stores and returns the plan."""
         from spm_console.core.planning import solve_mintime, solve_mvn
         from spm_console.core.region_build import region_containing
+        from spm_console.models import servo_model_of
         from spm_console.plan_file import plan_hash
-        from spm_console.run.plans import servo_model_of
 
         ws = self.require_workspace()
         s, g = self.resolve(start), self.resolve(goal)

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.kinematics import SpmModel
 from spm_console.core.links import LinkModel
-from spm_console.core.model import link_model_of, model_of
+from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
 from spm_console.viewer import scene
 from spm_console.viewer.process import ViewerError, ViewerServer

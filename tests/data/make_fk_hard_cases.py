@@ -18,9 +18,9 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from spm_console.core.kinematics import platform_axes  # noqa: E402
-from spm_console.core.model import model_of  # noqa: E402
 from spm_console.core.modes import seeded_solve  # noqa: E402
 from spm_console.core.workspace import build_grid  # noqa: E402
+from spm_console.models import grid_spec, model_of  # noqa: E402
 from spm_console.profile import load_profile  # noqa: E402
 
 MAX_ROWS = 200
@@ -29,7 +29,7 @@ MAX_ROWS = 200
 def main() -> None:
     prof = load_profile(ROOT / "profiles" / "agile_wrist.toml")
     model = model_of(prof)
-    ws = build_grid(prof)
+    ws = build_grid(grid_spec(prof))
     x0 = np.asarray(prof.home.sign_seed, float)
     th = ws.theta_deg()
     V = platform_axes(ws.R, model.v_home)
