@@ -187,7 +187,7 @@ def test_sigkill_leaves_a_readable_log(tmp_path: Path, agile: Profile) -> None:
     proc.kill()
     proc.communicate(timeout=20)
     run = load_run(run_dir)
-    assert run.meta["outcome"] == "running"  # never finished, and says so
+    assert run.meta["outcome"] == "killed"  # never finished, and its process is gone
     assert run.rows >= 40
     assert np.array_equal(run.columns["k"], np.arange(run.rows))
     assert np.isfinite(run.vec("meas")).all() and np.isfinite(run.vec("vel")).all()
