@@ -89,3 +89,9 @@ class BusError(SpmError):
     """The servo bus cannot be opened, or a servo is absent or of the wrong model."""
 
     exit_code = ExitCode.BUS_ERROR
+
+
+class InterruptedBySignalError(SpmError):
+    """A terminating signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT) arrived while nothing moved."""
+
+    exit_code = ExitCode.INTERRUPTED
