@@ -126,6 +126,7 @@ class Session:
         """Planned duration of the running (or last) motion, s."""
         self._executor: Executor | None = None
         self._estop_sent = False
+        self._estop_reason = ""
         self._motion = threading.Lock()
         self.moving = threading.Event()
         """Set while a motion (homing or execution) runs."""
@@ -252,8 +253,7 @@ class Session:
                                         self.profile.safety.home_speed_degps).duration_s
 
         def go() -> ExecutionResult:
-            ex = self._executor_for("home", [{"kind": "homing"}], on_sample)
-            self._executor = ex
+            ex = self._attach(self._executor_for("home", [{"kind": "homing"}], on_sample))
             return home(ex).execution
 
         result = self._run_motion(go)
@@ -280,8 +280,7 @@ class Session:
                    for s in segments]
 
         def go() -> ExecutionResult:
-            ex = self._executor_for("execute", summary, on_sample)
-            self._executor = ex
+            ex = self._attach(self._executor_for("execute", summary, on_sample))
             return ex.run(segments, theta0_deg=theta0)
 
         result = self._run_motion(go)
@@ -289,14 +288,25 @@ class Session:
         return result
 
     def estop(self, reason: str = "operator E-stop") -> bool:
-        """Stop the running motion at once (any thread). False when nothing moves."""
-        ex = self._executor
-        if ex is None:
+        """Stop the running motion at once (any thread, or a signal handler). False when
+        nothing moves. Asked before the motion's executor exists, the stop is kept and
+        applied as soon as it does (:meth:`_attach`): it is never lost."""
+        if not self.moving.is_set():
             return False
         if not self._estop_sent:  # the first reason is the one logged
+            self._estop_reason = reason
             self._estop_sent = True
-            ex.request_estop(reason)
+            ex = self._executor
+            if ex is not None:
+                ex.request_estop(reason)
         return True
+
+    def _attach(self, ex: Executor) -> Executor:
+        """Make ``ex`` the running motion's executor (E-stop requests reach it from now on)."""
+        self._executor = ex
+        if self._estop_sent:  # asked for between the start of the motion and now
+            ex.request_estop(self._estop_reason)
+        return ex
 
     # ------------------------------------------------------------------ kinematics
     def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> dict[str, Any]:
