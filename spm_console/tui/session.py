@@ -288,23 +288,20 @@ class Session:
         return result
 
     def estop(self, reason: str = "operator E-stop") -> bool:
-        """Stop the running motion at once (any thread, or a signal handler). False when
-        nothing moves. Asked before the motion's executor exists, the stop is kept and
-        applied as soon as it does (:meth:`_attach`): it is never lost."""
+        """Stop the running motion at once (any thread, a signal handler); False when nothing
+        moves. Asked before the motion's executor exists, it is kept for it (:meth:`_attach`)."""
         if not self.moving.is_set():
             return False
         if not self._estop_sent:  # the first reason is the one logged
-            self._estop_reason = reason
-            self._estop_sent = True
-            ex = self._executor
-            if ex is not None:
+            self._estop_reason, self._estop_sent = reason, True
+            if (ex := self._executor) is not None:
                 ex.request_estop(reason)
         return True
 
     def _attach(self, ex: Executor) -> Executor:
-        """Make ``ex`` the running motion's executor (E-stop requests reach it from now on)."""
+        """``ex`` runs the motion: E-stops reach it from now on (and one asked for already)."""
         self._executor = ex
-        if self._estop_sent:  # asked for between the start of the motion and now
+        if self._estop_sent:
             ex.request_estop(self._estop_reason)
         return ex
 
