@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -98,7 +99,9 @@ def test_failed_assertion_exits_11_and_stops_there(tmp_path, capsys) -> None:
     assert code == ExitCode.ASSERTION_FAILED
     last = summary["steps"][-1]
     assert last["do"] == "assert" and not last["ok"]
-    assert "is 1.0" in last["error"] and "from [121.0, 125.0, 128.0]°" in last["error"]
+    # θ settles within about 0.1° of 120 (emulator noise, timing): the distance to 121 is about 1°
+    m = re.search(r"is (\d+\.\d+)° from \[121\.0, 125\.0, 128\.0\]°", last["error"])
+    assert m is not None and 0.8 < float(m.group(1)) < 1.2, last["error"]
     assert last["result"] == {"outcome": True, "exit_code": True, "theta_near": False,
                               "max_duration_s": True}
     assert len(summary["steps"]) == 6  # the wait after it never ran
