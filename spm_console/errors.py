@@ -97,3 +97,9 @@ class PlanRefusedError(SpmError):
     leave the certified feasible set, or exceed a speed, step or servo limit)."""
 
     exit_code = ExitCode.PLAN_REFUSED
+
+
+class InterruptedBySignalError(SpmError):
+    """A terminating signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT) arrived while nothing moved."""
+
+    exit_code = ExitCode.INTERRUPTED

@@ -61,7 +61,6 @@ the wrist is left as the executor's stop action leaves it.
 from __future__ import annotations
 
 import signal
-import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -72,6 +71,7 @@ import numpy as np
 
 from spm_console.errors import BadInputError, ExitCode, SpmError
 from spm_console.profile import DEFAULT_PROFILE, Profile, load_profile
+from spm_console.run.signals import stop_signals
 from spm_console.script_format import (
     AssertStep,
     ExecuteStep,
@@ -133,11 +133,18 @@ class ScriptRunner:
         self.exit_code = ExitCode.OK
         self.message = ""
         self._interrupted = False
+        self._in_step = False
 
-    def interrupt(self) -> None:
-        """Stop at once (any motion E-stopped) and skip the remaining steps (SIGTERM)."""
+    def interrupt(self, sig: signal.Signals = signal.SIGTERM) -> None:
+        """A terminating signal: E-stop any motion and skip the remaining steps.
+
+        Called from the signal handler. A motion is stopped by its executor (the
+        execute or home step then fails with the stop's code, 20); when nothing moves,
+        the step under way is abandoned like on Ctrl-C (exit 130).
+        """
         self._interrupted = True
-        self.session.estop("script interrupted")
+        if not self.session.estop(f"signal {sig.name}") and self._in_step:
+            raise KeyboardInterrupt
 
     def run(self) -> int:
         steps = self.script.step
@@ -148,7 +155,11 @@ class ScriptRunner:
                 break
             t0 = time.perf_counter()
             try:
-                result, summary = self._do(step)
+                self._in_step = True
+                try:
+                    result, summary = self._do(step)
+                finally:
+                    self._in_step = False
             except SpmError as exc:
                 self.reports.append(StepReport(i, step.do, False, time.perf_counter() - t0,
                                                getattr(exc, "result", {}), exc.message))
@@ -157,7 +168,9 @@ class ScriptRunner:
                 break
             except KeyboardInterrupt:
                 self.session.estop("interrupted")
-                self.exit_code, self.message = ExitCode.INTERRUPTED, f"step {i} interrupted"
+                self.reports.append(StepReport(i, step.do, False, time.perf_counter() - t0,
+                                               error="interrupted"))
+                self.exit_code, self.message = ExitCode.INTERRUPTED, f"step {i} ({step.do}) interrupted"
                 break
             self.reports.append(StepReport(i, step.do, True, time.perf_counter() - t0, result))
             self.progress(f"[{i}/{n}] {step.do}: {summary}")
@@ -321,16 +334,12 @@ def session_for(script: Script, profile: Profile | None = None, port: str | None
 
 
 def run_script(script: Script, session: Session, progress: Callable[[str], None]) -> ScriptRunner:
-    """Run with SIGTERM turned into an E-stop and a clean end; the session is closed after."""
+    """Run with every terminating signal (:mod:`spm_console.run.signals`) turned into an
+    E-stop and a clean end; the session is closed after."""
     runner = ScriptRunner(script, session, progress)
-    old = signal.getsignal(signal.SIGTERM)
-    in_main = threading.current_thread() is threading.main_thread()
-    if in_main:
-        signal.signal(signal.SIGTERM, lambda *_: runner.interrupt())
-    try:
-        runner.run()
-    finally:
-        if in_main:
-            signal.signal(signal.SIGTERM, old)
-        session.close()
+    with stop_signals(runner.interrupt):  # (while closing, a signal has nothing left to stop)
+        try:
+            runner.run()
+        finally:
+            session.close()
     return runner

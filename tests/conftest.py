@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -42,3 +43,16 @@ def agile_model(agile):  # type: ignore[no-untyped-def]
     from spm_console.models import model_of
 
     return model_of(agile)
+
+
+@pytest.fixture
+def sighup_default() -> Iterator[None]:
+    """SIGHUP at its default for one test (and the processes it starts), even when the tests
+    run under ``nohup``: the console leaves an ignored SIGHUP ignored (run.signals)."""
+    import signal
+
+    old = signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGHUP, old)

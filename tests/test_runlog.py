@@ -14,7 +14,16 @@ import numpy as np
 import pytest
 
 from spm_console.errors import BadInputError
-from spm_console.run.runlog import COLUMNS, LOGS_ENV, RunLog, list_runs, load_run, logs_root
+from spm_console.run.procid import current_process, writer_alive
+from spm_console.run.runlog import (
+    COLUMNS,
+    FLUSH_EVERY,
+    LOGS_ENV,
+    RunLog,
+    list_runs,
+    load_run,
+    logs_root,
+)
 from spm_console.run.sample import Sample
 
 
@@ -83,7 +92,7 @@ WRITER = """
 import sys, time, numpy as np
 from spm_console.run.runlog import RunLog
 from spm_console.run.sample import Sample
-log = RunLog.create("execute", "p", "h", [], root=sys.argv[1], flush_every=10)
+log = RunLog.create("execute", "p", "h", [], root=sys.argv[1])
 print(log.path, flush=True)
 k = 0
 while True:
@@ -111,10 +120,47 @@ def test_sigkill_leaves_a_readable_log(tmp_path: Path) -> None:
     proc.wait(timeout=10)
     assert proc.returncode == -signal.SIGKILL
     run = load_run(path)
-    assert run.meta["outcome"] == "running"  # never finished: shows as such
-    assert run.rows >= 30  # everything up to the last flush (every 10 rows)
+    assert run.meta["outcome"] == "killed"  # never finished, and its process is gone
+    assert json.loads((path / "meta.json").read_text())["outcome"] == "running"  # as left
+    assert run.rows >= 36 - FLUSH_EVERY  # everything up to the last flush
     ks = run.columns["k"]
     assert np.array_equal(ks, np.arange(len(ks)))  # complete rows, in order, no holes
     assert np.allclose(run.vec("meas")[:, 0], ks)
     assert run.events and all(e["event"] == "tick" for e in run.events)
     assert list(COLUMNS) == (path / "samples.csv").read_text().splitlines()[0].split(",")
+
+
+def test_rows_reach_the_os_every_few_samples(tmp_path: Path) -> None:
+    assert 1 <= FLUSH_EVERY <= 3  # a SIGKILL loses at most FLUSH_EVERY - 1 logged rows
+    log = RunLog.create("execute", "p", "h", [], root=tmp_path)
+    csv_path = log.path / "samples.csv"
+    for k in range(2 * FLUSH_EVERY):
+        log.sample(_sample(k))
+        on_disk = csv_path.read_text().count("\n") - 1  # what another process sees
+        assert on_disk == (k + 1) // FLUSH_EVERY * FLUSH_EVERY
+    log.close()
+
+
+def test_a_running_log_is_killed_only_when_its_own_process_is_gone(tmp_path: Path) -> None:
+    me = current_process()
+    assert me["pid"] == os.getpid() and writer_alive(me) is True
+    log = RunLog.create("execute", "p", "h", [], root=tmp_path)
+    assert log.meta["process"] == me
+    assert [r.meta["outcome"] for r in list_runs(tmp_path)] == ["running"]  # we are alive
+
+    def runs_with(process: object) -> str:
+        meta = json.loads((log.path / "meta.json").read_text())
+        (log.path / "meta.json").write_text(json.dumps({**meta, "process": process}))
+        return str(list_runs(tmp_path)[0].meta["outcome"])
+
+    if me["start_ticks"] is not None:  # the pid reused by a later process: not ours
+        assert runs_with({**me, "start_ticks": me["start_ticks"] + 1}) == "killed"
+    if me["boot_id"] is not None:  # written before a reboot
+        assert runs_with({**me, "boot_id": "another-boot"}) == "killed"
+    assert runs_with({**me, "host": "another-host"}) == "running"  # cannot tell: as written
+    assert runs_with(None) == "running"  # logs written before the process was recorded
+    assert runs_with({**me, "pid": 0}) == "running"
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    assert runs_with({**me, "pid": int(dead.stdout)}) == "killed"
+    log.close()

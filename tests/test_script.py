@@ -1,9 +1,10 @@
-"""Headless scripted sessions: the example, results, assertions, faults, bad files, SIGTERM."""
+"""Headless scripted sessions: the example, results, assertions, faults, bad files, signals."""
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -98,7 +99,9 @@ def test_failed_assertion_exits_11_and_stops_there(tmp_path, capsys) -> None:
     assert code == ExitCode.ASSERTION_FAILED
     last = summary["steps"][-1]
     assert last["do"] == "assert" and not last["ok"]
-    assert "is 1.0" in last["error"] and "from [121.0, 125.0, 128.0]°" in last["error"]
+    # θ settles within about 0.1° of 120 (emulator noise, timing): the distance to 121 is about 1°
+    m = re.search(r"is (\d+\.\d+)° from \[121\.0, 125\.0, 128\.0\]°", last["error"])
+    assert m is not None and 0.8 < float(m.group(1)) < 1.2, last["error"]
     assert last["result"] == {"outcome": True, "exit_code": True, "theta_near": False,
                               "max_duration_s": True}
     assert len(summary["steps"]) == 6  # the wait after it never ran
@@ -164,14 +167,20 @@ def test_the_example_runs(tmp_path) -> None:
     assert json.loads(p.stdout)["ok"]
 
 
-def test_sigterm_stops_the_motion_and_ends_cleanly(tmp_path) -> None:
-    text = SHORT.replace("steps = 30", "steps = 400")  # 8 s of motion
-    f = tmp_path / "long.toml"
+def _spawn_script(tmp_path: Path, text: str) -> subprocess.Popen[str]:
+    f = tmp_path / "s.toml"
     f.write_text(text)
     env = {**os.environ, "SPM_CONSOLE_CACHE": os.environ["SPM_CONSOLE_CACHE"]}
-    p = subprocess.Popen([sys.executable, "-m", "spm_console", "script", str(f), "--logs",
-                          str(tmp_path / "logs")], cwd=ROOT, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, env=env)
+    return subprocess.Popen([sys.executable, "-m", "spm_console", "script", str(f), "--logs",
+                             str(tmp_path / "logs")], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+
+
+@pytest.mark.usefixtures("sighup_default")
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=lambda s: s.name)
+def test_a_signal_stops_the_motion_and_ends_cleanly(tmp_path, sig) -> None:
+    """SIGTERM (kill) and SIGHUP (the terminal closed) mid-motion: E-stop, exit 20."""
+    p = _spawn_script(tmp_path, SHORT.replace("steps = 30", "steps = 400"))  # 8 s of motion
     t_end = time.monotonic() + 60
     while time.monotonic() < t_end:  # wait until the execute step has started
         runs = list_runs(tmp_path / "logs")
@@ -179,10 +188,29 @@ def test_sigterm_stops_the_motion_and_ends_cleanly(tmp_path) -> None:
             break
         time.sleep(0.05)
     time.sleep(0.5)
-    p.send_signal(signal.SIGTERM)
+    p.send_signal(sig)
     out, err = p.communicate(timeout=30)
     assert p.returncode == ExitCode.STOP_ESTOP, err
     summary = json.loads(out)
     assert summary["steps"][-1]["do"] == "execute" and not summary["steps"][-1]["ok"]
     run = next(r for r in list_runs(tmp_path / "logs") if r.meta["kind"] == "execute")
     assert run.meta["outcome"] == "stopped" and run.meta["exit_code"] == ExitCode.STOP_ESTOP
+    assert run.meta["message"] == f"E-stop: signal {sig.name}"
+
+
+def test_a_signal_while_nothing_moves_interrupts_at_once(tmp_path) -> None:
+    """SIGQUIT during a 60 s wait step: the script ends now with 130, not after the wait."""
+    p = _spawn_script(tmp_path, '[[step]]\ndo = "wait"\nseconds = 60\n')
+    assert p.stderr is not None
+    line = p.stderr.readline()  # "script ...: 1 steps on the emulated bus": the wait begins
+    assert "1 steps" in line, line
+    time.sleep(0.3)
+    t0 = time.monotonic()
+    p.send_signal(signal.SIGQUIT)
+    out, err = p.communicate(timeout=30)
+    assert p.returncode == ExitCode.INTERRUPTED, err
+    assert time.monotonic() - t0 < 5
+    summary = json.loads(out)
+    assert summary["message"] == "step 1 (wait) interrupted"
+    assert summary["steps"] == [{"index": 1, "do": "wait", "ok": False, "seconds": summary["steps"][0]["seconds"],
+                                 "error": "interrupted"}]

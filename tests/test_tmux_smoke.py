@@ -1,7 +1,7 @@
 """The real entry point in a real terminal: tmux runs ``spm-console tui`` and the test
 walks homing -> workspace -> plan -> execute by keystrokes, reading the screen with
 ``capture-pane``. Also: the 3D viewer's URL is shown, it listens on loopback only, and
-its server goes away on quit and on SIGTERM."""
+its server goes away on quit and on SIGTERM; closing the terminal mid-motion stops the wrist."""
 
 from __future__ import annotations
 
@@ -190,3 +190,30 @@ def test_sigterm_mid_motion_stops_the_wrist_the_console_and_its_viewer(  # type:
     runs = list_runs(tmp_path / "logs")
     assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
     assert runs[-1].meta["exit_code"] == 20 and "SIGTERM" in runs[-1].meta["message"]
+
+
+def test_closing_the_terminal_mid_motion_stops_the_wrist_and_closes_the_log(  # type: ignore[no-untyped-def]
+        tmux_console, tmp_path) -> None:
+    """The terminal goes away (tmux closes the pty: SIGHUP, as a dropped SSH session)."""
+    t = tmux_console("--sim", "--no-viewer")
+    _home_and_solve(t)
+    _start_execution(t)
+    t.wait_for(r"E-STOP: press SPACE")
+    time.sleep(0.5)
+    pid = t.pane_pid()
+    t.kill()  # the terminal closes under the console
+    t0 = time.monotonic()
+    while _alive(pid) and time.monotonic() - t0 < 10:
+        time.sleep(0.1)
+    assert not _alive(pid), "the console outlived its terminal"
+    runs = list_runs(tmp_path / "logs")
+    assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
+    assert runs[-1].meta["exit_code"] == 20 and runs[-1].meta["message"] == "E-stop: signal SIGHUP"
+
+
+def _alive(pid: int) -> bool:
+    """The process exists and is not a zombie."""
+    try:
+        return not Path(f"/proc/{pid}/stat").read_text().rsplit(") ", 1)[1].startswith("Z")
+    except OSError:
+        return False

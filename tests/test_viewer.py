@@ -1,14 +1,17 @@
 """The meshcat view without a browser: parts from the link model, throttled latest-wins
-drawing, loopback-only server, and no server left behind (close, killed parent)."""
+drawing, loopback-only server that refuses foreign Host / Origin (DNS rebinding), and no
+server left behind (close, killed parent)."""
 
 from __future__ import annotations
 
+import http.client
 import json
 import os
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -113,3 +116,55 @@ def test_server_does_not_outlive_a_killed_console() -> None:
     finally:
         if p.poll() is None:
             p.kill()
+
+
+@pytest.fixture(scope="module")
+def server_port() -> Iterator[int]:
+    from spm_console.viewer.process import ViewerServer
+
+    srv = ViewerServer()
+    url = srv.start_server().web_url
+    try:
+        yield int(url.rsplit(":", 1)[1].split("/")[0])
+    finally:
+        srv.stop()
+
+
+WS_UPGRADE = {"Upgrade": "websocket", "Connection": "Upgrade", "Sec-WebSocket-Version": "13",
+              "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}
+
+
+def _status(port: int, host: str, path: str = "/static/", **headers: str) -> int:
+    """Status of one GET to 127.0.0.1:port carrying exactly this Host header."""
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+    try:
+        conn.putrequest("GET", path, skip_host=True)
+        conn.putheader("Host", host)
+        for k, v in headers.items():
+            conn.putheader(k, v)
+        conn.endheaders()
+        return conn.getresponse().status
+    finally:
+        conn.close()
+
+
+def test_the_page_answers_only_to_its_loopback_name(server_port: int) -> None:
+    p = server_port
+    assert _status(p, f"127.0.0.1:{p}") == 200
+    assert _status(p, f"LOCALHOST:{p}") == 200  # host names are case-insensitive
+    # DNS rebinding: a foreign name resolving to 127.0.0.1, the page's own origin
+    assert _status(p, f"evil.example:{p}", Origin=f"http://evil.example:{p}") == 403
+    assert _status(p, "evil.example") == 403
+    assert _status(p, f"127.0.0.1:{p + 1}") == 403  # another port: not this server's name
+    assert _status(p, f"evil.example:{p}", "/static/index.html") == 403
+    assert _status(p, f"evil.example:{p}", "/no/such/page") == 403  # before any routing
+
+
+def test_the_websocket_is_refused_to_a_foreign_host_or_origin(server_port: int) -> None:
+    p = server_port
+    evil = f"http://evil.example:{p}"
+    assert _status(p, f"evil.example:{p}", "/", Origin=evil, **WS_UPGRADE) == 403  # rebinding
+    assert _status(p, f"127.0.0.1:{p}", "/", Origin=evil, **WS_UPGRADE) == 403  # cross-site
+    assert _status(p, f"127.0.0.1:{p}", "/", Origin="null", **WS_UPGRADE) == 403
+    assert _status(p, f"127.0.0.1:{p}", "/", Origin=f"http://127.0.0.1:{p}", **WS_UPGRADE) == 101
+    assert _status(p, f"localhost:{p}", "/", Origin=f"http://localhost:{p}", **WS_UPGRADE) == 101

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
 import json
 import math
+import os
 import sys
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -54,3 +58,19 @@ def info(msg: str) -> None:
 
 def fmt_vec(v: Any, digits: int = 4) -> str:
     return "[" + ", ".join(f"{float(x):.{digits}f}" for x in np.ravel(v)) + "]"
+
+
+@contextlib.contextmanager
+def output_may_be_gone() -> Iterator[None]:
+    """Around the last output of a command that moved the wrist: a write to a terminal that
+    closed (EIO, after SIGHUP) or to a closed pipe (EPIPE) is dropped, and stdout / stderr
+    point at /dev/null from then on, so the process still exits with the run's code."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno not in (errno.EIO, errno.EPIPE):
+            raise
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        for fd in (1, 2):
+            os.dup2(devnull, fd)
+        os.close(devnull)

@@ -12,7 +12,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import add_common, emit, finite3, fmt_vec, info, profile_of
+from spm_console.cli.common import add_common, emit, finite3, fmt_vec, info, output_may_be_gone, profile_of
 from spm_console.devices.faults import parse_fault
 from spm_console.plan_file import load_plan
 from spm_console.run.executor import ExecutionResult
@@ -75,9 +75,10 @@ def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any
             f"{st.get('comm_failed_cycles', 0)}")
     if res.log_dir:
         lines.append(f"log: {res.log_dir}")
-    emit(args, data, "\n".join(lines))
-    if not res.ok:
-        info(f"stopped: {res.message}")
+    with output_may_be_gone():  # after SIGHUP the terminal is gone: the exit code still tells
+        emit(args, data, "\n".join(lines))
+        if not res.ok:
+            info(f"stopped: {res.message}")
     return int(res.exit_code)
 
 

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import info, to_jsonable
+from spm_console.cli.common import info, output_may_be_gone, to_jsonable
 
 
 def register(sub: Any) -> None:
@@ -41,9 +41,15 @@ def cmd_script(args: argparse.Namespace) -> int:
     session = session_for(script, profile, port=args.port, sim=args.sim, logs=args.logs)
     info(f"script {args.file}: {len(script.step)} steps on the {session.bus_label}, "
          f"profile {session.profile.name}")
-    runner = run_script(script, session, info)
+
+    def progress(line: str) -> None:
+        with output_may_be_gone():  # a progress line after SIGHUP must not end the script
+            info(line)
+
+    runner = run_script(script, session, progress)
     summary = runner.summary()
-    sys.stdout.write(json.dumps(to_jsonable(summary)) + "\n")
-    sys.stdout.flush()
-    info(("done: " if summary["ok"] else "FAILED: ") + summary["message"])
+    with output_may_be_gone():  # after SIGHUP the terminal is gone: the exit code still tells
+        sys.stdout.write(json.dumps(to_jsonable(summary)) + "\n")
+        sys.stdout.flush()
+        info(("done: " if summary["ok"] else "FAILED: ") + summary["message"])
     return int(runner.exit_code)

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import signal
 import sys
 import threading
 import time
-from types import FrameType
 from typing import Any
 
 from spm_console.cli.common import add_common, emit, finite3, info, profile_of, to_jsonable
@@ -18,6 +16,7 @@ from spm_console.devices.emulator import start_emulator
 from spm_console.devices.faults import parse_fault
 from spm_console.errors import BadInputError, BusError, ExitCode
 from spm_console.profile import Profile
+from spm_console.run.signals import install_stop_handler
 
 
 def register(sub: Any) -> None:
@@ -154,12 +153,8 @@ def cmd_emulate(args: argparse.Namespace) -> int:
     if args.duration is not None and not args.duration > 0:
         raise BadInputError(f"--duration must be > 0 s, got {args.duration}")
     stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     em = start_emulator(profile, faults, record=False, initial_deg=initial)
+    restore = install_stop_handler(lambda _sig: stop.set())
     try:
         head = {"port": em.port, "protocol": em.protocol, "ids": [m.id for m in em.maps],
                 "model_number": profile.bus.model_number, "faults": [str(f) for f in faults],
@@ -178,8 +173,7 @@ def cmd_emulate(args: argparse.Namespace) -> int:
                 break
     finally:
         em.stop()
-        for s, h in old.items():
-            signal.signal(s, h)
+        restore()
     st = em.stats
     summary = {"stopped": True, "instructions": st.instructions, "replies": st.replies,
                "dropped": st.dropped, "corrupted": st.corrupted, "delayed": st.delayed,

@@ -11,11 +11,9 @@ from __future__ import annotations
 
 import contextlib
 import signal
-import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType
 from typing import Any, TypeVar
 
 import numpy as np
@@ -26,13 +24,14 @@ from spm_console.devices.base import ServoBus
 from spm_console.devices.bus import open_bus
 from spm_console.devices.emulator import EmulatorHandle, start_emulator
 from spm_console.devices.faults import FaultSpec
-from spm_console.errors import BadInputError, SpmError
+from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
 from spm_console.profile import Profile
 from spm_console.run.executor import ExecutionResult, Executor, Segment
 from spm_console.run.homing import HomingResult, approach_segment, home
 from spm_console.run.plans import plan_summary
 from spm_console.run.runlog import RunLog
 from spm_console.run.sample import Sample
+from spm_console.run.signals import stop_signals
 from spm_console.workspace_cache import load_or_build
 
 F = NDArray[np.float64]
@@ -86,22 +85,34 @@ def open_session(
             emu.stop()
 
 
-@contextlib.contextmanager
-def estop_on_signals(executor: Executor) -> Iterator[None]:
-    """SIGINT / SIGTERM request an E-stop (hold or torque off) instead of killing the loop."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
+class SignalStop:
+    """What a terminating signal does to a run (:mod:`spm_console.run.signals`).
 
-    def handler(signum: int, _frame: FrameType | None) -> None:
-        executor.request_estop(f"signal {signal.Signals(signum).name}")
+    Once the executor exists the signal is an E-stop (the stop action, the log closed
+    with outcome ``stopped``, exit 20). Before that it is only noted, and
+    :meth:`check` refuses the run at the next step (nothing moved, exit 130): no
+    exception is ever raised from inside the signal handler.
+    """
 
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
+    def __init__(self) -> None:
+        self.executor: Executor | None = None
+        self.pending: signal.Signals | None = None
+
+    def __call__(self, sig: signal.Signals) -> None:
+        if self.executor is not None:
+            self.executor.request_estop(f"signal {sig.name}")
+        elif self.pending is None:
+            self.pending = sig
+
+    def attach(self, executor: Executor) -> None:
+        """From now on a signal E-stops ``executor``; refuse now if one came before."""
+        self.check()
+        self.executor = executor
+
+    def check(self) -> None:
+        if self.pending is not None:
+            raise InterruptedBySignalError(
+                f"interrupted by {self.pending.name} before any motion; nothing moved")
 
 
 @dataclass
@@ -121,34 +132,37 @@ class RunRequest:
     on_executor: Callable[[Executor], None] | None = None
     """Called with the executor before it runs (to wire an E-stop button)."""
     handle_signals: bool = True
+    """Turn SIGINT/SIGTERM/SIGHUP/SIGQUIT into an E-stop (main thread only)."""
 
 
 def _session(profile: Profile, kind: str, plans: list[dict[str, Any]], req: RunRequest,
              body: Callable[[Executor, BusSession], T]) -> T:
-    log = RunLog.create(kind, profile.name, profile.digest(), plans, root=req.log_root,
-                        extra={"sim": req.sim or not (req.port or profile.bus.port),
-                               "faults": [str(f) for f in req.faults]})
-    try:
-        ws, info = load_or_build(profile, cache_dir=req.cache_dir)
-        log.meta["workspace"] = {"cache": str(info.path), "hit": info.hit, "key": info.key}
-        with open_session(profile, req.port, req.sim, req.faults, req.sim_start_deg) as ses:
-            log.meta["port"] = ses.port
-            on_start = ses.emulator.start_clock if ses.emulator is not None else None
-            ex = Executor(profile, ses.bus, workspace=ws, log=log, on_sample=req.on_sample,
-                          on_start=on_start)
-            if req.on_executor is not None:
-                req.on_executor(ex)
-            guard = estop_on_signals(ex) if req.handle_signals else contextlib.nullcontext()
-            with guard:
+    on_signal = SignalStop()
+    with stop_signals(on_signal) if req.handle_signals else contextlib.nullcontext():
+        log = RunLog.create(kind, profile.name, profile.digest(), plans, root=req.log_root,
+                            extra={"sim": req.sim or not (req.port or profile.bus.port),
+                                   "faults": [str(f) for f in req.faults]})
+        try:
+            ws, info = load_or_build(profile, cache_dir=req.cache_dir)
+            log.meta["workspace"] = {"cache": str(info.path), "hit": info.hit, "key": info.key}
+            with open_session(profile, req.port, req.sim, req.faults, req.sim_start_deg) as ses:
+                log.meta["port"] = ses.port
+                on_start = ses.emulator.start_clock if ses.emulator is not None else None
+                ex = Executor(profile, ses.bus, workspace=ws, log=log, on_sample=req.on_sample,
+                              on_start=on_start)
+                if req.on_executor is not None:
+                    req.on_executor(ex)
+                on_signal.attach(ex)
                 return body(ex, ses)
-    except SpmError as exc:
-        if not log.finished:
-            log.event("refused", 0.0, message=exc.message, exit_code=int(exc.exit_code))
-            log.finish("refused", int(exc.exit_code), exc.message, {})
-        raise
-    finally:
-        if not log.finished:  # an internal error escaped: keep what we have
-            log.finish("error", 1, "internal error (see stderr)", {})
+        except SpmError as exc:
+            if not log.finished:
+                outcome = "interrupted" if isinstance(exc, InterruptedBySignalError) else "refused"
+                log.event(outcome, 0.0, message=exc.message, exit_code=int(exc.exit_code))
+                log.finish(outcome, int(exc.exit_code), exc.message, {})
+            raise
+        finally:
+            if not log.finished:  # an internal error escaped: keep what we have
+                log.finish("error", 1, "internal error (see stderr)", {})
 
 
 def execute_plan(profile: Profile, plan: Plan, req: RunRequest,

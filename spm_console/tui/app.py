@@ -7,10 +7,8 @@ so they exercise what operators run (STYLE §3).
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import gc
 import signal
-import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
@@ -22,7 +20,9 @@ from textual.binding import Binding, BindingType
 from textual.reactive import reactive
 from textual.screen import Screen
 
+from spm_console.errors import ExitCode
 from spm_console.profile import Profile
+from spm_console.run.signals import install_stop_handler
 from spm_console.tui.messages import Telemetry
 from spm_console.tui.screens.connect import ConnectScreen
 from spm_console.tui.screens.execute import ExecuteScreen
@@ -72,25 +72,33 @@ class SpmConsoleApp(App[int]):
         self.fk_done = False
         self.live_samples: list[Any] = []
         self._closed = False
+        self._restore_signals: Callable[[], None] = lambda: None
+        self._exit_code_on_signal: int | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
 
     # ------------------------------------------------------------------ lifecycle
     def on_mount(self) -> None:
         self.switch_mode("connect")
-        if threading.current_thread() is threading.main_thread():
-            with contextlib.suppress(NotImplementedError, RuntimeError):
-                asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, self._on_sigterm)
+        self._loop = asyncio.get_running_loop()
+        self._restore_signals = install_stop_handler(self._on_stop_signal)
         if self._start_viewer:
             self._launch_viewer()
 
-    def _on_sigterm(self) -> None:
-        """SIGTERM: stop any motion at once, then leave through the app's own message loop
-        (exiting straight from the signal callback leaves Textual hanging in its shutdown)."""
-        self.session.estop("SIGTERM")
-        self.call_later(self._terminate)
+    def _on_stop_signal(self, sig: signal.Signals) -> None:
+        """SIGINT / SIGTERM / SIGHUP / SIGQUIT (signal handler, main thread): E-stop any motion
+        at once, then leave through the app's own message loop (exiting straight from the
+        signal handler leaves Textual hanging in its shutdown). Exit 20 when a motion was
+        stopped, 130 otherwise (README, exit codes)."""
+        moving = self.session.estop(f"signal {sig.name}")
+        code = int(ExitCode.STOP_ESTOP if moving else ExitCode.INTERRUPTED)
+        if self._exit_code_on_signal is None and self._loop is not None:
+            self._exit_code_on_signal = code
+            # the handler may have interrupted the event loop itself: only this call is safe
+            self._loop.call_soon_threadsafe(self.call_later, self._terminate, code)
 
-    def _terminate(self) -> None:
+    def _terminate(self, code: int) -> None:
         self.shutdown()
-        self.exit(143)
+        self.exit(code, return_code=code)
 
     @work(thread=True, exit_on_error=False, group="viewer")
     def _launch_viewer(self) -> None:
@@ -119,6 +127,7 @@ class SpmConsoleApp(App[int]):
         self.view.close()
 
     def on_unmount(self) -> None:
+        self._restore_signals()
         self.shutdown()
 
     # ------------------------------------------------------------------ actions

@@ -126,6 +126,7 @@ class Session:
         """Planned duration of the running (or last) motion, s."""
         self._executor: Executor | None = None
         self._estop_sent = False
+        self._estop_reason = ""
         self._motion = threading.Lock()
         self.moving = threading.Event()
         """Set while a motion (homing or execution) runs."""
@@ -253,8 +254,7 @@ class Session:
                                         self.profile.safety.home_speed_degps).duration_s
 
         def go() -> ExecutionResult:
-            ex = self._executor_for("home", [{"kind": "homing"}], on_sample)
-            self._executor = ex
+            ex = self._attach(self._executor_for("home", [{"kind": "homing"}], on_sample))
             return home(ex).execution
 
         result = self._run_motion(go)
@@ -281,8 +281,7 @@ class Session:
                    for s in segments]
 
         def go() -> ExecutionResult:
-            ex = self._executor_for("execute", summary, on_sample)
-            self._executor = ex
+            ex = self._attach(self._executor_for("execute", summary, on_sample))
             return ex.run(segments, theta0_deg=theta0)
 
         result = self._run_motion(go)
@@ -290,14 +289,22 @@ class Session:
         return result
 
     def estop(self, reason: str = "operator E-stop") -> bool:
-        """Stop the running motion at once (any thread). False when nothing moves."""
-        ex = self._executor
-        if ex is None:
+        """Stop the running motion at once (any thread, a signal handler); False when nothing
+        moves. Asked before the motion's executor exists, it is kept for it (:meth:`_attach`)."""
+        if not self.moving.is_set():
             return False
         if not self._estop_sent:  # the first reason is the one logged
-            self._estop_sent = True
-            ex.request_estop(reason)
+            self._estop_reason, self._estop_sent = reason, True
+            if (ex := self._executor) is not None:
+                ex.request_estop(reason)
         return True
+
+    def _attach(self, ex: Executor) -> Executor:
+        """``ex`` runs the motion: E-stops reach it from now on (and one asked for already)."""
+        self._executor = ex
+        if self._estop_sent:
+            ex.request_estop(self._estop_reason)
+        return ex
 
     # ------------------------------------------------------------------ kinematics
     def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> dict[str, Any]:

@@ -6,6 +6,16 @@ listens for HTTP on every interface), prints one JSON line
 ``{"zmq_url": ..., "web_url": ...}`` on stdout, then serves until it is
 terminated or its parent process goes away (checked twice a second, so the
 server never outlives a killed console).
+
+Binding to 127.0.0.1 does not stop a web page from reaching the server through
+DNS rebinding (a foreign name that resolves to 127.0.0.1: the browser then sends
+``Host: evil.example:PORT`` and the same origin). So the tornado application that
+meshcat's bridge builds (:meth:`make_app`, the bridge's own extension point) is
+ours: every request whose ``Host`` is not ``127.0.0.1:PORT`` or ``localhost:PORT``
+(the port it listens on) gets 403 before any handler runs — the websocket upgrade
+included — and a websocket whose ``Origin`` is not one of those is refused too
+(cross-site websocket hijacking). No proxy, no patch of meshcat: tornado's router
+(``Application.find_handler``) is the one place every request goes through.
 """
 
 from __future__ import annotations
@@ -22,6 +32,24 @@ from typing import Any
 LOOPBACK = "127.0.0.1"
 #: How often the server checks that its parent is alive, ms.
 PARENT_POLL_MS = 500
+#: Names of the loopback interface a browser may use in the Host header (with the port).
+LOOPBACK_NAMES = (LOOPBACK, "localhost")
+
+
+def allowed_hosts(port: int | None) -> frozenset[str]:
+    """``Host`` values (lower case, with the port) the server answers; none before it listens."""
+    return frozenset() if port is None else frozenset(f"{n}:{port}" for n in LOOPBACK_NAMES)
+
+
+def origin_netloc(origin: str) -> str:
+    """``host:port`` of an ``Origin`` header (lower case), '' when it is not http(s)."""
+    from urllib.parse import urlsplit
+
+    try:
+        parts = urlsplit(origin)
+    except ValueError:
+        return ""
+    return parts.netloc.lower() if parts.scheme in ("http", "https") else ""
 
 
 def _bridge_class() -> Any:
@@ -29,10 +57,30 @@ def _bridge_class() -> Any:
     from meshcat.servers import zmqserver as zs
 
     class LoopbackApplication(tornado.web.Application):
-        """A tornado application whose ``listen`` binds to 127.0.0.1 whatever it is asked."""
+        """A tornado application that binds to 127.0.0.1 whatever it is asked, and answers
+        only requests addressed to that interface by name (``Host``): 403 otherwise."""
+
+        port: int | None = None
+        """The port it listens on (set by a successful :meth:`listen`)."""
 
         def listen(self, port: int, address: str | None = None, **kwargs: Any) -> Any:
-            return super().listen(port, address=LOOPBACK, **kwargs)
+            server = super().listen(port, address=LOOPBACK, **kwargs)
+            self.port = port
+            return server
+
+        def find_handler(self, request: Any, **kwargs: Any) -> Any:
+            host = request.headers.get("Host", "").strip().lower()
+            if host not in allowed_hosts(self.port):
+                return self.get_handler_delegate(request, tornado.web.ErrorHandler,
+                                                  {"status_code": 403})
+            return super().find_handler(request, **kwargs)
+
+    class LoopbackWebSocketHandler(zs.WebSocketHandler):
+        """meshcat's websocket, refused (403) to a page from any other origin."""
+
+        def check_origin(self, origin: str) -> bool:
+            app = self.application
+            return origin_netloc(origin) in allowed_hosts(getattr(app, "port", None))
 
     class LoopbackBridge(zs.ZMQWebSocketBridge):
         """meshcat's bridge, with its HTTP/WebSocket server on the loopback interface."""
@@ -41,7 +89,7 @@ def _bridge_class() -> Any:
             return LoopbackApplication([
                 (r"/static/(.*)", zs.StaticFileHandlerNoCache,
                  {"path": zs.VIEWER_ROOT, "default_filename": zs.VIEWER_HTML}),
-                (r"/", zs.WebSocketHandler, {"bridge": self}),
+                (r"/", LoopbackWebSocketHandler, {"bridge": self}),
             ])
 
     return LoopbackBridge
