@@ -219,3 +219,12 @@ def test_homing_refuses_outside_the_known_assembly_mode(agile: Profile) -> None:
     with pytest.raises(UnreachableError, match="known assembly mode: crosses a type-2"):
         check_assembly_mode(agile, np.array([40.0, 150.0, 150.0]))
     assert check_assembly_mode(agile, np.array([110.0, 150.0, 125.0])).zeta > 0.1
+
+
+def test_an_estop_before_the_motion_switches_nothing_on(agile: Profile, tmp_path: Path) -> None:
+    bus = _sim(START)
+    ex = _executor(agile, bus, tmp_path)
+    ex.request_estop("signal SIGTERM")
+    res = ex.run([Segment("plan", synthetic_plan(agile, START, GOAL, 1.0))])
+    assert res.exit_code == ExitCode.STOP_ESTOP and "before any motion" in res.message
+    assert bus.torque_calls == [] and bus.writes == [] and res.stats["samples"] == 0

@@ -182,7 +182,13 @@ class Executor:
         self.realtime = request_realtime(LOOP_PRIORITY)
         self._event("realtime", policy=self.realtime.policy, detail=self.realtime.detail)
         try:
-            stop = self._preflight(theta0)
+            if self._estop.is_set():  # E-stop before torque-on: nothing is switched on or moved
+                stop = SafetyMonitor.estop(f"{self._estop_reason or 'E-stop'} (before any motion)",
+                                           self._now(), 0)
+                self._event("stop", kind=stop.kind, action="none", detected_t=stop.t,
+                            exit_code=int(stop.exit_code), notes=["torque was never switched on"])
+            else:
+                stop = self._preflight(theta0)
             if stop is None:
                 stop = self._loop(refs, phases, regions, theta0)
         except KeyboardInterrupt:
