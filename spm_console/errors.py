@@ -31,6 +31,7 @@ class ExitCode(IntEnum):
     STOP_REGION = 24
     STOP_LIMIT = 25
     PLAN_REFUSED = 26
+    MOTION_PROCESS_LOST = 27
     INTERRUPTED = 130
 
 
@@ -103,3 +104,33 @@ class InterruptedBySignalError(SpmError):
     """A terminating signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT) arrived while nothing moved."""
 
     exit_code = ExitCode.INTERRUPTED
+
+
+class MotionProcessLostError(SpmError):
+    """The motion process (the servo loop's own process) died or stopped answering; the
+    servos' Bus Watchdog stops them if a motion was running."""
+
+    exit_code = ExitCode.MOTION_PROCESS_LOST
+
+
+def error_for(exit_code: int, message: str) -> SpmError:
+    """The error of this exit code (the most specific class), e.g. one that crossed a process."""
+    for cls in _by_code():
+        if int(cls.exit_code) == int(exit_code):
+            return cls(message)
+    err = SpmError(message)
+    try:
+        err.exit_code = ExitCode(int(exit_code))
+    except ValueError:
+        err.exit_code = ExitCode.INTERNAL
+    return err
+
+
+def _by_code() -> list[type[SpmError]]:
+    out: list[type[SpmError]] = []
+    todo = list(SpmError.__subclasses__())
+    while todo:
+        cls = todo.pop(0)
+        out.append(cls)
+        todo.extend(cls.__subclasses__())
+    return out

@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.kinematics import Pose
+from spm_console.core.plan import Plan
 from spm_console.errors import UnreachableError
 from spm_console.models import model_of
 from spm_console.profile import Profile
@@ -64,6 +65,16 @@ def approach_segment(profile: Profile, theta0_deg: F, target_deg: F) -> Segment:
     check_assembly_mode(profile, target_deg, "plan start")
     return Segment("approach", line_plan(profile, theta0_deg, target_deg,
                                          profile.safety.home_speed_degps))
+
+
+def plan_segments(profile: Profile, theta0_deg: F, plan: Plan, tolerance_deg: float) -> list[Segment]:
+    """The plan, preceded by an approach move when the wrist (θ0, deg) is farther than
+    ``tolerance_deg`` from its start."""
+    start = plan.reference_deg[0]
+    segments = [Segment("plan", plan)]
+    if float(np.abs(np.asarray(theta0_deg) - start).max()) > tolerance_deg:
+        segments.insert(0, approach_segment(profile, theta0_deg, start))
+    return segments
 
 
 def home(executor: Executor) -> HomingResult:

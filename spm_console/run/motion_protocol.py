@@ -1,0 +1,86 @@
+"""Typed messages between a front end and the motion process (:mod:`.motion_process`).
+
+Requests carry an ``id`` that the reply repeats; telemetry carries a sample. Everything
+here pickles (plans and results are dataclasses of numpy arrays). Degrees and seconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from spm_console.core.plan import Plan
+from spm_console.run.sample import Sample
+
+
+@dataclass(frozen=True)
+class Ping:
+    """Ping every servo; reply: list of ServoStatus (with temperature and voltage)."""
+
+    id: int
+
+
+@dataclass(frozen=True)
+class ReadPosition:
+    """Measured θ (deg), read with set-up retries."""
+
+    id: int
+
+
+@dataclass(frozen=True)
+class Home:
+    """Home the wrist; reply: HomingResult."""
+
+    id: int
+
+
+@dataclass(frozen=True)
+class Execute:
+    """Execute a plan (after the runtime's verification; an approach move first when the
+    wrist is farther than ``approach_tolerance_deg`` from its start); reply: ExecutionResult."""
+
+    id: int
+    plan: Plan
+    approach_tolerance_deg: float | None = None
+
+
+@dataclass(frozen=True)
+class EStop:
+    """Stop the motion under way at once (the profile's stop action)."""
+
+    reason: str
+
+
+@dataclass(frozen=True)
+class Heartbeat:
+    """The client is alive (sent every HEARTBEAT_S during a motion)."""
+
+
+@dataclass(frozen=True)
+class Close:
+    """Close the bus and end the process."""
+
+
+Request = Ping | ReadPosition | Home | Execute | EStop | Heartbeat | Close
+
+
+@dataclass(frozen=True)
+class Reply:
+    id: int
+    value: Any
+
+
+@dataclass(frozen=True)
+class Failed:
+    """An operator-facing error: its message and exit code (an SpmError on the client)."""
+
+    id: int
+    message: str
+    exit_code: int
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """One loop sample, throttled to TELEMETRY_S."""
+
+    sample: Sample
