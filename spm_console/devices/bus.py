@@ -78,7 +78,8 @@ class DynamixelBus:
         self.profile = profile
         self.transport = transport
         self.table: ControlTable = table_for(profile.bus.protocol)
-        self.link: Link = Link2(transport) if profile.bus.protocol == "2.0" else Link1(transport)
+        self.link: Link = (Link2(transport, self.table) if profile.bus.protocol == "2.0"
+                           else Link1(transport, self.table))
         self.maps: list[JointMap] = joint_maps(profile)
         self.ids = [m.id for m in self.maps]
         self.alerts: dict[int, int] = {}
@@ -87,6 +88,13 @@ class DynamixelBus:
     @property
     def protocol(self) -> str:
         return self.profile.bus.protocol
+
+    @property
+    def stale_replies(self) -> int:
+        """Status packets received that were not the answer to the request in flight (late
+        replies to earlier requests, or replies nothing asked for): each failed its
+        transaction with a CommError. Counts from the bus's opening."""
+        return self.link.stale_replies
 
     @property
     def port(self) -> str:

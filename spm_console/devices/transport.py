@@ -1,17 +1,29 @@
 """Serial transport: a pyserial port, short reply timeouts, one transaction at a time.
 
-``transact(packet, decoder, count)`` flushes stale input, writes one instruction
-packet and collects ``count`` decoded packets, each within ``timeout_s`` of the
-previous one (so a sync read of three servos waits at most 3 × timeout). The wait
-sleeps in ``select`` on the port's file descriptor (no busy loop). A lock makes
-transactions atomic when a UI thread and the executor share the bus. Low-latency
-mode (FTDI/U2D2) is requested best-effort; it raises on a pty and is skipped.
+``transact(packet, decoder, count, check=…)`` discards the input already waiting
+(counted in ``bytes_flushed``), writes one instruction packet and collects
+``count`` decoded packets, each within ``timeout_s`` of the previous one (so a sync
+read of three servos waits at most 3 × timeout). ``check`` sees every decoded
+packet as it arrives and says whether it answers this request; one that does not
+is set aside and does not extend the wait. When the time is up, the port is
+looked at one last time before the timeout is declared (a reply that arrived while
+this process was not scheduled is not mistaken for a lost one). The wait sleeps in
+``select`` on the port's file descriptor (no busy loop). A re-entrant lock makes
+transactions atomic when a UI thread and the executor share the bus (the link holds
+it around its bookkeeping too). Low-latency mode (FTDI/U2D2) is requested
+best-effort; it raises on a pty and is skipped.
 
-Limits, stated plainly: Dynamixel status packets carry no sequence number. Input
-is flushed before each instruction, so replies that arrive late are discarded, but
-a complete set of replies delayed by almost exactly the time between two
-transactions would be taken for the current one. The executor's model-prediction
-check is the guard against such stale data.
+Limits, stated plainly: Dynamixel status packets carry no sequence number and the
+transport alone cannot tell a late reply from a current one: flushing only removes
+replies that arrived before the request was sent. What a reply answers is decided
+by the link (``devices/link.py``) with :class:`~spm_console.devices.reply_ledger.ReplyLedger`:
+requests that could still be answered get distinct reply lengths, and a reply is
+accepted only as the answer to the request it matches. Guaranteed: a reply arriving
+up to ``REPLY_HORIZON_S`` (1.5 s) after its request is never taken for a later
+request's — it fails that transaction and is counted (``stale_replies``) — as long
+as servos answer in order with the length asked for. Not guaranteed: replies later
+than the horizon, and a transaction whose reply comes after the timeout is a failed
+transaction, not a slow one (this is what bounds the real-time loop).
 """
 
 from __future__ import annotations
@@ -20,6 +32,7 @@ import contextlib
 import select
 import threading
 import time
+from collections.abc import Callable
 from typing import Protocol, TypeVar
 
 import serial
@@ -61,12 +74,16 @@ class SerialTransport:
             self.low_latency = True
         except (AttributeError, NotImplementedError, ValueError, OSError, serial.SerialException):
             pass  # a pty or an adapter without ASYNC_LOW_LATENCY: best effort only
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()
         self.bytes_out = 0
         self.bytes_in = 0
+        self.bytes_flushed = 0
+        """Input discarded unread before a request (replies that came too late)."""
 
     @property
-    def lock(self) -> threading.Lock:
+    def lock(self) -> threading.RLock:
+        """Held during a transaction; re-entrant, so a caller can hold it across its own
+        bookkeeping and the transaction."""
         return self._lock
 
     def close(self) -> None:
@@ -75,6 +92,9 @@ class SerialTransport:
 
     def _send(self, packet: bytes) -> None:
         try:
+            waiting = self._ser.in_waiting
+            if waiting:
+                self.bytes_flushed += waiting
             self._ser.reset_input_buffer()
             self._ser.write(packet)
         except (serial.SerialException, OSError) as exc:
@@ -82,12 +102,21 @@ class SerialTransport:
         self.bytes_out += len(packet)
 
     def transact(self, packet: bytes, decoder: StreamDecoder[P], count: int,
-                 timeout_s: float | None = None) -> list[P]:
-        """Send ``packet`` and return the next ``count`` packets (CommError on timeout)."""
+                 timeout_s: float | None = None,
+                 check: Callable[[P], int] | None = None) -> list[P]:
+        """Send ``packet`` and return the next ``count`` packets (CommError on timeout).
+
+        ``check(packet)`` is called for each packet as it is decoded and says how many of
+        the ``count`` expected replies it settles: 0 for a packet that does not answer
+        this request (it is left out and does not extend the wait), more than 1 when it
+        shows that earlier expected replies will not come. Without ``check`` every
+        packet settles one."""
         with self._lock:
             decoder.reset()
             self._send(packet)
-            return self._collect(decoder, count, timeout_s or self.timeout_s) if count else []
+            if not count:
+                return []
+            return self._collect(decoder, count, timeout_s or self.timeout_s, check)
 
     def send(self, packet: bytes) -> None:
         """Send a packet that gets no reply (broadcast sync write)."""
@@ -116,27 +145,30 @@ class SerialTransport:
         self.bytes_in += dropped
         return dropped
 
-    def _collect(self, decoder: StreamDecoder[P], count: int, timeout_s: float) -> list[P]:
+    def _collect(self, decoder: StreamDecoder[P], count: int, timeout_s: float,
+                 check: Callable[[P], int] | None) -> list[P]:
         got: list[P] = []
+        settled = 0
         fd = self._ser.fileno()
         deadline = time.perf_counter() + timeout_s
-        while len(got) < count:
+        while settled < count:
             remaining = deadline - time.perf_counter()
-            if remaining <= 0:
-                raise CommError(
-                    f"no status packet within {timeout_s * 1e3:.1f} ms "
-                    f"({len(got)} of {count} received, {decoder.rejected} corrupt)"
-                )
             try:
-                ready, _, _ = select.select([fd], [], [], remaining)
+                ready, _, _ = select.select([fd], [], [], max(remaining, 0.0))
                 if not ready:
+                    if remaining <= 0:  # the last look found nothing: timed out
+                        raise CommError(
+                            f"no status packet within {timeout_s * 1e3:.1f} ms "
+                            f"({len(got)} of {count} received, {decoder.rejected} corrupt)")
                     continue
                 data = self._ser.read(self._ser.in_waiting or 1)
             except (serial.SerialException, OSError) as exc:
                 raise CommError(f"read from {self.port} failed: {exc}") from None
             self.bytes_in += len(data)
-            new = decoder.feed(data)
-            if new:
-                got.extend(new)
-                deadline = time.perf_counter() + timeout_s
+            for pkt in decoder.feed(data):
+                n = 1 if check is None else check(pkt)
+                if n > 0:
+                    got.append(pkt)
+                    settled += n
+                    deadline = time.perf_counter() + timeout_s
         return got

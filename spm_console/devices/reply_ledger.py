@@ -1,0 +1,208 @@
+"""Which request a status packet answers: the ledger of unanswered requests.
+
+Dynamixel status packets carry no sequence number, so a late reply to an earlier
+request looks exactly like the reply to the current one. Two facts make them
+distinguishable without one:
+
+* the reply's data length is the length the request asked for, and a read may ask
+  for more than the register it needs (:func:`read_variants`: the register plus
+  neighbouring documented bytes; the extra bytes are read and ignored);
+* each servo answers its requests in the order it received them, and the serial
+  line delivers bytes in order (per-id FIFO).
+
+:class:`ReplyLedger` keeps every request sent within :data:`REPLY_HORIZON_S` that
+still waits for a reply, as (send time, reply length, ids not yet heard from). A
+new request may only use a reply length that no unanswered request expects from
+the same id (:meth:`ReplyLedger.pick`); when none is free, the request is refused
+(the caller reports a failed transaction). Each incoming status packet is then
+classified (:meth:`ReplyLedger.classify`): it answers the current request only if
+it comes from one of its ids with its length; one that matches an older request is
+*stale*; one that matches no request is *unexpected*; both are counted in
+``stale`` and the transaction fails. A reply from id i (current or stale) also
+retires older requests' claims on id i: by FIFO, their replies can no longer come.
+
+Guarantee: a status packet is accepted as the answer to a request only if it is
+not the reply to another request sent within the horizon — provided servos answer
+in order and with the length asked for. Replies delayed by more than the horizon
+are not covered. Pure bookkeeping, no I/O, no clock of its own: microseconds per
+transaction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Iterable, Sequence
+from dataclasses import dataclass
+from enum import Enum
+from typing import NamedTuple
+
+from spm_console.devices.control_table import ControlTable
+
+#: How long an unanswered request keeps its reply length reserved, s. Replies later
+#: than this are not guaranteed to be recognised (the target is delays up to 1 s).
+REPLY_HORIZON_S = 1.5
+
+#: At most this many extra bytes widen a read (24 bytes ≈ 0.24 ms per reply at 1 Mbps).
+MAX_READ_EXTRA = 24
+
+
+@dataclass(frozen=True)
+class ReadVariant:
+    """Read ``length`` bytes from ``start``; the wanted bytes begin at ``offset``."""
+
+    start: int
+    length: int
+    offset: int
+
+
+def _documented(table: ControlTable) -> bytearray:
+    covered = bytearray(table.size + 1)
+    for reg in table.registers.values():
+        covered[reg.address : reg.address + reg.size] = b"\x01" * reg.size
+    return covered[: table.size]
+
+
+def read_variants(table: ControlTable, address: int, size: int,
+                  max_extra: int = MAX_READ_EXTRA) -> tuple[ReadVariant, ...]:
+    """Reads that contain ``[address, address + size)``, one per reply length, shortest
+    first: the bytes that follow are added first, then the bytes before, never leaving
+    the run of documented registers around it (no reserved addresses). A range that is
+    not all documented gets only its exact read."""
+    covered = _documented(table)
+    end = address + size
+    if size <= 0 or address < 0 or end > len(covered) or not all(covered[address:end]):
+        return (ReadVariant(address, size, 0),)
+    lo, hi = address, end
+    while lo > 0 and covered[lo - 1]:
+        lo -= 1
+    while hi < len(covered) and covered[hi]:
+        hi += 1
+    out = []
+    for extra in range(min(max_extra, hi - lo - size) + 1):
+        after = min(extra, hi - end)
+        before = extra - after
+        out.append(ReadVariant(address - before, size + extra, before))
+    return tuple(out)
+
+
+class Verdict(Enum):
+    """What a status packet is, seen from the current request."""
+
+    CURRENT = "current"
+    """One of the current request's replies, in order."""
+    SKIPPED = "skipped"
+    """A current reply, but an earlier id of the request has not answered (a lost reply)."""
+    STALE = "stale"
+    """The late reply to an older request."""
+    UNEXPECTED = "unexpected"
+    """A reply no recorded request asked for (older than the horizon, or never sent by us)."""
+
+
+class Classified(NamedTuple):
+    """A verdict on one status packet."""
+
+    verdict: Verdict
+    answers: Request | None
+    """STALE: the older request it answers."""
+    settled: int
+    """How many of the current request's expected replies it settles (0: none of them)."""
+
+
+@dataclass
+class Request:
+    """One request whose replies are (partly) still to come."""
+
+    seq: int
+    t_sent: float
+    length: int
+    """Data bytes each reply carries."""
+    pending: list[int]
+    """Ids not heard from yet, in bus order."""
+    what: str = ""
+
+
+class ReplyLedger:
+    """Unanswered requests, oldest first (the one in flight last). See module docstring."""
+
+    def __init__(self, horizon_s: float = REPLY_HORIZON_S) -> None:
+        self.horizon_s = horizon_s
+        self.requests: list[Request] = []
+        self.stale = 0
+        """Status packets that were not the answer to the request in flight."""
+        self.refused = 0
+        """Requests not sent: every reply length they could use was still reserved."""
+        self._seq = 0
+
+    def expire(self, now: float) -> None:
+        """Forget requests sent more than the horizon ago."""
+        reqs = self.requests
+        if reqs and now - reqs[0].t_sent > self.horizon_s:
+            self.requests = [r for r in reqs if now - r.t_sent <= self.horizon_s]
+
+    def is_free(self, ids: Iterable[int], length: int) -> bool:
+        """No unanswered request expects a reply of ``length`` bytes from one of ``ids``."""
+        return not any(r.length == length and any(i in r.pending for i in ids)
+                       for r in self.requests)
+
+    def pick(self, ids: Sequence[int], lengths: Iterable[int]) -> int | None:
+        """The first of ``lengths`` free for every id (None: all reserved)."""
+        if not self.requests:
+            return next(iter(lengths), None)
+        for n in lengths:
+            if self.is_free(ids, n):
+                return n
+        return None
+
+    def lengths(self) -> set[int]:
+        """Reply lengths still expected (a decoder that filters on length keeps these)."""
+        return {r.length for r in self.requests}
+
+    def begin(self, ids: Sequence[int], length: int, now: float, what: str = "") -> Request:
+        """Record a request about to be sent; it becomes the current one."""
+        self._seq += 1
+        req = Request(self._seq, now, length, list(ids), what)
+        self.requests.append(req)
+        return req
+
+    def end(self, req: Request) -> None:
+        """The transaction is over: a fully answered request is forgotten, others stay."""
+        if not req.pending:
+            self._drop(req)
+
+    def classify(self, req: Request, ident: int, length: int,
+                 error: bool = False) -> Classified:
+        """What a status from ``ident`` with ``length`` data bytes is while ``req`` is current.
+
+        ``error``: the status carries an error number (its data may be missing), so it
+        is taken as current only if no older request still waits for that id. A reply
+        from the k-th id of a request also settles the ids before it (a sync/bulk read is
+        answered in list order: theirs would have come first).
+        """
+        if not self.requests or self.requests[-1] is not req:
+            raise ValueError("classify() is for the request in flight (the last begun)")
+        older = self.requests[:-1]
+        if ident in req.pending and (length == req.length or (
+                error and not any(ident in o.pending for o in older))):
+            k = req.pending.index(ident)
+            del req.pending[: k + 1]
+            self._retire(ident, older)
+            return Classified(Verdict.CURRENT if k == 0 else Verdict.SKIPPED, None, k + 1)
+        self.stale += 1
+        for j in range(len(older) - 1, -1, -1):
+            o = older[j]
+            if o.length == length and ident in o.pending:
+                del o.pending[: o.pending.index(ident) + 1]
+                self._retire(ident, older[: j + 1])
+                return Classified(Verdict.STALE, o, 0)
+        return Classified(Verdict.UNEXPECTED, None, 0)
+
+    def _retire(self, ident: int, requests: Collection[Request]) -> None:
+        """``ident`` answered something newer: by FIFO it will not answer these."""
+        for r in requests:
+            if ident in r.pending:
+                r.pending.remove(ident)
+        if any(not r.pending for r in requests):
+            current = self.requests[-1]
+            self.requests = [r for r in self.requests if r.pending or r is current]
+
+    def _drop(self, req: Request) -> None:
+        self.requests = [r for r in self.requests if r is not req]
