@@ -3,27 +3,29 @@
 ``transact(packet, decoder, count, check=…)`` discards the input already waiting
 (counted in ``bytes_flushed``), writes one instruction packet and collects
 ``count`` decoded packets, each within ``timeout_s`` of the previous one (so a sync
-read of three servos waits at most 3 × timeout). ``check`` sees every decoded
-packet as it arrives and says whether it answers this request; one that does not
-is set aside and does not extend the wait. When the time is up, the port is
-looked at one last time before the timeout is declared (a reply that arrived while
-this process was not scheduled is not mistaken for a lost one). The wait sleeps in
-``select`` on the port's file descriptor (no busy loop). A re-entrant lock makes
-transactions atomic when a UI thread and the executor share the bus (the link holds
-it around its bookkeeping too). Low-latency mode (FTDI/U2D2) is requested
-best-effort; it raises on a pty and is skipped.
+read of three servos waits at most 3 × timeout); when the time is up the
+transaction has failed, whatever arrives afterwards. ``check`` sees every decoded
+packet as it arrives and says how many of the expected replies it settles: a
+packet that answers nothing of this request is set aside and does not extend the
+wait. The wait sleeps in ``select`` on the port's file descriptor (no busy loop).
+A re-entrant lock makes transactions atomic when a UI thread and the executor
+share the bus (the link holds it around its bookkeeping too). Low-latency mode
+(FTDI/U2D2) is requested best-effort; it raises on a pty and is skipped.
 
-Limits, stated plainly: Dynamixel status packets carry no sequence number and the
-transport alone cannot tell a late reply from a current one: flushing only removes
-replies that arrived before the request was sent. What a reply answers is decided
-by the link (``devices/link.py``) with :class:`~spm_console.devices.reply_ledger.ReplyLedger`:
-requests that could still be answered get distinct reply lengths, and a reply is
-accepted only as the answer to the request it matches. Guaranteed: a reply arriving
-up to ``REPLY_HORIZON_S`` (1.5 s) after its request is never taken for a later
-request's — it fails that transaction and is counted (``stale_replies``) — as long
-as servos answer in order with the length asked for. Not guaranteed: replies later
-than the horizon, and a transaction whose reply comes after the timeout is a failed
-transaction, not a slow one (this is what bounds the real-time loop).
+Limits, stated plainly: Dynamixel status packets carry no sequence number, and
+flushing removes only the replies that arrived before the request went out, so the
+transport alone cannot tell a late reply from a current one. The link decides
+(``devices/link.py`` with ``devices/reply_ledger.py``): requests that may still be
+answered get distinct reply lengths, and a packet is accepted only as the answer
+to the request it matches. Guaranteed: a status packet taken as the answer to a
+request is never the reply to another request sent within ``REPLY_HORIZON_S``
+(1.5 s) before it; a late reply fails the transaction it lands in and is counted
+(``stale_replies``) — provided each servo answers its requests in order and with
+the length asked for, as the protocol specifies. Not guaranteed: a reply more than
+1.5 s late can be taken for a request of the same length to the same servo that
+is then in flight; and "late" is judged by this process's clock, so a reply landing
+just after the timeout, while the process was not scheduled, may still be read in
+time (it is then the current request's own reply, never another's).
 """
 
 from __future__ import annotations
@@ -153,13 +155,12 @@ class SerialTransport:
         deadline = time.perf_counter() + timeout_s
         while settled < count:
             remaining = deadline - time.perf_counter()
+            if remaining <= 0:  # what arrives from now on is late, even if it is there
+                raise CommError(f"no status packet within {timeout_s * 1e3:.1f} ms "
+                                f"({len(got)} of {count} received, {decoder.rejected} corrupt)")
             try:
-                ready, _, _ = select.select([fd], [], [], max(remaining, 0.0))
+                ready, _, _ = select.select([fd], [], [], remaining)
                 if not ready:
-                    if remaining <= 0:  # the last look found nothing: timed out
-                        raise CommError(
-                            f"no status packet within {timeout_s * 1e3:.1f} ms "
-                            f"({len(got)} of {count} received, {decoder.rejected} corrupt)")
                     continue
                 data = self._ser.read(self._ser.in_waiting or 1)
             except (serial.SerialException, OSError) as exc:
