@@ -34,8 +34,10 @@ POS = 132  # Present Position (2.0)
 
 class FakeLine:
     """A serial line with three servos; ``delay`` = in how many transactions the replies
-    to the next request arrive (0 = at once, NEVER = lost); ``lose`` = ids that do not
-    answer. Replies arrive in order; ones that nobody collects are flushed."""
+    to the next request arrive (0 = at once, NEVER = lost); ``between``: late replies land
+    before that transaction's request is sent rather than while it waits; ``lose`` = ids
+    that do not answer. Replies arrive in order; input waiting before a request is sent is
+    handed to ``on_late``, then discarded."""
 
     def __init__(self, protocol: str = "2.0") -> None:
         self.protocol = protocol
@@ -44,43 +46,46 @@ class FakeLine:
         self.lock = threading.RLock()
         self.timeout_s = 0.004
         self.delay = 0
+        self.between = False
         self.lose: set[int] = set()
         self.sent: list[bytes] = []
-        self._queue: list[tuple[int, bytes]] = []  # (transaction it arrives in, bytes)
+        self._queue: list[tuple[int, bool, bytes]] = []  # (transaction, before its request, raw)
         self._dec: p2.Decoder2 | p1.Decoder1 = (p2.Decoder2() if protocol == "2.0"
                                                  else p1.Decoder1())
 
-    def send(self, packet: bytes) -> None:
+    def send(self, packet: bytes, on_late: Callable[[bytes], object] | None = None) -> None:
+        n = len(self.sent) + 1
+        waiting = [raw for due, early, raw in self._queue if due < n or (due == n and early)]
+        self._queue = [q for q in self._queue if not (q[0] < n or (q[0] == n and q[1]))]
+        if waiting and on_late is not None:
+            on_late(b"".join(waiting))
         self.sent.append(packet)
-        self._answer(packet)
-
-    def _answer(self, packet: bytes) -> None:
-        n = len(self.sent)
         for pkt in self._dec.feed(packet):
             replies = (dispatch2(self.servos, pkt) if isinstance(pkt, p2.Packet)
                        else dispatch1(self.servos, pkt))
             for ident, raw in replies:
                 if ident not in self.lose and self.delay != NEVER:
-                    self._queue.append((n + self.delay, raw))
+                    self._queue.append((n + self.delay, self.between and self.delay > 0, raw))
 
     def transact(self, packet: bytes, decoder: StreamDecoder[object], count: int,
-                 timeout_s: float | None = None,
-                 check: Callable[[object], int] | None = None) -> list[object]:
+                 timeout_s: float | None = None, check: Callable[[object], int] | None = None,
+                 on_late: Callable[[bytes], object] | None = None) -> list[object]:
         decoder.reset()
-        self.send(packet)
+        self.send(packet, on_late)
         n = len(self.sent)
-        arriving = [raw for due, raw in self._queue if due <= n]
-        self._queue = [(due, raw) for due, raw in self._queue if due > n]
+        arriving = [raw for due, _early, raw in self._queue if due == n]
+        self._queue = [q for q in self._queue if q[0] != n]
         got: list[object] = []
         settled = 0
-        for raw in arriving:
-            if settled >= count:
-                break  # after the transaction: flushed by the next one
+        for k, raw in enumerate(arriving):
+            if settled >= count:  # after the transaction: waiting at the next request
+                self._queue += [(n, False, rest) for rest in arriving[k:]]
+                break
             for pkt in decoder.feed(raw):
-                k = 1 if check is None else check(pkt)
-                if k:
+                m = 1 if check is None else check(pkt)
+                if m:
                     got.append(pkt)
-                    settled += k
+                    settled += m
         if settled < count:
             raise CommError(f"no status packet within 4.0 ms ({len(got)} of {count} received)")
         return got
@@ -156,6 +161,26 @@ def test_a_late_reply_fails_the_next_transaction_and_is_counted() -> None:
     # its own replies were collected too: nothing is left to arrive late, 4 bytes again
     assert [ticks(r.data) for r in link.read_many(POS, 4, [1, 2, 3])] == [3000, 2020, 2030]
     assert line.sync_read_lengths()[-1] == 4 and link.ledger.requests == []
+
+
+def test_late_replies_waiting_before_a_request_are_counted_and_settle_theirs() -> None:
+    line = FakeLine()
+    link = link2(line)
+    line.delay, line.between = 1, True  # the replies land between this read and the next
+    with pytest.raises(CommError, match="no status packet"):
+        link.read_many(POS, 4, [1, 2, 3])
+    line.delay = 0
+    # found waiting (and discarded) before the next read goes out: it is not disturbed
+    assert [ticks(r.data) for r in link.read_many(POS, 4, [1, 2, 3])] == [2010, 2020, 2030]
+    assert link.stale_replies == 3 and link.ledger.requests == []
+    assert line.sync_read_lengths() == [4, 5]
+    # also when the goal write (no reply) is what finds them
+    line.delay = 1
+    with pytest.raises(CommError, match="no status packet"):
+        link.read_many(POS, 4, [1, 2, 3])
+    line.delay = 0
+    link.sync_write(116, 4, [(1, bytes(4))])
+    assert link.stale_replies == 6 and link.ledger.requests == []
 
 
 def test_a_constant_one_transaction_lag_never_yields_data() -> None:

@@ -173,8 +173,8 @@ def test_execute_with_late_replies_stops_within_three_cycles(
         # still this cycle's own (slow but current); the stop follows 3 failed cycles
         assert len(good_late) <= 3
         assert res.stop.k <= max(good_late, default=FIRST_LATE_K - 1) + n
-    if delay in (0.005, 0.025):  # late replies land in the same or the next cycle's reads
-        assert st["stale_replies"] >= 1
+    if delay <= 2 * TS:  # the late replies land within the run (in a read, or found
+        assert st["stale_replies"] >= 1  # waiting by the next goal write), all counted
 
 
 def test_protocol1_execute_with_late_replies_stops(agile: Profile, tmp_path: Path) -> None:

@@ -103,6 +103,9 @@ class _LedgerLink(Generic[P]):
     def _decoder(self) -> StreamDecoder[P]:
         raise NotImplementedError
 
+    def _late_decoder(self) -> StreamDecoder[P]:
+        raise NotImplementedError
+
     def _status(self, pkt: P) -> tuple[int, bytes, int, int]:
         """(id, data, error number, hardware flags) of a status packet; CommError otherwise."""
         raise NotImplementedError
@@ -160,7 +163,9 @@ class _LedgerLink(Generic[P]):
             problems: list[str] = []
             try:
                 pkts = self.tr.transact(build(n), self._decoder(), len(ids),
-                                        check=lambda pkt: self._check(req, pkt, problems))
+                                        check=lambda pkt: self._check(req, pkt, problems),
+                                        on_late=lambda data: self._late_input(
+                                            data, len(led.requests) - 1))
             except CommError as exc:
                 if problems:  # the first foreign packet says more than the timeout
                     raise CommError(f"{problems[0]}; then {exc}") from None
@@ -172,6 +177,18 @@ class _LedgerLink(Generic[P]):
         if len(pkts) != len(ids):
             raise CommError(f"expected {len(ids)} status packets, got {len(pkts)}")
         return [Reply(*self._status(pkt)) for pkt in pkts], n
+
+    def _late_input(self, data: bytes, among: int | None = None) -> None:
+        """Replies found waiting before a request goes out (late ones: they came after
+        their transaction ended): counted as stale, and their requests settled. ``among``:
+        how many of the ledger's requests were sent before (not the one going out)."""
+        dec = self._late_decoder()
+        for pkt in dec.feed(data):
+            try:
+                ident, params, _err, _hw = self._status(pkt)
+            except CommError:
+                continue
+            self.ledger.late(ident, len(params), among)
 
     def _check(self, req: Request, pkt: P, problems: list[str]) -> int:
         """Classify one packet (see ReplyLedger.classify); a problem fails the transaction
@@ -245,6 +262,9 @@ class Link2(_LedgerLink[p2.Packet]):
     def _decoder(self) -> StreamDecoder[p2.Packet]:
         return self.dec
 
+    def _late_decoder(self) -> StreamDecoder[p2.Packet]:
+        return p2.Decoder2()
+
     def _status(self, pkt: p2.Packet) -> tuple[int, bytes, int, int]:
         if not pkt.is_status:
             raise CommError(f"unexpected packet from id {pkt.id} (instruction "
@@ -268,7 +288,8 @@ class Link2(_LedgerLink[p2.Packet]):
                            f"a write to id {ident} at {address}")
 
     def sync_write(self, address: int, length: int, items: Sequence[tuple[int, bytes]]) -> None:
-        self.tr.send(p2.sync_write(address, length, items))
+        with self.tr.lock:
+            self.tr.send(p2.sync_write(address, length, items), on_late=self._late_input)
 
     def reboot(self, ident: int) -> Reply:
         return self._fixed(ident, 0, p2.reboot(ident), f"a reboot of id {ident}")
@@ -282,6 +303,8 @@ class Link1(_LedgerLink[p1.Packet]):
     def _decoder(self) -> StreamDecoder[p1.Packet]:
         # only the lengths some request expects: a frame of another length is corrupt
         return p1.Decoder1(expect_params=self.ledger.lengths())
+
+    _late_decoder = _decoder
 
     def _status(self, pkt: p1.Packet) -> tuple[int, bytes, int, int]:
         bits = pkt.error
@@ -307,7 +330,8 @@ class Link1(_LedgerLink[p1.Packet]):
                            f"a write to id {ident} at {address}")
 
     def sync_write(self, address: int, length: int, items: Sequence[tuple[int, bytes]]) -> None:
-        self.tr.send(p1.sync_write(address, length, items))
+        with self.tr.lock:
+            self.tr.send(p1.sync_write(address, length, items), on_late=self._late_input)
 
     def reboot(self, ident: int) -> Reply:
         raise BusError(f"servo id {ident}: Protocol 1.0 has no REBOOT instruction; "

@@ -184,25 +184,36 @@ class ReplyLedger:
                 error and not any(ident in o.pending for o in older))):
             k = req.pending.index(ident)
             del req.pending[: k + 1]
-            self._retire(ident, older)
+            self._retire(ident, older, keep=req)
             return Classified(Verdict.CURRENT if k == 0 else Verdict.SKIPPED, None, k + 1)
+        o = self.late(ident, length, len(older))
+        return Classified(Verdict.UNEXPECTED if o is None else Verdict.STALE, o, 0)
+
+    def late(self, ident: int, length: int, among: int | None = None) -> Request | None:
+        """A status that is not the current request's (also one found waiting before a
+        request is sent): counted in ``stale``. The newest of the first ``among`` requests
+        expecting ``length`` bytes from ``ident`` is the one it answers (returned): that
+        request — and, by FIFO, every older one — has heard from ``ident``."""
         self.stale += 1
-        for j in range(len(older) - 1, -1, -1):
-            o = older[j]
+        reqs = self.requests if among is None else self.requests[:among]
+        for j in range(len(reqs) - 1, -1, -1):
+            o = reqs[j]
             if o.length == length and ident in o.pending:
                 del o.pending[: o.pending.index(ident) + 1]
-                self._retire(ident, older[: j + 1])
-                return Classified(Verdict.STALE, o, 0)
-        return Classified(Verdict.UNEXPECTED, None, 0)
+                self._retire(ident, reqs[: j + 1], keep=None if among is None else
+                             self.requests[-1])
+                return o
+        return None
 
-    def _retire(self, ident: int, requests: Collection[Request]) -> None:
-        """``ident`` answered something newer: by FIFO it will not answer these."""
+    def _retire(self, ident: int, requests: Collection[Request],
+                keep: Request | None = None) -> None:
+        """``ident`` answered something newer: by FIFO it will not answer these. Requests
+        left with no pending id are forgotten (except ``keep``, the one in flight)."""
         for r in requests:
             if ident in r.pending:
                 r.pending.remove(ident)
         if any(not r.pending for r in requests):
-            current = self.requests[-1]
-            self.requests = [r for r in self.requests if r.pending or r is current]
+            self.requests = [r for r in self.requests if r.pending or r is keep]
 
     def _drop(self, req: Request) -> None:
         self.requests = [r for r in self.requests if r is not req]

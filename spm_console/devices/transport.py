@@ -1,7 +1,7 @@
 """Serial transport: a pyserial port, short reply timeouts, one transaction at a time.
 
 ``transact(packet, decoder, count, check=…)`` discards the input already waiting
-(counted in ``bytes_flushed``), writes one instruction packet and collects
+(counted in ``bytes_flushed``; ``on_late`` may look at it first), writes one instruction packet and collects
 ``count`` decoded packets, each within ``timeout_s`` of the previous one (so a sync
 read of three servos waits at most 3 × timeout); when the time is up the
 transaction has failed, whatever arrives afterwards. ``check`` sees every decoded
@@ -92,10 +92,14 @@ class SerialTransport:
         with contextlib.suppress(serial.SerialException, OSError):
             self._ser.close()
 
-    def _send(self, packet: bytes) -> None:
+    def _send(self, packet: bytes, on_late: Callable[[bytes], object] | None = None) -> None:
         try:
             waiting = self._ser.in_waiting
-            if waiting:
+            if waiting and on_late is not None:  # came after the last transaction: late
+                late = self._ser.read(waiting)
+                self.bytes_flushed += len(late)
+                on_late(late)
+            elif waiting:
                 self.bytes_flushed += waiting
             self._ser.reset_input_buffer()
             self._ser.write(packet)
@@ -105,25 +109,28 @@ class SerialTransport:
 
     def transact(self, packet: bytes, decoder: StreamDecoder[P], count: int,
                  timeout_s: float | None = None,
-                 check: Callable[[P], int] | None = None) -> list[P]:
+                 check: Callable[[P], int] | None = None,
+                 on_late: Callable[[bytes], object] | None = None) -> list[P]:
         """Send ``packet`` and return the next ``count`` packets (CommError on timeout).
 
         ``check(packet)`` is called for each packet as it is decoded and says how many of
         the ``count`` expected replies it settles: 0 for a packet that does not answer
         this request (it is left out and does not extend the wait), more than 1 when it
         shows that earlier expected replies will not come. Without ``check`` every
-        packet settles one."""
+        packet settles one. ``on_late(bytes)`` receives the input found waiting before
+        the request is sent (it is discarded either way)."""
         with self._lock:
             decoder.reset()
-            self._send(packet)
+            self._send(packet, on_late)
             if not count:
                 return []
             return self._collect(decoder, count, timeout_s or self.timeout_s, check)
 
-    def send(self, packet: bytes) -> None:
-        """Send a packet that gets no reply (broadcast sync write)."""
+    def send(self, packet: bytes, on_late: Callable[[bytes], object] | None = None) -> None:
+        """Send a packet that gets no reply (broadcast sync write); ``on_late`` as in
+        :meth:`transact`."""
         with self._lock:
-            self._send(packet)
+            self._send(packet, on_late)
 
     def drain(self, quiet_s: float, max_s: float = 0.25) -> int:
         """Discard input until the line has been quiet for ``quiet_s`` (at most ``max_s``).
