@@ -23,6 +23,7 @@ from spm_console.devices.base import CommError
 from spm_console.devices.bus import DynamixelBus, open_bus
 from spm_console.devices.emulator import EmulatorHandle, start_emulator
 from spm_console.devices.faults import FaultSpec
+from spm_console.devices.reply_ledger import read_variants
 from spm_console.errors import ExitCode
 from spm_console.profile import Profile
 from spm_console.run.executor import Segment
@@ -139,6 +140,42 @@ def test_protocol1_late_bulk_read_replies_are_stale(agile: Profile, delay: float
         assert re.match(r"stale reply from id 1: the late answer to a bulk read at 36 "
                         r"\(\d+ bytes\)", _late_then_next(bus, delay))
         assert bus.stale_replies >= 3
+
+
+def test_late_replies_drained_before_a_retry_are_counted_and_settled(agile: Profile) -> None:
+    with rig(agile, 0.005, 0.0) as (_em, bus):
+        with pytest.raises(CommError, match="no status packet"):
+            bus.read_position_deg()
+        assert bus.link.ledger.requests  # type: ignore[attr-defined]
+        assert bus.drain_input(0.02) > 0  # what a set-up retry does first
+        assert bus.stale_replies == 3 and not bus.link.ledger.requests  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("protocol", ["2.0", "1.0"])
+def test_the_emulator_answers_every_widened_read(agile: Profile, protocol: str) -> None:
+    """With the shorter reply lengths reserved (as if their replies were still due), the
+    position read is widened step by step; the servos answer each with the right bytes."""
+    profile = agile if protocol == "2.0" else protocol1(agile)
+    overhead = 11 if protocol == "2.0" else 6  # status packet bytes around the data
+    with start_emulator(profile) as em, open_bus(profile, em.port) as bus:
+        em.set_joint_deg([100.0, 110.0, 120.0])
+        reg = bus.table["present_position"]
+        variants = read_variants(bus.table, reg.address, reg.size)
+        led = bus.link.ledger  # type: ignore[attr-defined]
+        for k, v in enumerate(variants):
+            for w in variants[:k]:
+                led.end(led.begin(bus.ids, w.length, time.perf_counter()))
+            before = bus.transport.bytes_in
+            got, failed = None, 0
+            while got is None and failed < 3:  # (a read lost to machine load is retried)
+                try:
+                    got = bus.read_position_deg()
+                except CommError:
+                    failed += 1
+            assert got is not None and np.allclose(got, [100.0, 110.0, 120.0], atol=0.1), v
+            if not failed:  # exactly three replies of the widened length
+                assert bus.transport.bytes_in - before == 3 * (overhead + v.length)
+            assert led.requests == []  # the answer retired the reservations (FIFO)
 
 
 # --- the executor -------------------------------------------------------------------------------

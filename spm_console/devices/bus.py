@@ -7,7 +7,9 @@ table (``devices/control_table.py``). Joint angles map to ticks per joint
 (offset, direction) and a goal outside the joint's limits is refused with
 :class:`LimitError` — never clamped. A failed transaction (timeout, corrupt or
 unexpected reply) raises :class:`CommError`; an absent servo, a wrong model or an
-error reported by a servo raises :class:`BusError`.
+error reported by a servo raises :class:`BusError`. A late reply to an earlier request
+is never taken for the current one: it fails the transaction it lands in and is counted
+in :attr:`DynamixelBus.stale_replies` (how: ``devices/link.py``).
 """
 
 from __future__ import annotations
@@ -240,7 +242,7 @@ class DynamixelBus:
 
     def drain_input(self, quiet_s: float) -> int:
         """Discard late input until the line is quiet for ``quiet_s``; bytes discarded."""
-        return self.transport.drain(quiet_s)
+        return self.transport.drain(quiet_s, on_late=self.link.late_input)
 
     def hold(self) -> F:
         """Goal := measured position (stop where we are); returns that position (deg)."""

@@ -55,6 +55,7 @@ class Link(Protocol):
 
     @property
     def stale_replies(self) -> int: ...
+    def late_input(self, data: bytes) -> None: ...
     def ping(self, ident: int) -> tuple[int, int | None, Reply]: ...
     def read(self, ident: int, address: int, length: int) -> Reply: ...
     def write(self, ident: int, address: int, data: bytes) -> Reply: ...
@@ -164,7 +165,7 @@ class _LedgerLink(Generic[P]):
             try:
                 pkts = self.tr.transact(build(n), self._decoder(), len(ids),
                                         check=lambda pkt: self._check(req, pkt, problems),
-                                        on_late=lambda data: self._late_input(
+                                        on_late=lambda data: self.late_input(
                                             data, len(led.requests) - 1))
             except CommError as exc:
                 if problems:  # the first foreign packet says more than the timeout
@@ -178,7 +179,7 @@ class _LedgerLink(Generic[P]):
             raise CommError(f"expected {len(ids)} status packets, got {len(pkts)}")
         return [Reply(*self._status(pkt)) for pkt in pkts], n
 
-    def _late_input(self, data: bytes, among: int | None = None) -> None:
+    def late_input(self, data: bytes, among: int | None = None) -> None:
         """Replies found waiting before a request goes out (late ones: they came after
         their transaction ended): counted as stale, and their requests settled. ``among``:
         how many of the ledger's requests were sent before (not the one going out)."""
@@ -289,7 +290,7 @@ class Link2(_LedgerLink[p2.Packet]):
 
     def sync_write(self, address: int, length: int, items: Sequence[tuple[int, bytes]]) -> None:
         with self.tr.lock:
-            self.tr.send(p2.sync_write(address, length, items), on_late=self._late_input)
+            self.tr.send(p2.sync_write(address, length, items), on_late=self.late_input)
 
     def reboot(self, ident: int) -> Reply:
         return self._fixed(ident, 0, p2.reboot(ident), f"a reboot of id {ident}")
@@ -331,7 +332,7 @@ class Link1(_LedgerLink[p1.Packet]):
 
     def sync_write(self, address: int, length: int, items: Sequence[tuple[int, bytes]]) -> None:
         with self.tr.lock:
-            self.tr.send(p1.sync_write(address, length, items), on_late=self._late_input)
+            self.tr.send(p1.sync_write(address, length, items), on_late=self.late_input)
 
     def reboot(self, ident: int) -> Reply:
         raise BusError(f"servo id {ident}: Protocol 1.0 has no REBOOT instruction; "

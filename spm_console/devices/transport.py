@@ -132,14 +132,15 @@ class SerialTransport:
         with self._lock:
             self._send(packet, on_late)
 
-    def drain(self, quiet_s: float, max_s: float = 0.25) -> int:
+    def drain(self, quiet_s: float, max_s: float = 0.25,
+              on_late: Callable[[bytes], object] | None = None) -> int:
         """Discard input until the line has been quiet for ``quiet_s`` (at most ``max_s``).
 
-        For set-up retries after a lost reply: late replies to the failed request are
-        still on their way and would otherwise be taken for the next request's. Returns
-        the number of bytes discarded. Not for the real-time loop (it waits).
+        For set-up retries after a lost reply: the late replies to the failed request
+        are let in and thrown away before the next one (``on_late`` sees them first).
+        Returns the number of bytes discarded. Not for the real-time loop (it waits).
         """
-        dropped = 0
+        chunks: list[bytes] = []
         with self._lock:
             fd = self._ser.fileno()
             end = time.perf_counter() + max_s
@@ -148,11 +149,14 @@ class SerialTransport:
                     ready, _, _ = select.select([fd], [], [], min(quiet_s, left))
                     if not ready:
                         break
-                    dropped += len(self._ser.read(self._ser.in_waiting or 1))
+                    chunks.append(self._ser.read(self._ser.in_waiting or 1))
                 except (serial.SerialException, OSError) as exc:
                     raise CommError(f"read from {self.port} failed: {exc}") from None
-        self.bytes_in += dropped
-        return dropped
+            data = b"".join(chunks)
+            if data and on_late is not None:
+                on_late(data)
+        self.bytes_in += len(data)
+        return len(data)
 
     def _collect(self, decoder: StreamDecoder[P], count: int, timeout_s: float,
                  check: Callable[[P], int] | None) -> list[P]:
