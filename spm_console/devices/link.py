@@ -154,7 +154,8 @@ class _LedgerLink(Generic[P]):
                 now = self.clock()
                 n = led.pick(ids, lengths)
             if n is None:
-                led.refused += fence  # (a fence that cannot be sent is counted by its caller)
+                if fence:  # (a fence that cannot be sent is counted by its caller)
+                    led.refused += 1
                 raise CommError(
                     f"{what} not sent: {len(led.requests)} earlier requests are still "
                     f"unanswered and every reply length it could use is reserved for their "
