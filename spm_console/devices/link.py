@@ -148,9 +148,11 @@ class _LedgerLink(Generic[P]):
                     self._fence(ids)
                 except CommError as exc:
                     led.refused += 1
-                    raise CommError(f"{what} not sent: its reply lengths are reserved for late "
-                                    "replies to earlier requests and the fence read that would "
-                                    f"release them failed ({exc})") from None
+                    who = ", ".join(map(str, ids))
+                    raise CommError(f"{what} not sent: id {who} did not answer a fence read "
+                                    f"either ({exc}); an earlier request with the same reply "
+                                    "length is unanswered and its late reply could not be "
+                                    "told from this one's") from None
                 now = self.clock()
                 n = led.pick(ids, lengths)
             if n is None:
