@@ -13,19 +13,23 @@ distinguishable without one:
 :class:`ReplyLedger` keeps every request sent within :data:`REPLY_HORIZON_S` that
 still waits for a reply, as (send time, reply length, ids not yet heard from). A
 new request may only use a reply length that no unanswered request expects from
-the same id (:meth:`ReplyLedger.pick`); when none is free, the request is refused
-(the caller reports a failed transaction). Each incoming status packet is then
-classified (:meth:`ReplyLedger.classify`): it answers the current request only if
-it comes from one of its ids with its length; one that matches an older request is
-*stale*; one that matches no request is *unexpected*; both are counted in
-``stale`` and the transaction fails. A reply from id i (current or stale) also
-retires older requests' claims on id i: by FIFO, their replies can no longer come.
+the same id (:meth:`ReplyLedger.pick`); when none is free the link first tries a
+fence read (``devices/link.py``), then refuses the request (a failed transaction,
+nothing sent). Each status packet that arrives during a transaction is classified
+(:meth:`ReplyLedger.classify`): it answers the current request only if it comes
+from one of its ids with its length; one that matches an older request is *stale*,
+one that matches no request *unexpected*; both are counted in ``stale`` and fail
+the transaction. Replies found waiting before a request goes out are late too
+(:meth:`ReplyLedger.late`): counted, and discarded. A reply from id i (current or
+late) retires older requests' claims on id i — by FIFO their replies can no longer
+come — and, within a sync/bulk read answered in list order, the claims of the ids
+listed before i.
 
 Guarantee: a status packet is accepted as the answer to a request only if it is
-not the reply to another request sent within the horizon — provided servos answer
-in order and with the length asked for. Replies delayed by more than the horizon
-are not covered. Pure bookkeeping, no I/O, no clock of its own: microseconds per
-transaction.
+not the reply to another request sent within the horizon before it — provided
+servos answer in order and with the length asked for. Replies delayed by more than
+the horizon are not covered. Pure bookkeeping, no I/O, no clock of its own: a few
+microseconds per transaction.
 """
 
 from __future__ import annotations
