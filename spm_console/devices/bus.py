@@ -93,9 +93,10 @@ class DynamixelBus:
 
     @property
     def stale_replies(self) -> int:
-        """Status packets received that were not the answer to the request in flight (late
-        replies to earlier requests, or replies nothing asked for): each failed its
-        transaction with a CommError. Counts from the bus's opening."""
+        """Status packets that were not the answer to the request in flight: late replies
+        to earlier requests, or replies nothing asked for. One that lands while a request
+        waits fails that transaction (CommError); one found waiting before a request goes
+        out (or by a set-up drain) is discarded. Counts from the bus's opening."""
         return self.link.stale_replies
 
     @property

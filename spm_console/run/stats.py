@@ -58,6 +58,6 @@ def run_stats(samples: Sequence[Sample], ts: float) -> dict[str, Any]:
 
 
 def stale_replies(bus: object) -> int:
-    """The bus's count of stale status packets so far (late replies to earlier requests,
-    or replies nothing asked for: each failed its transaction); 0 when the bus keeps none."""
+    """The bus's count of stale status packets so far (late replies to earlier requests, or
+    replies nothing asked for; see ``DynamixelBus.stale_replies``); 0 when it keeps none."""
     return int(getattr(bus, "stale_replies", 0))
