@@ -17,7 +17,7 @@ F = NDArray[np.float64]
 
 
 class CommError(Exception):
-    """One bus transaction failed (timeout, corrupted or missing status packet).
+    """One bus transaction failed (timeout; corrupted, missing or stale status packet).
 
     Not an operator error by itself: the executor counts and retries these and
     stops after the profile's number of consecutive failures.

@@ -7,7 +7,9 @@ table (``devices/control_table.py``). Joint angles map to ticks per joint
 (offset, direction) and a goal outside the joint's limits is refused with
 :class:`LimitError` — never clamped. A failed transaction (timeout, corrupt or
 unexpected reply) raises :class:`CommError`; an absent servo, a wrong model or an
-error reported by a servo raises :class:`BusError`.
+error reported by a servo raises :class:`BusError`. A late reply to an earlier request
+is never taken for the current one: it fails the transaction it lands in and is counted
+in :attr:`DynamixelBus.stale_replies` (how: ``devices/link.py``).
 """
 
 from __future__ import annotations
@@ -78,7 +80,8 @@ class DynamixelBus:
         self.profile = profile
         self.transport = transport
         self.table: ControlTable = table_for(profile.bus.protocol)
-        self.link: Link = Link2(transport) if profile.bus.protocol == "2.0" else Link1(transport)
+        self.link: Link = (Link2(transport, self.table) if profile.bus.protocol == "2.0"
+                           else Link1(transport, self.table))
         self.maps: list[JointMap] = joint_maps(profile)
         self.ids = [m.id for m in self.maps]
         self.alerts: dict[int, int] = {}
@@ -87,6 +90,14 @@ class DynamixelBus:
     @property
     def protocol(self) -> str:
         return self.profile.bus.protocol
+
+    @property
+    def stale_replies(self) -> int:
+        """Status packets that were not the answer to the request in flight: late replies
+        to earlier requests, or replies nothing asked for. One that lands while a request
+        waits fails that transaction (CommError); one found waiting before a request goes
+        out (or by a set-up drain) is discarded. Counts from the bus's opening."""
+        return self.link.stale_replies
 
     @property
     def port(self) -> str:
@@ -232,7 +243,7 @@ class DynamixelBus:
 
     def drain_input(self, quiet_s: float) -> int:
         """Discard late input until the line is quiet for ``quiet_s``; bytes discarded."""
-        return self.transport.drain(quiet_s)
+        return self.transport.drain(quiet_s, on_late=self.link.late_input)
 
     def hold(self) -> F:
         """Goal := measured position (stop where we are); returns that position (deg)."""

@@ -141,6 +141,9 @@ class EmulatedServo:
         if self.table.protocol == "2.0":
             self._set("present_position", self.present_ticks())
             self._set("present_velocity", round(rpm / 0.229))
+            # profile velocity/acceleration 0: the trajectory is the goal itself, at rest
+            self._set("position_trajectory", self.get("goal_position"))
+            self._set("velocity_trajectory", 0)
             self._set("moving", int(moving))
             self._set("present_input_voltage", 120)
             self._set("present_temperature", 35)

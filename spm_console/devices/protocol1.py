@@ -14,7 +14,7 @@ rejected instead of being trusted.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -112,12 +112,15 @@ class Decoder1:
     """Streaming Protocol 1.0 decoder; resynchronizes on garbage and bad checksums.
 
     ``expect_params``: when set, only status frames with exactly that many
-    parameters are accepted (frames of another length are rejected as corrupt).
+    parameters (or one of these counts) are accepted; frames of another length are
+    rejected as corrupt.
     """
 
-    def __init__(self, expect_params: int | None = None) -> None:
+    def __init__(self, expect_params: int | Collection[int] | None = None) -> None:
         self._buf = bytearray()
-        self.expect_params = expect_params
+        self.expect_params: frozenset[int] | None = (
+            None if expect_params is None
+            else frozenset((expect_params,) if isinstance(expect_params, int) else expect_params))
         self.rejected = 0
         self.skipped = 0
 
@@ -151,7 +154,7 @@ class Decoder1:
                 break
             ident, length = buf[2], buf[3]
             bad_len = length < 2 or (
-                self.expect_params is not None and length != self.expect_params + 2
+                self.expect_params is not None and length - 2 not in self.expect_params
             )
             if ident == 0xFF or bad_len:
                 self._reject(buf)

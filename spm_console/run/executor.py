@@ -45,7 +45,7 @@ from spm_console.run.runlog import RunLog
 from spm_console.run.safety import SafetyMonitor, StopReason
 from spm_console.run.sample import Sample
 from spm_console.run.segments import ExecutionResult, Segment
-from spm_console.run.stats import run_stats
+from spm_console.run.stats import run_stats, stale_replies
 
 F = NDArray[np.float64]
 BusFailure = (CommError, OSError, BusError)
@@ -159,6 +159,7 @@ class Executor:
     def run(self, segments: Sequence[Segment], theta0_deg: F | None = None) -> ExecutionResult:
         """Execute the segments back to back; returns when done or stopped."""
         self.t0 = self.clock()  # set-up events: time since run() began (the loop resets t0)
+        self._stale0 = stale_replies(self.bus)
         self.check_plan(segments)
         theta0 = self.read_initial() if theta0_deg is None else np.asarray(theta0_deg, float)
         start = segments[0].plan.reference_deg[0]
@@ -408,6 +409,7 @@ class Executor:
     def _finish(self, outcome: str, code: ExitCode, message: str,
                 stop: StopReason | None) -> ExecutionResult:
         stats = run_stats(self.samples, self.ts)
+        stats["stale_replies"] = stale_replies(self.bus) - getattr(self, "_stale0", 0)
         if hasattr(self, "safety"):
             stats.update(comm_retries=self.safety.comm_retries,
                          comm_failed_cycles=self.safety.comm_failed_cycles)

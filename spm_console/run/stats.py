@@ -55,3 +55,9 @@ def run_stats(samples: Sequence[Sample], ts: float) -> dict[str, Any]:
         read_offset_ms={"p50": _pct(offs, 50), "max": float(offs.max()) if offs.size else 0.0},
     )
     return out
+
+
+def stale_replies(bus: object) -> int:
+    """The bus's count of stale status packets so far (late replies to earlier requests, or
+    replies nothing asked for; see ``DynamixelBus.stale_replies``); 0 when it keeps none."""
+    return int(getattr(bus, "stale_replies", 0))
