@@ -234,6 +234,10 @@ class Safety(_Section):
     """Servo Bus Watchdog, ms (0 = off; unit 20 ms, at most 127 units); protocol 2.0 only.
     When on, the value written (rounded to 20 ms) must last at least 2·Ts, or the servos
     stop between two cycles."""
+    approach_tolerance_deg: Real = Field(default=0.5, gt=0.0, le=5.0)
+    """Farther than this from a plan's start (any joint, deg), execution begins with a
+    straight approach move at the homing speed; 0 < tolerance ≤ 5. The same rule for every
+    front end."""
 
 
 class Estimation(_Section):

@@ -6,7 +6,7 @@ messages of :mod:`spm_console.run.motion_protocol`: requests (ping, read, home, 
 E-stop, heartbeat, close) in; replies, throttled telemetry and results out.
 
 In the child, :func:`serve` opens the bus, loads this profile's workspace (the runtime
-verifies every motion against it) and answers requests; a motion runs in a worker thread
+verifies every motion against it; loaded on the first motion) and answers requests; a motion runs in a worker thread
 (real-time scheduling, see :mod:`spm_console.realtime`) while the main thread keeps
 reading the pipe, so an E-stop reaches the executor within one period. **Deadman:** during
 a motion the client sends a heartbeat every :data:`HEARTBEAT_S`; when none arrives for
@@ -68,13 +68,13 @@ class _Server:
     def __init__(self, conn: Connection, profile: Profile, port: str, cache_dir: str | None,
                  logs_root: str | None, bus_label: str) -> None:
         from spm_console.devices.bus import open_bus
-        from spm_console.workspace_cache import load_or_build
 
         self.conn = conn
         self.profile = profile
         self.logs_root = logs_root
         self.bus_label = bus_label
-        self.workspace, _ = load_or_build(profile, cache_dir=cache_dir)
+        self.cache_dir = cache_dir
+        self._workspace: Any = None
         self.bus = open_bus(profile, port)
         self.send_lock = threading.Lock()
         self.executor: Any = None
@@ -97,7 +97,6 @@ class _Server:
             if self.motion is not None and self.motion.is_alive():
                 self.send(Failed(req.id, BusError("a motion is already running").message, 4))
                 return
-            self.pending_estop = ""
             self.last_heartbeat = time.monotonic()
             self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
                                            name="spm-motion")
@@ -135,6 +134,16 @@ class _Server:
         return out
 
     # --- motion -----------------------------------------------------------------------
+    @property
+    def workspace(self) -> Any:
+        """This profile's workspace (cache, or built on first use): every motion is verified
+        against it."""
+        if self._workspace is None:
+            from spm_console.workspace_cache import load_or_build
+
+            self._workspace, _ = load_or_build(self.profile, cache_dir=self.cache_dir)
+        return self._workspace
+
     def estop(self, reason: str) -> None:
         if not self.pending_estop:
             self.pending_estop = reason
@@ -150,12 +159,19 @@ class _Server:
         from spm_console.run.operator_runs import run_execute, run_home
 
         last = [0.0]
+        batch: list[Sample] = []
+
+        def flush() -> None:
+            if batch:
+                self.send(Telemetry(tuple(batch)))
+                batch.clear()
 
         def on_sample(s: Sample) -> None:
+            batch.append(s)
             now = time.monotonic()
             if now - last[0] >= TELEMETRY_S:
                 last[0] = now
-                self.send(Telemetry(s))
+                flush()
 
         try:
             if isinstance(req, Home):
@@ -165,13 +181,16 @@ class _Server:
                 value = run_execute(self.profile, self.bus, self.workspace, req.plan,
                                     self.logs_root, self.bus_label, on_sample, self._attach,
                                     req.approach_tolerance_deg)
+            flush()
             self.send(Reply(req.id, value))
         except SpmError as exc:
+            flush()
             self.send(Failed(req.id, exc.message, int(exc.exit_code)))
         except Exception as exc:  # a bug: the executor already left the wrist holding
             self.send(Failed(req.id, f"internal error in the motion process: {exc!r}", 1))
         finally:
             self.executor = None
+            self.pending_estop = ""
 
     def moving(self) -> bool:
         return self.motion is not None and self.motion.is_alive()
@@ -294,7 +313,8 @@ class MotionClient:
                 cb = self.on_sample
                 if cb is not None:
                     with contextlib.suppress(Exception):
-                        cb(msg.sample)
+                        for sample in msg.samples:
+                            cb(sample)
                 continue
             with self._cond:
                 self._replies[msg.id] = msg

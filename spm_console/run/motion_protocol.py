@@ -81,6 +81,6 @@ class Failed:
 
 @dataclass(frozen=True)
 class Telemetry:
-    """One loop sample, throttled to TELEMETRY_S."""
+    """The loop's samples since the last message (one message per TELEMETRY_S at most)."""
 
-    sample: Sample
+    samples: tuple[Sample, ...]

@@ -51,13 +51,13 @@ def run_execute(profile: Profile, bus: ServoBus, ws: Workspace, plan: Plan, logs
                 bus_label: str, on_sample: SampleCallback | None, attach: Attach,
                 approach_tolerance_deg: float | None = None) -> ExecutionResult:
     """Execute ``plan``, with a straight approach move to its start when the wrist is farther
-    than the tolerance (default: the executor's start tolerance)."""
+    than the tolerance (default: the profile's ``safety.approach_tolerance_deg``)."""
     from spm_console.devices.base import read_position_settled
 
     theta0 = np.asarray(read_position_settled(bus, 3), float)
     ex = _executor(profile, bus, ws, "execute", [plan_summary(plan)], logs_root, bus_label,
                    on_sample)
-    tol = ex.start_tolerance_deg if approach_tolerance_deg is None else approach_tolerance_deg
+    tol = profile.safety.approach_tolerance_deg if approach_tolerance_deg is None else approach_tolerance_deg
     segments = plan_segments(profile, theta0, plan, tol)
     if ex.log is not None:
         ex.log.meta["plans"] = [plan_summary(s.plan) | {"phase": s.phase} for s in segments]

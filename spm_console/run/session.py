@@ -26,8 +26,8 @@ from spm_console.devices.emulator import EmulatorHandle, start_emulator
 from spm_console.devices.faults import FaultSpec
 from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
 from spm_console.profile import Profile
-from spm_console.run.executor import ExecutionResult, Executor, Segment
-from spm_console.run.homing import HomingResult, approach_segment, home
+from spm_console.run.executor import ExecutionResult, Executor
+from spm_console.run.homing import HomingResult, home, plan_segments
 from spm_console.run.plans import plan_summary
 from spm_console.run.runlog import RunLog
 from spm_console.run.sample import Sample
@@ -174,13 +174,11 @@ def execute_plan(profile: Profile, plan: Plan, req: RunRequest,
     def body(ex: Executor, _ses: BusSession) -> ExecutionResult:
         theta0 = ex.read_initial()
         start = plan.reference_deg[0]
-        segments = [Segment("plan", plan)]
-        if float(np.abs(theta0 - start).max()) > ex.start_tolerance_deg:
-            if not req.approach:
-                raise BadInputError(
-                    f"the wrist is at θ = {np.round(theta0, 2).tolist()}°, not at the plan's "
-                    f"start {np.round(start, 2).tolist()}° (approach move disabled)")
-            segments.insert(0, approach_segment(profile, theta0, start))
+        segments = plan_segments(profile, theta0, plan, profile.safety.approach_tolerance_deg)
+        if len(segments) > 1 and not req.approach:
+            raise BadInputError(
+                f"the wrist is at θ = {np.round(theta0, 2).tolist()}°, not at the plan's "
+                f"start {np.round(start, 2).tolist()}° (approach move disabled)")
         if ex.log is not None:
             ex.log.meta["plans"] = [plan_summary(s.plan, source if s.phase == "plan" else None)
                                     | {"phase": s.phase} for s in segments]

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from spm_console.core.ik import ik_rpy
 from spm_console.core.modes import assembly_modes
 from spm_console.core.plan import Plan
-from spm_console.devices.base import ServoBus, ServoStatus
+from spm_console.devices.base import ServoStatus
 from spm_console.errors import (
     BadInputError,
     BusError,
@@ -37,12 +37,13 @@ from spm_console.profile import Profile
 if TYPE_CHECKING:
     from spm_console.devices.emulator import EmulatorHandle
     from spm_console.devices.faults import FaultSpec
-    from spm_console.run.executor import Executor
+    from spm_console.run.motion_process import MotionClient
     from spm_console.run.sample import Sample
     from spm_console.run.segments import ExecutionResult
     from spm_console.tui.emulator_child import EmulatorChild
 
 F = NDArray[np.float64]
+
 SampleCallback = Callable[["Sample"], None]
 ProgressCallback = Callable[[str, float], None]
 
@@ -111,7 +112,8 @@ class Session:
         self.emulator_process = emulator_process
         """Run the emulated bus in a child process (the console: its UI thread must not
         delay the emulator's replies) rather than in a thread of this process."""
-        self.bus: ServoBus | None = None
+        self.bus: MotionClient | None = None
+        """The motion process (it owns the port); None when not connected."""
         self.bus_state: BusState | None = None
         self.emulator: EmulatorHandle | EmulatorChild | None = None
         self.theta_deg: F | None = None
@@ -124,9 +126,7 @@ class Session:
         self.last_run: ExecutionResult | None = None
         self.motion_total_s = 0.0
         """Planned duration of the running (or last) motion, s."""
-        self._executor: Executor | None = None
         self._estop_sent = False
-        self._estop_reason = ""
         self._motion = threading.Lock()
         self.moving = threading.Event()
         """Set while a motion (homing or execution) runs."""
@@ -137,9 +137,8 @@ class Session:
         return "emulated bus" if self.sim else f"serial port {self.port}"
 
     def connect(self) -> BusState:
-        """Open the bus (starting the emulator in sim mode), ping the servos, read θ."""
-        from spm_console.devices.bus import open_bus
-
+        """Start the motion process on the bus (the emulator first in sim mode): it owns the
+        port and runs every motion; then ping the servos (with their health) and read θ."""
         self.disconnect()
         port = self.port
         if self.sim and self.emulator_process:
@@ -160,9 +159,12 @@ class Session:
             port = self.emulator.port
         assert port is not None
         try:
-            self.bus = open_bus(self.profile, port)
-            statuses = [self._with_health(st) for st in self.bus.ping_all()]
-            self.bus_state = BusState(port=port, emulated=self.sim, statuses=statuses)
+            from spm_console.run.motion_process import MotionClient
+
+            client = MotionClient(self.profile, port, cache_dir=self.cache_dir,
+                                  logs_root=self.logs_root, bus_label=self.bus_label)
+            self.bus = client
+            self.bus_state = BusState(port=port, emulated=self.sim, statuses=client.ping_all())
             self.read_position()
         except SpmError:
             self.disconnect()
@@ -172,35 +174,13 @@ class Session:
             raise BusError(f"{port}: {exc.strerror or exc}") from None
         return self.bus_state
 
-    def _with_health(self, st: ServoStatus) -> ServoStatus:
-        """Add temperature (°C) and input voltage (V) when the bus can read registers."""
-        from dataclasses import replace
-
-        from spm_console.devices.base import CommError
-
-        read = getattr(self.bus, "read", None)
-        if read is None:
-            return st
-        volt_reg = "present_input_voltage" if self.profile.bus.protocol == "2.0" else "present_voltage"
-        try:
-            return replace(st, temperature_c=float(read(st.id, "present_temperature")),
-                           voltage_v=0.1 * float(read(st.id, volt_reg)))
-        except (CommError, OSError, KeyError, SpmError):
-            return st  # health registers are informative only
-
-    def require_bus(self) -> ServoBus:
+    def require_bus(self) -> MotionClient:
         if self.bus is None:
             raise BusError("not connected to the servos: connect first (step 1)")
         return self.bus
 
     def read_position(self) -> F:
-        from spm_console.devices.base import CommError, read_position_settled
-
-        bus = self.require_bus()
-        try:
-            self.theta_deg = read_position_settled(bus, 3)
-        except (CommError, OSError) as exc:
-            raise BusError(f"no position reply from the servos after 3 tries ({exc})") from None
+        self.theta_deg = np.asarray(self.require_bus().read_position(), float)
         return self.theta_deg
 
     def disconnect(self) -> None:
@@ -215,16 +195,6 @@ class Session:
         self.homed = False
 
     # ------------------------------------------------------------------ motion
-    def _executor_for(self, kind: str, plans: list[dict[str, Any]],
-                      on_sample: SampleCallback | None) -> Executor:
-        from spm_console.run.executor import Executor
-        from spm_console.run.runlog import RunLog
-
-        log = RunLog.create(kind, self.profile.name, self.profile.digest(), plans,
-                            root=self.logs_root, extra={"bus": self.bus_label})
-        ws = self.workspace if self.workspace is not None else self.load_workspace()
-        return Executor(self.profile, self.require_bus(), workspace=ws, log=log, on_sample=on_sample)
-
     def _run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
         if not self._motion.acquire(blocking=False):
             raise BadInputError("a motion is already running")
@@ -233,7 +203,6 @@ class Session:
         try:
             result = fn()
         finally:
-            self._executor = None
             self.moving.clear()
             self._motion.release()
         if result.final_deg is not None:
@@ -242,69 +211,47 @@ class Session:
         return result
 
     def home(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
-        """Move home at the profile's homing speed (after the assembly-mode check)."""
-        from spm_console.run.homing import check_assembly_mode, home
-
-        theta0 = self.read_position()
-        check_assembly_mode(self.profile, theta0)  # refuse before a log folder is made
-
+        """Move home at the profile's homing speed (after the assembly-mode check), in the
+        motion process."""
+        from spm_console.run.homing import check_assembly_mode
         from spm_console.run.plans import line_plan
 
+        client = self.require_bus()
+        theta0 = self.read_position()
+        check_assembly_mode(self.profile, theta0)  # refuse before a log folder is made
         self.motion_total_s = line_plan(self.profile, theta0, np.asarray(self.profile.home.theta_deg),
                                         self.profile.safety.home_speed_degps).duration_s
-
-        def go() -> ExecutionResult:
-            ex = self._attach(self._executor_for("home", [{"kind": "homing"}], on_sample))
-            return home(ex).execution
-
-        result = self._run_motion(go)
+        result = self._run_motion(lambda: client.home(on_sample).execution)
         self.homed = result.ok
         return result
 
     def execute(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
-        """Execute the current plan (with a straight approach move to its start if needed)."""
-        from spm_console.run.homing import approach_segment
-        from spm_console.run.segments import Segment
+        """Execute the current plan (with a straight approach move to its start if needed), in
+        the motion process, which verifies it against this profile's workspace first."""
+        from spm_console.run.homing import plan_segments
 
         if self.plan is None:
             raise BadInputError("no plan to execute: solve one first (step 4)")
         if not self.homed:
             raise BadInputError("the wrist is not homed: home it first (step 1)")
-        plan = self.plan
+        client, plan = self.require_bus(), self.plan
         theta0 = self.read_position()
-        segments = []
-        if float(np.abs(theta0 - plan.reference_deg[0]).max()) > 0.5:
-            segments.append(approach_segment(self.profile, theta0, plan.reference_deg[0]))
-        segments.append(Segment("plan", plan))
+        tol = self.profile.safety.approach_tolerance_deg
+        segments = plan_segments(self.profile, theta0, plan, tol)
         self.motion_total_s = sum((s.plan.N + 1) * s.plan.Ts for s in segments)
-        summary = [{"phase": s.phase, "kind": s.plan.kind, "N": s.plan.N, "Ts": s.plan.Ts}
-                   for s in segments]
-
-        def go() -> ExecutionResult:
-            ex = self._attach(self._executor_for("execute", summary, on_sample))
-            return ex.run(segments, theta0_deg=theta0)
-
-        result = self._run_motion(go)
+        result = self._run_motion(lambda: client.execute(plan, on_sample))
         self.plan_info["executed"] = True
         return result
 
     def estop(self, reason: str = "operator E-stop") -> bool:
         """Stop the running motion at once (any thread, a signal handler); False when nothing
-        moves. Asked before the motion's executor exists, it is kept for it (:meth:`_attach`)."""
-        if not self.moving.is_set():
+        moves. Asked before the motion process started it, it is kept for it there."""
+        if not self.moving.is_set() or self.bus is None:
             return False
         if not self._estop_sent:  # the first reason is the one logged
-            self._estop_reason, self._estop_sent = reason, True
-            if (ex := self._executor) is not None:
-                ex.request_estop(reason)
+            self._estop_sent = True
+            self.bus.estop(reason)
         return True
-
-    def _attach(self, ex: Executor) -> Executor:
-        """``ex`` runs the motion: E-stops reach it from now on (and one asked for already)."""
-        self._executor = ex
-        if self._estop_sent:
-            ex.request_estop(self._estop_reason)
-        return ex
 
     # ------------------------------------------------------------------ kinematics
     def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> dict[str, Any]:
