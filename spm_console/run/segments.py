@@ -16,6 +16,9 @@ from spm_console.run.safety import StopReason
 
 F = NDArray[np.float64]
 
+#: A reference on a servo limit up to this much (deg) is on it (floating-point boundary).
+LIMIT_TOL_DEG = 1e-9
+
 
 @dataclass(frozen=True)
 class Segment:
@@ -45,7 +48,8 @@ class ExecutionResult:
 
 
 def check_segments(segments: Sequence[Segment], ts: float, lo: F, hi: F) -> None:
-    """Refuse segments sampled at another Ts or with references outside [lo, hi] (deg)."""
+    """Refuse segments sampled at another Ts or with references outside [lo, hi] (deg),
+    with a tolerance of LIMIT_TOL_DEG on the boundary."""
     if not segments:
         raise BadInputError("nothing to execute: no plan segments")
     for seg in segments:
@@ -58,10 +62,10 @@ def check_segments(segments: Sequence[Segment], ts: float, lo: F, hi: F) -> None
         ref = plan.reference_deg
         if ref.ndim != 2 or ref.shape[1] != 3 or not np.all(np.isfinite(ref)):
             raise BadInputError(f"{seg.phase}: references must be finite (N+1, 3) angles")
-        bad = (ref < lo) | (ref > hi)
+        bad = (ref < lo - LIMIT_TOL_DEG) | (ref > hi + LIMIT_TOL_DEG)
         if bad.any():
             k, i = (int(x) for x in np.argwhere(bad)[0])
             raise BadInputError(
-                f"{seg.phase}: reference θ{i + 1}({k}) = {ref[k, i]:.2f}° is outside the "
+                f"{seg.phase}: reference θ{i + 1}({k}) = {ref[k, i]:.6f}° is outside the "
                 f"servo limits [{lo[i]:.1f}, {hi[i]:.1f}]°; nothing was moved"
             )
