@@ -140,21 +140,30 @@ def summary(plan: Plan, out: Path | None, source: str) -> dict[str, Any]:
     return rec
 
 
+def _num(x: Any) -> float:
+    """A number from a plan's free-form record (null or absent -> NaN)."""
+    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) else float("nan")
+
+
 def _human(plan: Plan, out: Path | None, source: str) -> str:
-    c = plan.extra.get("check") or {}
+    ex = plan.extra
+    chk = ex.get("check")
+    c: dict[str, Any] = chk if isinstance(chk, dict) else {}
     lines = [
         f"{plan.kind}: N = {plan.N} ({plan.duration_s:.2f} s), cost {plan.cost:.6g} (deg/s)², "
         f"{plan.qp_count} QP(s), {1e3 * plan.solve_seconds:.1f} ms",
         f"region: {source}, {plan.region.halfspaces} half-spaces",
-        f"at the samples: max |θ̇| {c.get('max_speed_samples_degps', float('nan')):.3f} deg/s, "
-        f"region violation {c.get('region_violation_deg', float('nan')):.2e} deg",
-        f"between samples: max |θ̇| {c.get('max_speed_between_degps', float('nan')):.3f} deg/s, "
-        f"region violation {c.get('region_violation_between_deg', float('nan')):.3g} deg",
+        f"at the samples: max |θ̇| {_num(c.get('max_speed_samples_degps')):.3f} deg/s, "
+        f"region violation {_num(c.get('region_violation_deg')):.2e} deg",
+        f"between samples: max |θ̇| {_num(c.get('max_speed_between_degps')):.3f} deg/s, "
+        f"region violation {_num(c.get('region_violation_between_deg')):.3g} deg",
     ]
-    cert = (plan.extra.get("n_minus_1_infeasible") or {}).get("certificate")
-    if cert:
+    nm1 = ex.get("n_minus_1_infeasible")
+    cert = nm1.get("certificate") if isinstance(nm1, dict) else None
+    if isinstance(cert, dict):
+        r = cert.get("excluded_radius")
         lines.append(f"N−1 = {plan.N - 1} infeasible: Farkas certificate excludes ‖x‖∞ < "
-                     f"{cert['excluded_radius']:.3g}")
+                     + ("∞" if r is None else f"{_num(r):.3g}"))
     if out:
         lines.append(f"written to {out}")
     return "\n".join(lines)
