@@ -67,7 +67,23 @@ def test_executor_accepts_the_limit_within_1e_9(agile) -> None:  # type: ignore[
     ref[2, 1] = 160.0 + 0.5 * LIMIT_TOL_DEG
     ok = Segment("move", plan_from_references(agile, ref, "synthetic"))
     check_segments([ok], agile.servo.ts_s, LO, HI)
+    assert ok.plan.reference_deg[2, 1] == 160.0  # put on the limit: the bus refuses past it
+    assert ref[2, 1] > 160.0  # the caller's array is not written to
     ref[2, 1] = 160.0 + 1e-7
     bad = Segment("move", plan_from_references(agile, ref, "synthetic"))
     with pytest.raises(BadInputError, match=r"θ2\(2\) = 160\.000000° is outside the servo limits"):
         check_segments([bad], agile.servo.ts_s, LO, HI)
+
+
+def test_a_plan_on_the_limit_by_round_off_runs_to_the_end(agile, tmp_path,  # type: ignore[no-untyped-def]
+                                                          capsys) -> None:
+    from spm_console.cli.main import main
+    from spm_console.plan_file import save_plan
+
+    ref = np.tile([150.0, 159.9, 150.0], (30, 1))
+    ref[5:, 1] = 160.0 + 5e-10
+    path = tmp_path / "edge.json"
+    save_plan(plan_from_references(agile, ref, "synthetic"), path)
+    code = main(["execute", "--sim", "--plan", str(path), "--sim-start", "150", "159.9", "150",
+                 "--logs", str(tmp_path / "logs")])
+    assert code == 0, capsys.readouterr().err

@@ -48,8 +48,11 @@ class ExecutionResult:
 
 
 def check_segments(segments: Sequence[Segment], ts: float, lo: F, hi: F) -> None:
-    """Refuse segments sampled at another Ts or with references outside [lo, hi] (deg),
-    with a tolerance of LIMIT_TOL_DEG on the boundary."""
+    """Refuse segments sampled at another Ts or with references outside [lo, hi] (deg).
+
+    A reference beyond a limit by at most LIMIT_TOL_DEG is on it: the plan's references are
+    replaced by a copy with those put exactly on the limit, since the bus refuses any goal
+    past a limit (a plan accepted here must not stop on a limit mid-run)."""
     if not segments:
         raise BadInputError("nothing to execute: no plan segments")
     for seg in segments:
@@ -69,3 +72,5 @@ def check_segments(segments: Sequence[Segment], ts: float, lo: F, hi: F) -> None
                 f"{seg.phase}: reference θ{i + 1}({k}) = {ref[k, i]:.6f}° is outside the "
                 f"servo limits [{lo[i]:.1f}, {hi[i]:.1f}]°; nothing was moved"
             )
+        if np.any(ref < lo) or np.any(ref > hi):
+            object.__setattr__(plan, "reference_deg", np.clip(ref, lo, hi))
