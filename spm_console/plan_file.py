@@ -20,19 +20,22 @@ from typing import Any
 import numpy as np
 
 from spm_console.core.plan import Plan
-from spm_console.core.region import Region
 from spm_console.core.servo_model import discretize, simulate
 from spm_console.errors import PlanMismatchError
 from spm_console.jsonutil import to_jsonable
+from spm_console.plan_schema import FORMAT, KINDS, MAX_PLAN_STEPS, VERSION, plan_from_dict
 from spm_console.profile import Profile
+from spm_console.safe_io import MB, load_json
 
-FORMAT = "spm_console.plan"
-VERSION = 1
+__all__ = ["FORMAT", "KINDS", "MAX_PLAN_BYTES", "MAX_PLAN_STEPS", "VERSION", "check_plan",
+           "load_plan", "plan_from_dict", "plan_hash", "plan_to_dict", "save_plan"]
+
+#: Largest plan file read (a plan at the 100 000-step limit takes about 20 MB).
+MAX_PLAN_BYTES = 50 * MB
 #: Profile sections a plan depends on.
 PLAN_SECTIONS = ("geometry", "home", "links", "workspace", "servo")
 #: Stored positions/velocities must match the re-simulated model to this (deg, deg/s).
 CONSISTENCY_TOL = 1e-6
-KINDS = ("mvn", "mintime", "synthetic", "homing")
 
 
 def plan_hash(profile: Profile) -> str:
@@ -79,63 +82,6 @@ def save_plan(plan: Plan, path: str | Path) -> None:
         raise
 
 
-def _array(d: dict[str, Any], key: str, src: str, cols: int | None = 3) -> np.ndarray:
-    if key not in d:
-        raise PlanMismatchError(f"{src}: missing key '{key}'")
-    try:
-        a = np.asarray(d[key], float)
-    except (TypeError, ValueError):
-        raise PlanMismatchError(f"{src}: '{key}' is not a numeric array") from None
-    if cols is not None and (a.ndim != 2 or a.shape[1] != cols):
-        raise PlanMismatchError(f"{src}: '{key}' must have {cols} columns, got shape {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise PlanMismatchError(f"{src}: '{key}' holds non-finite values")
-    return a
-
-
-def plan_from_dict(d: Any, src: str = "plan") -> Plan:
-    """Validate the structure of a decoded plan document (not its match to a profile)."""
-    if not isinstance(d, dict) or d.get("format") != FORMAT:
-        raise PlanMismatchError(f"{src}: not a spm_console plan file (format key missing)")
-    if d.get("version") != VERSION:
-        raise PlanMismatchError(f"{src}: plan format version {d.get('version')}, expected {VERSION}")
-    kind = d.get("kind")
-    if kind not in KINDS:
-        raise PlanMismatchError(f"{src}: unknown plan kind {kind!r}")
-    ref = _array(d, "reference_deg", src)
-    pos = _array(d, "position_deg", src)
-    vel = _array(d, "velocity_degps", src)
-    if not (ref.shape == pos.shape == vel.shape) or ref.shape[0] < 2:
-        raise PlanMismatchError(
-            f"{src}: reference_deg, position_deg and velocity_degps must all be (N+1)×3 with N ≥ 1, "
-            f"got {ref.shape}, {pos.shape}, {vel.shape}")
-    n = d.get("N")
-    if n != ref.shape[0] - 1:
-        raise PlanMismatchError(f"{src}: N = {n} but the arrays have {ref.shape[0]} samples")
-    ts = d.get("Ts")
-    if not isinstance(ts, int | float) or not ts > 0:
-        raise PlanMismatchError(f"{src}: Ts must be a positive number of seconds, got {ts!r}")
-    try:
-        region = Region.from_dict(d["region"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise PlanMismatchError(f"{src}: bad region: {exc}") from None
-    model = d.get("model")
-    if not isinstance(model, dict) or not {"A", "B", "p", "discretization"} <= model.keys():
-        raise PlanMismatchError(f"{src}: 'model' must hold A, B, p and discretization")
-    extra = dict(d.get("extra") or {})
-    if "n_minus_1_infeasible" in d:
-        extra["n_minus_1_infeasible"] = d["n_minus_1_infeasible"]
-
-    def num(key: str) -> float:
-        v = d.get(key)
-        return float(v) if isinstance(v, int | float) else float("nan")
-
-    return Plan(kind=kind, Ts=float(ts), reference_deg=ref, position_deg=pos, velocity_degps=vel,
-                region=region, model=model, cost=num("cost"), solve_seconds=num("solve_seconds"),
-                qp_count=int(d.get("qp_count") or 0), profile_hash=str(d.get("profile_hash", "")),
-                extra=extra)
-
-
 def check_plan(plan: Plan, profile: Profile, src: str = "plan") -> None:
     """Refuse a plan that does not belong to ``profile`` or is internally inconsistent."""
     want = plan_hash(profile)
@@ -154,42 +100,41 @@ def check_plan(plan: Plan, profile: Profile, src: str = "plan") -> None:
             f"{src}: servo model p = {m.get('p')}, {m.get('discretization')} but the profile has "
             f"p = {sv.p}, {sv.discretization}")
     ref_model = discretize(sv.p, sv.ts_s, sv.discretization)
-    try:
-        A = np.asarray(m["A"], float).reshape(2, 2)
-        B = np.asarray(m["B"], float).reshape(2)
-    except (TypeError, ValueError):
-        raise PlanMismatchError(f"{src}: model A must be 2×2 and B of length 2") from None
+    A = np.asarray(m["A"], float).reshape(2, 2)  # shapes checked by plan_from_dict
+    B = np.asarray(m["B"], float).reshape(2)
     if not (np.allclose(A, ref_model.A, rtol=0, atol=1e-9)
             and np.allclose(B, ref_model.B, rtol=0, atol=1e-9)):
         raise PlanMismatchError(f"{src}: model matrices A, B differ from the profile's servo model")
+    # Comparisons are written "not (x <= tol)" so that a NaN (from values near 1e308 that
+    # overflow in the simulation) is refused, never let through.
     x0 = np.column_stack([plan.position_deg[0], plan.velocity_degps[0]])
-    xs = simulate(ref_model, x0, plan.reference_deg)
-    err = max(float(np.abs(xs[..., 0] - plan.position_deg).max()),
-              float(np.abs(xs[..., 1] - plan.velocity_degps).max()))
-    if err > CONSISTENCY_TOL:
+    with np.errstate(all="ignore"):
+        xs = simulate(ref_model, x0, plan.reference_deg)
+        err = float(np.max(np.abs(np.stack([xs[..., 0] - plan.position_deg,
+                                            xs[..., 1] - plan.velocity_degps]))))
+    if not err <= CONSISTENCY_TOL:
         raise PlanMismatchError(
             f"{src}: positions/velocities disagree with the servo model under the references by "
             f"{err:.3g} (corrupt or edited file)")
     if plan.kind in ("mvn", "mintime"):
-        viol = float(plan.region.violation_deg(plan.position_deg).max())
-        if viol > 1e-6:
+        with np.errstate(all="ignore"):
+            viol = float(np.max(plan.region.violation_deg(plan.position_deg)))
+            rest = max(float(np.max(np.abs(plan.velocity_degps[-1]))),
+                       float(np.max(np.abs(plan.reference_deg[-1] - plan.position_deg[-1]))))
+        if not viol <= 1e-6:
             raise PlanMismatchError(f"{src}: planned positions leave the plan's region P by {viol:.3g}°")
-        if float(np.abs(plan.velocity_degps[-1]).max()) > 1e-6 or \
-                float(np.abs(plan.reference_deg[-1] - plan.position_deg[-1]).max()) > 1e-6:
+        if not rest <= 1e-6:
             raise PlanMismatchError(f"{src}: the plan does not end at rest on its final reference")
 
 
 def load_plan(path: str | Path, profile: Profile) -> Plan:
-    """Read a plan file and check it against ``profile``; raises PlanMismatchError."""
+    """Read a plan file and check it against ``profile``; raises PlanMismatchError.
+
+    The file is read up to :data:`MAX_PLAN_BYTES` and its JSON nesting is capped, so a
+    binary, huge or hostile file is refused with a message, never a traceback.
+    """
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise PlanMismatchError(f"{p}: cannot read plan: {exc.strerror or exc}") from None
-    try:
-        d = json.loads(text)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise PlanMismatchError(f"{p}: not valid JSON (corrupt plan file): {exc}") from None
+    d = load_json(p, "plan", MAX_PLAN_BYTES, PlanMismatchError)
     plan = plan_from_dict(d, str(p))
     check_plan(plan, profile, str(p))
     return plan

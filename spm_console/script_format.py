@@ -12,7 +12,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
 from spm_console.errors import BadInputError, ExitCode, SpmError
+from spm_console.safe_io import MB, read_text
+
+#: Largest script file read.
+MAX_SCRIPT_BYTES = 1 * MB
 
 Vec3 = tuple[float, float, float]
 
@@ -78,8 +83,8 @@ class PlanStep(_Model):
     method: Literal["mvn", "mintime"] = "mvn"
     start: PoseIn = "current"
     goal: PoseIn
-    steps: int = Field(default=150, ge=2, le=100_000)
-    vmax: float | None = Field(default=None, gt=0.0)
+    steps: int = Field(default=150, ge=2, le=N_MAX)
+    vmax: float | None = Field(default=None, gt=0.0, le=MX106_NO_LOAD_SPEED_DEGPS)
 
 
 class ExecuteStep(_Model):
@@ -134,6 +139,8 @@ def parse_script(text: str, source: str) -> Script:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise BadInputError(f"{source}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise BadInputError(f"{source}: not valid TOML: arrays or tables nested too deeply") from None
     try:
         return Script.model_validate(data)
     except ValidationError as exc:
@@ -165,8 +172,4 @@ def parse_script(text: str, source: str) -> Script:
 
 def load_script(path: str | Path) -> Script:
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise BadInputError(f"{p}: cannot read script: {getattr(exc, 'strerror', None) or exc}") from None
-    return parse_script(text, str(p))
+    return parse_script(read_text(p, "script", MAX_SCRIPT_BYTES, BadInputError), str(p))

@@ -10,16 +10,29 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import add_common, emit, finite3, fmt_vec, profile_of
+from spm_console.cli.common import (
+    FK_THETA_LIMIT_DEG,
+    add_common,
+    emit,
+    finite_number,
+    fmt_vec,
+    profile_of,
+    theta_for_fk,
+)
 from spm_console.core.assess import assess
 from spm_console.core.ik import ik, ik_rpy
 from spm_console.core.kinematics import FkResult, SpmModel
 from spm_console.core.links import LinkModel
 from spm_console.core.modes import assembly_modes
-from spm_console.errors import BadInputError, ExitCode, UnreachableError
+from spm_console.errors import BadInputError, ExitCode, InfeasibleError, UnreachableError
 from spm_console.formatting import fmt_residual
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
+from spm_console.safe_io import MB, read_text
+
+#: Largest ``fk --theta-file`` read, and most θ rows in it.
+MAX_THETA_FILE_BYTES = 10 * MB
+MAX_THETA_ROWS = 10_000
 
 
 def register(sub: Any) -> None:
@@ -64,10 +77,7 @@ def fk_record(profile: Profile, model: SpmModel, links: LinkModel, r: FkResult) 
 
 
 def _read_theta_file(path: Path) -> np.ndarray:
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise BadInputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    text = read_text(path, "--theta-file", MAX_THETA_FILE_BYTES, BadInputError)
     rows = []
     for n, row in enumerate(csv.reader(text.splitlines()), start=1):
         cells = [c.strip() for c in row if c.strip()]
@@ -81,7 +91,12 @@ def _read_theta_file(path: Path) -> np.ndarray:
             raise BadInputError(f"{path}:{n}: not three numbers: {row}") from None
         if len(vals) != 3 or not all(math.isfinite(x) for x in vals):
             raise BadInputError(f"{path}:{n}: expected three finite angles in degrees, got {row}")
+        if not all(abs(x) <= FK_THETA_LIMIT_DEG for x in vals):
+            raise BadInputError(f"{path}:{n}: angles must lie in {-FK_THETA_LIMIT_DEG:g}..{FK_THETA_LIMIT_DEG:g}° "
+                                f"(one turn either way), got {row}")
         rows.append(vals)
+        if len(rows) > MAX_THETA_ROWS:
+            raise BadInputError(f"{path}: more than {MAX_THETA_ROWS:,} θ rows; split the file")
     if not rows:
         raise BadInputError(f"{path}: no θ rows")
     return np.asarray(rows)
@@ -92,7 +107,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
     model, links = model_of(profile), link_model_of(profile)
     t_from = R_from = None
     if args.from_theta is not None:
-        r0 = model.track(np.radians(finite3(args.from_theta, "--from")))
+        r0 = model.track(np.radians(theta_for_fk(args.from_theta, "--from")))
         if not r0.ok or r0.pose is None:
             raise UnreachableError(f"--from configuration: {r0.reason}")
         t_from, R_from = r0.pose.theta, r0.pose.R
@@ -106,7 +121,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
         )
         emit(args, recs, human)  # a JSON list, one record per row
         return int(ExitCode.OK if all(r["ok"] for r in recs) else ExitCode.UNREACHABLE)
-    theta = finite3(args.theta, "--theta")
+    theta = theta_for_fk(args.theta, "--theta")
     r = model.track(np.radians(theta), t_from, R_from)
     if not r.ok or r.pose is None:
         raise UnreachableError(f"θ = {fmt_vec(theta, 2)}°: {r.reason}")
@@ -135,17 +150,29 @@ def cmd_fk(args: argparse.Namespace) -> int:
     return int(ExitCode.OK)
 
 
+def _within_servo_limits(profile: Profile, theta_deg: np.ndarray) -> None:
+    """InfeasibleError (exit 6) naming every joint whose IK angle is beyond its servo limits."""
+    bad = [f"joint {i + 1} θ{i + 1} = {float(theta_deg[i]):.3f}° outside its servo limits "
+           f"{j.min_deg:g}..{j.max_deg:g}°"
+           for i, j in enumerate(profile.bus.joints)
+           if not j.min_deg - 1e-9 <= float(theta_deg[i]) <= j.max_deg + 1e-9]
+    if bad:
+        raise InfeasibleError(
+            f"this orientation needs θ = {fmt_vec(theta_deg, 3)}°: " + "; ".join(bad)
+            + f" (profile '{profile.name}'); it cannot be reached")
+
+
 def cmd_ik(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     model = model_of(profile)
     if args.v is not None:
-        vals = np.asarray(args.v, float)
-        if not np.all(np.isfinite(vals)):
-            raise BadInputError("--v: values must be finite")
+        vals = np.asarray([finite_number(x, "--v: every value") for x in args.v])
         res = ik(model, vals.reshape(3, 3))
     else:
-        rpy = finite3(args.rpy, "--rpy")
+        rpy = [finite_number(x, f"--rpy {name}", -360.0, 360.0, unit="deg")
+               for x, name in zip(args.rpy, ("roll", "pitch", "yaw"), strict=True)]
         res = ik_rpy(model, *np.radians(rpy))
+    _within_servo_limits(profile, res.theta_deg)
     rec = {
         "theta_deg": res.theta_deg,
         "theta_other_mode_deg": np.degrees(res.both[:, 1]),

@@ -4,14 +4,26 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import add_common, emit, finite3, fmt_vec, info, profile_of
+from spm_console.cli.common import (
+    PLOT_SUFFIXES,
+    add_common,
+    bounded_int,
+    emit,
+    fmt_vec,
+    info,
+    output_file,
+    profile_of,
+    theta_in_grid,
+    theta_in_servo_limits,
+    vmax_arg,
+)
+from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.identify import identify
 from spm_console.core.plan import Plan
 from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
@@ -19,8 +31,14 @@ from spm_console.core.region import Region
 from spm_console.core.servo_model import discretize
 from spm_console.core.workspace import Workspace
 from spm_console.errors import BadInputError, ExitCode
-from spm_console.plan_file import load_plan, plan_hash, plan_to_dict, save_plan
+from spm_console.plan_file import MAX_PLAN_BYTES, load_plan, plan_hash, plan_to_dict, save_plan
+from spm_console.plan_schema import region_of
 from spm_console.profile import Profile
+from spm_console.safe_io import MB, load_json, read_text
+
+#: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
+MAX_CSV_BYTES = 20 * MB
+MAX_IDENTIFY_SAMPLES = 100_000
 
 
 def register(sub: Any) -> None:
@@ -29,16 +47,18 @@ def register(sub: Any) -> None:
 
     m = psub.add_parser("mvn", help="minimum-velocity-norm references in N steps")
     _problem_args(m)
-    m.add_argument("--steps", type=int, default=150, metavar="N", help="intervals N (default 150)")
+    m.add_argument("--steps", type=int, default=150, metavar="N",
+                   help=f"intervals N, 2..{N_MAX} (default 150)")
     m.add_argument("--vmax", type=float, default=None, metavar="V",
-                   help="speed bound at the samples, deg/s (default: the profile's limits.vmax_degps, "
-                        "which the executor enforces)")
+                   help="speed bound at the samples, deg/s, at most the profile's "
+                   "limits.vmax_degps (default: that limit, which the executor enforces)")
     m.set_defaults(func=cmd_mvn)
 
     t = psub.add_parser("mintime", help="minimum-time references under a speed bound")
     _problem_args(t)
     t.add_argument("--vmax", type=float, default=None, metavar="V",
-                   help="speed bound, deg/s (default: the profile's limits.vmax_degps)")
+                   help="speed bound, deg/s, in (0, the profile's limits.vmax_degps] "
+                   "(default: that limit)")
     t.set_defaults(func=cmd_mintime)
 
     s = psub.add_parser("show", help="check a plan file against the profile and summarize it")
@@ -65,7 +85,8 @@ def _problem_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--goal", nargs=3, type=float, required=True, metavar=("T1", "T2", "T3"),
                    help="goal motor angles, deg")
     p.add_argument("--intersample", type=int, default=1, metavar="K",
-                   help="also enforce speed and region at K−1 instants inside each interval")
+                   help="also enforce speed and region at K−1 instants inside each interval "
+                   f"(1..100, N·K ≤ {MAX_INSTANTS:,})")
     p.add_argument("--region", type=Path, default=None, metavar="FILE.json",
                    help="region {A, b} (θ in deg) instead of the workspace's P")
     p.add_argument("--cache-dir", type=Path, default=None, help="workspace cache directory")
@@ -78,20 +99,10 @@ def _problem_args(p: argparse.ArgumentParser) -> None:
 
 
 def _region_file(path: Path) -> Region:
-    try:
-        d = json.loads(path.read_text())
-    except OSError as exc:
-        raise BadInputError(f"--region {path}: cannot read: {exc.strerror or exc}") from None
-    except json.JSONDecodeError as exc:
-        raise BadInputError(f"--region {path}: not valid JSON: {exc}") from None
+    d = load_json(path, "--region", MAX_PLAN_BYTES, BadInputError)
     if isinstance(d, dict) and "region" in d and isinstance(d["region"], dict):
-        d = d["region"]
-    if not isinstance(d, dict):
-        raise BadInputError(f"--region {path}: expected an object with A and b")
-    try:
-        return Region.from_dict(d)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise BadInputError(f"--region {path}: {exc}") from None
+        d = d["region"]  # a plan file or a `workspace show --json` record
+    return region_of(d, f"--region {path}: region", BadInputError)
 
 
 def _workspace(args: argparse.Namespace, profile: Profile) -> Workspace:
@@ -117,22 +128,21 @@ def resolve_region(args: argparse.Namespace, profile: Profile, s: np.ndarray,
 
 def _problem(args: argparse.Namespace, profile: Profile, n: int, vmax: float | None
              ) -> tuple[PlanProblem, str]:
-    s = finite3(args.start, "--start")
-    g = finite3(args.goal, "--goal")
-    if args.intersample < 1:
-        raise BadInputError(f"--intersample must be ≥ 1, got {args.intersample}")
+    k = bounded_int(args.intersample, "--intersample", 1, 100)
+    output_file(args.out, "--out")
+    output_file(args.plot, "--plot", PLOT_SUFFIXES)
+    lo = hi = None
+    if not args.no_ref_limits:
+        theta_in_servo_limits(args.start, "--start", profile)
+        theta_in_servo_limits(args.goal, "--goal", profile)
+        lo = np.array([j.min_deg for j in profile.bus.joints])
+        hi = np.array([j.max_deg for j in profile.bus.joints])
+    s = theta_in_grid(args.start, "--start", profile)
+    g = theta_in_grid(args.goal, "--goal", profile)
     region, source = resolve_region(args, profile, s, g)
     sv = profile.servo
     model = discretize(sv.p, sv.ts_s, sv.discretization)
-    lo = hi = None
-    if not args.no_ref_limits:
-        lo = np.array([j.min_deg for j in profile.bus.joints])
-        hi = np.array([j.max_deg for j in profile.bus.joints])
-        for name, th in (("--start", s), ("--goal", g)):
-            if np.any(th < lo) or np.any(th > hi):
-                raise BadInputError(f"{name} {th.tolist()}° is outside the servo limits "
-                                    f"{lo.tolist()}..{hi.tolist()}°")
-    pb = PlanProblem(model, s, g, n, region, vmax, args.intersample, not args.free_first, lo, hi)
+    pb = PlanProblem(model, s, g, n, region, vmax, k, not args.free_first, lo, hi)
     return pb, source
 
 
@@ -148,21 +158,30 @@ def summary(plan: Plan, out: Path | None, source: str) -> dict[str, Any]:
     return rec
 
 
+def _num(x: Any) -> float:
+    """A number from a plan's free-form record (null or absent -> NaN)."""
+    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) else float("nan")
+
+
 def _human(plan: Plan, out: Path | None, source: str) -> str:
-    c = plan.extra.get("check") or {}
+    ex = plan.extra
+    chk = ex.get("check")
+    c: dict[str, Any] = chk if isinstance(chk, dict) else {}
     lines = [
         f"{plan.kind}: N = {plan.N} ({plan.duration_s:.2f} s), cost {plan.cost:.6g} (deg/s)², "
         f"{plan.qp_count} QP(s), {1e3 * plan.solve_seconds:.1f} ms",
         f"region: {source}, {plan.region.halfspaces} half-spaces",
-        f"at the samples: max |θ̇| {c.get('max_speed_samples_degps', float('nan')):.3f} deg/s, "
-        f"region violation {c.get('region_violation_deg', float('nan')):.2e} deg",
-        f"between samples: max |θ̇| {c.get('max_speed_between_degps', float('nan')):.3f} deg/s, "
-        f"region violation {c.get('region_violation_between_deg', float('nan')):.3g} deg",
+        f"at the samples: max |θ̇| {_num(c.get('max_speed_samples_degps')):.3f} deg/s, "
+        f"region violation {_num(c.get('region_violation_deg')):.2e} deg",
+        f"between samples: max |θ̇| {_num(c.get('max_speed_between_degps')):.3f} deg/s, "
+        f"region violation {_num(c.get('region_violation_between_deg')):.3g} deg",
     ]
-    cert = (plan.extra.get("n_minus_1_infeasible") or {}).get("certificate")
-    if cert:
+    nm1 = ex.get("n_minus_1_infeasible")
+    cert = nm1.get("certificate") if isinstance(nm1, dict) else None
+    if isinstance(cert, dict):
+        r = cert.get("excluded_radius")
         lines.append(f"N−1 = {plan.N - 1} infeasible: Farkas certificate excludes ‖x‖∞ < "
-                     f"{cert['excluded_radius']:.3g}")
+                     + ("∞" if r is None else f"{_num(r):.3g}"))
     if out:
         lines.append(f"written to {out}")
     return "\n".join(lines)
@@ -195,15 +214,20 @@ def _plot(plan: Plan, path: Path) -> None:
 
 def cmd_mvn(args: argparse.Namespace) -> int:
     profile = profile_of(args)
-    vmax = profile.limits.vmax_degps if args.vmax is None else args.vmax
-    pb, source = _problem(args, profile, args.steps, vmax)
+    n = bounded_int(args.steps, "--steps", 2, N_MAX)
+    vmax = vmax_arg(args.vmax, profile, default_to_profile=True)
+    k = bounded_int(args.intersample, "--intersample", 1, 100)
+    if n * k > MAX_INSTANTS:
+        raise BadInputError(f"--steps × --intersample = {n} × {k} is above {MAX_INSTANTS:,} "
+                            "constrained instants; use fewer steps or a smaller K")
+    pb, source = _problem(args, profile, n, vmax)
     res = solve_problem(pb)
     return _finish(args, profile, res.to_plan("mvn", plan_hash(profile)), source)
 
 
 def cmd_mintime(args: argparse.Namespace) -> int:
     profile = profile_of(args)
-    vmax = profile.limits.vmax_degps if args.vmax is None else args.vmax
+    vmax = vmax_arg(args.vmax, profile, default_to_profile=True)
     pb, source = _problem(args, profile, 2, vmax)
     res = solve_mintime_problem(pb)
     return _finish(args, profile, res.to_plan("mintime", plan_hash(profile)), source)
@@ -211,6 +235,7 @@ def cmd_mintime(args: argparse.Namespace) -> int:
 
 def cmd_show(args: argparse.Namespace) -> int:
     profile = profile_of(args)
+    output_file(args.plot, "--plot", PLOT_SUFFIXES)
     plan = load_plan(args.file, profile)
     if args.plot is not None:
         _plot(plan, args.plot)
@@ -222,10 +247,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def _read_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise BadInputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    text = read_text(path, "--csv", MAX_CSV_BYTES, BadInputError)
     rows = list(csv.reader(line for line in text.splitlines() if line.strip()
                            and not line.startswith("#")))
     if len(rows) < 2:
@@ -243,6 +265,9 @@ def _read_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _columns(cols: dict[str, np.ndarray], src: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if "t" not in cols:
         raise BadInputError(f"{src}: missing column 't'")
+    if len(cols["t"]) > MAX_IDENTIFY_SAMPLES:
+        raise BadInputError(f"{src}: {len(cols['t']):,} samples, more than the "
+                            f"{MAX_IDENTIFY_SAMPLES:,} identify fits; cut the log")
     joints = [i for i in (1, 2, 3) if f"ref{i}" in cols and f"meas{i}" in cols]
     if not joints and "ref" in cols and "meas" in cols:
         return cols["t"], cols["ref"][:, None], cols["meas"][:, None]

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import emit, info
+from spm_console.cli.common import emit, info, output_folder
 from spm_console.errors import ExitCode
 
 
@@ -22,6 +22,7 @@ def register(sub: Any) -> None:
 def cmd_reproduce(args: argparse.Namespace) -> int:
     from spm_console.report.reproduce import ReproSettings, reproduce
 
+    output_folder(args.out, "--out")
     settings = ReproSettings(quick=args.quick, execute=not args.no_execute)
     report, sections = reproduce(args.out, settings, progress=lambda s: info(f"reproduce: {s}"))
     verdicts = [c.verdict for s in sections for c in s.checks]

@@ -12,9 +12,19 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import add_common, emit, finite3, fmt_vec, info, output_may_be_gone, profile_of
+from spm_console.cli.common import (
+    add_common,
+    emit,
+    fmt_vec,
+    info,
+    output_folder,
+    output_may_be_gone,
+    profile_of,
+    theta_in_servo_limits,
+)
 from spm_console.devices.faults import parse_fault
 from spm_console.plan_file import load_plan
+from spm_console.profile import Profile
 from spm_console.run.executor import ExecutionResult
 from spm_console.run.session import RunRequest, execute_plan, run_homing
 
@@ -49,9 +59,11 @@ def register(sub: Any) -> None:
     e.set_defaults(func=cmd_execute)
 
 
-def _request(args: argparse.Namespace) -> RunRequest:
+def _request(args: argparse.Namespace, profile: Profile) -> RunRequest:
     faults = [parse_fault(f) for f in args.fault]
-    start = finite3(args.sim_start, "--sim-start") if args.sim_start is not None else None
+    start = None if args.sim_start is None else \
+        theta_in_servo_limits(args.sim_start, "--sim-start", profile)
+    output_folder(args.logs, "--logs")
     return RunRequest(port=args.port, sim=args.sim, faults=faults, sim_start_deg=start,
                       approach=not getattr(args, "no_approach", False), log_root=args.logs)
 
@@ -84,15 +96,15 @@ def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any
 
 def cmd_execute(args: argparse.Namespace) -> int:
     profile = profile_of(args)
+    req = _request(args, profile)
     plan = load_plan(args.plan, profile)
-    req = _request(args)
     res = execute_plan(profile, plan, req, source=str(args.plan))
     return _report(args, res, {"plan": str(args.plan), "kind": plan.kind, "N": plan.N})
 
 
 def cmd_home(args: argparse.Namespace) -> int:
     profile = profile_of(args)
-    r = run_homing(profile, _request(args))
+    r = run_homing(profile, _request(args, profile))
     pose = r.pose
     extra = {
         "start_deg": r.start_deg,

@@ -9,7 +9,15 @@ import threading
 import time
 from typing import Any
 
-from spm_console.cli.common import add_common, emit, finite3, info, profile_of, to_jsonable
+from spm_console.cli.common import (
+    add_common,
+    emit,
+    finite_number,
+    info,
+    profile_of,
+    theta_in_servo_limits,
+    to_jsonable,
+)
 from spm_console.devices.base import CommError
 from spm_console.devices.bus import DynamixelBus, open_bus
 from spm_console.devices.emulator import start_emulator
@@ -17,6 +25,9 @@ from spm_console.devices.faults import parse_fault
 from spm_console.errors import BadInputError, BusError, ExitCode
 from spm_console.profile import Profile
 from spm_console.run.signals import install_stop_handler
+
+#: Longest ``emulate --duration`` (one day; without --duration it runs until stopped).
+MAX_EMULATE_S = 86_400.0
 
 
 def register(sub: Any) -> None:
@@ -55,11 +66,13 @@ def register(sub: Any) -> None:
     e.add_argument("--initial", nargs=3, type=float, metavar=("T1", "T2", "T3"),
                    help="power-on joint angles, deg (default: the profile's home)")
     e.add_argument("--duration", type=float, metavar="S",
-                   help="stop by itself after S seconds")
+                   help=f"stop by itself after S seconds, 0 < S ≤ {MAX_EMULATE_S:g}")
     e.set_defaults(func=cmd_emulate)
 
 
 def _bus(args: argparse.Namespace, profile: Profile) -> DynamixelBus:
+    if args.ids:  # checked before the port is opened
+        _check_ids(list(args.ids))
     port = args.port or profile.bus.port
     if not port:
         raise BusError("no serial port: pass --port DEV (the profile's bus.port is empty); "
@@ -67,12 +80,17 @@ def _bus(args: argparse.Namespace, profile: Profile) -> DynamixelBus:
     return open_bus(profile, port)
 
 
-def _ids(args: argparse.Namespace, bus: DynamixelBus) -> list[int]:
-    ids = list(args.ids) if args.ids else list(bus.ids)
+def _check_ids(ids: list[int]) -> list[int]:
     bad = [i for i in ids if not 0 <= i <= 252]
     if bad:
-        raise BadInputError(f"--ids: servo ids are 0..252, got {bad}")
+        raise BadInputError(f"--ids: servo ids are 0..252, got {bad[:10]}")
+    if len(set(ids)) != len(ids):
+        raise BadInputError("--ids: give each servo id at most once")
     return ids
+
+
+def _ids(args: argparse.Namespace, bus: DynamixelBus) -> list[int]:
+    return _check_ids(list(args.ids) if args.ids else list(bus.ids))
 
 
 def cmd_ping(args: argparse.Namespace) -> int:
@@ -149,9 +167,10 @@ def cmd_torque(args: argparse.Namespace) -> int:
 def cmd_emulate(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     faults = [parse_fault(f) for f in args.fault]
-    initial = list(finite3(args.initial, "--initial")) if args.initial is not None else None
-    if args.duration is not None and not args.duration > 0:
-        raise BadInputError(f"--duration must be > 0 s, got {args.duration}")
+    initial = None if args.initial is None else \
+        [float(x) for x in theta_in_servo_limits(args.initial, "--initial", profile)]
+    if args.duration is not None:
+        finite_number(args.duration, "--duration", 0.0, MAX_EMULATE_S, lo_open=True, unit="s")
     stop = threading.Event()
     em = start_emulator(profile, faults, record=False, initial_deg=initial)
     restore = install_stop_handler(lambda _sig: stop.set())

@@ -8,12 +8,26 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import add_common, emit, finite3, fmt_vec, info, profile_of
+from spm_console.cli.common import (
+    PLOT_SUFFIXES,
+    add_common,
+    bounded_int,
+    emit,
+    fmt_vec,
+    info,
+    output_file,
+    profile_of,
+    theta_in_grid,
+)
 from spm_console.core.region_build import region_containing
 from spm_console.core.workspace import Workspace, check_theta
 from spm_console.core.workspace_verify import verify_region
 from spm_console.errors import BadInputError, ExitCode
+from spm_console.profile import Profile
 from spm_console.workspace_cache import CacheInfo, load_or_build
+
+#: Most samples ``workspace verify`` checks (about 5 minutes; memory stays bounded).
+MAX_VERIFY_SAMPLES = 10_000_000
 
 
 def register(sub: Any) -> None:
@@ -45,8 +59,9 @@ def register(sub: Any) -> None:
 
     v = wsub.add_parser("verify", help="sample P uniformly and check every point exactly")
     _common(v)
-    v.add_argument("--samples", type=int, default=100_000, help="number of samples (≥ 1)")
-    v.add_argument("--seed", type=int, default=0, help="random seed")
+    v.add_argument("--samples", type=int, default=100_000,
+                   help=f"number of samples, 1..{MAX_VERIFY_SAMPLES:,} (default 100,000)")
+    v.add_argument("--seed", type=int, default=0, help="random seed, 0..2³²−1")
     v.set_defaults(func=cmd_verify)
 
 
@@ -63,8 +78,9 @@ def _progress(stage: str, frac: float) -> None:
     sys.stderr.flush()
 
 
-def _load(args: argparse.Namespace, force: bool = False) -> tuple[Workspace, CacheInfo]:
-    profile = profile_of(args)
+def _load(args: argparse.Namespace, force: bool = False,
+          profile: Profile | None = None) -> tuple[Workspace, CacheInfo]:
+    profile = profile or profile_of(args)
     prog = _progress if sys.stderr.isatty() else None
     ws, ci = load_or_build(profile, args.cache_dir, force=force, progress=prog)
     if not ci.hit:
@@ -113,12 +129,16 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    output_file(args.plot, "--plot", PLOT_SUFFIXES)
     ws, ci = _load(args)
     rec = summary(ws, ci)
     if args.plot is not None:
         from spm_console.report.plot_workspace import plot_workspace
 
-        plot_workspace(ws, args.plot)
+        try:
+            plot_workspace(ws, args.plot)
+        except OSError as exc:
+            raise BadInputError(f"--plot {args.plot}: cannot write: {exc.strerror or exc}") from None
         rec["plot"] = str(args.plot)
         info(f"wrote {args.plot}")
     emit(args, rec, _human(rec))
@@ -126,8 +146,9 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    theta = finite3(args.theta, "--theta")
-    ws, _ = _load(args)
+    profile = profile_of(args)
+    theta = theta_in_grid(args.theta, "--theta", profile)  # O(1), before any FK work
+    ws, _ = _load(args, profile=profile)
     c = check_theta(ws, theta)
     rec = {
         "theta_deg": c.theta_deg, "feasible": c.feasible, "in_region": c.in_region,
@@ -149,14 +170,16 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_region(args: argparse.Namespace) -> int:
-    ws, _ = _load(args)
+    profile = profile_of(args)
+    output_file(args.out, "--out")
+    if args.contain is not None:
+        a = theta_in_grid(list(args.contain[:3]), "--contain θa", profile)
+        b = theta_in_grid(list(args.contain[3:]), "--contain θb", profile)
+    ws, _ = _load(args, profile=profile)
     if args.contain is None:
         region, cached = ws.region, True
         rec: dict[str, Any] = {}
     else:
-        vals = list(args.contain)
-        a = finite3(vals[:3], "--contain θa")
-        b = finite3(vals[3:], "--contain θb")
         region = region_containing(ws, a, b)
         cached = region is ws.region
         rec = {"theta_a_deg": a, "theta_b_deg": b}
@@ -176,12 +199,11 @@ def cmd_region(args: argparse.Namespace) -> int:
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
-    if args.samples < 1:
-        raise BadInputError("--samples must be at least 1")
+    n = bounded_int(args.samples, "--samples", 1, MAX_VERIFY_SAMPLES)
+    seed = bounded_int(args.seed, "--seed", 0, 2**32 - 1)
     ws, _ = _load(args)
     model, links = ws.exact_models()
-    r = verify_region(ws, model, links, n=args.samples,
-                      seed=args.seed)
+    r = verify_region(ws, model, links, n=n, seed=seed)
     rec = {
         "samples": r.samples, "infeasible": r.infeasible,
         "fraction_infeasible": r.fraction_infeasible, "fk_failures": r.fk_failures,

@@ -9,7 +9,7 @@ all inter-leg link distances ≥ 2δ. Angles in degrees, lengths in mm.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,18 +53,63 @@ class VerifyReport:
         return self.infeasible / self.samples if self.samples else 0.0
 
 
+#: Most box points drawn at once (the membership test holds one float per face and point).
+DRAW_MAX = 250_000
+#: Points checked per call of check_points.
+CHUNK = 20_000
+
+
+def iter_region_samples(region: Region, lo: float, hi: float, n: int,
+                        rng: np.random.Generator) -> Iterator[F]:
+    """n points uniform inside ``region`` ∩ [lo, hi]³ by rejection from the box, deg, in
+    batches (memory bounded by DRAW_MAX, whatever n)."""
+    got = 0
+    first = True
+    while got < n:
+        pts = rng.uniform(lo, hi, size=(min(max(2 * (n - got), 1024), DRAW_MAX), 3))
+        keep = pts[region.contains(pts, tol=0.0)]
+        if len(keep) == 0 and first and region.chebyshev()[1] <= 0:
+            raise ValueError("the region is empty")
+        first = False
+        keep = keep[: n - got]
+        got += len(keep)
+        if len(keep):
+            yield keep
+
+
 def sample_region(region: Region, lo: float, hi: float, n: int, rng: np.random.Generator) -> F:
     """n points uniform inside ``region`` ∩ [lo, hi]³ by rejection from the box, deg."""
-    out: list[F] = []
-    got = 0
-    while got < n:
-        pts = rng.uniform(lo, hi, size=(max(2 * (n - got), 1024), 3))
-        keep = pts[region.contains(pts, tol=0.0)]
-        if len(keep) == 0 and not out and region.chebyshev()[1] <= 0:
-            raise ValueError("the region is empty")
-        out.append(keep)
-        got += len(keep)
-    return np.concatenate(out)[:n]
+    return np.concatenate([np.zeros((0, 3)), *iter_region_samples(region, lo, hi, n, rng)])
+
+
+def _chunks(batches: Iterator[F], size: int) -> Iterator[F]:
+    """The points of ``batches`` regrouped into arrays of ``size`` rows (the last shorter)."""
+    buf: list[F] = []
+    held = 0
+    for b in batches:
+        buf.append(b)
+        held += len(b)
+        while held >= size:
+            allp = np.concatenate(buf)
+            yield allp[:size]
+            buf, held = [allp[size:]], held - size
+    if held:
+        yield np.concatenate(buf)
+
+
+@dataclass
+class _Tally:
+    """Running totals over the checked chunks (nothing per sample is kept)."""
+
+    infeasible: int = 0
+    fk_failures: int = 0
+    singular: int = 0
+    colliding: int = 0
+    min_zeta: float = np.inf
+    min_link: float = np.inf
+    min_pair: int = -1
+    worst: float = -np.inf
+    worst_theta: F | None = None
 
 
 def verify_region(
@@ -75,35 +120,40 @@ def verify_region(
     t0 = time.perf_counter()
     reg = ws.region if region is None else region
     lo, hi = ws.range_deg()
-    pts = sample_region(reg, lo, hi, n, np.random.default_rng(seed))
-    zs, ds, oks, fks, pairs = [], [], [], [], []
-    chunk = 20_000
-    for s in range(0, n, chunk):
-        pc = check_points(ws, model, links, pts[s : s + chunk])
-        zs.append(pc.zeta)
-        ds.append(pc.min_link_mm)
-        fks.append(pc.fk_ok)
-        oks.append(pc.pointwise_ok(ws.zeta_min, ws.min_distance_mm))
-        pairs.append(pc.closest_pair)
+    batches = iter_region_samples(reg, lo, hi, n, np.random.default_rng(seed))
+    t = _Tally()
+    done = 0
+    for pts in _chunks(batches, CHUNK):
+        pc = check_points(ws, model, links, pts)
+        z, d, fk = pc.zeta, pc.min_link_mm, pc.fk_ok
+        ok = pc.pointwise_ok(ws.zeta_min, ws.min_distance_mm)
+        t.infeasible += int((~ok).sum())
+        t.fk_failures += int((~fk).sum())
+        t.singular += int((fk & (z < ws.zeta_min)).sum())
+        t.colliding += int((fk & (d < ws.min_distance_mm)).sum())
+        if fk.any():
+            t.min_zeta = min(t.min_zeta, float(z[fk].min()))
+            dd = np.where(fk, d, np.inf)
+            dd = np.where(np.isnan(dd), np.inf, dd)
+            k = int(np.argmin(dd))
+            if dd[k] < t.min_link:
+                t.min_link, t.min_pair = float(dd[k]), int(pc.closest_pair[k])
+        with np.errstate(invalid="ignore"):
+            viol = np.maximum(1.0 - z / ws.zeta_min,
+                              1.0 - np.nan_to_num(d, nan=0.0) / ws.min_distance_mm)
+        viol = np.where(fk, viol, np.inf)
+        k = int(np.argmax(viol))
+        if t.worst_theta is None or viol[k] > t.worst:
+            t.worst, t.worst_theta = float(viol[k]), pts[k].copy()
+        done += len(pts)
         if progress is not None:
-            progress(min(1.0, (s + chunk) / n))
-    z = np.concatenate(zs)
-    d = np.concatenate(ds)
-    ok = np.concatenate(oks)
-    fk = np.concatenate(fks)
-    pr = np.concatenate(pairs)
-    with np.errstate(invalid="ignore"):
-        viol = np.maximum(1.0 - z / ws.zeta_min, 1.0 - np.nan_to_num(d, nan=0.0) / ws.min_distance_mm)
-    viol = np.where(fk, viol, np.inf)
-    k = int(np.argmax(viol))
-    dk = int(np.nanargmin(np.where(fk, d, np.inf)))
+            progress(min(1.0, done / n))
+    found = bool(np.isfinite(t.min_zeta))
     return VerifyReport(
-        samples=n, infeasible=int((~ok).sum()), fk_failures=int((~fk).sum()),
-        singular=int((fk & (z < ws.zeta_min)).sum()),
-        colliding=int((fk & (d < ws.min_distance_mm)).sum()),
-        min_zeta=float(z[fk].min()) if fk.any() else 0.0,
-        min_link_mm=float(d[dk]) if fk.any() else float("nan"),
-        min_link_pair=pair_name(links, int(pr[dk])) if fk.any() else "",
-        worst_theta_deg=[float(x) for x in pts[k]], worst_violation=float(viol[k]),
-        seconds=time.perf_counter() - t0,
+        samples=n, infeasible=t.infeasible, fk_failures=t.fk_failures, singular=t.singular,
+        colliding=t.colliding, min_zeta=float(t.min_zeta) if found else 0.0,
+        min_link_mm=t.min_link if found else float("nan"),
+        min_link_pair=pair_name(links, t.min_pair) if found else "",
+        worst_theta_deg=[] if t.worst_theta is None else [float(x) for x in t.worst_theta],
+        worst_violation=t.worst, seconds=time.perf_counter() - t0,
     )

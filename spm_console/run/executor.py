@@ -170,7 +170,8 @@ class Executor:
                 f"{np.round(start, 2).tolist()}° ({gap:.2f}° away, tolerance "
                 f"{self.start_tolerance_deg}°); move there first (execute adds an approach move)"
             )
-        refs = np.vstack([s.plan.reference_deg for s in segments])
+        # verified within 1e-9° of the servo limits: on them exactly (the bus refuses any goal past)
+        refs = np.clip(np.vstack([s.plan.reference_deg for s in segments]), self.lo, self.hi)
         phases = [s.phase for s in segments for _ in range(s.plan.N + 1)]
         # planned segments stay in the certified set; runtime-built straight moves were
         # checked exactly along their path instead (plan_check.LINE_PHASES)

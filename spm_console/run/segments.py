@@ -15,7 +15,6 @@ from spm_console.run.safety import StopReason
 
 F = NDArray[np.float64]
 
-
 @dataclass(frozen=True)
 class Segment:
     """One part of a run: a phase name and the plan streamed in it."""

@@ -23,6 +23,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan import Plan
 from spm_console.core.planning.active_set import eqp
 from spm_console.core.planning.clarabel_solve import Certificate
@@ -36,9 +37,6 @@ from spm_console.core.servo_model import ServoModel
 from spm_console.errors import BadInputError, InfeasibleError, SolverError
 
 F = NDArray[np.float64]
-
-#: Largest horizon the search tries.
-N_MAX = 5000
 
 
 @dataclass(frozen=True)
@@ -132,6 +130,27 @@ def rescaled_guess(prev: PlanResult, n: int) -> F:
     return z
 
 
+def horizon_limit(problem: PlanProblem) -> int:
+    """Largest N the search may try: N_MAX, fewer with intersample points (N·K ≤ MAX_INSTANTS)."""
+    return min(N_MAX, MAX_INSTANTS // problem.intersample)
+
+
+def _check_horizon(problem: PlanProblem, n_max: int) -> None:
+    """InfeasibleError at once when even the estimate of N (:func:`estimate_steps`, computed
+    in floating point so any v_max > 0 is fine) is beyond the horizon limit."""
+    assert problem.vmax_degps is not None
+    d = float(np.abs(problem.goal_deg - problem.start_deg).max())
+    ts = problem.model.ts
+    t = d / problem.vmax_degps + 2.0 / problem.model.p
+    if t / ts <= n_max:
+        return
+    t_room = max(n_max * ts - 2.0 / problem.model.p, ts)
+    raise InfeasibleError(
+        f"no plan within N ≤ {n_max} steps ({n_max * ts:g} s): at v_max = "
+        f"{problem.vmax_degps:g} deg/s the largest joint move ({d:.4g}°) needs about "
+        f"{t:.3g} s; use a speed bound of at least about {d / t_room:.3g} deg/s")
+
+
 def _decide(problem: PlanProblem, guess: F) -> tuple[QpOutcome, Any]:
     eq = equalities(problem)
     pool = Pool(problem)
@@ -151,7 +170,10 @@ def solve_mintime_problem(problem: PlanProblem) -> MintimeResult:
     trace: list[dict[str, Any]] = []
     calls = 0
     floor = 2
-    n = predict_steps(problem, estimate_steps(problem))
+    n_max = horizon_limit(problem)
+    _check_horizon(problem, n_max)
+    est = estimate_steps(problem)
+    n = min(predict_steps(problem, min(est, n_max - 6)), n_max)  # it probes n1 and n1 + 6
     step = 1
     while True:
         t1 = time.perf_counter()
@@ -171,12 +193,12 @@ def solve_mintime_problem(problem: PlanProblem) -> MintimeResult:
             raise SolverError(f"minimum time: the solve at N = {n} failed ({out.detail})")
         if hi_feas is not None and (hi_feas - 1 == (lo_inf if lo_inf is not None else floor - 1)):
             break
-        if hi_feas is None:  # still infeasible: gallop up
-            n = n + step
-            step *= 2
-            if n > N_MAX:
-                raise InfeasibleError(f"no feasible plan with N ≤ {N_MAX} steps: the goal cannot be "
+        if hi_feas is None:  # still infeasible: gallop up (trying n_max itself last)
+            if n >= n_max:
+                raise InfeasibleError(f"no feasible plan with N ≤ {n_max} steps: the goal cannot be "
                                       "reached inside the region under this speed bound")
+            n = min(n + step, n_max)
+            step *= 2
         elif lo_inf is None:  # feasible: step down, galloping
             n = max(floor, hi_feas - step)
             step *= 2

@@ -18,6 +18,9 @@ from spm_console.errors import InfeasibleError, SolverError
 
 F = NDArray[np.float64]
 
+#: A reference beyond a servo limit by at most this much is solver round-off (deg).
+ROUND_OFF_DEG = 1e-6
+
 
 def straight_guess(problem: PlanProblem) -> F:
     """A z vector moving along the straight segment at constant speed (screening guess)."""
@@ -60,11 +63,29 @@ def run_qp(problem: PlanProblem, guess: F | None = None,
     return eq, out
 
 
+def clamp_round_off(problem: PlanProblem, ref: F) -> F:
+    """References that pass a servo limit by round-off only (≤ ROUND_OFF_DEG) set to the limit.
+
+    Solvers meet an active bound θ* ≤ 160° only to their tolerance (160.0000000000051);
+    the executor refuses any reference beyond the servo limits, so such a reference is
+    put exactly on the limit. A larger excess is left for :func:`check` to report.
+    """
+    out = ref.copy()
+    for bound, sign in ((problem.ref_hi_deg, 1.0), (problem.ref_lo_deg, -1.0)):
+        if bound is None:
+            continue
+        excess = sign * (out - bound)
+        near = (excess > 0) & (excess <= ROUND_OFF_DEG)
+        out = np.where(near, np.broadcast_to(bound, out.shape), out)
+    return out
+
+
 def finish(problem: PlanProblem, eq: Equalities, out: QpOutcome, t0: float,
            qp_extra: int = 0) -> PlanResult:
     """Turn a solved QP into a verified :class:`PlanResult` (raises if it does not verify)."""
     assert out.z is not None
     ref, pos_z, vel_z = eq.layout.unpack(out.z, problem.goal_deg)
+    ref = clamp_round_off(problem, ref)
     report, pos, vel = check(problem, ref, pos_z, vel_z)
     if not report.ok:
         raise SolverError(

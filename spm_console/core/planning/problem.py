@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.region import Region
 from spm_console.core.servo_model import ServoModel, substeps
 from spm_console.errors import BadInputError, InfeasibleError
@@ -55,12 +56,15 @@ class PlanProblem:
             raise BadInputError("start and goal must be three finite angles in degrees")
         object.__setattr__(self, "start_deg", s)
         object.__setattr__(self, "goal_deg", g)
-        if int(self.N) != self.N or self.N < 2:
-            raise BadInputError(f"steps N must be an integer ≥ 2, got {self.N}")
+        if int(self.N) != self.N or not 2 <= self.N <= N_MAX:
+            raise BadInputError(f"steps N must be an integer in 2..{N_MAX}, got {self.N}")
         if self.vmax_degps is not None and not (np.isfinite(self.vmax_degps) and self.vmax_degps > 0):
             raise BadInputError(f"vmax must be a positive finite speed in deg/s, got {self.vmax_degps}")
         if int(self.intersample) != self.intersample or not 1 <= self.intersample <= 100:
             raise BadInputError(f"intersample K must be an integer in 1..100, got {self.intersample}")
+        if self.N * self.intersample > MAX_INSTANTS:
+            raise BadInputError(f"N·K = {self.N} × {self.intersample} is above {MAX_INSTANTS:,} "
+                                "constrained instants; use fewer steps or a smaller K")
         if self.intersample > 1 and self.model.method != "zoh":
             raise BadInputError("intersample constraints need the exact (zoh) servo model")
         for name in ("ref_lo_deg", "ref_hi_deg"):
