@@ -43,6 +43,7 @@ test-slow: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check spm_console tests benchmarks
 	$(BIN)/mypy
+	$(BIN)/lint-imports
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks

@@ -118,8 +118,8 @@ async def _latency_rows(cache: Path) -> list[Row]:
     from textual.widgets import Input
 
     from spm_console.profile import load_profile
+    from spm_console.run.operator import PoseSpec
     from spm_console.tui.app import make_app
-    from spm_console.tui.session import PoseSpec
 
     profile = load_profile(PROFILE)
     app = make_app(profile, sim=True, viewer=False, logs_root=cache / "logs", cache_dir=cache)

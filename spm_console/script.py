@@ -1,7 +1,7 @@
 """Headless scripted sessions: ``spm-console script FILE.toml``.
 
 A script is a TOML file with an optional ``[session]`` table and a list of
-``[[step]]`` tables run in order on one :class:`~spm_console.tui.session.Session`
+``[[step]]`` tables run in order on one :class:`~spm_console.run.operator.Session`
 — the same core, bus, executor and safety checks as the console. Angles in
 degrees, time in seconds. Format (see ``examples/session.toml``)::
 
@@ -71,6 +71,7 @@ import numpy as np
 
 from spm_console.errors import BadInputError, ExitCode, SpmError
 from spm_console.profile import DEFAULT_PROFILE, Profile, load_profile
+from spm_console.run.operator import PoseSpec, Session
 from spm_console.run.signals import stop_signals
 from spm_console.script_format import (
     AssertStep,
@@ -86,7 +87,6 @@ from spm_console.script_format import (
     WaitStep,
     WorkspaceStep,
 )
-from spm_console.tui.session import PoseSpec, Session
 
 
 def _pose(p: PoseIn) -> PoseSpec:

@@ -19,15 +19,13 @@ from spm_console.cli.common import (
     profile_of,
     theta_for_fk,
 )
-from spm_console.core.assess import assess
 from spm_console.core.ik import ik, ik_rpy
-from spm_console.core.kinematics import FkResult, SpmModel
-from spm_console.core.links import LinkModel
 from spm_console.core.modes import assembly_modes
 from spm_console.errors import BadInputError, ExitCode, InfeasibleError, UnreachableError
 from spm_console.formatting import fmt_residual
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
+from spm_console.run.kin_record import fk_record
 from spm_console.safe_io import MB, read_text
 
 #: Largest ``fk --theta-file`` read, and most θ rows in it.
@@ -53,27 +51,6 @@ def register(sub: Any) -> None:
     h.add_argument("--rpy", nargs=3, type=float, metavar=("R", "P", "Y"),
                    help="roll pitch yaw from home, deg: R = Rz(Y) Ry(P) Rx(R)")
     q.set_defaults(func=cmd_ik)
-
-
-def fk_record(profile: Profile, model: SpmModel, links: LinkModel, r: FkResult) -> dict[str, Any]:
-    """The JSON record of one FK result (SPEC §5 keys)."""
-    if not r.ok or r.pose is None:
-        return {"ok": False, "reason": r.reason, "path_min_zeta": r.path_min_zeta}
-    ws = profile.workspace
-    a = assess(model, links, r.pose, ws.zeta_min, (ws.theta_min_deg, ws.theta_max_deg))
-    return {
-        "ok": True,
-        "theta_deg": r.pose.theta_deg,
-        "v": r.pose.v,
-        "n": r.pose.n,
-        "zeta": r.pose.zeta,
-        "residual": r.pose.residual,
-        "min_link_distance_mm": a.min_link_distance_mm,
-        "closest_pair": a.closest_pair,
-        "feasible": a.feasible,
-        "reason": a.reason,
-        "path_min_zeta": r.path_min_zeta,
-    }
 
 
 def _read_theta_file(path: Path) -> np.ndarray:

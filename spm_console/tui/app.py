@@ -22,6 +22,7 @@ from textual.screen import Screen
 
 from spm_console.errors import ExitCode
 from spm_console.profile import Profile
+from spm_console.run.operator import Session
 from spm_console.run.signals import install_stop_handler
 from spm_console.tui.messages import Telemetry
 from spm_console.tui.screens.connect import ConnectScreen
@@ -30,7 +31,6 @@ from spm_console.tui.screens.fk import FkScreen
 from spm_console.tui.screens.logs import LogsScreen
 from spm_console.tui.screens.plan import PlanScreen
 from spm_console.tui.screens.workspace import WorkspaceScreen
-from spm_console.tui.session import Session
 from spm_console.tui.widgets.estop import ESTOP_KEY
 from spm_console.tui.widgets.steps import STEPS
 from spm_console.viewer.view import MeshcatView, NullView, WristView

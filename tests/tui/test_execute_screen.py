@@ -18,7 +18,7 @@ SIZE = (130, 42)
 async def _homed_with_plan(pilot, steps: int) -> None:  # type: ignore[no-untyped-def]
     """Homed, workspace loaded and an MVN plan solved — through the session the screens use
     (those steps' screens have their own tests); then the execute screen."""
-    from spm_console.tui.session import PoseSpec
+    from spm_console.run.operator import PoseSpec
 
     app = pilot.app
     s = app.session

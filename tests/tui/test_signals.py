@@ -35,7 +35,7 @@ async def _wait_exit(app, timeout_s: float = 10.0) -> None:  # type: ignore[no-u
 
 @pytest.mark.parametrize("sig", STOP_SIGNALS, ids=lambda s: s.name)
 async def test_a_signal_mid_motion_stops_the_wrist_and_the_console(console, tmp_path, sig) -> None:
-    from spm_console.tui.session import PoseSpec
+    from spm_console.run.operator import PoseSpec
 
     app = console()
     async with app.run_test(size=SIZE) as pilot:

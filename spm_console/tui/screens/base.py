@@ -19,8 +19,8 @@ from spm_console.tui.widgets.status import StatusLine
 from spm_console.tui.widgets.steps import StepBar
 
 if TYPE_CHECKING:
+    from spm_console.run.operator import Session
     from spm_console.tui.app import SpmConsoleApp
-    from spm_console.tui.session import Session
 
 
 def describe_error(exc: BaseException) -> str:

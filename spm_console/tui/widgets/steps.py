@@ -11,7 +11,7 @@ from textual.content import Content
 from textual.widgets import Static
 
 if TYPE_CHECKING:
-    from spm_console.tui.session import Session
+    from spm_console.run.operator import Session
 
 
 @dataclass(frozen=True)

@@ -36,11 +36,11 @@ from spm_console.profile import Profile
 
 if TYPE_CHECKING:
     from spm_console.devices.emulator import EmulatorHandle
+    from spm_console.devices.emulator_child import EmulatorChild
     from spm_console.devices.faults import FaultSpec
     from spm_console.run.motion_process import MotionClient
     from spm_console.run.sample import Sample
     from spm_console.run.segments import ExecutionResult
-    from spm_console.tui.emulator_child import EmulatorChild
 
 F = NDArray[np.float64]
 
@@ -142,7 +142,7 @@ class Session:
         self.disconnect()
         port = self.port
         if self.sim and self.emulator_process:
-            from spm_console.tui.emulator_child import EmulatorChild
+            from spm_console.devices.emulator_child import EmulatorChild
 
             child = EmulatorChild(self.profile, self.faults, self.initial_deg)
             self.emulator = child
@@ -256,7 +256,7 @@ class Session:
     # ------------------------------------------------------------------ kinematics
     def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> dict[str, Any]:
         """Unique FK record (``fk --json`` keys) of θ (deg), from home by continuation."""
-        from spm_console.cli.kin import fk_record
+        from spm_console.run.kin_record import fk_record
 
         th = theta3(theta_deg, "θ")
         r = self.model.track(np.radians(th))

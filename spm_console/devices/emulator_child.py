@@ -3,7 +3,7 @@
 Real servos answer whatever the console's threads are doing; an emulator sharing
 the console's interpreter (and its GIL) with the UI may miss the bus's 4 ms reply
 timeout. So the console runs :func:`~spm_console.devices.emulator.start_emulator`
-here, in its own process: ``python -m spm_console.tui.emulator_child --parent PID``
+here, in its own process: ``python -m spm_console.devices.emulator_child --parent PID``
 reads the profile (JSON) and options on stdin, prints ``{"port": ...}`` and serves
 until it is terminated or its parent is gone.
 """
@@ -19,8 +19,8 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
+from spm_console.childproc import ChildProcess
 from spm_console.profile import Profile
-from spm_console.viewer.process import ChildProcess
 
 #: How often the child checks that its parent is alive, s.
 PARENT_POLL_S = 0.5
@@ -31,7 +31,7 @@ class EmulatorChild(ChildProcess):
 
     def __init__(self, profile: Profile, faults: Sequence[Any] = (),
                  initial_deg: Sequence[float] | None = None) -> None:
-        super().__init__("spm_console.tui.emulator_child", what="emulated servo bus")
+        super().__init__("spm_console.devices.emulator_child", what="emulated servo bus")
         self.request = {
             "profile": profile.model_dump(mode="json"),
             "faults": [str(f) for f in faults],

@@ -1,0 +1,103 @@
+"""Helper child processes (the 3D viewer's server, the emulated bus for the console):
+started as children, stopped on exit and on SIGTERM.
+
+:class:`ChildProcess` runs ``python -m MODULE --parent PID …``; the child prints one
+JSON line on stdout when it is ready and watches its parent, so it never outlives a
+killed console.
+"""
+
+from __future__ import annotations
+
+import atexit
+import json
+import os
+import subprocess
+import sys
+import threading
+from collections.abc import Sequence
+from typing import Any
+
+from spm_console.errors import SpmError
+
+#: Seconds to wait for a child to report that it is ready.
+START_TIMEOUT_S = 15.0
+
+
+class HelperProcessError(SpmError):
+    """A helper process (3D viewer, emulator child) failed or does not answer."""
+
+
+class ChildProcess:
+    """One helper child process announcing itself with a JSON line."""
+
+    def __init__(self, module: str, args: Sequence[str] = (), what: str = "helper") -> None:
+        self.module = module
+        self.args = list(args)
+        self.what = what
+        self._proc: subprocess.Popen[bytes] | None = None
+        self.info: dict[str, Any] | None = None
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid if self._proc is not None else None
+
+    @property
+    def running(self) -> bool:
+        return self._proc is not None and self._proc.poll() is None
+
+    def start(self, stdin: bytes = b"", timeout_s: float = START_TIMEOUT_S) -> dict[str, Any]:
+        """Spawn the child, send ``stdin``, wait for its JSON line (blocking)."""
+        cmd = [sys.executable, "-u", "-m", self.module, "--parent", str(os.getpid()), *self.args]
+        self._proc = subprocess.Popen(
+            cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+            start_new_session=True,  # Ctrl-C in the terminal does not reach it; we stop it
+        )
+        atexit.register(self.stop)
+        assert self._proc.stdin is not None
+        try:
+            self._proc.stdin.write(stdin)
+            self._proc.stdin.close()
+        except OSError:
+            pass  # it died at once: reported below
+        line = self._read_line(timeout_s)
+        try:
+            data = json.loads(line)
+            if not isinstance(data, dict):
+                raise ValueError(line)
+        except ValueError:
+            self.stop()
+            raise HelperProcessError(f"{self.what} did not start (said {line[:300]!r})") from None
+        if "error" in data:
+            self.stop()
+            raise HelperProcessError(f"{self.what}: {data['error']}")
+        self.info = data
+        return data
+
+    def _read_line(self, timeout_s: float) -> str:
+        proc = self._proc
+        assert proc is not None and proc.stdout is not None
+        stdout = proc.stdout
+        out: list[bytes] = []
+        reader = threading.Thread(target=lambda: out.append(stdout.readline()), daemon=True)
+        reader.start()
+        reader.join(timeout_s)
+        if not out:
+            self.stop()
+            raise HelperProcessError(f"{self.what} did not start within {timeout_s:.0f} s")
+        return out[0].decode("utf-8", "replace").strip()
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Terminate the child (then kill it if it lingers); safe to call twice."""
+        proc, self._proc = self._proc, None
+        if proc is None:
+            return
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(timeout_s)
+        if proc.stdout is not None:
+            proc.stdout.close()
+        atexit.unregister(self.stop)
