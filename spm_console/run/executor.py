@@ -96,6 +96,8 @@ class Executor:
         self.hi = np.array([j.max_deg for j in profile.bus.joints])
         self._estop = threading.Event()
         self._estop_reason = ""
+        self._estop_clock: float | None = None
+        """Clock time of the first E-stop request (logged with the stop as ``requested_t``)."""
         self.t0 = 0.0
         """perf_counter time of the first deadline (t = 0 of the samples)."""
         self.samples: list[Sample] = []
@@ -108,6 +110,8 @@ class Executor:
     # ------------------------------------------------------------------ control
     def request_estop(self, reason: str = "operator request") -> None:
         """Thread-safe: stop at once (wakes the loop if it is waiting for a deadline)."""
+        if not self._estop.is_set():
+            self._estop_clock = self.clock()
         self._estop_reason = reason
         self._estop.set()
 
@@ -398,7 +402,9 @@ class Executor:
         t_done = self._now()
         if notes and stop.kind == "comm":
             notes.append("the servos' Bus Watchdog stops them if the link is down")
-        self._event("stop", kind=stop.kind, action=action, hold_deg=hold if action == "hold"
+        requested = None if self._estop_clock is None else self._estop_clock - self.t0
+        self._event("stop", kind=stop.kind, requested_t=requested if stop.kind == "estop" else None,
+                    action=action, hold_deg=hold if action == "hold"
                     else None, detected_t=stop.t, issued_t=t_issue, done_t=t_done, notes=notes,
                     exit_code=int(stop.exit_code))
         self.stop_timing = (stop.t, t_issue, t_done)
