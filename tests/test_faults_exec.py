@@ -29,32 +29,47 @@ ONSET = 0.5
 Trigger = Callable[[Executor, EmulatorHandle, Sample], None]
 
 
-def _estop(ex: Executor, _emu: EmulatorHandle, s: Sample) -> None:
-    if s.k == 25:
-        ex.request_estop("operator pressed E-stop")
+#: Fault onsets (s into the 1.5 s motion): early in the ramp, mid-motion, late (two thirds in,
+#: while the joints still have more than the tracking bound to go).
+ONSETS = {"early": 0.1, "mid": ONSET, "late": 1.0}
 
 
-def _push_past_limit(_ex: Executor, emu: EmulatorHandle, s: Sample) -> None:
-    if s.k == 25:  # something moves joint 1 past its 160° servo limit
-        emu.set_joint_deg([162.0, *s.measured_deg[1:]])
+def _estop_at(k0: int) -> Trigger:
+    def trigger(ex: Executor, _emu: EmulatorHandle, s: Sample) -> None:
+        if s.k == k0:
+            ex.request_estop("operator pressed E-stop")
+    return trigger
 
 
-CASES: dict[str, tuple[list[FaultSpec], Trigger | None, ExitCode, str]] = {
-    "unplug": ([parse_fault(f"unplug@{ONSET}")], None, ExitCode.STOP_COMM,
-               "3 consecutive bus cycles"),
-    "delay": ([parse_fault(f"delay:0.03@{ONSET}")], None, ExitCode.STOP_COMM,
-              "3 consecutive bus cycles"),
-    "drop_high": ([parse_fault(f"drop:0.6@{ONSET}")], None, ExitCode.STOP_COMM,
-                  "communication lost"),
-    "corrupt_high": ([parse_fault(f"corrupt:0.6@{ONSET}")], None, ExitCode.STOP_COMM,
-                     "communication lost"),
-    "stall": ([parse_fault(f"stall:2@{ONSET}")], None, ExitCode.STOP_TRACKING,
-              "tracking error on joint 2"),
-    "hwerror": ([parse_fault(f"hwerror:3@{ONSET}")], None, ExitCode.STOP_HW_ERROR,
-                "joint 3 (id 3): overload"),
-    "estop": ([], _estop, ExitCode.STOP_ESTOP, "operator pressed E-stop"),
-    "limit": ([], _push_past_limit, ExitCode.STOP_LIMIT, "joint 1 measured at"),
-}
+def _push_past_limit_at(k0: int) -> Trigger:
+    def trigger(_ex: Executor, emu: EmulatorHandle, s: Sample) -> None:
+        if s.k == k0:  # something moves joint 1 past its 160° servo limit
+            emu.set_joint_deg([162.0, *s.measured_deg[1:]])
+    return trigger
+
+
+def cases(onset: float, ts: float = 0.02) -> dict[str, tuple[list[FaultSpec], Trigger | None, ExitCode, str]]:
+    """Every fault kind, starting ``onset`` s into the run."""
+    k0 = round(onset / ts)
+    return {
+        "unplug": ([parse_fault(f"unplug@{onset}")], None, ExitCode.STOP_COMM,
+                   "3 consecutive bus cycles"),
+        "delay": ([parse_fault(f"delay:0.03@{onset}")], None, ExitCode.STOP_COMM,
+                  "3 consecutive bus cycles"),
+        "drop_high": ([parse_fault(f"drop:0.6@{onset}")], None, ExitCode.STOP_COMM,
+                      "communication lost"),
+        "corrupt_high": ([parse_fault(f"corrupt:0.6@{onset}")], None, ExitCode.STOP_COMM,
+                         "communication lost"),
+        "stall": ([parse_fault(f"stall:2@{onset}")], None, ExitCode.STOP_TRACKING,
+                  "tracking error on joint 2"),
+        "hwerror": ([parse_fault(f"hwerror:3@{onset}")], None, ExitCode.STOP_HW_ERROR,
+                    "joint 3 (id 3): overload"),
+        "estop": ([], _estop_at(k0), ExitCode.STOP_ESTOP, "operator pressed E-stop"),
+        "limit": ([], _push_past_limit_at(k0), ExitCode.STOP_LIMIT, "joint 1 measured at"),
+    }
+
+
+CASES = cases(ONSET)
 
 
 def _still_after(result: dict[str, np.ndarray]) -> Callable[[EmulatorHandle], None]:
@@ -85,9 +100,13 @@ def _check_stop(run: EmuRun, code: ExitCode, fragment: str, ts: float) -> dict: 
     return stop  # type: ignore[no-any-return]
 
 
+@pytest.mark.parametrize("when", list(ONSETS))
 @pytest.mark.parametrize("name", list(CASES))
-def test_fault_stops_safely(agile: Profile, tmp_path: Path, name: str) -> None:
-    faults, trigger, code, fragment = CASES[name]
+def test_fault_stops_safely(agile: Profile, tmp_path: Path, name: str, when: str) -> None:
+    """The fault matrix: each kind early, mid-motion and late; exit code, detection within
+    the documented bound, the hold written (twice) within 2 periods, a complete log."""
+    onset = ONSETS[when]
+    faults, trigger, code, fragment = cases(onset, agile.servo.ts_s)[name]
     plan = synthetic_plan(agile, PAPER_START, GOAL, 1.5)
     still: dict[str, np.ndarray] = {}
     run = run_on_emulator(agile, [Segment("plan", plan)], tmp_path, faults=faults,
@@ -99,12 +118,15 @@ def test_fault_stops_safely(agile: Profile, tmp_path: Path, name: str) -> None:
     assert np.abs(still["b"] - still["a"]).max() < 0.01
     healthy = [i for i in range(3) if not (name == "hwerror" and i == 2)]  # 3 dropped torque
     if code != ExitCode.STOP_COMM:
+        assert stop["action"] == "hold" and stop["notes"] == []  # both hold writes went out
         assert np.allclose(still["b"][healthy], np.array(stop["hold_deg"])[healthy], atol=0.15)
     # from the fault's onset: comm faults need their 3 failed cycles, an alert is seen at once
     if name in ("unplug", "delay"):
-        assert stop["detected_t"] <= ONSET + (agile.safety.comm_failures + 1) * ts
+        assert stop["detected_t"] <= onset + (agile.safety.comm_failures + 1) * ts
     if name == "hwerror":
-        assert stop["detected_t"] <= ONSET + 2 * ts
+        assert stop["detected_t"] <= onset + 2 * ts
+    if name in ("estop", "limit"):
+        assert stop["detected_t"] <= onset + 2 * ts
     if name == "limit":
         assert np.allclose(stop["hold_deg"][0], agile.bus.joints[0].max_deg)
 
