@@ -170,7 +170,7 @@ def test_a_homing_line_through_a_collision_is_refused() -> None:
     from spm_console.run.plans import line_plan
 
     line = line_plan(prof, np.array([73.0, 65.5, 113.0]), np.array(prof.home.theta_deg), 20.0)
-    with pytest.raises(PlanRefusedError, match="links closer than 2δ"):
+    with pytest.raises(PlanRefusedError, match="links collide"):
         PlanVerifier(prof, ws).verify([Segment("homing", line)])
     fine = line_plan(prof, np.array([110.0, 150.0, 125.0]), np.array(prof.home.theta_deg), 20.0)
     PlanVerifier(prof, ws).verify([Segment("homing", fine)])

@@ -101,13 +101,7 @@ def check_segment(ws: Workspace, a: F, b: F) -> None:
         raise InfeasibleError(msg)
     if not ok.all():
         k = int(np.argmin(ok))
-        if not pc.fk_ok[k]:
-            why = "FK cannot be continued there in the home assembly mode"
-        elif pc.zeta[k] < ws.zeta_min:
-            why = f"singular (ζ = {pc.zeta[k]:.3f} < ζ_min = {ws.zeta_min:g})"
-        else:
-            why = (f"links collide ({pair_name(links, int(pc.closest_pair[k]))} at "
-                   f"{pc.min_link_mm[k]:.1f} mm < 2δ = {ws.min_distance_mm:.1f} mm)")
+        why = pc.reason(k, ws.zeta_min, ws.min_distance_mm, links)
         raise InfeasibleError(
             f"the straight segment {_fmt(a)}° → {_fmt(b)}° is infeasible at "
             f"θ = {_fmt(pts[k])}°: {why}"

@@ -67,6 +67,15 @@ class PointChecks:
     closest_pair: NDArray[np.int64]
     """Index into LinkModel.pairs() (−1 where FK failed)."""
 
+    def reason(self, k: int, zeta_min: float, dist_min: float, links: LinkModel) -> str:
+        """Why point ``k`` fails the exact checks, in words (FK, then ζ, then links)."""
+        if not self.fk_ok[k]:
+            return "FK cannot be continued there in the home assembly mode"
+        if self.zeta[k] < zeta_min:
+            return f"singular (ζ = {self.zeta[k]:.3f} < ζ_min = {zeta_min:g})"
+        return (f"links collide ({pair_name(links, int(self.closest_pair[k]))} at "
+                f"{self.min_link_mm[k]:.1f} mm < 2δ = {dist_min:.1f} mm)")
+
     def pointwise_ok(self, zeta_min: float, dist_min: float) -> B:
         with np.errstate(invalid="ignore"):
             return np.asarray(

@@ -183,17 +183,13 @@ class PlanVerifier:
         moved = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(pos, axis=0)).max(axis=1))])
         first = np.unique(np.floor(moved / (0.25 * ws.step_deg)), return_index=True)[1]
         pts = pos[np.union1d(first, [len(pos) - 1])]
-        pc = check_points(ws, model_of(prof), link_model_of(prof), pts)
-        with np.errstate(invalid="ignore"):
+        links = link_model_of(prof)
+        pc = check_points(ws, model_of(prof), links, pts)
+        with np.errstate(invalid="ignore"):  # outside the grid is fine here: exact checks only
             ok = pc.fk_ok & (pc.zeta >= ws.zeta_min) & (pc.min_link_mm >= ws.min_distance_mm)
         if not ok.all():
             k = int(np.argmin(ok))
-            if not pc.fk_ok[k]:
-                why = "FK cannot be continued there in the home assembly mode"
-            elif pc.zeta[k] < ws.zeta_min:
-                why = f"singular (ζ = {pc.zeta[k]:.3f} < ζ_min = {ws.zeta_min:g})"
-            else:
-                why = f"links closer than 2δ ({pc.min_link_mm[k]:.1f} mm < {ws.min_distance_mm:.1f} mm)"
+            why = pc.reason(k, ws.zeta_min, ws.min_distance_mm, links)
             raise self._refuse(seg, f"the straight move passes θ = {_fmt(pts[k])}°: {why}. Bring the "
                                     "wrist nearer home by hand (torque off) and home again")
 
