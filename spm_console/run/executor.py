@@ -108,10 +108,11 @@ class Executor:
         """The scheduling the loop thread got (logged as the "realtime" event)."""
 
     # ------------------------------------------------------------------ control
-    def request_estop(self, reason: str = "operator request") -> None:
-        """Thread-safe: stop at once (wakes the loop if it is waiting for a deadline)."""
+    def request_estop(self, reason: str = "operator request", at_clock: float | None = None) -> None:
+        """Thread-safe: stop at once (wakes the loop if it is waiting for a deadline).
+        ``at_clock``: when the request was made (this executor's clock), if earlier than now."""
         if not self._estop.is_set():
-            self._estop_clock = self.clock()
+            self._estop_clock = self.clock() if at_clock is None else at_clock
         self._estop_reason = reason
         self._estop.set()
 

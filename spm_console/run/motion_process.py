@@ -80,6 +80,7 @@ class _Server:
         self.executor: Any = None
         self.motion: threading.Thread | None = None
         self.pending_estop = ""
+        self.pending_clock: float | None = None
         self.last_heartbeat = time.monotonic()
         self.client_lost = ""
 
@@ -92,7 +93,7 @@ class _Server:
         if isinstance(req, Heartbeat):
             self.last_heartbeat = time.monotonic()
         elif isinstance(req, EStop):
-            self.estop(req.reason)
+            self.estop(req.reason, req.sent_clock)
         elif isinstance(req, (Home, Execute)):
             if self.motion is not None and self.motion.is_alive():
                 self.send(Failed(req.id, BusError("a motion is already running").message, 4))
@@ -144,16 +145,16 @@ class _Server:
             self._workspace, _ = load_or_build(self.profile, cache_dir=self.cache_dir)
         return self._workspace
 
-    def estop(self, reason: str) -> None:
+    def estop(self, reason: str, sent_clock: float | None = None) -> None:
         if not self.pending_estop:
-            self.pending_estop = reason
+            self.pending_estop, self.pending_clock = reason, sent_clock
         if self.executor is not None:
-            self.executor.request_estop(self.pending_estop)
+            self.executor.request_estop(self.pending_estop, self.pending_clock)
 
     def _attach(self, ex: Any) -> None:
         self.executor = ex
         if self.pending_estop:
-            ex.request_estop(self.pending_estop)
+            ex.request_estop(self.pending_estop, self.pending_clock)
 
     def _motion(self, req: Home | Execute) -> None:
         from spm_console.run.operator_runs import run_execute, run_home
@@ -190,7 +191,7 @@ class _Server:
             self.send(Failed(req.id, f"internal error in the motion process: {exc!r}", 1))
         finally:
             self.executor = None
-            self.pending_estop = ""
+            self.pending_estop, self.pending_clock = "", None
 
     def moving(self) -> bool:
         return self.motion is not None and self.motion.is_alive()
@@ -372,7 +373,7 @@ class MotionClient:
     def estop(self, reason: str) -> None:
         """The message; a signal to the process is the second path when the pipe is gone."""
         try:
-            self._send(EStop(reason))
+            self._send(EStop(reason, time.perf_counter()))
             return
         except MotionProcessLostError:
             pass

@@ -49,6 +49,9 @@ class EStop:
     """Stop the motion under way at once (the profile's stop action)."""
 
     reason: str
+    sent_clock: float | None = None
+    """``time.perf_counter()`` when the client sent it (CLOCK_MONOTONIC: the same clock in
+    every process on Linux), so the log measures the E-stop from the client's request."""
 
 
 @dataclass(frozen=True)
