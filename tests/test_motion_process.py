@@ -171,3 +171,25 @@ def test_deadman_is_several_heartbeats() -> None:
     from spm_console.run.motion_process import HEARTBEAT_S
 
     assert DEADMAN_S >= 3 * HEARTBEAT_S
+
+
+def test_one_run_log_schema_for_every_front_end(agile: Profile, tmp_path: Path, cache: Path) -> None:
+    """The CLI's in-process run and the motion process write the same metadata keys."""
+    from spm_console.run.session import RunRequest, execute_plan
+
+    plan = synthetic_plan(agile, PAPER_START, GOAL, 1.5)
+    execute_plan(agile, plan, RunRequest(sim=True, log_root=tmp_path / "cli", cache_dir=cache,
+                                         handle_signals=False))
+    emu = start_emulator(agile, record=False, initial_deg=list(PAPER_START))
+    client = MotionClient(agile, emu.port, cache_dir=cache, logs_root=tmp_path / "mp", sim=True)
+    try:
+        client.execute(plan)
+    finally:
+        client.close()
+        emu.stop()
+    a = load_run(list_runs(tmp_path / "cli")[0].path).meta
+    b = load_run(list_runs(tmp_path / "mp")[0].path).meta
+    assert set(a) == set(b)
+    for key in ("bus", "sim", "faults", "process"):
+        assert key in a
+    assert a["bus"] == b["bus"] == "emulated bus" and a["sim"] is b["sim"] is True

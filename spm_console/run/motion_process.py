@@ -48,13 +48,16 @@ from spm_console.run.motion_protocol import (
     Request,
     Telemetry,
 )
+from spm_console.run.operator_runs import RunContext, run_execute, run_home
 from spm_console.run.sample import Sample
 
 #: Client heartbeat period during a motion, s.
-HEARTBEAT_S = 0.05
-#: No heartbeat for this long during a motion: the loop holds ("client lost"), s (5 periods
-#: of 20 ms at the default Ts, 4 missed heartbeats).
-DEADMAN_S = 0.2
+HEARTBEAT_S = 0.1
+#: No heartbeat for this long during a motion: the loop holds ("client lost"), s (50 periods
+#: of 20 ms; 10 missed heartbeats). A client that dies closes the pipe and is caught at once;
+#: this bounds a client that hangs, with room for a front end starved by a loaded machine
+#: (every motion it lets continue was verified before torque-on).
+DEADMAN_S = 1.0
 #: Telemetry to the client at most this often, s (the loop itself runs every Ts).
 TELEMETRY_S = 0.05
 #: How long a request other than a motion may take before the child counts as hung, s.
@@ -65,17 +68,16 @@ REQUEST_TIMEOUT_S = 30.0
 class _Server:
     """State of the child: bus, workspace, the motion under way."""
 
-    def __init__(self, conn: Connection, profile: Profile, port: str, cache_dir: str | None,
-                 logs_root: str | None, bus_label: str) -> None:
+    def __init__(self, conn: Connection, profile: Profile, ctx: RunContext,
+                 cache_dir: str | None) -> None:
         from spm_console.devices.bus import open_bus
 
         self.conn = conn
         self.profile = profile
-        self.logs_root = logs_root
-        self.bus_label = bus_label
+        self.ctx = ctx
         self.cache_dir = cache_dir
         self._workspace: Any = None
-        self.bus = open_bus(profile, port)
+        self.bus = open_bus(profile, ctx.port)
         self.send_lock = threading.Lock()
         self.executor: Any = None
         self.motion: threading.Thread | None = None
@@ -157,7 +159,6 @@ class _Server:
             ex.request_estop(self.pending_estop, self.pending_clock)
 
     def _motion(self, req: Home | Execute) -> None:
-        from spm_console.run.operator_runs import run_execute, run_home
 
         last = [0.0]
         batch: list[Sample] = []
@@ -176,12 +177,11 @@ class _Server:
 
         try:
             if isinstance(req, Home):
-                value: object = run_home(self.profile, self.bus, self.workspace, self.logs_root,
-                                         self.bus_label, on_sample, self._attach)
+                value: object = run_home(self.profile, self.bus, self.workspace, self.ctx,
+                                         on_sample, self._attach)
             else:
-                value = run_execute(self.profile, self.bus, self.workspace, req.plan,
-                                    self.logs_root, self.bus_label, on_sample, self._attach,
-                                    req.approach_tolerance_deg)
+                value = run_execute(self.profile, self.bus, self.workspace, req.plan, self.ctx,
+                                    on_sample, self._attach, req.approach_tolerance_deg)
             flush()
             self.send(Reply(req.id, value))
         except SpmError as exc:
@@ -208,18 +208,15 @@ class Start:
     """The first message to the child: what to serve."""
 
     profile: Profile
-    port: str
+    ctx: RunContext
     cache_dir: str | None
-    logs_root: str | None
-    bus_label: str
 
 
 def serve(conn: Connection, start: Start) -> None:
     """The child's main loop (see module docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the client decides; Ctrl-C reaches it first
     try:
-        server = _Server(conn, start.profile, start.port, start.cache_dir, start.logs_root,
-                         start.bus_label)
+        server = _Server(conn, start.profile, start.ctx, start.cache_dir)
     except SpmError as exc:
         conn.send(Failed(0, exc.message, int(exc.exit_code)))
         return
@@ -252,16 +249,16 @@ class MotionClient:
     """The front end's handle on the motion process (thread-safe; one motion at a time)."""
 
     def __init__(self, profile: Profile, port: str, *, cache_dir: str | Path | None = None,
-                 logs_root: str | Path | None = None, bus_label: str = "",
-                 start_timeout_s: float = 60.0) -> None:
+                 logs_root: str | Path | None = None, sim: bool = False,
+                 faults: Sequence[str] = (), start_timeout_s: float = 60.0) -> None:
         mine, theirs = socket.socketpair()
         self.process = subprocess.Popen(
             [sys.executable, "-m", "spm_console.run.motion_process", "--fd", str(theirs.fileno())],
             pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL)
         theirs.close()
         self.conn = Connection(mine.detach())
-        self.conn.send(Start(profile, port, None if cache_dir is None else str(cache_dir),
-                             None if logs_root is None else str(logs_root), bus_label or port))
+        ctx = RunContext(port, sim, tuple(faults), None if logs_root is None else str(logs_root))
+        self.conn.send(Start(profile, ctx, None if cache_dir is None else str(cache_dir)))
         self._lock = threading.Lock()
         self._replies: dict[int, Reply | Failed] = {}
         self._cond = threading.Condition()

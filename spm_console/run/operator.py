@@ -162,7 +162,8 @@ class Session:
             from spm_console.run.motion_process import MotionClient
 
             client = MotionClient(self.profile, port, cache_dir=self.cache_dir,
-                                  logs_root=self.logs_root, bus_label=self.bus_label)
+                                  logs_root=None if self.logs_root is None else str(self.logs_root),
+                                  sim=self.sim, faults=[str(f) for f in self.faults])
             self.bus = client
             self.bus_state = BusState(port=port, emulated=self.sim, statuses=client.ping_all())
             self.read_position()
@@ -205,8 +206,11 @@ class Session:
         finally:
             self.moving.clear()
             self._motion.release()
-        if result.final_deg is not None:
+        if result.final_deg is not None and np.all(np.isfinite(result.final_deg)):
             self.theta_deg = np.asarray(result.final_deg, float)
+        else:  # the last cycle had no reply: ask again rather than show a stale or NaN pose
+            with contextlib.suppress(SpmError):
+                self.read_position()
         self.last_run = result
         return result
 

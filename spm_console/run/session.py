@@ -28,6 +28,7 @@ from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
 from spm_console.profile import Profile
 from spm_console.run.executor import ExecutionResult, Executor
 from spm_console.run.homing import HomingResult, home, plan_segments
+from spm_console.run.operator_runs import RunContext
 from spm_console.run.plans import plan_summary
 from spm_console.run.runlog import RunLog
 from spm_console.run.sample import Sample
@@ -139,12 +140,13 @@ def _session(profile: Profile, kind: str, plans: list[dict[str, Any]], req: RunR
              body: Callable[[Executor, BusSession], T]) -> T:
     on_signal = SignalStop()
     with stop_signals(on_signal) if req.handle_signals else contextlib.nullcontext():
-        log = RunLog.create(kind, profile.name, profile.digest(), plans, root=req.log_root,
-                            extra={"sim": req.sim or not (req.port or profile.bus.port),
-                                   "faults": [str(f) for f in req.faults]})
+        sim = req.sim or not (req.port or profile.bus.port)
+        ctx = RunContext(req.port or profile.bus.port or "", sim, tuple(str(f) for f in req.faults),
+                         None if req.log_root is None else str(req.log_root))
+        log = RunLog.create(kind, profile.name, profile.digest(), plans, root=ctx.logs_root,
+                            extra=ctx.meta())
         try:
-            ws, info = load_or_build(profile, cache_dir=req.cache_dir)
-            log.meta["workspace"] = {"cache": str(info.path), "hit": info.hit, "key": info.key}
+            ws, _ = load_or_build(profile, cache_dir=req.cache_dir)
             with open_session(profile, req.port, req.sim, req.faults, req.sim_start_deg) as ses:
                 log.meta["port"] = ses.port
                 on_start = ses.emulator.start_clock if ses.emulator is not None else None
