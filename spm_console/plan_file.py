@@ -21,7 +21,7 @@ import numpy as np
 
 from spm_console.core.plan import Plan
 from spm_console.core.servo_model import discretize, simulate
-from spm_console.errors import PlanMismatchError
+from spm_console.errors import BadInputError, PlanMismatchError
 from spm_console.jsonutil import to_jsonable
 from spm_console.plan_schema import FORMAT, KINDS, MAX_PLAN_STEPS, VERSION, plan_from_dict
 from spm_console.profile import Profile
@@ -69,8 +69,11 @@ def plan_to_dict(plan: Plan) -> dict[str, Any]:
 
 
 def save_plan(plan: Plan, path: str | Path) -> None:
-    """Write the plan atomically (temporary file + rename)."""
+    """Write the plan atomically (temporary file + rename). Only a regular file (or nothing)
+    may be replaced: a device, pipe or folder at ``path`` is refused (BadInputError)."""
     p = Path(path)
+    if p.exists() and not p.is_file():
+        raise BadInputError(f"{p}: exists and is not a regular file; not replaced")
     text = json.dumps(plan_to_dict(plan), indent=1)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent) or ".")
     try:

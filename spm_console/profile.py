@@ -228,8 +228,9 @@ class Safety(_Section):
     2° grid steps; a wider margin would in effect switch the region check off)."""
     stop_action: Literal["hold", "torque_off"] = "hold"
     """What a stop does: hold the measured position, or switch torque off."""
-    home_speed_degps: Real = Field(gt=0.0, le=360.0)
-    """Speed bound of the homing move, deg/s, 0 < speed ≤ 360."""
+    home_speed_degps: Real = Field(ge=0.5, le=360.0)
+    """Speed bound of the homing move, deg/s, 0.5 ≤ speed ≤ 360 (slower would take over 6
+    minutes for a 180° move)."""
     watchdog_ms: Count = Field(default=100, ge=0, le=2540)
     """Servo Bus Watchdog, ms (0 = off; unit 20 ms, at most 127 units); protocol 2.0 only.
     When on, the value written (rounded to 20 ms) must last at least 2·Ts, or the servos
@@ -316,6 +317,8 @@ def load_profile(path: str | Path = DEFAULT_PROFILE) -> Profile:
         data = tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ProfileError(f"{p}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ProfileError(f"{p}: not a profile: values nested too deeply") from None
     prof = parse_profile(data, str(p))
     check_home_mode(prof, str(p))
     return prof

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
 import tempfile
 import time
@@ -56,6 +57,9 @@ def _consistent(ws: Workspace, profile: Profile) -> str:
     if any(a.shape != w.shape or not np.allclose(a, w, atol=1e-9) for a, w in
            zip(ws.axes_deg, want, strict=True)):
         return "grid axes differ from the profile's"
+    if not (math.isclose(ws.zeta_min, profile.workspace.zeta_min, abs_tol=1e-12)
+            and math.isclose(ws.min_distance_mm, 2.0 * profile.links.delta_mm, abs_tol=1e-9)):
+        return "thresholds (ζ_min, 2δ) differ from the profile's"
     f = ws.feasible
     with np.errstate(invalid="ignore"):
         if f.any() and not (bool((ws.zeta[f] >= ws.zeta_min).all())
@@ -220,6 +224,8 @@ def load_or_build(
     """The profile's workspace from the cache, or built (and cached) when missing,
     stale, corrupt or ``force``. ``progress(stage, fraction)`` reports a build."""
     path = cache_path(profile, Path(cache_dir) if cache_dir is not None else None)
+    if path.parent.exists() and not path.parent.is_dir():
+        raise CacheError(f"workspace cache folder {path.parent} is not a folder")
     key = cache_key(profile)
     why = "forced"
     load_s = 0.0

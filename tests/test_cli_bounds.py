@@ -143,7 +143,11 @@ def test_bad_argument_is_refused_with_its_code_and_reason(
     got = main(argv)
     out, err = capsys.readouterr()
     assert got == code, err
-    assert "Traceback" not in err and out == ""
+    assert "Traceback" not in err
+    if as_json:  # SPEC §5: one JSON object on stdout, also on failure
+        assert json.loads(out) == {"ok": False, "exit_code": code, "error": json.loads(out)["error"]}
+    else:
+        assert out == ""
     for w in words:
         assert w in err, f"{w!r} not in {err!r}"
     assert time.perf_counter() - t0 < 20  # refused before any long work

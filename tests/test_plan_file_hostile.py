@@ -182,7 +182,11 @@ def test_cli_exit_code_9_for_corrupt_plans(valid: dict[str, Any], tmp_path: Path
                  ["execute", "--sim", "--plan", str(path), "--logs", str(tmp_path / "logs")]):
         assert main(argv) == ExitCode.PLAN_MISMATCH
         out, err = capsys.readouterr()
-        assert "'extra' must be an object" in err and "Traceback" not in err and out == ""
+        assert "'extra' must be an object" in err and "Traceback" not in err
+        if "--json" in argv:  # SPEC §5: the failure as one JSON object
+            assert json.loads(out)["exit_code"] == ExitCode.PLAN_MISMATCH
+        else:
+            assert out == ""
 
 
 def test_exact_certificate_shows(valid: dict[str, Any], tmp_path: Path,

@@ -9,6 +9,7 @@ import json
 import math
 import os
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -160,8 +161,13 @@ def output_folder(path: str | Path | None, what: str) -> None:
         raise BadInputError(f"{what} {p}: {anc} is a file, not a folder")
 
 
+#: Set once a command has written its result to stdout (then a later failure adds no JSON).
+EMITTED = threading.Event()
+
+
 def emit(args: argparse.Namespace, data: dict[str, Any] | list[Any], human: str) -> None:
     """JSON on stdout with --json, otherwise the human-readable text."""
+    EMITTED.set()
     if getattr(args, "json", False):
         sys.stdout.write(json.dumps(to_jsonable(data)) + "\n")
     else:

@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
+import signal
 import sys
+import threading
 from collections.abc import Sequence
+from types import FrameType
 
 from spm_console import __version__
 from spm_console.errors import ExitCode, SpmError
@@ -46,23 +50,57 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _interrupt(signum: int, _frame: FrameType | None) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
+def _interrupt_on_signals() -> None:
+    """Until a command installs its own stop handling (a run E-stops; see run/signals.py),
+    SIGTERM, SIGHUP and SIGQUIT end the process like Ctrl-C: exit 130 with a message. A
+    SIGHUP already ignored (``nohup``) stays ignored."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT):
+        if signal.getsignal(sig) is not signal.SIG_IGN:
+            signal.signal(sig, _interrupt)
+
+
+def _fail(as_json: bool, code: int, message: str) -> int:
+    """The error on stderr; with --json also ``{"ok": false, ...}`` on stdout (SPEC §5)."""
+    sys.stderr.write(f"error: {message}\n")
+    common = sys.modules.get("spm_console.cli.common")
+    if as_json and not (common is not None and common.EMITTED.is_set()):
+        sys.stdout.write(json.dumps({"ok": False, "exit_code": code, "error": message}) + "\n")
+        sys.stdout.flush()
+    return code
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    _interrupt_on_signals()
+    common = sys.modules.get("spm_console.cli.common")
+    if common is not None:  # in-process callers (tests) run main() more than once
+        common.EMITTED.clear()
     args_list = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser(args_list[0] if args_list else None)
+    as_json = "--json" in args_list
     try:
-        args = parser.parse_args(args_list)
-    except SystemExit as exc:  # argparse: usage errors exit 2, --help exits 0
-        return int(exc.code or 0)
-    if not getattr(args, "func", None):
-        parser.print_help(sys.stderr)
-        return int(ExitCode.USAGE)
-    try:
+        parser = build_parser(args_list[0] if args_list else None)
+        try:
+            args = parser.parse_args(args_list)
+        except SystemExit as exc:  # argparse: usage errors exit 2, --help exits 0
+            code = int(exc.code or 0)
+            if code and as_json:
+                sys.stdout.write(json.dumps({"ok": False, "exit_code": code,
+                                             "error": "usage error (see stderr)"}) + "\n")
+            return code
+        if not getattr(args, "func", None):
+            parser.print_help(sys.stderr)
+            return int(ExitCode.USAGE)
+        as_json = bool(getattr(args, "json", False))
         return int(args.func(args))
     except SpmError as exc:
-        sys.stderr.write(f"error: {exc.message}\n")
-        return int(exc.exit_code)
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted\n")
-        return int(ExitCode.INTERRUPTED)
+        return _fail(as_json, int(exc.exit_code), exc.message)
+    except KeyboardInterrupt as exc:
+        why = f" by {exc.args[0]}" if exc.args else ""
+        return _fail(as_json, int(ExitCode.INTERRUPTED), f"interrupted{why}")
     except BrokenPipeError:
         return int(ExitCode.OK)

@@ -30,7 +30,7 @@ from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_
 from spm_console.core.region import Region
 from spm_console.core.servo_model import discretize
 from spm_console.core.workspace import Workspace
-from spm_console.errors import BadInputError, ExitCode
+from spm_console.errors import BadInputError, ExitCode, PlanRefusedError
 from spm_console.plan_file import MAX_PLAN_BYTES, load_plan, plan_hash, plan_to_dict, save_plan
 from spm_console.plan_schema import region_of
 from spm_console.profile import Profile
@@ -108,7 +108,7 @@ def _region_file(path: Path) -> Region:
 def _workspace(args: argparse.Namespace, profile: Profile) -> Workspace:
     from spm_console.workspace_cache import load_or_build
 
-    ws, ci = load_or_build(profile, args.cache_dir)
+    ws, ci = load_or_build(profile, getattr(args, "cache_dir", None))
     if not ci.hit:
         info(f"workspace built in {ci.build_seconds:.1f} s ({ci.rebuilt_because})")
     return ws
@@ -239,11 +239,23 @@ def cmd_show(args: argparse.Namespace) -> int:
     plan = load_plan(args.file, profile)
     if args.plot is not None:
         _plot(plan, args.plot)
-    d = plan_to_dict(plan)
+    from spm_console.run.plan_check import verify_plan
+
+    # what the runtime will decide (the figures above the verdict are the file's own claims)
+    try:
+        check = verify_plan(profile, _workspace(args, profile), plan)
+        verdict = (f"runtime verification: passes ({check.points} points of the motion checked, "
+                   f"max model speed {check.max_speed_degps:.1f} deg/s)")
+        refused = None
+    except PlanRefusedError as exc:
+        verdict, refused = f"runtime verification: REFUSED — {exc.message}", exc
+    d = plan_to_dict(plan) | {"verified": refused is None,
+                              "refused": None if refused is None else refused.message}
     human = _human(plan, None, "stored in the plan") + (
-        f"\nstart {fmt_vec(plan.position_deg[0], 2)} deg → goal {fmt_vec(plan.position_deg[-1], 2)} deg")
+        f"\nstart {fmt_vec(plan.position_deg[0], 2)} deg → goal {fmt_vec(plan.position_deg[-1], 2)} deg"
+        f"\n{verdict}")
     emit(args, d, human)
-    return int(ExitCode.OK)
+    return int(ExitCode.OK if refused is None else refused.exit_code)
 
 
 def _read_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

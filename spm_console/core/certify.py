@@ -23,6 +23,10 @@ from numpy.typing import NDArray
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
 
+#: A point within this fraction of a grid step of a grid plane is on it (floating-point
+#: round-off, e.g. a settling motion ending 1e-10° past the grid's edge at its goal).
+ON_PLANE_TOL = 1e-9
+
 
 @dataclass(frozen=True)
 class CertifiedSet:
@@ -49,6 +53,8 @@ class CertifiedSet:
         pts = th.reshape(-1, 3)
         ok = np.all(np.isfinite(pts), axis=1)
         u = (np.where(np.isfinite(pts), pts, 0.0) - self.origin_deg) / self.step_deg
+        near = np.rint(u)  # on a grid plane up to round-off (1e-9 of a step): on it
+        u = np.where(np.abs(u - near) <= ON_PLANE_TOL, near, u)
         lo = np.floor(u)
         frac = u - lo
         r = h / self.step_deg

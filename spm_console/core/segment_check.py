@@ -63,7 +63,7 @@ def node_reason(ws: Workspace, flat: int) -> str:
     elif k == NodeClass.SINGULAR:
         why = f"singular (ζ = {float(ws.zeta[idx]):.3f} < ζ_min = {ws.zeta_min:g})"
     elif k == NodeClass.COLLIDING:
-        why = (f"links collide ({pair_name(links, int(ws.closest_pair[idx]))} at "
+        why = (f"colliding ({pair_name(links, int(ws.closest_pair[idx]))} at "
                f"{float(ws.min_link_mm[idx]):.1f} mm < 2δ = {ws.min_distance_mm:.1f} mm)")
     else:
         why = "cut off from home by infeasible nodes"

@@ -123,7 +123,10 @@ class RunLog:
     ) -> RunLog:
         """Make ``<root>/<YYYYmmdd-HHMMSS>-<kind>[-n]/`` and write the initial meta.json."""
         base = logs_root(root)
-        base.mkdir(parents=True, exist_ok=True)
+        try:
+            base.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise BadInputError(f"run log folder {base}: cannot create it ({exc.strerror or exc})") from None
         now = dt.datetime.now(dt.UTC)
         stem = f"{now.astimezone():%Y%m%d-%H%M%S}-{kind}"
         for n in range(1000):
@@ -309,6 +312,8 @@ class RunSummary:
 def list_runs(root: str | Path | None = None) -> list[RunSummary]:
     """Every run folder under the log root, oldest first (by folder name = start time)."""
     base = logs_root(root)
+    if base.exists() and not base.is_dir():
+        raise BadInputError(f"run log folder {base} is not a folder")
     if not base.is_dir():
         return []
     out = []
