@@ -197,12 +197,12 @@ def test_exact_certificate_shows(valid: dict[str, Any], tmp_path: Path,
         "excluded_radius": None, "residual_l1": 0.0, "valid": True}, "search": []}
     d["extra"]["check"]["region_violation_between_deg"] = None
     path = _write(tmp_path, d)
-    # the fixture (MVN in 30 steps, no speed bound) is faster than the profile allows: shown,
+    # the fixture (MVN in 30 steps, no reference bounds) commands past a servo limit: shown,
     # then refused by the runtime's verification
     assert main(["plan", "show", str(path)]) == ExitCode.PLAN_REFUSED
     out, _ = capsys.readouterr()
     assert "excludes ‖x‖∞ < ∞" in out and "region violation nan deg" in out
-    assert "runtime verification: REFUSED" in out and "limits.vmax_degps" in out
+    assert "runtime verification: REFUSED" in out and "outside the servo limits" in out
 
 
 # --- property: mutated plans load or are refused, nothing else --------------------------------
