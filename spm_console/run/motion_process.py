@@ -1,9 +1,10 @@
 """The servo loop in its own OS process, owning the serial port; front ends are its clients.
 
-:class:`MotionClient` starts the child (``multiprocessing`` spawn: a fresh interpreter, no
-UI thread, no GC pressure from the front end) and talks to it over one pipe with the typed
-messages of :mod:`spm_console.run.motion_protocol`: requests (ping, read, home, execute,
-E-stop, heartbeat, close) in; replies, throttled telemetry and results out.
+:class:`~spm_console.run.motion_client.MotionClient` starts this module as a child
+(``python -m spm_console.run.motion_process``: a fresh interpreter, no UI thread, no GC
+pressure from the front end) and talks to it over one socket pair with the typed messages of
+:mod:`spm_console.run.motion_protocol`: requests (ping, read, home, execute, E-stop,
+heartbeat, close) in; replies, throttled telemetry and results out.
 
 In the child, :func:`serve` opens the bus, loads this profile's workspace (the runtime
 verifies every motion against it; loaded on the first motion) and answers requests; a motion runs in a worker thread
@@ -22,18 +23,14 @@ import argparse
 import contextlib
 import os
 import signal
-import socket
-import subprocess
-import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
-from pathlib import Path
 from typing import Any
 
-from spm_console.errors import BusError, MotionProcessLostError, SpmError, error_for
+from spm_console.errors import BusError, SpmError
 from spm_console.profile import Profile
 from spm_console.run.motion_protocol import (
     Close,
@@ -242,160 +239,6 @@ def serve(conn: Connection, start: Start) -> None:
             server.motion.join(timeout=5.0)
         with contextlib.suppress(OSError, SpmError):
             server.bus.close()
-
-
-# --------------------------------------------------------------------------------- client
-class MotionClient:
-    """The front end's handle on the motion process (thread-safe; one motion at a time)."""
-
-    def __init__(self, profile: Profile, port: str, *, cache_dir: str | Path | None = None,
-                 logs_root: str | Path | None = None, sim: bool = False,
-                 faults: Sequence[str] = (), start_timeout_s: float = 60.0) -> None:
-        mine, theirs = socket.socketpair()
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "spm_console.run.motion_process", "--fd", str(theirs.fileno())],
-            pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL)
-        theirs.close()
-        self.conn = Connection(mine.detach())
-        ctx = RunContext(port, sim, tuple(faults), None if logs_root is None else str(logs_root))
-        self.conn.send(Start(profile, ctx, None if cache_dir is None else str(cache_dir)))
-        self._lock = threading.Lock()
-        self._replies: dict[int, Reply | Failed] = {}
-        self._cond = threading.Condition()
-        self._next_id = 1
-        self._closed = False
-        self._lost = ""
-        self.on_sample: Callable[[Sample], None] | None = None
-        if not self.conn.poll(start_timeout_s):
-            self.close()
-            raise MotionProcessLostError("the motion process did not start")
-        first = self.conn.recv()
-        if isinstance(first, Failed):
-            self.close()
-            raise _error(first)
-        self.pid = int(first.value)
-        self._reader = threading.Thread(target=self._read, daemon=True, name="spm-motion-client")
-        self._reader.start()
-        self._moving = threading.Event()
-        self._beat = threading.Thread(target=self._heartbeat, daemon=True, name="spm-heartbeat")
-        self._beat.start()
-
-    # --- plumbing ---------------------------------------------------------------------
-    def _send(self, msg: object) -> None:
-        with self._lock:
-            if self._lost:
-                raise MotionProcessLostError(self._lost)
-            try:
-                self.conn.send(msg)
-            except (OSError, EOFError, BrokenPipeError):
-                self._mark_lost()
-                raise MotionProcessLostError(self._lost) from None
-
-    def _mark_lost(self) -> None:
-        code = self.process.poll()
-        self._lost = self._lost or (
-            "the motion process is gone" + (f" (exit code {code})" if code is not None else "")
-            + "; the servos' Bus Watchdog stops them if a motion was running")
-        with self._cond:
-            self._cond.notify_all()
-
-    def _read(self) -> None:
-        while True:
-            try:
-                msg = self.conn.recv()
-            except (EOFError, OSError):
-                if not self._closed:
-                    self._mark_lost()
-                return
-            if isinstance(msg, Telemetry):
-                cb = self.on_sample
-                if cb is not None:
-                    with contextlib.suppress(Exception):
-                        for sample in msg.samples:
-                            cb(sample)
-                continue
-            with self._cond:
-                self._replies[msg.id] = msg
-                self._cond.notify_all()
-
-    def _heartbeat(self) -> None:
-        while not self._closed and not self._lost:
-            if self._moving.wait(0.5) and not self._closed:
-                with contextlib.suppress(MotionProcessLostError):
-                    self._send(Heartbeat())
-                time.sleep(HEARTBEAT_S)
-
-    def _call(self, make: Callable[[int], Request], timeout_s: float | None) -> Any:
-        with self._lock:
-            rid = self._next_id
-            self._next_id += 1
-        self._send(make(rid))
-        t_end = None if timeout_s is None else time.monotonic() + timeout_s
-        with self._cond:
-            while rid not in self._replies:
-                if self._lost:
-                    raise MotionProcessLostError(self._lost)
-                left = None if t_end is None else t_end - time.monotonic()
-                if left is not None and left <= 0:
-                    raise MotionProcessLostError(f"the motion process did not answer within {timeout_s:g} s")
-                self._cond.wait(0.1 if left is None else min(0.1, left))
-            msg = self._replies.pop(rid)
-        if isinstance(msg, Failed):
-            raise _error(msg)
-        return msg.value
-
-    # --- operations ---------------------------------------------------------------------
-    def ping_all(self) -> list[Any]:
-        return list(self._call(lambda i: Ping(i), REQUEST_TIMEOUT_S))
-
-    def read_position(self) -> Any:
-        return self._call(lambda i: ReadPosition(i), REQUEST_TIMEOUT_S)
-
-    def _motion(self, make: Callable[[int], Request], on_sample: Callable[[Sample], None] | None) -> Any:
-        self.on_sample = on_sample
-        self._moving.set()
-        try:
-            return self._call(make, None)
-        finally:
-            self._moving.clear()
-            self.on_sample = None
-
-    def home(self, on_sample: Callable[[Sample], None] | None = None) -> Any:
-        return self._motion(lambda i: Home(i), on_sample)
-
-    def execute(self, plan: Any, on_sample: Callable[[Sample], None] | None = None,
-                approach_tolerance_deg: float | None = None) -> Any:
-        return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg), on_sample)
-
-    def estop(self, reason: str) -> None:
-        """The message; a signal to the process is the second path when the pipe is gone."""
-        try:
-            self._send(EStop(reason, time.perf_counter()))
-            return
-        except MotionProcessLostError:
-            pass
-        if self.process.poll() is None:
-            with contextlib.suppress(OSError):
-                os.kill(self.process.pid, signal.SIGUSR1)
-
-    def close(self, timeout_s: float = 5.0) -> None:
-        if self._closed:
-            return
-        with contextlib.suppress(MotionProcessLostError, OSError):
-            self._send(Close())
-        self._closed = True
-        try:
-            self.process.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            self.process.terminate()
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                self.process.wait(2.0)
-        with contextlib.suppress(OSError):
-            self.conn.close()
-
-
-def _error(msg: Failed) -> SpmError:
-    return error_for(msg.exit_code, msg.message)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from spm_console.devices.emulator import EmulatorHandle
     from spm_console.devices.emulator_child import EmulatorChild
     from spm_console.devices.faults import FaultSpec
-    from spm_console.run.motion_process import MotionClient
+    from spm_console.run.motion_client import MotionClient
     from spm_console.run.sample import Sample
     from spm_console.run.segments import ExecutionResult
 
@@ -159,7 +159,7 @@ class Session:
             port = self.emulator.port
         assert port is not None
         try:
-            from spm_console.run.motion_process import MotionClient
+            from spm_console.run.motion_client import MotionClient
 
             client = MotionClient(self.profile, port, cache_dir=self.cache_dir,
                                   logs_root=None if self.logs_root is None else str(self.logs_root),
