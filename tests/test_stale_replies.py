@@ -85,23 +85,27 @@ def _cycles(em: EmulatorHandle, bus: DynamixelBus, n: int) -> list[bool]:
 @pytest.mark.parametrize("delay", DELAYS)
 def test_no_stale_reply_is_taken_as_current(agile: Profile, delay: float) -> None:
     at = (ONSET_K - 0.25) * TS  # cycle ONSET_K is the first one delayed
-    with rig(agile, delay, at) as (em, bus):
-        n = ONSET_K + 4 + math.ceil(delay / TS)  # long enough for the late replies to land
-        ok = _cycles(em, bus, n)  # asserts that every read accepted is its cycle's
-        assert sum(ok[:ONSET_K]) >= ONSET_K - 1  # (one read may be lost to machine load)
-        if delay < agile.bus.timeout_s:
-            # slow but current: fine (a stale reply only after a read lost to machine load)
-            assert sum(ok) >= n - 1 and (bus.stale_replies == 0 or not all(ok))
-            return
-        assert em.stats.delayed > 0
-        if delay >= 2 * agile.bus.timeout_s:
-            # every read from the onset on fails: 3 failed cycles in a row right away
-            assert not any(ok[ONSET_K : ONSET_K + 3]), ok
-        else:
-            # 1 ms past the timeout: a read a loaded machine looks at late may still get its
-            # own reply (slow but current, checked above); 3 failed cycles in a row follow
+    for _attempt in range(3):
+        with rig(agile, delay, at) as (em, bus):
+            n = ONSET_K + 4 + math.ceil(delay / TS)  # long enough for the late replies to land
+            ok = _cycles(em, bus, n)  # asserts that every read accepted is its cycle's
+            assert sum(ok[:ONSET_K]) >= ONSET_K - 1  # (one read may be lost to machine load)
+            if delay < agile.bus.timeout_s:
+                # slow but current: fine (a stale reply only after a read lost to machine load)
+                assert sum(ok) >= n - 1 and (bus.stale_replies == 0 or not all(ok))
+                return
+            assert em.stats.delayed > 0
+            if delay >= 2 * agile.bus.timeout_s:
+                # every read from the onset on fails: 3 failed cycles in a row right away
+                assert not any(ok[ONSET_K : ONSET_K + 3]), ok
+                return
+            # 1 ms past the timeout: a read that a loaded machine looks at late may still get
+            # its own reply (slow but current: checked above, never stale); then 3 failed
+            # cycles in a row. Only that scheduling luck is retried, never a stale read.
             late = "".join("x" if good else "-" for good in ok[ONSET_K:])
-            assert "---" in late[:6], late
+            if "---" in late[:6]:
+                return
+    raise AssertionError(f"no 3 failed cycles in a row within 6 cycles of the onset: {late}")
 
 
 def _late_then_next(bus: DynamixelBus, delay: float) -> str:
