@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import Any
 
-from spm_console.errors import BusError, SpmError
+from spm_console.errors import BusError, ExitCode, SpmError
 from spm_console.profile import Profile
 from spm_console.run.motion_protocol import (
     Close,
@@ -95,7 +95,7 @@ class _Server:
             self.estop(req.reason, req.sent_clock)
         elif isinstance(req, (Home, Execute)):
             if self.motion is not None and self.motion.is_alive():
-                self.send(Failed(req.id, BusError("a motion is already running").message, 4))
+                self.send(Failed(req.id, "a motion is already running", int(ExitCode.BAD_INPUT)))
                 return
             self.last_heartbeat = time.monotonic()
             self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
