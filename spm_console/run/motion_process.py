@@ -81,7 +81,6 @@ class _Server:
         self.pending_estop = ""
         self.pending_clock: float | None = None
         self.last_heartbeat = time.monotonic()
-        self.client_lost = ""
 
     def send(self, msg: object) -> None:
         with self.send_lock, contextlib.suppress(OSError, EOFError, BrokenPipeError):
@@ -102,6 +101,10 @@ class _Server:
                                            name="spm-motion")
             self.motion.start()
         elif isinstance(req, (Ping, ReadPosition)):
+            if self.moving():  # the loop owns every bus cycle while the wrist moves
+                self.send(Failed(req.id, "the wrist is moving: the servo loop owns the bus; "
+                                 "ask again when it has stopped", int(ExitCode.BAD_INPUT)))
+                return
             self._answer(req)
 
     def _answer(self, req: Ping | ReadPosition) -> None:
