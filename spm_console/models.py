@@ -53,6 +53,12 @@ def servo_model_of(profile: Profile) -> ServoModel:
     return discretize(s.p, s.ts_s, s.discretization)
 
 
+def servo_limits_deg(profile: Profile) -> tuple[F, F]:
+    """(lowest, highest) joint angle of each servo's software limits, deg."""
+    return (np.array([j.min_deg for j in profile.bus.joints], float),
+            np.array([j.max_deg for j in profile.bus.joints], float))
+
+
 def grid_axes_deg(profile: Profile) -> tuple[F, F, F]:
     """The workspace grid values of θ1, θ2, θ3, deg."""
     a = np.asarray(profile.workspace.axis_deg, float)

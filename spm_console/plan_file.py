@@ -20,9 +20,10 @@ from typing import Any
 import numpy as np
 
 from spm_console.core.plan import Plan
-from spm_console.core.servo_model import discretize, simulate
+from spm_console.core.servo_model import simulate
 from spm_console.errors import BadInputError, PlanMismatchError
 from spm_console.jsonutil import to_jsonable
+from spm_console.models import servo_model_of
 from spm_console.plan_schema import FORMAT, KINDS, MAX_PLAN_STEPS, VERSION, plan_from_dict
 from spm_console.profile import Profile
 from spm_console.safe_io import MB, load_json
@@ -102,7 +103,7 @@ def check_plan(plan: Plan, profile: Profile, src: str = "plan") -> None:
         raise PlanMismatchError(
             f"{src}: servo model p = {m.get('p')}, {m.get('discretization')} but the profile has "
             f"p = {sv.p}, {sv.discretization}")
-    ref_model = discretize(sv.p, sv.ts_s, sv.discretization)
+    ref_model = servo_model_of(profile)
     A = np.asarray(m["A"], float).reshape(2, 2)  # shapes checked by plan_from_dict
     B = np.asarray(m["B"], float).reshape(2)
     if not (np.allclose(A, ref_model.A, rtol=0, atol=1e-9)

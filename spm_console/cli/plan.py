@@ -28,9 +28,9 @@ from spm_console.core.identify import identify
 from spm_console.core.plan import Plan
 from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
 from spm_console.core.region import Region
-from spm_console.core.servo_model import discretize
 from spm_console.core.workspace import Workspace
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError
+from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.plan_file import MAX_PLAN_BYTES, load_plan, plan_hash, plan_to_dict, save_plan
 from spm_console.plan_schema import region_of
 from spm_console.profile import Profile
@@ -135,13 +135,11 @@ def _problem(args: argparse.Namespace, profile: Profile, n: int, vmax: float | N
     if not args.no_ref_limits:
         theta_in_servo_limits(args.start, "--start", profile)
         theta_in_servo_limits(args.goal, "--goal", profile)
-        lo = np.array([j.min_deg for j in profile.bus.joints])
-        hi = np.array([j.max_deg for j in profile.bus.joints])
+        lo, hi = servo_limits_deg(profile)
     s = theta_in_grid(args.start, "--start", profile)
     g = theta_in_grid(args.goal, "--goal", profile)
     region, source = resolve_region(args, profile, s, g)
-    sv = profile.servo
-    model = discretize(sv.p, sv.ts_s, sv.discretization)
+    model = servo_model_of(profile)
     pb = PlanProblem(model, s, g, n, region, vmax, k, not args.free_first, lo, hi)
     return pb, source
 

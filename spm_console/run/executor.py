@@ -34,10 +34,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
-from spm_console.core.servo_model import discretize
 from spm_console.core.workspace import Workspace
 from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_settled
 from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
+from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.profile import Profile
 from spm_console.realtime import LOOP_PRIORITY, RtGrant, release_realtime, request_realtime
 from spm_console.run.plan_check import LINE_PHASES, PlanCheck, PlanVerifier
@@ -91,9 +91,8 @@ class Executor:
         self.sleep = sleep
         """Replaces the real waiting when given (tests drive a simulated clock with it)."""
         self.ts = profile.servo.ts_s
-        self.model = discretize(profile.servo.p, self.ts, profile.servo.discretization)
-        self.lo = np.array([j.min_deg for j in profile.bus.joints])
-        self.hi = np.array([j.max_deg for j in profile.bus.joints])
+        self.model = servo_model_of(profile)
+        self.lo, self.hi = servo_limits_deg(profile)
         self._estop = threading.Event()
         self._estop_reason = ""
         self._estop_clock: float | None = None

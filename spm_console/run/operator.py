@@ -31,7 +31,7 @@ from spm_console.errors import (
     SpmError,
     UnreachableError,
 )
-from spm_console.models import link_model_of, model_of
+from spm_console.models import link_model_of, model_of, servo_limits_deg
 from spm_console.profile import Profile
 
 if TYPE_CHECKING:
@@ -330,8 +330,7 @@ class Session:
 
         ws = self.require_workspace()
         s, g = self.resolve(start), self.resolve(goal)
-        lo = np.array([j.min_deg for j in self.profile.bus.joints])
-        hi = np.array([j.max_deg for j in self.profile.bus.joints])
+        lo, hi = servo_limits_deg(self.profile)
         model = servo_model_of(self.profile)
         vmax = self.profile.limits.vmax_degps if vmax_degps is None else vmax_degps
         from spm_console.core.workspace import check_theta

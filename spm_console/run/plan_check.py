@@ -41,8 +41,9 @@ from spm_console.core.servo_model import simulate_continuous
 from spm_console.core.workspace import Workspace
 from spm_console.core.workspace_check import check_points
 from spm_console.errors import PlanRefusedError
-from spm_console.models import link_model_of, model_of
+from spm_console.models import link_model_of, model_of, servo_limits_deg
 from spm_console.profile import Profile
+from spm_console.run.plans import settle_samples
 from spm_console.run.segments import Segment
 
 F = NDArray[np.float64]
@@ -80,11 +81,6 @@ def _fmt(v: F) -> str:
     return "[" + ", ".join(f"{x:.2f}" for x in v) + "]"
 
 
-def _settle_samples(profile: Profile) -> int:
-    """Samples of the tail that holds the last reference: 10/p s, when (27) has settled."""
-    return max(1, math.ceil(10.0 / profile.servo.p / profile.servo.ts_s))
-
-
 class PlanVerifier:
     """Verifies segments against one profile and its workspace (see module docstring)."""
 
@@ -92,8 +88,7 @@ class PlanVerifier:
         self.profile = profile
         self.ws = workspace
         self.certified: CertifiedSet = workspace.certified_set()
-        self.lo = np.array([j.min_deg for j in profile.bus.joints])
-        self.hi = np.array([j.max_deg for j in profile.bus.joints])
+        self.lo, self.hi = servo_limits_deg(profile)
         self.vmax = profile.limits.vmax_degps
 
     def verify(self, segments: Sequence[Segment]) -> PlanCheck:
@@ -129,7 +124,7 @@ class PlanVerifier:
             k, i = (int(x) for x in np.unravel_index(int(np.argmax(steps)), steps.shape))
             raise self._refuse(seg, f"reference θ{i + 1} jumps {steps[k, i]:.2f}° between samples "
                                     f"{k} and {k + 1} (at most {MAX_REFERENCE_STEP_DEG:g}° per sample)")
-        tail = np.repeat(ref[-1:], _settle_samples(self.profile), axis=0)
+        tail = np.repeat(ref[-1:], settle_samples(self.profile), axis=0)
         full = np.concatenate([ref, tail])
         x0 = np.column_stack([ref[0], np.zeros(3)])
         _, xs = simulate_continuous(self.profile.servo.p, ts, x0, full, POINTS_PER_INTERVAL)

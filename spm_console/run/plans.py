@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from spm_console.core.estimation import ModelPredictor
 from spm_console.core.plan import Plan
 from spm_console.core.region import Region
-from spm_console.models import servo_model_of
+from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.plan_file import plan_hash
 from spm_console.profile import Profile
 
@@ -27,8 +27,7 @@ F = NDArray[np.float64]
 
 def limits_region(profile: Profile) -> Region:
     """The box of the servo software limits (bus.joints min/max), deg."""
-    lo = np.array([j.min_deg for j in profile.bus.joints])
-    hi = np.array([j.max_deg for j in profile.bus.joints])
+    lo, hi = servo_limits_deg(profile)
     return Region(np.vstack([np.eye(3), -np.eye(3)]), np.concatenate([hi, -lo]))
 
 

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.certify import CertifiedSet
 from spm_console.errors import ExitCode
+from spm_console.models import servo_limits_deg
 from spm_console.profile import Profile
 
 F = NDArray[np.float64]
@@ -82,8 +83,7 @@ class SafetyMonitor:
             # below the Δ/2 that still needs a feasible node on every axis
             step = certified.step_deg
             self.region_half_width_deg = step - min(self.cfg.region_margin_deg, 0.45 * step)
-        self.lo = np.array([j.min_deg for j in profile.bus.joints])
-        self.hi = np.array([j.max_deg for j in profile.bus.joints])
+        self.lo, self.hi = servo_limits_deg(profile)
         self.ids = [j.id for j in profile.bus.joints]
         self.comm_streak = 0
         """Consecutive failed cycles."""
