@@ -13,10 +13,13 @@ from spm_console.errors import ExitCode
 from spm_console.plan_file import save_plan
 from spm_console.profile import Profile
 from spm_console.run.plans import synthetic_plan
-from spm_console.run.runlog import load_run
+from spm_console.run.runlog import list_runs, load_run
 from tests.exec_helpers import PAPER_START
 
 GOAL = np.array([100.0, 120.0, 110.0])
+#: At the plan's start, homing overridden (and logged): the fault and log tests start moving
+#: the plan at once.
+AT_START = ["--skip-homing", "test of faults", "--sim-start", *(f"{x:g}" for x in PAPER_START)]
 
 
 @pytest.fixture(scope="module")
@@ -32,17 +35,37 @@ def _json(capsys: pytest.CaptureFixture[str]) -> dict:  # type: ignore[type-arg]
     return json.loads(out[0])  # type: ignore[no-any-return]
 
 
-def test_execute_sim_completes(plan_file: Path, tmp_path: Path,
-                               capsys: pytest.CaptureFixture[str]) -> None:
+def test_execute_sim_homes_first_then_approaches_and_completes(
+        plan_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code = main(["execute", "--plan", str(plan_file), "--sim", "--json", "--logs", str(tmp_path)])
     d = _json(capsys)
     assert code == 0 and d["outcome"] == "completed" and d["exit_code"] == 0
     assert np.allclose(d["final_deg"], GOAL, atol=0.15)
-    assert d["stats"]["samples"] == d["N"] + 1 and d["stats"]["tracking_rms_deg"] < 0.5
-    run = load_run(d["log_dir"])
-    assert run.meta["outcome"] == "completed" and run.meta["sim"] is True
-    assert run.meta["plans"][0]["source"] == str(plan_file)
+    assert d["homing"]["outcome"] == "completed"
+    home_run, run = load_run(d["homing"]["log_dir"]), load_run(d["log_dir"])
+    assert home_run.meta["kind"] == "home" and home_run.meta["outcome"] == "completed"
+    assert run.meta["homing"] == "done" and run.meta["outcome"] == "completed"
+    assert [p["phase"] for p in run.meta["plans"]] == ["approach", "plan"]
+    assert d["stats"]["samples"] == sum(p["N"] + 1 for p in run.meta["plans"])
+    assert d["stats"]["tracking_rms_deg"] < 0.5
+    assert run.meta["sim"] is True and run.meta["plans"][1]["source"] == str(plan_file)
     assert run.meta["profile"]["name"] == "agile_wrist" and len(run.meta["profile"]["hash"]) == 64
+
+
+def test_skipping_homing_is_explicit_and_logged(plan_file: Path, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    code = main(["execute", "--plan", str(plan_file), "--json", "--logs", str(tmp_path),
+                 "--sim", *AT_START])
+    d = _json(capsys)
+    assert code == 0 and d["homing"] == {"skipped": "test of faults"}
+    run = load_run(d["log_dir"])
+    assert run.meta["homing"] == "skipped by the operator: test of faults"
+    assert [r.meta["kind"] for r in list_runs(tmp_path)] == ["execute"]  # no homing run
+    for bad in ("   ", "x" * 201, "bell\x07"):
+        code = main(["execute", "--plan", str(plan_file), "--sim", "--skip-homing", bad,
+                     "--logs", str(tmp_path)])
+        assert code == int(ExitCode.BAD_INPUT)
+    assert "--skip-homing" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(("fault", "code", "text"), [
@@ -54,7 +77,7 @@ def test_execute_fault_exit_codes(plan_file: Path, tmp_path: Path,
                                   capsys: pytest.CaptureFixture[str],
                                   fault: str, code: ExitCode, text: str) -> None:
     rc = main(["execute", "--plan", str(plan_file), "--sim", "--fault", fault, "--json",
-               "--logs", str(tmp_path)])
+               "--logs", str(tmp_path), *AT_START])
     captured = capsys.readouterr()
     d = json.loads(captured.out)
     assert rc == int(code) == d["exit_code"] and d["outcome"] == "stopped"
@@ -67,7 +90,7 @@ def test_execute_fault_exit_codes(plan_file: Path, tmp_path: Path,
 def test_execute_adds_an_approach_move(plan_file: Path, tmp_path: Path,
                                        capsys: pytest.CaptureFixture[str]) -> None:
     rc = main(["execute", "--plan", str(plan_file), "--sim", "--sim-start", "122", "90", "88",
-               "--json", "--logs", str(tmp_path)])
+               "--json", "--logs", str(tmp_path), "--skip-homing", "test of the approach"])
     d = _json(capsys)
     assert rc == 0, d["message"]
     run = load_run(d["log_dir"])
@@ -75,9 +98,11 @@ def test_execute_adds_an_approach_move(plan_file: Path, tmp_path: Path,
     assert run.phase[0] == "approach" and run.phase[-1] == "plan"
     assert np.allclose(run.vec("meas")[0], [122, 90, 88], atol=0.1)
     rc = main(["execute", "--plan", str(plan_file), "--sim", "--sim-start", "122", "90", "88",
-               "--no-approach", "--logs", str(tmp_path)])
+               "--no-approach", "--logs", str(tmp_path), "--skip-homing", "test"])
     assert rc == int(ExitCode.BAD_INPUT)
     assert "approach move disabled" in capsys.readouterr().err
+    refused = load_run("last", tmp_path)
+    assert refused.meta["outcome"] == "refused" and refused.rows == 0
 
 
 def test_home_sim(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -129,7 +154,7 @@ def test_bad_plan_files(tmp_path: Path, plan_file: Path, capsys: pytest.CaptureF
 def test_logs_list_and_show_with_plot(plan_file: Path, tmp_path: Path,
                                       capsys: pytest.CaptureFixture[str]) -> None:
     main(["execute", "--plan", str(plan_file), "--sim", "--fault", "stall:3@0.5",
-          "--logs", str(tmp_path)])
+          "--logs", str(tmp_path), *AT_START])
     capsys.readouterr()
     assert main(["logs", "--json", "--logs", str(tmp_path)]) == 0
     runs = _json(capsys)["runs"]

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from spm_console.devices.emulator import start_emulator
-from spm_console.errors import ExitCode, MotionProcessLostError
+from spm_console.errors import BadInputError, ExitCode, MotionProcessLostError
 from spm_console.plan_file import save_plan
 from spm_console.profile import Profile
 from spm_console.run.motion_client import MotionClient
@@ -57,14 +57,20 @@ def test_drive_the_loop_process_and_estop_by_message(agile: Profile, tmp_path: P
         assert client.pid != os.getpid()
         assert [s.model_number for s in client.ping_all()] == [321, 321, 321]
         assert np.allclose(client.read_position(), PAPER_START, atol=0.1)
+        plan = synthetic_plan(agile, PAPER_START, GOAL, 1.5)
+        # the runtime's rule: homed first, or an explicit override (logged)
+        with pytest.raises(BadInputError, match="not homed"):
+            client.execute(plan)
+        refused = load_run("last", tmp_path)
+        assert refused.meta["outcome"] == "refused" and refused.rows == 0
         got: list[int] = []
-        res = client.execute(synthetic_plan(agile, PAPER_START, GOAL, 1.5), lambda s: got.append(s.k))
+        res = client.execute(plan, lambda s: got.append(s.k), skip_homing="test")
         assert res.ok, res.message
         assert got == list(range(res.stats["samples"]))  # every sample reached the client
         # a long motion, stopped by a message
         timer = threading.Timer(0.8, lambda: client.estop("test E-stop"))
         timer.start()
-        res = client.execute(synthetic_plan(agile, GOAL, PAPER_START, 4.0))
+        res = client.execute(synthetic_plan(agile, GOAL, PAPER_START, 4.0), skip_homing="test")
         assert res.exit_code == ExitCode.STOP_ESTOP and "test E-stop" in res.message
         stop = _stop(res.log_dir)
         ts = agile.servo.ts_s
@@ -90,7 +96,7 @@ CLIENT = textwrap.dedent("""
         if len(seen) == 0:
             print("moving", flush=True)
         seen.append(s.k)
-    c.execute(load_plan(sys.argv[2], prof), on_sample)
+    c.execute(load_plan(sys.argv[2], prof), on_sample, skip_homing="test")
 """)
 
 
@@ -146,7 +152,7 @@ def test_a_killed_loop_process_leaves_the_servos_to_their_watchdog(
     def run() -> None:
         try:
             client.execute(synthetic_plan(agile, PAPER_START, GOAL, 4.0),
-                           lambda s: started.set())
+                           lambda s: started.set(), skip_homing="test")
         except MotionProcessLostError as exc:
             out["error"] = exc
 
@@ -175,22 +181,23 @@ def test_deadman_is_several_heartbeats() -> None:
 
 
 def test_one_run_log_schema_for_every_front_end(agile: Profile, tmp_path: Path, cache: Path) -> None:
-    """The CLI's in-process run and the motion process write the same metadata keys."""
-    from spm_console.run.session import RunRequest, execute_plan
+    """The CLI's one-shot run and a client of the motion process write the same metadata."""
+    from spm_console.run.oneshot import RunRequest, execute_once
 
     plan = synthetic_plan(agile, PAPER_START, GOAL, 1.5)
-    execute_plan(agile, plan, RunRequest(sim=True, log_root=tmp_path / "cli", cache_dir=cache,
-                                         handle_signals=False))
+    execute_once(agile, plan, RunRequest(sim=True, log_root=tmp_path / "cli", cache_dir=cache,
+                                         handle_signals=False, skip_homing="schema test",
+                                         sim_start_deg=PAPER_START))
     emu = start_emulator(agile, record=False, initial_deg=list(PAPER_START))
     client = MotionClient(agile, emu.port, cache_dir=cache, logs_root=tmp_path / "mp", sim=True)
     try:
-        client.execute(plan)
+        client.execute(plan, skip_homing="schema test")
     finally:
         client.close()
         emu.stop()
     a = load_run(list_runs(tmp_path / "cli")[0].path).meta
     b = load_run(list_runs(tmp_path / "mp")[0].path).meta
     assert set(a) == set(b)
-    for key in ("bus", "sim", "faults", "process"):
+    for key in ("bus", "sim", "faults", "process", "homing"):
         assert key in a
     assert a["bus"] == b["bus"] == "emulated bus" and a["sim"] is b["sim"] is True

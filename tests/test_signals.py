@@ -25,9 +25,9 @@ from spm_console.devices.emulator import start_emulator
 from spm_console.errors import ExitCode
 from spm_console.plan_file import save_plan
 from spm_console.profile import Profile
+from spm_console.run.oneshot import RunRequest, execute_once
 from spm_console.run.plans import synthetic_plan
 from spm_console.run.runlog import FLUSH_EVERY, list_runs, load_run
-from spm_console.run.session import RunRequest, execute_plan
 from spm_console.run.signals import STOP_SIGNALS, stop_signals
 from tests.exec_helpers import PAPER_START
 
@@ -90,7 +90,8 @@ def _wait_for_rows(logs: Path, rows: int, proc: subprocess.Popen[str], timeout: 
 @pytest.mark.parametrize("sig", STOP_SIGNALS, ids=lambda s: s.name)
 def test_each_signal_mid_motion_is_an_estop(tmp_path: Path, long_plan: Path,
                                             sig: signal.Signals) -> None:
-    proc = _spawn(["execute", "--plan", str(long_plan), "--sim", "--json"], tmp_path / "logs")
+    proc = _spawn(["execute", "--plan", str(long_plan), "--sim", "--json", "--skip-homing",
+                   "signal test", "--sim-start", *map(str, PAPER_START)], tmp_path / "logs")
     run_dir = _wait_for_rows(tmp_path / "logs", 25, proc)
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=20)
@@ -110,17 +111,18 @@ def test_each_signal_mid_motion_is_an_estop(tmp_path: Path, long_plan: Path,
 
 def test_a_signal_before_the_motion_interrupts_with_nothing_moved(
         tmp_path: Path, agile: Profile) -> None:
-    """The signal lands while the bus is being opened: no torque, log ``interrupted``, 130."""
+    """The signal lands once the bus is open, before homing: no torque, log ``interrupted``,
+    130."""
     plan = synthetic_plan(agile, PAPER_START, GOAL, 1.5)
     before = signal.getsignal(signal.SIGHUP)
 
-    def hangup(_ex: object) -> None:
+    def hangup(_session: object) -> None:
         assert signal.getsignal(signal.SIGHUP) not in (before, signal.SIG_DFL)  # ours is in place
         os.kill(os.getpid(), signal.SIGHUP)
 
-    req = RunRequest(sim=True, log_root=tmp_path, on_executor=hangup)
+    req = RunRequest(sim=True, log_root=tmp_path, on_connected=hangup)
     with pytest.raises(Exception, match="interrupted by SIGHUP before any motion") as exc:
-        execute_plan(agile, plan, req)
+        execute_once(agile, plan, req)
     assert getattr(exc.value, "exit_code", None) == ExitCode.INTERRUPTED
     assert signal.getsignal(signal.SIGHUP) is before  # the previous handler is back
     run = load_run("last", tmp_path)
@@ -128,8 +130,10 @@ def test_a_signal_before_the_motion_interrupts_with_nothing_moved(
     assert run.rows == 0 and "torque_on" not in [e["event"] for e in run.events]
 
 
-def test_sigkill_loses_at_most_three_cycles_and_the_run_is_listed_killed(
+def test_sigkill_of_the_loop_loses_at_most_three_cycles_and_the_run_is_listed_killed(
         tmp_path: Path, long_plan: Path, agile: Profile) -> None:
+    """SIGKILL of the motion process (the loop and the log's writer): the CLI reports it (27),
+    the servos' Bus Watchdog stops them, the log keeps all but the last few cycles."""
     em = start_emulator(agile, record=False, initial_deg=PAPER_START)
     goals: list[int] = []  # every goal written to joint 1: one per cycle, after one at torque-on
     servo = em.servos[0]
@@ -142,14 +146,24 @@ def test_sigkill_loses_at_most_three_cycles_and_the_run_is_listed_killed(
 
     servo._apply = spy  # type: ignore[method-assign]
     try:
-        proc = _spawn(["execute", "--plan", str(long_plan), "--port", em.port], tmp_path / "logs")
+        proc = _spawn(["execute", "--plan", str(long_plan), "--port", em.port, "--skip-homing",
+                       "signal test"], tmp_path / "logs")
         run_dir = _wait_for_rows(tmp_path / "logs", 40, proc)
-        assert list_runs(tmp_path / "logs")[0].meta["outcome"] == "running"  # alive: running
+        meta = list_runs(tmp_path / "logs")[0].meta
+        assert meta["outcome"] == "running"  # alive: running
+        loop_pid = int(meta["process"]["pid"])
+        assert loop_pid != proc.pid  # the loop runs in its own process
         time.sleep(0.047)  # kill between two flushes (every 3 cycles = 60 ms)
-        proc.kill()
-        proc.communicate(timeout=20)
+        os.kill(loop_pid, signal.SIGKILL)
+        _out, err = proc.communicate(timeout=20)
+        assert proc.returncode == int(ExitCode.MOTION_PROCESS_LOST), err
+        assert "motion process is gone" in err and "Traceback" not in err
         with em._lock:  # the emulator has served its last request
             cycles = len(goals) - 1  # cycles the killed process had begun
+        time.sleep(agile.safety.watchdog_ms / 1000 + 0.2)
+        a = em.joint_deg()
+        time.sleep(0.1)
+        assert np.abs(em.joint_deg() - a).max() < 0.01  # the watchdog stopped the servos
     finally:
         em.stop()
     run = load_run(run_dir)
@@ -164,6 +178,29 @@ def test_sigkill_loses_at_most_three_cycles_and_the_run_is_listed_killed(
                                                    "torque_on"]
     [listed] = list_runs(tmp_path / "logs")
     assert listed.meta["outcome"] == "killed" and run.meta["outcome"] == "killed"
-    assert f"process {proc.pid}" in listed.meta["message"]
+    assert f"process {loop_pid}" in listed.meta["message"]
     assert json.loads((run_dir / "meta.json").read_text())["outcome"] == "running"  # file as left
     assert main(["logs", "--logs", str(tmp_path / "logs")]) == 0
+
+
+def test_sigkill_of_the_cli_makes_the_loop_hold_and_log_client_lost(
+        tmp_path: Path, long_plan: Path, agile: Profile) -> None:
+    em = start_emulator(agile, record=False, initial_deg=PAPER_START)
+    try:
+        proc = _spawn(["execute", "--plan", str(long_plan), "--port", em.port, "--skip-homing",
+                       "signal test"], tmp_path / "logs")
+        _wait_for_rows(tmp_path / "logs", 25, proc)
+        proc.kill()  # the client: no goodbye, its end of the socket closes
+        proc.communicate(timeout=20)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and list_runs(tmp_path / "logs")[0].meta["outcome"] == "running":
+            time.sleep(0.05)
+        run = load_run(list_runs(tmp_path / "logs")[0].path)
+        assert run.meta["outcome"] == "stopped" and "client lost" in run.meta["message"]
+        stop = next(e for e in run.events if e["event"] == "stop")
+        assert stop["action"] == "hold" and stop["done_t"] - stop["detected_t"] <= 2 * agile.servo.ts_s
+        a = em.joint_deg()
+        time.sleep(0.1)
+        assert np.abs(em.joint_deg() - a).max() < 0.01  # holding
+    finally:
+        em.stop()

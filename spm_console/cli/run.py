@@ -1,5 +1,9 @@
 """``home`` and ``execute``: move the wrist (real bus or ``--sim``), log the run.
 
+Both go through the operator runtime (:mod:`spm_console.run.oneshot`): the servo loop in
+the motion process, the emulated bus in its own. ``execute`` homes first unless
+``--skip-homing REASON`` overrides it (the reason is logged).
+
 Exit codes: 0 done; a stop ends with its own code (20 E-stop, 21 tracking error,
 22 communication lost, 23 servo hardware error, 24 left the region, 25 servo
 limit); refusals before motion use the usual codes (4 bad input, 5 unreachable
@@ -23,10 +27,11 @@ from spm_console.cli.common import (
     theta_in_servo_limits,
 )
 from spm_console.devices.faults import parse_fault
+from spm_console.errors import BadInputError
 from spm_console.plan_file import load_plan
 from spm_console.profile import Profile
-from spm_console.run.executor import ExecutionResult
-from spm_console.run.session import RunRequest, execute_plan, run_homing
+from spm_console.run.oneshot import RunRequest, execute_once, home_once
+from spm_console.run.segments import ExecutionResult
 
 
 def _bus_opts(p: argparse.ArgumentParser) -> None:
@@ -41,7 +46,8 @@ def _bus_opts(p: argparse.ArgumentParser) -> None:
                         "corrupt:0.02, delay:0.03@1.0, hwerror:1@0.5 (repeatable; seconds "
                         "after the run starts)")
     p.add_argument("--sim-start", nargs=3, type=float, metavar=("T1", "T2", "T3"),
-                   help="with --sim: power-on joint angles of the emulated servos, deg")
+                   help="with --sim: power-on joint angles of the emulated servos, deg "
+                        "(default: the profile's home)")
     p.add_argument("--logs", metavar="DIR",
                    help="log root (default: $SPM_CONSOLE_LOGS or logs/)")
 
@@ -56,7 +62,25 @@ def register(sub: Any) -> None:
     e.add_argument("--plan", required=True, type=Path, metavar="FILE", help="plan file (JSON)")
     e.add_argument("--no-approach", action="store_true",
                    help="refuse instead of moving to the plan's start first")
+    e.add_argument("--skip-homing", metavar="REASON", default="",
+                   help="execute without homing first (the wrist's pose is trusted as read); "
+                        "REASON is written to the run log")
     e.set_defaults(func=cmd_execute)
+
+
+#: Longest ``--skip-homing`` reason, characters.
+MAX_REASON = 200
+
+
+def _skip_reason(text: str) -> str:
+    """The operator's reason, one printable line of at most MAX_REASON characters."""
+    reason = " ".join(text.split())
+    if text and not reason:
+        raise BadInputError("--skip-homing: give a reason (it is written to the run log)")
+    if len(reason) > MAX_REASON or not reason.isprintable():
+        raise BadInputError(f"--skip-homing: one printable line of at most {MAX_REASON} "
+                            "characters, please")
+    return reason
 
 
 def _request(args: argparse.Namespace, profile: Profile) -> RunRequest:
@@ -64,8 +88,10 @@ def _request(args: argparse.Namespace, profile: Profile) -> RunRequest:
     start = None if args.sim_start is None else \
         theta_in_servo_limits(args.sim_start, "--sim-start", profile)
     output_folder(args.logs, "--logs")
+    skip = _skip_reason(getattr(args, "skip_homing", ""))
     return RunRequest(port=args.port, sim=args.sim, faults=faults, sim_start_deg=start,
-                      approach=not getattr(args, "no_approach", False), log_root=args.logs)
+                      approach=not getattr(args, "no_approach", False), skip_homing=skip,
+                      log_root=args.logs)
 
 
 def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any]) -> int:
@@ -98,13 +124,20 @@ def cmd_execute(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     req = _request(args, profile)
     plan = load_plan(args.plan, profile)
-    res = execute_plan(profile, plan, req, source=str(args.plan))
-    return _report(args, res, {"plan": str(args.plan), "kind": plan.kind, "N": plan.N})
+    out = execute_once(profile, plan, req, source=str(args.plan))
+    homing = out.homing
+    extra = {"plan": str(args.plan), "kind": plan.kind, "N": plan.N,
+             "homing": ({"skipped": req.skip_homing} if homing is None else
+                        {"outcome": homing.execution.outcome,
+                         "log_dir": str(homing.execution.log_dir or "") or None})}
+    if homing is not None and not homing.execution.ok:
+        extra["stopped_during"] = "homing"
+    return _report(args, out.execution, extra)
 
 
 def cmd_home(args: argparse.Namespace) -> int:
     profile = profile_of(args)
-    r = run_homing(profile, _request(args, profile))
+    r = home_once(profile, _request(args, profile))
     pose = r.pose
     extra = {
         "start_deg": r.start_deg,

@@ -100,6 +100,9 @@ class EmulatorHandle:
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self.t0 = now
+        self.clock_started = False
+        """Set by the first torque-on or :meth:`start_clock`: until then only faults at
+        t = 0 act (a fault at t > 0 waits for the motion, wherever it was started from)."""
         self._decoder: p2.Decoder2 | p1.Decoder1 = (
             p2.Decoder2() if self.protocol == "2.0" else p1.Decoder1()
         )
@@ -122,6 +125,7 @@ class EmulatorHandle:
             now = time.perf_counter()
             self._advance(now)
             self.t0 = now
+            self.clock_started = True
 
     def inject(self, fault: FaultSpec) -> None:
         """Add a fault; it fires when the clock reaches ``fault.at_s``."""
@@ -187,7 +191,7 @@ class EmulatorHandle:
         """Fire due one-shot faults at their exact time, then integrate up to ``now``."""
         for k, f in enumerate(self._faults):
             due = self.t0 + f.at_s
-            if k in self._fired or due > now:
+            if k in self._fired or due > now or (f.at_s > 0 and not self.clock_started):
                 continue
             self._fired.add(k)
             self.stats.faults_fired.append(str(f))
@@ -204,7 +208,8 @@ class EmulatorHandle:
         self._sample()
 
     def _active(self, kind: str, now: float) -> list[FaultSpec]:
-        return [f for f in self._faults if f.kind == kind and now >= self.t0 + f.at_s]
+        return [f for f in self._faults if f.kind == kind and now >= self.t0 + f.at_s
+                and (self.clock_started or f.at_s == 0)]
 
     # --- serving thread ---------------------------------------------------------------
 
@@ -232,6 +237,8 @@ class EmulatorHandle:
                     self._advance(now)
                     if data:
                         self._handle(data, now)
+                        if not self.clock_started and any(sv.torque for sv in self.servos):
+                            self.start_clock()  # the first torque-on: the motion starts
                     self._flush(now)
         finally:
             self._stop.set()
@@ -298,7 +305,8 @@ def start_emulator(profile: Profile, faults: Sequence[FaultSpec] = (), record: b
     """Start an emulated bus for ``profile`` in a background thread; open ``handle.port``.
 
     The servos start at the profile's home θ (or ``initial_deg``), torque off, goal
-    equal to their position. Fault times count from the clock start (now, or the
-    next :meth:`EmulatorHandle.start_clock`).
+    equal to their position. Fault times count from the clock start: the first torque-on
+    (the first motion, whichever process drives it) or an earlier
+    :meth:`EmulatorHandle.start_clock`; until then only faults at t = 0 act.
     """
     return EmulatorHandle(profile, faults, record, initial_deg)

@@ -5,7 +5,8 @@
 lost), ``corrupt:0.02`` (2 % of replies with a broken CRC/checksum),
 ``delay:0.03@1.0`` (replies 30 ms late from 1 s on), ``hwerror:1@0.5`` (joint 1's
 servo raises an overload alert and drops torque at 0.5 s). Times are seconds after
-the emulator's clock starts (see ``EmulatorHandle.start_clock``).
+the emulator's clock starts: the first torque-on (the start of the first motion) or
+``EmulatorHandle.start_clock``; a fault without ``@`` acts from power-on.
 """
 
 from __future__ import annotations

@@ -17,8 +17,8 @@ from spm_console.profile import Profile
 from spm_console.report import paper_values as pv
 from spm_console.report.plot_run import plot_run
 from spm_console.report.repro_types import Check, Section
+from spm_console.run.oneshot import RunRequest, execute_once
 from spm_console.run.runlog import load_run
-from spm_console.run.session import RunRequest, execute_plan
 from spm_console.workspace_cache import load_or_build
 
 if TYPE_CHECKING:
@@ -28,7 +28,8 @@ if TYPE_CHECKING:
 
 def _execute(profile: Profile, plan: Plan, out: Path, fig: str, caption: str, sec: Section) -> None:
     """Run ``plan`` on the emulated bus; add tracking checks and the figure."""
-    res = execute_plan(profile, plan, RunRequest(sim=True, log_root=out / "logs", handle_signals=False))
+    res = execute_once(profile, plan, RunRequest(sim=True, log_root=out / "logs",
+                                                 handle_signals=False)).execution
     sec.checks.append(Check("execution on the emulated MX-106 bus", "completed on the prototype",
                             f"{res.outcome}: {res.message}", None, None))
     if res.log_dir is None:

@@ -161,13 +161,29 @@ class MotionClient:
         return self._motion(lambda i: Home(i), on_sample)
 
     def execute(self, plan: Any, on_sample: Callable[[Sample], None] | None = None,
-                approach_tolerance_deg: float | None = None) -> Any:
-        return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg), on_sample)
+                approach_tolerance_deg: float | None = None, skip_homing: str = "",
+                source: str | None = None) -> Any:
+        """Execute ``plan`` (refused unless this motion process homed the wrist, or
+        ``skip_homing`` says why the operator overrides that)."""
+        return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg, skip_homing, source),
+                            on_sample)
 
     def estop(self, reason: str) -> None:
-        """The message; a signal to the process is the second path when the pipe is gone."""
+        """The message; a signal to the process is the second path when the pipe is gone.
+
+        Safe in a signal handler: when the handler interrupted this thread in the middle of
+        a send, the E-stop goes out from a helper thread as soon as that send is done."""
+        msg = EStop(reason, time.perf_counter())
+        if self._lock.acquire(blocking=False):
+            self._lock.release()
+            self._send_estop(msg)
+        else:
+            threading.Thread(target=self._send_estop, args=(msg,), daemon=True,
+                             name="spm-estop").start()
+
+    def _send_estop(self, msg: EStop) -> None:
         try:
-            self._send(EStop(reason, time.perf_counter()))
+            self._send(msg)
             return
         except MotionProcessLostError:
             pass

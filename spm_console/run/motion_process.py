@@ -78,6 +78,8 @@ class _Server:
         self.send_lock = threading.Lock()
         self.executor: Any = None
         self.motion: threading.Thread | None = None
+        self.homed = False
+        """A homing run completed in this process (the rule: homed before any other motion)."""
         self.pending_estop = ""
         self.pending_clock: float | None = None
         self.last_heartbeat = time.monotonic()
@@ -177,11 +179,15 @@ class _Server:
 
         try:
             if isinstance(req, Home):
-                value: object = run_home(self.profile, self.bus, self.workspace, self.ctx,
-                                         on_sample, self._attach)
+                homing = run_home(self.profile, self.bus, self.workspace, self.ctx,
+                                  on_sample, self._attach)
+                self.homed = homing.execution.ok
+                value: object = homing
             else:
                 value = run_execute(self.profile, self.bus, self.workspace, req.plan, self.ctx,
-                                    on_sample, self._attach, req.approach_tolerance_deg)
+                                    on_sample, self._attach, req.approach_tolerance_deg,
+                                    homed=self.homed, skip_homing=req.skip_homing,
+                                    source=req.source)
             flush()
             self.send(Reply(req.id, value))
         except SpmError as exc:

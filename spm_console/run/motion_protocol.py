@@ -42,6 +42,11 @@ class Execute:
     id: int
     plan: Plan
     approach_tolerance_deg: float | None = None
+    skip_homing: str = ""
+    """Empty: refused unless this process homed the wrist. Otherwise the operator's explicit
+    override (why), written to the run log."""
+    source: str | None = None
+    """Where the plan came from (a file), for the run log."""
 
 
 @dataclass(frozen=True)

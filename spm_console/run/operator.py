@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     from spm_console.devices.emulator import EmulatorHandle
     from spm_console.devices.emulator_child import EmulatorChild
     from spm_console.devices.faults import FaultSpec
+    from spm_console.run.homing import HomingResult
     from spm_console.run.motion_client import MotionClient
     from spm_console.run.sample import Sample
     from spm_console.run.segments import ExecutionResult
@@ -119,6 +120,11 @@ class Session:
         self.theta_deg: F | None = None
         """Last measured motor angles, deg (None before connecting)."""
         self.homed = False
+        self.homing: HomingResult | None = None
+        """The last homing run (start pose, FK seed at the end)."""
+        self.before_motion: Callable[[], None] | None = None
+        """Called once a motion is marked as running, before it is sent (a signal that came
+        earlier refuses it here; one that comes later finds the motion and stops it)."""
         self.workspace: Any = None
         self.cache_info: Any = None
         self.plan: Plan | None = None
@@ -202,6 +208,8 @@ class Session:
         self._estop_sent = False
         self.moving.set()
         try:
+            if self.before_motion is not None:
+                self.before_motion()
             result = fn()
         finally:
             self.moving.clear()
@@ -215,35 +223,42 @@ class Session:
         return result
 
     def home(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
-        """Move home at the profile's homing speed (after the assembly-mode check), in the
-        motion process."""
-        from spm_console.run.homing import check_assembly_mode
+        """Move home at the profile's homing speed, in the motion process (which checks the
+        assembly mode first and logs a refusal); ``self.homing`` keeps the whole result."""
         from spm_console.run.plans import line_plan
 
         client = self.require_bus()
         theta0 = self.read_position()
-        check_assembly_mode(self.profile, theta0)  # refuse before a log folder is made
         self.motion_total_s = line_plan(self.profile, theta0, np.asarray(self.profile.home.theta_deg),
                                         self.profile.safety.home_speed_degps).duration_s
-        result = self._run_motion(lambda: client.home(on_sample).execution)
+
+        def run() -> ExecutionResult:
+            self.homing = client.home(on_sample)
+            return self.homing.execution
+
+        result = self._run_motion(run)
         self.homed = result.ok
         return result
 
-    def execute(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
+    def execute(self, on_sample: SampleCallback | None = None,
+                skip_homing: str = "", source: str | None = None) -> ExecutionResult:
         """Execute the current plan (with a straight approach move to its start if needed), in
-        the motion process, which verifies it against this profile's workspace first."""
+        the motion process, which verifies it against this profile's workspace first.
+
+        Refused unless the wrist was homed in this session, or ``skip_homing`` gives the
+        operator's reason to override that (written to the run log)."""
         from spm_console.run.homing import plan_segments
 
         if self.plan is None:
             raise BadInputError("no plan to execute: solve one first (step 4)")
-        if not self.homed:
+        if not self.homed and not skip_homing:
             raise BadInputError("the wrist is not homed: home it first (step 1)")
         client, plan = self.require_bus(), self.plan
         theta0 = self.read_position()
         tol = self.profile.safety.approach_tolerance_deg
         segments = plan_segments(self.profile, theta0, plan, tol)
         self.motion_total_s = sum((s.plan.N + 1) * s.plan.Ts for s in segments)
-        result = self._run_motion(lambda: client.execute(plan, on_sample))
+        result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, source))
         self.plan_info["executed"] = True
         return result
 

@@ -8,15 +8,15 @@ it from then on. Degrees, seconds.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
-
-import numpy as np
 
 from spm_console.core.plan import Plan
 from spm_console.core.workspace import Workspace
 from spm_console.devices.base import ServoBus
+from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
 from spm_console.profile import Profile
 from spm_console.run.executor import Executor
 from spm_console.run.homing import HomingResult, check_assembly_mode, home, plan_segments
@@ -58,29 +58,64 @@ def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,
     return Executor(profile, bus, workspace=ws, log=log, on_sample=on_sample)
 
 
+@contextlib.contextmanager
+def refusals_logged(log: RunLog | None) -> Iterator[None]:
+    """A refusal (any operator error before or instead of motion) closes ``log`` with its
+    reason and exit code: outcome ``interrupted`` for a signal, ``refused`` otherwise."""
+    try:
+        yield
+    except SpmError as exc:
+        if log is not None and not log.finished:
+            outcome = "interrupted" if isinstance(exc, InterruptedBySignalError) else "refused"
+            log.event(outcome, 0.0, message=exc.message, exit_code=int(exc.exit_code))
+            log.finish(outcome, int(exc.exit_code), exc.message, {})
+        raise
+    finally:
+        if log is not None and not log.finished:  # an internal error escaped: keep what we have
+            log.finish("error", 1, "internal error (see the motion process's stderr)", {})
+
+
+def refused_run(profile: Profile, kind: str, ctx: RunContext, exc: SpmError) -> None:
+    """The run folder of a run refused before the runtime could start it (no bus, a signal
+    while connecting): the same schema, outcome ``refused`` or ``interrupted``."""
+    log = RunLog.create(kind, profile.name, profile.digest(), [], root=ctx.logs_root,
+                        extra=ctx.meta())
+    with contextlib.suppress(SpmError), refusals_logged(log):
+        raise exc
+
+
 def run_home(profile: Profile, bus: ServoBus, ws: Workspace, ctx: RunContext,
              on_sample: SampleCallback | None, attach: Attach) -> HomingResult:
-    """Home the wrist (assembly-mode check first: a refusal makes no log folder)."""
-    from spm_console.devices.base import read_position_settled
-
-    check_assembly_mode(profile, read_position_settled(bus, 3))
+    """Home the wrist: the assembly-mode check, then the move (a refusal is logged too)."""
     ex = _executor(profile, bus, ws, "home", [{"kind": "homing"}], ctx, on_sample)
-    attach(ex)
-    return home(ex)
+    with refusals_logged(ex.log):
+        check_assembly_mode(profile, ex.read_initial())
+        attach(ex)
+        return home(ex)
 
 
 def run_execute(profile: Profile, bus: ServoBus, ws: Workspace, plan: Plan, ctx: RunContext,
                 on_sample: SampleCallback | None, attach: Attach,
-                approach_tolerance_deg: float | None = None) -> ExecutionResult:
+                approach_tolerance_deg: float | None = None, *, homed: bool,
+                skip_homing: str = "", source: str | None = None) -> ExecutionResult:
     """Execute ``plan``, with a straight approach move to its start when the wrist is farther
-    than the tolerance (default: the profile's ``safety.approach_tolerance_deg``)."""
-    from spm_console.devices.base import read_position_settled
+    than the tolerance (default: the profile's ``safety.approach_tolerance_deg``).
 
-    theta0 = np.asarray(read_position_settled(bus, 3), float)
-    ex = _executor(profile, bus, ws, "execute", [plan_summary(plan)], ctx, on_sample)
-    tol = profile.safety.approach_tolerance_deg if approach_tolerance_deg is None else approach_tolerance_deg
-    segments = plan_segments(profile, theta0, plan, tol)
-    if ex.log is not None:
-        ex.log.meta["plans"] = [plan_summary(s.plan) | {"phase": s.phase} for s in segments]
-    attach(ex)
-    return ex.run(segments, theta0_deg=theta0)
+    The rule of every front end: the wrist was homed first (``homed``), or the operator
+    overrode it explicitly (``skip_homing``: why; written to the run log)."""
+    ex = _executor(profile, bus, ws, "execute", [plan_summary(plan, source)], ctx, on_sample)
+    log = ex.log
+    with refusals_logged(log):
+        if log is not None:
+            log.meta["homing"] = "done" if homed else f"skipped by the operator: {skip_homing}"
+        if not homed and not skip_homing:
+            raise BadInputError("the wrist is not homed: home it first (or override explicitly)")
+        theta0 = ex.read_initial()
+        tol = (profile.safety.approach_tolerance_deg if approach_tolerance_deg is None
+               else approach_tolerance_deg)
+        segments = plan_segments(profile, theta0, plan, tol)
+        if log is not None:
+            log.meta["plans"] = [plan_summary(s.plan, source if s.phase == "plan" else None)
+                                 | {"phase": s.phase} for s in segments]
+        attach(ex)
+        return ex.run(segments, theta0_deg=theta0)
