@@ -71,7 +71,7 @@ class Executor:
         on_start: Callable[[], None] | None = None,
         read_retries: int = 1,
         hw_poll_every: int = 25,
-        start_tolerance_deg: float = 1.0,
+        start_tolerance_deg: float | None = None,
         spin_s: float = 0.0015,
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
@@ -85,7 +85,10 @@ class Executor:
         self.on_start = on_start
         self.read_retries = read_retries
         self.hw_poll_every = max(1, hw_poll_every)
-        self.start_tolerance_deg = start_tolerance_deg
+        self.start_tolerance_deg = (profile.safety.approach_tolerance_deg
+                                    if start_tolerance_deg is None else start_tolerance_deg)
+        """How far the wrist may be from the first segment's start (default: the profile's
+        approach tolerance, the rule every front end uses to add an approach move), deg."""
         self.spin_s = spin_s
         self.clock = clock
         self.sleep = sleep

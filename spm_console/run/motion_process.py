@@ -78,6 +78,9 @@ class _Server:
         self.send_lock = threading.Lock()
         self.executor: Any = None
         self.motion: threading.Thread | None = None
+        self.busy = threading.Event()
+        """A motion runs: set when it is accepted, cleared before its result is sent (so the
+        client's next request never finds the motion still winding down)."""
         self.homed = False
         """A homing run completed in this process (the rule: homed before any other motion)."""
         self.pending_estop = ""
@@ -95,10 +98,11 @@ class _Server:
         elif isinstance(req, EStop):
             self.estop(req.reason, req.sent_clock)
         elif isinstance(req, (Home, Execute)):
-            if self.motion is not None and self.motion.is_alive():
+            if self.moving():
                 self.send(Failed(req.id, "a motion is already running", int(ExitCode.BAD_INPUT)))
                 return
             self.last_heartbeat = time.monotonic()
+            self.busy.set()
             self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
                                            name="spm-motion")
             self.motion.start()
@@ -177,30 +181,31 @@ class _Server:
                 last[0] = now
                 flush()
 
+        result: Reply | Failed
         try:
             if isinstance(req, Home):
                 homing = run_home(self.profile, self.bus, self.workspace, self.ctx,
                                   on_sample, self._attach)
                 self.homed = homing.execution.ok
-                value: object = homing
+                result = Reply(req.id, homing)
             else:
-                value = run_execute(self.profile, self.bus, self.workspace, req.plan, self.ctx,
-                                    on_sample, self._attach, req.approach_tolerance_deg,
-                                    homed=self.homed, skip_homing=req.skip_homing,
-                                    source=req.source)
-            flush()
-            self.send(Reply(req.id, value))
+                result = Reply(req.id, run_execute(
+                    self.profile, self.bus, self.workspace, req.plan, self.ctx, on_sample,
+                    self._attach, req.approach_tolerance_deg, homed=self.homed,
+                    skip_homing=req.skip_homing, source=req.source))
         except SpmError as exc:
-            flush()
-            self.send(Failed(req.id, exc.message, int(exc.exit_code)))
+            result = Failed(req.id, exc.message, int(exc.exit_code))
         except Exception as exc:  # a bug: the executor already left the wrist holding
-            self.send(Failed(req.id, f"internal error in the motion process: {exc!r}", 1))
+            result = Failed(req.id, f"internal error in the motion process: {exc!r}", 1)
         finally:
+            flush()
             self.executor = None
             self.pending_estop, self.pending_clock = "", None
+            self.busy.clear()
+        self.send(result)
 
     def moving(self) -> bool:
-        return self.motion is not None and self.motion.is_alive()
+        return self.busy.is_set()
 
     def deadman(self, stop: threading.Event) -> None:
         """E-stop when the client's heartbeat stops during a motion."""

@@ -106,3 +106,43 @@ async def test_a_stalled_joint_stops_the_run_with_the_reason(console, tmp_path) 
         assert res is not None and res.exit_code == ExitCode.STOP_TRACKING, status_of(app)
         assert "joint 2" in status_of(app)
         assert [r.meta["outcome"] for r in list_runs(tmp_path / "logs")] == ["completed", "stopped"]
+
+
+async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
+        console, tmp_path, capsys) -> None:
+    """The runtime's rules through the console: homed first; the run log's metadata has the
+    keys a CLI ``execute`` writes (tests/test_same_rules.py runs the CLI and scripts)."""
+    from spm_console.run.operator import PoseSpec
+
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        s = app.session
+        await settle(pilot)
+        await asyncio.to_thread(s.load_workspace)
+        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
+                                PoseSpec("theta", (125.0, 130.0, 128.0)), 30)
+        await pilot.press("5", "x")
+        await settle(pilot)
+        if type(app.screen).__name__ == "ConfirmScreen":
+            await pilot.press("y")
+            await settle(pilot)
+        assert "not connected and homed" in status_of(app)
+        assert not s.homed and s.last_run is None
+        await asyncio.to_thread(s.home)
+        await pilot.press("x", "y")
+        await settle(pilot)
+        assert s.last_run is not None and s.last_run.ok, status_of(app)
+        console_meta = load_run(s.last_run.log_dir).meta
+    from spm_console.cli.main import main
+
+    plan_file = tmp_path / "p.json"
+    from spm_console.plan_file import save_plan
+
+    save_plan(s.plan, plan_file)
+    code = main(["execute", "--plan", str(plan_file), "--sim", "--json",
+                 "--logs", str(tmp_path / "cli")])
+    assert code == 0, capsys.readouterr()
+    [cli_run] = [r for r in list_runs(tmp_path / "cli") if r.meta["kind"] == "execute"]
+    cli_meta = load_run(cli_run.path).meta
+    assert set(console_meta) == set(cli_meta)
+    assert console_meta["homing"] == cli_meta["homing"] == "done"
