@@ -81,7 +81,7 @@ def _one(prof: Profile, plan: Plan) -> dict[str, Any]:
     kf = np.array([ex.samples[j].velocity_degps for j in idx])
     fd = np.array([ex.samples[j].fd_velocity_degps for j in idx])
     return {
-        "ok": result.ok, "message": result.message, "stats": st, "reads": int(ok.sum()),
+        "ok": result.ok, "message": result.message, "stats": st.to_dict(), "reads": int(ok.sum()),
         "track_rms": float(np.sqrt(np.mean(diff**2))), "track_max": float(np.abs(diff).max()),
         "kf_rms": float(np.sqrt(np.mean((kf - true_v) ** 2))),
         "fd_rms": float(np.sqrt(np.mean((fd - true_v) ** 2))),

@@ -153,13 +153,15 @@ async def _latency_rows(cache: Path) -> list[Row]:
         session = app.session
         t_end = time.perf_counter() + 3.0
 
-        def solves() -> int:
+        def solves() -> Any:
+            from spm_console.tui.messages import BenchmarkDone
+
             n = 0
             while time.perf_counter() < t_end:
                 session.solve_plan("mvn", PoseSpec("home"), PoseSpec("theta", (95, 110, 105)),
                                    1500, 50.0)
                 n += 1
-            return n
+            return BenchmarkDone(n)
 
         screen.run_blocking("bench-solve", solves, "solving (benchmark) …")
         solving = await _latencies(app, pilot, "p", "action_next_plot",
@@ -183,7 +185,7 @@ async def _latency_rows(cache: Path) -> list[Row]:
         executing = await _latencies(app, pilot, "p", "action_next_plot", lambda: app.moving)
         await settle()
         run = session.last_run
-        late = run.stats.get("late_ms", {}).get("max", float("nan")) if run else float("nan")
+        late = run.stats.late_ms.max if run and run.stats.late_ms else float("nan")
 
         # the same plan executed from the console again and again (approach move, then the
         # plan), the loop in its own process, the 3D view open in headless Chromium (the
@@ -308,7 +310,7 @@ def _loaded_rows(runs: list[Any], n_busy: int) -> list[Row]:
     if not runs:
         return [Row("tui: executions under load", float("nan"), "", "runs to the end",
                     passed=False, note="no execution finished")]
-    p99 = [r.stats["jitter_ms"]["p99"] for r in runs if r.stats.get("jitter_ms")]
+    p99 = [r.stats.jitter_ms.p99 for r in runs if r.stats.jitter_ms]
     rt = [_realtime(r) for r in runs]
     granted = all(p == "SCHED_FIFO" for p in rt)
     med = statistics.median(p99) if p99 else float("nan")
@@ -327,8 +329,8 @@ def _loop_rows(runs: list[Any], browser: _Browser | None) -> list[Row]:
     if not runs:
         return [Row("tui: executions driven from the console", float("nan"), "", "runs to the end",
                     passed=False, note="no execution finished")]
-    p99 = [r.stats["jitter_ms"]["p99"] for r in runs]
-    mx = [r.stats["jitter_ms"]["max"] for r in runs]
+    p99 = [r.stats.jitter_ms.p99 for r in runs if r.stats.jitter_ms]
+    mx = [r.stats.jitter_ms.max for r in runs if r.stats.jitter_ms]
     comm = sum(1 for r in runs if int(r.exit_code) == 22)
     stopped = [int(r.exit_code) for r in runs if not r.ok]
     if browser is None:

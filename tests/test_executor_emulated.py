@@ -29,7 +29,7 @@ def test_paper_mvn_tracks_model_and_kalman_beats_finite_differences(
     meas = np.array([s.measured_deg for s in run.samples])
     ok = np.isfinite(meas).all(axis=1)  # a read that timed out twice (a loaded host) is NaN
     assert len(meas) == plan.N + 1 and ok.mean() >= 0.95
-    assert int((~ok).sum()) == run.result.stats["failed_reads"]
+    assert int((~ok).sum()) == run.result.stats.failed_reads
     rms = float(np.sqrt(np.mean((meas - plan.position_deg)[ok] ** 2)))
     assert rms <= 0.5, rms
     assert np.allclose(meas[-1], plan.reference_deg[-1], atol=0.1)

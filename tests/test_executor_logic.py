@@ -71,9 +71,9 @@ def test_completes_with_drift_free_deadlines(agile: Profile, tmp_path: Path) -> 
     assert np.allclose(late[:11], 0.0, atol=1e-9)
     assert (late[11:13] > 0.005).all()
     assert np.allclose(late[13:], 0.0, atol=1e-9)
-    assert res.stats["late_ms"]["max"] > 30.0 and res.stats["overruns"] == 1
+    assert res.stats.late_ms.max > 30.0 and res.stats.overruns == 1
     assert res.final_deg is not None and np.allclose(res.final_deg, GOAL, atol=0.2)
-    assert res.stats["tracking_rms_deg"] < 0.3
+    assert res.stats.tracking_rms_deg < 0.3
     run = load_run(res.log_dir)  # type: ignore[arg-type]
     assert run.rows == plan.N + 1 and run.meta["outcome"] == "completed"
     assert bus.writes[0][1].tolist() == pytest.approx(START.tolist(), abs=0.1)  # reseeded goal
@@ -126,8 +126,8 @@ def test_single_failures_are_retried_then_n_in_a_row_stop(agile: Profile, tmp_pa
     _ex, res = _run(agile, bus, plan, tmp_path)
     assert res.exit_code == ExitCode.STOP_COMM
     assert "3 consecutive" in res.message
-    assert res.stats["comm_retries"] == 4 + 2 * 3
-    assert res.stats["comm_failed_cycles"] == 4  # the cycle with reads 9+10, then 3 at the end
+    assert res.stats.comm_retries == 4 + 2 * 3
+    assert res.stats.comm_failed_cycles == 4  # the cycle with reads 9+10, then 3 at the end
     stop = _stop_event(res.log_dir)  # type: ignore[arg-type]
     ts = agile.servo.ts_s
     assert stop["detected_t"] == pytest.approx(0.6 + 2 * ts, abs=ts / 2)
@@ -212,7 +212,7 @@ def test_homing_line_is_speed_bounded_and_reaches_home(agile: Profile, tmp_path:
     assert r.execution.ok, r.execution.message
     assert np.allclose(r.execution.final_deg, agile.home.theta_deg, atol=0.1)  # type: ignore[arg-type]
     assert r.pose is not None and np.allclose(r.pose.n, [0, 0, 1], atol=2e-3)
-    assert r.execution.stats["samples"] == plan.N + 1
+    assert r.execution.stats.samples == plan.N + 1
 
 
 def test_homing_refuses_outside_the_known_assembly_mode(agile: Profile) -> None:
@@ -227,4 +227,4 @@ def test_an_estop_before_the_motion_switches_nothing_on(agile: Profile, tmp_path
     ex.request_estop("signal SIGTERM")
     res = ex.run([Segment("plan", synthetic_plan(agile, START, GOAL, 1.0))])
     assert res.exit_code == ExitCode.STOP_ESTOP and "before any motion" in res.message
-    assert bus.torque_calls == [] and bus.writes == [] and res.stats["samples"] == 0
+    assert bus.torque_calls == [] and bus.writes == [] and res.stats.samples == 0

@@ -88,7 +88,7 @@ def _check_stop(run: EmuRun, code: ExitCode, fragment: str, ts: float) -> dict: 
     log = load_run(res.log_dir)  # type: ignore[arg-type]
     assert log.meta["outcome"] == "stopped" and log.meta["exit_code"] == int(code)
     assert log.meta["message"] == res.message and log.meta["end_time"]
-    assert log.rows == len(run.samples) == res.stats["samples"] and not log.truncated
+    assert log.rows == len(run.samples) == res.stats.samples and not log.truncated
     names = [e["event"] for e in log.events]
     assert names.count("stop") == 1 and "fault" in names
     i = names.index("stop")
@@ -157,13 +157,13 @@ def test_low_rate_losses_are_retried_without_stopping(
     res = run.result
     assert res.ok, res.message
     st = res.stats
-    assert st["comm_retries"] > 0  # losses happened and were retried
+    assert st.comm_retries > 0  # losses happened and were retried
     log = load_run(res.log_dir)  # type: ignore[arg-type]
     retries = [e for e in log.events if e["event"] == "comm_retry" and e["op"] == "read"]
-    assert len(retries) == st["read_retries"] > 0  # every retry counted and logged
-    assert st["failed_reads"] == sum(1 for e in log.events if e["event"] == "comm_fail")
+    assert len(retries) == st.read_retries > 0  # every retry counted and logged
+    assert st.failed_reads == sum(1 for e in log.events if e["event"] == "comm_fail")
     # against the model at each actual read instant (a retried read lands ~4 ms late)
-    assert st["timed_tracking_max_deg"] < 0.2
+    assert st.timed_tracking_max_deg < 0.2
     emu_stats = run.emulator.stats
     assert (emu_stats.dropped if fault.startswith("drop") else emu_stats.corrupted) > 0
 

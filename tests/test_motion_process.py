@@ -66,7 +66,7 @@ def test_drive_the_loop_process_and_estop_by_message(agile: Profile, tmp_path: P
         got: list[int] = []
         res = client.execute(plan, lambda s: got.append(s.k), skip_homing="test")
         assert res.ok, res.message
-        assert got == list(range(res.stats["samples"]))  # every sample reached the client
+        assert got == list(range(res.stats.samples))  # every sample reached the client
         # a long motion, stopped by a message
         timer = threading.Timer(0.8, lambda: client.estop("test E-stop"))
         timer.start()

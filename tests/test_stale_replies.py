@@ -199,7 +199,7 @@ def test_execute_with_late_replies_stops_within_three_cycles(
     if delay < agile.bus.timeout_s:
         assert res.ok, res.message
         # (a stale reply can only follow a read lost to machine load)
-        assert st["stale_replies"] == 0 or st["read_retries"] > 0
+        assert st.stale_replies == 0 or st.read_retries > 0
         return
     assert res.exit_code == ExitCode.STOP_COMM, res.message
     assert "communication lost" in res.message
@@ -216,7 +216,7 @@ def test_execute_with_late_replies_stops_within_three_cycles(
         assert len(good_late) <= 3
         assert res.stop.k <= max(good_late, default=FIRST_LATE_K - 1) + n
     if delay <= 2 * TS:  # the late replies land within the run (in a read, or found
-        assert st["stale_replies"] >= 1  # waiting by the next goal write), all counted
+        assert st.stale_replies >= 1  # waiting by the next goal write), all counted
 
 
 def test_protocol1_execute_with_late_replies_stops(agile: Profile, tmp_path: Path) -> None:

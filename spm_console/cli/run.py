@@ -99,18 +99,17 @@ def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any
     data: dict[str, Any] = {
         "outcome": res.outcome, "exit_code": int(res.exit_code), "message": res.message,
         "log_dir": str(res.log_dir) if res.log_dir else None, "final_deg": res.final_deg,
-        "stop": st.get("stop"), "stats": st, **extra,
+        "stop": st.to_dict().get("stop"), "stats": st.to_dict(), **extra,
     }
     lines = [f"{res.outcome}: {res.message}"]
     if res.final_deg is not None:
         lines.append(f"final θ = {fmt_vec(res.final_deg, 2)} deg")
-    if st.get("samples"):
-        j, b = st["jitter_ms"], st["bus_ms"]
+    if st.samples and st.jitter_ms is not None and st.bus_ms is not None:
         lines.append(
-            f"{st['samples']} cycles; measured vs model RMS {st['tracking_rms_deg']:.3f}°, max "
-            f"{st['tracking_max_deg']:.3f}°; jitter p99 {j['p99']:.2f} ms; bus {b['mean']:.2f} ms"
-            f"/cycle; retries {st.get('comm_retries', 0)}, failed cycles "
-            f"{st.get('comm_failed_cycles', 0)}")
+            f"{st.samples} cycles; measured vs model RMS {st.tracking_rms_deg:.3f}°, max "
+            f"{st.tracking_max_deg:.3f}°; jitter p99 {st.jitter_ms.p99:.2f} ms; bus "
+            f"{st.bus_ms.mean:.2f} ms/cycle; retries {st.comm_retries}, failed cycles "
+            f"{st.comm_failed_cycles}")
     if res.log_dir:
         lines.append(f"log: {res.log_dir}")
     with output_may_be_gone():  # after SIGHUP the terminal is gone: the exit code still tells

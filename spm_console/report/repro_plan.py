@@ -41,11 +41,11 @@ def _execute(profile: Profile, plan: Plan, out: Path, fig: str, caption: str, se
     rms = float(np.sqrt(np.mean((meas[ok] - pred[ok]) ** 2)))
     sec.checks.append(Check("measured vs simulated positions (RMS)", "indistinguishable (Figs. 7, 9)",
                             f"{rms:.3f}°", rms, 0.5))
-    st = res.stats
-    jit = st.get("jitter_ms", {})
+    jit = res.stats.jitter_ms
+    nan = float("nan")
+    p50, p99, mx = (nan, nan, nan) if jit is None else (jit.p50, jit.p99, jit.max)
     sec.checks.append(Check("loop period jitter p50 / p99 / max", "not printed",
-                            f"{jit.get('p50', float('nan')):.2f} / {jit.get('p99', float('nan')):.2f} / "
-                            f"{jit.get('max', float('nan')):.2f} ms", None, None))
+                            f"{p50:.2f} / {p99:.2f} / {mx:.2f} ms", None, None))
     plot_run(run, out / fig, title=caption)
     sec.figures.append((fig, caption))
 

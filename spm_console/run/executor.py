@@ -28,6 +28,7 @@ import contextlib
 import threading
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -45,7 +46,7 @@ from spm_console.run.runlog import RunLog
 from spm_console.run.safety import SafetyMonitor, StopReason
 from spm_console.run.sample import Sample
 from spm_console.run.segments import ExecutionResult, Segment
-from spm_console.run.stats import run_stats, stale_replies
+from spm_console.run.stats import StopTiming, run_stats, stale_replies
 
 F = NDArray[np.float64]
 BusFailure = (CommError, OSError, BusError)
@@ -418,18 +419,20 @@ class Executor:
 
     def _finish(self, outcome: str, code: ExitCode, message: str,
                 stop: StopReason | None) -> ExecutionResult:
-        stats = run_stats(self.samples, self.ts)
-        stats["stale_replies"] = stale_replies(self.bus) - getattr(self, "_stale0", 0)
-        if hasattr(self, "safety"):
-            stats.update(comm_retries=self.safety.comm_retries,
-                         comm_failed_cycles=self.safety.comm_failed_cycles)
+        stop_timing = None
         if stop is not None:
-            stats["stop"] = {"kind": stop.kind, "detected_t": stop.t, "k": stop.k}
             timing = getattr(self, "stop_timing", None)
-            if timing is not None:
-                stats["stop"].update(issued_t=timing[1], done_t=timing[2])
+            stop_timing = StopTiming(stop.kind, stop.t, stop.k,
+                                     None if timing is None else timing[1],
+                                     None if timing is None else timing[2])
+        stats = replace(
+            run_stats(self.samples, self.ts),
+            stale_replies=stale_replies(self.bus) - getattr(self, "_stale0", 0),
+            comm_retries=self.safety.comm_retries if hasattr(self, "safety") else 0,
+            comm_failed_cycles=self.safety.comm_failed_cycles if hasattr(self, "safety") else 0,
+            stop=stop_timing)
         if self.log is not None:
-            self.log.finish(outcome, int(code), message, stats)
+            self.log.finish(outcome, int(code), message, stats.to_dict())
         final = next((s.measured_deg for s in reversed(self.samples) if s.read_ok), None)
         return ExecutionResult(
             outcome="completed" if outcome == "completed" else "stopped",

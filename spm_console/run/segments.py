@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from spm_console.core.plan import Plan
 from spm_console.errors import ExitCode
 from spm_console.run.safety import StopReason
+from spm_console.run.stats import RunStats
 
 F = NDArray[np.float64]
 
@@ -34,8 +35,8 @@ class ExecutionResult:
     stop: StopReason | None = None
     final_deg: F | None = None
     """Last measured position, deg."""
-    stats: dict[str, Any] = field(default_factory=dict)
-    """Sample count, jitter, bus time, retries, tracking RMS …"""
+    stats: RunStats = field(default_factory=RunStats)
+    """Sample count, jitter, bus time, retries, tracking RMS, stop timing."""
 
     @property
     def ok(self) -> bool:

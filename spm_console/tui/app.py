@@ -7,7 +7,6 @@ so they exercise what operators run (STYLE §3).
 from __future__ import annotations
 
 import asyncio
-import gc
 import signal
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -159,13 +158,7 @@ class SpmConsoleApp(App[int]):
         return True
 
     def watch_moving(self, moving: bool) -> None:
-        # A full garbage collection of the console's objects holds the GIL for ~0.1 s,
-        # longer than the servo loop may wait (Ts = 20 ms): collect now, none while moving.
-        if moving:
-            gc.collect()
-            gc.disable()
-        else:
-            gc.enable()
+        # Nothing here touches timing: the servo loop runs in the motion process.
         self.refresh_bindings()
         self.refresh_screen()
 

@@ -2,18 +2,88 @@
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
 
 from textual.message import Message
 
+if TYPE_CHECKING:
+    from spm_console.core.plan import Plan
+    from spm_console.core.workspace_check import ThetaCheck
+    from spm_console.run.operator import BusState
+    from spm_console.run.runlog import RunData
+    from spm_console.run.segments import ExecutionResult
+
+
+# --- what a blocking operation produced: one dataclass per outcome --------------------------
+@dataclass(frozen=True)
+class Connected:
+    state: BusState
+
+
+@dataclass(frozen=True)
+class PositionRead:
+    theta_deg: Any
+    """Measured motor angles, deg."""
+
+
+@dataclass(frozen=True)
+class MotionDone:
+    kind: Literal["home", "execute"]
+    result: ExecutionResult
+
+
+@dataclass(frozen=True)
+class FkSolved:
+    record: dict[str, Any]
+    """The ``fk --json`` record (``run.kin_record.fk_record``)."""
+    from_ik: bool = False
+
+
+@dataclass(frozen=True)
+class WorkspaceLoaded:
+    pass
+
+
+@dataclass(frozen=True)
+class ThetaChecked:
+    check: ThetaCheck
+
+
+@dataclass(frozen=True)
+class PlanSolved:
+    plan: Plan
+
+
+@dataclass(frozen=True)
+class PlanSaved:
+    path: Path
+
+
+@dataclass(frozen=True)
+class RunOpened:
+    run: RunData
+
+
+@dataclass(frozen=True)
+class BenchmarkDone:
+    """Benchmarks' own blocking work (no screen shows it)."""
+
+    value: Any = None
+
+
+Outcome = (Connected | PositionRead | MotionDone | FkSolved | WorkspaceLoaded | ThetaChecked
+           | PlanSolved | PlanSaved | RunOpened | BenchmarkDone)
+
 
 class Done(Message):
-    """A blocking operation finished; ``result`` is what it returned."""
+    """A blocking operation finished with ``outcome``."""
 
-    def __init__(self, op: str, result: Any = None) -> None:
+    def __init__(self, op: str, outcome: Outcome) -> None:
         super().__init__()
         self.op = op
-        self.result = result
+        self.outcome = outcome
 
 
 class Failed(Message):

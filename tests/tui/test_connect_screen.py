@@ -75,7 +75,7 @@ async def test_space_stops_homing_and_says_so(console, tmp_path) -> None:
         assert "homing stopped" in status_of(app)
         assert list_runs(tmp_path / "logs")[0].meta["outcome"] == "stopped"
         # stopped before the end of the move, and it holds there, short of home
-        assert run.stats["stop"]["detected_t"] < app.session.motion_total_s - 0.3
+        assert run.stats.stop.detected_t < app.session.motion_total_s - 0.3
         assert np.abs(app.session.read_position() - 135.0).max() > 2.0
 
 

@@ -92,7 +92,7 @@ async def test_space_is_an_estop_during_execution(console) -> None:
         assert stop["detected_t"] - stop["requested_t"] <= ts
         assert stop["done_t"] - stop["detected_t"] <= 2 * ts
         # stopped before the end, and it holds short of the goal
-        assert res.stats["stop"]["detected_t"] < app.session.motion_total_s - 0.3
+        assert res.stats.stop.detected_t < app.session.motion_total_s - 0.3
         assert np.abs(app.session.read_position() - [95, 110, 105]).max() > 2.0
 
 

@@ -4,7 +4,7 @@ running blocking work in a thread worker that reports back by messages."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, ClassVar, cast
+from typing import TYPE_CHECKING, ClassVar, cast
 
 from textual import work
 from textual.app import ComposeResult
@@ -13,7 +13,7 @@ from textual.widgets import Footer
 from textual.worker import get_current_worker
 
 from spm_console.errors import SpmError
-from spm_console.tui.messages import Done, Failed
+from spm_console.tui.messages import Done, Failed, Outcome
 from spm_console.tui.widgets.estop import EstopBanner
 from spm_console.tui.widgets.status import StatusLine
 from spm_console.tui.widgets.steps import StepBar
@@ -72,8 +72,8 @@ class StepScreen(Screen[None]):
                                               self.console.viewer_url)
 
     # ------------------------------------------------------------------ workers
-    def run_blocking(self, op: str, fn: Callable[[], Any], busy_text: str) -> bool:
-        """Run ``fn`` in a thread worker; the result comes back as Done / Failed.
+    def run_blocking(self, op: str, fn: Callable[[], Outcome], busy_text: str) -> bool:
+        """Run ``fn`` in a thread worker; its typed outcome comes back as Done, or Failed.
 
         Refused (returns False) while this screen is busy with another operation.
         """
@@ -86,7 +86,7 @@ class StepScreen(Screen[None]):
         return True
 
     @work(thread=True, exclusive=True, exit_on_error=False)
-    def _worker(self, op: str, fn: Callable[[], Any]) -> None:
+    def _worker(self, op: str, fn: Callable[[], Outcome]) -> None:
         try:
             result = fn()
         except BaseException as exc:  # every failure becomes a message, never a traceback
@@ -99,7 +99,7 @@ class StepScreen(Screen[None]):
     def on_done(self, message: Done) -> None:
         message.stop()
         self.busy_op = ""
-        self.handle_done(message.op, message.result)
+        self.handle_done(message.outcome)
         self.refresh_view()
 
     def on_failed(self, message: Failed) -> None:
@@ -110,8 +110,8 @@ class StepScreen(Screen[None]):
         self.handle_failed(message.op, message.message)
         self.refresh_view()
 
-    def handle_done(self, op: str, result: Any) -> None:
-        """Override: show the result of ``op``."""
+    def handle_done(self, outcome: Outcome) -> None:
+        """Override: show what an operation produced (one dataclass per kind of outcome)."""
 
     def handle_failed(self, op: str, message: str) -> None:
         """Override: tidy up after ``op`` failed (the status line already says why)."""

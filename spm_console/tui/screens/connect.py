@@ -11,7 +11,7 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import DataTable, Static
 
-from spm_console.tui.messages import Telemetry
+from spm_console.tui.messages import Connected, MotionDone, Outcome, PositionRead, Telemetry
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.confirm import ConfirmScreen
 
@@ -46,14 +46,15 @@ class ConnectScreen(StepScreen):
     def action_connect(self) -> None:
         if self.console.moving:
             return
-        self.run_blocking("connect", self.session.connect,
+        self.run_blocking("connect", lambda: Connected(self.session.connect()),
                           f"connecting to the {self.session.bus_label} …")
 
     def action_read(self) -> None:
         if self.session.bus is None:
             self.status.error("not connected: press c to connect")
             return
-        self.run_blocking("read", self.session.read_position, "reading the motor angles …")
+        self.run_blocking("read", lambda: PositionRead(self.session.read_position()),
+                          "reading the motor angles …")
 
     def action_home(self) -> None:
         s = self.session
@@ -75,18 +76,20 @@ class ConnectScreen(StepScreen):
             self.status.ok("homing cancelled: nothing moved")
             return
         on_sample = self.console.telemetry_sink(self)
-        self.console.moving = True  # first: collects garbage before the loop starts
-        if not self.run_blocking("home", lambda: self.session.home(on_sample), "homing …"):
+        self.console.moving = True
+        if not self.run_blocking("home", lambda: MotionDone("home", self.session.home(on_sample)),
+                                 "homing …"):
             self.console.moving = False
 
     # ------------------------------------------------------------------ results
-    def handle_done(self, op: str, result: Any) -> None:
-        if op == "connect":
-            n = len(result.statuses)
+    def handle_done(self, outcome: Outcome) -> None:
+        if isinstance(outcome, Connected):
+            n = len(outcome.state.statuses)
             self.status.ok(f"connected: {n} servos answer on the {self.session.bus_label}")
-        elif op == "read":
-            self.status.ok(f"θ = {fmt_deg(result)}")
-        elif op == "home":
+        elif isinstance(outcome, PositionRead):
+            self.status.ok(f"θ = {fmt_deg(outcome.theta_deg)}")
+        elif isinstance(outcome, MotionDone):
+            result = outcome.result
             self.console.moving = False
             self.console.after_motion(result)
             if result.ok:

@@ -12,7 +12,7 @@ from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.widgets import DataTable, ProgressBar, Static
 
-from spm_console.tui.messages import Telemetry
+from spm_console.tui.messages import MotionDone, Outcome, Telemetry
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.connect import fmt_deg
 from spm_console.tui.widgets.confirm import ConfirmScreen
@@ -92,8 +92,9 @@ class ExecuteScreen(StepScreen):
         self._last_plot = 0.0
         self.query_one("#exec-outcome", Static).update("")
         on_sample = self.console.telemetry_sink(self)
-        self.console.moving = True  # first: collects garbage before the loop starts
-        if not self.run_blocking("execute", lambda: self.session.execute(on_sample),
+        self.console.moving = True
+        if not self.run_blocking("execute",
+                                 lambda: MotionDone("execute", self.session.execute(on_sample)),
                              "executing … SPACE stops the wrist"):
             self.console.moving = False
 
@@ -140,9 +141,10 @@ class ExecuteScreen(StepScreen):
             view.plot("velocity dθ/dt [deg/s]: Kalman filter, model (dots)", t, series)
 
     # ------------------------------------------------------------------ outcome
-    def handle_done(self, op: str, result: Any) -> None:
-        if op != "execute":
+    def handle_done(self, outcome: Outcome) -> None:
+        if not isinstance(outcome, MotionDone):
             return
+        result = outcome.result
         self.console.moving = False
         self.console.after_motion(result)
         if self.console.live_samples:
@@ -164,9 +166,8 @@ def outcome_text(result: Any) -> str:
     lines = [f"{head} (exit code {int(result.exit_code)}): {result.message}"]
     if result.final_deg is not None:
         lines.append(f"final θ = {fmt_deg(result.final_deg)}")
-    st = result.stats or {}
-    rms = st.get("tracking_rms_deg")
-    if rms is not None:
-        lines.append(f"tracking error RMS {float(np.max(rms)):.3f}°")
+    rms = result.stats.tracking_rms_deg
+    if result.stats.samples and np.isfinite(rms):
+        lines.append(f"tracking error RMS {rms:.3f}°")
     lines.append(f"log: {result.log_dir}")
     return "\n".join(lines)

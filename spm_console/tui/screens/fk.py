@@ -12,6 +12,7 @@ from textual.content import Content
 from textual.widgets import Input, Static
 
 from spm_console.formatting import fmt_residual
+from spm_console.tui.messages import FkSolved, Outcome
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.connect import fmt_deg
 from spm_console.tui.widgets.angles import AnglesInput
@@ -89,7 +90,7 @@ class FkScreen(StepScreen):
         if theta is None:
             return
         what = "all assembly modes" if all_modes else "FK"
-        self.run_blocking("fk", lambda: self.session.fk(theta, all_modes=all_modes),
+        self.run_blocking("fk", lambda: FkSolved(self.session.fk(theta, all_modes=all_modes)),
                           f"solving {what} of θ = {fmt_deg(theta)} …")
 
     def action_modes(self) -> None:
@@ -102,11 +103,11 @@ class FkScreen(StepScreen):
             self.status.error(getattr(exc, "message", str(exc)))
             return
 
-        def go() -> dict[str, Any]:
+        def go() -> FkSolved:
             theta = self.session.ik(rpy)
             rec = self.session.fk(theta)
             rec["from_rpy"] = rpy
-            return rec
+            return FkSolved(rec, from_ik=True)
 
         self.run_blocking("ik", go, f"solving IK of roll/pitch/yaw = {fmt_deg(rpy)} …")
 
@@ -117,9 +118,11 @@ class FkScreen(StepScreen):
         self.query_one("#theta", AnglesInput).set_values(self.session.theta_deg)
         self.action_fk()
 
-    def handle_done(self, op: str, result: Any) -> None:
-        rec = result
-        if op == "ik":
+    def handle_done(self, outcome: Outcome) -> None:
+        if not isinstance(outcome, FkSolved):
+            return
+        rec = outcome.record
+        if outcome.from_ik:
             self.query_one("#theta", AnglesInput).set_values(rec["theta_deg"], digits=3)
         self.query_one("#fk-result", Static).update(Content(fk_text(rec)))
         self.console.fk_done = True

@@ -11,6 +11,7 @@ from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.widgets import DataTable, Static
 
+from spm_console.tui.messages import Outcome, RunOpened
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.plot import PlotView, Series
 
@@ -90,7 +91,7 @@ class LogsScreen(StepScreen):
         key = table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value
         from spm_console.run.runlog import load_run
 
-        self.run_blocking("open", lambda: load_run(str(key)), "reading the run …")
+        self.run_blocking("open", lambda: RunOpened(load_run(str(key))), "reading the run …")
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
         event.stop()
@@ -104,9 +105,9 @@ class LogsScreen(StepScreen):
         self.joint = (self.joint + 1) % 3
         self.draw()
 
-    def handle_done(self, op: str, result: Any) -> None:
-        if op == "open":
-            self.run = result
+    def handle_done(self, outcome: Outcome) -> None:
+        if isinstance(outcome, RunOpened):
+            result = self.run = outcome.run
             self.query_one("#run-text", Static).update(Content(run_text(result)))
             self.draw()
             self.status.ok(f"run {result.path.name}: p changes the plot, j the joint")

@@ -16,6 +16,7 @@ from textual.widgets import Input, Label, Select, Static
 from spm_console.core.plan import Plan
 from spm_console.errors import BadInputError
 from spm_console.run.operator import PoseSpec
+from spm_console.tui.messages import Outcome, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.connect import fmt_deg
 from spm_console.tui.widgets.angles import AnglesInput
@@ -131,7 +132,8 @@ class PlanScreen(StepScreen):
         name = "MVN" if method == "mvn" else "minimum-time"
         self.run_blocking(
             "solve",
-            lambda: self.session.solve_plan(method, start, goal, steps, vmax),  # type: ignore[arg-type]
+            lambda: PlanSolved(self.session.solve_plan(method, start, goal, steps,  # type: ignore[arg-type]
+                                                       vmax)),
             f"solving the {name} problem ({start.describe()} → {goal.describe()}) …")
 
     def action_next_plot(self) -> None:
@@ -144,7 +146,7 @@ class PlanScreen(StepScreen):
             self.status.error("no plan yet: press s to solve one")
             return
 
-        def save() -> Path:
+        def save() -> PlanSaved:
             import time
 
             from spm_console.plan_file import save_plan
@@ -152,20 +154,20 @@ class PlanScreen(StepScreen):
             path = Path("plans") / f"{time.strftime('%Y%m%d-%H%M%S')}-{plan.kind}.json"
             path.parent.mkdir(exist_ok=True)
             save_plan(plan, path)
-            return path
+            return PlanSaved(path)
 
         self.run_blocking("save", save, "saving the plan …")
 
-    def handle_done(self, op: str, result: Any) -> None:
-        if op == "solve":
+    def handle_done(self, outcome: Outcome) -> None:
+        if isinstance(outcome, PlanSolved):
             self.show_plan()
-            plan = result
+            plan = outcome.plan
             self.console.view.show_path(plan.position_deg)
             where = " (path previewed in the 3D view)" if self.console.viewer_url else ""
             self.status.ok(f"solved in {plan.solve_seconds:.2f} s: {plan.duration_s:.2f} s of "
                            f"motion. Press 5 to execute it{where}")
-        elif op == "save":
-            self.status.ok(f"plan saved to {result}")
+        elif isinstance(outcome, PlanSaved):
+            self.status.ok(f"plan saved to {outcome.path}")
 
     def show_plan(self) -> None:
         plan = self.session.plan

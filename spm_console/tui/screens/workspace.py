@@ -13,7 +13,7 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import Input, ProgressBar, Static
 
-from spm_console.tui.messages import Progress
+from spm_console.tui.messages import Outcome, Progress, ThetaChecked, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.connect import fmt_deg
 from spm_console.tui.widgets.angles import AnglesInput
@@ -130,7 +130,11 @@ class WorkspaceScreen(StepScreen):
         bar = self.query_one("#ws-progress", ProgressBar)
         bar.update(progress=0)
         bar.display = True
-        self.run_blocking("load", lambda: self.session.load_workspace(progress, force=force),
+        def load() -> WorkspaceLoaded:
+            self.session.load_workspace(progress, force=force)
+            return WorkspaceLoaded()
+
+        self.run_blocking("load", load,
                           "rebuilding the workspace …" if force else
                           "loading the workspace (building it if there is no cache) …")
 
@@ -160,15 +164,16 @@ class WorkspaceScreen(StepScreen):
         if self.session.workspace is None:
             self.status.error("no workspace yet: press l to load it")
             return
-        self.run_blocking("check", lambda: self.session.check_theta(theta),
+        self.run_blocking("check", lambda: ThetaChecked(self.session.check_theta(theta)),
                           f"checking θ = {fmt_deg(theta)} …")
 
-    def handle_done(self, op: str, result: Any) -> None:
-        if op == "load":
+    def handle_done(self, outcome: Outcome) -> None:
+        if isinstance(outcome, WorkspaceLoaded):
             self.query_one("#ws-progress").display = False
             self.query_one("#ws-stage", Static).update("")
             self._ready()
-        elif op == "check":
+        elif isinstance(outcome, ThetaChecked):
+            result = outcome.check
             self.query_one("#ws-check", Static).update(Content(check_text(result)))
             self.status.ok("usable" if result.usable else f"not usable: {result.reason}")
             if result.v is not None:
