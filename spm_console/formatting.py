@@ -7,6 +7,10 @@ machine, 7.4e-16 on another) reads the same everywhere: as a bound.
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
+
 #: Residuals below this are shown as a bound; the exact value stays in JSON output.
 RESIDUAL_SHOWN_BELOW = 1e-12
 
@@ -16,3 +20,14 @@ def fmt_residual(value: float) -> str:
     if value < RESIDUAL_SHOWN_BELOW:
         return f"< {RESIDUAL_SHOWN_BELOW:.0e}"
     return f"{value:.1e}"
+
+
+def fmt_vec(v: Any, digits: int = 4, signed: bool = False) -> str:
+    """``[a, b, c]`` at ``digits`` decimals (with a sign on every value when ``signed``)."""
+    sign = "+" if signed else ""
+    return "[" + ", ".join(f"{float(x):{sign}.{digits}f}" for x in np.ravel(v)) + "]"
+
+
+def fmt_deg(v: Any, digits: int = 2) -> str:
+    """Angles in degrees: ``[a, b, c]°``."""
+    return fmt_vec(v, digits) + "°"

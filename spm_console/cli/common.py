@@ -181,10 +181,6 @@ def info(msg: str) -> None:
     sys.stderr.flush()
 
 
-def fmt_vec(v: Any, digits: int = 4) -> str:
-    return "[" + ", ".join(f"{float(x):.{digits}f}" for x in np.ravel(v)) + "]"
-
-
 @contextlib.contextmanager
 def output_may_be_gone() -> Iterator[None]:
     """Around the last output of a command that moved the wrist: a write to a terminal that

@@ -15,14 +15,13 @@ from spm_console.cli.common import (
     add_common,
     emit,
     finite_number,
-    fmt_vec,
     profile_of,
     theta_for_fk,
 )
 from spm_console.core.ik import ik, ik_rpy
 from spm_console.core.modes import assembly_modes
 from spm_console.errors import BadInputError, ExitCode, InfeasibleError, UnreachableError
-from spm_console.formatting import fmt_residual
+from spm_console.formatting import fmt_residual, fmt_vec
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
 from spm_console.run.kin_record import fk_record

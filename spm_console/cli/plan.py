@@ -15,7 +15,6 @@ from spm_console.cli.common import (
     add_common,
     bounded_int,
     emit,
-    fmt_vec,
     info,
     output_file,
     profile_of,
@@ -30,6 +29,7 @@ from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_
 from spm_console.core.region import Region
 from spm_console.core.workspace import Workspace
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError
+from spm_console.formatting import fmt_vec
 from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.plan_file import MAX_PLAN_BYTES, load_plan, plan_hash, plan_to_dict, save_plan
 from spm_console.plan_schema import region_of

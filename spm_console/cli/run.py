@@ -19,7 +19,6 @@ from typing import Any
 from spm_console.cli.common import (
     add_common,
     emit,
-    fmt_vec,
     info,
     output_folder,
     output_may_be_gone,
@@ -28,6 +27,7 @@ from spm_console.cli.common import (
 )
 from spm_console.devices.faults import parse_fault
 from spm_console.errors import BadInputError
+from spm_console.formatting import fmt_vec
 from spm_console.plan_file import load_plan
 from spm_console.profile import Profile
 from spm_console.run.oneshot import RunRequest, execute_once, home_once

@@ -13,7 +13,6 @@ from spm_console.cli.common import (
     add_common,
     bounded_int,
     emit,
-    fmt_vec,
     info,
     output_file,
     profile_of,
@@ -23,6 +22,7 @@ from spm_console.core.region_build import region_containing
 from spm_console.core.workspace import Workspace, check_theta
 from spm_console.core.workspace_verify import verify_region
 from spm_console.errors import BadInputError, ExitCode
+from spm_console.formatting import fmt_vec
 from spm_console.profile import Profile
 from spm_console.workspace_cache import CacheInfo, load_or_build
 

@@ -89,3 +89,17 @@ def read_position_settled(bus: ServoBus, attempts: int) -> F:
                 raise
             bus.drain_input(SETUP_QUIET_S)
     raise AssertionError("unreachable")
+
+
+def read_position_checked(bus: ServoBus, attempts: int) -> F:
+    """:func:`read_position_settled` for operators: every try failed → BusError (exit 10)
+    that says what to check. The one set-up read of the runtime (homing, execution, the
+    console's 'read')."""
+    from spm_console.errors import BusError
+
+    try:
+        return read_position_settled(bus, attempts)
+    except (CommError, OSError) as exc:
+        last = str(exc) or type(exc).__name__
+    raise BusError(f"no position reply from the servos after {attempts} tries ({last}); "
+                   "check power, wiring, baud rate and ids (`spm-console servo ping`)")

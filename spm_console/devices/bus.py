@@ -24,10 +24,8 @@ from numpy.typing import NDArray
 
 from spm_console.devices.base import CommError, ServoStatus
 from spm_console.devices.control_table import (
-    HARDWARE_ERROR_BITS_P2,
-    STATUS_ERROR_BITS_P1,
     ControlTable,
-    describe_bits,
+    describe_hardware_error,
     table_for,
 )
 from spm_console.devices.link import Link, Link1, Link2, Reply
@@ -169,8 +167,7 @@ class DynamixelBus:
         return [self._hardware_error(i) for i in self.ids]
 
     def describe_hardware_error(self, bits: int) -> str:
-        return describe_bits(bits, HARDWARE_ERROR_BITS_P2 if self.protocol == "2.0"
-                             else STATUS_ERROR_BITS_P1)
+        return describe_hardware_error(bits, self.protocol)
 
     # --- registers by name ------------------------------------------------------------
 

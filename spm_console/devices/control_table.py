@@ -214,3 +214,9 @@ def describe_bits(bits: int, names: dict[int, str]) -> str:
     if unknown:
         found.append(f"unknown bits 0x{unknown:02X}")
     return ", ".join(found) or "none"
+
+
+def describe_hardware_error(bits: int, protocol: str) -> str:
+    """The names of a joint's hardware-error bits: Hardware Error Status (2.0) or the status
+    byte's error bits (1.0). The one owner of these names."""
+    return describe_bits(bits, HARDWARE_ERROR_BITS_P2 if protocol == "2.0" else STATUS_ERROR_BITS_P1)

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
 from spm_console.core.workspace import Workspace
-from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_settled
+from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_checked
 from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
 from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.profile import Profile
@@ -156,12 +156,7 @@ class Executor:
 
     def read_initial(self, attempts: int = 5) -> F:
         """Measured position before any motion; BusError if the servos stay silent."""
-        try:
-            return read_position_settled(self.bus, attempts)
-        except BusFailure as exc:
-            last = str(exc) or type(exc).__name__
-        raise BusError(f"no position reply from the servos after {attempts} tries ({last}); "
-                       "check power, wiring, baud rate and ids (`spm-console servo ping`)")
+        return read_position_checked(self.bus, attempts)
 
     # ------------------------------------------------------------------ the loop
     def run(self, segments: Sequence[Segment], theta0_deg: F | None = None) -> ExecutionResult:

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import Any
 
-from spm_console.errors import BusError, ExitCode, SpmError
+from spm_console.errors import ExitCode, SpmError
 from spm_console.profile import Profile
 from spm_console.run.motion_protocol import (
     Close,
@@ -116,12 +116,9 @@ class _Server:
     def _answer(self, req: Ping | ReadPosition) -> None:
         try:
             if isinstance(req, ReadPosition):
-                from spm_console.devices.base import CommError, read_position_settled
+                from spm_console.devices.base import read_position_checked
 
-                try:
-                    value: object = read_position_settled(self.bus, 3)
-                except (CommError, OSError) as exc:
-                    raise BusError(f"no position reply from the servos after 3 tries ({exc})") from None
+                value: object = read_position_checked(self.bus, 3)
             else:
                 value = self.ping()
             self.send(Reply(req.id, value))

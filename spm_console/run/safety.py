@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.certify import CertifiedSet
+from spm_console.devices.control_table import describe_hardware_error
 from spm_console.errors import ExitCode
 from spm_console.models import servo_limits_deg
 from spm_console.profile import Profile
@@ -30,24 +31,6 @@ EXIT_CODES: dict[str, ExitCode] = {
     "region": ExitCode.STOP_REGION,
     "limit": ExitCode.STOP_LIMIT,
 }
-
-#: Hardware Error Status bits of the MX-106 (address 70, protocol 2.0).
-HW_ERROR_BITS = {
-    0: "input voltage",
-    2: "overheating",
-    3: "motor encoder",
-    4: "electrical shock",
-    5: "overload",
-}
-
-
-def describe_hw_error(bits: int) -> str:
-    names = [name for b, name in HW_ERROR_BITS.items() if bits & (1 << b)]
-    other = bits & ~sum(1 << b for b in HW_ERROR_BITS)
-    if other:
-        names.append(f"unknown bits 0x{other:02X}")
-    return ", ".join(names) or "none"
-
 
 @dataclass(frozen=True)
 class StopReason:
@@ -85,6 +68,7 @@ class SafetyMonitor:
             self.region_half_width_deg = step - min(self.cfg.region_margin_deg, 0.45 * step)
         self.lo, self.hi = servo_limits_deg(profile)
         self.ids = [j.id for j in profile.bus.joints]
+        self.protocol = profile.bus.protocol
         self.comm_streak = 0
         """Consecutive failed cycles."""
         self.comm_failed_cycles = 0
@@ -151,7 +135,7 @@ class SafetyMonitor:
         bad = [(i, e) for i, e in enumerate(errors) if e]
         if not bad:
             return None
-        parts = [f"joint {i + 1} (id {self.ids[i]}): {describe_hw_error(e)} (0x{e:02X})"
+        parts = [f"joint {i + 1} (id {self.ids[i]}): {describe_hardware_error(e, self.protocol)} (0x{e:02X})"
                  for i, e in bad]
         return StopReason(
             "hw_error",

@@ -2,22 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
-import numpy as np
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import DataTable, Static
 
+from spm_console.formatting import fmt_deg
 from spm_console.tui.messages import Connected, MotionDone, Outcome, PositionRead, Telemetry
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.confirm import ConfirmScreen
-
-
-def fmt_deg(v: Any, digits: int = 2) -> str:
-    return "[" + ", ".join(f"{float(x):.{digits}f}" for x in np.ravel(v)) + "]°"
 
 
 class ConnectScreen(StepScreen):

@@ -12,9 +12,9 @@ from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.widgets import DataTable, ProgressBar, Static
 
+from spm_console.formatting import fmt_deg
 from spm_console.tui.messages import MotionDone, Outcome, Telemetry
 from spm_console.tui.screens.base import StepScreen
-from spm_console.tui.screens.connect import fmt_deg
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.plot import PlotView, joint_series
 

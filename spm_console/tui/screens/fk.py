@@ -11,23 +11,18 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import Input, Static
 
-from spm_console.formatting import fmt_residual
+from spm_console.formatting import fmt_deg, fmt_residual, fmt_vec
 from spm_console.tui.messages import FkSolved, Outcome
 from spm_console.tui.screens.base import StepScreen
-from spm_console.tui.screens.connect import fmt_deg
 from spm_console.tui.widgets.angles import AnglesInput
-
-
-def fmt_vec(v: Any, digits: int = 4) -> str:
-    return "[" + ", ".join(f"{float(x):+.{digits}f}" for x in np.ravel(v)) + "]"
 
 
 def fk_text(rec: dict[str, Any]) -> str:
     """The FK record as aligned lines (the numbers of ``spm-console fk``)."""
     lines = [f"θ        = {fmt_deg(rec['theta_deg'])}"]
-    lines += [f"v{i + 1}       = {fmt_vec(rec['v'][i])}" for i in range(3)]
+    lines += [f"v{i + 1}       = {fmt_vec(rec['v'][i], signed=True)}" for i in range(3)]
     lines += [
-        f"n        = {fmt_vec(rec['n'])}",
+        f"n        = {fmt_vec(rec['n'], signed=True)}",
         f"ζ        = {rec['zeta']:.4f}",
         f"residual {fmt_residual(rec['residual'])}",
         f"closest links = {rec['min_link_distance_mm']:.1f} mm ({rec['closest_pair']})",
@@ -38,7 +33,7 @@ def fk_text(rec: dict[str, Any]) -> str:
         lines.append(f"{len(modes)} assembly modes at this θ:")
         for k, m in enumerate(modes, 1):
             tag = "  ← home-connected (the unique solution)" if m["home_connected"] else ""
-            lines.append(f"  {k}: n = {fmt_vec(m['n'], 3)}  ζ = {m['zeta']:.3f}{tag}")
+            lines.append(f"  {k}: n = {fmt_vec(m['n'], 3, signed=True)}  ζ = {m['zeta']:.3f}{tag}")
     return "\n".join(lines)
 
 

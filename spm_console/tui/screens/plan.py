@@ -15,10 +15,10 @@ from textual.widgets import Input, Label, Select, Static
 
 from spm_console.core.plan import Plan
 from spm_console.errors import BadInputError
+from spm_console.formatting import fmt_deg
 from spm_console.run.operator import PoseSpec
 from spm_console.tui.messages import Outcome, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
-from spm_console.tui.screens.connect import fmt_deg
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.plot import PlotView, joint_series
 

@@ -13,9 +13,9 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import Input, ProgressBar, Static
 
+from spm_console.formatting import fmt_deg
 from spm_console.tui.messages import Outcome, Progress, ThetaChecked, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
-from spm_console.tui.screens.connect import fmt_deg
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.confirm import ConfirmScreen
 
