@@ -47,6 +47,7 @@ from spm_console.run.safety import SafetyMonitor, StopReason
 from spm_console.run.sample import Sample
 from spm_console.run.segments import ExecutionResult, Segment
 from spm_console.run.stats import StopTiming, run_stats, stale_replies
+from spm_console.run.stop_action import apply_stop_action
 
 F = NDArray[np.float64]
 BusFailure = (CommError, OSError, BusError)
@@ -381,32 +382,15 @@ class Executor:
         """The profile's stop action, issued now (and the hold goal again at ``deadline``)."""
         self._event("fault", kind=stop.kind, message=stop.message, detected_t=stop.t, k=stop.k)
         action = self.profile.safety.stop_action
-        t_issue = self._now()
-        notes: list[str] = []
-        if action == "hold":
-            for attempt in range(2):
-                try:
-                    self.bus.write_goal_deg(hold)
-                except (*BusFailure, SpmError) as exc:
-                    notes.append(f"hold write {attempt + 1} failed: {exc}")
-                if attempt == 0 and deadline is not None:
-                    self._wait_until_plain(deadline)
-        else:
-            for attempt in range(3):
-                try:
-                    self.bus.set_torque(False)
-                    break
-                except (*BusFailure, SpmError) as exc:
-                    notes.append(f"torque off {attempt + 1} failed: {exc}")
-        t_done = self._now()
-        if notes and stop.kind == "comm":
-            notes.append("the servos' Bus Watchdog stops them if the link is down")
+        repeat = None if deadline is None else (lambda: self._wait_until_plain(deadline))
+        done = apply_stop_action(self.bus, action, hold, self._now, repeat, stop.kind == "comm")
+        t_issue, t_done, notes = done.issued_t, done.done_t, done.notes
         requested = None if self._estop_clock is None else self._estop_clock - self.t0
         self._event("stop", kind=stop.kind, requested_t=requested if stop.kind == "estop" else None,
                     action=action, hold_deg=hold if action == "hold"
                     else None, detected_t=stop.t, issued_t=t_issue, done_t=t_done, notes=notes,
                     exit_code=int(stop.exit_code))
-        self.stop_timing = (stop.t, t_issue, t_done)
+        self.stop_timing = (t_issue, t_done)
 
     def _wait_until_plain(self, deadline: float) -> None:
         while (rem := deadline - self.clock()) > 0:
@@ -414,18 +398,14 @@ class Executor:
 
     def _finish(self, outcome: str, code: ExitCode, message: str,
                 stop: StopReason | None) -> ExecutionResult:
-        stop_timing = None
-        if stop is not None:
-            timing = getattr(self, "stop_timing", None)
-            stop_timing = StopTiming(stop.kind, stop.t, stop.k,
-                                     None if timing is None else timing[1],
-                                     None if timing is None else timing[2])
+        safety = getattr(self, "safety", None)
+        timing = getattr(self, "stop_timing", None)
         stats = replace(
             run_stats(self.samples, self.ts),
             stale_replies=stale_replies(self.bus) - getattr(self, "_stale0", 0),
-            comm_retries=self.safety.comm_retries if hasattr(self, "safety") else 0,
-            comm_failed_cycles=self.safety.comm_failed_cycles if hasattr(self, "safety") else 0,
-            stop=stop_timing)
+            comm_retries=0 if safety is None else safety.comm_retries,
+            comm_failed_cycles=0 if safety is None else safety.comm_failed_cycles,
+            stop=None if stop is None else StopTiming(stop.kind, stop.t, stop.k, *(timing or ())))
         if self.log is not None:
             self.log.finish(outcome, int(code), message, stats.to_dict())
         final = next((s.measured_deg for s in reversed(self.samples) if s.read_ok), None)
