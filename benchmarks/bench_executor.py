@@ -30,11 +30,11 @@ from spm_console.core.region_build import region_containing
 from spm_console.devices.bus import open_bus
 from spm_console.devices.emulator import start_emulator
 from spm_console.models import servo_model_of
-from spm_console.plan_file import plan_hash
 from spm_console.profile import Profile, load_profile
 from spm_console.run.executor import Executor, Segment
 from spm_console.run.runlog import RunLog
-from spm_console.workspace_cache import load_or_build
+from spm_console.store.plan_file import plan_hash
+from spm_console.store.workspace_cache import load_or_build
 
 START = np.array([127.53, 83.23, 85.25])
 GOAL = np.array([66.80, 155.00, 131.48])
@@ -98,7 +98,7 @@ def _cli_runs(plan: Plan, runs: int) -> list[dict[str, Any]]:
     import sys
     from pathlib import Path
 
-    from spm_console.plan_file import save_plan
+    from spm_console.store.plan_file import save_plan
 
     out = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -358,7 +358,7 @@ def run() -> list[Row]:
     with tempfile.TemporaryDirectory(prefix="bench-tui-") as d:
         cache = Path(d)
         from spm_console.profile import load_profile
-        from spm_console.workspace_cache import load_or_build
+        from spm_console.store.workspace_cache import load_or_build
 
         load_or_build(load_profile(PROFILE), cache_dir=cache)  # "with a cached workspace"
         rows = start_rows(cache)

@@ -21,7 +21,7 @@ from spm_console.models import link_model_of, model_of, servo_model_of
 from spm_console.profile import load_profile
 from spm_console.run.plan_check import POINTS_PER_INTERVAL, PlanVerifier
 from spm_console.run.segments import Segment
-from spm_console.workspace_cache import load_or_build
+from spm_console.store.workspace_cache import load_or_build
 
 START = np.array([127.53, 83.23, 85.25])
 GOAL = np.array([66.80, 155.00, 131.48])

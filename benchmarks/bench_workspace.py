@@ -25,7 +25,7 @@ from spm_console.core.modes import seeded_solve
 from spm_console.core.workspace_verify import verify_region
 from spm_console.models import build_workspace, link_model_of, model_of
 from spm_console.profile import load_profile
-from spm_console.workspace_cache import load_or_build
+from spm_console.store.workspace_cache import load_or_build
 
 ROOT = Path(__file__).resolve().parent.parent
 PROFILE = ROOT / "profiles" / "agile_wrist.toml"

@@ -17,11 +17,11 @@ from spm_console.devices.bus import open_bus
 from spm_console.devices.emulator import EmulatorHandle, start_emulator
 from spm_console.devices.faults import FaultSpec
 from spm_console.models import servo_model_of
-from spm_console.plan_file import plan_hash
 from spm_console.profile import Profile
 from spm_console.run.executor import ExecutionResult, Executor, Segment
 from spm_console.run.runlog import RunLog
 from spm_console.run.sample import Sample
+from spm_console.store.plan_file import plan_hash
 from tests.ws_helpers import agile_workspace
 
 PAPER_START = np.array([127.53, 83.23, 85.25])

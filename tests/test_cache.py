@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spm_console import workspace_cache as wc
 from spm_console.errors import CacheError
 from spm_console.models import link_model_of, model_of
-from spm_console.workspace_cache import cache_key, cache_path, load_or_build, save
+from spm_console.store import workspace_cache as wc
+from spm_console.store.workspace_cache import cache_key, cache_path, load_or_build, save
 from tests.ws_helpers import ROOT, agile_profile, coarse_workspace, with_step
 
 
@@ -126,7 +126,7 @@ import sys
 from pathlib import Path
 sys.path.insert(0, {root!r})
 from tests.ws_helpers import coarse_workspace
-from spm_console.workspace_cache import save
+from spm_console.store.workspace_cache import save
 ws = coarse_workspace()
 print("ready", flush=True)
 while True:

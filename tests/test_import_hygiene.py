@@ -13,7 +13,7 @@ FORBIDDEN = ("textual", "rich", "meshcat", "serial", "pydantic", "matplotlib", "
 #: Modules of the package above the core that the core must not pull in.
 ABOVE = ("spm_console.profile", "spm_console.models", "spm_console.run", "spm_console.devices",
          "spm_console.cli", "spm_console.tui", "spm_console.viewer", "spm_console.report",
-         "spm_console.workspace_cache", "spm_console.plan_file")
+         "spm_console.store.workspace_cache", "spm_console.store.plan_file")
 
 
 def _core_modules() -> list[str]:

@@ -18,12 +18,12 @@ import pytest
 
 from spm_console.devices.emulator import start_emulator
 from spm_console.errors import BadInputError, ExitCode, MotionProcessLostError
-from spm_console.plan_file import save_plan
 from spm_console.profile import Profile
 from spm_console.run.motion_client import MotionClient
 from spm_console.run.motion_process import DEADMAN_S
 from spm_console.run.plans import synthetic_plan
 from spm_console.run.runlog import list_runs, load_run
+from spm_console.store.plan_file import save_plan
 from tests.exec_helpers import PAPER_START
 
 GOAL = np.array([100.0, 120.0, 110.0])
@@ -87,7 +87,7 @@ CLIENT = textwrap.dedent("""
     import sys, numpy as np
     from spm_console.profile import load_profile
     from spm_console.run.motion_client import MotionClient
-    from spm_console.plan_file import load_plan
+    from spm_console.store.plan_file import load_plan
     prof = load_profile("profiles/agile_wrist.toml")
     c = MotionClient(prof, sys.argv[1], cache_dir=sys.argv[3], logs_root=sys.argv[4])
     print(c.process.pid, flush=True)

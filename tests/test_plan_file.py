@@ -12,8 +12,8 @@ import pytest
 from spm_console.core.planning import solve_mvn
 from spm_console.core.servo_model import discretize
 from spm_console.errors import ExitCode, PlanMismatchError
-from spm_console.plan_file import load_plan, plan_hash, save_plan
 from spm_console.profile import Profile
+from spm_console.store.plan_file import load_plan, plan_hash, save_plan
 from tests.planning_cases import GOAL, START, polytope
 
 SPEC_KEYS = ("kind", "Ts", "N", "reference_deg", "position_deg", "velocity_degps", "cost",

@@ -17,7 +17,7 @@ import pytest
 from spm_console.cli.main import main
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.run.runlog import list_runs
-from spm_console.script_format import load_script, parse_script
+from spm_console.scripting.steps import load_script, parse_script
 
 ROOT = Path(__file__).resolve().parent.parent
 

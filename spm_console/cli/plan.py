@@ -31,10 +31,10 @@ from spm_console.core.workspace import Workspace
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError
 from spm_console.formatting import fmt_vec
 from spm_console.models import servo_limits_deg, servo_model_of
-from spm_console.plan_file import MAX_PLAN_BYTES, load_plan, plan_hash, plan_to_dict, save_plan
-from spm_console.plan_schema import region_of
 from spm_console.profile import Profile
 from spm_console.safe_io import MB, load_json, read_text
+from spm_console.store.plan_file import MAX_PLAN_BYTES, load_plan, plan_hash, plan_to_dict, save_plan
+from spm_console.store.plan_schema import region_of
 
 #: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
 MAX_CSV_BYTES = 20 * MB
@@ -106,7 +106,7 @@ def _region_file(path: Path) -> Region:
 
 
 def _workspace(args: argparse.Namespace, profile: Profile) -> Workspace:
-    from spm_console.workspace_cache import load_or_build
+    from spm_console.store.workspace_cache import load_or_build
 
     ws, ci = load_or_build(profile, getattr(args, "cache_dir", None))
     if not ci.hit:

@@ -28,10 +28,10 @@ from spm_console.cli.common import (
 from spm_console.devices.faults import parse_fault
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_vec
-from spm_console.plan_file import load_plan
 from spm_console.profile import Profile
 from spm_console.run.oneshot import RunRequest, execute_once, home_once
 from spm_console.run.segments import ExecutionResult
+from spm_console.store.plan_file import load_plan
 
 
 def _bus_opts(p: argparse.ArgumentParser) -> None:

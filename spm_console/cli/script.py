@@ -1,4 +1,4 @@
-"""``script`` command: run a scripted session headless (format: :mod:`spm_console.script`).
+"""``script`` command: run a scripted session headless (format: :mod:`spm_console.scripting.runner`).
 
 Progress lines go to stderr; one JSON summary goes to stdout. The exit code is the
 first failing step's (11 for a failed assertion, 20–25 for a safety stop).
@@ -33,8 +33,8 @@ def register(sub: Any) -> None:
 
 def cmd_script(args: argparse.Namespace) -> int:
     from spm_console.profile import load_profile
-    from spm_console.script import run_script, session_for
-    from spm_console.script_format import load_script
+    from spm_console.scripting.runner import run_script, session_for
+    from spm_console.scripting.steps import load_script
 
     script = load_script(args.file)
     profile = load_profile(args.profile) if args.profile else None

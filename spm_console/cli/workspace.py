@@ -24,7 +24,7 @@ from spm_console.core.workspace_verify import verify_region
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.formatting import fmt_vec
 from spm_console.profile import Profile
-from spm_console.workspace_cache import CacheInfo, load_or_build
+from spm_console.store.workspace_cache import CacheInfo, load_or_build
 
 #: Most samples ``workspace verify`` checks (about 5 minutes; memory stays bounded).
 MAX_VERIFY_SAMPLES = 10_000_000

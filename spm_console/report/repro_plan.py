@@ -19,7 +19,7 @@ from spm_console.report.plot_run import plot_run
 from spm_console.report.repro_types import Check, Section
 from spm_console.run.oneshot import RunRequest, execute_once
 from spm_console.run.runlog import load_run
-from spm_console.workspace_cache import load_or_build
+from spm_console.store.workspace_cache import load_or_build
 
 if TYPE_CHECKING:
     from spm_console.core.plan import Plan

@@ -13,7 +13,7 @@ from spm_console.profile import Profile
 from spm_console.report import paper_values as pv
 from spm_console.report.plot_workspace import plot_workspace
 from spm_console.report.repro_types import Check, Section
-from spm_console.workspace_cache import load_or_build
+from spm_console.store.workspace_cache import load_or_build
 
 if TYPE_CHECKING:
     from spm_console.report.reproduce import ReproSettings

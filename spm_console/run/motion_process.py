@@ -145,7 +145,7 @@ class _Server:
         """This profile's workspace (cache, or built on first use): every motion is verified
         against it."""
         if self._workspace is None:
-            from spm_console.workspace_cache import load_or_build
+            from spm_console.store.workspace_cache import load_or_build
 
             self._workspace, _ = load_or_build(self.profile, cache_dir=self.cache_dir)
         return self._workspace

@@ -1,7 +1,7 @@
 """One operator session: the state behind the console and its blocking operations.
 
 No Textual here: the TUI calls these methods from worker threads and the
-headless script runner (:mod:`spm_console.script`) calls them directly, so both
+headless script runner (:mod:`spm_console.scripting.runner`) calls them directly, so both
 drive the same core, bus, executor and safety checks. Every method raises
 :class:`~spm_console.errors.SpmError` subclasses for operator errors. Angles in
 degrees, time in seconds, lengths in mm.
@@ -310,7 +310,7 @@ class Session:
     def load_workspace(self, progress: ProgressCallback | None = None,
                        force: bool = False) -> Any:
         """Load the cached workspace of the profile, or build (and cache) it."""
-        from spm_console.workspace_cache import load_or_build
+        from spm_console.store.workspace_cache import load_or_build
 
         self.workspace, self.cache_info = load_or_build(
             self.profile, cache_dir=self.cache_dir, force=force, progress=progress)
@@ -341,7 +341,7 @@ class Session:
         from spm_console.core.planning import solve_mintime, solve_mvn
         from spm_console.core.region_build import region_containing
         from spm_console.models import servo_model_of
-        from spm_console.plan_file import plan_hash
+        from spm_console.store.plan_file import plan_hash
 
         ws = self.require_workspace()
         s, g = self.resolve(start), self.resolve(goal)

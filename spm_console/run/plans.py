@@ -19,8 +19,8 @@ from spm_console.core.estimation import ModelPredictor
 from spm_console.core.plan import Plan
 from spm_console.core.region import Region
 from spm_console.models import servo_limits_deg, servo_model_of
-from spm_console.plan_file import plan_hash
 from spm_console.profile import Profile
+from spm_console.store.plan_file import plan_hash
 
 F = NDArray[np.float64]
 

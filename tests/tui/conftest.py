@@ -16,7 +16,7 @@ from spm_console.tui.app import SpmConsoleApp, make_app
 @pytest.fixture(scope="session")
 def ws_cache(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
     """A workspace cache folder holding the Agile Wrist workspace (built once per run)."""
-    from spm_console.workspace_cache import load_or_build
+    from spm_console.store.workspace_cache import load_or_build
 
     d = tmp_path_factory.mktemp("ws-cache")
     load_or_build(agile, cache_dir=d)

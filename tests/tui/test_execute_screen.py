@@ -136,7 +136,7 @@ async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
     from spm_console.cli.main import main
 
     plan_file = tmp_path / "p.json"
-    from spm_console.plan_file import save_plan
+    from spm_console.store.plan_file import save_plan
 
     save_plan(s.plan, plan_file)
     code = main(["execute", "--plan", str(plan_file), "--sim", "--json",

@@ -149,7 +149,7 @@ class PlanScreen(StepScreen):
         def save() -> PlanSaved:
             import time
 
-            from spm_console.plan_file import save_plan
+            from spm_console.store.plan_file import save_plan
 
             path = Path("plans") / f"{time.strftime('%Y%m%d-%H%M%S')}-{plan.kind}.json"
             path.parent.mkdir(exist_ok=True)

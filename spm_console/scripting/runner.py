@@ -73,7 +73,7 @@ from spm_console.errors import BadInputError, ExitCode, SpmError
 from spm_console.profile import DEFAULT_PROFILE, Profile, load_profile
 from spm_console.run.operator import PoseSpec, Session
 from spm_console.run.signals import stop_signals
-from spm_console.script_format import (
+from spm_console.scripting.steps import (
     AssertStep,
     ExecuteStep,
     FkStep,

@@ -3,7 +3,7 @@
 :func:`plan_from_dict` turns a decoded JSON value into a :class:`~spm_console.core.plan.Plan`
 or raises :class:`~spm_console.errors.PlanMismatchError` naming the field and what is
 wrong with it. Whether the plan belongs to a profile is checked afterwards
-(:func:`spm_console.plan_file.check_plan`).
+(:func:`spm_console.store.plan_file.check_plan`).
 """
 
 from __future__ import annotations

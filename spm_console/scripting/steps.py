@@ -1,6 +1,6 @@
 """The scripted-session file format (TOML): typed, validated steps.
 
-See :mod:`spm_console.script` for the format's documentation and the runner.
+See :mod:`spm_console.scripting.runner` for the format's documentation and the runner.
 """
 
 from __future__ import annotations

@@ -24,9 +24,9 @@ from spm_console.core.servo_model import simulate
 from spm_console.errors import BadInputError, PlanMismatchError
 from spm_console.jsonutil import to_jsonable
 from spm_console.models import servo_model_of
-from spm_console.plan_schema import FORMAT, KINDS, MAX_PLAN_STEPS, VERSION, plan_from_dict
 from spm_console.profile import Profile
 from spm_console.safe_io import MB, load_json
+from spm_console.store.plan_schema import FORMAT, KINDS, MAX_PLAN_STEPS, VERSION, plan_from_dict
 
 __all__ = ["FORMAT", "KINDS", "MAX_PLAN_BYTES", "MAX_PLAN_STEPS", "VERSION", "check_plan",
            "load_plan", "plan_from_dict", "plan_hash", "plan_to_dict", "save_plan"]
