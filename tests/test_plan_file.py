@@ -46,7 +46,7 @@ def test_round_trip_and_spec_keys(plan_path: Path, agile: Profile) -> None:
     plan = load_plan(plan_path, agile)
     assert plan.N == 60 and plan.kind == "mvn" and plan.Ts == 0.02
     assert plan.reference_deg[-1] == pytest.approx(GOAL)
-    assert plan.extra["check"]["ok"] is True
+    assert plan.check is not None and plan.check.ok is True
     assert plan.region.halfspaces == polytope().halfspaces
 
 
