@@ -32,7 +32,7 @@ def test_paper_experiment_in_the_grid_box(K: int, expected: int) -> None:
     assert res.certificate is not None and res.certificate.valid
     assert res.certificate.excluded_radius >= 1e4
     assert res.qp_count == len(res.trace) and res.qp_count <= 8
-    verdicts = {e["N"]: e["verdict"] for e in res.trace}
+    verdicts = {e.N: e.verdict for e in res.trace}
     assert verdicts[expected] == "solved" and verdicts[expected - 1] == "infeasible"
     assert all(v == "infeasible" for n, v in verdicts.items() if n < expected)
     assert all(v == "solved" for n, v in verdicts.items() if n >= expected)
@@ -51,8 +51,9 @@ def test_thin_region_with_reference_limits() -> None:
     _cross_check(PlanProblem(MODEL, START, GOAL, 2, region, 45.0, 1, True, lo, hi), res.N)
     plan = res.to_plan(profile_hash="x")
     assert plan.kind == "mintime" and plan.qp_count == res.qp_count
-    rec = plan.extra["n_minus_1_infeasible"]
-    assert rec["N"] == res.N - 1 and rec["certificate"]["valid"]
+    rec = plan.certificate
+    assert rec is not None and rec.N == res.N - 1
+    assert rec.certificate is not None and rec.certificate.valid
 
 
 def test_certificate_checker_rejects_forgeries() -> None:

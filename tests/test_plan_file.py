@@ -9,11 +9,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from spm_console.core.planning import solve_mvn
+from spm_console.core.planning import solve_mintime, solve_mvn
 from spm_console.core.servo_model import discretize
 from spm_console.errors import ExitCode, PlanMismatchError
 from spm_console.profile import Profile
-from spm_console.store.plan_file import load_plan, plan_hash, save_plan
+from spm_console.run.plans import synthetic_plan
+from spm_console.store.plan_file import load_plan, plan_hash, plan_to_dict, save_plan
 from tests.planning_cases import GOAL, START, polytope
 
 SPEC_KEYS = ("kind", "Ts", "N", "reference_deg", "position_deg", "velocity_degps", "cost",
@@ -46,8 +47,42 @@ def test_round_trip_and_spec_keys(plan_path: Path, agile: Profile) -> None:
     plan = load_plan(plan_path, agile)
     assert plan.N == 60 and plan.kind == "mvn" and plan.Ts == 0.02
     assert plan.reference_deg[-1] == pytest.approx(GOAL)
-    assert plan.extra["check"]["ok"] is True
+    assert plan.check is not None and plan.check.ok is True
     assert plan.region.halfspaces == polytope().halfspaces
+
+
+def test_typed_fields_keep_the_document(plan_path: Path, agile: Profile, tmp_path: Path) -> None:
+    """The typed fields are read from, and written back to, the same JSON keys as before."""
+    d = json.loads(plan_path.read_text())
+    plan = load_plan(plan_path, agile)
+    assert plan.model.p == agile.servo.p and plan.model.method == agile.servo.discretization
+    assert plan.model.ts == plan.Ts == d["model"]["Ts"]
+    opts = plan.options
+    assert opts is not None and opts.start_deg == pytest.approx(START)
+    assert opts.goal_deg == pytest.approx(GOAL) and opts.vmax_degps is None
+    assert opts.intersample == 1 and opts.hold_first and opts.reference_limits_deg is None
+    assert plan.check is not None and plan.check.points_per_interval == d["extra"]["check"][
+        "points_per_interval"]
+    assert plan.certificate is None and plan.solver == d["extra"]["solver"] and plan.notes == {}
+    assert json.loads(json.dumps(plan_to_dict(plan))) == d
+    # minimum time: the N − 1 record at the top level, the search time under "extra"
+    sv = agile.servo
+    res = solve_mintime(discretize(sv.p, sv.ts_s, sv.discretization), START, GOAL, polytope(), 45.0)
+    save_plan(res.to_plan("mintime", plan_hash(agile)), tmp_path / "mt.json")
+    d = json.loads((tmp_path / "mt.json").read_text())
+    assert set(d["n_minus_1_infeasible"]) == {"N", "feasible", "certificate", "search"}
+    assert d["n_minus_1_infeasible"]["N"] == res.N - 1 and "search_seconds" in d["extra"]
+    mt = load_plan(tmp_path / "mt.json", agile)
+    assert mt.certificate == res.record() and mt.options is not None
+    assert mt.options.vmax_degps == 45.0
+    assert json.loads(json.dumps(plan_to_dict(mt))) == d
+    # a synthetic plan: free-form notes under "extra", no planner options or report
+    save_plan(synthetic_plan(agile, START, GOAL, 0.5), tmp_path / "syn.json")
+    d = json.loads((tmp_path / "syn.json").read_text())
+    assert d["extra"] == {"duration_s": 0.5} and "n_minus_1_infeasible" not in d
+    syn = load_plan(tmp_path / "syn.json", agile)
+    assert syn.notes == {"duration_s": 0.5} and syn.options is None and syn.check is None
+    assert json.loads(json.dumps(plan_to_dict(syn))) == d
 
 
 def test_other_profile_is_refused(plan_path: Path, agile: Profile, coaxial: Profile) -> None:

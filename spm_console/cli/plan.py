@@ -34,7 +34,7 @@ from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.profile import Profile
 from spm_console.safe_io import MB, load_json, read_text
 from spm_console.store.plan_file import MAX_PLAN_BYTES, load_plan, plan_hash, plan_to_dict, save_plan
-from spm_console.store.plan_schema import region_of
+from spm_console.store.plan_schema import record_to_dict, region_of
 
 #: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
 MAX_CSV_BYTES = 20 * MB
@@ -148,38 +148,29 @@ def summary(plan: Plan, out: Path | None, source: str) -> dict[str, Any]:
     d = plan_to_dict(plan)
     rec = {k: d[k] for k in ("kind", "Ts", "N", "duration_s", "cost", "solve_seconds", "qp_count")}
     rec.update({"out": str(out) if out else None, "region_source": source,
-                "halfspaces": plan.region.halfspaces, "check": plan.extra.get("check"),
-                "solver": plan.extra.get("solver"), "start_deg": plan.position_deg[0],
+                "halfspaces": plan.region.halfspaces,
+                "check": None if plan.check is None else plan.check.to_dict(),
+                "solver": plan.solver, "start_deg": plan.position_deg[0],
                 "goal_deg": plan.position_deg[-1]})
-    if "n_minus_1_infeasible" in plan.extra:
-        rec["n_minus_1_infeasible"] = plan.extra["n_minus_1_infeasible"]
+    if plan.certificate is not None:
+        rec["n_minus_1_infeasible"] = record_to_dict(plan.certificate)
     return rec
 
 
-def _num(x: Any) -> float:
-    """A number from a plan's free-form record (null or absent -> NaN)."""
-    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) else float("nan")
-
-
 def _human(plan: Plan, out: Path | None, source: str) -> str:
-    ex = plan.extra
-    chk = ex.get("check")
-    c: dict[str, Any] = chk if isinstance(chk, dict) else {}
+    c = plan.check
+    nan = float("nan")
     lines = [
         f"{plan.kind}: N = {plan.N} ({plan.duration_s:.2f} s), cost {plan.cost:.6g} (deg/s)², "
         f"{plan.qp_count} QP(s), {1e3 * plan.solve_seconds:.1f} ms",
         f"region: {source}, {plan.region.halfspaces} half-spaces",
-        f"at the samples: max |θ̇| {_num(c.get('max_speed_samples_degps')):.3f} deg/s, "
-        f"region violation {_num(c.get('region_violation_deg')):.2e} deg",
-        f"between samples: max |θ̇| {_num(c.get('max_speed_between_degps')):.3f} deg/s, "
-        f"region violation {_num(c.get('region_violation_between_deg')):.3g} deg",
+        f"at the samples: max |θ̇| {c.max_speed_samples_degps if c else nan:.3f} deg/s, "
+        f"region violation {c.region_violation_deg if c else nan:.2e} deg",
+        f"between samples: max |θ̇| {c.max_speed_between_degps if c else nan:.3f} deg/s, "
+        f"region violation {c.region_violation_between_deg if c else nan:.3g} deg",
     ]
-    nm1 = ex.get("n_minus_1_infeasible")
-    cert = nm1.get("certificate") if isinstance(nm1, dict) else None
-    if isinstance(cert, dict):
-        r = cert.get("excluded_radius")
-        lines.append(f"N−1 = {plan.N - 1} infeasible: Farkas certificate excludes ‖x‖∞ < "
-                     + ("∞" if r is None else f"{_num(r):.3g}"))
+    if plan.certificate is not None:
+        lines.append(plan.certificate.describe())
     if out:
         lines.append(f"written to {out}")
     return "\n".join(lines)

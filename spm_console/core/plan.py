@@ -8,9 +8,30 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.plan_report import ConstraintReport, InfeasibilityRecord
 from spm_console.core.region import Region
+from spm_console.core.servo_model import ServoModel
 
 F = NDArray[np.float64]
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """What the planner was asked (MVN and minimum-time plans). Degrees, deg/s."""
+
+    start_deg: Vec3
+    """Start motor angles θ(0), deg."""
+    goal_deg: Vec3
+    """Goal motor angles, deg."""
+    vmax_degps: float | None = None
+    """Speed bound at the samples, deg/s (None: unbounded)."""
+    intersample: int = 1
+    """K: region and speed also enforced at K−1 instants inside each interval."""
+    hold_first: bool = True
+    """θ*(0) held at θ(0) (the paper's (30b))."""
+    reference_limits_deg: tuple[Vec3 | None, Vec3 | None] | None = None
+    """(lower, upper) bounds of the free references θ*(k), deg; None: unbounded."""
 
 
 @dataclass(frozen=True)
@@ -29,14 +50,24 @@ class Plan:
     """(N+1, 3) model velocities θ̇(k), deg/s."""
     region: Region
     """Region P the plan was constrained to."""
-    model: dict[str, Any]
-    """Servo model used: {A, B, p, Ts, discretization}."""
+    model: ServoModel
+    """Servo model the positions and velocities come from."""
     cost: float = float("nan")
     solve_seconds: float = float("nan")
     qp_count: int = 1
     profile_hash: str = ""
-    extra: dict[str, Any] = field(default_factory=dict)
-    """Anything else worth keeping (vmax, N−1 infeasibility certificate, between-sample checks)."""
+    options: PlanOptions | None = None
+    """The planner's request (None for line and synthetic plans)."""
+    check: ConstraintReport | None = None
+    """The planner's constraint report (None for line and synthetic plans)."""
+    certificate: InfeasibilityRecord | None = None
+    """Minimum time: the record that N − 1 steps are infeasible."""
+    solver: dict[str, Any] | None = None
+    """Free-form solver diagnostics, only shown (never read back by key)."""
+    notes: dict[str, Any] = field(default_factory=dict)
+    """Free-form details, only shown and kept in the file (never read back by key): a line
+    plan's speed bound, ramp speed and move samples, a synthetic plan's duration, and any
+    unknown keys of a plan file's 'extra'."""
 
     @property
     def N(self) -> int:

@@ -27,30 +27,24 @@ def plot_plan(plan: Plan, path: str | Path, measured_deg: F | None = None,
     n = plan.N
     ts = plan.Ts
     t = np.arange(n + 1) * ts
-    p = float(plan.model.get("p", float("nan")))
-    cont = None
-    if np.isfinite(p):
-        x0 = np.column_stack([plan.position_deg[0], plan.velocity_degps[0]])
-        tc, xs = simulate_continuous(p, ts, x0, plan.reference_deg, 10)
-        cont = (tc, xs)
-    vmax = plan.extra.get("vmax_degps")
+    x0 = np.column_stack([plan.position_deg[0], plan.velocity_degps[0]])
+    cont = simulate_continuous(plan.model.p, ts, x0, plan.reference_deg, 10)
+    vmax = plan.options.vmax_degps if plan.options is not None else None
     fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
     for i in range(3):
         ax = axes[i, 0]
         ax.step(t, plan.reference_deg[:, i], where="post", color="tab:gray", lw=1.0,
                 label="reference θ*")
-        if cont is not None:
-            ax.plot(cont[0], cont[1][:, i, 0], color="tab:blue", lw=0.8, alpha=0.6,
-                    label="model, continuous")
+        ax.plot(cont[0], cont[1][:, i, 0], color="tab:blue", lw=0.8, alpha=0.6,
+                label="model, continuous")
         ax.plot(t, plan.position_deg[:, i], ".", color="tab:blue", ms=2.5, label="model θ(k)")
         if measured_deg is not None and measured_t is not None:
             ax.plot(measured_t, measured_deg[:, i], color="tab:red", lw=0.8, label="measured")
         ax.set_ylabel(f"θ{i + 1} (deg)")
         ax.grid(alpha=0.3)
         av = axes[i, 1]
-        if cont is not None:
-            av.plot(cont[0], cont[1][:, i, 1], color="tab:green", lw=0.8, alpha=0.6,
-                    label="continuous")
+        av.plot(cont[0], cont[1][:, i, 1], color="tab:green", lw=0.8, alpha=0.6,
+                label="continuous")
         av.plot(t, plan.velocity_degps[:, i], ".", color="tab:green", ms=2.5, label="θ̇(k)")
         if vmax:
             for sgn in (1, -1):

@@ -41,9 +41,12 @@ def plan_from_references(
     reference_deg: F,
     kind: Literal["synthetic", "homing"],
     region: Region | None = None,
-    extra: dict[str, object] | None = None,
+    notes: dict[str, float] | None = None,
 ) -> Plan:
-    """Wrap references (N+1, 3) with the model's simulated positions and velocities."""
+    """Wrap references (N+1, 3) with the model's simulated positions and velocities.
+
+    ``notes``: details kept in the plan (and its file's "extra") for people to read; the
+    program never reads them back."""
     model = servo_model_of(profile)
     ref = np.asarray(reference_deg, float)
     pred = ModelPredictor(model, ref[0])
@@ -55,7 +58,7 @@ def plan_from_references(
     return Plan(
         kind=kind, Ts=model.ts, reference_deg=ref, position_deg=pos, velocity_degps=vel,
         region=region if region is not None else limits_region(profile),
-        model=model.to_dict(), profile_hash=plan_hash(profile), extra=dict(extra or {}),
+        model=model, profile_hash=plan_hash(profile), notes=dict(notes or {}),
     )
 
 
@@ -85,7 +88,7 @@ def line_plan(profile: Profile, start_deg: F, goal_deg: F, speed_degps: float) -
     s = np.minimum(np.arange(n_move + 1 + settle_samples(profile)) / n_move, 1.0)
     ref = a + s[:, None] * (b - a)
     return plan_from_references(profile, ref, "homing",
-                                extra={"speed_bound_degps": speed_degps, "ramp_degps": ramp,
+                                notes={"speed_bound_degps": speed_degps, "ramp_degps": ramp,
                                        "move_samples": n_move})
 
 
@@ -100,7 +103,7 @@ def synthetic_plan(profile: Profile, start_deg: F, goal_deg: F, duration_s: floa
     s = np.minimum(np.arange(n_move + 1 + settle_samples(profile)) / n_move, 1.0)
     shape = 10 * s**3 - 15 * s**4 + 6 * s**5
     ref = a + shape[:, None] * (b - a)
-    return plan_from_references(profile, ref, "synthetic", extra={"duration_s": duration_s})
+    return plan_from_references(profile, ref, "synthetic", notes={"duration_s": duration_s})
 
 
 def plan_summary(plan: Plan, source: str | None = None) -> dict[str, Any]:

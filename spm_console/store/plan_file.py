@@ -26,7 +26,15 @@ from spm_console.jsonutil import to_jsonable
 from spm_console.models import servo_model_of
 from spm_console.profile import Profile
 from spm_console.safe_io import MB, load_json
-from spm_console.store.plan_schema import FORMAT, KINDS, MAX_PLAN_STEPS, VERSION, plan_from_dict
+from spm_console.store.plan_schema import (
+    FORMAT,
+    KINDS,
+    MAX_PLAN_STEPS,
+    VERSION,
+    extra_to_dict,
+    plan_from_dict,
+    record_to_dict,
+)
 
 __all__ = ["FORMAT", "KINDS", "MAX_PLAN_BYTES", "MAX_PLAN_STEPS", "VERSION", "check_plan",
            "load_plan", "plan_from_dict", "plan_hash", "plan_to_dict", "save_plan"]
@@ -60,12 +68,12 @@ def plan_to_dict(plan: Plan) -> dict[str, Any]:
         "solve_seconds": plan.solve_seconds,
         "qp_count": plan.qp_count,
         "region": plan.region.to_dict(),
-        "model": plan.model,
+        "model": plan.model.to_dict(),
         "profile_hash": plan.profile_hash,
     }
-    if "n_minus_1_infeasible" in plan.extra:
-        d["n_minus_1_infeasible"] = plan.extra["n_minus_1_infeasible"]
-    d["extra"] = {k: v for k, v in plan.extra.items() if k != "n_minus_1_infeasible"}
+    if plan.certificate is not None:
+        d["n_minus_1_infeasible"] = record_to_dict(plan.certificate)
+    d["extra"] = extra_to_dict(plan)
     return dict(to_jsonable(d))
 
 
@@ -98,14 +106,13 @@ def check_plan(plan: Plan, profile: Profile, src: str = "plan") -> None:
     if not math.isclose(plan.Ts, sv.ts_s, rel_tol=0, abs_tol=1e-12):
         raise PlanMismatchError(f"{src}: Ts = {plan.Ts} s but the profile's Ts is {sv.ts_s} s")
     m = plan.model
-    if m.get("discretization") != sv.discretization or not isinstance(m.get("p"), int | float) \
-            or not math.isclose(float(m["p"]), sv.p, rel_tol=1e-12):
+    if m.method != sv.discretization or not math.isclose(m.p, sv.p, rel_tol=1e-12):
         raise PlanMismatchError(
-            f"{src}: servo model p = {m.get('p')}, {m.get('discretization')} but the profile has "
+            f"{src}: servo model p = {m.p}, {m.method} but the profile has "
             f"p = {sv.p}, {sv.discretization}")
     ref_model = servo_model_of(profile)
-    A = np.asarray(m["A"], float).reshape(2, 2)  # shapes checked by plan_from_dict
-    B = np.asarray(m["B"], float).reshape(2)
+    A = np.asarray(m.A, float).reshape(2, 2)  # shapes checked by plan_from_dict
+    B = np.asarray(m.B, float).reshape(2)
     if not (np.allclose(A, ref_model.A, rtol=0, atol=1e-9)
             and np.allclose(B, ref_model.B, rtol=0, atol=1e-9)):
         raise PlanMismatchError(f"{src}: model matrices A, B differ from the profile's servo model")

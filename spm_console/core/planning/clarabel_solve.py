@@ -13,14 +13,14 @@ infeasible (fewer constraints, larger feasible set).
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import dataclass
 
 import clarabel
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from spm_console.core.plan_report import Certificate
 from spm_console.core.planning.qp_build import Equalities, Pool
 
 F = NDArray[np.float64]
@@ -29,25 +29,6 @@ I = NDArray[np.int64]
 #: A certificate is accepted when it rules out every point with ‖x‖∞ below this: no angle,
 #: speed or reference of a wrist comes near 10⁴ deg or deg/s, so nothing real is excluded.
 CERTIFIED_RADIUS = 1e4
-
-
-@dataclass(frozen=True)
-class Certificate:
-    """A checked Farkas certificate of primal infeasibility."""
-
-    residual_l1: float
-    """‖Aᵀy‖₁ with y scaled to bᵀy = −1."""
-    cone_violation: float
-    """Largest negative entry of y on the non-negative cone (0 for an exact certificate)."""
-    excluded_radius: float
-    """No point with ‖x‖∞ below this satisfies the constraints (∞ for an exact certificate)."""
-    rows: int
-    """Constraint rows the certificate covers (equalities + screened pool rows)."""
-    valid: bool
-    solver: str = "clarabel"
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 @dataclass

@@ -25,8 +25,8 @@ from numpy.typing import NDArray
 
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan import Plan
+from spm_console.core.plan_report import Certificate, InfeasibilityRecord, SearchStep
 from spm_console.core.planning.active_set import eqp
-from spm_console.core.planning.clarabel_solve import Certificate
 from spm_console.core.planning.mvn import finish, straight_guess
 from spm_console.core.planning.problem import Layout, PlanProblem
 from spm_console.core.planning.qp_build import Pool, equalities
@@ -55,22 +55,19 @@ class MintimeResult:
     solver_calls: int
     """Calls of the QP solver (Clarabel) inside them; KKT-only solves are not counted."""
     solve_seconds: float
-    trace: list[dict[str, Any]] = field(default_factory=list)
+    trace: list[SearchStep] = field(default_factory=list)
     """Every N examined: verdict, method, seconds."""
 
-    def to_plan(self, kind: Literal["mintime"] = "mintime", profile_hash: str = "",
-                extra: dict[str, Any] | None = None) -> Plan:
+    def to_plan(self, kind: Literal["mintime"] = "mintime", profile_hash: str = "") -> Plan:
         """The plan at N* with the search and the N*−1 certificate recorded."""
-        ex = {"n_minus_1_infeasible": self.record(), "search_seconds": self.solve_seconds}
-        ex.update(extra or {})
-        plan = self.plan.to_plan(kind, profile_hash, ex)
-        return replace(plan, solve_seconds=self.solve_seconds, qp_count=self.qp_count)
+        plan = self.plan.to_plan(kind, profile_hash)
+        return replace(plan, solve_seconds=self.solve_seconds, qp_count=self.qp_count,
+                       certificate=self.record())
 
-    def record(self) -> dict[str, Any]:
-        """What a plan file keeps about N*−1."""
-        return {"N": self.N - 1, "feasible": False,
-                "certificate": None if self.certificate is None else self.certificate.to_dict(),
-                "search": self.trace}
+    def record(self) -> InfeasibilityRecord:
+        """What a plan keeps about N*−1."""
+        return InfeasibilityRecord(N=self.N - 1, certificate=self.certificate,
+                                   search=tuple(self.trace), search_seconds=self.solve_seconds)
 
 
 def estimate_steps(problem: PlanProblem) -> int:
@@ -167,7 +164,7 @@ def solve_mintime_problem(problem: PlanProblem) -> MintimeResult:
     hi_feas: int | None = None  # smallest N known feasible
     best: PlanResult | None = None
     cert: Certificate | None = None
-    trace: list[dict[str, Any]] = []
+    trace: list[SearchStep] = []
     calls = 0
     floor = 2
     n_max = horizon_limit(problem)
@@ -181,9 +178,8 @@ def solve_mintime_problem(problem: PlanProblem) -> MintimeResult:
         guess = rescaled_guess(best, n) if best is not None else straight_guess(pb)
         out, eq = _decide(pb, guess)
         calls += out.solver_calls
-        entry: dict[str, Any] = {"N": n, "verdict": out.status, "method": out.method,
-                                 "seconds": time.perf_counter() - t1}
-        trace.append(entry)
+        trace.append(SearchStep(N=n, verdict=out.status, method=out.method,
+                                seconds=time.perf_counter() - t1))
         if out.status == "solved":
             best = finish(pb, eq, out, t1)
             hi_feas = n

@@ -8,9 +8,9 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.plan import Plan
+from spm_console.core.plan import Plan, PlanOptions, Vec3
+from spm_console.core.plan_report import ConstraintReport
 from spm_console.core.planning.problem import PlanProblem
-from spm_console.core.planning.verify import ConstraintReport
 
 F = NDArray[np.float64]
 
@@ -40,24 +40,28 @@ class PlanResult:
     def N(self) -> int:
         return self.problem.N
 
-    def to_plan(self, kind: Literal["mvn", "mintime"] = "mvn", profile_hash: str = "",
-                extra: dict[str, Any] | None = None) -> Plan:
+    def to_plan(self, kind: Literal["mvn", "mintime"] = "mvn", profile_hash: str = "") -> Plan:
+        """The plan with what was asked (:class:`PlanOptions`), the constraint report and the
+        solver's details."""
         pb = self.problem
-        ex: dict[str, Any] = {
-            "start_deg": pb.start_deg.tolist(),
-            "goal_deg": pb.goal_deg.tolist(),
-            "vmax_degps": pb.vmax_degps,
-            "intersample": pb.intersample,
-            "hold_first": pb.hold_first,
-            "reference_limits_deg": None if pb.ref_lo_deg is None and pb.ref_hi_deg is None else
-            [None if pb.ref_lo_deg is None else pb.ref_lo_deg.tolist(),
-             None if pb.ref_hi_deg is None else pb.ref_hi_deg.tolist()],
-            "check": self.check.to_dict(),
-            "solver": self.info,
-        }
-        ex.update(extra or {})
+        limits = None if pb.ref_lo_deg is None and pb.ref_hi_deg is None else \
+            (_vec3(pb.ref_lo_deg), _vec3(pb.ref_hi_deg))
+        options = PlanOptions(
+            start_deg=_vec3_of(pb.start_deg), goal_deg=_vec3_of(pb.goal_deg),
+            vmax_degps=None if pb.vmax_degps is None else float(pb.vmax_degps),
+            intersample=pb.intersample, hold_first=pb.hold_first, reference_limits_deg=limits)
         return Plan(kind=kind, Ts=pb.model.ts, reference_deg=self.reference_deg,
                     position_deg=self.position_deg, velocity_degps=self.velocity_degps,
-                    region=pb.region, model=pb.model.to_dict(), cost=self.cost,
+                    region=pb.region, model=pb.model, cost=self.cost,
                     solve_seconds=self.solve_seconds, qp_count=self.qp_count,
-                    profile_hash=profile_hash, extra=ex)
+                    profile_hash=profile_hash, options=options, check=self.check,
+                    solver=dict(self.info))
+
+
+def _vec3_of(v: F) -> Vec3:
+    a, b, c = (float(x) for x in np.asarray(v, float).reshape(3))
+    return a, b, c
+
+
+def _vec3(v: F | None) -> Vec3 | None:
+    return None if v is None else _vec3_of(v)

@@ -21,8 +21,9 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.plan_report import Certificate
 from spm_console.core.planning.active_set import refine
-from spm_console.core.planning.clarabel_solve import Certificate, solve_clarabel
+from spm_console.core.planning.clarabel_solve import solve_clarabel
 from spm_console.core.planning.osqp_solve import solve_osqp
 from spm_console.core.planning.qp_build import Equalities, Pool
 

@@ -8,58 +8,23 @@ the worst speed and region excursion of the continuous motion between samples.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.plan_report import ConstraintReport
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.region import Region
 from spm_console.core.servo_model import simulate, simulate_continuous
 
 F = NDArray[np.float64]
 
+__all__ = ["BETWEEN_POINTS", "SAMPLE_TOL", "ConstraintReport", "check", "region_violation",
+           "simulate_plan"]
+
 #: Every constraint must hold at the samples to this tolerance (deg, deg/s).
 SAMPLE_TOL = 1e-6
 #: Points per interval of the between-sample simulation (at least 10).
 BETWEEN_POINTS = 20
-
-
-@dataclass(frozen=True)
-class ConstraintReport:
-    """Worst violations of (30b–f) at the samples and of (30d, e) between samples."""
-
-    start_error_deg: float
-    """max |θ(0) − start| (always 0: the simulation starts there)."""
-    goal_error_deg: float
-    """max |θ(N) − goal|, deg."""
-    final_speed_degps: float
-    """max |θ̇(N)|, deg/s."""
-    model_mismatch: float
-    """max |optimizer states − simulated states| (deg and deg/s)."""
-    region_violation_deg: float
-    """Largest distance outside P at the samples, deg."""
-    speed_excess_degps: float
-    """max(|θ̇(k)| − v_max, 0) at the samples, deg/s (0 without a bound)."""
-    reference_excess_deg: float
-    """Largest excursion of θ*(k) beyond the optional reference limits, deg."""
-    max_speed_samples_degps: float
-    """max |θ̇(k)| at the samples, deg/s."""
-    max_speed_between_degps: float
-    """max |θ̇(t)| of the continuous motion (27), deg/s."""
-    speed_excess_between_degps: float
-    """max(|θ̇(t)| − v_max, 0) between samples, deg/s."""
-    region_violation_between_deg: float
-    """Largest distance outside P of the continuous motion, deg."""
-    intersample_violation: float
-    """With K > 1: worst region (deg) or speed (deg/s) violation at the enforced sub-samples."""
-    points_per_interval: int
-    ok: bool
-    """All sample constraints hold to :data:`SAMPLE_TOL`."""
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 def region_violation(region: Region, theta_deg: F) -> F:

@@ -3,6 +3,7 @@ minimum time, solved in a worker; result table and plots."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -31,8 +32,8 @@ PLOTS = ("positions", "velocities")
 
 
 def plan_text(plan: Plan, info: dict[str, Any]) -> str:
-    chk = plan.extra.get("check", {})
-    vmax = info.get("vmax_degps")
+    chk = plan.check
+    vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
     lines = [
         f"{plan.kind.upper()}: {info.get('start', '?')} → {info.get('goal', '?')}",
         f"{fmt_deg(plan.reference_deg[0])} → {fmt_deg(plan.reference_deg[-1])}",
@@ -41,14 +42,13 @@ def plan_text(plan: Plan, info: dict[str, Any]) -> str:
         f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
         + (f" (v_max {vmax:g})" if vmax else ""),
     ]
-    if chk:
-        between = chk.get("max_speed_between_degps")
-        if between is not None:
-            lines.append(f"between samples: {between:.1f}°/s, outside P by "
-                         f"{chk.get('region_violation_between_deg', 0.0):.2g}°")
-        lines.append("constraints verified" if chk.get("ok") else "constraints NOT verified")
-    if "infeasible_N" in plan.extra or "n_minus_1_infeasible" in plan.extra:
-        lines.append("N − 1 steps is infeasible (minimum time certified)")
+    if chk is not None:
+        if not math.isnan(chk.max_speed_between_degps):
+            lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s, outside P by "
+                         f"{chk.region_violation_between_deg:.2g}°")
+        lines.append("constraints verified" if chk.ok else "constraints NOT verified")
+    if plan.certificate is not None:  # minimum time: N is the smallest feasible horizon
+        lines.append(plan.certificate.describe())
     return "\n".join(lines)
 
 
