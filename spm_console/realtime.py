@@ -20,6 +20,12 @@ from dataclasses import dataclass
 #: SCHED_FIFO priorities (1..99): the emulated servos above the loop that talks to them.
 LOOP_PRIORITY = 40
 EMULATOR_PRIORITY = 45
+#: The other threads of the loop's (and the emulator's) process. They hold that
+#: interpreter's GIL at times (reading the client's pipe, shipping telemetry, the deadman);
+#: at normal priority a busy machine preempts them *while they hold it*, and the loop waits
+#: for the GIL behind them (priority inversion: 10-20 ms stalls with one CPU-bound process
+#: per core). Real-time below the loop, they run their short work and release it.
+HELPER_PRIORITY = 30
 #: Nice value asked for when SCHED_FIFO is refused.
 FALLBACK_NICE = -10
 
@@ -70,3 +76,11 @@ def release_realtime(grant: RtGrant) -> None:
             os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 0)
     except OSError:
         pass  # lowering our own priority back can only fail if the thread is gone
+
+
+def normal_priority() -> None:
+    """SCHED_OTHER at nice 0 for the calling thread, whatever it inherited (a thread started
+    by a real-time thread inherits its policy): for work that may take long, such as loading
+    or building a workspace."""
+    release_realtime(RtGrant("SCHED_FIFO", ""))
+    release_realtime(RtGrant("nice", ""))

@@ -201,3 +201,30 @@ def test_one_run_log_schema_for_every_front_end(agile: Profile, tmp_path: Path, 
     for key in ("bus", "sim", "faults", "process", "homing"):
         assert key in a
     assert a["bus"] == b["bus"] == "emulated bus" and a["sim"] is b["sim"] is True
+
+
+def test_telemetry_never_blocks_the_loop_and_counts_what_a_slow_client_missed() -> None:
+    """The loop's side only appends; a client that does not read blocks the sender thread."""
+    from spm_console.run.motion_process import MAX_PENDING, TelemetryOut
+    from spm_console.run.motion_protocol import Telemetry
+    from spm_console.run.sample import Sample
+
+    release = threading.Event()
+    sent: list[Telemetry] = []
+
+    def stuck_send(msg: object) -> None:  # a client that does not read: the socket is full
+        release.wait(10)
+        assert isinstance(msg, Telemetry)
+        sent.append(msg)
+
+    out = TelemetryOut(stuck_send)
+    sample = Sample.__new__(Sample)  # contents do not matter here
+    loop = threading.Thread(target=lambda: [out.put(sample) for _ in range(3 * MAX_PENDING)])
+    loop.start()
+    loop.join(5.0)
+    assert not loop.is_alive()  # every put returned while the sender was still stuck
+    release.set()
+    out.close()
+    delivered = sum(len(m.samples) for m in sent)
+    dropped = sum(m.dropped for m in sent)
+    assert delivered + dropped == 3 * MAX_PENDING and dropped > 0

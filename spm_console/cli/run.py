@@ -99,7 +99,8 @@ def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any
     data: dict[str, Any] = {
         "outcome": res.outcome, "exit_code": int(res.exit_code), "message": res.message,
         "log_dir": str(res.log_dir) if res.log_dir else None, "final_deg": res.final_deg,
-        "stop": st.to_dict().get("stop"), "stats": st.to_dict(), **extra,
+        "stop": st.to_dict().get("stop"), "stats": st.to_dict(),
+        "realtime": {"granted": res.realtime_granted, "detail": res.realtime}, **extra,
     }
     lines = [f"{res.outcome}: {res.message}"]
     if res.final_deg is not None:
@@ -110,12 +111,17 @@ def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any
             f"{st.tracking_max_deg:.3f}°; jitter p99 {st.jitter_ms.p99:.2f} ms; bus "
             f"{st.bus_ms.mean:.2f} ms/cycle; retries {st.comm_retries}, failed cycles "
             f"{st.comm_failed_cycles}")
+    if res.realtime:
+        lines.append(f"servo loop: {res.realtime}")
     if res.log_dir:
         lines.append(f"log: {res.log_dir}")
     with output_may_be_gone():  # after SIGHUP the terminal is gone: the exit code still tells
         emit(args, data, "\n".join(lines))
         if not res.ok:
             info(f"stopped: {res.message}")
+        if res.realtime and not res.realtime_granted:
+            info(f"warning: no real-time scheduling for the servo loop ({res.realtime}); "
+                 "timing may suffer under load")
     return int(res.exit_code)
 
 

@@ -38,10 +38,15 @@ class EmulatorChild(ChildProcess):
             "initial_deg": None if initial_deg is None else [float(x) for x in initial_deg],
         }
         self.port = ""
+        self.realtime = ""
+        self.realtime_granted = False
 
     def launch(self) -> str:
         info = self.start(json.dumps(self.request).encode())
         self.port = str(info["port"])
+        self.realtime = str(info.get("realtime", ""))
+        """The scheduling the emulated servos' thread got (e.g. "SCHED_FIFO priority 45")."""
+        self.realtime_granted = bool(info.get("realtime_granted", False))
         return self.port
 
 
@@ -55,6 +60,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--parent", type=int, default=0, help="exit when this process is gone")
     args = parser.parse_args(argv)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from spm_console.realtime import HELPER_PRIORITY, request_realtime
+
+    request_realtime(HELPER_PRIORITY)  # shares the emulator's GIL: see realtime.HELPER_PRIORITY
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:
@@ -66,7 +74,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         msg = getattr(exc, "message", str(exc))
         sys.stdout.write(json.dumps({"error": msg}) + "\n")
         return 1
-    sys.stdout.write(json.dumps({"port": em.port}) + "\n")
+    for _ in range(100):  # the serving thread asks for real-time scheduling as it starts
+        if em.realtime.detail != "not serving yet":
+            break
+        stop.wait(0.01)
+    sys.stdout.write(json.dumps({"port": em.port, "realtime": em.realtime.detail,
+                                 "realtime_granted": em.realtime.policy == "SCHED_FIFO"}) + "\n")
     sys.stdout.flush()
     try:
         while not stop.wait(PARENT_POLL_S) and em.running:

@@ -414,4 +414,7 @@ class Executor:
             exit_code=code, message=message,
             log_dir=self.log.path if self.log is not None else None,
             stop=stop, final_deg=final, stats=stats,
+            realtime="" if self.realtime.policy == "normal" and not self.samples
+            else self.realtime.detail,
+            realtime_granted=self.realtime.policy == "SCHED_FIFO",
         )

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import queue
 import signal
 import socket
 import subprocess
@@ -71,6 +72,11 @@ class MotionClient:
             self.close()
             raise _error(first)
         self.pid = int(first.value)
+        self.telemetry_dropped = 0
+        """Samples the motion process left out of the telemetry because this client read
+        too slowly (the run logs have them all)."""
+        self._telemetry: queue.SimpleQueue[Telemetry | threading.Event | None] = queue.SimpleQueue()
+        threading.Thread(target=self._dispatch, daemon=True, name="spm-telemetry-in").start()
         self._reader = threading.Thread(target=self._read, daemon=True, name="spm-motion-client")
         self._reader.start()
         self._moving = threading.Event()
@@ -104,16 +110,27 @@ class MotionClient:
                 if not self._closed:
                     self._mark_lost()
                 return
-            if isinstance(msg, Telemetry):
-                cb = self.on_sample
-                if cb is not None:
-                    with contextlib.suppress(Exception):
-                        for sample in msg.samples:
-                            cb(sample)
+            if isinstance(msg, Telemetry):  # handed on: a slow callback never stops the reading
+                self.telemetry_dropped += msg.dropped
+                self._telemetry.put(msg)
                 continue
             with self._cond:
                 self._replies[msg.id] = msg
                 self._cond.notify_all()
+
+    def _dispatch(self) -> None:
+        """Call ``on_sample`` for each sample received (its own thread: a callback that
+        waits, e.g. on the 3D view, only delays the callbacks)."""
+        while (msg := self._telemetry.get()) is not None:
+            if isinstance(msg, threading.Event):  # everything before it was delivered
+                msg.set()
+                continue
+            cb = self.on_sample
+            if cb is None:
+                continue
+            with contextlib.suppress(Exception):
+                for sample in msg.samples:
+                    cb(sample)
 
     def _heartbeat(self) -> None:
         while not self._closed and not self._lost:
@@ -155,6 +172,9 @@ class MotionClient:
             return self._call(make, None)
         finally:
             self._moving.clear()
+            delivered = threading.Event()  # the motion's last samples reach on_sample first
+            self._telemetry.put(delivered)
+            delivered.wait(5.0)
             self.on_sample = None
 
     def home(self, on_sample: Callable[[Sample], None] | None = None) -> Any:
@@ -197,6 +217,7 @@ class MotionClient:
         with contextlib.suppress(MotionProcessLostError, OSError):
             self._send(Close())
         self._closed = True
+        self._telemetry.put(None)
         try:
             self.process.wait(timeout_s)
         except subprocess.TimeoutExpired:

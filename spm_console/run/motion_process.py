@@ -25,13 +25,15 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Sequence
+from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import Any
 
 from spm_console.errors import ExitCode, SpmError
 from spm_console.profile import Profile
+from spm_console.realtime import HELPER_PRIORITY, normal_priority, request_realtime
 from spm_console.run.motion_protocol import (
     Close,
     EStop,
@@ -57,11 +59,58 @@ HEARTBEAT_S = 0.1
 DEADMAN_S = 1.0
 #: Telemetry to the client at most this often, s (the loop itself runs every Ts).
 TELEMETRY_S = 0.05
+#: Most samples kept for a client that does not read (10 s at Ts = 20 ms).
+MAX_PENDING = 500
 #: How long a request other than a motion may take before the child counts as hung, s.
 REQUEST_TIMEOUT_S = 30.0
 
 
 # ---------------------------------------------------------------------------------- child
+class TelemetryOut:
+    """Samples from the servo loop to the client without ever blocking the loop.
+
+    The loop only appends (:meth:`put`, O(1)); a sender thread ships what accumulated every
+    :data:`TELEMETRY_S`. A client that reads too slowly (a busy UI) makes the socket block
+    the *sender*, never the loop; beyond :data:`MAX_PENDING` samples the oldest are dropped
+    from the telemetry (never from the run log) and counted in the next message.
+    """
+
+    def __init__(self, send: Callable[[object], None]) -> None:
+        self._send = send
+        self._q: deque[Sample] = deque()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self.dropped = 0
+        self._thread = threading.Thread(target=self._run, daemon=True, name="spm-telemetry")
+        self._thread.start()
+
+    def put(self, sample: Sample) -> None:
+        with self._lock:
+            if len(self._q) >= MAX_PENDING:
+                self._q.popleft()
+                self.dropped += 1
+            self._q.append(sample)
+
+    def _flush(self) -> None:
+        with self._lock:
+            batch, dropped = tuple(self._q), self.dropped
+            self._q.clear()
+            self.dropped = 0
+        if batch or dropped:
+            self._send(Telemetry(batch, dropped))
+
+    def _run(self) -> None:
+        request_realtime(HELPER_PRIORITY)
+        while not self._stop.wait(TELEMETRY_S):
+            self._flush()
+
+    def close(self) -> None:
+        """Stop the sender and ship the rest (before the motion's result)."""
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        self._flush()
+
+
 class _Server:
     """State of the child: bus, workspace, the motion under way."""
 
@@ -162,21 +211,9 @@ class _Server:
             ex.request_estop(self.pending_estop, self.pending_clock)
 
     def _motion(self, req: Home | Execute) -> None:
-
-        last = [0.0]
-        batch: list[Sample] = []
-
-        def flush() -> None:
-            if batch:
-                self.send(Telemetry(tuple(batch)))
-                batch.clear()
-
-        def on_sample(s: Sample) -> None:
-            batch.append(s)
-            now = time.monotonic()
-            if now - last[0] >= TELEMETRY_S:
-                last[0] = now
-                flush()
+        normal_priority()  # set-up may load the workspace; the executor raises the loop itself
+        out = TelemetryOut(self.send)
+        on_sample = out.put
 
         result: Reply | Failed
         try:
@@ -195,7 +232,7 @@ class _Server:
         except Exception as exc:  # a bug: the executor already left the wrist holding
             result = Failed(req.id, f"internal error in the motion process: {exc!r}", 1)
         finally:
-            flush()
+            out.close()
             self.executor = None
             self.pending_estop, self.pending_clock = "", None
             self.busy.clear()
@@ -206,6 +243,7 @@ class _Server:
 
     def deadman(self, stop: threading.Event) -> None:
         """E-stop when the client's heartbeat stops during a motion."""
+        request_realtime(HELPER_PRIORITY)
         while not stop.wait(HEARTBEAT_S / 2):
             if self.moving() and time.monotonic() - self.last_heartbeat > DEADMAN_S:
                 self.estop(f"client lost: no heartbeat for more than {DEADMAN_S * 1e3:.0f} ms")
@@ -223,6 +261,7 @@ class Start:
 def serve(conn: Connection, start: Start) -> None:
     """The child's main loop (see module docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the client decides; Ctrl-C reaches it first
+    request_realtime(HELPER_PRIORITY)  # this thread reads the pipe: see realtime.HELPER_PRIORITY
     try:
         server = _Server(conn, start.profile, start.ctx, start.cache_dir)
     except SpmError as exc:

@@ -92,3 +92,6 @@ class Telemetry:
     """The loop's samples since the last message (one message per TELEMETRY_S at most)."""
 
     samples: tuple[Sample, ...]
+    dropped: int = 0
+    """Samples left out since the last message because the client read too slowly (the run
+    log has them all)."""

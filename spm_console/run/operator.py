@@ -81,6 +81,9 @@ class BusState:
     port: str
     emulated: bool
     statuses: list[ServoStatus] = field(default_factory=list)
+    emulator_realtime: str = ""
+    """The emulated servos' scheduling ("" on a real bus)."""
+    emulator_realtime_granted: bool = True
 
 
 class Session:
@@ -171,7 +174,9 @@ class Session:
                                   logs_root=None if self.logs_root is None else str(self.logs_root),
                                   sim=self.sim, faults=[str(f) for f in self.faults])
             self.bus = client
-            self.bus_state = BusState(port=port, emulated=self.sim, statuses=client.ping_all())
+            rt, granted = self._emulator_realtime()
+            self.bus_state = BusState(port=port, emulated=self.sim, statuses=client.ping_all(),
+                                      emulator_realtime=rt, emulator_realtime_granted=granted)
             self.read_position()
         except SpmError:
             self.disconnect()
@@ -180,6 +185,18 @@ class Session:
             self.disconnect()
             raise BusError(f"{port}: {exc.strerror or exc}") from None
         return self.bus_state
+
+    def _emulator_realtime(self) -> tuple[str, bool]:
+        """The emulated servos' scheduling: (detail, SCHED_FIFO granted); ("", True) on a
+        real bus."""
+        from spm_console.devices.emulator import EmulatorHandle
+
+        emu = self.emulator
+        if emu is None:
+            return "", True
+        if isinstance(emu, EmulatorHandle):
+            return emu.realtime.detail, emu.realtime.policy == "SCHED_FIFO"
+        return emu.realtime, emu.realtime_granted
 
     def require_bus(self) -> MotionClient:
         if self.bus is None:

@@ -37,6 +37,10 @@ class ExecutionResult:
     """Last measured position, deg."""
     stats: RunStats = field(default_factory=RunStats)
     """Sample count, jitter, bus time, retries, tracking RMS, stop timing."""
+    realtime: str = ""
+    """The scheduling the servo loop got, e.g. "SCHED_FIFO priority 40" ("" when no loop ran)."""
+    realtime_granted: bool = False
+    """SCHED_FIFO was granted (else the loop ran at a raised or normal priority)."""
 
     @property
     def ok(self) -> bool:

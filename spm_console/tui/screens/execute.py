@@ -169,5 +169,8 @@ def outcome_text(result: Any) -> str:
     rms = result.stats.tracking_rms_deg
     if result.stats.samples and np.isfinite(rms):
         lines.append(f"tracking error RMS {rms:.3f}°")
+    if result.realtime:
+        flag = "" if result.realtime_granted else "  (NOT real-time: timing may suffer under load)"
+        lines.append(f"servo loop: {result.realtime}{flag}")
     lines.append(f"log: {result.log_dir}")
     return "\n".join(lines)
