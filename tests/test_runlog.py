@@ -164,3 +164,15 @@ def test_a_running_log_is_killed_only_when_its_own_process_is_gone(tmp_path: Pat
                           capture_output=True, text=True, check=True)
     assert runs_with({**me, "pid": int(dead.stdout)}) == "killed"
     log.close()
+
+
+def test_runs_started_within_one_second_are_listed_in_start_order(tmp_path: Path) -> None:
+    """An ``execute`` homes first: both folders share the second; 'last' is the execution."""
+    a = RunLog.create("home", "p", "h", [], root=tmp_path)
+    b = RunLog.create("execute", "p", "h", [], root=tmp_path)
+    a.finish("completed", 0, "", {})
+    b.finish("completed", 0, "", {})
+    if a.path.name[:15] == b.path.name[:15]:  # same second (almost always)
+        assert a.path.name > b.path.name  # "home" sorts after "execute" by name alone
+    assert [r.meta["kind"] for r in list_runs(tmp_path)] == ["home", "execute"]
+    assert load_run("last", tmp_path).meta["kind"] == "execute"

@@ -102,7 +102,7 @@ def test_approach_tolerance_and_homing_are_the_profiles_for_cli_and_script(
     script_meta = load_run(ex["log_dir"]).meta
     assert set(cli_meta) == set(script_meta)
     assert cli_meta["homing"] == script_meta["homing"] == "done"
-    assert [r.meta["kind"] for r in list_runs(tmp_path / "script")] == ["execute", "home"]
+    assert [r.meta["kind"] for r in list_runs(tmp_path / "script")] == ["home", "execute"]
 
 
 def test_a_script_that_does_not_home_is_refused(tmp_path: Path,

@@ -310,7 +310,9 @@ class RunSummary:
 
 
 def list_runs(root: str | Path | None = None) -> list[RunSummary]:
-    """Every run folder under the log root, oldest first (by folder name = start time)."""
+    """Every run folder under the log root, oldest first: by folder name (the start time to
+    the second), then by the start time in meta.json (runs started within one second, such as
+    the homing and the execution of one ``execute``)."""
     base = logs_root(root)
     if base.exists() and not base.is_dir():
         raise BadInputError(f"run log folder {base} is not a folder")
@@ -320,4 +322,5 @@ def list_runs(root: str | Path | None = None) -> list[RunSummary]:
     for p in sorted(base.iterdir()):
         if p.is_dir() and ((p / "meta.json").is_file() or (p / "samples.csv").is_file()):
             out.append(RunSummary(p, _read_meta(p)))
+    out.sort(key=lambda r: (r.path.name[:15], str(r.meta.get("start_time") or ""), r.path.name))
     return out
