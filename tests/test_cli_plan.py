@@ -43,7 +43,8 @@ def test_mvn_writes_a_plan_that_show_accepts(capsys: pytest.CaptureFixture[str],
     assert code == 0
     rec = json.loads(so)
     assert rec["kind"] == "mvn" and rec["N"] == 150 and rec["check"]["ok"]
-    assert rec["region_source"].startswith("file") and rec["halfspaces"] == 61
+    assert rec["region_kind"] == "given" and rec["region"].startswith("the region of file")
+    assert rec["halfspaces"] == 61 and "61 half-spaces" in rec["region"]
     assert png.stat().st_size > 10_000
     code, so, _ = run(capsys, "plan", "show", str(out), "--json")
     assert code == 0
@@ -143,7 +144,8 @@ def test_paper_experiments_with_the_real_workspace(capsys: pytest.CaptureFixture
                         "--cache-dir", str(cache_dir), "--out", str(out), "--json")
     assert code == 0, err
     rec = json.loads(so)
-    assert rec["region_source"] == "region built around the segment" and rec["check"]["ok"]
+    assert rec["region_kind"] == "grown" and rec["check"]["ok"]
+    assert rec["region"].startswith("a region grown around the segment (")
     d = json.loads(out.read_text())
     region = Region.from_dict(d["region"])
     pb = PlanProblem(discretize(32.22, 0.02), np.array(START, float), np.array(GOAL, float), 150,

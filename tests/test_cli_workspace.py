@@ -51,7 +51,8 @@ def test_show_json_keys(capsys: pytest.CaptureFixture[str]) -> None:
 def test_check(capsys: pytest.CaptureFixture[str]) -> None:
     code, d, _ = run(capsys, "workspace", "check", "--theta", *map(str, MVN_GOAL), "--json")
     assert code == ExitCode.OK
-    assert d["feasible"] is True and d["in_region"] is False and d["usable"] is False
+    assert d["feasible"] is True and d["in_region"] is False and d["plannable"] is True
+    assert d["verdict"].startswith("feasible, outside P by ") and "grown around" in d["verdict"]
     assert "outside the region P" in d["reason"] and d["zeta"] == pytest.approx(0.29, abs=0.01)
     code, d, _ = run(capsys, "workspace", "check", "--theta", "150", "70", "70", "--json")
     assert code == ExitCode.INFEASIBLE and d["feasible"] is False and d["reason"]

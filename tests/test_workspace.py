@@ -106,7 +106,8 @@ def test_nodes_match_independent_continuation(ws: Workspace) -> None:
 def test_check_theta_reasons(ws: Workspace) -> None:
     th = ws.theta_deg()
     ok = check_theta(ws, np.array(MVN_START))
-    assert ok.feasible and ok.in_region and ok.usable and ok.reason == ""
+    assert ok.feasible and ok.in_region and ok.plannable and ok.reason == ""
+    assert ok.verdict == "feasible, inside P: plannable in P"
     assert ok.zeta is not None and ok.zeta > 0.5
 
     goal = check_theta(ws, np.array(MVN_GOAL))

@@ -6,7 +6,7 @@ import argparse
 import csv
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -25,15 +25,14 @@ from spm_console.cli.common import (
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.identify import identify
 from spm_console.core.plan import Plan
-from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
 from spm_console.core.region import Region
 from spm_console.core.workspace import Workspace
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError
 from spm_console.formatting import fmt_vec
-from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.profile import Profile
+from spm_console.run.plan_request import PlanRequest
 from spm_console.safe_io import MB, load_json, read_text
-from spm_console.store.plan_file import MAX_PLAN_BYTES, load_plan, plan_hash, plan_to_dict, save_plan
+from spm_console.store.plan_file import MAX_PLAN_BYTES, load_plan, plan_to_dict, save_plan
 from spm_console.store.plan_schema import record_to_dict, region_of
 
 #: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
@@ -114,40 +113,28 @@ def _workspace(args: argparse.Namespace, profile: Profile) -> Workspace:
     return ws
 
 
-def resolve_region(args: argparse.Namespace, profile: Profile, s: np.ndarray,
-                   g: np.ndarray) -> tuple[Region, str]:
-    """The region to plan in: a file, the cached P, or one built around the segment."""
-    if args.region is not None:
-        return _region_file(args.region), f"file {args.region}"
-    from spm_console.core.region_build import region_containing
-
-    ws = _workspace(args, profile)
-    region = region_containing(ws, s, g)  # raises InfeasibleError with the reason
-    return region, "workspace P" if region is ws.region else "region built around the segment"
-
-
-def _problem(args: argparse.Namespace, profile: Profile, n: int, vmax: float | None
-             ) -> tuple[PlanProblem, str]:
+def _request(args: argparse.Namespace, profile: Profile, method: Literal["mvn", "mintime"],
+             n: int, vmax: float | None) -> PlanRequest:
+    """The options as the runtime's plan request (input bounds checked here, in O(1))."""
     k = bounded_int(args.intersample, "--intersample", 1, 100)
     output_file(args.out, "--out")
     output_file(args.plot, "--plot", PLOT_SUFFIXES)
-    lo = hi = None
     if not args.no_ref_limits:
         theta_in_servo_limits(args.start, "--start", profile)
         theta_in_servo_limits(args.goal, "--goal", profile)
-        lo, hi = servo_limits_deg(profile)
     s = theta_in_grid(args.start, "--start", profile)
     g = theta_in_grid(args.goal, "--goal", profile)
-    region, source = resolve_region(args, profile, s, g)
-    model = servo_model_of(profile)
-    pb = PlanProblem(model, s, g, n, region, vmax, k, not args.free_first, lo, hi)
-    return pb, source
+    region = None if args.region is None else _region_file(args.region)
+    return PlanRequest(method, s, g, n, vmax, intersample=k, hold_first=not args.free_first,
+                       reference_limits=not args.no_ref_limits, region=region,
+                       region_source=f"the region of file {args.region}")
 
 
-def summary(plan: Plan, out: Path | None, source: str) -> dict[str, Any]:
+def summary(plan: Plan, out: Path | None, source: str,
+            region_kind: str | None = None) -> dict[str, Any]:
     d = plan_to_dict(plan)
     rec = {k: d[k] for k in ("kind", "Ts", "N", "duration_s", "cost", "solve_seconds", "qp_count")}
-    rec.update({"out": str(out) if out else None, "region_source": source,
+    rec.update({"out": str(out) if out else None, "region": source, "region_kind": region_kind,
                 "halfspaces": plan.region.halfspaces,
                 "check": None if plan.check is None else plan.check.to_dict(),
                 "solver": plan.solver, "start_deg": plan.position_deg[0],
@@ -163,7 +150,7 @@ def _human(plan: Plan, out: Path | None, source: str) -> str:
     lines = [
         f"{plan.kind}: N = {plan.N} ({plan.duration_s:.2f} s), cost {plan.cost:.6g} (deg/s)², "
         f"{plan.qp_count} QP(s), {1e3 * plan.solve_seconds:.1f} ms",
-        f"region: {source}, {plan.region.halfspaces} half-spaces",
+        f"region: {source}",
         f"at the samples: max |θ̇| {c.max_speed_samples_degps if c else nan:.3f} deg/s, "
         f"region violation {c.region_violation_deg if c else nan:.2e} deg",
         f"between samples: max |θ̇| {c.max_speed_between_degps if c else nan:.3f} deg/s, "
@@ -176,11 +163,12 @@ def _human(plan: Plan, out: Path | None, source: str) -> str:
     return "\n".join(lines)
 
 
-def _finish(args: argparse.Namespace, profile: Profile, plan: Plan, source: str) -> int:
-    from spm_console.run.plan_check import verify_plan
+def _finish(args: argparse.Namespace, profile: Profile, req: PlanRequest) -> int:
+    from spm_console.run.plan_request import plan_motion, precheck
 
-    # the runtime's own check, whatever region the plan was solved in: emit only what executes
-    verify_plan(profile, _workspace(args, profile), plan)
+    precheck(profile, req)  # a refusal never pays for the workspace
+    planned = plan_motion(profile, _workspace(args, profile), req)
+    plan, source = planned.plan, planned.region.describe()
     if args.out is not None:
         try:
             save_plan(plan, args.out)
@@ -188,7 +176,8 @@ def _finish(args: argparse.Namespace, profile: Profile, plan: Plan, source: str)
             raise BadInputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
     if args.plot is not None:
         _plot(plan, args.plot)
-    emit(args, summary(plan, args.out, source), _human(plan, args.out, source))
+    emit(args, summary(plan, args.out, source, planned.region.kind),
+         _human(plan, args.out, source))
     return int(ExitCode.OK)
 
 
@@ -209,17 +198,13 @@ def cmd_mvn(args: argparse.Namespace) -> int:
     if n * k > MAX_INSTANTS:
         raise BadInputError(f"--steps × --intersample = {n} × {k} is above {MAX_INSTANTS:,} "
                             "constrained instants; use fewer steps or a smaller K")
-    pb, source = _problem(args, profile, n, vmax)
-    res = solve_problem(pb)
-    return _finish(args, profile, res.to_plan("mvn", plan_hash(profile)), source)
+    return _finish(args, profile, _request(args, profile, "mvn", n, vmax))
 
 
 def cmd_mintime(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     vmax = vmax_arg(args.vmax, profile, default_to_profile=True)
-    pb, source = _problem(args, profile, 2, vmax)
-    res = solve_mintime_problem(pb)
-    return _finish(args, profile, res.to_plan("mintime", plan_hash(profile)), source)
+    return _finish(args, profile, _request(args, profile, "mintime", 2, vmax))
 
 
 def cmd_show(args: argparse.Namespace) -> int:
@@ -240,7 +225,7 @@ def cmd_show(args: argparse.Namespace) -> int:
         verdict, refused = f"runtime verification: REFUSED — {exc.message}", exc
     d = plan_to_dict(plan) | {"verified": refused is None,
                               "refused": None if refused is None else refused.message}
-    human = _human(plan, None, "stored in the plan") + (
+    human = _human(plan, None, f"stored in the plan ({plan.region.halfspaces} half-spaces)") + (
         f"\nstart {fmt_vec(plan.position_deg[0], 2)} deg → goal {fmt_vec(plan.position_deg[-1], 2)} deg"
         f"\n{verdict}")
     emit(args, d, human)

@@ -152,19 +152,16 @@ def cmd_check(args: argparse.Namespace) -> int:
     c = check_theta(ws, theta)
     rec = {
         "theta_deg": c.theta_deg, "feasible": c.feasible, "in_region": c.in_region,
-        "usable": c.usable, "reason": c.reason, "zeta": c.zeta,
+        "plannable": c.plannable, "verdict": c.verdict, "reason": c.reason, "zeta": c.zeta,
         "min_link_distance_mm": c.min_link_mm, "closest_pair": c.closest_pair,
         "in_range": c.in_range, "connected": c.connected,
         "region_slack_deg": c.region_slack_deg,
     }
-    head = "feasible" + ("" if c.in_region else " but outside P") if c.feasible else "NOT feasible"
-    lines = [f"θ = {fmt_vec(theta, 2)} deg: {head}"]
+    lines = [f"θ = {fmt_vec(theta, 2)} deg: {c.verdict}"]
     if c.zeta is not None:
         lines.append(f"ζ = {c.zeta:.3f}, closest links {c.min_link_mm:.1f} mm ({c.closest_pair})")
-    if c.reason:
-        lines.append(c.reason)
     if c.feasible and not c.in_region:
-        lines.append("a plan can still use it: `workspace region --contain` builds a region holding it")
+        lines.append("(`workspace region --contain` builds such a region for inspection)")
     emit(args, rec, "\n".join(lines))
     return int(ExitCode.OK if c.feasible else ExitCode.INFEASIBLE)
 

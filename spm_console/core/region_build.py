@@ -25,7 +25,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -354,7 +354,26 @@ def _home_node(ws: Workspace) -> F:
     return np.asarray(ws.theta_deg()[ws.home_index])
 
 
-def region_containing(ws: Workspace, theta_a_deg: F, theta_b_deg: F) -> Region:
+@dataclass(frozen=True)
+class RegionChoice:
+    """The region a plan between two configurations uses, and where it came from."""
+
+    region: Region
+    kind: Literal["P", "grown", "given"]
+    """The workspace's cached P, a region grown around the straight segment, or one given
+    by the operator (``source`` says which)."""
+    source: str = ""
+
+    def describe(self) -> str:
+        """One line naming the region and its size (half-spaces, inscribed ball radius)."""
+        _, radius = self.region.chebyshev()
+        what = {"P": "the workspace region P", "grown": "a region grown around the segment",
+                "given": self.source or "the given region"}[self.kind]
+        return (f"{what} ({self.region.halfspaces} half-spaces, inscribed ball radius "
+                f"{radius:.1f}°)")
+
+
+def choose_region(ws: Workspace, theta_a_deg: F, theta_b_deg: F) -> RegionChoice:
     """A region (θ in degrees) containing both configurations: the cached P if it
     already does, else an IRIS region grown around the straight segment between
     them. Raises :class:`InfeasibleError` naming why when the segment leaves the
@@ -368,7 +387,7 @@ def region_containing(ws: Workspace, theta_a_deg: F, theta_b_deg: F) -> Region:
                               "colliding or unreachable): nothing can be planned in it; check the "
                               "profile's links, δ and ζ_min")
     if bool(ws.region.contains(np.stack([a, b]), tol=1e-9).all()):
-        return ws.region
+        return RegionChoice(ws.region, "P")
     check_segment(ws, a, b)
     lo, hi = ws.range_deg()
     # seed: the inscribed ellipsoid of the default P (planes that would cut a or b
@@ -379,4 +398,9 @@ def region_containing(ws: Workspace, theta_a_deg: F, theta_b_deg: F) -> Region:
                 (E.C, E.d), limit)
     if not bool(res.region.contains(np.stack([a, b]), tol=1e-7).all()):
         raise InfeasibleError("could not build a convex region containing both configurations")
-    return res.region
+    return RegionChoice(res.region, "grown")
+
+
+def region_containing(ws: Workspace, theta_a_deg: F, theta_b_deg: F) -> Region:
+    """The region of :func:`choose_region`."""
+    return choose_region(ws, theta_a_deg, theta_b_deg).region

@@ -181,9 +181,21 @@ class ThetaCheck:
     """Top axes v1..v3 (rows) when FK succeeded."""
 
     @property
-    def usable(self) -> bool:
-        """Feasible and inside P: a planner can start or end there."""
-        return self.feasible and self.in_region
+    def plannable(self) -> bool:
+        """A plan can start or end here: feasible. Inside P the planner uses P; outside it a
+        region is grown around the segment (``core.region_build.choose_region``), which is
+        refused only when the segment itself leaves the feasible set."""
+        return self.feasible
+
+    @property
+    def verdict(self) -> str:
+        """The one wording of this check (console, CLI and JSON)."""
+        if not self.feasible:
+            return f"NOT feasible: {self.reason}"
+        if self.in_region:
+            return "feasible, inside P: plannable in P"
+        return (f"feasible, outside P by {-self.region_slack_deg:.2f}°: plannable in a region "
+                "grown around the segment")
 
 
 def check_one(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F) -> ThetaCheck:

@@ -27,11 +27,10 @@ from spm_console.devices.base import ServoStatus
 from spm_console.errors import (
     BadInputError,
     BusError,
-    InfeasibleError,
     SpmError,
     UnreachableError,
 )
-from spm_console.models import link_model_of, model_of, servo_limits_deg
+from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
 
 if TYPE_CHECKING:
@@ -352,39 +351,24 @@ class Session:
         goal: PoseSpec,
         steps: int = 150,
         vmax_degps: float | None = None,
+        intersample: int = 1,
+        hold_first: bool = True,
     ) -> Plan:
-        """MVN (30) in ``steps`` intervals or minimum time (31) under ``vmax_degps``,
-        inside the workspace region P and the servo limits. Stores and returns the plan."""
-        from spm_console.core.planning import solve_mintime, solve_mvn
-        from spm_console.core.region_build import region_containing
-        from spm_console.models import servo_model_of
-        from spm_console.store.plan_file import plan_hash
+        """MVN (30) in ``steps`` intervals or minimum time (31) under ``vmax_degps``, in P or
+        a region grown around the segment, inside the servo limits
+        (:func:`~spm_console.run.plan_request.plan_motion`). Stores and returns the plan."""
+        from spm_console.run.plan_request import PlanRequest, plan_motion
 
         ws = self.require_workspace()
         s, g = self.resolve(start), self.resolve(goal)
-        lo, hi = servo_limits_deg(self.profile)
-        model = servo_model_of(self.profile)
         vmax = self.profile.limits.vmax_degps if vmax_degps is None else vmax_degps
-        from spm_console.core.workspace import check_theta
-
-        for name, th in (("start", s), ("goal", g)):
-            chk = check_theta(ws, th)
-            if not chk.feasible:
-                raise InfeasibleError(f"{name} θ = {np.round(th, 2).tolist()}° is not usable: "
-                                      f"{chk.reason}")
-        region = region_containing(ws, s, g)
-        if method == "mvn":
-            plan = solve_mvn(model, s, g, int(steps), region, vmax, ref_lo_deg=lo,
-                             ref_hi_deg=hi).to_plan("mvn", profile_hash=plan_hash(self.profile))
-        else:
-            plan = solve_mintime(model, s, g, region, vmax, ref_lo_deg=lo, ref_hi_deg=hi
-                                 ).to_plan("mintime", profile_hash=plan_hash(self.profile))
-        from spm_console.run.plan_check import verify_plan
-
-        verify_plan(self.profile, ws, plan)  # exactly the executor's check: emit only what executes
+        planned = plan_motion(self.profile, ws, PlanRequest(
+            method, s, g, int(steps), vmax, intersample=int(intersample), hold_first=hold_first))
+        plan = planned.plan
         self.plan = plan
         self.plan_info = {"method": method, "start": start.describe(), "goal": goal.describe(),
-                          "start_deg": s, "goal_deg": g, "vmax_degps": vmax}
+                          "start_deg": s, "goal_deg": g, "vmax_degps": vmax,
+                          "region": planned.region.describe()}
         return plan
 
     def close(self, wait_s: float = 3.0) -> None:

@@ -237,8 +237,9 @@ class ScriptRunner:
         if step.check is not None:
             chk = self.session.check_theta(step.check)
             out["check"] = {"theta_deg": _vec(chk.theta_deg), "feasible": bool(chk.feasible),
-                            "in_region": bool(chk.in_region), "reason": chk.reason}
-            text += f"; θ = {list(step.check)}° " + ("usable" if chk.usable else f"not usable: {chk.reason}")
+                            "in_region": bool(chk.in_region), "plannable": bool(chk.plannable),
+                            "verdict": chk.verdict, "reason": chk.reason}
+            text += f"; θ = {list(step.check)}°: {chk.verdict}"
         return out, text
 
     def _step_plan(self, step: PlanStep) -> tuple[dict[str, Any], str]:

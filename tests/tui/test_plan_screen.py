@@ -76,8 +76,7 @@ async def test_form_errors_are_messages(console) -> None:
         await settle(pilot)
         msg = status_of(app)
         assert app.session.plan is None
-        assert msg.startswith("goal θ = [40.0, 135.0, 135.0]° is not usable"), msg
-        assert "outside the workspace grid" in msg
+        assert msg.startswith("goal θ = [40.0, 135.0, 135.0]° is outside the servo limits"), msg
 
 
 async def test_without_workspace_says_which_step_is_missing(console) -> None:

@@ -27,7 +27,7 @@ async def test_loads_the_cached_workspace_and_shows_its_counts(console, agile, w
         assert "press 4" in status_of(app)
 
 
-async def test_check_says_why_a_theta_is_not_usable(console) -> None:
+async def test_check_gives_the_one_verdict_and_says_why(console) -> None:
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
@@ -35,12 +35,12 @@ async def test_check_says_why_a_theta_is_not_usable(console) -> None:
         await settle(pilot)
         await pilot.press("k")  # default θ = eq. (32): usable
         await settle(pilot)
-        assert "USABLE for planning" in text_of(app, "#ws-check")
+        assert "feasible, inside P: plannable in P" in text_of(app, "#ws-check")
         app.screen.query_one("#check-theta", AnglesInput).set_values([40, 135, 135])
         await pilot.press("k")
         await settle(pilot)
         out = text_of(app, "#ws-check")
-        assert "NOT usable" in out and "outside the workspace grid" in out
+        assert "NOT feasible: outside the workspace grid" in out
 
 
 async def test_rebuild_asks_first(console) -> None:

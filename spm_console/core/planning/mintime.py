@@ -133,18 +133,24 @@ def horizon_limit(problem: PlanProblem) -> int:
 
 
 def _check_horizon(problem: PlanProblem, n_max: int) -> None:
-    """InfeasibleError at once when even the estimate of N (:func:`estimate_steps`, computed
-    in floating point so any v_max > 0 is fine) is beyond the horizon limit."""
     assert problem.vmax_degps is not None
-    d = float(np.abs(problem.goal_deg - problem.start_deg).max())
-    ts = problem.model.ts
-    t = d / problem.vmax_degps + 2.0 / problem.model.p
+    check_horizon(problem.model, problem.start_deg, problem.goal_deg, problem.vmax_degps, n_max)
+
+
+def check_horizon(model: ServoModel, start_deg: F, goal_deg: F, vmax_degps: float,
+                  n_max: int) -> None:
+    """InfeasibleError at once when even the estimate of N (:func:`estimate_steps`, computed
+    in floating point so any v_max > 0 is fine) is beyond the horizon limit ``n_max`` — a
+    check that needs no region and no workspace."""
+    d = float(np.abs(np.asarray(goal_deg, float) - np.asarray(start_deg, float)).max())
+    ts = model.ts
+    t = d / vmax_degps + 2.0 / model.p
     if t / ts <= n_max:
         return
-    t_room = max(n_max * ts - 2.0 / problem.model.p, ts)
+    t_room = max(n_max * ts - 2.0 / model.p, ts)
     raise InfeasibleError(
         f"no plan within N ≤ {n_max} steps ({n_max * ts:g} s): at v_max = "
-        f"{problem.vmax_degps:g} deg/s the largest joint move ({d:.4g}°) needs about "
+        f"{vmax_degps:g} deg/s the largest joint move ({d:.4g}°) needs about "
         f"{t:.3g} s; use a speed bound of at least about {d / t_room:.3g} deg/s")
 
 

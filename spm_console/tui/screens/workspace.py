@@ -76,8 +76,7 @@ def region_box(region: Any) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def check_text(chk: Any) -> str:
-    verdict = "USABLE for planning" if chk.usable else "NOT usable"
-    lines = [f"θ = {fmt_deg(chk.theta_deg)}: {verdict}"]
+    lines = [f"θ = {fmt_deg(chk.theta_deg)}: {chk.verdict}"]
     if chk.zeta is not None:
         lines.append(f"  ζ = {chk.zeta:.3f}, closest links {chk.min_link_mm:.1f} mm "
                      f"({chk.closest_pair})")
@@ -175,7 +174,10 @@ class WorkspaceScreen(StepScreen):
         elif isinstance(outcome, ThetaChecked):
             result = outcome.check
             self.query_one("#ws-check", Static).update(Content(check_text(result)))
-            self.status.ok("usable" if result.usable else f"not usable: {result.reason}")
+            if result.plannable:
+                self.status.ok(result.verdict)
+            else:
+                self.status.error(result.verdict)
             if result.v is not None:
                 self.console.view.show_theta(np.asarray(result.theta_deg, float))
 

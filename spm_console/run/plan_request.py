@@ -1,0 +1,111 @@
+"""The one way a plan is assembled, solved and checked: the console, scripts and the CLI's
+``plan mvn|mintime`` all call :func:`plan_motion`.
+
+Checks, in order: start and goal inside the servo limits (unless reference limits are off);
+both feasible (:meth:`~spm_console.core.workspace_check.ThetaCheck.verdict` is the refusal's
+wording); the region — given, the workspace's P, or grown around the segment
+(:func:`~spm_console.core.region_build.choose_region`); the solve; then the runtime's own
+verification (:func:`~spm_console.run.plan_check.verify_plan`), so only a plan that will
+execute is returned. Degrees, deg/s, seconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.bounds import MAX_INSTANTS, N_MAX
+from spm_console.core.plan import Plan
+from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
+from spm_console.core.planning.mintime import check_horizon
+from spm_console.core.region import Region
+from spm_console.core.region_build import RegionChoice, choose_region
+from spm_console.core.workspace import Workspace, check_theta
+from spm_console.core.workspace_check import ThetaCheck
+from spm_console.errors import BadInputError, InfeasibleError
+from spm_console.models import servo_limits_deg, servo_model_of
+from spm_console.profile import Profile
+from spm_console.run.plan_check import verify_plan
+from spm_console.store.plan_file import plan_hash
+
+F = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """What the operator asked for."""
+
+    method: Literal["mvn", "mintime"]
+    start_deg: F
+    goal_deg: F
+    steps: int = 150
+    """N for MVN (minimum time finds its own)."""
+    vmax_degps: float | None = None
+    """Speed bound at the samples; None: the profile's ``limits.vmax_degps``."""
+    intersample: int = 1
+    """K ≥ 1: also bound speed and region at K−1 instants inside each interval."""
+    hold_first: bool = True
+    """θ*(0) = θ(0), (30b) as printed; False lets the first reference move."""
+    reference_limits: bool = True
+    """Keep every reference inside the servo limits."""
+    region: Region | None = None
+    """A region given by the operator (e.g. a file); None: P, or grown around the segment."""
+    region_source: str = ""
+
+
+@dataclass(frozen=True)
+class PlannedMotion:
+    """A verified plan and what it was planned in."""
+
+    plan: Plan
+    region: RegionChoice
+    start: ThetaCheck
+    goal: ThetaCheck
+
+
+def precheck(profile: Profile, req: PlanRequest) -> None:
+    """What can be refused without the workspace (milliseconds): the servo limits, and for
+    minimum time a speed bound too low for any horizon the planner may try."""
+    s = np.asarray(req.start_deg, float).reshape(3)
+    g = np.asarray(req.goal_deg, float).reshape(3)
+    lo, hi = servo_limits_deg(profile)
+    if req.reference_limits:
+        for name, th in (("start", s), ("goal", g)):
+            if np.any(th < lo) or np.any(th > hi):
+                raise BadInputError(
+                    f"{name} θ = {np.round(th, 2).tolist()}° is outside the servo limits "
+                    f"{np.round(lo, 2).tolist()}…{np.round(hi, 2).tolist()}°")
+    if req.method == "mintime":
+        vmax = profile.limits.vmax_degps if req.vmax_degps is None else float(req.vmax_degps)
+        check_horizon(servo_model_of(profile), s, g, vmax,
+                      min(N_MAX, MAX_INSTANTS // max(1, int(req.intersample))))
+
+
+def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMotion:
+    """Assemble, solve and verify (see the module docstring); raises the SpmError that says
+    why not (bad input 4, infeasible 6, plan refused 26)."""
+    precheck(profile, req)
+    s = np.asarray(req.start_deg, float).reshape(3)
+    g = np.asarray(req.goal_deg, float).reshape(3)
+    lo, hi = servo_limits_deg(profile)
+    checks = []
+    for name, th in (("start", s), ("goal", g)):
+        chk = check_theta(ws, th)
+        if not chk.feasible:
+            raise InfeasibleError(f"{name} θ = {np.round(th, 2).tolist()}° is {chk.verdict}")
+        checks.append(chk)
+    choice = (RegionChoice(req.region, "given", req.region_source) if req.region is not None
+              else choose_region(ws, s, g))
+    vmax = profile.limits.vmax_degps if req.vmax_degps is None else float(req.vmax_degps)
+    pb = PlanProblem(servo_model_of(profile), s, g, int(req.steps), choice.region, vmax,
+                     int(req.intersample), req.hold_first,
+                     lo if req.reference_limits else None, hi if req.reference_limits else None)
+    if req.method == "mvn":
+        plan = solve_problem(pb).to_plan("mvn", plan_hash(profile))
+    else:
+        plan = solve_mintime_problem(pb).to_plan("mintime", plan_hash(profile))
+    verify_plan(profile, ws, plan)  # exactly the executor's check: emit only what executes
+    return PlannedMotion(plan, choice, checks[0], checks[1])
