@@ -131,6 +131,8 @@ class Session:
         self.cache_info: Any = None
         self.plan: Plan | None = None
         self.plan_info: dict[str, Any] = {}
+        self.plan_source: str | None = None
+        """The file the current plan was loaded from (None: solved in this session)."""
         self.last_run: ExecutionResult | None = None
         self.motion_total_s = 0.0
         """Planned duration of the running (or last) motion, s."""
@@ -274,7 +276,8 @@ class Session:
         tol = self.profile.safety.approach_tolerance_deg
         segments = plan_segments(self.profile, theta0, plan, tol)
         self.motion_total_s = sum((s.plan.N + 1) * s.plan.Ts for s in segments)
-        result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, source))
+        src = source if source is not None else self.plan_source
+        result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, src))
         self.plan_info["executed"] = True
         return result
 
@@ -366,9 +369,28 @@ class Session:
             method, s, g, int(steps), vmax, intersample=int(intersample), hold_first=hold_first))
         plan = planned.plan
         self.plan = plan
+        self.plan_source = None
         self.plan_info = {"method": method, "start": start.describe(), "goal": goal.describe(),
                           "start_deg": s, "goal_deg": g, "vmax_degps": vmax,
                           "region": planned.region.describe()}
+        return plan
+
+    def load_plan_file(self, path: str | Path) -> Plan:
+        """A saved plan as the current plan: read and checked against this profile
+        (``store.plan_file.load_plan``: format, profile hash, model), then verified exactly as
+        the executor will (``run.plan_check.verify_plan``). Refused with the reason."""
+        from spm_console.run.plan_check import verify_plan
+        from spm_console.store.plan_file import load_plan
+
+        plan = load_plan(path, self.profile)
+        verify_plan(self.profile, self.require_workspace(), plan)
+        self.plan = plan
+        self.plan_info = {"method": plan.kind, "start": "from the file", "goal": "from the file",
+                          "start_deg": plan.position_deg[0], "goal_deg": plan.position_deg[-1],
+                          "vmax_degps": None if plan.options is None else plan.options.vmax_degps,
+                          "region": f"stored in the plan ({plan.region.halfspaces} half-spaces)",
+                          "source": str(path)}
+        self.plan_source = str(path)
         return plan
 
     def close(self, wait_s: float = 3.0) -> None:
