@@ -64,6 +64,10 @@ class MotionClient:
         self._closed = False
         self._lost = ""
         self.on_sample: Callable[[Sample], None] | None = None
+        self.telemetry_dropped = 0
+        """Samples the motion process left out of the telemetry because this client read
+        too slowly (the run logs have them all)."""
+        self._telemetry: queue.SimpleQueue[Telemetry | threading.Event | None] = queue.SimpleQueue()
         if not self.conn.poll(start_timeout_s):
             self.close()
             raise MotionProcessLostError("the motion process did not start")
@@ -72,10 +76,6 @@ class MotionClient:
             self.close()
             raise _error(first)
         self.pid = int(first.value)
-        self.telemetry_dropped = 0
-        """Samples the motion process left out of the telemetry because this client read
-        too slowly (the run logs have them all)."""
-        self._telemetry: queue.SimpleQueue[Telemetry | threading.Event | None] = queue.SimpleQueue()
         threading.Thread(target=self._dispatch, daemon=True, name="spm-telemetry-in").start()
         self._reader = threading.Thread(target=self._read, daemon=True, name="spm-motion-client")
         self._reader.start()

@@ -115,10 +115,9 @@ class ConnectScreen(StepScreen):
         else:
             info = (f"Bus: {s.bus_label} (protocol {p.protocol}, {p.baud} baud), "
                     f"profile {s.profile.name}: {len(s.bus_state.statuses)} servos answer")
-            rt = s.bus_state.emulator_realtime
-            if rt:
-                info += (f"\nEmulated servos: {rt}" + ("" if s.bus_state.emulator_realtime_granted
-                         else "  (NOT real-time: replies may be late under load)"))
+            if not s.bus_state.emulator_realtime_granted:  # said only when something is wrong
+                info += (f"\nEmulated servos NOT real-time ({s.bus_state.emulator_realtime}): "
+                         "replies may be late under load")
         self.query_one("#bus-info", Static).update(Content(info))
         table = self.query_one("#servos", DataTable)
         table.clear()
