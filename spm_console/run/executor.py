@@ -319,7 +319,8 @@ class Executor:
                             filtered_deg=filt, velocity_degps=vel, fd_velocity_degps=fdv.copy(),
                             tracking_error_deg=err, bus_s=bus_s, late_s=t_start - deadline,
                             read_offset_s=(t_read - deadline) if z is not None else float("nan"),
-                            retries=retries)
+                            retries=retries,
+                            stale_replies=stale_replies(self.bus) - self._stale0)
             self._publish(sample)
             if stop is not None:
                 self._apply_stop(stop, self._hold_target(last_good), deadline + self.ts)

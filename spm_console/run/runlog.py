@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from spm_console.errors import BadInputError
 from spm_console.jsonutil import to_jsonable
 from spm_console.run.procid import current_process, writer_alive
+from spm_console.run.run_info import RunInfo, run_info
 from spm_console.run.sample import Sample
 
 F = NDArray[np.float64]
@@ -228,6 +229,11 @@ class RunData:
     def rows(self) -> int:
         return len(self.phase)
 
+    @property
+    def info(self) -> RunInfo:
+        """Outcome, exit code, stop kind (also from the stop event), duration, plan."""
+        return run_info(self.path.name, self.meta, self.events)
+
 
 def resolve_run(run: str | Path, root: str | Path | None = None) -> Path:
     """A run folder from a path, a folder name under the log root, or 'last'."""
@@ -307,6 +313,11 @@ class RunSummary:
     @property
     def name(self) -> str:
         return self.path.name
+
+    @property
+    def info(self) -> RunInfo:
+        """Outcome, exit code, stop kind, duration, plan (from meta.json alone)."""
+        return run_info(self.path.name, self.meta)
 
 
 def list_runs(root: str | Path | None = None) -> list[RunSummary]:

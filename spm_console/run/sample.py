@@ -49,6 +49,9 @@ class Sample:
     read_offset_s: float = 0.0
     """When the (successful) read was sent, after the cycle's deadline k·Ts, s (NaN when
     the read failed)."""
+    stale_replies: int = 0
+    """Stale status packets the bus discarded since the run began, up to this cycle (late
+    replies to earlier requests, or replies nothing asked for; not in samples.csv)."""
 
     @property
     def read_ok(self) -> bool:

@@ -1,9 +1,13 @@
-"""Step 5: execute the plan — confirmation, live θ / velocity / tracking error per joint,
-plots, elapsed and remaining time, the E-stop, then the outcome and the log path."""
+"""Step 5: execute the plan — confirmation, live θ / velocity / tracking per joint, the
+servo loop's timing so far, plots, elapsed and remaining time, the E-stop, then the outcome
+and the log path."""
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from textual.app import ComposeResult
@@ -18,8 +22,92 @@ from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
+if TYPE_CHECKING:
+    from spm_console.run.sample import Sample
+    from spm_console.run.stats import RunStats
+
 #: Live plot redraw interval, s (telemetry itself arrives every Ts, coalesced).
 PLOT_EVERY_S = 0.5
+
+NO_REPLY = "no reply"
+"""Shown for a joint angle the cycle's read did not return (after its retries)."""
+
+JOINT_COLUMNS = ("joint", "reference θ*", "measured θ", "dθ/dt (KF)",
+                 "measured −\nmodel", "reference −\nmeasured")
+"""Live table headers (two lines: the table fits 80 columns)."""
+
+
+@dataclass(frozen=True)
+class LoopTiming:
+    """The servo loop's timing over the cycles seen so far (or over the whole run)."""
+
+    cycles: int
+    jitter_p99_ms: float
+    """99th percentile of |t(k) − t(k−1) − Ts| over consecutive cycles, ms (NaN: < 2)."""
+    late_cycles: int
+    """Cycles that started more than one period after their deadline (RunStats.overruns)."""
+    read_retries: int
+    no_reply: int
+    """Cycles without a valid reply after their retries."""
+    stale_replies: int
+    """Stale status packets the bus discarded (late or unasked-for replies)."""
+
+    def text(self) -> str:
+        jit = f"{self.jitter_p99_ms:.2f} ms" if math.isfinite(self.jitter_p99_ms) else "–"
+        return (f"servo loop, {self.cycles} cycles: jitter p99 {jit} · "
+                f"late cycles {self.late_cycles} · read retries {self.read_retries} · "
+                f"no-reply cycles {self.no_reply} · stale replies {self.stale_replies}")
+
+    @classmethod
+    def of_run(cls, stats: RunStats) -> LoopTiming:
+        """The motion process's own figures over every cycle of a finished run."""
+        return cls(cycles=stats.samples,
+                   jitter_p99_ms=stats.jitter_ms.p99 if stats.jitter_ms else math.nan,
+                   late_cycles=stats.overruns, read_retries=stats.read_retries,
+                   no_reply=stats.failed_reads, stale_replies=stats.stale_replies)
+
+
+class LiveTiming:
+    """Loop timing accumulated sample by sample while the wrist moves (the definitions of
+    ``run.stats.run_stats``; a cycle the telemetry left out breaks the jitter pair)."""
+
+    def __init__(self, ts_s: float) -> None:
+        self.ts_s = ts_s
+        """Servo period, s."""
+        self._jitter_ms: list[float] = []
+        self._prev_k = -2
+        self._prev_t = 0.0
+        self.cycles = 0
+        self.late_cycles = 0
+        self.read_retries = 0
+        self.no_reply = 0
+        self.stale_replies = 0
+
+    def add(self, samples: Sequence[Sample]) -> None:
+        for s in samples:
+            if s.k == self._prev_k + 1:
+                self._jitter_ms.append(abs(s.t - self._prev_t - self.ts_s) * 1e3)
+            self._prev_k, self._prev_t = s.k, s.t
+            self.cycles += 1
+            self.late_cycles += int(s.late_s > self.ts_s)
+            self.read_retries += s.retries
+            self.no_reply += int(not s.read_ok)
+            self.stale_replies = max(self.stale_replies, s.stale_replies)
+
+    def timing(self) -> LoopTiming:
+        jit = float(np.percentile(self._jitter_ms, 99)) if self._jitter_ms else math.nan
+        return LoopTiming(cycles=self.cycles, jitter_p99_ms=jit, late_cycles=self.late_cycles,
+                          read_retries=self.read_retries, no_reply=self.no_reply,
+                          stale_replies=self.stale_replies)
+
+
+def _angle(x: float, fmt: str) -> str:
+    return f"{x:{fmt}}°" if math.isfinite(x) else NO_REPLY
+
+
+def _diff(a: float, b: float) -> str:
+    d = a - b
+    return f"{d:+5.2f}°" if math.isfinite(d) else "–"
 
 
 class ExecuteScreen(StepScreen):
@@ -29,27 +117,38 @@ class ExecuteScreen(StepScreen):
         Binding("p", "next_plot", "Plot"),
     ]
 
+    DEFAULT_CSS = """
+    ExecuteScreen #exec-clock-row { height: 1; }
+    ExecuteScreen #exec-clock { width: auto; padding: 0 2 0 0; }
+    ExecuteScreen #exec-timing { height: auto; }
+    """
+
     def __init__(self) -> None:
         super().__init__()
         self.plot_kind = 0
         self._last_plot = 0.0
+        self.timing: LiveTiming | None = None
+        """The running execution's timing (None before the first execution)."""
+        self._fed = 0
+        """How many of ``console.live_samples`` the timing has taken in."""
 
     def compose_body(self) -> ComposeResult:
         with Vertical(classes="body"):
             yield Static(id="exec-plan", markup=False)
-            with Horizontal(id="exec-live"):
-                yield DataTable(id="joints", cursor_type="none")
-                with Vertical(id="exec-time"):
-                    yield Static(id="exec-clock", markup=False)
-                    yield ProgressBar(total=100, id="exec-progress", show_eta=False)
+            yield DataTable(id="joints", cursor_type="none", header_height=2)
+            with Horizontal(id="exec-clock-row"):
+                yield Static(id="exec-clock", markup=False)
+                yield ProgressBar(total=100, id="exec-progress", show_eta=False)
+            yield Static("servo loop timing: shown while a plan executes", id="exec-timing",
+                         markup=False)
             yield Static(id="exec-outcome", markup=False, classes="result")
             yield PlotView(id="exec-plot")
 
     def on_mount(self) -> None:
         t = self.query_one("#joints", DataTable)
-        t.add_columns("joint", "ref. θ*", "measured θ", "dθ/dt (KF)", "error")
+        t.add_columns(*JOINT_COLUMNS)
         for i in range(3):
-            t.add_row(str(i + 1), "-", "-", "-", "-", key=str(i))
+            t.add_row(str(i + 1), *("-" for _ in JOINT_COLUMNS[1:]), key=str(i))
         self.refresh_view()
 
     def refresh_view(self) -> None:
@@ -90,6 +189,10 @@ class ExecuteScreen(StepScreen):
             return
         self.console.live_samples.clear()
         self._last_plot = 0.0
+        self.timing = LiveTiming(self.session.profile.servo.ts_s)
+        self._fed = 0
+        self.query_one("#exec-timing", Static).update(
+            Content("servo loop timing: waiting for the first cycle …"))
         self.query_one("#exec-outcome", Static).update("")
         on_sample = self.console.telemetry_sink(self)
         self.console.moving = True
@@ -106,22 +209,36 @@ class ExecuteScreen(StepScreen):
     def on_telemetry(self, message: Telemetry) -> None:
         message.stop()
         self.show_sample(message.sample)
+        self.update_timing()
         if message.sample.t - self._last_plot >= PLOT_EVERY_S:
             self._last_plot = message.sample.t
             self.draw_plot()
 
-    def show_sample(self, smp: Any) -> None:
+    def update_timing(self) -> None:
+        """Take in the samples received since the last update; show the timing so far."""
+        if self.timing is None:  # telemetry of a motion this screen did not start
+            self.timing = LiveTiming(self.session.profile.servo.ts_s)
+        samples = self.console.live_samples
+        n = len(samples)  # appended by the telemetry thread meanwhile: read up to here
+        if n < self._fed:  # cleared by another motion (homing)
+            self._fed = 0
+        self.timing.add(samples[self._fed:n])
+        self._fed = n
+        self.query_one("#exec-timing", Static).update(Content(self.timing.timing().text()))
+
+    def show_sample(self, smp: Sample) -> None:
         t = self.query_one("#joints", DataTable)
         cols = list(t.columns.keys())
         for i in range(3):
-            vals = (f"{smp.reference_deg[i]:7.2f}°", f"{smp.measured_deg[i]:7.2f}°",
+            ref, meas = float(smp.reference_deg[i]), float(smp.measured_deg[i])
+            vals = (_angle(ref, "7.2f"), _angle(meas, "7.2f"),
                     f"{smp.velocity_degps[i]:6.1f}°/s",
-                    f"{smp.measured_deg[i] - smp.predicted_deg[i]:+5.2f}°")
+                    _diff(meas, float(smp.predicted_deg[i])), _diff(ref, meas))
             for c, v in zip(cols[1:], vals, strict=True):
                 t.update_cell(str(i), c, v)
         total = max(self.session.motion_total_s, 1e-9)
         self.query_one("#exec-clock", Static).update(Content(
-            f"{smp.phase}: {smp.t:5.2f} s done\n{max(total - smp.t, 0):5.2f} s to go"))
+            f"{smp.phase}: {smp.t:5.2f} s done, {max(total - smp.t, 0):5.2f} s to go"))
         self.query_one("#exec-progress", ProgressBar).update(progress=min(100, 100 * smp.t / total))
 
     def draw_plot(self) -> None:
@@ -149,7 +266,20 @@ class ExecuteScreen(StepScreen):
         self.console.after_motion(result)
         if self.console.live_samples:
             self.show_sample(self.console.live_samples[-1])  # telemetry is throttled: the last
+        if result.ok:
+            self.query_one("#exec-progress", ProgressBar).update(progress=100)
+            self.query_one("#exec-clock", Static).update(
+                Content(f"done: {result.stats.duration_s:.2f} s"))
+        elif result.stats.stop is not None:
+            self.query_one("#exec-clock", Static).update(
+                Content(f"stopped at {result.stats.stop.detected_t:.2f} s"))
         self.draw_plot()
+        if result.stats.samples:  # every cycle, counted where the loop ran
+            self.query_one("#exec-timing", Static).update(
+                Content(LoopTiming.of_run(result.stats).text()))
+        else:
+            self.query_one("#exec-timing", Static).update(
+                Content("servo loop timing: no cycle ran"))
         self.query_one("#exec-outcome", Static).update(Content(outcome_text(result)))
         if result.ok:
             self.status.ok(f"completed: {result.message}. Press 6 to look at the log")

@@ -1,8 +1,11 @@
-"""Step 6: browse the run logs and plot one (reference, measured, model; velocities)."""
+"""Step 6: browse the run logs — outcome, exit code, stop reason, duration and plan of each
+run, a filter by outcome, the log root in use — and plot one (reference, measured, model;
+velocities)."""
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from pathlib import Path
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 from textual.app import ComposeResult
@@ -11,26 +14,73 @@ from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.widgets import DataTable, Static
 
+from spm_console.errors import BadInputError
+from spm_console.formatting import fmt_deg
+from spm_console.run.run_info import RunInfo
 from spm_console.tui.messages import Outcome, RunOpened
-from spm_console.tui.screens.base import StepScreen
+from spm_console.tui.screens.base import StepScreen, describe_error
 from spm_console.tui.widgets.plot import PlotView, Series
+
+if TYPE_CHECKING:  # the run-log reader is imported when the screen first lists runs
+    from spm_console.run.runlog import RunData, RunSummary
 
 PLOTS = ("positions", "velocities", "tracking error")
 
+FILTERS: tuple[str, ...] = ("all", "completed", "stopped", "refused", "killed", "error")
+"""The outcome filter's values, in the order ``f`` steps through them."""
 
-def run_text(run: Any) -> str:
-    m = run.meta
+RUN_COLUMNS = ("run", "kind", "outcome", "exit", "reason", "duration", "plan")
+
+
+def _secs(x: float | None) -> str:
+    return "–" if x is None else f"{x:.2f} s"
+
+
+def plan_text(info: RunInfo) -> str:
+    """'MVN [..]° → [..]°, 1.00 s (after an approach move)', or what the log lacks."""
+    p = info.plan
+    if p is None:
+        return "plan: not recorded"
+    ends = ("" if p.start_deg is None or p.goal_deg is None
+            else f" {fmt_deg(p.start_deg)} → {fmt_deg(p.goal_deg)}")
+    length = "" if p.duration_s is None else f", {p.duration_s:.2f} s"
+    return (f"plan: {p.kind.upper()}{ends}{length}"
+            + (" (after an approach move)" if p.after_approach else ""))
+
+
+def run_row(info: RunInfo) -> tuple[str, ...]:
+    """The runs table's cells of one run (RUN_COLUMNS)."""
+    return (info.name, info.kind, info.outcome,
+            "" if info.exit_code is None else str(info.exit_code),
+            info.stop_label, _secs(info.duration_s),
+            "" if info.plan is None else info.plan.kind)
+
+
+def run_text(run: RunData) -> str:
+    info = run.info
+    code = "none" if info.exit_code is None else str(info.exit_code)
+    started = ("start not recorded" if info.started is None
+               else f"started {info.started.astimezone():%Y-%m-%d %H:%M:%S}")
+    loop = ("" if info.loop_s is None
+            else f" (servo loop {info.loop_s:.2f} s, {info.samples or 0} cycles)")
     lines = [
-        f"{m.get('run', run.path.name)}: {m.get('kind', '?')} on {m.get('bus', '?')}",
-        f"outcome {m.get('outcome', '?')} (exit code {m.get('exit_code')}): {m.get('message', '')}",
+        f"{info.name}: {info.kind} on {info.bus or '?'}",
+        f"outcome {info.outcome} (exit code {code}): {info.message}",
+    ]
+    if info.stop_kind is not None:
+        lines.append(f"stop reason: {info.stop_label}")
+    lines += [
+        f"{started}, duration {_secs(info.duration_s)}{loop}",
+        plan_text(info),
         f"{run.rows} samples, {len(run.events)} events"
         + ("  (last line truncated)" if run.truncated else ""),
         f"folder {run.path}",
     ]
     faults = [e for e in run.events if e.get("event") in ("fault", "stop")]
     for e in faults[:3]:
-        lines.append(f"  t = {e.get('t', 0):.2f} s {e.get('event')}: "
-                     f"{e.get('message', e.get('kind', ''))}")
+        t = e.get("t", 0)
+        when = f"t = {t:.2f} s" if isinstance(t, int | float) else "t = ?"
+        lines.append(f"  {when} {e.get('event')}: {e.get('message', e.get('kind', ''))}")
     return "\n".join(lines)
 
 
@@ -39,25 +89,46 @@ class LogsScreen(StepScreen):
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("r", "reload", "Refresh"),
         Binding("enter", "open", "Open run", show=True),
+        Binding("f", "next_filter", "Filter"),
         Binding("p", "next_plot", "Plot"),
         Binding("j", "next_joint", "Joint"),
     ]
+
+    DEFAULT_CSS = """
+    LogsScreen #logs-head { height: auto; padding: 0 1; }
+    LogsScreen #logs-main { height: 1fr; }
+    """
 
     def __init__(self) -> None:
         super().__init__()
         self.plot_kind = 0
         self.joint = 0
-        self.run: Any = None
+        self.run: RunData | None = None
+        self.outcome_filter = "all"
+        """One of FILTERS: which runs the table lists."""
+
+    @property
+    def root(self) -> Path:
+        """The log root this session writes to and reads from (``--logs``,
+        ``$SPM_CONSOLE_LOGS`` or ``logs/``), absolute."""
+        from spm_console.run.runlog import logs_root
+
+        return logs_root(self.session.logs_root).absolute()
 
     def compose_body(self) -> ComposeResult:
-        with Horizontal(classes="body"):
-            yield DataTable(id="runs", cursor_type="row", zebra_stripes=True)
-            with Vertical(id="run-detail"):
-                yield Static(id="run-text", markup=False, classes="result")
-                yield PlotView(id="run-plot")
+        with Vertical(classes="body"):
+            yield Static(id="logs-head", markup=False)
+            with Horizontal(id="logs-main"):
+                yield DataTable(id="runs", cursor_type="row", zebra_stripes=True)
+                with Vertical(id="run-detail"):
+                    yield Static(id="run-text", markup=False, classes="result")
+                    yield PlotView(id="run-plot")
 
     def on_mount(self) -> None:
-        self.query_one("#runs", DataTable).add_columns("run", "kind", "outcome", "samples")
+        table = self.query_one("#runs", DataTable)
+        table.add_columns(*RUN_COLUMNS)
+        table.styles.width = "auto"  # as wide as its columns, at most 60 % of the screen
+        table.styles.max_width = "60%"
         self.query_one("#run-text", Static).update(Content(
             "Pick a run with ↑/↓ and press Enter to plot it."))
 
@@ -70,18 +141,46 @@ class LogsScreen(StepScreen):
 
         table = self.query_one("#runs", DataTable)
         table.clear()
+        root = self.root
         try:
-            runs = list_runs(self.session.logs_root)
-        except OSError as exc:
-            self.status.error(f"cannot list the logs: {exc}")
+            runs = list_runs(root)
+        except (OSError, BadInputError) as exc:
+            self.show_head(root, 0, 0)
+            self.status.error(f"cannot list the logs in {root}: {describe_error(exc)}")
             return
-        for r in reversed(runs):  # newest first
-            m = r.meta
-            table.add_row(r.name, str(m.get("kind", "?")), str(m.get("outcome", "?")),
-                          str(m.get("samples", "")), key=str(r.path))
+        shown = self.fill(table, runs)
+        self.show_head(root, shown, len(runs))
         table.focus()
-        self.status.ok(f"{len(runs)} runs under {self.session.logs_root or 'logs'}/"
-                       if runs else "no runs logged yet: execute a plan first (step 5)")
+        if not runs:
+            self.status.ok(f"no runs logged yet in {root}: execute a plan first (step 5)")
+        elif not shown:
+            self.status.ok(f"no {self.outcome_filter} run among {len(runs)}: "
+                           "f shows another outcome")
+        else:
+            self.status.ok(f"{shown} of {len(runs)} runs in {root}: Enter opens one, "
+                           "f filters by outcome")
+
+    def fill(self, table: DataTable[str], runs: list[RunSummary]) -> int:
+        """List ``runs`` newest first, those of the filter's outcome; how many are listed."""
+        shown = 0
+        for r in reversed(runs):  # list_runs gives them oldest first
+            info = r.info
+            if self.outcome_filter != "all" and info.outcome != self.outcome_filter:
+                continue
+            table.add_row(*run_row(info), key=str(r.path))
+            shown += 1
+        return shown
+
+    def show_head(self, root: Path, shown: int, total: int) -> None:
+        which = ("all outcomes" if self.outcome_filter == "all"
+                 else f"outcome {self.outcome_filter}")
+        self.query_one("#logs-head", Static).update(Content(
+            f"logs in {root} · {which}: {shown} of {total} runs · f: filter by outcome"))
+
+    def action_next_filter(self) -> None:
+        i = FILTERS.index(self.outcome_filter)
+        self.outcome_filter = FILTERS[(i + 1) % len(FILTERS)]
+        self.action_reload()
 
     def action_open(self) -> None:
         table = self.query_one("#runs", DataTable)

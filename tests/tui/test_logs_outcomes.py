@@ -1,0 +1,130 @@
+"""Step 6 explains each run: outcome, exit code, stop reason (E-stop vs communication lost),
+duration, plan and its ends; a filter by outcome; the log root actually in use."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from textual.widgets import DataTable
+
+from spm_console.profile import Profile
+from spm_console.run.runlog import LOGS_ENV
+from spm_console.tui.app import make_app
+from tests.runlog_helpers import write_run
+from tests.tui.helpers import settle, status_of, text_of
+
+SIZE = (160, 40)
+
+
+def _runs(root: Path) -> dict[str, str]:
+    """Four runs, oldest first: completed, E-stop, communication lost, killed; name by role."""
+    return {
+        "completed": write_run(root, "completed", 0, "executed 20 cycles (0.40 s)").path.name,
+        "estop": write_run(root, "stopped", 20, "E-stop: operator E-stop (SPACE)",
+                           "estop").path.name,
+        "comm": write_run(root, "stopped", 22, "communication lost: 3 consecutive bus cycles "
+                          "without a valid reply", "comm").path.name,
+        "killed": write_run(root, "killed").path.name,
+    }
+
+
+def _rows(app) -> dict[str, list[str]]:  # type: ignore[no-untyped-def]
+    table = app.screen.query_one("#runs", DataTable)
+    labels = [str(c.label) for c in table.columns.values()]
+    rows = [[str(c) for c in table.get_row_at(i)] for i in range(table.row_count)]
+    return {r[0]: dict(zip(labels, r, strict=True)) for r in rows}  # type: ignore[misc]
+
+
+async def test_stopped_runs_say_e_stop_or_communication_lost_with_exit_codes(
+        console, tmp_path) -> None:
+    names = _runs(tmp_path / "logs")
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("6")
+        await settle(pilot)
+        table = app.screen.query_one("#runs", DataTable)
+        assert [str(table.get_row_at(i)[0]) for i in range(4)] == [
+            names["killed"], names["comm"], names["estop"], names["completed"]]  # newest first
+        rows = _rows(app)
+        estop, comm = rows[names["estop"]], rows[names["comm"]]
+        assert (estop["outcome"], estop["exit"], estop["reason"]) == ("stopped", "20", "E-stop")
+        assert (comm["outcome"], comm["exit"], comm["reason"]) == (
+            "stopped", "22", "communication lost")
+        done, killed = rows[names["completed"]], rows[names["killed"]]
+        assert (done["outcome"], done["exit"], done["reason"]) == ("completed", "0", "")
+        assert (killed["outcome"], killed["exit"], killed["duration"]) == ("killed", "", "–")
+        assert done["plan"] == "mvn" and done["duration"].endswith(" s")
+
+        await pilot.press("down", "enter")  # the communication loss
+        await settle(pilot)
+        out = text_of(app, "#run-text")
+        assert "outcome stopped (exit code 22): communication lost: 3 consecutive" in out
+        assert "stop reason: communication lost" in out and "E-stop" not in out
+        assert "plan: MVN [135.00, 135.00, 135.00]° → [95.00, 110.00, 105.00]°, 1.00 s" in out
+        assert "(after an approach move)" in out
+        assert "servo loop 0.40 s, 20 cycles" in out and "duration " in out
+
+        await pilot.press("down", "enter")  # the E-stop
+        await settle(pilot)
+        out = text_of(app, "#run-text")
+        assert "outcome stopped (exit code 20): E-stop: operator E-stop (SPACE)" in out
+        assert "stop reason: E-stop" in out and "communication" not in out
+
+
+async def test_the_filter_lists_one_outcome_at_a_time(console, tmp_path) -> None:
+    names = _runs(tmp_path / "logs")
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("6")
+        await settle(pilot)
+        assert len(_rows(app)) == 4 and "all outcomes: 4 of 4 runs" in text_of(app, "#logs-head")
+        seen = {}
+        for _ in range(5):  # completed, stopped, refused, killed, error
+            await pilot.press("f")
+            await settle(pilot)
+            which = app.screen.outcome_filter
+            seen[which] = set(_rows(app))
+            assert f"outcome {which}: {len(seen[which])} of 4 runs" in text_of(app, "#logs-head")
+            assert {r["outcome"] for r in _rows(app).values()} <= {which}
+        assert seen == {"completed": {names["completed"]},
+                        "stopped": {names["estop"], names["comm"]},
+                        "refused": set(), "killed": {names["killed"]}, "error": set()}
+        assert "no error run among 4" in status_of(app)
+        await pilot.press("f")  # back to all
+        await settle(pilot)
+        assert app.screen.outcome_filter == "all" and len(_rows(app)) == 4
+        await pilot.press("f", "f")  # stopped: Enter opens the listed run, not a hidden one
+        await settle(pilot)
+        await pilot.press("enter")
+        await settle(pilot)
+        assert app.screen.run is not None and app.screen.run.path.name == names["comm"]
+
+
+async def test_the_configured_log_root_is_shown(console, tmp_path) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("6")
+        await settle(pilot)
+        root = str((tmp_path / "logs").absolute())
+        assert f"logs in {root} " in text_of(app, "#logs-head")
+        assert root in status_of(app)
+
+
+async def test_the_environment_log_root_is_shown(agile: Profile, ws_cache: Path, tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """No --logs: $SPM_CONSOLE_LOGS is where the runs are, and what the screen names."""
+    elsewhere = tmp_path / "elsewhere"
+    monkeypatch.setenv(LOGS_ENV, str(elsewhere))
+    write_run(elsewhere, "completed", 0, "done")
+    app = make_app(agile, sim=True, viewer=False, cache_dir=ws_cache)
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("6")
+        await settle(pilot)
+        head = text_of(app, "#logs-head")
+        assert f"logs in {elsewhere.absolute()} " in head and "1 of 1 runs" in head
+        assert len(_rows(app)) == 1
