@@ -72,7 +72,7 @@ def test_drawing_is_throttled_and_keeps_the_latest_pose(agile) -> None:
     assert not listening(port)
 
 
-def test_an_unreachable_pose_is_reported_not_drawn(agile) -> None:
+def test_an_unreachable_or_missing_pose_is_reported_not_drawn(agile) -> None:
     from spm_console.viewer.view import MeshcatView
 
     v = MeshcatView(agile, min_interval_s=0.01)
@@ -86,6 +86,12 @@ def test_an_unreachable_pose_is_reported_not_drawn(agile) -> None:
         assert "cannot draw" in v.last_error
         # the last good pose is not left on screen as if the wrist were still there
         assert v.drawn_theta_deg is None
+        v.show_theta(np.array([np.nan, 135.0, 135.0]))  # no reply from servo 1
+        assert v.wait_idle(10.0)
+        assert "cannot draw" in v.last_error and v.drawn_theta_deg is None
+        v.show_theta(np.array([95.0, 110.0, 105.0]))  # the view is still alive
+        assert v.wait_idle(10.0) and v.last_error == ""
+        np.testing.assert_allclose(v.drawn_theta_deg, [95, 110, 105])  # type: ignore[arg-type]
     finally:
         v.close()
 

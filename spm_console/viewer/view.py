@@ -243,12 +243,17 @@ class MeshcatView:
                     self._draw_target(client, target)
             except ViewerError as exc:
                 self.last_error = exc.message
+            except Exception as exc:  # the view must outlive one bad request
+                self.last_error = f"3D view: {type(exc).__name__}: {exc}"
             finally:
                 self._sending = False
                 last = time.monotonic()
 
     def _solve(self, theta_deg: F, seed: tuple[F, F] | None) -> Pose | None:
         """Continuation FK of θ (deg) from ``seed`` (θ rad, R), then from home."""
+        if theta_deg.shape != (3,) or not np.all(np.isfinite(theta_deg)):
+            self.last_error = f"cannot draw θ = {theta_deg.tolist()}°: not three numbers"
+            return None
         th = np.radians(theta_deg)
         r = self.model.track(th, *seed) if seed is not None else self.model.track(th)
         if (not r.ok or r.pose is None) and seed is not None:
