@@ -119,10 +119,13 @@ def test_a_target_or_plan_never_moves_the_measured_wrist(agile) -> None:
         assert v.wait_idle(10.0)
         np.testing.assert_allclose(v.drawn_theta_deg, goal)  # type: ignore[arg-type]
         np.testing.assert_allclose(v.target_theta_deg, goal + 5.0)  # type: ignore[arg-type]
-        v.show_plan(None)
+        v.show_plan(path)
         v.show_theta(None)  # e.g. disconnected
         assert v.wait_idle(10.0)
-        assert v.target_theta_deg is None and v.path_rows == 0 and v.drawn_theta_deg is None
+        assert v.target_theta_deg is not None and v.path_rows and v.drawn_theta_deg is None
+        v.clear_path()  # e.g. a failed solve: neither the old path nor its goal stays
+        assert v.wait_idle(10.0)
+        assert v.target_theta_deg is None and v.path_rows == 0
     finally:
         v.close()
 
@@ -142,6 +145,7 @@ def test_null_view_answers_every_request_of_the_protocol() -> None:
     v.show_path(None)
     v.show_plan(np.atleast_2d(theta))
     v.show_plan(None)
+    v.clear_path()
     assert v.url is None
     v.close()
 

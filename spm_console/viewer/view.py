@@ -74,6 +74,10 @@ class WristView(Protocol):
         (:meth:`show_target`); None clears both."""
         ...
 
+    def clear_path(self) -> None:
+        """Same as ``show_plan(None)``: no path, no ghost (a failed or discarded plan)."""
+        ...
+
     def close(self) -> None:
         ...
 
@@ -93,6 +97,9 @@ class NullView:
         pass
 
     def show_plan(self, theta_path_deg: F | None) -> None:
+        pass
+
+    def clear_path(self) -> None:
         pass
 
     def close(self) -> None:
@@ -185,6 +192,9 @@ class MeshcatView:
             self._path = _Request(path)
             self._target = _Request(None if path is None else path[-1], along_path=True)
         self._wake.set()
+
+    def clear_path(self) -> None:
+        self.show_plan(None)
 
     def _request(self, slot: str, request: _Request) -> None:
         with self._lock:
