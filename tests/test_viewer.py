@@ -53,6 +53,7 @@ def test_drawing_is_throttled_and_keeps_the_latest_pose(agile) -> None:
         port = int(v.url.rsplit(":", 1)[1].split("/")[0])  # type: ignore[union-attr]
         assert v.url.startswith("http://127.0.0.1:")  # type: ignore[union-attr]
         assert listening(port) and all(a == "0100007F" for a in listening(port))
+        assert v.drawn_theta_deg is None  # nothing measured yet: no solid wrist
         frames0 = v.frames
         t0 = time.monotonic()
         path = np.linspace([135.0, 135.0, 135.0], [95.0, 110.0, 105.0], 200)
@@ -71,18 +72,82 @@ def test_drawing_is_throttled_and_keeps_the_latest_pose(agile) -> None:
     assert not listening(port)
 
 
-def test_an_unreachable_pose_is_reported_not_drawn(agile) -> None:
+def test_an_unreachable_or_missing_pose_is_reported_not_drawn(agile) -> None:
     from spm_console.viewer.view import MeshcatView
 
     v = MeshcatView(agile, min_interval_s=0.01)
     v.start()
     try:
+        v.show_theta(np.array([135.0, 135.0, 135.0]))
+        assert v.wait_idle(10.0)
+        np.testing.assert_allclose(v.drawn_theta_deg, [135, 135, 135])  # type: ignore[arg-type]
         v.show_theta(np.array([65.0, 155.0, 65.0]))
         assert v.wait_idle(10.0)
         assert "cannot draw" in v.last_error
-        np.testing.assert_allclose(v.drawn_theta_deg, [135, 135, 135])
+        # the last good pose is not left on screen as if the wrist were still there
+        assert v.drawn_theta_deg is None
+        v.show_theta(np.array([np.nan, 135.0, 135.0]))  # no reply from servo 1
+        assert v.wait_idle(10.0)
+        assert "cannot draw" in v.last_error and v.drawn_theta_deg is None
+        v.show_theta(np.array([95.0, 110.0, 105.0]))  # the view is still alive
+        assert v.wait_idle(10.0) and v.last_error == ""
+        np.testing.assert_allclose(v.drawn_theta_deg, [95, 110, 105])  # type: ignore[arg-type]
     finally:
         v.close()
+
+
+def test_a_target_or_plan_never_moves_the_measured_wrist(agile) -> None:
+    from spm_console.viewer.view import MeshcatView
+
+    v = MeshcatView(agile, min_interval_s=0.01)
+    v.start()
+    try:
+        home = np.array([135.0, 135.0, 135.0])
+        goal = np.array([95.0, 110.0, 105.0])
+        v.show_theta(home)
+        path = np.linspace(home, goal, 40)
+        v.show_plan(path)  # what the plan screen does after a solve
+        assert v.wait_idle(10.0) and v.last_error == ""
+        np.testing.assert_allclose(v.drawn_theta_deg, home)  # type: ignore[arg-type]
+        np.testing.assert_allclose(v.target_theta_deg, goal)  # type: ignore[arg-type]
+        assert v.path_rows == len(path)
+        v.show_target(goal + 5.0)  # e.g. an FK result: only the ghost moves
+        assert v.wait_idle(10.0) and v.last_error == ""
+        np.testing.assert_allclose(v.drawn_theta_deg, home)  # type: ignore[arg-type]
+        np.testing.assert_allclose(v.target_theta_deg, goal + 5.0)  # type: ignore[arg-type]
+        v.show_theta(goal)  # the wrist got there: only the solid wrist moves
+        assert v.wait_idle(10.0)
+        np.testing.assert_allclose(v.drawn_theta_deg, goal)  # type: ignore[arg-type]
+        np.testing.assert_allclose(v.target_theta_deg, goal + 5.0)  # type: ignore[arg-type]
+        v.show_plan(path)
+        v.show_theta(None)  # e.g. disconnected
+        assert v.wait_idle(10.0)
+        assert v.target_theta_deg is not None and v.path_rows and v.drawn_theta_deg is None
+        v.clear_path()  # e.g. a failed solve: neither the old path nor its goal stays
+        assert v.wait_idle(10.0)
+        assert v.target_theta_deg is None and v.path_rows == 0
+    finally:
+        v.close()
+
+
+def test_null_view_answers_every_request_of_the_protocol() -> None:
+    from spm_console.viewer.view import NullView, WristView
+
+    wanted = {n for n in vars(WristView) if not n.startswith("_")}
+    assert wanted <= set(dir(NullView))
+    v: WristView = NullView()
+    theta = np.array([135.0, 135.0, 135.0])
+    v.show_theta(theta)
+    v.show_theta(None)
+    v.show_target(theta)
+    v.show_target(None)
+    v.show_path(np.atleast_2d(theta))
+    v.show_path(None)
+    v.show_plan(np.atleast_2d(theta))
+    v.show_plan(None)
+    v.clear_path()
+    assert v.url is None
+    v.close()
 
 
 PARENT = """

@@ -1,26 +1,40 @@
 """The wrist view behind one small interface: meshcat in a browser, or nothing (``--no-viewer``).
 
-Callers (the TUI, the executor's telemetry) call :meth:`WristView.show_theta`
-as often as they like from any thread; :class:`MeshcatView` keeps only the
-latest request and sends at most one frame per ``min_interval_s`` from its own
-thread, so nobody ever waits for the browser. Orientations for measured θ are
-found by continuation FK from the last drawn pose (the unique solution, SPEC §3).
+Two wrists are drawn, and never confused (:mod:`spm_console.viewer.draw`):
+
+- the **measured** pose (:meth:`WristView.show_theta`), opaque, labelled "measured":
+  only ever where the servos say the wrist is; hidden, with "measured pose unknown"
+  in its place, before the first reading, after ``show_theta(None)`` and when a reading
+  cannot be assembled;
+- a **target** pose (:meth:`WristView.show_target`, :meth:`WristView.show_plan`), a
+  translucent ghost labelled "target": a plan's goal, an FK/IK or workspace result;
+
+plus the planned path (:meth:`WristView.show_path`, the platform normal's tip) and a
+"leg i" label by each motor.
+
+Callers (the TUI, the executor's telemetry) call these as often as they like from any
+thread; :class:`MeshcatView` keeps only the latest request of each kind and sends at
+most one frame per ``min_interval_s`` from its own thread, so nobody ever waits for the
+browser. Orientations are found by continuation FK (the unique solution, SPEC §3): the
+measured pose from the last measured one, a target from the measured pose, a plan's
+path and goal along the path.
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics import SpmModel
+from spm_console.core.kinematics import Pose, SpmModel
 from spm_console.core.links import LinkModel
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
-from spm_console.viewer import scene
+from spm_console.viewer import draw, scene
 from spm_console.viewer.process import ViewerError, ViewerServer
 
 if TYPE_CHECKING:
@@ -33,22 +47,35 @@ MIN_INTERVAL_S = 0.1
 
 
 class WristView(Protocol):
-    """What the console needs from a 3D view."""
+    """What the console needs from a 3D view. Every call returns at once."""
 
     @property
     def url(self) -> str | None:
         """Where to look at it (None: no view)."""
         ...
 
-    def show_theta(self, theta_deg: F) -> None:
-        """Draw the wrist at motor angles θ (deg); returns at once (throttled)."""
+    def show_theta(self, theta_deg: F | None) -> None:
+        """The **measured** motor angles θ (deg), drawn solid; None: the measured pose is
+        unknown (not connected, no reply), so the solid wrist is hidden. Never pass a
+        computed or wished-for pose here: that is :meth:`show_target`."""
         ...
 
-    def show_path(self, theta_path_deg: F) -> None:
-        """Preview a planned path: rows of θ (deg)."""
+    def show_target(self, theta_deg: F | None) -> None:
+        """A pose the wrist is not known to be in (θ, deg) as a translucent ghost; None:
+        no ghost."""
+        ...
+
+    def show_path(self, theta_path_deg: F | None) -> None:
+        """Preview a path: rows of θ (deg); None: no path."""
+        ...
+
+    def show_plan(self, theta_path_deg: F | None) -> None:
+        """A plan: its path (:meth:`show_path`) and its last row as the ghost
+        (:meth:`show_target`); None clears both."""
         ...
 
     def clear_path(self) -> None:
+        """Same as ``show_plan(None)``: no path, no ghost (a failed or discarded plan)."""
         ...
 
     def close(self) -> None:
@@ -56,14 +83,20 @@ class WristView(Protocol):
 
 
 class NullView:
-    """No 3D view (``--no-viewer``)."""
+    """No 3D view (``--no-viewer``): every request is accepted and ignored."""
 
     url: str | None = None
 
-    def show_theta(self, theta_deg: F) -> None:
+    def show_theta(self, theta_deg: F | None) -> None:
         pass
 
-    def show_path(self, theta_path_deg: F) -> None:
+    def show_target(self, theta_deg: F | None) -> None:
+        pass
+
+    def show_path(self, theta_path_deg: F | None) -> None:
+        pass
+
+    def show_plan(self, theta_path_deg: F | None) -> None:
         pass
 
     def clear_path(self) -> None:
@@ -73,12 +106,24 @@ class NullView:
         pass
 
 
-_LEG_COLORS = (0xD1495B, 0x2E86AB, 0xEDAE49)
-_PATH_COLOR = 0xFF00FF
+@dataclass(frozen=True)
+class _Request:
+    """One pending request: draw ``value`` (None: hide that part)."""
+
+    value: F | None
+    along_path: bool = False
+    """For a target: take the pose reached along the path requested with it."""
+
+
+def _rows(theta_deg: F | None, ndim: int) -> F | None:
+    if theta_deg is None:
+        return None
+    a = np.asarray(theta_deg, float).copy()
+    return np.atleast_2d(a) if ndim == 2 else a
 
 
 class MeshcatView:
-    """A meshcat server child plus a sender thread that draws the latest requested pose."""
+    """A meshcat server child plus a sender thread that draws the latest requests."""
 
     def __init__(self, profile: Profile, min_interval_s: float = MIN_INTERVAL_S) -> None:
         self.model: SpmModel = model_of(profile)
@@ -89,34 +134,41 @@ class MeshcatView:
         self._client: MeshcatClient | None = None
         self._lock = threading.Lock()
         self._wake = threading.Event()
-        self._pending_theta: F | None = None
-        self._pending_path: F | None = None
-        self._clear_path = False
+        self._measured: _Request | None = None
+        self._target: _Request | None = None
+        self._path: _Request | None = None
         self._stop = False
+        self._sending = False
         self._thread: threading.Thread | None = None
-        self._theta = np.asarray(self.model.theta_home, float)
-        self._R = np.eye(3)
+        self._seed: tuple[F, F] = (np.asarray(self.model.theta_home, float), np.eye(3))
+        """Last measured pose drawn (θ rad, R), where the next measured FK starts."""
+        self._path_end: Pose | None = None
+        self._visible = {draw.MEASURED.root: False, draw.TARGET.root: False}
         self.frames = 0
-        """Poses drawn so far."""
+        """Measured poses drawn so far."""
         self.last_error = ""
         """Last problem met while drawing (empty when fine)."""
-        self.drawn_theta_deg: F = np.degrees(self._theta)
-        """θ of the pose on screen, deg."""
+        self.drawn_theta_deg: F | None = None
+        """θ of the measured pose on screen, deg (None: hidden, the pose is unknown)."""
+        self.target_theta_deg: F | None = None
+        """θ of the ghost on screen, deg (None: no ghost)."""
+        self.path_rows = 0
+        """Rows of the path on screen (0: none)."""
 
     @property
     def url(self) -> str | None:
         return self.server.urls.web_url if self.server.urls else None
 
     def start(self) -> str:
-        """Start the server, draw the wrist at home; returns the URL (blocking, ~1 s)."""
+        """Start the server, send the scene (the measured pose unknown until
+        :meth:`show_theta`); returns the URL (blocking, ~1 s)."""
         from spm_console.viewer.client import MeshcatClient
 
         urls = self.server.start_server()
         client = MeshcatClient(urls.zmq_url)
         self._client = client
         try:
-            self._build(client)
-            self._draw(client, self._theta, self._R)
+            draw.build_scene(client, self.parts)
         except ViewerError:
             self.close()
             raise
@@ -125,21 +177,28 @@ class MeshcatView:
         return urls.web_url
 
     # ----------------------------------------------------------------- requests
-    def show_theta(self, theta_deg: F) -> None:
-        with self._lock:
-            self._pending_theta = np.asarray(theta_deg, float).copy()
-        self._wake.set()
+    def show_theta(self, theta_deg: F | None) -> None:
+        self._request("_measured", _Request(_rows(theta_deg, 1)))
 
-    def show_path(self, theta_path_deg: F) -> None:
+    def show_target(self, theta_deg: F | None) -> None:
+        self._request("_target", _Request(_rows(theta_deg, 1)))
+
+    def show_path(self, theta_path_deg: F | None) -> None:
+        self._request("_path", _Request(_rows(theta_path_deg, 2)))
+
+    def show_plan(self, theta_path_deg: F | None) -> None:
+        path = _rows(theta_path_deg, 2)
         with self._lock:
-            self._pending_path = np.atleast_2d(np.asarray(theta_path_deg, float)).copy()
-            self._clear_path = False
+            self._path = _Request(path)
+            self._target = _Request(None if path is None else path[-1], along_path=True)
         self._wake.set()
 
     def clear_path(self) -> None:
+        self.show_plan(None)
+
+    def _request(self, slot: str, request: _Request) -> None:
         with self._lock:
-            self._pending_path = None
-            self._clear_path = True
+            setattr(self, slot, request)
         self._wake.set()
 
     def wait_idle(self, timeout_s: float = 5.0) -> bool:
@@ -147,9 +206,9 @@ class MeshcatView:
         t_end = time.monotonic() + timeout_s
         while time.monotonic() < t_end:
             with self._lock:
-                busy = (self._pending_theta is not None or self._pending_path is not None
-                        or self._clear_path or self._wake.is_set())
-            if not busy and not self._sending:
+                busy = (self._measured is not None or self._target is not None
+                        or self._path is not None or self._wake.is_set() or self._sending)
+            if not busy:
                 return True
             time.sleep(0.01)
         return False
@@ -166,8 +225,6 @@ class MeshcatView:
         self.server.stop()
 
     # ------------------------------------------------------------------ drawing
-    _sending = False
-
     def _run(self) -> None:
         last = 0.0
         while not self._stop:
@@ -179,109 +236,104 @@ class MeshcatView:
                 time.sleep(wait)
             with self._lock:
                 self._wake.clear()
-                theta, self._pending_theta = self._pending_theta, None
-                path, self._pending_path = self._pending_path, None
-                clear, self._clear_path = self._clear_path, False
+                measured, self._measured = self._measured, None
+                target, self._target = self._target, None
+                path, self._path = self._path, None
                 self._sending = True
             client = self._client
             try:
                 if client is None:
                     continue
                 self.last_error = ""
-                if clear:
-                    client.delete("path")
+                if measured is not None:
+                    self._draw_measured(client, measured.value)
                 if path is not None:
-                    self._draw_path(client, path)
-                if theta is not None:
-                    self._update_theta(client, theta)
+                    self._draw_path(client, path.value)
+                if target is not None:
+                    self._draw_target(client, target)
             except ViewerError as exc:
                 self.last_error = exc.message
+            except Exception as exc:  # the view must outlive one bad request
+                self.last_error = f"3D view: {type(exc).__name__}: {exc}"
             finally:
                 self._sending = False
                 last = time.monotonic()
 
-    def _update_theta(self, client: MeshcatClient, theta_deg: F) -> None:
+    def _solve(self, theta_deg: F, seed: tuple[F, F] | None) -> Pose | None:
+        """Continuation FK of θ (deg) from ``seed`` (θ rad, R), then from home."""
+        if theta_deg.shape != (3,) or not np.all(np.isfinite(theta_deg)):
+            self.last_error = f"cannot draw θ = {theta_deg.tolist()}°: not three numbers"
+            return None
         th = np.radians(theta_deg)
-        r = self.model.track(th, self._theta, self._R)
-        if not r.ok or r.pose is None:
-            # retry from home (the last drawn pose may be on the other side of a bad path)
-            r = self.model.track(th)
+        r = self.model.track(th, *seed) if seed is not None else self.model.track(th)
+        if (not r.ok or r.pose is None) and seed is not None:
+            r = self.model.track(th)  # the seed may be on the other side of a bad path
         if not r.ok or r.pose is None:
             self.last_error = f"cannot draw θ = {np.round(theta_deg, 2).tolist()}°: {r.reason}"
-            return
-        self._theta, self._R = r.pose.theta, r.pose.R
-        self._draw(client, self._theta, self._R)
+            return None
+        return r.pose
 
-    def _draw(self, client: MeshcatClient, theta: F, R: F) -> None:
-        for name, T in scene.pose_transforms(self.model, self.links, theta, R).items():
-            client.set_transform(name, T)
+    def _set_visible(self, client: MeshcatClient, look: draw.Look, visible: bool) -> None:
+        if self._visible[look.root] != visible:
+            client.set_property(look.root, "visible", visible)
+            if look is draw.MEASURED:
+                client.set_property("labels/unknown", "visible", not visible)
+            self._visible[look.root] = visible
+
+    def _draw_measured(self, client: MeshcatClient, theta_deg: F | None) -> None:
+        pose = None if theta_deg is None else self._solve(theta_deg, self._seed)
+        if pose is None:  # unknown, or not a pose the wrist can be in: show nothing
+            self._set_visible(client, draw.MEASURED, False)
+            self.drawn_theta_deg = None
+            return
+        self._seed = (pose.theta, pose.R)
+        draw.draw_pose(client, draw.MEASURED,
+                       scene.pose_transforms(self.model, self.links, pose.theta, pose.R))
+        self._set_visible(client, draw.MEASURED, True)
         self.frames += 1
-        self.drawn_theta_deg = np.degrees(theta)
+        self.drawn_theta_deg = np.degrees(pose.theta)
 
-    def _draw_path(self, client: MeshcatClient, path_deg: F) -> None:
-        import meshcat.geometry as g
+    def _measured_seed(self) -> tuple[F, F] | None:
+        return self._seed if self.drawn_theta_deg is not None else None
 
-        normals = []
-        t, R = self.model.theta_home, np.eye(3)
-        for row in np.radians(path_deg):
-            r = self.model.track(row, t, R)
-            if not r.ok or r.pose is None:
-                break
-            t, R = r.pose.theta, r.pose.R
-            normals.append(r.pose.n)
-        if len(normals) < 2:
+    def _draw_target(self, client: MeshcatClient, request: _Request) -> None:
+        pose = None
+        if request.value is not None:
+            pose = self._path_end if request.along_path else None
+            if pose is None:
+                pose = self._solve(request.value, self._measured_seed())
+        if pose is None:
+            self._set_visible(client, draw.TARGET, False)
+            self.target_theta_deg = None
             return
-        pts = scene.normal_tip_path(np.asarray(normals), self.parts.distal_reach)
-        line = g.Line(g.PointsGeometry(pts), g.LineBasicMaterial(color=_PATH_COLOR, linewidth=3))
-        client.set_object("path", line)
+        draw.draw_pose(client, draw.TARGET,
+                       scene.pose_transforms(self.model, self.links, pose.theta, pose.R))
+        self._set_visible(client, draw.TARGET, True)
+        self.target_theta_deg = np.degrees(pose.theta)
 
-    def _build(self, client: MeshcatClient) -> None:
-        """Send every part's geometry once (the server keeps them for late browsers)."""
-        import meshcat.geometry as g
-
-        c = client
-        p = self.parts
-        grey = g.MeshLambertMaterial(color=0x8C8C8C)
-        base = g.TriangularMeshGeometry(p.base_points, np.array([[0, 1, 2], [0, 2, 1]]))
-        c.set_object("base/plate", base, grey)
-        for i in range(3):
-            u = p.u[i]
-            motor = g.Cylinder(0.04, radius=1.3 * p.delta)
-            c.set_object(f"base/motor{i + 1}", motor, grey)
-            c.set_transform(
-                f"base/motor{i + 1}", scene.transform(scene.align_y(u), p.base_points[i] + 0.02 * u)
-            )
-            mat = g.MeshLambertMaterial(color=_LEG_COLORS[i])
-            for s in scene.DRAWN_SEGMENTS:
-                L = p.segment_length[s]
-                name = f"legs/leg{i + 1}/{s}"
-                c.set_object(f"{name}/body", g.Cylinder(L, radius=p.delta), mat)
-                for k, y in (("end0", -L / 2), ("end1", L / 2)):
-                    c.set_object(f"{name}/{k}", g.Sphere(p.delta), mat)
-                    c.set_transform(f"{name}/{k}", scene.transform(np.eye(3), np.array([0, y, 0])))
-            self._axis(c, f"axes/u{i + 1}", p.proximal_reach, 0x333333)
-            c.set_transform(f"axes/u{i + 1}", scene.transform(scene.align_y(u), np.zeros(3)))
-            self._axis(c, f"axes/w{i + 1}", p.proximal_reach, _LEG_COLORS[i])
-            self._axis(c, f"platform/v{i + 1}", p.distal_reach, _LEG_COLORS[i])
-            c.set_transform(
-                f"platform/v{i + 1}", scene.transform(scene.align_y(p.v_home[i]), np.zeros(3))
-            )
-        plate = g.TriangularMeshGeometry(p.plate_points, np.array([[0, 1, 2], [0, 2, 1]]))
-        c.set_object("platform/plate", plate, g.MeshLambertMaterial(color=0xF2F2F2, opacity=0.85))
-        c.set_object("platform/frame", g.triad(0.6 * p.distal_reach))
-        n_home = p.v_home.sum(0) / np.linalg.norm(p.v_home.sum(0))
-        self._axis(c, "platform/normal", p.distal_reach, 0x000000)
-        c.set_transform("platform/normal", scene.transform(scene.align_y(n_home), np.zeros(3)))
-        c.set_property("/Cameras/default/rotated/<object>", "position", [0.3, 0.2, 0.3])
-        c.set_property("/Axes", "visible", False)  # the world axes are 0.5 m long: clutter
-
-    @staticmethod
-    def _axis(c: MeshcatClient, name: str, length: float, color: int) -> None:
-        """A thin line from the origin along the frame's y axis (oriented by its transform)."""
-        import meshcat.geometry as g
-
-        pts = np.array([[0.0, 0.0], [0.0, length], [0.0, 0.0]], dtype=np.float32)
-        c.set_object(name, g.Line(g.PointsGeometry(pts), g.LineBasicMaterial(color=color)))
+    def _draw_path(self, client: MeshcatClient, path_deg: F | None) -> None:
+        self._path_end = None
+        normals: list[F] = []
+        if path_deg is not None and len(path_deg):
+            pose = self._solve(path_deg[0], self._measured_seed())
+            rows = iter(path_deg[1:])
+            while pose is not None:
+                normals.append(pose.n)
+                row = next(rows, None)
+                if row is None:
+                    self._path_end = pose
+                    break
+                r = self.model.track(np.radians(row), pose.theta, pose.R)
+                pose = r.pose if r.ok else None
+            if self._path_end is None:
+                self.last_error = f"the path preview stops after {len(normals)} of " \
+                                  f"{len(path_deg)} rows: FK lost the pose"
+        if len(normals) < 2:
+            client.delete("path")
+            self.path_rows = 0
+            return
+        draw.draw_path(client, np.asarray(normals), self.parts.distal_reach)
+        self.path_rows = len(normals)
 
 
 def make_view(profile: Profile, enabled: bool = True) -> MeshcatView | NullView:
