@@ -36,7 +36,8 @@ async def test_check_says_why_a_theta_is_not_usable(console) -> None:
         await pilot.press("k")  # default θ = eq. (32): usable
         await settle(pilot)
         assert "USABLE for planning" in text_of(app, "#ws-check")
-        app.screen.query_one("#check-theta", AnglesInput).set_values([40, 135, 135])
+        # within the servo limits (60…160°), outside the grid (65…155°)
+        app.screen.query_one("#check-theta", AnglesInput).set_values([62, 135, 135])
         await pilot.press("k")
         await settle(pilot)
         out = text_of(app, "#ws-check")
