@@ -90,11 +90,11 @@ async def test_bad_input_is_a_message_not_a_crash(console) -> None:
         fields[1].value = ""
         await pilot.press("f")
         await settle(pilot)
-        assert "θ2 must be a number" in status_of(app)
+        assert "FK refused: θ2: empty, type a number of degrees" in status_of(app)
         # an unreachable θ: the reason (with its [..] list) is shown literally, not as markup
         app.screen.query_one("#theta", AnglesInput).set_values([65, 155, 65])
         await pilot.press("f")
         await settle(pilot)
         msg = status_of(app)
-        assert msg.startswith("θ = [65.0, 155.0, 65.0]°"), msg
+        assert msg.startswith("FK failed: θ = [65.0, 155.0, 65.0]°"), msg
         assert app.is_running

@@ -69,14 +69,16 @@ async def test_form_errors_are_messages(console) -> None:
         app.screen.query_one("#steps", Input).value = ""
         await pilot.press("s")
         await settle(pilot)
-        assert "steps N must be a whole number" in status_of(app)
+        assert "steps N: empty, type a whole number of steps" in status_of(app)
         app.screen.query_one("#steps", Input).value = "100"
-        app.screen.query_one("#goal-values", AnglesInput).set_values([40, 135, 135])
+        # within the servo limits (60…160°), outside the grid (65…155°)
+        app.screen.query_one("#goal-values", AnglesInput).set_values([62, 135, 135])
         await pilot.press("s")
         await settle(pilot)
         msg = status_of(app)
         assert app.session.plan is None
-        assert msg.startswith("goal θ = [40.0, 135.0, 135.0]° is outside the servo limits"), msg
+        assert "goal θ = [62.0, 135.0, 135.0]° is NOT feasible" in msg, msg
+        assert "outside the workspace grid" in msg
 
 
 async def test_without_workspace_says_which_step_is_missing(console) -> None:

@@ -36,7 +36,8 @@ async def test_check_gives_the_one_verdict_and_says_why(console) -> None:
         await pilot.press("k")  # default θ = eq. (32): usable
         await settle(pilot)
         assert "feasible, inside P: plannable in P" in text_of(app, "#ws-check")
-        app.screen.query_one("#check-theta", AnglesInput).set_values([40, 135, 135])
+        # within the servo limits (60…160°), outside the grid (65…155°)
+        app.screen.query_one("#check-theta", AnglesInput).set_values([62, 135, 135])
         await pilot.press("k")
         await settle(pilot)
         out = text_of(app, "#ws-check")

@@ -11,10 +11,12 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import Input, Static
 
+from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg, fmt_residual, fmt_vec
 from spm_console.tui.messages import FkSolved, Outcome
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.angles import AnglesInput
+from spm_console.tui.widgets.rules import RPY_NAMES, THETA_NAMES, ik_check, rpy_rules, theta_rules
 
 
 def fk_text(rec: dict[str, Any]) -> str:
@@ -49,11 +51,12 @@ class FkScreen(StepScreen):
     ]
 
     def compose_body(self) -> ComposeResult:
-        home = self.session.profile.home.theta_deg
+        prof = self.session.profile
         with Vertical(classes="body"):
-            yield AnglesInput("Motor angles θ (deg)", ("θ1", "θ2", "θ3"), home, id="theta")
-            yield AnglesInput("Orientation from home (deg)", ("roll", "pitch", "yaw"),
-                              (0.0, 0.0, 0.0), id="rpy")
+            yield AnglesInput("Motor angles θ (deg)", THETA_NAMES, prof.home.theta_deg,
+                              rules=theta_rules(prof), id="theta")
+            yield AnglesInput("Orientation from home (deg)", RPY_NAMES, (0.0, 0.0, 0.0),
+                              rules=rpy_rules(), check=ik_check(self.session), id="rpy")
             yield Static(id="fk-result", markup=False, classes="result")
 
     def on_mount(self) -> None:
@@ -73,15 +76,18 @@ class FkScreen(StepScreen):
         else:
             self.action_fk()
 
-    def _theta(self) -> list[float] | None:
+    def _values(self, which: str, action: str, key: str) -> list[float] | None:
+        """The fields' numbers, or None after saying why ``action`` is refused."""
+        angles = self.query_one(f"#{which}", AnglesInput)
         try:
-            return self.query_one("#theta", AnglesInput).values()
-        except Exception as exc:  # BadInputError
-            self.status.error(getattr(exc, "message", str(exc)))
+            return angles.values()
+        except BadInputError as exc:  # the field says why too; nothing is computed
+            self.status.error(f"{action} refused: {exc.message}. Fix the field, then "
+                              f"press {key}.")
             return None
 
     def action_fk(self, all_modes: bool = False) -> None:
-        theta = self._theta()
+        theta = self._values("theta", "FK", "m" if all_modes else "f")
         if theta is None:
             return
         what = "all assembly modes" if all_modes else "FK"
@@ -92,10 +98,8 @@ class FkScreen(StepScreen):
         self.action_fk(all_modes=True)
 
     def action_ik(self) -> None:
-        try:
-            rpy = self.query_one("#rpy", AnglesInput).values()
-        except Exception as exc:
-            self.status.error(getattr(exc, "message", str(exc)))
+        rpy = self._values("rpy", "IK", "i")
+        if rpy is None:
             return
 
         def go() -> FkSolved:
@@ -125,3 +129,14 @@ class FkScreen(StepScreen):
         verdict = "feasible" if rec["feasible"] else "not feasible"
         where = " (shown in the 3D view)" if self.console.viewer_url else ""
         self.status.ok(f"FK solved: ζ = {rec['zeta']:.3f}, {verdict}{where}")
+
+    def handle_failed(self, op: str, message: str) -> None:
+        # the result this would have replaced is cleared; the 3D view goes back to the wrist
+        what = "IK" if op == "ik" else "FK"
+        nxt = ("change roll/pitch/yaw, then press i" if op == "ik" else
+               "change θ, then press f (or c for the current pose)")
+        self.query_one("#fk-result", Static).update(Content(
+            f"No result: {what} failed.\n{message}\nNext: {nxt}."))
+        self.status.error(f"{what} failed: {message}")
+        if self.session.theta_deg is not None:
+            self.console.view.show_theta(np.asarray(self.session.theta_deg, float))

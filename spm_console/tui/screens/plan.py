@@ -21,11 +21,16 @@ from spm_console.run.operator import PoseSpec
 from spm_console.tui.messages import Outcome, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.angles import AnglesInput
+from spm_console.tui.widgets.number import NumberRow
 from spm_console.tui.widgets.plot import PlotView, joint_series
+from spm_console.tui.widgets.rules import THETA_NAMES, ik_check, rpy_rules, steps_rule, theta_rules, vmax_rule
 
 POSE_KINDS = [("current pose", "current"), ("home", "home"), ("motor angles θ", "theta"),
               ("orientation r/p/y", "rpy")]
 METHODS = [("minimum velocity norm (MVN)", "mvn"), ("minimum time", "mintime")]
+METHOD_NAMES = {"mvn": "MVN", "mintime": "minimum-time"}
+#: Default horizon N of an MVN plan (minimum time finds its own N).
+DEFAULT_STEPS = 150
 #: Default goal: the θ of the paper's eq. (32) example, deg.
 DEFAULT_GOAL_DEG = (95.0, 110.0, 105.0)
 PLOTS = ("positions", "velocities")
@@ -65,6 +70,7 @@ class PlanScreen(StepScreen):
     def __init__(self) -> None:
         super().__init__()
         self.plot_kind = 0
+        self.solving_method = "mvn"
 
     def compose_body(self) -> ComposeResult:
         prof = self.session.profile
@@ -72,20 +78,17 @@ class PlanScreen(StepScreen):
             with Vertical(id="plan-form"):
                 yield Label("Start")
                 yield Select(POSE_KINDS, value="current", allow_blank=False, id="start-kind")
-                yield AnglesInput("  values", ("a1", "a2", "a3"), prof.home.theta_deg,
-                                  id="start-values")
+                yield AnglesInput("", THETA_NAMES, prof.home.theta_deg,
+                                  rules=theta_rules(prof, "start "), id="start-values")
                 yield Label("Goal")
                 yield Select(POSE_KINDS, value="theta", allow_blank=False, id="goal-kind")
-                yield AnglesInput("  values", ("a1", "a2", "a3"), DEFAULT_GOAL_DEG,
-                                  id="goal-values")
+                yield AnglesInput("", THETA_NAMES, DEFAULT_GOAL_DEG,
+                                  rules=theta_rules(prof, "goal "), id="goal-values")
                 yield Label("Method")
                 yield Select(METHODS, value="mvn", allow_blank=False, id="method")
-                with Horizontal(classes="param"):
-                    yield Label("steps N", classes="param-label")
-                    yield Input("150", type="integer", id="steps")
-                with Horizontal(classes="param"):
-                    yield Label("v_max °/s", classes="param-label")
-                    yield Input(f"{prof.limits.vmax_degps:g}", type="number", id="vmax")
+                yield NumberRow("steps N", steps_rule(), str(DEFAULT_STEPS), id="steps")
+                yield NumberRow("v_max °/s", vmax_rule(prof), f"{prof.limits.vmax_degps:g}",
+                                id="vmax")
             with Vertical(id="plan-result"):
                 yield Static(id="plan-text", markup=False, classes="result")
                 yield PlotView(id="plan-plot")
@@ -93,8 +96,32 @@ class PlanScreen(StepScreen):
     def on_mount(self) -> None:
         self.query_one("#plan-text", Static).update(Content(
             "Choose start and goal, then press s to solve."))
+        for which in ("start", "goal"):
+            self._apply_kind(which)
+        self._apply_method()
         if self.session.plan is not None:
             self.show_plan()
+
+    def on_select_changed(self, event: Select.Changed) -> None:
+        if event.select.id in ("start-kind", "goal-kind"):
+            self._apply_kind(str(event.select.id).removesuffix("-kind"))
+        elif event.select.id == "method":
+            self._apply_method()
+
+    def _apply_kind(self, which: str) -> None:
+        """Judge the start/goal fields as θ or as an orientation; unused for home/current."""
+        kind = self.query_one(f"#{which}-kind", Select).value
+        angles = self.query_one(f"#{which}-values", AnglesInput)
+        if kind == "theta":
+            angles.set_rules(theta_rules(self.session.profile, f"{which} "))
+        elif kind == "rpy":
+            angles.set_rules(rpy_rules(f"{which} "), ik_check(self.session, f"{which} "))
+        angles.set_enabled(kind in ("theta", "rpy"))
+
+    def _apply_method(self) -> None:
+        """N is the MVN horizon; minimum time finds its own (the field is then unused)."""
+        self.query_one("#steps-row", NumberRow).set_enabled(
+            self.query_one("#method", Select).value == "mvn")
 
     def action_leave_field(self) -> None:
         self.set_focus(None)
@@ -112,24 +139,20 @@ class PlanScreen(StepScreen):
 
     def _params(self) -> tuple[str, int, float]:
         method = str(self.query_one("#method", Select).value)
-        try:
-            steps = int(self.query_one("#steps", Input).value)
-        except ValueError:
-            raise BadInputError("steps N must be a whole number (e.g. 150)") from None
-        try:
-            vmax = float(self.query_one("#vmax", Input).value)
-        except ValueError:
-            raise BadInputError("v_max must be a speed in °/s (e.g. 50)") from None
+        steps = (int(self.query_one("#steps-row", NumberRow).number()) if method == "mvn"
+                 else DEFAULT_STEPS)  # unused by minimum time
+        vmax = self.query_one("#vmax-row", NumberRow).number()
         return method, steps, vmax
 
     def action_solve(self) -> None:
         try:
             start, goal = self._spec("start"), self._spec("goal")
             method, steps, vmax = self._params()
-        except BadInputError as exc:
-            self.status.error(exc.message)
+        except BadInputError as exc:  # the field says why too; nothing is solved
+            self.status.error(f"Solve refused: {exc.message}. Fix the field, then press s.")
             return
-        name = "MVN" if method == "mvn" else "minimum-time"
+        name = METHOD_NAMES[method]
+        self.solving_method = method
         self.run_blocking(
             "solve",
             lambda: PlanSolved(self.session.solve_plan(method, start, goal, steps,  # type: ignore[arg-type]
@@ -168,6 +191,21 @@ class PlanScreen(StepScreen):
                            f"motion. Press 5 to execute it{where}")
         elif isinstance(outcome, PlanSaved):
             self.status.ok(f"plan saved to {outcome.path}")
+
+    def handle_failed(self, op: str, message: str) -> None:
+        if op != "solve":
+            return  # a failed save replaces nothing: the status line says why
+        # The plan this solve would have replaced is gone from the screen, the 3D view and
+        # the session: "execute" must never run a plan the operator tried to replace.
+        name = METHOD_NAMES.get(self.solving_method, self.solving_method)
+        self.session.plan = None
+        self.session.plan_info = {}
+        self.console.view.clear_path()
+        self.query_one("#plan-text", Static).update(Content(
+            f"No plan: the {name} solve failed.\n{message}\n"
+            "Next: change the start, the goal, the method or v_max, then press s."))
+        self.query_one("#plan-plot", PlotView).plot("no plan", np.zeros(0), [])
+        self.status.error(f"{name} solve failed (no plan now): {message}")
 
     def show_plan(self) -> None:
         plan = self.session.plan

@@ -13,11 +13,13 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import Input, ProgressBar, Static
 
+from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
 from spm_console.tui.messages import Outcome, Progress, ThetaChecked, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.confirm import ConfirmScreen
+from spm_console.tui.widgets.rules import THETA_NAMES, theta_rules
 
 STAGES = {"fk": "FK over the grid", "links": "link distances", "region": "convex region P",
           "done": "done"}
@@ -102,8 +104,8 @@ class WorkspaceScreen(StepScreen):
             yield Static(id="ws-info", markup=False, classes="result")
             yield ProgressBar(total=100, id="ws-progress", show_eta=False)
             yield Static(id="ws-stage", markup=False)
-            yield AnglesInput("Check θ (deg)", ("θ1", "θ2", "θ3"), (95.0, 110.0, 105.0),
-                              id="check-theta")
+            yield AnglesInput("Check θ (deg)", THETA_NAMES, (95.0, 110.0, 105.0),
+                              rules=theta_rules(self.session.profile), id="check-theta")
             yield Static(id="ws-check", markup=False, classes="result")
 
     def on_mount(self) -> None:
@@ -155,10 +157,11 @@ class WorkspaceScreen(StepScreen):
         self.action_check()
 
     def action_check(self) -> None:
+        angles = self.query_one("#check-theta", AnglesInput)
         try:
-            theta = self.query_one("#check-theta", AnglesInput).values()
-        except Exception as exc:
-            self.status.error(getattr(exc, "message", str(exc)))
+            theta = angles.values()
+        except BadInputError as exc:  # the field says why too; nothing is checked
+            self.status.error(f"Check refused: {exc.message}. Fix the field, then press k.")
             return
         if self.session.workspace is None:
             self.status.error("no workspace yet: press l to load it")
@@ -184,6 +187,16 @@ class WorkspaceScreen(StepScreen):
     def handle_failed(self, op: str, message: str) -> None:
         if op == "load":
             self.query_one("#ws-progress").display = False
+            self.query_one("#ws-stage", Static).update("")
+            if self.session.workspace is not None:  # what the screen shows is still in use
+                self.status.error(f"{message} (the workspace shown, loaded before, stays in use)")
+            else:
+                self.query_one("#ws-info", Static).update(Content(
+                    f"No workspace: {message}\nNext: press l to try again, or b to rebuild."))
+        elif op == "check":  # the verdict this check would have replaced is cleared
+            self.query_one("#ws-check", Static).update(Content(
+                f"No verdict: the check failed.\n{message}\nNext: change θ, then press k."))
+            self.status.error(f"check failed: {message}")
 
     def show_workspace(self) -> None:
         ws, info = self.session.workspace, self.session.cache_info

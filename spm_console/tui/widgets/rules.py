@@ -1,0 +1,74 @@
+"""What the console's number fields accept: θ within the servo limits, roll/pitch/yaw that
+IK reaches, N within the documented bounds, v_max within (0, the lower of the servo's rated
+speed and the profile's planning limit]. Degrees and deg/s throughout."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
+from spm_console.errors import SpmError
+from spm_console.models import servo_limits_deg
+from spm_console.profile import Profile
+from spm_console.tui.widgets.number import NumberRule
+
+if TYPE_CHECKING:
+    from spm_console.run.operator import Session
+
+#: A check of three accepted values as a whole: the reason they are refused, or "".
+TripleCheck = Callable[[Sequence[float]], str]
+
+THETA_NAMES = ("θ1", "θ2", "θ3")
+RPY_NAMES = ("roll", "pitch", "yaw")
+#: Bound on each of roll, pitch, yaw (deg): beyond it the same orientation has a smaller name.
+RPY_LIMIT_DEG = 180.0
+
+
+def theta_rules(profile: Profile, prefix: str = "") -> list[NumberRule]:
+    """θ1..θ3 (deg), each within its servo's software limits."""
+    lo, hi = servo_limits_deg(profile)
+    return [NumberRule(f"{prefix}{name}", "a number of degrees", "°", float(lo[i]), float(hi[i]),
+                       limits="the servo limits")
+            for i, name in enumerate(THETA_NAMES)]
+
+
+def rpy_rules(prefix: str = "") -> list[NumberRule]:
+    """Roll, pitch, yaw from home (deg), each within ±RPY_LIMIT_DEG (IK is checked apart)."""
+    return [NumberRule(f"{prefix}{name}", "a number of degrees", "°", -RPY_LIMIT_DEG,
+                       RPY_LIMIT_DEG) for name in RPY_NAMES]
+
+
+def steps_rule() -> NumberRule:
+    """The horizon N: a whole number of intervals in 2..N_MAX."""
+    return NumberRule("steps N", "a whole number of steps", "", 2.0, float(N_MAX), integer=True)
+
+
+def vmax_rule(profile: Profile) -> NumberRule:
+    """The speed bound (deg/s): above 0, at most the servo's rated no-load speed and the
+    profile's planning limit (plans faster than that are refused before execution)."""
+    prof = float(profile.limits.vmax_degps)
+    if prof < MX106_NO_LOAD_SPEED_DEGPS:
+        hi, why = prof, f"the profile's planning limit {prof:g}°/s (limits.vmax_degps)"
+    else:
+        hi, why = MX106_NO_LOAD_SPEED_DEGPS, (f"the servo's rated speed "
+                                              f"{MX106_NO_LOAD_SPEED_DEGPS:g}°/s (MX-106, 12 V)")
+    return NumberRule("v_max", "a speed in °/s", "°/s", 0.0, hi, lo_open=True, hi_reason=why)
+
+
+def ik_check(session: Session, prefix: str = "") -> TripleCheck:
+    """Refuse an orientation IK cannot reach, or whose motor angles leave the servo limits."""
+    lo, hi = servo_limits_deg(session.profile)
+
+    def check(rpy_deg: Sequence[float]) -> str:
+        try:
+            theta = session.ik(list(rpy_deg))
+        except SpmError as exc:
+            return f"{prefix}roll/pitch/yaw: IK fails: {exc.message}"
+        for i, t in enumerate(theta):
+            if not lo[i] <= t <= hi[i]:
+                return (f"{prefix}roll/pitch/yaw: IK gives θ{i + 1} = {t:.2f}°, outside the "
+                        f"servo limits {lo[i]:g}…{hi[i]:g}°")
+        return ""
+
+    return check
