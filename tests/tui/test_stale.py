@@ -25,7 +25,7 @@ async def _plan_screen(pilot: Any) -> None:
 
 @pytest.mark.parametrize(("method", "steps", "goal", "why"), [
     # the case: minimum time after an MVN plan; N is not used by it (left invalid)
-    ("mintime", "2.5", [62, 135, 135], "goal θ = [62.0, 135.0, 135.0]° is not usable"),
+    ("mintime", "2.5", [62, 135, 135], "goal θ = [62.0, 135.0, 135.0]° is NOT feasible"),
     # the solver itself finds no plan: 40° in two 20 ms steps under 50°/s
     ("mvn", "2", [95, 110, 105], ""),
 ], ids=["mintime", "mvn"])
@@ -90,7 +90,7 @@ async def test_a_failed_check_clears_the_previous_verdict(console: Any) -> None:
         await settle(pilot)
         await pilot.press("k")
         await settle(pilot)
-        assert "USABLE" in text_of(app, "#ws-check")
+        assert "plannable in P" in text_of(app, "#ws-check")
 
         def broken(theta: Any) -> Any:
             raise SpmError("the check broke")
@@ -100,7 +100,7 @@ async def test_a_failed_check_clears_the_previous_verdict(console: Any) -> None:
         await settle(pilot)
         out = text_of(app, "#ws-check")
         assert out.startswith("No verdict: the check failed.\nthe check broke"), out
-        assert "USABLE" not in out and "\nNext: " in out
+        assert "plannable" not in out and "\nNext: " in out
         assert status_of(app) == "check failed: the check broke"
 
 

@@ -125,9 +125,9 @@ class FkScreen(StepScreen):
             self.query_one("#theta", AnglesInput).set_values(rec["theta_deg"], digits=3)
         self.query_one("#fk-result", Static).update(Content(fk_text(rec)))
         self.console.fk_done = True
-        self.console.view.show_theta(np.asarray(rec["theta_deg"], float))
+        self.console.view.show_target(np.asarray(rec["theta_deg"], float))
         verdict = "feasible" if rec["feasible"] else "not feasible"
-        where = " (shown in the 3D view)" if self.console.viewer_url else ""
+        where = " (shown as the target ghost in the 3D view)" if self.console.viewer_url else ""
         self.status.ok(f"FK solved: ζ = {rec['zeta']:.3f}, {verdict}{where}")
 
     def handle_failed(self, op: str, message: str) -> None:
@@ -138,5 +138,4 @@ class FkScreen(StepScreen):
         self.query_one("#fk-result", Static).update(Content(
             f"No result: {what} failed.\n{message}\nNext: {nxt}."))
         self.status.error(f"{what} failed: {message}")
-        if self.session.theta_deg is not None:
-            self.console.view.show_theta(np.asarray(self.session.theta_deg, float))
+        self.console.view.show_target(None)

@@ -47,6 +47,8 @@ def plan_text(plan: Plan, info: dict[str, Any]) -> str:
         f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
         + (f" (v_max {vmax:g})" if vmax else ""),
     ]
+    if info.get("region"):
+        lines.append(f"region: {info['region']}")
     if chk is not None:
         if not math.isnan(chk.max_speed_between_degps):
             lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s, outside P by "
@@ -185,8 +187,8 @@ class PlanScreen(StepScreen):
         if isinstance(outcome, PlanSolved):
             self.show_plan()
             plan = outcome.plan
-            self.console.view.show_path(plan.position_deg)
-            where = " (path previewed in the 3D view)" if self.console.viewer_url else ""
+            self.console.view.show_plan(plan.position_deg)
+            where = " (path and goal ghost in the 3D view)" if self.console.viewer_url else ""
             self.status.ok(f"solved in {plan.solve_seconds:.2f} s: {plan.duration_s:.2f} s of "
                            f"motion. Press 5 to execute it{where}")
         elif isinstance(outcome, PlanSaved):

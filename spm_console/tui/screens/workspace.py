@@ -182,7 +182,7 @@ class WorkspaceScreen(StepScreen):
             else:
                 self.status.error(result.verdict)
             if result.v is not None:
-                self.console.view.show_theta(np.asarray(result.theta_deg, float))
+                self.console.view.show_target(np.asarray(result.theta_deg, float))
 
     def handle_failed(self, op: str, message: str) -> None:
         if op == "load":
