@@ -4,6 +4,7 @@ confirmation, a logged motion); reboot clears an injected hardware error."""
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 import numpy as np
@@ -64,6 +65,42 @@ async def test_the_table_refreshes_by_itself_and_torque_per_joint(console) -> No
         await pilot.press("y")
         await settle(pilot)
         assert cell(app, 3, "torque") == "off" and "torque off, joint 3" in status_of(app)
+
+
+async def test_a_slow_status_read_never_piles_up_requests(console) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        session = app.session
+        real = session.servo_status
+        started = threading.Event()
+        release = threading.Event()
+        calls: list[int] = []
+
+        def stuck() -> Any:  # the first read hangs until released; the others are quick
+            calls.append(1)
+            if len(calls) == 1:
+                started.set()
+                release.wait(30)
+            return real()
+
+        session.servo_status = stuck  # type: ignore[method-assign]
+        for _ in range(200):
+            if started.is_set():
+                break
+            await pilot.pause(0.1)
+        assert started.is_set()
+        for _ in range(10):  # many timer periods while the read hangs
+            await pilot.pause(0.1)
+        await pilot.press("down")  # the UI still answers keys
+        assert app.screen.query_one("#servos", DataTable).cursor_row == 1
+        assert len(calls) == 1  # no second request while the first is out
+        release.set()
+        for _ in range(200):
+            if len(calls) >= 2:
+                break
+            await pilot.pause(0.1)
+        assert len(calls) >= 2  # polling resumed once it answered
 
 
 async def test_jog_only_when_homed_with_a_confirmation(console, tmp_path) -> None:
