@@ -35,9 +35,12 @@ from spm_console.run.motion_protocol import (
     Home,
     Ping,
     ReadPosition,
+    Reboot,
     Reply,
     Request,
+    Status,
     Telemetry,
+    Torque,
 )
 from spm_console.run.operator_runs import RunContext
 from spm_console.run.sample import Sample
@@ -164,6 +167,21 @@ class MotionClient:
 
     def read_position(self) -> Any:
         return self._call(lambda i: ReadPosition(i), REQUEST_TIMEOUT_S)
+
+    def status(self) -> Any:
+        """Every joint's health (:class:`~spm_console.run.servo_tools.ServoHealth`);
+        refused (BadInputError) while a motion runs."""
+        return self._call(lambda i: Status(i), REQUEST_TIMEOUT_S)
+
+    def set_torque(self, joint: int, on: bool) -> Any:
+        """Torque Enable of one joint (1-based; "on" holds it where it is), then the health
+        read after it; refused while a motion runs."""
+        return self._call(lambda i: Torque(i, joint, on), REQUEST_TIMEOUT_S)
+
+    def reboot(self, joint: int) -> Any:
+        """REBOOT one joint's servo (clears a hardware error; torque comes back off), then
+        the health read after it; refused while a motion runs."""
+        return self._call(lambda i: Reboot(i, joint), REQUEST_TIMEOUT_S)
 
     def _motion(self, make: Callable[[int], Request], on_sample: Callable[[Sample], None] | None) -> Any:
         self.on_sample = on_sample

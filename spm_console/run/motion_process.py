@@ -3,8 +3,8 @@
 :class:`~spm_console.run.motion_client.MotionClient` starts this module as a child
 (``python -m spm_console.run.motion_process``: a fresh interpreter, no UI thread, no GC
 pressure from the front end) and talks to it over one socket pair with the typed messages of
-:mod:`spm_console.run.motion_protocol`: requests (ping, read, home, execute, E-stop,
-heartbeat, close) in; replies, throttled telemetry and results out.
+:mod:`spm_console.run.motion_protocol`: requests (ping, read, servo status, torque per
+joint, reboot, home, execute, E-stop, heartbeat, close) in; replies, throttled telemetry and results out.
 
 In the child, :func:`serve` opens the bus, loads this profile's workspace (the runtime
 verifies every motion against it; loaded on the first motion) and answers requests; a motion runs in a worker thread
@@ -44,9 +44,12 @@ from spm_console.run.motion_protocol import (
     Home,
     Ping,
     ReadPosition,
+    Reboot,
     Reply,
     Request,
+    Status,
     Telemetry,
+    Torque,
 )
 from spm_console.run.operator_runs import RunContext, run_execute, run_home
 from spm_console.run.sample import Sample
@@ -182,24 +185,44 @@ class _Server:
             self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
                                            name="spm-motion")
             self.motion.start()
-        elif isinstance(req, (Ping, ReadPosition)):
+        elif isinstance(req, (Ping, ReadPosition, Status, Torque, Reboot)):
             if self.moving():  # the loop owns every bus cycle while the wrist moves
                 self.send(Failed(req.id, "the wrist is moving: the servo loop owns the bus; "
                                  "ask again when it has stopped", int(ExitCode.BAD_INPUT)))
                 return
             self._answer(req)
 
-    def _answer(self, req: Ping | ReadPosition) -> None:
+    def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot) -> None:
         try:
             if isinstance(req, ReadPosition):
                 from spm_console.devices.base import read_position_checked
 
                 value: object = read_position_checked(self.bus, 3)
-            else:
+            elif isinstance(req, Ping):
                 value = self.ping()
+            else:
+                value = self.servo_tool(req)
             self.send(Reply(req.id, value))
         except SpmError as exc:
             self.send(Failed(req.id, exc.message, int(exc.exit_code)))
+        except Exception as exc:  # a bug: say so, keep serving (no motion runs)
+            self.send(Failed(req.id, f"internal error in the motion process: {exc!r}", 1))
+
+    def servo_tool(self, req: Status | Torque | Reboot) -> Any:
+        """Torque per joint or a reboot (if asked), then every joint's health (ServoHealth).
+        Torque off or a reboot (torque comes back off) un-homes the wrist: the joint can be
+        moved by hand from then on."""
+        from spm_console.run import servo_tools
+
+        if isinstance(req, (Torque, Reboot)):
+            servo_tools.joint_index(self.bus, req.joint)  # a bad number changes nothing
+            if isinstance(req, Reboot) or not req.on:
+                self.homed = False
+            if isinstance(req, Torque):
+                servo_tools.set_joint_torque(self.bus, req.joint, req.on)
+            else:
+                servo_tools.reboot_joint(self.bus, req.joint)
+        return servo_tools.read_health(self.bus)
 
     def ping(self) -> list[Any]:
         from dataclasses import replace

@@ -28,6 +28,37 @@ class ReadPosition:
 
 
 @dataclass(frozen=True)
+class Status:
+    """Every joint's health (position, current/load, temperature, voltage, torque, hardware
+    error); reply: :class:`~spm_console.run.servo_tools.ServoHealth`. Refused while moving."""
+
+    id: int
+
+
+@dataclass(frozen=True)
+class Torque:
+    """Torque Enable of one joint ("on": goal := present position first, so nothing
+    lunges); reply: ServoHealth read after it. Refused while moving. Off: the wrist is no
+    longer homed (the joint can be moved by hand)."""
+
+    id: int
+    joint: int
+    """1-based."""
+    on: bool
+
+
+@dataclass(frozen=True)
+class Reboot:
+    """REBOOT one joint's servo (clears a latched hardware error; Protocol 2.0), wait until it
+    answers; reply: ServoHealth read after it. Refused while moving. The servo comes back
+    with torque off: the wrist is no longer homed."""
+
+    id: int
+    joint: int
+    """1-based."""
+
+
+@dataclass(frozen=True)
 class Home:
     """Home the wrist; reply: HomingResult."""
 
@@ -69,7 +100,8 @@ class Close:
     """Close the bus and end the process."""
 
 
-Request = Ping | ReadPosition | Home | Execute | EStop | Heartbeat | Close
+Request = (Ping | ReadPosition | Status | Torque | Reboot | Home | Execute | EStop | Heartbeat
+           | Close)
 
 
 @dataclass(frozen=True)

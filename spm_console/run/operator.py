@@ -32,6 +32,8 @@ from spm_console.errors import (
 )
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
+from spm_console.run.operator_tools import ServoTools
+from spm_console.run.servo_tools import ServoHealth
 
 if TYPE_CHECKING:
     from spm_console.devices.emulator import EmulatorHandle
@@ -85,9 +87,10 @@ class BusState:
     emulator_realtime_granted: bool = True
 
 
-class Session:
+class Session(ServoTools):
     """Profile, bus, workspace, plan and runs of one operator session (thread-safe enough:
-    one motion at a time, E-stop from any thread)."""
+    one motion at a time, E-stop from any thread). Servo health and tools (status, torque
+    per joint, reboot, jog): :class:`~spm_console.run.operator_tools.ServoTools`."""
 
     def __init__(
         self,
@@ -118,6 +121,7 @@ class Session:
         self.bus: MotionClient | None = None
         """The motion process (it owns the port); None when not connected."""
         self.bus_state: BusState | None = None
+        self.health: ServoHealth | None = None
         self.emulator: EmulatorHandle | EmulatorChild | None = None
         self.theta_deg: F | None = None
         """Last measured motor angles, deg (None before connecting)."""
@@ -217,6 +221,7 @@ class Session:
         if emu is not None:
             emu.stop()
         self.bus_state = None
+        self.health = None
         self.homed = False
 
     # ------------------------------------------------------------------ motion

@@ -14,6 +14,7 @@ if TYPE_CHECKING:
     from spm_console.run.operator import BusState
     from spm_console.run.runlog import RunData
     from spm_console.run.segments import ExecutionResult
+    from spm_console.run.servo_tools import ServoHealth
 
 
 # --- what a blocking operation produced: one dataclass per outcome --------------------------
@@ -30,8 +31,17 @@ class PositionRead:
 
 @dataclass(frozen=True)
 class MotionDone:
-    kind: Literal["home", "execute"]
+    kind: Literal["home", "execute", "jog"]
     result: ExecutionResult
+
+
+@dataclass(frozen=True)
+class ServoToolDone:
+    """A servo tool ran on one joint; every joint's health read after it."""
+
+    action: Literal["torque on", "torque off", "reboot"]
+    joint: int
+    health: ServoHealth
 
 
 @dataclass(frozen=True)
@@ -74,7 +84,7 @@ class BenchmarkDone:
 
 
 Outcome = (Connected | PositionRead | MotionDone | FkSolved | WorkspaceLoaded | ThetaChecked
-           | PlanSolved | PlanSaved | RunOpened | BenchmarkDone)
+           | PlanSolved | PlanSaved | RunOpened | BenchmarkDone | ServoToolDone)
 
 
 class Done(Message):

@@ -21,7 +21,7 @@ async def test_connects_on_start_and_lists_each_servo(console) -> None:
         rows = [table.get_row_at(i) for i in range(3)]
         assert [r[1] for r in rows] == ["1", "2", "3"]  # ids from the profile
         assert all(r[2] == "321" for r in rows)  # MX-106 on protocol 2.0
-        assert all(r[6] == "none" for r in rows)  # no hardware error
+        assert all(table.get_cell(str(j), "hardware") == "none" for j in (1, 2, 3))
         assert "3 servos answer" in status_of(app)
         assert "press h to home" in text_of(app, "#hint-line")
 
