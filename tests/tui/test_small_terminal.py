@@ -109,3 +109,14 @@ async def test_fields_are_one_line_on_short_terminals_only(console) -> None:
         await pilot.pause()
         assert not steps.compact and steps.outer_size.height == 3
         assert "Connect/home" in text_of(app, "#steps-line")  # full titles again
+
+
+def test_every_step_fits_80_columns_when_all_are_done() -> None:
+    from spm_console.tui.widgets.steps import step_labels
+
+    done = {s.mode for s in STEPS}
+    for s in STEPS:
+        line = step_labels(s.mode, done, SMALL[0])
+        assert line.cell_length <= SMALL[0]
+        assert all(f"{t.fkey_display} ✔ {t.short}" in line.plain for t in STEPS)
+    assert "Connect/home" in step_labels("plan", done, 120).plain
