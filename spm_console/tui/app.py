@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import asyncio
 import signal
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
 from textual import work
 from textual.actions import SkipAction
-from textual.app import App
+from textual.app import App, SystemCommand
 from textual.binding import Binding, BindingType
+from textual.command import CommandPalette
+from textual.dom import DOMNode
 from textual.reactive import reactive
 from textual.screen import Screen
 
@@ -24,9 +26,11 @@ from spm_console.profile import Profile
 from spm_console.run.operator import Session
 from spm_console.run.signals import install_stop_handler
 from spm_console.tui.messages import Telemetry
+from spm_console.tui.screens.base import COMPACT_BELOW_COLUMNS, COMPACT_BELOW_ROWS, StepScreen
 from spm_console.tui.screens.connect import ConnectScreen
 from spm_console.tui.screens.execute import ExecuteScreen
 from spm_console.tui.screens.fk import FkScreen
+from spm_console.tui.screens.help import HelpScreen, KeyEntry, key_entries
 from spm_console.tui.screens.logs import LogsScreen
 from spm_console.tui.screens.plan import PlanScreen
 from spm_console.tui.screens.workspace import WorkspaceScreen
@@ -34,9 +38,23 @@ from spm_console.tui.widgets.estop import ESTOP_KEY
 from spm_console.tui.widgets.steps import STEPS
 from spm_console.viewer.view import MeshcatView, NullView, WristView
 
-_STEPS_GROUP = Binding.Group("steps", compact=True)
 #: Shortest interval between two telemetry updates of the UI, s.
 TELEMETRY_EVERY_S = 0.1
+
+
+def _step_bindings() -> list[Binding]:
+    """F1…F6 and ctrl+1…6 (where the terminal sends them) switch steps from anywhere,
+    even inside a field; the digits only while no field or dropdown has focus (the step
+    screens keep typed characters away from bindings). The step bar shows the keys."""
+    out = []
+    for s in STEPS:
+        action, desc = f"step('{s.mode}')", f"Step {s.key}: {s.title}"
+        out += [
+            Binding(s.fkey, action, desc, show=False, priority=True, key_display=s.fkey_display),
+            Binding(s.key, action, desc, show=False),
+            Binding(f"ctrl+{s.key}", action, desc, show=False, priority=True),
+        ]
+    return out
 
 
 class SpmConsoleApp(App[int]):
@@ -44,7 +62,12 @@ class SpmConsoleApp(App[int]):
 
     TITLE = "spm-console"
     CSS_PATH = "app.tcss"
-    ENABLE_COMMAND_PALETTE = False
+    ENABLE_COMMAND_PALETTE = True
+    COMMAND_PALETTE_DISPLAY = "^p"
+    #: Screens get the class "-narrow" below 100 columns and "-short" below 36 rows (app.tcss
+    #: stacks the side-by-side panels and fixes plot heights there; fields turn compact).
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (COMPACT_BELOW_COLUMNS, "-wide")]  # noqa: RUF012
+    VERTICAL_BREAKPOINTS = [(0, "-short"), (COMPACT_BELOW_ROWS, "-tall")]  # noqa: RUF012
     MODES: ClassVar[dict[str, str | Callable[[], Screen[Any]]]] = {
         "connect": ConnectScreen,
         "fk": FkScreen,
@@ -54,9 +77,12 @@ class SpmConsoleApp(App[int]):
         "logs": LogsScreen,
     }
     BINDINGS: ClassVar[list[BindingType]] = [
-        *(Binding(s.key, f"step('{s.mode}')", s.title, group=_STEPS_GROUP) for s in STEPS),
-        Binding("q", "quit_console", "Quit"),
-        Binding(ESTOP_KEY, "estop", "E-STOP", priority=True, key_display="SPACE"),
+        *_step_bindings(),
+        Binding("question_mark", "help", "Keys", key_display="?",
+                tooltip="this list (also in the palette, ctrl+p)"),
+        Binding("q", "quit", "Quit", tooltip="refused while the wrist moves"),
+        Binding(ESTOP_KEY, "estop", "E-STOP", priority=True, key_display="SPACE",
+                tooltip="stops any motion (active while the wrist moves)"),
     ]
 
     moving: reactive[bool] = reactive(False)
@@ -113,8 +139,7 @@ class SpmConsoleApp(App[int]):
 
     def _viewer_ready(self, url: str) -> None:
         self.viewer_url = url
-        if self.session.theta_deg is not None:
-            self.view.show_theta(self.session.theta_deg)
+        self.view.show_theta(self.session.theta_deg)  # None: no solid wrist
         self.refresh_screen()
 
     def shutdown(self) -> None:
@@ -130,14 +155,22 @@ class SpmConsoleApp(App[int]):
         self.shutdown()
 
     # ------------------------------------------------------------------ actions
-    def action_step(self, mode: str) -> None:
+    async def action_step(self, mode: str) -> None:
         if self.moving:
             self.notify("The wrist is moving: wait, or press SPACE to stop it.",
                         severity="warning")
             return
+        # The help and the palette close first; a dialog must be answered (it would stay
+        # behind on the step it belongs to).
+        while isinstance(self.screen, (HelpScreen, CommandPalette)):
+            await self.screen.dismiss()
+        if not isinstance(self.screen, StepScreen):
+            self.notify("Answer the dialog first (y / n, esc cancels).", severity="warning")
+            return
         self.switch_mode(mode)
 
-    def action_quit_console(self) -> None:
+    async def action_quit(self) -> None:
+        """q and ctrl+q: stop nothing by surprise (refused while the wrist moves)."""
         if self.moving:
             self.notify("The wrist is moving: press SPACE to stop it before quitting.",
                         severity="warning")
@@ -145,10 +178,42 @@ class SpmConsoleApp(App[int]):
         self.shutdown()
         self.exit(0)
 
+    def action_help(self) -> None:
+        """Open the key list of the current screen (or close it)."""
+        if isinstance(self.screen, HelpScreen):
+            self.screen.dismiss(None)
+            return
+        self.push_screen(HelpScreen(self.screen))
+
     def action_estop(self) -> None:
         if not self.session.estop("operator E-stop (SPACE)"):
             raise SkipAction()
         self.notify("E-STOP sent: the wrist holds still.", severity="error", timeout=6)
+
+    # ------------------------------------------------------------------ command palette
+    def get_system_commands(self, screen: Screen[Any]) -> Iterable[SystemCommand]:
+        """Every action of ``screen`` and of the app (from the bindings, with their keys),
+        then Textual's theme, maximize and screenshot commands."""
+        under = screen
+        for node, entries in key_entries(under, self):
+            where = "this screen" if node is under else "everywhere"
+            for e in entries:
+                if e.single_action and e.state is not False:
+                    yield SystemCommand(e.description, f"key {e.keys_text} ({where})"
+                                        + (f": {e.tooltip}" if e.tooltip else ""),
+                                        self._palette_runner(e))
+        for cmd in super().get_system_commands(screen):
+            if cmd.title not in ("Quit", "Keys"):  # ours are above (q refuses while moving)
+                yield cmd
+
+    def _palette_runner(self, entry: KeyEntry) -> Callable[[], Any]:
+        node: DOMNode = entry.node
+
+        async def run() -> None:
+            if not await self.run_action(entry.action, node):
+                self.notify(f"{entry.description}: not available now", severity="warning")
+
+        return run
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action == "estop":
@@ -182,8 +247,7 @@ class SpmConsoleApp(App[int]):
         return on_sample
 
     def after_motion(self, result: Any) -> None:
-        if result.final_deg is not None:
-            self.view.show_theta(result.final_deg)
+        self.view.show_theta(self.session.theta_deg)  # the last reading (None: unknown)
 
     def refresh_screen(self) -> None:
         screen = self.screen

@@ -1,15 +1,26 @@
-"""What every step screen shares: the step bar, E-stop banner, status line, footer, and
-running blocking work in a thread worker that reports back by messages."""
+"""What every step screen shares: the step bar, E-stop banner, status line, footer, the
+keys that scroll and leave fields, and running blocking work in a thread worker that
+reports back by messages.
+
+Typing is never an action: while a text field or a dropdown has focus, a printable key
+(letter, digit, '?', '.') goes to that widget and never reaches the screen's or the app's
+bindings (step digits, single-letter actions). F-keys, ctrl+p and the E-stop still work.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from typing import TYPE_CHECKING, ClassVar, cast
+from weakref import WeakSet
 
-from textual import work
+from textual import events, work
+from textual.actions import SkipAction
 from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.dom import DOMNode
 from textual.screen import Screen
-from textual.widgets import Footer
+from textual.widget import Widget
+from textual.widgets import Footer, Input, Select, TextArea
 from textual.worker import get_current_worker
 
 from spm_console.errors import SpmError
@@ -31,15 +42,52 @@ def describe_error(exc: BaseException) -> str:
     return f"internal error ({type(exc).__name__}): {text} — please report it"
 
 
+#: Widgets that take typed characters: while one of them (or a widget inside one) has focus,
+#: printable keys are typing, never actions.
+TYPING_WIDGETS: tuple[type[Widget], ...] = (Input, TextArea, Select)
+
+#: Terminals with fewer rows get one-line fields (app.tcss "Screen.-short" matches it).
+COMPACT_BELOW_ROWS = 36
+#: Terminals with fewer columns get a compact footer.
+COMPACT_BELOW_COLUMNS = 100
+
+_SCROLL = "Scroll"
+_SCROLL_TIP = "the panel holding the focus, else the page (esc leaves a field first)"
+
+
+def takes_typing(widget: DOMNode | None) -> bool:
+    """True if ``widget`` or one of its ancestors is a text field, text area or dropdown."""
+    node = widget
+    while node is not None and not isinstance(node, Screen):
+        if isinstance(node, TYPING_WIDGETS):
+            return True
+        node = node.parent
+    return False
+
+
 class StepScreen(Screen[None]):
     """Base of the six step screens."""
 
     MODE: ClassVar[str] = ""
     AUTO_FOCUS = ""  # keys act on the screen until the operator tabs into a field (None = app default "*")
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("escape", "leave_field", "Leave field", show=False),
+        Binding("up", "scroll_panel('up')", _SCROLL, show=False, tooltip=_SCROLL_TIP),
+        Binding("down", "scroll_panel('down')", _SCROLL, show=False, tooltip=_SCROLL_TIP),
+        Binding("pageup", "scroll_panel('page_up')", _SCROLL, show=False, tooltip=_SCROLL_TIP,
+                key_display="PgUp"),
+        Binding("pagedown", "scroll_panel('page_down')", _SCROLL, show=False,
+                tooltip=_SCROLL_TIP, key_display="PgDn"),
+        Binding("home", "scroll_panel('home')", _SCROLL, show=False, tooltip=_SCROLL_TIP,
+                key_display="Home"),
+        Binding("end", "scroll_panel('end')", _SCROLL, show=False, tooltip=_SCROLL_TIP,
+                key_display="End"),
+    ]
 
     def __init__(self) -> None:
         super().__init__()
         self.busy_op = ""
+        self._made_compact: WeakSet[Widget] = WeakSet()
 
     @property
     def console(self) -> SpmConsoleApp:
@@ -64,7 +112,81 @@ class StepScreen(Screen[None]):
         return self.query_one("#status", StatusLine)
 
     def on_screen_resume(self) -> None:
+        self.compact_fields()
         self.refresh_view()
+
+    def on_resize(self) -> None:
+        self.compact_fields()
+
+    def compact_fields(self) -> None:
+        """Below ``COMPACT_BELOW_ROWS`` rows, fields and dropdowns drop their borders (one
+        line each, Textual's compact style), so forms fit 80×24; below
+        ``COMPACT_BELOW_COLUMNS`` columns the footer drops its padding. Only widgets made
+        compact here are restored when the terminal grows again."""
+        wanted: list[tuple[Input | Select[object] | Footer, bool]] = []
+        short = self.size.height < COMPACT_BELOW_ROWS
+        wanted += [(w, short) for w in self.query(Input).results()]
+        wanted += [(w, short) for w in self.query(Select).results()]
+        wanted += [(w, self.size.width < COMPACT_BELOW_COLUMNS)
+                   for w in self.query(Footer).results()]
+        for w, compact in wanted:
+            if compact and not w.compact:
+                w.compact = True
+                self._made_compact.add(w)
+            elif not compact and w in self._made_compact:
+                w.compact = False
+                self._made_compact.discard(w)
+
+    # ------------------------------------------------------------------ keys
+    def on_key(self, event: events.Key) -> None:
+        """A printable key typed while a field or dropdown has focus stays there: it never
+        reaches a screen or app binding (bindings of the focused widget itself, such as a
+        dropdown's space, still work). In a dropdown it goes nowhere: a bell says so."""
+        if not event.is_printable or not takes_typing(self.focused):
+            return
+        bound = self.active_bindings.get(event.key)
+        if bound is None or bound.node is self or bound.node is self.app:
+            event.stop()
+            event.prevent_default()
+            if not isinstance(self.focused, (Input, TextArea)):
+                self.app.bell()
+
+    def action_leave_field(self) -> None:
+        """Give the keys back to the screen (no widget focused)."""
+        self.set_focus(None)
+
+    def scroll_target(self) -> Widget | None:
+        """What the scroll keys move: the nearest scrollable container around the focused
+        widget, else the part of the screen with the most hidden content."""
+        node: DOMNode | None = self.focused
+        while isinstance(node, Widget) and node is not self:
+            if node.allow_vertical_scroll and node.max_scroll_y > 0:
+                return node
+            node = node.parent
+        candidates = [w for w in self.query(Widget)
+                      if w.allow_vertical_scroll and w.max_scroll_y > 0]
+        return max(candidates, key=lambda w: w.max_scroll_y, default=None)
+
+    def action_scroll_panel(self, how: str) -> None:
+        """Scroll :meth:`scroll_target` by a line (up / down), a page (page_up / page_down)
+        or to its top / bottom (home / end)."""
+        target = self.scroll_target()
+        if target is None:
+            raise SkipAction()
+        if how == "up":
+            target.scroll_up(animate=False)
+        elif how == "down":
+            target.scroll_down(animate=False)
+        elif how == "page_up":
+            target.scroll_page_up(animate=False)
+        elif how == "page_down":
+            target.scroll_page_down(animate=False)
+        elif how == "home":
+            target.scroll_home(animate=False)
+        elif how == "end":
+            target.scroll_end(animate=False)
+        else:
+            raise SkipAction()
 
     def refresh_view(self) -> None:
         """Redraw from the session (called when the screen shows and after operations)."""

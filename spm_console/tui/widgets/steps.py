@@ -1,4 +1,9 @@
-"""The step bar on top of every screen: where you are, what is done, what to do next."""
+"""The step bar on top of every screen: where you are, what is done, what to do next.
+
+Each step has a function key (F1…F6, always), a digit (1…6, only while no text field or
+dropdown has focus) and ctrl+digit where the terminal delivers it; the bar names the
+F-keys and shortens its labels to fit the width (80 columns and up show every step).
+"""
 
 from __future__ import annotations
 
@@ -17,18 +22,42 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class Step:
     key: str
+    """The digit key (and the number of the F-key)."""
     mode: str
     title: str
+    short: str
+    """The title at narrow widths."""
+
+    @property
+    def fkey(self) -> str:
+        """Textual's name of the function key ("f1" …)."""
+        return f"f{self.key}"
+
+    @property
+    def fkey_display(self) -> str:
+        return f"F{self.key}"
 
 
 STEPS: tuple[Step, ...] = (
-    Step("1", "connect", "Connect/home"),
-    Step("2", "fk", "FK check"),
-    Step("3", "workspace", "Workspace"),
-    Step("4", "plan", "Plan"),
-    Step("5", "execute", "Execute"),
-    Step("6", "logs", "Logs"),
+    Step("1", "connect", "Connect/home", "Connect"),
+    Step("2", "fk", "FK check", "FK"),
+    Step("3", "workspace", "Workspace", "Workspace"),
+    Step("4", "plan", "Plan", "Plan"),
+    Step("5", "execute", "Execute", "Execute"),
+    Step("6", "logs", "Logs", "Logs"),
 )
+_BY_MODE = {s.mode: s for s in STEPS}
+
+
+def keys_of(mode: str) -> str:
+    """The keys of a step, for hint texts: "2 (F2)"."""
+    s = _BY_MODE[mode]
+    return f"{s.key} ({s.fkey_display})"
+
+
+def press(mode: str) -> str:
+    """"press 2 (F2)"."""
+    return f"press {keys_of(mode)}"
 
 
 def done_steps(session: Session) -> set[str]:
@@ -53,49 +82,78 @@ def next_hint(session: Session, fk_done: bool = False) -> str:
     if not session.homed:
         return "Next: press h to home the wrist."
     if not fk_done and session.workspace is None:
-        return "Next: press 2 for an FK check (or 3 for the workspace)."
+        return f"Next: {press('fk')} for an FK check, or {keys_of('workspace')} for the workspace."
     if session.workspace is None:
-        return "Next: press 3 to load the workspace."
+        return f"Next: {press('workspace')} to load the workspace."
     if session.plan is None and not fk_done:
-        return "Next: press 2 for an FK check, or 4 to plan a motion (s solves)."
+        return (f"Next: {press('fk')} for an FK check, or {keys_of('plan')} to plan a motion "
+                "(s solves).")
     if session.plan is None:
-        return "Next: press 4 to plan a motion (s solves)."
+        return f"Next: {press('plan')} to plan a motion (s solves)."
     run = session.last_run
     if run is None or session.plan_info.get("executed") is not True:
-        return "Next: press 5, then x to execute the plan."
-    return "Next: press 6 to look at the run log (or 4 to plan another motion)."
+        return f"Next: {press('execute')}, then x to execute the plan."
+    return f"Next: {press('logs')} to look at the run log, or {keys_of('plan')} to plan another."
+
+
+def step_labels(current: str, done: set[str], width: int) -> Content:
+    """The six steps in one line of at most ``width`` cells: full titles if they fit, else
+    short ones, else only the keys (and the current step's short title)."""
+    def line(title_of: dict[str, str]) -> Content:
+        parts = []
+        for s in STEPS:
+            title = title_of.get(s.mode, "")
+            mark = "✔" if s.mode in done else ""
+            text = " ".join(p for p in (s.fkey_display, mark, title) if p)
+            text = f" {text} "
+            if s.mode == current:
+                parts.append(Content.styled(text, "bold reverse"))
+            elif s.mode in done:
+                parts.append(Content.styled(text, "green"))
+            else:
+                parts.append(Content(text))
+        return Content("│").join(parts)
+
+    candidates = (
+        {s.mode: s.title for s in STEPS},
+        {s.mode: s.short for s in STEPS},
+        {current: _BY_MODE[current].short} if current in _BY_MODE else {},
+    )
+    for titles in candidates:
+        out = line(titles)
+        if out.cell_length <= width:
+            return out
+    return out
 
 
 class StepBar(Vertical):
-    """Two lines: the six steps (current one highlighted, done ones ticked) and the hint."""
+    """The six steps (current one highlighted, done ones ticked), the hint, the 3D view URL."""
 
     DEFAULT_CLASSES = "step-bar"
 
     def __init__(self, current: str) -> None:
         super().__init__()
         self.current = current
+        self._done: set[str] = set()
 
     def compose(self) -> ComposeResult:
         yield Static(id="steps-line")
         yield Static(id="hint-line", markup=False)
         yield Static(id="view-line", markup=False)
 
+    def on_resize(self) -> None:
+        self._draw_steps()
+
+    def _draw_steps(self) -> None:
+        width = self.content_size.width or self.app.size.width
+        self.query_one("#steps-line", Static).update(step_labels(self.current, self._done, width))
+
     def refresh_steps(self, session: Session, fk_done: bool, viewer_url: str | None) -> None:
         done = done_steps(session)
         if fk_done:
             done.add("fk")
-        parts = []
-        for s in STEPS:
-            mark = "✔ " if s.mode in done else ""
-            text = f" {s.key} {mark}{s.title} "
-            if s.mode == self.current:
-                parts.append(Content.styled(text, "bold reverse"))
-            elif s.mode in done:
-                parts.append(Content.styled(text, "green"))
-            else:
-                parts.append(Content(text))
-            parts.append(Content("│"))
-        self.query_one("#steps-line", Static).update(Content("").join(parts[:-1]))
+        self._done = done
+        self._draw_steps()
         view = self.query_one("#view-line", Static)
         view.display = bool(viewer_url)
         view.update(Content.styled(f" 3D view: {viewer_url} (open it in a browser)", "cyan"))

@@ -1,0 +1,122 @@
+"""80×24 is fully usable: the step bar shows every step, every panel scrolls by keyboard
+(the FK screen's eight assembly modes down to the last), plots keep a readable height."""
+
+from __future__ import annotations
+
+import html
+import re
+from collections import defaultdict
+from typing import Any
+
+from rich.cells import cell_len
+from textual.widget import Widget
+from textual.widgets import Input
+
+from spm_console.tui.widgets.plot import PlotView
+from spm_console.tui.widgets.steps import STEPS
+from tests.tui.helpers import settle, status_of, text_of
+
+SMALL = (80, 24)
+_TEXT = re.compile(r'<text class="[^"]*" x="([\d.]+)" y="([\d.]+)"[^>]*>([^<]*)</text>')
+
+
+def screen_text(app: Any) -> str:
+    """What the terminal shows, one line per row (from the SVG screenshot)."""
+    rows: dict[float, list[tuple[float, str]]] = defaultdict(list)
+    for x, y, text in _TEXT.findall(app.export_screenshot()):
+        rows[float(y)].append((float(x), html.unescape(text).replace("\xa0", " ")))
+    return "\n".join("".join(t for _x, t in sorted(rows[y])) for y in sorted(rows))
+
+
+async def test_the_step_bar_shows_every_step_at_80_columns(console) -> None:
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        for s in STEPS:
+            await pilot.press(s.fkey)
+            await settle(pilot)
+            assert app.current_mode == s.mode
+            line = text_of(app, "#steps-line")
+            assert cell_len(line) <= SMALL[0]
+            for t in STEPS:
+                assert f"{t.fkey_display} " in line and t.short in line, (s.mode, line)
+            shown = screen_text(app).splitlines()[0]
+            assert all(t.short in shown for t in STEPS), shown
+
+
+async def test_all_assembly_modes_scroll_into_view_at_80x24(console) -> None:
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        await pilot.press("2", "m")
+        await settle(pilot)
+        assert "8 assembly modes" in text_of(app, "#fk-result"), status_of(app)
+        assert "8: n =" not in screen_text(app)  # more than the screen holds
+        await pilot.press("end")
+        await pilot.pause()
+        assert "8: n =" in screen_text(app)
+        await pilot.press("home")
+        await pilot.pause()
+        assert "8: n =" not in screen_text(app)
+        for _ in range(40):  # line by line, too
+            await pilot.press("down")
+        await pilot.pause()
+        assert "8: n =" in screen_text(app)
+
+
+async def test_scroll_keys_scroll_the_panel_around_a_focused_field(console) -> None:
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        await pilot.press("2", "m")
+        await settle(pilot)
+        await pilot.press("tab")  # into θ1: PgDn still scrolls the page around it
+        assert app.focused is not None
+        body: Widget = app.screen.query_one(".body", Widget)
+        assert body.scroll_y == 0
+        await pilot.press("pagedown")
+        await pilot.pause()
+        assert body.scroll_y > 0
+
+
+async def test_the_plan_plot_is_readable_at_80x24(console) -> None:
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        await pilot.press("3")
+        await settle(pilot)
+        await pilot.press("4", "s")
+        await settle(pilot)
+        assert app.session.plan is not None, status_of(app)
+        plot = app.screen.query_one("#plan-plot", PlotView)
+        assert plot.content_size.height >= 12
+        assert plot.content_size.width >= 70
+        await pilot.press("end")
+        await pilot.pause()
+        shown = screen_text(app)
+        assert "references θ*" in shown and "┌" in shown  # title and the plot's frame
+
+
+async def test_fields_are_one_line_on_short_terminals_only(console) -> None:
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        await pilot.press("4")
+        await pilot.pause()
+        steps = app.screen.query_one("#steps", Input)
+        assert steps.compact and steps.outer_size.height == 1
+        await pilot.resize_terminal(160, 48)
+        await pilot.pause()
+        assert not steps.compact and steps.outer_size.height == 3
+        assert "Connect/home" in text_of(app, "#steps-line")  # full titles again
+
+
+def test_every_step_fits_80_columns_when_all_are_done() -> None:
+    from spm_console.tui.widgets.steps import step_labels
+
+    done = {s.mode for s in STEPS}
+    for s in STEPS:
+        line = step_labels(s.mode, done, SMALL[0])
+        assert line.cell_length <= SMALL[0]
+        assert all(f"{t.fkey_display} ✔ {t.short}" in line.plain for t in STEPS)
+    assert "Connect/home" in step_labels("plan", done, 120).plain
