@@ -151,10 +151,17 @@ def fk_graph(ws: Workspace, model: SpmModel) -> FkGraph:
     nodes = np.asarray((ws.klass != NodeClass.UNREACHED) & (ws.zeta >= PATH_ZETA_FLOOR))
     th = np.radians(np.stack(np.meshgrid(*ws.axes_deg, indexing="ij"), -1)[nodes])
     nodes[nodes] = home_side(model, th, ws.R[nodes])
+    return graph_of(ws.axes_deg, float(ws.step_deg), nodes, ws.zeta, ws.R, ws.home_index)
+
+
+def graph_of(axes_deg: tuple[F, F, F], step_deg: float, nodes: B, zeta: F, R: F,
+             home_index: I3) -> FkGraph:
+    """The graph on ``nodes`` (M1, M2, M3) with edge weights from ``zeta`` and the
+    shortest-path tree from ``home_index``."""
     shape = nodes.shape
     n = nodes.size
     flat = np.arange(n).reshape(shape)
-    z = np.where(nodes, ws.zeta, 0.0)
+    z = np.where(nodes, zeta, 0.0)
     rows, cols, wts = [], [], []
     for ax in range(3):
         a = [slice(None)] * 3
@@ -168,13 +175,13 @@ def fk_graph(ws: Workspace, model: SpmModel) -> FkGraph:
     r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(wts)
     g = coo_matrix((np.concatenate([w, w]), (np.concatenate([r, c]), np.concatenate([c, r]))),
                    shape=(n, n)).tocsr()
-    home = int(np.ravel_multi_index(ws.home_index, shape))
+    home = int(np.ravel_multi_index(home_index, shape))
     parent = np.full(n, -9999, np.int64)
-    if nodes[ws.home_index]:
+    if nodes[home_index]:
         _, pred = dijkstra(g, directed=False, indices=home, return_predecessors=True)
         parent = np.asarray(pred, np.int64)
-    return FkGraph(axes_deg=ws.axes_deg, step_deg=float(ws.step_deg), nodes=nodes, R=ws.R,
-                   home_index=ws.home_index, parent=parent)
+    return FkGraph(axes_deg=axes_deg, step_deg=step_deg, nodes=nodes, R=R,
+                   home_index=home_index, parent=parent)
 
 
 @dataclass(frozen=True)
@@ -227,6 +234,15 @@ def _follow(model: SpmModel, graph: FkGraph, pts: list[F]) -> tuple[_Leg, list[F
     return _Leg(True, R, steps, minz, ""), taken
 
 
+def _dedupe(pts: list[F]) -> tuple[tuple[float, ...], ...]:
+    """Waypoints (deg) without consecutive repeats."""
+    out: list[tuple[float, ...]] = []
+    for p in pts:
+        if not out or max(abs(a - b) for a, b in zip(out[-1], p, strict=True)) > 1e-12:
+            out.append(_pt(p))
+    return tuple(out)
+
+
 def _outside(lo: float, hi: float, straight_reason: str) -> str:
     return (f"outside the workspace grid ({lo:g}..{hi:g}° per joint), so no path through it "
             f"exists; the straight line from home was the only attempt: {straight_reason}")
@@ -258,7 +274,7 @@ def route_fk(model: SpmModel, graph: FkGraph, theta_rad: F, straight: FkResult) 
         pose = model.pose(np.asarray(theta_rad, float), end.R)
         return FkResult(ok=True, pose=pose, reason="", path_min_zeta=min(leg.min_zeta, end.min_zeta),
                         steps=leg.steps + end.steps,
-                        waypoints_deg=tuple(_pt(p) for p in [*taken, th_deg]), route="graph")
+                        waypoints_deg=_dedupe([*taken, th_deg]), route="graph")
     return replace(straight, reason=_not_connected(model, graph, theta_rad, straight.reason))
 
 
