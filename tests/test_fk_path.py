@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from spm_console.core.fk_path import FkGraph, fk_connected, fk_graph, graph_of, route_fk
-from spm_console.core.kinematics import FkResult, SpmModel, full_residual, platform_axes
+from spm_console.core.kinematics import PATH_ZETA_FLOOR, FkResult, SpmModel, full_residual, platform_axes
 from spm_console.core.modes import solve_all
 from tests.ws_helpers import agile_workspace
 
@@ -81,7 +81,7 @@ def test_route_goes_around_a_blocked_region(setup: tuple[SpmModel, FkGraph]) -> 
     block = np.all((T >= 103.0) & (T <= 127.0), axis=-1)  # a cube across the straight line
     g2 = graph_of(graph.axes_deg, graph.step_deg, graph.nodes & ~block, ws.zeta, ws.R, graph.home_index)
     r = route_fk(model, g2, np.radians(th), FORCED)
-    assert r.route == "graph" and len(r.waypoints_deg) >= 4
+    assert r.route == "graph" and len(r.waypoints_deg) >= 3  # at least one detour corner
     way = np.asarray(r.waypoints_deg)
     for a, b in itertools.pairwise(way):  # no segment enters the blocked cube
         s = a + np.linspace(0, 1, 200)[:, None] * (b - a)
@@ -97,7 +97,7 @@ def test_random_straight_failures(setup: tuple[SpmModel, FkGraph]) -> None:
     checked) or refused as not connected to home; a refusal that says no mode is on the
     home's side is checked against every assembly mode at θ."""
     model, graph = setup
-    T = np.random.default_rng(1).uniform(*BOX, (1200, 3))
+    T = np.random.default_rng(1).uniform(*BOX, (1200, 3))  # 12 straight-path failures
     failed = [t for t, r in zip(T, model.track_batch(np.radians(T)), strict=True) if not r.ok]
     assert len(failed) >= 5
     for th in failed:
@@ -106,9 +106,14 @@ def test_random_straight_failures(setup: tuple[SpmModel, FkGraph]) -> None:
             _check_pose(model, r, th)
             continue
         assert r.reason.startswith("not connected to home through non-singular configurations")
+        # every refusal of this sample is proven from all the assembly modes at θ
+        Rs = solve_all(model.geom, np.radians(th), model.v_home)
+        home_side = [R for R in Rs if _on_home_side(model, np.radians(th), R)]
         if "no assembly mode" in r.reason:
-            Rs = solve_all(model.geom, np.radians(th), model.v_home)
-            assert Rs and not any(_on_home_side(model, np.radians(th), R) for R in Rs)
+            assert Rs and not home_side
+        else:
+            assert "continuation floor" in r.reason and home_side
+            assert all(model.mode_check(np.radians(th), R)[0] < PATH_ZETA_FLOOR for R in home_side)
 
 
 def test_refusals_name_the_reason(setup: tuple[SpmModel, FkGraph]) -> None:
@@ -145,3 +150,16 @@ def test_cli_path_key_and_refusal(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["fk", "--theta", "70.55", "76.08", "152.62"]) == 5
     err = capsys.readouterr().err
     assert "not connected to home" in err and "Traceback" not in err
+
+
+def test_session_fk_reports_the_path() -> None:
+    from spm_console.errors import UnreachableError
+    from spm_console.run.operator import Session
+    from tests.ws_helpers import agile_profile
+
+    s = Session(agile_profile())
+    rec = s.fk([100.0, 120.0, 110.0])
+    assert rec["path"]["route"] == "straight" and rec["path"]["waypoints"] == 2
+    assert s.workspace is None and s._fk_graph._graph is None  # the fast path loads nothing
+    with pytest.raises(UnreachableError, match="not connected to home"):
+        s.fk([70.55, 76.08, 152.62])

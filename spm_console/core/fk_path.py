@@ -18,8 +18,9 @@ workspace grid instead:
 
 θ is refused only when no such route exists, with the reason: θ outside the grid
 (the straight segment was the only attempt), or no assembly mode at θ on the home
-side of every singularity (no path from home can reach it), or no route at the
-grid's resolution. Angles: radians inside, degrees in the reported waypoints.
+side of every singularity (no path from home can reach it), or θ within the
+continuation floor of a singularity, or no route at the grid's resolution.
+Angles: radians inside, degrees in the reported waypoints.
 """
 
 from __future__ import annotations
@@ -99,18 +100,20 @@ class FkGraph:
         return [_i3(np.unravel_index(j, self.shape)) for j in reversed(out)]
 
     def clear(self, a_deg: F, b_deg: F) -> bool:
-        """The straight segment a→b (deg) stays in cells whose eight corners are graph nodes."""
+        """The straight segment a→b (deg) stays in cells (or on cell faces) whose corners
+        are all graph nodes."""
         d = np.asarray(b_deg, float) - np.asarray(a_deg, float)
         n = max(2, math.ceil(4.0 * float(np.abs(d).max()) / self.step_deg) + 1)
         pts = np.asarray(a_deg, float) + np.linspace(0.0, 1.0, n)[:, None] * d
         lo = np.array([a[0] for a in self.axes_deg])
         m = np.array(self.shape)
-        c = np.floor((pts - lo) / self.step_deg + 1e-9).astype(int)
+        x = (pts - lo) / self.step_deg
+        c = np.floor(x + 1e-9).astype(int)
         if (c < 0).any() or (c > m - 1).any():
             return False
-        c = np.minimum(c, m - 2)
+        off_plane = (x - c) > 1e-9  # on a grid plane the segment touches only that face
         for corner in np.ndindex(2, 2, 2):
-            k = c + np.asarray(corner)
+            k = np.minimum(c + np.asarray(corner) * off_plane, m - 1)
             if not self.nodes[k[:, 0], k[:, 1], k[:, 2]].all():
                 return False
         return True
@@ -279,18 +282,25 @@ def route_fk(model: SpmModel, graph: FkGraph, theta_rad: F, straight: FkResult) 
 
 
 def _not_connected(model: SpmModel, graph: FkGraph, theta_rad: F, straight_reason: str) -> str:
+    """Why no route reached θ (rad), from every assembly mode at θ (multi-start solve)."""
     from spm_console.core.modes import solve_all
 
     th = np.asarray(theta_rad, float)
     Rs = solve_all(model.geom, th, model.v_home)
-    same = bool(Rs) and bool(home_side(model, np.broadcast_to(th, (len(Rs), 3)), np.asarray(Rs)).any())
-    if not same:
-        return ("not connected to home through non-singular configurations: no assembly mode "
-                "at this θ lies strictly on the home's side of the singularities (sign of det J1, "
-                "the legs' working modes), so every path from home crosses one (ζ = 0)")
-    return (f"not connected to home through non-singular configurations at the grid's "
-            f"resolution (Δ = {graph.step_deg:g}°): no home-connected node near θ continues "
-            f"to it without crossing a singularity; straight line from home: {straight_reason}")
+    head = "not connected to home through non-singular configurations"
+    TH = np.broadcast_to(th, (len(Rs), 3))
+    side = home_side(model, TH, np.asarray(Rs)) if Rs else np.zeros(0, bool)
+    if not side.any():
+        return (f"{head}: no assembly mode at this θ lies strictly on the home's side of the "
+                "singularities (sign of det J1, the legs' working modes), so every path from "
+                "home crosses one (ζ = 0)")
+    z = float(np.max(model.mode_check(TH, np.asarray(Rs))[0][side]))
+    if z < PATH_ZETA_FLOOR:
+        return (f"{head}: θ lies within the continuation floor of a singularity (ζ = {z:.1e} "
+                f"< {PATH_ZETA_FLOOR:g} in the home's modes); FK is not tracked that close")
+    return (f"{head} at the grid's resolution (Δ = {graph.step_deg:g}°): no home-connected "
+            f"node near θ continues to it without crossing a singularity; straight line from "
+            f"home: {straight_reason}")
 
 
 def fk_connected(
