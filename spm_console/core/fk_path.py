@@ -252,7 +252,8 @@ def _outside(lo: float, hi: float, straight_reason: str) -> str:
 
 
 def _pt(theta_deg: F) -> tuple[float, ...]:
-    return tuple(float(x) for x in theta_deg)
+    """A waypoint, deg, rounded to 1e-9° (no radian round-trip noise in the report)."""
+    return tuple(round(float(x), 9) for x in theta_deg)
 
 
 def route_fk(model: SpmModel, graph: FkGraph, theta_rad: F, straight: FkResult) -> FkResult:

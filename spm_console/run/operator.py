@@ -32,6 +32,7 @@ from spm_console.errors import (
 )
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
+from spm_console.run.kin_record import FkGraphSource
 
 if TYPE_CHECKING:
     from spm_console.devices.emulator import EmulatorHandle
@@ -129,7 +130,7 @@ class Session:
         earlier refuses it here; one that comes later finds the motion and stops it)."""
         self.workspace: Any = None
         self.cache_info: Any = None
-        self._fk_graph: Any = None
+        self._fk_graph = FkGraphSource(profile, self.model, cache_dir, lambda: self.workspace)
         self.plan: Plan | None = None
         self.plan_info: dict[str, Any] = {}
         self.plan_source: str | None = None
@@ -294,14 +295,10 @@ class Session:
 
     # ------------------------------------------------------------------ kinematics
     def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> dict[str, Any]:
-        """Unique FK record (``fk --json`` keys, with ``path``) of θ (deg): continuation from
-        home, around a singularity through the workspace grid when the straight path crosses one."""
-        from spm_console.run.kin_record import FkGraphSource, fk_record, fk_route
+        """Unique FK record (``fk --json`` keys, ``path``) of θ (deg), around singularities if need be."""
+        from spm_console.run.kin_record import fk_record, fk_route
 
         th = theta3(theta_deg, "θ")
-        if self._fk_graph is None:  # the workspace only when a straight path fails
-            self._fk_graph = FkGraphSource(self.profile, self.model, self.cache_dir,
-                                           lambda: self.workspace)
         r = fk_route(self.profile, self.model, th, self._fk_graph)
         if not r.ok or r.pose is None:
             raise UnreachableError(f"θ = {np.round(th, 2).tolist()}°: {r.reason}")
