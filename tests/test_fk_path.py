@@ -163,3 +163,28 @@ def test_session_fk_reports_the_path() -> None:
     assert s.workspace is None and s._fk_graph._graph is None  # the fast path loads nothing
     with pytest.raises(UnreachableError, match="not connected to home"):
         s.fk([70.55, 76.08, 152.62])
+
+
+def test_failed_shortcut_falls_back_to_grid_steps(setup: tuple[SpmModel, FkGraph],
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """A shortcut that fails (here: every segment longer than one grid step, refused on
+    purpose) is replaced by its grid steps; the pose is the straight path's all the same."""
+    import spm_console.core.fk_path as fk_path
+
+    model, graph = setup
+    real = fk_path._segment
+
+    def short_only(m: SpmModel, a: np.ndarray, R: np.ndarray, b: np.ndarray):  # type: ignore[no-untyped-def]
+        if float(np.abs(np.asarray(b) - np.asarray(a)).max()) > graph.step_deg + 1e-9:
+            return fk_path._Leg(False, R, 0, 1.0, "refused by the test")
+        return real(m, a, R, b)
+
+    monkeypatch.setattr(fk_path, "_segment", short_only)
+    th = np.array([121.0, 125.0, 129.0])  # a node 7 + 5 + 3 grid steps from home (a node too)
+    r = route_fk(model, graph, np.radians(th), FORCED)
+    assert r.ok and r.pose is not None, r.reason
+    way = np.asarray(r.waypoints_deg)
+    assert len(way) == 1 + 7 + 5 + 3  # home, then one waypoint per grid step
+    assert np.abs(np.diff(way[1:], axis=0)).max() <= graph.step_deg + 1e-9
+    straight = model.track(np.radians(th))
+    np.testing.assert_allclose(r.pose.R, straight.pose.R, atol=1e-9)  # type: ignore[union-attr]
