@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,7 @@ from spm_console.errors import BadInputError, ExitCode, InfeasibleError, Unreach
 from spm_console.formatting import fmt_residual, fmt_vec
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
-from spm_console.run.kin_record import fk_record
+from spm_console.run.kin_record import FkGraphSource, fk_record, fk_route, path_line
 from spm_console.safe_io import MB, read_text
 
 #: Largest ``fk --theta-file`` read, and most θ rows in it.
@@ -41,6 +42,9 @@ def register(sub: Any) -> None:
     p.add_argument("--from", dest="from_theta", nargs=3, type=float, metavar=("T1", "T2", "T3"),
                    help="continue from this known configuration (itself tracked from home)")
     p.add_argument("--all-modes", action="store_true", help="also list every assembly mode")
+    p.add_argument("--cache-dir", type=Path, default=None,
+                   help="workspace cache directory, used only when a straight path from home "
+                        "crosses a singularity (default $SPM_CONSOLE_CACHE or ~/.cache/spm_console)")
     p.set_defaults(func=cmd_fk)
 
     q = sub.add_parser("ik", help="inverse kinematics in the home working modes")
@@ -78,27 +82,37 @@ def _read_theta_file(path: Path) -> np.ndarray:
     return np.asarray(rows)
 
 
+def _row_text(theta_deg: np.ndarray, rec: dict[str, Any]) -> str:
+    """One human line of ``fk --theta-file``."""
+    if not rec["ok"]:
+        return f"θ={fmt_vec(theta_deg, 2)}  {rec['reason']}"
+    via = f" (around a singularity: {rec['path']['waypoints']} waypoints)" if rec["path"]["route"] == "graph" else ""
+    return f"θ={fmt_vec(theta_deg, 2)}  n={fmt_vec(rec['n'])} ζ={rec['zeta']:.3f}{via}"
+
+
 def cmd_fk(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     model, links = model_of(profile), link_model_of(profile)
-    t_from = R_from = None
+    graph = FkGraphSource(profile, model, args.cache_dir)  # loaded only if a straight path fails
+    start = None
     if args.from_theta is not None:
-        r0 = model.track(np.radians(theta_for_fk(args.from_theta, "--from")))
-        if not r0.ok or r0.pose is None:
-            raise UnreachableError(f"--from configuration: {r0.reason}")
-        t_from, R_from = r0.pose.theta, r0.pose.R
+        start = fk_route(profile, model, theta_for_fk(args.from_theta, "--from"), graph)
+        if not start.ok or start.pose is None:
+            raise UnreachableError(f"--from configuration: {start.reason}")
     if args.theta_file is not None:
         T = _read_theta_file(args.theta_file)
-        results = model.track_batch(np.radians(T), t_from, R_from)
+        fast = model.track_batch(np.radians(T), *((start.pose.theta, start.pose.R) if start and start.pose
+                                                  else (None, None)))
+        head = start.waypoints_deg if start else (tuple(float(x) for x in np.degrees(model.theta_home)),)
+        results = [replace(r, waypoints_deg=(*head, tuple(float(x) for x in t)),
+                           route=start.route if start else "straight")
+                   if r.ok else fk_route(profile, model, t, graph, start) for t, r in zip(T, fast, strict=True)]
         recs = [fk_record(profile, model, links, r) for r in results]
-        human = "\n".join(
-            f"θ={fmt_vec(t, 2)}  " + (f"n={fmt_vec(rec['n'])} ζ={rec['zeta']:.3f}" if rec["ok"] else rec["reason"])
-            for t, rec in zip(T, recs, strict=True)
-        )
+        human = "\n".join(_row_text(t, rec) for t, rec in zip(T, recs, strict=True))
         emit(args, recs, human)  # a JSON list, one record per row
         return int(ExitCode.OK if all(r["ok"] for r in recs) else ExitCode.UNREACHABLE)
     theta = theta_for_fk(args.theta, "--theta")
-    r = model.track(np.radians(theta), t_from, R_from)
+    r = fk_route(profile, model, theta, graph, start)
     if not r.ok or r.pose is None:
         raise UnreachableError(f"θ = {fmt_vec(theta, 2)}°: {r.reason}")
     rec = fk_record(profile, model, links, r)
@@ -110,6 +124,7 @@ def cmd_fk(args: argparse.Namespace) -> int:
         f"residual {fmt_residual(r.pose.residual)}",
         f"closest links = {rec['min_link_distance_mm']:.1f} mm ({rec['closest_pair']})",
         "feasible" if rec["feasible"] else f"NOT feasible: {rec['reason']}",
+        path_line(rec),
     ]
     if args.all_modes:
         modes = assembly_modes(model, r.pose.theta, r.pose.R)

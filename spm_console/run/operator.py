@@ -32,6 +32,7 @@ from spm_console.errors import (
 )
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
+from spm_console.run.kin_record import FkGraphSource
 from spm_console.run.operator_tools import ServoTools
 from spm_console.run.servo_tools import ServoHealth
 
@@ -133,6 +134,7 @@ class Session(ServoTools):
         earlier refuses it here; one that comes later finds the motion and stops it)."""
         self.workspace: Any = None
         self.cache_info: Any = None
+        self._fk_graph = FkGraphSource(profile, self.model, cache_dir, lambda: self.workspace)
         self.plan: Plan | None = None
         self.plan_info: dict[str, Any] = {}
         self.plan_source: str | None = None
@@ -298,11 +300,11 @@ class Session(ServoTools):
 
     # ------------------------------------------------------------------ kinematics
     def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> dict[str, Any]:
-        """Unique FK record (``fk --json`` keys) of θ (deg), from home by continuation."""
-        from spm_console.run.kin_record import fk_record
+        """Unique FK record (``fk --json`` keys, ``path``) of θ (deg), around singularities if need be."""
+        from spm_console.run.kin_record import fk_record, fk_route
 
         th = theta3(theta_deg, "θ")
-        r = self.model.track(np.radians(th))
+        r = fk_route(self.profile, self.model, th, self._fk_graph)
         if not r.ok or r.pose is None:
             raise UnreachableError(f"θ = {np.round(th, 2).tolist()}°: {r.reason}")
         rec = fk_record(self.profile, self.model, self.links, r)

@@ -13,6 +13,7 @@ from textual.widgets import Input, Static
 
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg, fmt_residual, fmt_vec
+from spm_console.run.kin_record import path_line
 from spm_console.tui.messages import FkSolved, Outcome
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.angles import AnglesInput
@@ -30,6 +31,8 @@ def fk_text(rec: dict[str, Any]) -> str:
         f"closest links = {rec['min_link_distance_mm']:.1f} mm ({rec['closest_pair']})",
         "FEASIBLE" if rec["feasible"] else f"NOT FEASIBLE: {rec['reason']}",
     ]
+    if rec.get("path", {}).get("route") == "graph":  # around a singularity: say which way
+        lines.append(path_line(rec))
     modes = rec.get("modes")
     if modes is not None:
         lines.append(f"{len(modes)} assembly modes at this θ:")
