@@ -8,6 +8,9 @@ not change what the snapshots show).
 
 from __future__ import annotations
 
+import shutil
+import tempfile
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -49,3 +52,33 @@ def test_fk_of_the_paper_example(snap_compare: Any, console: Any) -> None:
         await settle(pilot)
 
     assert snap_compare(console(), terminal_size=SIZE, run_before=run_before)
+
+
+#: Every screen at the smallest supported terminal and a large one (issue 13).
+SIZES = {"80x24": (80, 24), "160x48": (160, 48)}
+#: The Logs screen names its root: a fixed, empty folder keeps the picture the same everywhere.
+LOGS = Path(tempfile.gettempdir()) / "spm-console-snapshot-logs"
+#: The Workspace screen names its cache file: the same, with a fixed folder.
+CACHE = Path(tempfile.gettempdir()) / "spm-console-snapshot-cache"
+
+
+@pytest.mark.parametrize("size", list(SIZES), ids=list(SIZES))
+@pytest.mark.parametrize("step", ["f1", "f2", "f3", "f4", "f5", "f6", "help"])
+def test_every_screen_at_80x24_and_160x48(snap_compare: Any, agile: Any, ws_cache: Path,
+                                         step: str, size: str) -> None:
+    """Each step as it first shows (connected, nothing run yet, no runs logged) and the help
+    screen: no run, plan, timing or temporary path on them, so nothing machine-dependent."""
+    from spm_console.tui.app import make_app
+
+    shutil.rmtree(LOGS, ignore_errors=True)
+    LOGS.mkdir()
+    shutil.rmtree(CACHE, ignore_errors=True)
+    shutil.copytree(ws_cache, CACHE)
+
+    async def run_before(pilot: Pilot[Any]) -> None:
+        await settle(pilot)
+        await pilot.press("question_mark" if step == "help" else step)
+        await settle(pilot)
+
+    app = make_app(agile, sim=True, viewer=False, logs_root=LOGS, cache_dir=CACHE)
+    assert snap_compare(app, terminal_size=SIZES[size], run_before=run_before)
