@@ -17,6 +17,8 @@ os.chdir(ROOT)
 _SCRATCH = Path(tempfile.mkdtemp(prefix="spm-tests-"))
 os.environ.setdefault("SPM_CONSOLE_CACHE", str(_SCRATCH / "cache"))
 os.environ.setdefault("SPM_CONSOLE_LOGS", str(_SCRATCH / "logs"))
+# the console remembers form values per profile: never in the tester's own ~/.config
+os.environ["SPM_CONSOLE_CONFIG"] = str(_SCRATCH / "config")
 
 
 @pytest.fixture(scope="session")

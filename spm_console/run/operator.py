@@ -369,7 +369,7 @@ class Session(ServoTools):
         (:func:`~spm_console.run.plan_request.plan_motion`). Stores and returns the plan."""
         from spm_console.run.plan_request import PlanRequest, plan_motion
 
-        ws = self.require_workspace()
+        ws = self.workspace if self.workspace is not None else self.load_workspace()
         s, g = self.resolve(start), self.resolve(goal)
         vmax = self.profile.limits.vmax_degps if vmax_degps is None else vmax_degps
         planned = plan_motion(self.profile, ws, PlanRequest(

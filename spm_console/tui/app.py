@@ -95,6 +95,10 @@ class SpmConsoleApp(App[int]):
         self._start_viewer = start_viewer and isinstance(view, MeshcatView)
         self.viewer_url: str | None = None
         self.fk_done = False
+        from spm_console.store.form_memory import FormMemory
+
+        self.form_memory = FormMemory()
+        """Typed form values per profile, kept between sessions ($SPM_CONSOLE_CONFIG)."""
         self.live_samples: list[Any] = []
         self._closed = False
         self._restore_signals: Callable[[], None] = lambda: None

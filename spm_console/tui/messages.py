@@ -72,6 +72,14 @@ class PlanSaved:
 
 
 @dataclass(frozen=True)
+class PlanLoaded:
+    """A saved plan, checked against the profile and verified, is the current plan."""
+
+    plan: Plan
+    path: str
+
+
+@dataclass(frozen=True)
 class RunOpened:
     run: RunData
 
@@ -84,7 +92,7 @@ class BenchmarkDone:
 
 
 Outcome = (Connected | PositionRead | MotionDone | FkSolved | WorkspaceLoaded | ThetaChecked
-           | PlanSolved | PlanSaved | RunOpened | BenchmarkDone | ServoToolDone)
+           | PlanSolved | PlanSaved | PlanLoaded | RunOpened | BenchmarkDone | ServoToolDone)
 
 
 class Done(Message):

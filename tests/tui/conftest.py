@@ -32,3 +32,9 @@ def console(agile: Profile, ws_cache: Path, tmp_path: Path) -> Callable[..., Spm
                         cache_dir=ws_cache, initial_deg=initial_deg, **kw)
 
     return build
+
+
+@pytest.fixture(autouse=True)
+def _own_form_memory(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each console test starts with no remembered form values (and keeps its own)."""
+    monkeypatch.setenv("SPM_CONSOLE_CONFIG", str(tmp_path / "config"))

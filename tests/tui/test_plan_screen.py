@@ -81,10 +81,12 @@ async def test_form_errors_are_messages(console) -> None:
         assert "outside the workspace grid" in msg
 
 
-async def test_without_workspace_says_which_step_is_missing(console) -> None:
+async def test_solving_before_the_workspace_step_loads_the_workspace(console) -> None:
+    """Planning is not refused until step 3 was visited: the solve loads the workspace."""
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
+        assert app.session.workspace is None
         await pilot.press("4", "s")
         await settle(pilot)
-        assert "step 3" in status_of(app)
+        assert app.session.workspace is not None and app.session.plan is not None, status_of(app)

@@ -12,18 +12,27 @@ from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
-from textual.widgets import Input, Label, Select, Static
+from textual.widgets import Checkbox, Input, Label, Select, Static
 
 from spm_console.core.plan import Plan
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
 from spm_console.run.operator import PoseSpec
-from spm_console.tui.messages import Outcome, PlanSaved, PlanSolved
+from spm_console.tui.messages import Outcome, PlanLoaded, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.angles import AnglesInput
+from spm_console.tui.widgets.ask_path import AskPathScreen
 from spm_console.tui.widgets.number import NumberRow
 from spm_console.tui.widgets.plot import PlotView, joint_series
-from spm_console.tui.widgets.rules import THETA_NAMES, ik_check, rpy_rules, steps_rule, theta_rules, vmax_rule
+from spm_console.tui.widgets.rules import (
+    THETA_NAMES,
+    ik_check,
+    intersample_rule,
+    rpy_rules,
+    steps_rule,
+    theta_rules,
+    vmax_rule,
+)
 
 POSE_KINDS = [("current pose", "current"), ("home", "home"), ("motor angles θ", "theta"),
               ("orientation r/p/y", "rpy")]
@@ -65,6 +74,7 @@ class PlanScreen(StepScreen):
         Binding("s", "solve", "Solve"),
         Binding("p", "next_plot", "Plot"),
         Binding("w", "save", "Save"),
+        Binding("o", "open", "Open plan"),
         Binding("tab", "app.focus_next", "Fields"),
         Binding("escape", "leave_field", "Leave"),
     ]
@@ -91,13 +101,16 @@ class PlanScreen(StepScreen):
                 yield NumberRow("steps N", steps_rule(), str(DEFAULT_STEPS), id="steps")
                 yield NumberRow("v_max °/s", vmax_rule(prof), f"{prof.limits.vmax_degps:g}",
                                 id="vmax")
+                yield NumberRow("intersample K", intersample_rule(), "1", id="intersample")
+                yield Checkbox("free first reference θ*(0)", False, id="free-first")
             with Vertical(id="plan-result"):
                 yield Static(id="plan-text", markup=False, classes="result")
                 yield PlotView(id="plan-plot")
 
     def on_mount(self) -> None:
         self.query_one("#plan-text", Static).update(Content(
-            "Choose start and goal, then press s to solve."))
+            "Choose start and goal, then press s to solve (o opens a saved plan)."))
+        self._recall()
         for which in ("start", "goal"):
             self._apply_kind(which)
         self._apply_method()
@@ -139,17 +152,19 @@ class PlanScreen(StepScreen):
         v = self.query_one(f"#{which}-values", AnglesInput).values()
         return PoseSpec(kind, (v[0], v[1], v[2]))  # type: ignore[arg-type]
 
-    def _params(self) -> tuple[str, int, float]:
+    def _params(self) -> tuple[str, int, float, int, bool]:
         method = str(self.query_one("#method", Select).value)
         steps = (int(self.query_one("#steps-row", NumberRow).number()) if method == "mvn"
                  else DEFAULT_STEPS)  # unused by minimum time
         vmax = self.query_one("#vmax-row", NumberRow).number()
-        return method, steps, vmax
+        k = int(self.query_one("#intersample-row", NumberRow).number())
+        hold_first = not self.query_one("#free-first", Checkbox).value
+        return method, steps, vmax, k, hold_first
 
     def action_solve(self) -> None:
         try:
             start, goal = self._spec("start"), self._spec("goal")
-            method, steps, vmax = self._params()
+            method, steps, vmax, k, hold_first = self._params()
         except BadInputError as exc:  # the field says why too; nothing is solved
             self.status.error(f"Solve refused: {exc.message}. Fix the field, then press s.")
             return
@@ -157,9 +172,60 @@ class PlanScreen(StepScreen):
         self.solving_method = method
         self.run_blocking(
             "solve",
-            lambda: PlanSolved(self.session.solve_plan(method, start, goal, steps,  # type: ignore[arg-type]
-                                                       vmax)),
+            lambda: PlanSolved(self.session.solve_plan(
+                method, start, goal, steps, vmax,  # type: ignore[arg-type]
+                intersample=k, hold_first=hold_first)),
             f"solving the {name} problem ({start.describe()} → {goal.describe()}) …")
+
+    # --- saved plans and remembered values ------------------------------------------------
+    def action_open(self) -> None:
+        plans = sorted(Path("plans").glob("*.json")) if Path("plans").is_dir() else []
+        body = ("A plan file is checked against this profile and verified exactly as the "
+                "executor will before it becomes the current plan.")
+        self.app.push_screen(
+            AskPathScreen("Open a saved plan", body, str(plans[-1]) if plans else "plans/"),
+            self._open_path)
+
+    def _open_path(self, path: str | None) -> None:
+        if not path:
+            self.status.ok("open cancelled: the current plan is unchanged")
+            return
+        self.solving_method = "open"
+        self.run_blocking("open", lambda: PlanLoaded(self.session.load_plan_file(path), path),
+                          f"reading and verifying {path} …")
+
+    def _fields(self) -> dict[str, Input]:
+        out: dict[str, Input] = {f"{w}.{i}": f for w in ("start", "goal")
+               for i, f in enumerate(self.query_one(f"#{w}-values", AnglesInput).fields)}
+        for name in ("steps", "vmax", "intersample"):
+            out[name] = self.query_one(f"#{name}", Input)
+        return out
+
+    def _remember(self) -> None:
+        """What the operator typed, as typed, for this profile's next session."""
+        mem, prof = self.console.form_memory, self.session.profile.name
+        for key, field in self._fields().items():
+            mem.put(prof, f"plan.{key}", field.value)
+        for sel in ("start-kind", "goal-kind", "method"):
+            mem.put(prof, f"plan.{sel}", str(self.query_one(f"#{sel}", Select).value))
+        mem.put(prof, "plan.free-first", str(bool(self.query_one("#free-first", Checkbox).value)))
+        if not mem.save():
+            self.notify(f"form values not remembered: {mem.error}", severity="warning",
+                        markup=False)
+
+    def _recall(self) -> None:
+        mem, prof = self.console.form_memory, self.session.profile.name
+        for sel, options in (("start-kind", POSE_KINDS), ("goal-kind", POSE_KINDS),
+                             ("method", METHODS)):
+            value = mem.get(prof, f"plan.{sel}")
+            if value is not None and value in {v for _, v in options}:
+                self.query_one(f"#{sel}", Select).value = value
+        for key, field in self._fields().items():
+            text = mem.get(prof, f"plan.{key}")
+            if text is not None:
+                field.value = text
+        if mem.get(prof, "plan.free-first") == "True":
+            self.query_one("#free-first", Checkbox).value = True
 
     def action_next_plot(self) -> None:
         self.plot_kind = (self.plot_kind + 1) % len(PLOTS)
@@ -191,10 +257,20 @@ class PlanScreen(StepScreen):
             where = " (path and goal ghost in the 3D view)" if self.console.viewer_url else ""
             self.status.ok(f"solved in {plan.solve_seconds:.2f} s: {plan.duration_s:.2f} s of "
                            f"motion. Press 5 to execute it{where}")
+            self._remember()
+        elif isinstance(outcome, PlanLoaded):
+            self.show_plan()
+            self.console.view.show_plan(outcome.plan.position_deg)
+            self.status.ok(f"opened {outcome.path}: {outcome.plan.kind}, "
+                           f"{outcome.plan.duration_s:.2f} s of motion, verified. Press 5 to "
+                           "execute it")
         elif isinstance(outcome, PlanSaved):
             self.status.ok(f"plan saved to {outcome.path}")
 
     def handle_failed(self, op: str, message: str) -> None:
+        if op == "open":  # the current plan stays: nothing replaced it
+            self.status.error(f"plan not opened (the current plan is unchanged): {message}")
+            return
         if op != "solve":
             return  # a failed save replaces nothing: the status line says why
         # The plan this solve would have replaced is gone from the screen, the 3D view and

@@ -44,6 +44,11 @@ def steps_rule() -> NumberRule:
     return NumberRule("steps N", "a whole number of steps", "", 2.0, float(N_MAX), integer=True)
 
 
+def intersample_rule() -> NumberRule:
+    """K: also bound speed and region at K−1 instants inside each interval (1 = samples only)."""
+    return NumberRule("intersample K", "a whole number", "", 1.0, 100.0, integer=True)
+
+
 def vmax_rule(profile: Profile) -> NumberRule:
     """The speed bound (deg/s): above 0, at most the servo's rated no-load speed and the
     profile's planning limit (plans faster than that are refused before execution)."""
