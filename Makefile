@@ -29,7 +29,7 @@ lock: $(UV)
 venv: $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/spm-console tui $(if $(PROFILE),--profile $(PROFILE))
+	$(BIN)/spm-console tui $(if $(PROFILE),--profile $(PROFILE)) $(if $(GRID),--grid-step $(GRID))
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

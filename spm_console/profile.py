@@ -322,3 +322,13 @@ def load_profile(path: str | Path = DEFAULT_PROFILE) -> Profile:
     prof = parse_profile(data, str(p))
     check_home_mode(prof, str(p))
     return prof
+
+
+def with_grid_step(profile: Profile, step_deg: float, source: str = "--grid-step") -> Profile:
+    """``profile`` with another workspace grid step Δ (deg), validated as a profile file would
+    be (the range must hold a whole number of steps; the node cap applies). Everything built
+    from it — the workspace cache, the certified set the runtime verifies plans against, plan
+    hashes — is that grid's."""
+    data = profile.model_dump(mode="json")
+    data["workspace"] = {**data["workspace"], "step_deg": float(step_deg)}
+    return parse_profile(data, source)

@@ -184,3 +184,16 @@ def test_an_edited_cache_is_no_hit(tmp_path: Path, coarse, edit: str) -> None:  
         wc.load(info.path, prof, cache_key(prof))
     _, info2 = load_or_build(prof, tmp_path)
     assert not info2.hit and why in info2.rebuilt_because
+
+
+def test_another_grid_step_has_its_own_file(tmp_path: Path, coarse) -> None:  # type: ignore[no-untyped-def]
+    from spm_console.errors import ProfileError
+    from spm_console.profile import with_grid_step
+
+    prof, _calls = coarse
+    finer = with_grid_step(prof, prof.workspace.step_deg / 2)
+    assert finer.workspace.step_deg == prof.workspace.step_deg / 2
+    assert cache_path(finer, tmp_path) != cache_path(prof, tmp_path)
+    assert cache_key(finer) != cache_key(prof)
+    with pytest.raises(ProfileError, match="step"):  # the range is no whole number of steps
+        with_grid_step(prof, 0.7 * prof.workspace.step_deg)

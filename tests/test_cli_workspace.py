@@ -93,7 +93,7 @@ def test_show_plot(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
 
 
 def test_build_after_corrupt_cache(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    (tmp_path / "workspace-agile_wrist.npz").write_bytes(b"junk")
+    (tmp_path / "workspace-agile_wrist-2deg.npz").write_bytes(b"junk")
     code, d, err = run(capsys, "workspace", "build", "--json", "--cache-dir", str(tmp_path))
     assert code == ExitCode.OK and d["cache"]["hit"] is False
     assert "corrupt or truncated" in d["cache"]["rebuilt_because"] and "workspace built in" in err

@@ -20,6 +20,10 @@ def register(sub: Any) -> None:
                    help="use the emulated servo bus (default when neither --port nor the "
                    "profile's bus.port is set)")
     p.add_argument("--no-viewer", action="store_true", help="do not start the meshcat 3D view")
+    p.add_argument("--grid-step", type=float, default=None, metavar="DEG",
+                   help="workspace grid step Δ instead of the profile's (e.g. 1 for the paper's "
+                        "minimum-time pair); the workspace, the runtime's plan verification and "
+                        "plan files all use it")
     p.add_argument("--logs", type=Path, default=None, metavar="DIR",
                    help="run log folder (default logs/ or $SPM_CONSOLE_LOGS)")
     p.add_argument("--cache-dir", type=Path, default=None, metavar="DIR",
@@ -31,6 +35,12 @@ def cmd_tui(args: argparse.Namespace) -> int:
     from spm_console.tui.app import make_app
 
     profile = profile_of(args)
+    if args.grid_step is not None:
+        from spm_console.cli.common import finite_number
+        from spm_console.profile import with_grid_step
+
+        profile = with_grid_step(profile, finite_number(args.grid_step, "--grid-step", 0.0, 30.0,
+                                                        lo_open=True))
     port = args.port or (None if args.sim else (profile.bus.port or None))
     app = make_app(profile, port=port, sim=port is None, viewer=not args.no_viewer,
                    logs_root=args.logs, cache_dir=args.cache_dir)

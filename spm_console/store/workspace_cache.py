@@ -1,4 +1,4 @@
-"""On-disk cache of built workspaces: one ``.npz`` file per profile name.
+"""On-disk cache of built workspaces: one ``.npz`` file per profile name and grid step.
 
 The file stores a key (SHA-256 over everything the result depends on: geometry,
 home, links, workspace grid and thresholds, algorithm constants, format version).
@@ -109,9 +109,12 @@ def cache_key(profile: Profile) -> str:
 
 
 def cache_path(profile: Profile, cache_dir: Path | None = None) -> Path:
+    """One file per profile name and grid step (a 1° workspace built for the paper's
+    minimum-time pair does not evict the profile's own 2° one); any other change rebuilds it."""
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in profile.name)
-    return d / f"workspace-{safe}.npz"
+    step = f"{float(profile.workspace.step_deg):g}".replace(".", "p")
+    return d / f"workspace-{safe}-{step}deg.npz"
 
 
 def save(ws: Workspace, path: Path, key: str) -> None:
