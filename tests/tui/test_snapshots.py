@@ -8,8 +8,10 @@ not change what the snapshots show).
 
 from __future__ import annotations
 
+import fcntl
 import shutil
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +64,18 @@ LOGS = Path(tempfile.gettempdir()) / "spm-console-snapshot-logs"
 CACHE = Path(tempfile.gettempdir()) / "spm-console-snapshot-cache"
 
 
+@pytest.fixture
+def _fixed_folders() -> Iterator[None]:
+    """The fixed folders are shared by every test session on the machine: one at a time."""
+    with open(Path(tempfile.gettempdir()) / "spm-console-snapshot.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+@pytest.mark.usefixtures("_fixed_folders")
 @pytest.mark.parametrize("size", list(SIZES), ids=list(SIZES))
 @pytest.mark.parametrize("step", ["f1", "f2", "f3", "f4", "f5", "f6", "help"])
 def test_every_screen_at_80x24_and_160x48(snap_compare: Any, agile: Any, ws_cache: Path,
