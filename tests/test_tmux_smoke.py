@@ -217,3 +217,35 @@ def _alive(pid: int) -> bool:
         return not Path(f"/proc/{pid}/stat").read_text().rsplit(") ", 1)[1].startswith("Z")
     except OSError:
         return False
+
+
+def test_walk_the_new_tools_in_a_real_terminal(tmux_console) -> None:  # type: ignore[no-untyped-def]
+    """As a person at 80×24: the live servo table, a jog refused before homing, F-keys from
+    inside a field, digits typed into a field staying there, `?` listing the keys."""
+    t = tmux_console("--sim", "--no-viewer")
+    t._tmux("resize-window", "-t", "t", "-x", "80", "-y", "24")
+    t.wait_for(r"press h to home")
+    t.wait_for(r"12\.0 V")  # the live status table: voltage read from the servos
+    t.keys("+")  # jog before homing: refused, nothing moves
+    t.wait_for(r"(?i)not homed|home it first|homed only")
+    t.keys("F4")
+    t.wait_for(r"steps N")
+    t.keys("Tab")  # into the first field of the form, then type digits into it
+    for _ in range(8):
+        if "Fields" in t.screen():
+            break
+        time.sleep(0.1)
+    t.keys("F2")  # an F-key switches from anywhere, even inside a field
+    t.wait_for(r"Motor angles θ")
+    t.keys("Tab", "5", "5")  # digits into a field never switch steps
+    time.sleep(0.5)
+    screen = t.screen()
+    assert "Motor angles θ" in screen and "55" in screen  # still step 2, the digits typed
+    t.keys("Escape", "?")
+    t.wait_for(r"(?i)keys|help")
+    assert "Traceback" not in t.screen()
+    t.keys("Escape", "q")
+    t0 = time.monotonic()
+    while t.alive() and time.monotonic() - t0 < 10:
+        time.sleep(0.1)
+    assert not t.alive(), "the console did not quit on q"
