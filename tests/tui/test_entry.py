@@ -99,6 +99,7 @@ async def _to(pilot: Any, step: str) -> None:
     await pilot.pause()
 
 
+@pytest.mark.slow  # 15 s per size: eight texts typed key by key on three screens (CI runs it)
 @pytest.mark.parametrize("size", [SMALL, LARGE])
 async def test_typed_text_stays_as_typed_and_shows_in_full(console: Any, size: Any) -> None:
     texts = ["12,5", "1e-3", "abc", "2.5", "1e9", "100000", "-127.53", "-95.12345"]
