@@ -142,15 +142,14 @@ def execute_once(profile: Profile, plan: Plan, req: RunRequest,
             assert homing is not None
             if not homing.execution.ok:
                 return OneShotResult(homing.execution, homing)
-        theta0 = session.read_position()
-        start = plan.reference_deg[0]
-        if not req.approach and float(np.abs(theta0 - start).max()) > \
-                profile.safety.approach_tolerance_deg:
-            exc = BadInputError(
-                f"the wrist is at θ = {np.round(theta0, 2).tolist()}°, not at the plan's start "
-                f"{np.round(start, 2).tolist()}° (approach move disabled)")
-            refused_run(profile, "execute", _context(profile, req), exc)
-            raise exc
+        if not req.approach:  # the wrist must already be at the plan's start
+            theta0, start = session.read_position(), plan.reference_deg[0]
+            if float(np.abs(theta0 - start).max()) > profile.safety.approach_tolerance_deg:
+                exc = BadInputError(
+                    f"the wrist is at θ = {np.round(theta0, 2).tolist()}°, not at the plan's "
+                    f"start {np.round(start, 2).tolist()}° (approach move disabled)")
+                refused_run(profile, "execute", _context(profile, req), exc)
+                raise exc
         session.plan = plan
         result = session.execute(req.on_sample, skip_homing=req.skip_homing, source=source)
         return OneShotResult(result, homing)

@@ -342,6 +342,11 @@ class Session(ServoTools):
             self.profile, cache_dir=self.cache_dir, force=force, progress=progress)
         return self.workspace
 
+    def ensure_workspace(self) -> Any:
+        """The loaded workspace, loaded (or built) now when none is: planning and opening a
+        plan do not need the workspace step first."""
+        return self.workspace if self.workspace is not None else self.load_workspace()
+
     def require_workspace(self) -> Any:
         if self.workspace is None:
             raise BadInputError("no workspace loaded: load or build it first (step 3)")
@@ -369,7 +374,7 @@ class Session(ServoTools):
         (:func:`~spm_console.run.plan_request.plan_motion`). Stores and returns the plan."""
         from spm_console.run.plan_request import PlanRequest, plan_motion
 
-        ws = self.workspace if self.workspace is not None else self.load_workspace()
+        ws = self.ensure_workspace()
         s, g = self.resolve(start), self.resolve(goal)
         vmax = self.profile.limits.vmax_degps if vmax_degps is None else vmax_degps
         planned = plan_motion(self.profile, ws, PlanRequest(
@@ -390,7 +395,7 @@ class Session(ServoTools):
         from spm_console.store.plan_file import load_plan
 
         plan = load_plan(path, self.profile)
-        verify_plan(self.profile, self.require_workspace(), plan)
+        verify_plan(self.profile, self.ensure_workspace(), plan)
         self.plan = plan
         self.plan_info = {"method": plan.kind, "start": "from the file", "goal": "from the file",
                           "start_deg": plan.position_deg[0], "goal_deg": plan.position_deg[-1],

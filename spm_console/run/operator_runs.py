@@ -19,7 +19,7 @@ from spm_console.devices.base import ServoBus
 from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
 from spm_console.profile import Profile
 from spm_console.run.executor import Executor
-from spm_console.run.homing import HomingResult, check_assembly_mode, home, plan_segments
+from spm_console.run.homing import HomingResult, home, plan_segments
 from spm_console.run.plans import plan_summary
 from spm_console.run.runlog import RunLog
 from spm_console.run.sample import Sample
@@ -86,10 +86,10 @@ def refused_run(profile: Profile, kind: str, ctx: RunContext, exc: SpmError) -> 
 
 def run_home(profile: Profile, bus: ServoBus, ws: Workspace, ctx: RunContext,
              on_sample: SampleCallback | None, attach: Attach) -> HomingResult:
-    """Home the wrist: the assembly-mode check, then the move (a refusal is logged too)."""
+    """Home the wrist (``home`` reads the pose and checks the assembly mode before anything
+    moves); a refusal is logged too."""
     ex = _executor(profile, bus, ws, "home", [{"kind": "homing"}], ctx, on_sample)
     with refusals_logged(ex.log):
-        check_assembly_mode(profile, ex.read_initial())
         attach(ex)
         return home(ex)
 
