@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.plan_report import ConstraintReport, InfeasibilityRecord
 from spm_console.core.region import Region
+from spm_console.core.region_route import RegionRoute
 from spm_console.core.servo_model import ServoModel
 
 F = NDArray[np.float64]
@@ -64,10 +65,18 @@ class Plan:
     """Minimum time: the record that N − 1 steps are infeasible."""
     solver: dict[str, Any] | None = None
     """Free-form solver diagnostics, only shown (never read back by key)."""
+    route: RegionRoute | None = None
+    """A plan across several regions: the regions in order and the switch samples
+    (``region`` is then the first one); None for a plan inside ``region`` alone."""
     notes: dict[str, Any] = field(default_factory=dict)
     """Free-form details, only shown and kept in the file (never read back by key): a line
     plan's speed bound, ramp speed and move samples, a synthetic plan's duration, and any
     unknown keys of a plan file's 'extra'."""
+
+    @property
+    def regions(self) -> RegionRoute:
+        """The route (one region when the plan has no route)."""
+        return self.route if self.route is not None else RegionRoute.single(self.region)
 
     @property
     def N(self) -> int:

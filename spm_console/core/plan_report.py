@@ -107,6 +107,9 @@ class InfeasibilityRecord:
     """Every N examined, in order."""
     search_seconds: float = float("nan")
     """Wall time of the whole search, s."""
+    scope: str = ""
+    """What the proof covers when it is not the whole problem: a plan across regions is
+    proven infeasible for its region sequence and switch samples only (empty: one region)."""
 
     def describe(self) -> str:
         """One line for people: what is proven about N − 1 steps."""
@@ -114,5 +117,6 @@ class InfeasibilityRecord:
         if cert is None:
             return f"N−1 = {self.N}: no infeasibility certificate (the search tries N ≥ 2 only)"
         r = cert.excluded_radius
-        return (f"N−1 = {self.N} infeasible: Farkas certificate excludes ‖x‖∞ < "
+        return (f"N−1 = {self.N} infeasible" + (f" {self.scope}" if self.scope else "")
+                + ": Farkas certificate excludes ‖x‖∞ < "
                 + ("∞" if math.isinf(r) else f"{r:.3g}") + ("" if cert.valid else " (NOT valid)"))

@@ -34,6 +34,7 @@ from spm_console.store.plan_schema import (
     extra_to_dict,
     plan_from_dict,
     record_to_dict,
+    route_to_dict,
 )
 
 __all__ = ["FORMAT", "KINDS", "MAX_PLAN_BYTES", "MAX_PLAN_STEPS", "VERSION", "check_plan",
@@ -68,6 +69,7 @@ def plan_to_dict(plan: Plan) -> dict[str, Any]:
         "solve_seconds": plan.solve_seconds,
         "qp_count": plan.qp_count,
         "region": plan.region.to_dict(),
+        **({"route": route_to_dict(plan.route)} if plan.route is not None else {}),
         "model": plan.model.to_dict(),
         "profile_hash": plan.profile_hash,
     }
@@ -129,11 +131,13 @@ def check_plan(plan: Plan, profile: Profile, src: str = "plan") -> None:
             f"{err:.3g} (corrupt or edited file)")
     if plan.kind in ("mvn", "mintime"):
         with np.errstate(all="ignore"):
-            viol = float(np.max(plan.region.violation_deg(plan.position_deg)))
+            route = plan.regions
+            viol = float(np.max(route.violation_deg(plan.position_deg, route.sample_mask(plan.N))))
             rest = max(float(np.max(np.abs(plan.velocity_degps[-1]))),
                        float(np.max(np.abs(plan.reference_deg[-1] - plan.position_deg[-1]))))
         if not viol <= 1e-6:
-            raise PlanMismatchError(f"{src}: planned positions leave the plan's region P by {viol:.3g}°")
+            raise PlanMismatchError(f"{src}: planned positions leave the plan's region"
+                                    f"{'s' if route.count > 1 else ' P'} by {viol:.3g}°")
         if not rest <= 1e-6:
             raise PlanMismatchError(f"{src}: the plan does not end at rest on its final reference")
 

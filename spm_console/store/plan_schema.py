@@ -14,6 +14,7 @@ record, solver details, free-form notes) and are written back under the same key
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any, cast
@@ -30,6 +31,7 @@ from spm_console.core.plan_report import (
     SearchStep,
 )
 from spm_console.core.region import Region
+from spm_console.core.region_route import RegionRoute
 from spm_console.core.servo_model import Discretization, ServoModel
 from spm_console.errors import PlanMismatchError, SpmError
 
@@ -42,6 +44,8 @@ KINDS = ("mvn", "mintime", "synthetic", "homing")
 MAX_PLAN_STEPS = 100_000
 #: Most half-spaces a region read from a file may have.
 MAX_REGION_HALFSPACES = 1000
+#: Most regions a plan's route may pass through.
+MAX_ROUTE_REGIONS = 64
 #: Largest qp_count accepted.
 MAX_QP_COUNT = 10**6
 #: Most steps of a minimum-time search record read from a file (a search takes a few dozen).
@@ -269,10 +273,13 @@ def _record(value: Any, extra: dict[str, Any], src: str, n: int) -> Infeasibilit
                                 f"got {_describe(value.get('N'))}")
     if value.get("feasible", False) is not False:
         raise PlanMismatchError(f"{where}.feasible must be false")
+    scope = value.get("scope", "")
+    if not isinstance(scope, str) or len(scope) > 500:
+        raise PlanMismatchError(f"{where}.scope must be a string of at most 500 characters")
     return InfeasibilityRecord(
         N=n - 1, certificate=cert, search=_search(value.get("search"), where),
         search_seconds=number(extra, "search_seconds", f"{src}: extra", nullable=True,
-                              default=math.nan))
+                              default=math.nan), scope=scope)
 
 
 def extra_of(d: dict[str, Any], src: str, n: int) -> Extra:
@@ -306,7 +313,41 @@ def record_to_dict(record: InfeasibilityRecord) -> dict[str, Any]:
     """The document's "n_minus_1_infeasible" object (search_seconds goes to "extra")."""
     return {"N": record.N, "feasible": False,
             "certificate": None if record.certificate is None else record.certificate.to_dict(),
-            "search": [s.to_dict() for s in record.search]}
+            "search": [s.to_dict() for s in record.search],
+            **({"scope": record.scope} if record.scope else {})}
+
+
+def route_to_dict(route: RegionRoute) -> dict[str, Any]:
+    """The document's "route" object (plans across several regions only)."""
+    return {"regions": [r.to_dict() for r in route.regions],
+            "switch_samples": list(route.switch), "labels": list(route.labels)}
+
+
+def route_of(value: Any, first: Region, src: str, n: int) -> RegionRoute | None:
+    """A plan's "route": 2..MAX_ROUTE_REGIONS regions, switch samples strictly increasing
+    inside 1..N−1, the first region equal to the plan's "region"."""
+    if value is None:
+        return None
+    where = f"{src}: route"
+    if not isinstance(value, dict):
+        raise PlanMismatchError(f"{where} must be an object or null")
+    regs = value.get("regions")
+    if not isinstance(regs, list) or not 2 <= len(regs) <= MAX_ROUTE_REGIONS:
+        raise PlanMismatchError(f"{where}.regions must be a list of 2..{MAX_ROUTE_REGIONS} regions")
+    regions = tuple(region_of(r, f"{where}.regions[{i}]") for i, r in enumerate(regs))
+    sw = value.get("switch_samples")
+    if (not isinstance(sw, list) or len(sw) != len(regions) - 1
+            or any(type(k) is not int or not 0 < k < n for k in sw)
+            or any(b <= a for a, b in itertools.pairwise(sw))):
+        raise PlanMismatchError(f"{where}.switch_samples must be {len(regions) - 1} strictly "
+                                f"increasing samples inside 1..{n - 1}")
+    labels = value.get("labels", [])
+    if (not isinstance(labels, list) or (labels and len(labels) != len(regions))
+            or any(not isinstance(x, str) or len(x) > 100 for x in labels)):
+        raise PlanMismatchError(f"{where}.labels must be one short string per region")
+    if not (np.array_equal(regions[0].A, first.A) and np.array_equal(regions[0].b, first.b)):
+        raise PlanMismatchError(f"{where}: its first region must be the plan's 'region'")
+    return RegionRoute(regions, tuple(sw), tuple(labels))
 
 
 def extra_to_dict(plan: Plan) -> dict[str, Any]:
@@ -361,8 +402,9 @@ def plan_from_dict(d: Any, src: str = "plan") -> Plan:
     cost = number(d, "cost", src, nullable=True, default=float("nan"))
     solve_seconds = number(d, "solve_seconds", src, nullable=True, default=float("nan"))
     ex = extra_of(d, src, n)
+    route = route_of(d.get("route"), region, src, n)
     return Plan(kind=kind, Ts=ts, reference_deg=ref, position_deg=pos,  # type: ignore[arg-type]
                 velocity_degps=vel, region=region, model=model, cost=cost,
                 solve_seconds=solve_seconds, qp_count=qp, profile_hash=ph,
                 options=ex.options, check=ex.check,
-                certificate=ex.certificate, solver=ex.solver, notes=ex.notes)
+                certificate=ex.certificate, solver=ex.solver, notes=ex.notes, route=route)

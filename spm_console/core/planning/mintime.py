@@ -65,9 +65,14 @@ class MintimeResult:
                        certificate=self.record())
 
     def record(self) -> InfeasibilityRecord:
-        """What a plan keeps about N*−1."""
+        """What a plan keeps about N*−1 (across regions: for its route only)."""
+        route = self.plan.problem.route
+        scope = "" if route is None or route.count == 1 else (
+            f"for this sequence of {route.count} regions with its switch samples placed in "
+            "proportion to the route's length (not a claim about other sequences)")
         return InfeasibilityRecord(N=self.N - 1, certificate=self.certificate,
-                                   search=tuple(self.trace), search_seconds=self.solve_seconds)
+                                   search=tuple(self.trace), search_seconds=self.solve_seconds,
+                                   scope=scope)
 
 
 def estimate_steps(problem: PlanProblem) -> int:
@@ -102,6 +107,7 @@ def predict_steps(problem: PlanProblem, n1: int, gap: int = 6) -> int:
     the MVN optimum usually has no active constraint, so the prediction is most often N*.
     """
     assert problem.vmax_degps is not None
+    n1 = max(n1, problem.min_steps)
     v1 = _peak_speed(problem.with_steps(n1))
     v2 = _peak_speed(problem.with_steps(n1 + gap))
     if not (np.isfinite(v1) and np.isfinite(v2) and v1 > v2 > 0):
@@ -172,11 +178,11 @@ def solve_mintime_problem(problem: PlanProblem) -> MintimeResult:
     cert: Certificate | None = None
     trace: list[SearchStep] = []
     calls = 0
-    floor = 2
+    floor = problem.min_steps
     n_max = horizon_limit(problem)
     _check_horizon(problem, n_max)
     est = estimate_steps(problem)
-    n = min(predict_steps(problem, min(est, n_max - 6)), n_max)  # it probes n1 and n1 + 6
+    n = max(floor, min(predict_steps(problem, min(est, n_max - 6)), n_max))  # probes n1, n1 + 6
     step = 1
     while True:
         t1 = time.perf_counter()

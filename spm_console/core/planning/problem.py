@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.region import Region
+from spm_console.core.region_route import RegionRoute
 from spm_console.core.servo_model import ServoModel, substeps
 from spm_console.errors import BadInputError, InfeasibleError
 
@@ -48,6 +49,9 @@ class PlanProblem:
     """(3,) optional lower bounds on every reference θ*(k), deg (servo limits)."""
     ref_hi_deg: F | None = None
     """(3,) optional upper bounds on every reference θ*(k), deg."""
+    route: RegionRoute | None = None
+    """Several regions in sequence (:mod:`spm_console.core.region_route`) instead of
+    ``region`` alone; ``region`` is then the route's first region."""
 
     def __post_init__(self) -> None:
         s = np.asarray(self.start_deg, float).reshape(-1)
@@ -67,6 +71,9 @@ class PlanProblem:
                                 "constrained instants; use fewer steps or a smaller K")
         if self.intersample > 1 and self.model.method != "zoh":
             raise BadInputError("intersample constraints need the exact (zoh) servo model")
+        if self.route is not None and self.route.count > 1 and not self.route.fits(self.N):
+            raise BadInputError(f"N = {self.N} steps leave no room for the route's switch samples "
+                                f"{list(self.route.switch)}")
         for name in ("ref_lo_deg", "ref_hi_deg"):
             v = getattr(self, name)
             if v is not None:
@@ -74,16 +81,36 @@ class PlanProblem:
 
     def with_steps(self, n: int) -> PlanProblem:
         """The same problem with another horizon N."""
+        route = None if self.route is None else self.route.rescaled(self.N, n)
         return PlanProblem(self.model, self.start_deg, self.goal_deg, n, self.region,
                            self.vmax_degps, self.intersample, self.hold_first,
-                           self.ref_lo_deg, self.ref_hi_deg)
+                           self.ref_lo_deg, self.ref_hi_deg, route)
+
+    def with_route(self, route: RegionRoute) -> PlanProblem:
+        """The same problem through another route (its first region becomes ``region``)."""
+        return PlanProblem(self.model, self.start_deg, self.goal_deg, self.N, route.regions[0],
+                           self.vmax_degps, self.intersample, self.hold_first,
+                           self.ref_lo_deg, self.ref_hi_deg, route)
+
+    @property
+    def regions(self) -> RegionRoute:
+        """The route (one region when none was given)."""
+        return self.route if self.route is not None else RegionRoute.single(self.region)
+
+    @property
+    def min_steps(self) -> int:
+        """Smallest N the route leaves room for (2 for one region)."""
+        return max(2, self.regions.count + 1)
 
     def check_endpoints(self) -> None:
-        """Raise :class:`InfeasibleError` when start or goal is outside P (or refs bounds)."""
-        for name, th in (("start", self.start_deg), ("goal", self.goal_deg)):
-            viol = float(self.region.violation_deg(th))
+        """Raise :class:`InfeasibleError` when start or goal is outside P (or refs bounds);
+        along a route, the start must lie in its first region and the goal in its last."""
+        route = self.regions
+        for name, th, region in (("start", self.start_deg, route.regions[0]),
+                                 ("goal", self.goal_deg, route.regions[-1])):
+            viol = float(region.violation_deg(th))
             if viol > ENDPOINT_TOL_DEG:
-                rows = np.flatnonzero(self.region.slack(th) / np.linalg.norm(self.region.A, axis=1)
+                rows = np.flatnonzero(region.slack(th) / np.linalg.norm(region.A, axis=1)
                                       < -ENDPOINT_TOL_DEG)
                 raise InfeasibleError(
                     f"{name} θ = {np.round(th, 4).tolist()}° is outside the region P by "

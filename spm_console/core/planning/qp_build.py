@@ -93,9 +93,12 @@ class Pool:
         self.pb = problem
         N = problem.N
         self.L = Layout(N)
-        self.Ap = np.asarray(problem.region.A, float)
-        self.bp = np.asarray(problem.region.b, float)
+        # every region of the route stacked; a row binds only the samples and intervals of
+        # its region (elsewhere its bound is +∞, so it is never active)
+        route = problem.regions
+        self.Ap, self.bp, self.owner = route.stacked()
         self.nr = self.Ap.shape[0]
+        self.route_count = route.count
         self.ApT = np.ascontiguousarray(self.Ap.T)
         anorm = np.linalg.norm(self.Ap, axis=1)
         self.Phis, self.Gams = sub_matrices(problem)
@@ -120,9 +123,11 @@ class Pool:
         self.lo = np.concatenate([
             np.full(sizes[0], -inf), np.full(sizes[1], -inf), np.full(sizes[2], -vv),
             np.full(sizes[3], -vv), np.tile(rlo, sizes[4] // 3)])
+        at_samples = route.sample_mask(N)[1:N][:, self.owner]  # (N−1, nr)
+        between = np.repeat(route.interval_mask(N)[:, self.owner], self.K1, axis=0)  # (N·K1, nr)
         self.hi = np.concatenate([
-            np.tile(self.bp, N - 1), np.tile(self.bp, N * self.K1), np.full(sizes[2], vv),
-            np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3)])
+            np.where(at_samples, self.bp, inf).ravel(), np.where(between, self.bp, inf).ravel(),
+            np.full(sizes[2], vv), np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3)])
         self.scale = np.concatenate([
             np.tile(anorm, N - 1), np.tile(anorm, N * self.K1), np.ones(sizes[2] + sizes[3] + sizes[4])])
         self.family = np.repeat(np.arange(5), sizes)
@@ -211,15 +216,22 @@ class Pool:
         return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                              shape=(idx.size, L.n))
 
+    def _row_name(self, r: int) -> str:
+        if self.route_count == 1:
+            return f"region half-space {r}"
+        i = int(self.owner[r])
+        first = int(np.flatnonzero(self.owner == i)[0])
+        return f"half-space {r - first} of region {i} of the route"
+
     def describe(self, i: int) -> str:
         """Human name of pool row ``i`` (e.g. 'region half-space 12 at k = 40')."""
         f = int(self.family[i])
         loc = int(i - self.offsets[f])
         if f == 0:
-            return f"region half-space {loc % self.nr} at k = {loc // self.nr + 1}"
+            return f"{self._row_name(loc % self.nr)} at k = {loc // self.nr + 1}"
         if f == 1:
             kj = loc // self.nr
-            return (f"region half-space {loc % self.nr} between samples k = {kj // self.K1}, "
+            return (f"{self._row_name(loc % self.nr)} between samples k = {kj // self.K1}, "
                     f"sub-sample {kj % self.K1 + 1}")
         if f == 2:
             kj = loc // 3

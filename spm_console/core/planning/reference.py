@@ -46,8 +46,12 @@ def formulate(pb: PlanProblem) -> tuple[cp.Problem, cp.Variable, cp.Variable, cp
         ref[N] == pb.goal_deg,
         th[1:] == A[0, 0] * th[:-1] + A[0, 1] * om[:-1] + B[0] * ref[:-1],  # (30f)
         om[1:] == A[1, 0] * th[:-1] + A[1, 1] * om[:-1] + B[1] * ref[:-1],
-        th @ pb.region.A.T <= np.tile(pb.region.b, (N + 1, 1)),  # (30e)
     ]
+    # (30e): sample k inside every region of the intervals it ends or starts (route)
+    route = pb.regions
+    for i, reg in enumerate(route.regions):
+        ks = np.flatnonzero(route.sample_mask(N)[:, i])
+        cons.append(th[ks] @ reg.A.T <= np.tile(reg.b, (len(ks), 1)))
     if pb.hold_first:
         cons.append(ref[0] == pb.start_deg)
     if pb.vmax_degps is not None:
@@ -60,7 +64,9 @@ def formulate(pb: PlanProblem) -> tuple[cp.Problem, cp.Variable, cp.Variable, cp
     for j in range(Phis.shape[0]):
         ph, ga = Phis[j], Gams[j]
         ths = ph[0, 0] * th[:-1] + ph[0, 1] * om[:-1] + ga[0] * ref[:-1]
-        cons.append(ths @ pb.region.A.T <= np.tile(pb.region.b, (N, 1)))
+        for i, reg in enumerate(route.regions):
+            js = np.flatnonzero(route.interval_mask(N)[:, i])
+            cons.append(ths[js] @ reg.A.T <= np.tile(reg.b, (len(js), 1)))
         if pb.vmax_degps is not None:
             oms = ph[1, 0] * th[:-1] + ph[1, 1] * om[:-1] + ga[1] * ref[:-1]
             cons.append(cp.abs(oms) <= pb.vmax_degps)

@@ -55,7 +55,8 @@ class PlanResult:
                     region=pb.region, model=pb.model, cost=self.cost,
                     solve_seconds=self.solve_seconds, qp_count=self.qp_count,
                     profile_hash=profile_hash, options=options, check=self.check,
-                    solver=dict(self.info))
+                    solver=dict(self.info),
+                    route=pb.route if pb.route is not None and pb.route.count > 1 else None)
 
 
 def _vec3_of(v: F) -> Vec3:

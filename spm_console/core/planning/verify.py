@@ -52,8 +52,9 @@ def check(problem: PlanProblem, reference: F, position: F | None = None,
     if velocity is not None:
         mismatch = max(mismatch, float(np.abs(velocity - vel).max()))
     vmax = problem.vmax_degps
-    region = problem.region
-    reg_viol = float(region_violation(region, pos).max())
+    route = problem.regions
+    N = len(reference) - 1
+    reg_viol = float(route.violation_deg(pos, route.sample_mask(N)).max())
     speed = float(np.abs(vel).max())
     speed_ex = max(0.0, speed - vmax) if vmax is not None else 0.0
     ref_ex = 0.0
@@ -73,11 +74,15 @@ def check(problem: PlanProblem, reference: F, position: F | None = None,
     known = np.stack([pos, vel], axis=-1) if problem.model.method == "zoh" else None
     _, xs = simulate_continuous(problem.model.p, problem.model.ts, x0, reference, pts, known)
     vb = float(np.abs(xs[..., 1]).max())
-    rb = float(region_violation(region, xs[..., 0]).max())
+    # the continuous motion: point m lies in interval min(m // pts, N − 1)
+    where = np.minimum(np.arange(len(xs)) // pts, N - 1)
+    between_mask = route.interval_mask(N)[where]
+    rb = float(route.violation_deg(xs[..., 0], between_mask).max())
     sub_viol = 0.0
     if problem.intersample > 1:
-        sub = xs[:: pts // problem.intersample]
-        sub_viol = float(region_violation(region, sub[..., 0]).max())
+        step = pts // problem.intersample
+        sub = xs[::step]
+        sub_viol = float(route.violation_deg(sub[..., 0], between_mask[::step]).max())
         if vmax is not None:
             sub_viol = max(sub_viol, float(np.abs(sub[..., 1]).max()) - vmax)
     report = ConstraintReport(

@@ -1,0 +1,185 @@
+"""Plans across several convex regions: a route on the region graph, then the QP.
+
+The regions (a cover of the feasible set, each certified like P) and their overlaps form
+a graph. A route from start to goal is a shortest path through *waypoints*: the start,
+the goal and one point deep inside every overlap (its Chebyshev centre). Two waypoints
+are joined when one region holds both (the straight move between them then stays in
+that region, which is convex); a hop costs its largest joint move (the time a
+speed-bounded move needs) plus a small Euclidean tie-break. Consecutive hops in one
+region merge, so the route is a sequence of regions and the waypoints where it changes
+region.
+
+The plan then assigns every interval to one region of the sequence: the switch samples
+are placed in proportion to the route's length at its waypoints
+(:func:`~spm_console.core.region_route.spread`), and the QP (30) — each sample inside the
+regions of its intervals — finds the optimal references for that assignment. For the
+minimum-velocity-norm plan, the switch samples are then improved by a local search (each
+moved while the cost falls). Angles in degrees.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from spm_console.core.planning.mvn import solve_problem
+from spm_console.core.planning.problem import PlanProblem
+from spm_console.core.planning.result import PlanResult
+from spm_console.core.region import Region
+from spm_console.core.region_route import RegionRoute, spread
+from spm_console.errors import InfeasibleError
+
+F = NDArray[np.float64]
+
+#: A point lies in a region when no half-space is violated by more than this, deg.
+MEMBER_TOL_DEG = 1e-7
+#: Weight of the Euclidean length beside the largest joint move in a hop's cost.
+EUCLID_WEIGHT = 1e-3
+#: Most QPs the switch-sample search may add to the first one.
+MAX_SWITCH_QPS = 12
+
+
+@dataclass(frozen=True)
+class RouteChoice:
+    """A sequence of regions joining two configurations, with its waypoints."""
+
+    regions: tuple[int, ...]
+    """Indices of the regions, in order."""
+    waypoints_deg: F
+    """(len(regions) + 1, 3): start, the switch points, goal."""
+    length_deg: float
+    """Sum over the hops of their largest joint move, deg."""
+
+    def fractions(self) -> list[float]:
+        """Where each switch point lies along the route, as a fraction of its length."""
+        hops = np.abs(np.diff(self.waypoints_deg, axis=0)).max(axis=1)
+        total = float(hops.sum())
+        if total <= 0:
+            return [(i + 1) / len(self.regions) for i in range(len(self.regions) - 1)]
+        return [float(x) for x in np.cumsum(hops)[:-1] / total]
+
+    def route(self, all_regions: Sequence[Region], N: int,
+              labels: Sequence[str] = ()) -> RegionRoute:
+        """The :class:`RegionRoute` of this choice for a plan of N steps."""
+        regs = tuple(all_regions[i] for i in self.regions)
+        names = tuple(labels[i] for i in self.regions) if labels else ()
+        return RegionRoute(regs, spread(self.fractions(), N) if len(regs) > 1 else (), names)
+
+
+def _members(regions: Sequence[Region], pts: F) -> NDArray[np.bool_]:
+    out = np.zeros((len(pts), len(regions)), bool)
+    for j, r in enumerate(regions):
+        out[:, j] = r.normalized().contains(pts, tol=MEMBER_TOL_DEG)
+    return out
+
+
+def find_route(regions: Sequence[Region], overlap_points_deg: F, start_deg: F,
+               goal_deg: F) -> RouteChoice | None:
+    """The shortest route (see module docstring) from start to goal through ``regions``
+    whose overlaps are represented by ``overlap_points_deg`` (m, 3); None when no sequence
+    of overlapping regions joins them (or an end lies in none of the regions)."""
+    s = np.asarray(start_deg, float).reshape(3)
+    g = np.asarray(goal_deg, float).reshape(3)
+    pts = np.vstack([s[None], g[None], np.asarray(overlap_points_deg, float).reshape(-1, 3)])
+    member = _members(regions, pts)
+    if not member[0].any() or not member[1].any():
+        return None
+    share = (member.astype(np.int32) @ member.T.astype(np.int32)) > 0
+    np.fill_diagonal(share, False)
+    diff = pts[:, None, :] - pts[None, :, :]
+    cost = np.abs(diff).max(-1) + EUCLID_WEIGHT * np.linalg.norm(diff, axis=-1)
+    w = np.where(share, cost + 1e-9, 0.0)  # strictly positive weights on real edges
+    dist, pred = dijkstra(csr_matrix(w), directed=False, indices=0, return_predecessors=True)
+    if not np.isfinite(dist[1]):
+        return None
+    path = [1]
+    while path[-1] != 0:
+        path.append(int(pred[path[-1]]))
+    path.reverse()
+    # one region per stretch of hops: keep the current one while it holds the next hop,
+    # else switch (at the hop's first waypoint) to the region holding the most hops ahead
+    seq: list[int] = []
+    switches: list[F] = []
+    h = 0
+    while h < len(path) - 1:
+        cands = np.flatnonzero(member[path[h]] & member[path[h + 1]])
+        reach = [_reach(member, path, h, int(c)) for c in cands]
+        r = int(cands[int(np.argmax(reach))])
+        if seq:
+            switches.append(pts[path[h]])
+        seq.append(r)
+        h += max(reach)
+    waypoints = np.vstack([s[None], *(w[None] for w in switches), g[None]])
+    length = float(np.abs(np.diff(waypoints, axis=0)).max(axis=1).sum())
+    return RouteChoice(tuple(seq), waypoints, length)
+
+
+def _reach(member: NDArray[np.bool_], path: list[int], h: int, r: int) -> int:
+    """How many consecutive hops from hop h region r holds."""
+    n = 0
+    while h + n < len(path) - 1 and member[path[h + n], r] and member[path[h + n + 1], r]:
+        n += 1
+    return n
+
+
+@dataclass(frozen=True)
+class RoutePlan:
+    """An MVN plan across regions and how it was found."""
+
+    result: PlanResult
+    choice: RouteChoice
+    qps: int
+    """QPs solved (first assignment + switch search)."""
+    first_cost: float
+    """Cost with the switch samples first placed, (deg/s)²."""
+    seconds: float
+
+
+def improve_switches(problem: PlanProblem, first: PlanResult,
+                     max_qps: int = MAX_SWITCH_QPS) -> tuple[PlanResult, int]:
+    """Move each switch sample while the MVN cost falls (steps 4, 2, 1), at most
+    ``max_qps`` extra QPs; the best plan and the QPs spent."""
+    assert problem.route is not None
+    best, qps = first, 0
+    route = problem.route
+    for step in (4, 2, 1):
+        for i in range(len(route.switch)):
+            for sign in (1, -1):
+                while qps < max_qps:
+                    sw = list(best.problem.regions.switch)
+                    sw[i] += sign * step
+                    lo = sw[i - 1] + 1 if i else 1
+                    hi = sw[i + 1] - 1 if i + 1 < len(sw) else problem.N - 1
+                    if not lo <= sw[i] <= hi:
+                        break
+                    cand_route = replace(best.problem.regions, switch=tuple(sw))
+                    qps += 1
+                    try:
+                        cand = solve_problem(best.problem.with_route(cand_route))
+                    except InfeasibleError:
+                        break
+                    if cand.cost >= best.cost - 1e-9 * max(1.0, best.cost):
+                        break
+                    best = cand
+    return best, qps
+
+
+def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: RouteChoice,
+                    labels: Sequence[str] = (), improve: bool = True) -> RoutePlan:
+    """The MVN plan of ``problem`` (its region is ignored) along ``choice``."""
+    t0 = time.perf_counter()
+    if len(choice.regions) > problem.N:
+        raise InfeasibleError(f"N = {problem.N} steps are too few for a route through "
+                              f"{len(choice.regions)} regions; use more steps")
+    route = choice.route(regions, problem.N, labels)
+    pb = problem.with_route(route)
+    first = solve_problem(pb)
+    best, extra = (improve_switches(pb, first) if improve and route.count > 1
+                   else (first, 0))
+    return RoutePlan(best, choice, 1 + extra, first.cost, time.perf_counter() - t0)
