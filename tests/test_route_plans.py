@@ -97,3 +97,36 @@ def test_mintime_along_a_route_certifies_its_scope() -> None:
     # N* − 1 is infeasible for that assignment: cvxpy agrees
     pb_less = mt.plan.problem.with_steps(mt.N - 1)
     assert solve_reference(pb_less).status == "infeasible"
+
+
+def test_a_route_plan_file_round_trips_and_edits_are_refused(tmp_path, agile) -> None:  # type: ignore[no-untyped-def]
+    import json
+
+    from spm_console.core.servo_model import discretize
+    from spm_console.errors import PlanMismatchError
+    from spm_console.store.plan_file import load_plan, plan_hash, save_plan
+
+    sv = agile.servo
+    model = discretize(sv.p, sv.ts_s, sv.discretization)
+    choice = find_route([BOX0, BOX1], OVERLAP, START, GOAL)
+    assert choice is not None
+    res = solve_route_mvn(PlanProblem(model, START, GOAL, 150, BOX0, 40.0), [BOX0, BOX1], choice,
+                          labels=("region A", "region B")).result
+    path = tmp_path / "route.json"
+    save_plan(res.to_plan("mvn", plan_hash(agile)), path)
+    plan = load_plan(path, agile)
+    assert plan.route is not None and plan.route.labels == ("region A", "region B")
+    assert plan.route.switch == res.problem.regions.switch
+    np.testing.assert_array_equal(plan.route.regions[1].b, BOX1.b)
+    d = json.loads(path.read_text())
+    for edit, why in (
+            (lambda d: d["route"].update(switch_samples=[0]), "switch_samples"),
+            (lambda d: d["route"].update(switch_samples=[5, 3]), "switch_samples"),
+            (lambda d: d["route"]["regions"][0]["b"].__setitem__(0, 111.0), "first region"),
+            (lambda d: d["route"]["regions"][1]["b"].__setitem__(1, 100.0), "leave the plan's regions"),
+            (lambda d: d.update(route=[1]), "route must be an object")):
+        bad = json.loads(json.dumps(d))
+        edit(bad)
+        (tmp_path / "bad.json").write_text(json.dumps(bad))
+        with pytest.raises(PlanMismatchError, match=why):
+            load_plan(tmp_path / "bad.json", agile)
