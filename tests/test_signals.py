@@ -174,8 +174,9 @@ def test_sigkill_of_the_loop_loses_at_most_three_cycles_and_the_run_is_listed_ki
     assert np.array_equal(run.columns["k"], np.arange(run.rows))  # complete rows, no holes
     assert np.isfinite(run.vec("meas")).all(axis=1).mean() > 0.9  # (a lost reply is a NaN row)
     assert np.isfinite(run.vec("vel")).all()
-    assert [e["event"] for e in run.events][:5] == ["plan_verified", "start", "realtime", "watchdog",
-                                                   "torque_on"]
+    # the lifecycle in order (a retried read, legitimate on a loaded machine, may interleave)
+    lifecycle = [e["event"] for e in run.events if e["event"] != "comm_retry"]
+    assert lifecycle[:5] == ["plan_verified", "start", "realtime", "watchdog", "torque_on"]
     [listed] = list_runs(tmp_path / "logs")
     assert listed.meta["outcome"] == "killed" and run.meta["outcome"] == "killed"
     assert f"process {loop_pid}" in listed.meta["message"]
