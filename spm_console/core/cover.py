@@ -354,12 +354,19 @@ def build_cover(
 def uncertified_regions(ws: Workspace, cover: RegionCover, tol_deg: float = 1e-7) -> list[int]:
     """Regions whose interior meets an obstacle cube (open, half-width Δ, around an
     infeasible node with a feasible 26-neighbour): empty for a certified cover. Exact:
-    a cube is excluded when some row's minimum over it reaches that row's offset."""
+    a cube is clear when one row's minimum over it reaches that row's offset; otherwise
+    (several rows exclude it together) when the region ∩ closed cube holds no ball of
+    radius > ``tol_deg`` (LP)."""
     Q = rb.obstacle_nodes(ws.feasible, ws.theta_deg())
+    h = ws.step_deg
+    box = np.vstack([np.eye(3), -np.eye(3)])
     bad = []
     for k, r in enumerate(cover.regions):
         Rn = r.normalized()
-        mins = Q @ Rn.A.T - ws.step_deg * np.abs(Rn.A).sum(1)
-        if not bool((mins >= Rn.b - tol_deg).any(1).all()):
-            bad.append(k)
+        mins = Q @ Rn.A.T - h * np.abs(Rn.A).sum(1)
+        for q in Q[~(mins >= Rn.b - tol_deg).any(1)]:
+            both = Region(np.vstack([Rn.A, box]), np.r_[Rn.b, q + h, h - q])
+            if both.chebyshev()[1] > tol_deg:
+                bad.append(k)
+                break
     return bad
