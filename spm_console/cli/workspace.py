@@ -20,7 +20,7 @@ from spm_console.cli.common import (
 )
 from spm_console.core.region_build import region_containing
 from spm_console.core.workspace import Workspace, check_theta
-from spm_console.core.workspace_verify import verify_region
+from spm_console.core.workspace_verify import verify_cover, verify_region
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.formatting import fmt_vec
 from spm_console.profile import Profile
@@ -62,6 +62,8 @@ def register(sub: Any) -> None:
     v.add_argument("--samples", type=int, default=100_000,
                    help=f"number of samples, 1..{MAX_VERIFY_SAMPLES:,} (default 100,000)")
     v.add_argument("--seed", type=int, default=0, help="random seed, 0..2³²−1")
+    v.add_argument("--cover", action="store_true",
+                   help="verify every region of the cover (--samples each), not only P")
     v.set_defaults(func=cmd_verify)
 
 
@@ -90,9 +92,23 @@ def _load(args: argparse.Namespace, force: bool = False,
     return ws, ci
 
 
+def cover_record(ws: Workspace) -> dict[str, Any] | None:
+    """The region cover in a record (None when the workspace has none)."""
+    c = ws.cover
+    if c is None:
+        return None
+    return {
+        "regions": c.size, "covered": c.covered, "edges": c.edges.tolist(),
+        "edge_radius_deg": c.edge_radius_deg.tolist(), "min_overlap_deg": c.min_overlap_deg,
+        "connected": c.connected, "halfspaces": [r.halfspaces for r in c.regions],
+        "seconds": c.seconds, "describe": c.describe(),
+    }
+
+
 def summary(ws: Workspace, ci: CacheInfo) -> dict[str, Any]:
     """The SPEC §5 record of a workspace."""
     return {
+        "cover": cover_record(ws),
         **ws.counts(),
         "seconds": ws.seconds,
         "region_seconds": ws.region_seconds,
@@ -117,7 +133,10 @@ def _human(rec: dict[str, Any]) -> str:
         f"(unreached {rec['unreached']}, disconnected {rec['disconnected']})",
         f"region P: {rec['halfspaces']} half-spaces, covers {100 * rec['coverage']:.1f} % of "
         f"feasible nodes",
-        f"build {rec['seconds']:.2f} s (region {rec['region_seconds']:.2f} s); {src}: {c['path']}",
+        *([rec["cover"]["describe"]] if rec["cover"] is not None else []),
+        f"build {rec['seconds']:.2f} s (region {rec['region_seconds']:.2f} s"
+        + (f", cover {rec['cover']['seconds']:.2f} s" if rec["cover"] is not None else "")
+        + f"); {src}: {c['path']}",
     ])
 
 
@@ -200,6 +219,8 @@ def cmd_verify(args: argparse.Namespace) -> int:
     seed = bounded_int(args.seed, "--seed", 0, 2**32 - 1)
     ws, _ = _load(args)
     model, links = ws.exact_models()
+    if args.cover:
+        return _verify_cover(args, ws, n, seed)
     r = verify_region(ws, model, links, n=n, seed=seed)
     rec = {
         "samples": r.samples, "infeasible": r.infeasible,
@@ -215,3 +236,23 @@ def cmd_verify(args: argparse.Namespace) -> int:
              f"(2δ {ws.min_distance_mm:g} mm, {r.min_link_pair}); {r.seconds:.1f} s")
     emit(args, rec, human)
     return int(ExitCode.OK if r.infeasible == 0 else ExitCode.ASSERTION_FAILED)
+
+
+def _verify_cover(args: argparse.Namespace, ws: Workspace, n: int, seed: int) -> int:
+    if ws.cover is None:
+        raise BadInputError("this workspace has no region cover to verify")
+    model, links = ws.exact_models()
+    rows = []
+    lines = []
+    bad = 0
+    for k, (reg, r) in enumerate(zip(ws.cover.regions,
+                                     verify_cover(ws, model, links, n=n, seed=seed),
+                                     strict=True)):
+        bad += r.infeasible
+        rows.append({"region": k, "samples": r.samples, "infeasible": r.infeasible,
+                     "min_zeta": r.min_zeta, "min_link_distance_mm": r.min_link_mm,
+                     "seconds": r.seconds, "halfspaces": reg.halfspaces})
+        lines.append(f"region {k}: {r.samples} samples, {r.infeasible} infeasible; min ζ "
+                     f"{r.min_zeta:.3f}, min link distance {r.min_link_mm:.1f} mm")
+    emit(args, {"regions": rows, "infeasible": bad}, "\n".join(lines))
+    return int(ExitCode.OK if bad == 0 else ExitCode.ASSERTION_FAILED)

@@ -7,7 +7,8 @@ chunked to bound memory) are computed. A node is *feasible* when ζ ≥ ζ_min, 
 two links of different legs are closer than 2δ, and it is connected to the home
 node through feasible nodes (6-connectivity: face neighbours only, the same
 neighbourhood the FK flood fill uses). The convex region P is then built from the
-grid (:mod:`spm_console.core.region_build`).
+grid (:mod:`spm_console.core.region_build`), and a cover of the feasible set by
+several convex regions with their overlap graph (:mod:`spm_console.core.cover`).
 
 Units: the dataclass exposes degrees and mm; radians stay inside.
 """
@@ -24,6 +25,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from spm_console.core.certify import CertifiedSet
+from spm_console.core.cover import RegionCover
 from spm_console.core.fk_grid import track_grid
 from spm_console.core.kinematics import PATH_ZETA_FLOOR, SpmModel, platform_axes
 from spm_console.core.links import LinkModel
@@ -35,13 +37,13 @@ B = NDArray[np.bool_]
 
 #: Version of the workspace algorithm and its stored arrays (part of the cache key):
 #: bump it whenever the grid, classification or region construction changes.
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 #: Nodes per chunk of the link-distance computation (bounds temporary memory).
 LINK_CHUNK = 1024
 #: Neighbourhood of the home-connectivity flood fill: 6 = face neighbours.
 CONNECTIVITY = 6
 
-#: progress(stage, fraction): stage is "fk", "links", "region" or "done"; fraction in [0, 1].
+#: progress(stage, fraction): stage is "fk", "links", "region", "cover" or "done"; fraction in [0, 1].
 Progress = Callable[[str, float], None]
 
 
@@ -90,11 +92,14 @@ class Workspace:
     home_index: tuple[int, int, int]
     """Index of the grid node nearest the home configuration."""
     seconds: float
-    """Wall time of the build (grid + region), s."""
+    """Wall time of the build (grid + region + cover), s."""
     region_seconds: float = 0.0
     """Wall time of the region construction alone, s."""
     region_info: dict[str, float] = field(default_factory=dict)
     """Diagnostics of the region construction (iterations, coverage, ...)."""
+    cover: RegionCover | None = field(default=None, compare=False)
+    """Convex regions covering the feasible set (``regions[0]`` is P) and their overlap
+    graph; None when not built (:func:`build_grid`)."""
     model: SpmModel | None = field(default=None, compare=False, repr=False)
     """The kinematic model it was built from (for exact checks); not stored in the cache."""
     links: LinkModel | None = field(default=None, compare=False, repr=False)
@@ -272,10 +277,13 @@ def build_grid(spec: GridSpec, progress: Progress | None = None) -> Workspace:
     )
 
 
-def build_workspace(spec: GridSpec, progress: Progress | None = None) -> Workspace:
-    """Grid (Algorithm 2) plus the convex region P; ``progress(stage, fraction)`` if given."""
+def build_workspace(spec: GridSpec, progress: Progress | None = None,
+                    cover: bool = True) -> Workspace:
+    """Grid (Algorithm 2) plus the convex region P and (``cover``) the region cover;
+    ``progress(stage, fraction)`` if given."""
     from dataclasses import replace
 
+    from spm_console.core.cover import build_cover
     from spm_console.core.region_build import build_region
 
     t0 = time.perf_counter()
@@ -287,6 +295,9 @@ def build_workspace(spec: GridSpec, progress: Progress | None = None) -> Workspa
     out = replace(ws, region=res.region, seconds=t2 - t0, region_seconds=t2 - t1,
                   region_info={**res.info(),
                                "max_halfspaces": float(spec.max_halfspaces)})
+    if cover:
+        rc = build_cover(out, progress=_stage(progress, "cover"))
+        out = replace(out, cover=rc, seconds=time.perf_counter() - t0)
     if progress is not None:
         progress("done", 1.0)
     return out

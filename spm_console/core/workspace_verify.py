@@ -157,3 +157,21 @@ def verify_region(
         worst_theta_deg=[] if t.worst_theta is None else [float(x) for x in t.worst_theta],
         worst_violation=t.worst, seconds=time.perf_counter() - t0,
     )
+
+
+def verify_cover(
+    ws: Workspace, model: SpmModel, links: LinkModel, n: int = 100_000, seed: int = 0,
+    progress: Callable[[float], None] | None = None,
+) -> list[VerifyReport]:
+    """:func:`verify_region` on every region of the workspace's cover (``n`` samples each,
+    region k drawn with seed ``seed + k``); ValueError when the workspace has no cover."""
+    if ws.cover is None:
+        raise ValueError("this workspace has no region cover")
+    regs = ws.cover.regions
+    out = []
+    for k, reg in enumerate(regs):
+        sub = None if progress is None else (
+            lambda f, k=k: progress((k + f) / len(regs)))
+        out.append(verify_region(ws, model, links, region=reg, n=n, seed=seed + k,
+                                 progress=sub))
+    return out

@@ -3,7 +3,10 @@
 The file stores a key (SHA-256 over everything the result depends on: geometry,
 home, links, workspace grid and thresholds, algorithm constants, format version).
 A different key means stale: rebuild and overwrite. A corrupt or truncated file
-(zip CRC, missing arrays, wrong shapes) gives a clear message and is rebuilt.
+(zip CRC, missing arrays, wrong shapes) gives a clear message and is rebuilt; a file
+of an older format is stale by its key (read before anything else). The region cover
+(:mod:`spm_console.core.cover`) is stored with the grid, P excluded (it is
+``region_A``/``region_b``), under the same content digest.
 Writes are atomic: a temporary file in the same directory, fsync, ``os.replace``.
 
 Default directory: ``$SPM_CONSOLE_CACHE`` if set, else ``~/.cache/spm_console``.
@@ -25,8 +28,10 @@ from typing import Any
 
 import numpy as np
 
+from spm_console.core import cover as core_cover
 from spm_console.core import region_build
 from spm_console.core import workspace as core_ws
+from spm_console.core.cover import RegionCover
 from spm_console.core.kinematics import NEWTON_TOL, PATH_ZETA_FLOOR
 from spm_console.core.region import Region
 from spm_console.core.workspace import Progress, Workspace
@@ -36,7 +41,8 @@ from spm_console.profile import Profile
 
 ENV_VAR = "SPM_CONSOLE_CACHE"
 _ARRAYS = ("axis0", "axis1", "axis2", "zeta", "min_link_mm", "closest_pair", "R", "klass",
-           "region_A", "region_b", "meta")
+           "region_A", "region_b", "cover_A", "cover_b", "cover_rows", "cover_seeds",
+           "cover_edges", "cover_edge_points", "cover_edge_radius", "meta")
 _DATA = _ARRAYS[:-1]
 
 
@@ -103,6 +109,9 @@ def cache_key(profile: Profile) -> str:
             "path_zeta_floor": PATH_ZETA_FLOOR, "newton_tol": NEWTON_TOL,
             "connectivity": core_ws.CONNECTIVITY, "volume_tol": region_build.VOLUME_TOL,
             "max_iters": region_build.MAX_ITERS,
+            "cover": [core_cover.COVER_TARGET, core_cover.COVER_MAX_REGIONS,
+                      core_cover.COVER_HALFSPACES, core_cover.COVER_ITERS,
+                      core_cover.MIN_OVERLAP_STEPS],
         },
     }, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
@@ -128,6 +137,10 @@ def save(ws: Workspace, path: Path, key: str) -> None:
     data: dict[str, np.ndarray] = {"axis0": ws.axes_deg[0], "axis1": ws.axes_deg[1], "axis2": ws.axes_deg[2],
             "zeta": ws.zeta, "min_link_mm": ws.min_link_mm, "closest_pair": ws.closest_pair,
             "R": ws.R, "klass": ws.klass, "region_A": ws.region.A, "region_b": ws.region.b}
+    data.update(_cover_arrays(ws.cover))
+    meta["cover"] = None if ws.cover is None else {
+        "covered": ws.cover.covered, "min_overlap_deg": ws.cover.min_overlap_deg,
+        "seconds": ws.cover.seconds}
     meta["content"] = content_digest(data)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -154,6 +167,52 @@ def save(ws: Workspace, path: Path, key: str) -> None:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def _cover_arrays(cover: RegionCover | None) -> dict[str, np.ndarray]:
+    """The cover's arrays without P (regions[1:] stacked, with their row counts)."""
+    rest = () if cover is None else cover.regions[1:]
+    return {
+        "cover_A": np.concatenate([np.zeros((0, 3)), *(r.A for r in rest)]),
+        "cover_b": np.concatenate([np.zeros(0), *(r.b for r in rest)]),
+        "cover_rows": np.array([r.halfspaces for r in rest], np.int64),
+        "cover_seeds": np.zeros((0, 3)) if cover is None else cover.seeds_deg,
+        "cover_edges": np.zeros((0, 2), np.int64) if cover is None else cover.edges,
+        "cover_edge_points": np.zeros((0, 3)) if cover is None else cover.edge_points_deg,
+        "cover_edge_radius": np.zeros(0) if cover is None else cover.edge_radius_deg,
+    }
+
+
+def _cover_of(d: dict[str, Any], p: Region, info: object) -> RegionCover | None:
+    """The stored cover (None when none was stored); ValueError when inconsistent."""
+    if info is None:
+        return None
+    if not isinstance(info, dict):
+        raise ValueError("cover metadata is not an object")
+    rows = np.asarray(d["cover_rows"], np.int64)
+    A = np.asarray(d["cover_A"], float)
+    b = np.asarray(d["cover_b"], float)
+    if rows.ndim != 1 or (rows < 1).any() or int(rows.sum()) != len(A) or len(A) != len(b):
+        raise ValueError("cover rows do not add up")
+    cuts = np.cumsum(rows)[:-1]
+    regions = (p, *(Region.from_dict({"A": a, "b": c})
+                    for a, c in zip(np.split(A, cuts), np.split(b, cuts), strict=True)))
+    k = len(regions)
+    seeds = np.asarray(d["cover_seeds"], float)
+    edges = np.asarray(d["cover_edges"], np.int64)
+    pts = np.asarray(d["cover_edge_points"], float)
+    rad = np.asarray(d["cover_edge_radius"], float)
+    m = len(edges)
+    if seeds.shape != (k, 3) or edges.shape != (m, 2) or pts.shape != (m, 3) or rad.shape != (m,):
+        raise ValueError("cover arrays have inconsistent shapes")
+    if m and not ((edges[:, 0] >= 0).all() and (edges[:, 0] < edges[:, 1]).all()
+                  and (edges[:, 1] < k).all()):
+        raise ValueError("cover edges name regions that do not exist")
+    return RegionCover(
+        regions=regions, seeds_deg=seeds, edges=edges, edge_points_deg=pts,
+        edge_radius_deg=rad, min_overlap_deg=float(info["min_overlap_deg"]),
+        covered=float(info["covered"]), seconds=float(info["seconds"]),
+    )
 
 
 def read_key(path: Path) -> str:
@@ -183,6 +242,9 @@ def load(path: Path, profile: Profile, key: str) -> Workspace:
     FileNotFoundError if there is none."""
     if not path.is_file():
         raise FileNotFoundError(str(path))
+    head = _read(path, arrays=("meta",))["meta"]
+    if not isinstance(head, dict) or head.get("key") != key:
+        raise KeyError("stale key")  # an older format is stale, not corrupt
     d = _read(path)
     meta = d["meta"]
     if meta.get("key") != key:
@@ -210,6 +272,7 @@ def load(path: Path, profile: Profile, key: str) -> Workspace:
             home_index=(home[0], home[1], home[2]), seconds=float(meta["seconds"]),
             region_seconds=float(meta["region_seconds"]),
             region_info={k: float(v) for k, v in meta["region_info"].items()},
+            cover=_cover_of(d, region, meta["cover"]),
             model=model_of(profile), links=link_model_of(profile),
         )
     except (KeyError, ValueError, TypeError, IndexError) as exc:

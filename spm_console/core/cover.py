@@ -1,0 +1,380 @@
+"""A cover of the feasible set by several convex regions, and their overlaps as a graph.
+
+The workspace's region P (:mod:`spm_console.core.region_build`) holds most feasible
+nodes, but near the boundary the feasible set is not convex. :func:`build_cover`
+adds regions until a target fraction of the feasible nodes lies in at least one
+of them (or a cap on their number is reached), then joins every two regions whose
+intersection holds a ball of radius ≥ ``min_overlap_deg`` (default Δ/4: room for a
+plan's switch sample) by an edge of the *region graph*.
+
+Growth of one region: the uncovered feasible node deepest inside the uncovered set
+(Euclidean distance transform on the grid) is the seed and the required point;
+IRIS steps (separating planes around the current ellipsoid, then its maximum-volume
+inscribed ellipsoid) start from a ball of radius Δ there; the step holding the most
+uncovered nodes wins, reduced to ``max_halfspaces`` rows with the uncovered nodes as
+the objective. When the classified grid is invariant under the cyclic permutation
+θ ↦ (θ2, θ3, θ1) (a symmetric manipulator on a cubic grid) every grown region is
+added with its two images, at the price of one.
+
+**Certification.** Every region is built exactly like P: the grid box cut by planes
+from :func:`~spm_console.core.region_build.separating_planes`, each of which leaves
+beyond it every obstacle cube it is responsible for (the open cubes of half-width Δ
+around the infeasible nodes with a feasible 26-neighbour), and
+:func:`~spm_console.core.region_build.reduce_halfspaces` only hands excluded cubes
+from one plane to another. So no region meets an obstacle cube: every region lies
+in the grid's certified set P′, and the sample verifier
+(:func:`~spm_console.core.workspace_verify.verify_region`) applies to each one. A
+permuted image of a region avoids the permuted obstacles, which are the same set
+when the grid is symmetric (checked exactly on the node classes before use).
+:func:`uncertified_regions` checks the property independently.
+
+**Home connectivity.** Each region is convex and contains its seed, a feasible grid
+node (feasible includes "connected to home through feasible nodes"). P contains
+the home node, so every point of P joins home by a straight segment inside P. A
+region joined to P by a path in the region graph joins home too: go straight to
+the overlap's centre (inside both regions, convexity), then on to the next region,
+and so on to P and home — every piece is a straight segment inside one region,
+hence inside P′. Regions outside P's component of the graph (see
+:meth:`RegionCover.components`) are joined to home only through the grid's
+6-connected feasible nodes, not (yet) through regions; the planner cannot use them
+from home.
+
+**Why the cap binds before the target on a coarse grid.** A feasible node whose face
+neighbour in direction ±e_k is infeasible lies inside a face of that neighbour's
+obstacle cube, so the only plane that can bound a region holding it is θ_k = const
+through the node: a region holds such "terrace" nodes of one level per direction
+only. On the 2° Agile Wrist grid 1,725 feasible nodes are of this kind (over ~32
+levels per direction), and greedy growth needs ~400 regions for 99 % of the nodes
+(97 % with 64). Finer obstacles near the boundary (refined cells) lift this limit.
+
+Angles in degrees (θ) at this interface.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from spm_console.core import region_build as rb
+from spm_console.core.ellipsoid import Ellipsoid, inscribed_ellipsoid
+from spm_console.core.region import Region
+from spm_console.errors import InfeasibleError, SolverError
+
+if TYPE_CHECKING:
+    from spm_console.core.workspace import Workspace
+
+F = NDArray[np.float64]
+B = NDArray[np.bool_]
+I64 = NDArray[np.int64]
+
+#: Fraction of the feasible nodes the cover aims at.
+COVER_TARGET = 0.99
+#: Most regions in a cover, P included (bounds the build time and the overlap graph).
+COVER_MAX_REGIONS = 28
+#: Most half-spaces of a cover region (P keeps the profile's limit).
+COVER_HALFSPACES = 24
+#: IRIS steps per cover region (the best one by new coverage is kept).
+COVER_ITERS = 2
+#: Smallest inscribed-ball radius of an overlap that makes an edge, in grid steps Δ.
+MIN_OVERLAP_STEPS = 0.25
+#: Tolerance (deg) for "a node lies in a region".
+INSIDE_TOL_DEG = 1e-7
+#: Cyclic permutation θ ↦ (θ2, θ3, θ1) as a matrix: σ(θ) = S θ.
+_S = np.eye(3)[[1, 2, 0]]
+
+
+@dataclass(frozen=True)
+class RegionCover:
+    """Convex regions {θ : A θ ≤ b} (θ in degrees) covering the feasible set, and the
+    graph of their overlaps. ``regions[0]`` is the workspace's P."""
+
+    regions: tuple[Region, ...]
+    """The regions, θ in degrees, unit-norm rows; ``regions[0]`` is P."""
+    seeds_deg: F
+    """(k, 3) a feasible grid node inside each region (P: the home node), deg."""
+    edges: I64
+    """(m, 2) pairs (i, j), i < j, whose intersection holds a ball of radius
+    ≥ ``min_overlap_deg``; sorted lexicographically."""
+    edge_points_deg: F
+    """(m, 3) Chebyshev centre of each intersection, deg."""
+    edge_radius_deg: F
+    """(m,) inscribed-ball radius of each intersection, deg."""
+    min_overlap_deg: float
+    """Radius threshold of an edge, deg."""
+    covered: float
+    """Fraction of the workspace's feasible nodes inside at least one region."""
+    seconds: float = 0.0
+    """Wall time of the build (regions + graph), s."""
+
+    @property
+    def size(self) -> int:
+        return len(self.regions)
+
+    def containing(self, theta_deg: F, tol: float = INSIDE_TOL_DEG) -> list[int]:
+        """Indices of the regions holding θ (deg, one point), ascending."""
+        t = np.asarray(theta_deg, float).reshape(3)
+        return [i for i, r in enumerate(self.regions) if bool(r.contains(t, tol=tol))]
+
+    def neighbours(self, i: int) -> list[int]:
+        """Regions sharing an edge with region ``i``, ascending."""
+        e = self.edges
+        out = np.r_[e[e[:, 0] == i, 1], e[e[:, 1] == i, 0]]
+        return sorted(int(j) for j in out)
+
+    def overlap(self, i: int, j: int) -> tuple[F, float] | None:
+        """(Chebyshev centre deg, radius deg) of the edge between ``i`` and ``j``, or None."""
+        a, b = min(i, j), max(i, j)
+        hit = np.flatnonzero((self.edges[:, 0] == a) & (self.edges[:, 1] == b))
+        if len(hit) == 0:
+            return None
+        k = int(hit[0])
+        return self.edge_points_deg[k].copy(), float(self.edge_radius_deg[k])
+
+    def member(self, points_deg: F, tol: float = INSIDE_TOL_DEG) -> B:
+        """(n,) True where a point (n, 3), deg, lies in at least one region."""
+        p = np.asarray(points_deg, float).reshape(-1, 3)
+        inside = np.zeros(len(p), bool)
+        for r in self.regions:
+            rest = ~inside
+            if not rest.any():
+                break
+            inside[rest] = r.contains(p[rest], tol=tol)
+        return inside
+
+    def coverage(self, points_deg: F, tol: float = INSIDE_TOL_DEG) -> float:
+        """Fraction of the points (n, 3), deg, inside at least one region (0 if none)."""
+        inside = self.member(points_deg, tol)
+        return float(inside.mean()) if len(inside) else 0.0
+
+    def components(self) -> I64:
+        """Connected component label per region; label 0 is P's component."""
+        k = self.size
+        e = self.edges
+        g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(k, k)) if len(e) else \
+            coo_matrix((k, k))
+        _, lab = connected_components(g, directed=False)
+        lab = np.asarray(lab, np.int64)
+        # renumber so that P's component is 0
+        p = lab[0]
+        return np.where(lab == p, 0, np.where(lab == 0, p, lab))
+
+    @property
+    def connected(self) -> bool:
+        """True when every region is joined to P through the graph."""
+        return bool((self.components() == 0).all())
+
+    def describe(self) -> str:
+        """One line: regions, coverage, edges, connectivity."""
+        comps = len(np.unique(self.components()))
+        conn = "connected" if comps == 1 else f"{comps} components"
+        return (f"cover: {self.size} regions, {100 * self.covered:.1f} % of feasible nodes, "
+                f"{len(self.edges)} overlaps ≥ {self.min_overlap_deg:g}° ({conn})")
+
+
+def cyclic_symmetric(ws: Workspace) -> bool:
+    """True when the feasible nodes are invariant under θ ↦ (θ2, θ3, θ1) on equal axes."""
+    a0, a1, a2 = ws.axes_deg
+    if not (a0.shape == a1.shape == a2.shape and np.array_equal(a0, a1)
+            and np.array_equal(a0, a2)):
+        return False
+    f = ws.feasible
+    # g[a, b, c] = f[b, c, a]: node (a, b, c) feasible ⇔ node (b, c, a) feasible
+    return bool(np.array_equal(f, np.transpose(f, (2, 0, 1))))
+
+
+def _image(region: Region) -> Region:
+    """σ(region) = {S θ : θ ∈ region} = {φ : A Sᵀ φ ≤ b}."""
+    return Region(region.A @ _S.T, region.b.copy())
+
+
+@dataclass
+class _Grower:
+    """IRIS for cover regions (fewer steps and rows than P), in P's scaled frame."""
+
+    frame: rb._Frame
+    Q: F
+    half: float
+    max_halfspaces: int
+    iters: int
+    step_deg: float
+
+    def grow(self, seed_deg: F, objective_deg: F) -> Region:
+        fr = self.frame
+        req = fr.to_x(seed_deg).reshape(1, 3)
+        Abox = np.vstack([np.eye(3), -np.eye(3)])
+        E = Ellipsoid.ball(fr.to_x(seed_deg), self.step_deg / fr.s)
+        best: Region | None = None
+        best_n = -1
+        for it in range(self.iters):
+            Ap, bp = rb.separating_planes(E, self.Q, self.half, req)
+            cand = fr.region(np.vstack([Abox, Ap]), np.r_[np.ones(6), bp]).without_redundant()
+            n = int(cand.contains(objective_deg, tol=INSIDE_TOL_DEG).sum())
+            if n > best_n:
+                best, best_n = cand, n
+            if it + 1 < self.iters:
+                try:
+                    E = inscribed_ellipsoid(cand.A * fr.s, cand.b - cand.A @ fr.c)
+                except SolverError:
+                    break
+        assert best is not None
+        if best.halfspaces > self.max_halfspaces:
+            best = rb.reduce_halfspaces(best, fr, self.Q, self.half, req, self.max_halfspaces,
+                                        objective_deg)
+        return best
+
+
+def _deepest(uncovered: B) -> tuple[int, int, int]:
+    """Index of the node deepest inside ``uncovered`` (Euclidean distance transform; the
+    grid box's faces do not count as its boundary); ties go to the first in C order."""
+    d = ndimage.distance_transform_edt(uncovered)
+    i = np.unravel_index(int(np.argmax(d)), d.shape)
+    return (int(i[0]), int(i[1]), int(i[2]))
+
+
+def _bbox(region: Region) -> tuple[F, F]:
+    V = region.vertices()
+    if len(V) == 0:
+        return np.full(3, np.inf), np.full(3, -np.inf)
+    return V.min(0), V.max(0)
+
+
+def overlap_graph(regions: tuple[Region, ...], min_radius_deg: float,
+                  symmetric: bool = False) -> tuple[I64, F, F]:
+    """Edges (m, 2), Chebyshev centres (m, 3) and radii (m,) of the pairwise intersections
+    with an inscribed ball of radius ≥ ``min_radius_deg`` (one LP per pair whose bounding
+    boxes, shrunk by that radius, still meet). With ``symmetric`` the regions come in
+    orbits (i, i+1, i+2 = r, σr, σ²r) after region 0, and a pair's images are not solved
+    again."""
+    k = len(regions)
+    boxes = [_bbox(r) for r in regions]
+    lo = np.array([b[0] for b in boxes]).reshape(k, 3)
+    hi = np.array([b[1] for b in boxes]).reshape(k, 3)
+    found: dict[tuple[int, int], tuple[F, float]] = {}
+    done: set[tuple[int, int]] = set()
+
+    def orbit(i: int) -> list[int]:
+        if not symmetric or i == 0:
+            return [i, i, i]
+        base = 1 + 3 * ((i - 1) // 3)
+        o = (i - 1) % 3
+        return [base + (o + s) % 3 for s in range(3)]
+
+    for i in range(k):
+        for j in range(i + 1, k):
+            if (i, j) in done:
+                continue
+            if ((np.minimum(hi[i], hi[j]) - np.maximum(lo[i], lo[j])) < 2 * min_radius_deg).any():
+                continue
+            both = Region(np.vstack([regions[i].A, regions[j].A]), np.r_[regions[i].b, regions[j].b])
+            c, r = both.chebyshev()
+            if symmetric and (i == 0 or j == 0):
+                images = [(i, j)]  # P has no images
+            else:
+                oi, oj = orbit(i), orbit(j)
+                images = [(oi[s], oj[s]) for s in range(3)] if symmetric else [(i, j)]
+            for s, (a, b) in enumerate(images):
+                key = (min(a, b), max(a, b))
+                if key in done:
+                    continue
+                done.add(key)
+                if r >= min_radius_deg:
+                    pt = np.linalg.matrix_power(_S, s) @ c
+                    found[key] = (pt, r)
+    keys = sorted(found)
+    edges = np.array(keys, np.int64).reshape(-1, 2)
+    pts = np.array([found[q][0] for q in keys], float).reshape(-1, 3)
+    rad = np.array([found[q][1] for q in keys], float)
+    return edges, pts, rad
+
+
+def build_cover(
+    ws: Workspace, target: float = COVER_TARGET, max_regions: int = COVER_MAX_REGIONS,
+    max_halfspaces: int = COVER_HALFSPACES, iters: int = COVER_ITERS,
+    min_overlap_deg: float | None = None, progress: Callable[[float], None] | None = None,
+) -> RegionCover:
+    """Grow regions from the workspace's P (``ws.region``) until ``target`` of the feasible
+    nodes are covered or ``max_regions`` regions exist, then build the overlap graph.
+    ``min_overlap_deg`` defaults to MIN_OVERLAP_STEPS · Δ."""
+    t0 = time.perf_counter()
+    rmin = MIN_OVERLAP_STEPS * ws.step_deg if min_overlap_deg is None else float(min_overlap_deg)
+    f = ws.feasible
+    theta = ws.theta_deg()
+    fidx = np.argwhere(f)
+    fpts = theta[f]
+    home = np.asarray(theta[ws.home_index], float)
+    regions: list[Region] = [ws.region]
+    seeds: list[F] = [home]
+    covered = ws.region.contains(fpts, tol=INSIDE_TOL_DEG) if len(fpts) else np.zeros(0, bool)
+    symmetric = cyclic_symmetric(ws)
+    lo, hi = ws.range_deg()
+    frame = rb._Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
+    grower = _Grower(frame, frame.to_x(rb.obstacle_nodes(f, theta)), ws.step_deg / frame.s,
+                     max_halfspaces, iters, ws.step_deg)
+    need = int(np.ceil(target * len(fpts)))
+    tried = np.zeros(f.shape, bool)
+    group = 3 if symmetric else 1
+    while int(covered.sum()) < need and len(regions) + group <= max_regions:
+        unc = np.zeros(f.shape, bool)
+        unc[tuple(fidx[~covered].T)] = True
+        unc &= ~tried
+        if not unc.any():
+            break
+        i = _deepest(unc)
+        tried[i] = True
+        seed = np.asarray(theta[i], float)
+        try:
+            reg = grower.grow(seed, fpts[~covered])
+        except (InfeasibleError, SolverError):
+            continue
+        new = [reg, _image(reg), _image(_image(reg))] if symmetric else [reg]
+        news = [seed, _S @ seed, _S @ _S @ seed] if symmetric else [seed]
+        for r, s in zip(new, news, strict=True):
+            rest = ~covered
+            covered[rest] = r.contains(fpts[rest], tol=INSIDE_TOL_DEG)
+            regions.append(r)
+            seeds.append(s)
+        if symmetric:
+            for s in news[1:]:
+                j = ws.index_of(s)
+                if j is not None:
+                    tried[j] = True
+        if progress is not None:
+            progress(min(1.0, len(regions) / max_regions))
+    edges, pts, rad = overlap_graph(tuple(regions), rmin, symmetric)
+    if progress is not None:
+        progress(1.0)
+    return RegionCover(
+        regions=tuple(regions), seeds_deg=np.array(seeds, float).reshape(-1, 3), edges=edges,
+        edge_points_deg=pts, edge_radius_deg=rad, min_overlap_deg=rmin,
+        covered=float(covered.mean()) if len(fpts) else 0.0,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def uncertified_regions(ws: Workspace, cover: RegionCover, tol_deg: float = 1e-7) -> list[int]:
+    """Regions whose interior meets an obstacle cube (open, half-width Δ, around an
+    infeasible node with a feasible 26-neighbour): empty for a certified cover. Exact:
+    a cube is clear when one row's minimum over it reaches that row's offset; otherwise
+    (several rows exclude it together) when the region ∩ closed cube holds no ball of
+    radius > ``tol_deg`` (LP)."""
+    Q = rb.obstacle_nodes(ws.feasible, ws.theta_deg())
+    h = ws.step_deg
+    box = np.vstack([np.eye(3), -np.eye(3)])
+    bad = []
+    for k, r in enumerate(cover.regions):
+        Rn = r.normalized()
+        mins = Q @ Rn.A.T - h * np.abs(Rn.A).sum(1)
+        for q in Q[~(mins >= Rn.b - tol_deg).any(1)]:
+            both = Region(np.vstack([Rn.A, box]), np.r_[Rn.b, q + h, h - q])
+            if both.chebyshev()[1] > tol_deg:
+                bad.append(k)
+                break
+    return bad
