@@ -130,3 +130,32 @@ def test_a_route_plan_file_round_trips_and_edits_are_refused(tmp_path, agile) ->
         (tmp_path / "bad.json").write_text(json.dumps(bad))
         with pytest.raises(PlanMismatchError, match=why):
             load_plan(tmp_path / "bad.json", agile)
+
+
+@pytest.mark.parametrize("start, goal", [
+    ([121.0, 65.0, 87.0], [139.0, 67.0, 107.0]),  # refused by one region: the segment leaves P'
+    ([67.0, 129.0, 85.0], [137.0, 69.0, 89.0]),
+])
+def test_pairs_one_region_refuses_plan_through_the_cover_and_every_point_is_feasible(
+        agile, start, goal) -> None:  # type: ignore[no-untyped-def]
+    from spm_console.core.region_build import choose_region
+    from spm_console.core.workspace_check import check_points
+    from spm_console.models import link_model_of, model_of
+    from spm_console.run.plan_request import PlanRequest, plan_motion
+    from spm_console.store.workspace_cache import load_or_build
+
+    ws, _ = load_or_build(agile)
+    s, g = np.array(start), np.array(goal)
+    with pytest.raises(InfeasibleError, match="straight segment"):
+        choose_region(ws, s, g)  # no single region holds the straight segment
+    planned = plan_motion(agile, ws, PlanRequest("mvn", s, g, 250))  # verified inside
+    assert planned.region_kind == "route" and planned.route is not None
+    plan = planned.plan
+    assert plan.route is not None and plan.route.count >= 2
+    assert "route through" in planned.describe_region()
+    # independent of the grid: the continuous motion checked exactly (FK in the home modes,
+    # ζ ≥ ζ_min, links apart) at 20 points per interval
+    x0 = np.column_stack([s, np.zeros(3)])
+    _, xs = simulate_continuous(agile.servo.p, agile.servo.ts_s, x0, plan.reference_deg, 20)
+    pc = check_points(ws, model_of(agile), link_model_of(agile), xs[..., 0])
+    assert pc.pointwise_ok(ws.zeta_min, ws.min_distance_mm).all()

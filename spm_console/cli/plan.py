@@ -136,6 +136,9 @@ def summary(plan: Plan, out: Path | None, source: str,
     rec = {k: d[k] for k in ("kind", "Ts", "N", "duration_s", "cost", "solve_seconds", "qp_count")}
     rec.update({"out": str(out) if out else None, "region": source, "region_kind": region_kind,
                 "halfspaces": plan.region.halfspaces,
+                "route": None if plan.route is None else {
+                    "regions": list(plan.route.labels), "switch_samples": list(plan.route.switch),
+                    "halfspaces": [r.halfspaces for r in plan.route.regions]},
                 "check": None if plan.check is None else plan.check.to_dict(),
                 "solver": plan.solver, "start_deg": plan.position_deg[0],
                 "goal_deg": plan.position_deg[-1]})
@@ -168,7 +171,7 @@ def _finish(args: argparse.Namespace, profile: Profile, req: PlanRequest) -> int
 
     precheck(profile, req)  # a refusal never pays for the workspace
     planned = plan_motion(profile, _workspace(args, profile), req)
-    plan, source = planned.plan, planned.region.describe()
+    plan, source = planned.plan, planned.describe_region()
     if args.out is not None:
         try:
             save_plan(plan, args.out)
@@ -176,7 +179,7 @@ def _finish(args: argparse.Namespace, profile: Profile, req: PlanRequest) -> int
             raise BadInputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
     if args.plot is not None:
         _plot(plan, args.plot)
-    emit(args, summary(plan, args.out, source, planned.region.kind),
+    emit(args, summary(plan, args.out, source, planned.region_kind),
          _human(plan, args.out, source))
     return int(ExitCode.OK)
 
@@ -225,7 +228,9 @@ def cmd_show(args: argparse.Namespace) -> int:
         verdict, refused = f"runtime verification: REFUSED — {exc.message}", exc
     d = plan_to_dict(plan) | {"verified": refused is None,
                               "refused": None if refused is None else refused.message}
-    human = _human(plan, None, f"stored in the plan ({plan.region.halfspaces} half-spaces)") + (
+    stored = (f"stored in the plan ({plan.region.halfspaces} half-spaces)" if plan.route is None
+              else f"stored in the plan: {plan.route.describe()}")
+    human = _human(plan, None, stored) + (
         f"\nstart {fmt_vec(plan.position_deg[0], 2)} deg → goal {fmt_vec(plan.position_deg[-1], 2)} deg"
         f"\n{verdict}")
     emit(args, d, human)

@@ -378,3 +378,32 @@ def uncertified_regions(ws: Workspace, cover: RegionCover, tol_deg: float = 1e-7
                 bad.append(k)
                 break
     return bad
+
+
+def connector_regions(ws: Workspace, cover: RegionCover, points_deg: F,
+                      iters: int = COVER_ITERS) -> tuple[list[Region], F]:
+    """Regions grown (like cover regions, same obstacles, so certified alike) around each of
+    ``points_deg`` (k, 3) that no cover region holds — a configuration on the boundary of
+    the certified set — and the Chebyshev centres (m, 3) of their overlaps (radius ≥ the
+    cover's ``min_overlap_deg``) with the cover's regions and with each other. Grown on
+    demand for a plan's ends; never stored. InfeasibleError when a point sits inside an
+    obstacle cube (it is not certified)."""
+    lo, hi = ws.range_deg()
+    frame = rb._Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
+    theta = ws.theta_deg()
+    grower = _Grower(frame, frame.to_x(rb.obstacle_nodes(ws.feasible, theta)),
+                     ws.step_deg / frame.s, COVER_HALFSPACES, iters, ws.step_deg)
+    objective = theta[ws.feasible]
+    new: list[Region] = []
+    for p in np.asarray(points_deg, float).reshape(-1, 3):
+        if cover.containing(p) or any(r.contains(p, tol=INSIDE_TOL_DEG) for r in new):
+            continue
+        new.append(grower.grow(p, objective))
+    pts: list[F] = []
+    for k, r in enumerate(new):
+        for other in (*cover.regions, *new[:k]):
+            both = Region(np.vstack([r.A, other.A]), np.r_[r.b, other.b])
+            c, rad = both.chebyshev()
+            if rad >= cover.min_overlap_deg:
+                pts.append(c)
+    return new, np.asarray(pts, float).reshape(-1, 3)

@@ -384,7 +384,7 @@ class Session(ServoTools):
         self.plan_source = None
         self.plan_info = {"method": method, "start": start.describe(), "goal": goal.describe(),
                           "start_deg": s, "goal_deg": g, "vmax_degps": vmax,
-                          "region": planned.region.describe()}
+                          "region": planned.describe_region()}
         return plan
 
     def load_plan_file(self, path: str | Path) -> Plan:
@@ -400,7 +400,9 @@ class Session(ServoTools):
         self.plan_info = {"method": plan.kind, "start": "from the file", "goal": "from the file",
                           "start_deg": plan.position_deg[0], "goal_deg": plan.position_deg[-1],
                           "vmax_degps": None if plan.options is None else plan.options.vmax_degps,
-                          "region": f"stored in the plan ({plan.region.halfspaces} half-spaces)",
+                          "region": (f"stored in the plan ({plan.region.halfspaces} half-spaces)"
+                                     if plan.route is None else
+                                     f"stored in the plan: {plan.route.describe()}"),
                           "source": str(path)}
         self.plan_source = str(path)
         return plan
