@@ -42,7 +42,7 @@ MEMBER_TOL_DEG = 1e-7
 #: Weight of the Euclidean length beside the largest joint move in a hop's cost.
 EUCLID_WEIGHT = 1e-3
 #: Most QPs the switch-sample search may add to the first one.
-MAX_SWITCH_QPS = 12
+MAX_SWITCH_QPS = 4
 
 
 @dataclass(frozen=True)
@@ -143,12 +143,12 @@ class RoutePlan:
 
 def improve_switches(problem: PlanProblem, first: PlanResult,
                      max_qps: int = MAX_SWITCH_QPS) -> tuple[PlanResult, int]:
-    """Move each switch sample while the MVN cost falls (steps 4, 2, 1), at most
+    """Move each switch sample while the MVN cost falls (steps 3, then 1), at most
     ``max_qps`` extra QPs; the best plan and the QPs spent."""
     assert problem.route is not None
     best, qps = first, 0
     route = problem.route
-    for step in (4, 2, 1):
+    for step in (3, 1):
         for i in range(len(route.switch)):
             for sign in (1, -1):
                 while qps < max_qps:

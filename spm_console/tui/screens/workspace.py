@@ -22,6 +22,7 @@ from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.rules import THETA_NAMES, theta_rules
 
 STAGES = {"fk": "FK over the grid", "links": "link distances", "region": "convex region P",
+          "cover": "region cover",
           "done": "done"}
 
 
@@ -46,6 +47,10 @@ def workspace_text(ws: Any, info: Any) -> str:
         f"region P     {region.halfspaces} half-spaces, covers {100 * ws.coverage():.1f}% of the "
         "feasible nodes",
     ]
+    if ws.cover is not None:
+        lines.append(f"cover        {ws.cover.size} regions (P first), "
+                     f"{100 * ws.cover.covered:.1f}% of feasible nodes, "
+                     f"{len(ws.cover.edges)} overlaps")
     if span is not None:
         lines.append("P spans      " + "  ".join(
             f"θ{i + 1} ∈ [{span[0][i]:.1f}, {span[1][i]:.1f}]°" for i in range(3)))
