@@ -153,6 +153,7 @@ def test_refined_refusal_names_the_fine_node(ws: Workspace) -> None:
     with pytest.raises(InfeasibleError) as e:
         choose_region(ws, np.array([155.0, 107.0, 71.0]), np.array([137.0, 77.0, 89.0]))
     msg = e.value.message
+    assert "leaves the feasible set from its first configuration" in msg
     assert "within h = 0.5° of fine node [155.00, 106.50, 71.00]°" in msg
     assert "singular (ζ =" in msg
 

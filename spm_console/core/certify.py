@@ -8,6 +8,10 @@ open cubes of half-width Δ around every node that is not feasible — the set e
 verifier samples. A smaller h (Δ − margin, kept above Δ/2 so that every point has a node
 within h on each axis) is a looser test for measured positions near the boundary.
 
+Near the boundary the same criterion is applied at a finer resolution, on demand
+(:mod:`spm_console.core.refine`, :class:`~spm_console.core.refine.RefinedCertifiedSet`);
+:func:`nodes_near` serves both lattices.
+
 Membership costs a floor and at most 8 table look-ups per point, whatever the grid size:
 it is the check the runtime applies to every sample of a plan and to the continuous motion
 between samples before anything moves. Angles in degrees.

@@ -156,8 +156,10 @@ def check_segment(ws: Workspace, a: F, b: F, cubes: Sequence[CubeSet] | None = N
     if first is not None:
         t, cs, j = first
         where = a + (b - a) * t
-        msg = (f"the straight segment {_fmt(a)}° → {_fmt(b)}° leaves the feasible set at "
-               f"θ ≈ {_fmt(where)}°: within {cs.label} of " + cs.describe(j))
+        at = ("from its first configuration" if t <= 1e-12
+              else f"at θ ≈ {_fmt(where)}°")
+        msg = (f"the straight segment {_fmt(a)}° → {_fmt(b)}° leaves the feasible set {at}: "
+               f"within {cs.label} of " + cs.describe(j))
         if ex.feasible:
             msg += f". Checked exactly, the segment itself is feasible ({ex.summary()}): {hint}"
         raise InfeasibleError(msg)
