@@ -71,13 +71,14 @@ def test_mintime_records_the_certificate(capsys: pytest.CaptureFixture[str], tmp
 
 def test_a_region_file_cannot_take_a_plan_outside_the_workspace(
         capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    # the paper's minimum-time pair in the 65..155° box: the motion passes within Δ of a
-    # singular node, which the workspace does not certify -> refused (exit 26), no file
+    # two feasible grid nodes in the 65..155° box: the motion leaves the first toward a
+    # singular fine node 0.5° away (within Δ of an infeasible grid node), which the
+    # workspace does not certify even refined -> refused (exit 26), no file
     box = tmp_path / "box.json"
     box.write_text(json.dumps(Region.box(65.0, 155.0).to_dict()))
     out = tmp_path / "mt.json"
-    code, _, err = run(capsys, "plan", "mintime", "--start", "70", "90", "80", "--goal", *GOAL,
-                       "--vmax", "50", "--region", str(box), "--out", str(out))
+    code, _, err = run(capsys, "plan", "mintime", "--start", "155", "107", "71", "--goal", "137",
+                       "77", "89", "--vmax", "50", "--region", str(box), "--out", str(out))
     assert code == ExitCode.PLAN_REFUSED
     assert "does not certify" in err and not out.exists()
 
@@ -138,7 +139,8 @@ def test_paper_experiments_with_the_real_workspace(capsys: pytest.CaptureFixture
                                                     cache_dir: Path, tmp_path: Path) -> None:
     """MVN: the goal is outside the cached P, so a region around the segment is built and
     the plan is optimal (cvxpy + Clarabel agree). Minimum time: the segment from [70, 90, 80]°
-    passes within Δ of a singular node with our link model — refused with the reason."""
+    passes within Δ of a singular grid node with our link model, so the region is grown with
+    the grid refined near the segment (h = Δ/4) and the plan verifies."""
     out = tmp_path / "mvn.json"
     code, so, err = run(capsys, "plan", "mvn", "--start", *START, "--goal", *GOAL,
                         "--cache-dir", str(cache_dir), "--out", str(out), "--json")
@@ -152,6 +154,9 @@ def test_paper_experiments_with_the_real_workspace(capsys: pytest.CaptureFixture
                      region, ref_lo_deg=np.full(3, 60.0), ref_hi_deg=np.full(3, 160.0))
     ref = solve_reference(pb)
     assert abs(rec["cost"] - ref.cost) <= 1e-4 * ref.cost
-    code, _, err = run(capsys, "plan", "mintime", "--start", "70", "90", "80", "--goal", *GOAL,
-                       "--vmax", "50", "--cache-dir", str(cache_dir))
-    assert code == ExitCode.INFEASIBLE and "singular" in err
+    code, so, err = run(capsys, "plan", "mintime", "--start", "70", "90", "80", "--goal", *GOAL,
+                        "--vmax", "50", "--cache-dir", str(cache_dir), "--json")
+    assert code == 0, err
+    rec = json.loads(so)
+    assert rec["region_kind"] == "refined" and rec["check"]["ok"]
+    assert "refined resolution h = 0.5°" in rec["region"]

@@ -11,9 +11,11 @@ import pytest
 from spm_console.core.region import Region
 from spm_console.core.region_build import (
     build_region,
+    choose_region,
     closest_on_boxes,
     region_containing,
 )
+from spm_console.core.segment_check import check_segment
 from spm_console.core.workspace import Workspace
 from spm_console.errors import InfeasibleError
 from tests.ws_helpers import MINTIME_START, MVN_GOAL, MVN_START, agile_workspace
@@ -149,13 +151,19 @@ def test_region_helpers() -> None:
     assert extra.without_redundant(method="lp").halfspaces == 6
 
 
-def test_mintime_pair_needs_a_finer_grid(ws: Workspace) -> None:
+def test_mintime_pair_is_refined_on_the_2deg_grid(ws: Workspace) -> None:
     """[70, 90, 80]° → goal: on the 2° grid the segment passes within Δ of a singular
-    node, though every point of it is feasible; the refusal says both."""
+    node, though every point of it is feasible (the grid check says both); the region is
+    then grown with the grid refined near the segment (certified in tests/test_refine.py)."""
+    start, goal = np.array(MINTIME_START), np.array(MVN_GOAL)
     with pytest.raises(InfeasibleError) as e:
-        region_containing(ws, np.array(MINTIME_START), np.array(MVN_GOAL))
+        check_segment(ws, start, goal)
     assert "singular" in e.value.message
     assert "Checked exactly, the segment itself is feasible" in e.value.message
+    choice = choose_region(ws, start, goal)
+    assert choice.kind == "refined" and choice.resolution_deg == ws.step_deg / 4
+    assert choice.region.contains(np.array([start, goal]), tol=1e-7).all()
+    assert "refined resolution h = 0.5°" in choice.describe()
 
 
 @pytest.mark.slow

@@ -26,6 +26,13 @@ def test_reproduce_quick(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
     assert len(rows) >= 20
     assert re.search(r"\| eq\. \(34\): v1\.\.v3 \|.*\| [0-9.e+-]+ \| reproduced \|", report)
     assert "eigenvalues 1.912" in report
+    # the minimum-time pair is planned on the profile's own 2° grid (refined near the
+    # boundary), verified by the runtime's check, and executed
+    mintime = report.split('<a id="mintime"></a>')[1]
+    assert "(2° grid, refined to h = 0.5° near the boundary)" in mintime
+    assert re.search(r"\| N\* \(minimum feasible horizon\) \|[^|]*\| \d+ \(", mintime)
+    assert "| the runtime's plan verification (before torque-on) | not printed | passed:" in mintime
+    assert "execution on the emulated MX-106 bus | completed on the prototype | completed" in mintime
     figures = re.findall(r"!\[[^\]]*\]\(([^)]+\.png)\)", report)
     assert len(figures) >= 2
     for f in figures:

@@ -15,6 +15,9 @@ def register(sub: Any) -> None:
     p.add_argument("--out", type=Path, required=True, help="output directory for report.md and figures")
     p.add_argument("--quick", action="store_true", help="reduced settings (fewer verifier samples)")
     p.add_argument("--no-execute", action="store_true", help="plan only; do not run on the emulated bus")
+    p.add_argument("--fine-grid", action="store_true",
+                   help="also plan the minimum-time pair on a 1° workspace grid (slow, ~1 GB) and "
+                        "compare with the profile's grid refined near the boundary")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.set_defaults(func=cmd_reproduce)
 
@@ -23,7 +26,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     from spm_console.report.reproduce import ReproSettings, reproduce
 
     output_folder(args.out, "--out")
-    settings = ReproSettings(quick=args.quick, execute=not args.no_execute)
+    settings = ReproSettings(quick=args.quick, execute=not args.no_execute, fine_grid=args.fine_grid)
     report, sections = reproduce(args.out, settings, progress=lambda s: info(f"reproduce: {s}"))
     verdicts = [c.verdict for s in sections for c in s.checks]
     summary = {

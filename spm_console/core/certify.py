@@ -8,6 +8,10 @@ open cubes of half-width Δ around every node that is not feasible — the set e
 verifier samples. A smaller h (Δ − margin, kept above Δ/2 so that every point has a node
 within h on each axis) is a looser test for measured positions near the boundary.
 
+Near the boundary the same criterion is applied at a finer resolution, on demand
+(:mod:`spm_console.core.refine`, :class:`~spm_console.core.refine.RefinedCertifiedSet`);
+:func:`nodes_near` serves both lattices.
+
 Membership costs a floor and at most 8 table look-ups per point, whatever the grid size:
 it is the check the runtime applies to every sample of a plan and to the continuous motion
 between samples before anything moves. Angles in degrees.
@@ -50,24 +54,43 @@ class CertifiedSet:
         if not 0.5 * self.step_deg < h <= self.step_deg:
             raise ValueError(f"half width {h} must lie in ({0.5 * self.step_deg}, {self.step_deg}]")
         th = np.asarray(theta_deg, float)
-        pts = th.reshape(-1, 3)
-        ok = np.all(np.isfinite(pts), axis=1)
-        u = (np.where(np.isfinite(pts), pts, 0.0) - self.origin_deg) / self.step_deg
-        near = np.rint(u)  # on a grid plane up to round-off (1e-9 of a step): on it
-        u = np.where(np.abs(u - near) <= ON_PLANE_TOL, near, u)
-        lo = np.floor(u)
-        frac = u - lo
-        r = h / self.step_deg
-        # node lo qualifies when frac < r; node lo + 1 when 1 − frac < r (per axis)
-        want = (frac < r, (1.0 - frac) < r)
-        shape = np.array(self.feasible.shape)
-        base = lo.astype(np.int64)
-        for c in range(8):
-            off = np.array([(c >> 2) & 1, (c >> 1) & 1, c & 1])
-            needed = np.all(np.where(off == 1, want[1], want[0]), axis=1)
-            idx = base + off
-            inside = np.all((idx >= 0) & (idx < shape), axis=1)
-            safe = np.clip(idx, 0, shape - 1)
-            hit = self.feasible[safe[:, 0], safe[:, 1], safe[:, 2]]
-            ok &= ~needed | (inside & hit)
-        return ok.reshape(th.shape[:-1])
+        near = nodes_near(th.reshape(-1, 3), self.origin_deg, self.step_deg,
+                          self.feasible.shape, h / self.step_deg)
+        idx = np.clip(near.index, 0, np.array(self.feasible.shape) - 1)
+        hit = self.feasible[idx[..., 0], idx[..., 1], idx[..., 2]]
+        return near.all_hold(hit).reshape(th.shape[:-1])
+
+
+@dataclass(frozen=True)
+class NearNodes:
+    """The lattice nodes within L∞ distance < r·step of each point (at most 8 per point)."""
+
+    finite: B
+    """(n,) the point has finite coordinates."""
+    index: NDArray[np.int64]
+    """(n, 8, 3) integer index of the 8 corners of the point's cell (may lie off the lattice)."""
+    needed: B
+    """(n, 8) the corner is within the distance (its verdict matters)."""
+    inside: B
+    """(n, 8) the corner lies on the lattice."""
+
+    def all_hold(self, verdict: B) -> B:
+        """(n,) every needed corner is on the lattice and ``verdict`` (n, 8) holds there."""
+        return np.asarray(self.finite & np.all(~self.needed | (self.inside & verdict), axis=1))
+
+
+def nodes_near(pts: F, origin: F, step: float, shape: tuple[int, ...], ratio: float) -> NearNodes:
+    """:class:`NearNodes` of ``pts`` (n, 3) on the lattice origin + step·index of ``shape``:
+    per axis, corner lo qualifies when frac < ratio, corner lo + 1 when 1 − frac < ratio."""
+    ok = np.all(np.isfinite(pts), axis=1)
+    u = (np.where(np.isfinite(pts), pts, 0.0) - origin) / step
+    near = np.rint(u)  # on a lattice plane up to round-off (1e-9 of a step): on it
+    u = np.where(np.abs(u - near) <= ON_PLANE_TOL, near, u)
+    lo = np.floor(u)
+    frac = u - lo
+    want = (frac < ratio, (1.0 - frac) < ratio)
+    offs = np.array([[(c >> 2) & 1, (c >> 1) & 1, c & 1] for c in range(8)])
+    idx = lo.astype(np.int64)[:, None, :] + offs[None]
+    needed = np.all(np.where(offs[None] == 1, want[1][:, None, :], want[0][:, None, :]), axis=2)
+    inside = np.all((idx >= 0) & (idx < np.array(shape)), axis=2)
+    return NearNodes(ok, idx, needed, inside)

@@ -3,7 +3,9 @@
 Two checks, both must pass:
 1. on the grid: the segment stays in the grid box and never enters the open cube
    of half-width Δ around a node that is not home-connected feasible (the grid
-   definition of P', exact slab test);
+   definition of P', exact slab test) — or, refined near the boundary, the open cubes
+   of a mixed set (:class:`CubeSet`: half-width Δ around grid nodes, h = Δ/4 around
+   fine nodes; :mod:`spm_console.core.region_refine`);
 2. exactly: samples every ≤ Δ/4 along it pass FK by continuation, ζ ≥ ζ_min and
    link distances ≥ 2δ.
 A failure raises :class:`InfeasibleError` naming the first θ where it happens
@@ -12,12 +14,14 @@ and why. Angles in degrees.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.workspace_check import check_points, pair_name
+from spm_console.core.workspace_check import PointChecks, check_points, pair_name
 from spm_console.errors import InfeasibleError
 
 if TYPE_CHECKING:
@@ -70,9 +74,45 @@ def node_reason(ws: Workspace, flat: int) -> str:
     return f"grid node {_fmt(th)}° is {why}"
 
 
-def check_segment(ws: Workspace, a: F, b: F) -> None:
-    """Raise :class:`InfeasibleError` unless the straight segment a→b (deg) is feasible."""
-    model, links = ws.exact_models()
+@dataclass(frozen=True)
+class CubeSet:
+    """Open cubes a feasible segment must not enter: centres (n, 3) deg, one half-width."""
+
+    centres_deg: F
+    half_deg: float
+    label: str
+    """How the half-width reads in a refusal, e.g. "Δ = 2°"."""
+    describe: Callable[[int], str]
+    """Why the node at row j is not feasible, in words."""
+
+
+def grid_cubes(ws: Workspace) -> CubeSet:
+    """The cubes of half-width Δ around every grid node that is not home-connected feasible."""
+    bad = np.flatnonzero(ws.klass.ravel() != 0)
+    th = ws.theta_deg().reshape(-1, 3)[bad]
+    return CubeSet(th, float(ws.step_deg), f"Δ = {ws.step_deg:g}°",
+                   lambda j: node_reason(ws, int(bad[j])))
+
+
+@dataclass(frozen=True)
+class ExactSamples:
+    """The exact checks of points every ≤ Δ/4 along a segment (deg)."""
+
+    points: F
+    checks: PointChecks
+    ok: NDArray[np.bool_]
+
+    @property
+    def feasible(self) -> bool:
+        return bool(self.ok.all())
+
+    def summary(self) -> str:
+        return (f"min ζ = {self.checks.zeta.min():.3f}, closest links "
+                f"{np.nanmin(self.checks.min_link_mm):.1f} mm")
+
+
+def check_range(ws: Workspace, a: F, b: F) -> None:
+    """Raise :class:`InfeasibleError` unless both ends lie in the grid box."""
     lo, hi = ws.range_deg()
     for name, t in (("first", a), ("second", b)):
         if not np.all((t >= lo - 1e-9) & (t <= hi + 1e-9)):
@@ -80,29 +120,53 @@ def check_segment(ws: Workspace, a: F, b: F) -> None:
                 f"the {name} configuration {_fmt(t)}° is outside the workspace grid "
                 f"[{lo:g}, {hi:g}]°"
             )
-    th = ws.theta_deg().reshape(-1, 3)
-    bad = np.flatnonzero(ws.klass.ravel() != 0)
-    t_in, _ = segment_entry(a, b, th[bad], ws.step_deg)
+
+
+def exact_samples(ws: Workspace, a: F, b: F) -> ExactSamples:
+    """Exact checks every ≤ Δ/4 along a→b (deg), both ends included."""
+    model, links = ws.exact_models()
     n = max(2, int(np.ceil(np.abs(b - a).max() / (0.25 * ws.step_deg))) + 1)
     pts = a + (b - a) * np.linspace(0.0, 1.0, n)[:, None]
     pc = check_points(ws, model, links, pts)
-    ok = pc.pointwise_ok(ws.zeta_min, ws.min_distance_mm)
-    if np.isfinite(t_in).any():
-        j = int(np.argmin(t_in))
-        where = a + (b - a) * float(t_in[j])
-        msg = (f"the straight segment {_fmt(a)}° → {_fmt(b)}° leaves the feasible set at "
-               f"θ ≈ {_fmt(where)}°: within Δ = {ws.step_deg:g}° of "
-               + node_reason(ws, int(bad[j])))
-        if ok.all():
-            msg += (f". Checked exactly, the segment itself is feasible (min ζ = "
-                    f"{pc.zeta.min():.3f}, closest links {np.nanmin(pc.min_link_mm):.1f} mm): "
-                    f"a finer workspace grid (smaller workspace.step_deg, e.g. 1°) can hold a "
-                    f"convex region containing both")
+    return ExactSamples(pts, pc, pc.pointwise_ok(ws.zeta_min, ws.min_distance_mm))
+
+
+#: What a refusal adds when the segment is exactly feasible but within Δ of an infeasible node.
+GRID_HINT = ("a finer workspace grid (smaller workspace.step_deg) may hold a convex region "
+             "containing both")
+
+
+def check_segment(ws: Workspace, a: F, b: F, cubes: Sequence[CubeSet] | None = None,
+                  samples: ExactSamples | None = None, hint: str = GRID_HINT) -> None:
+    """Raise :class:`InfeasibleError` unless the straight segment a→b (deg) is feasible:
+    in the grid box, outside every cube of ``cubes`` (default: :func:`grid_cubes`, the
+    grid definition of P′) and feasible at the exact samples (``samples`` if already
+    computed)."""
+    _, links = ws.exact_models()
+    check_range(ws, a, b)
+    sets = [grid_cubes(ws)] if cubes is None else list(cubes)
+    ex = exact_samples(ws, a, b) if samples is None else samples
+    first: tuple[float, CubeSet, int] | None = None
+    for cs in sets:
+        t_in, _ = segment_entry(a, b, cs.centres_deg, cs.half_deg)
+        if np.isfinite(t_in).any():
+            j = int(np.argmin(t_in))
+            if first is None or float(t_in[j]) < first[0]:
+                first = (float(t_in[j]), cs, j)
+    if first is not None:
+        t, cs, j = first
+        where = a + (b - a) * t
+        at = ("from its first configuration" if t <= 1e-12
+              else f"at θ ≈ {_fmt(where)}°")
+        msg = (f"the straight segment {_fmt(a)}° → {_fmt(b)}° leaves the feasible set {at}: "
+               f"within {cs.label} of " + cs.describe(j))
+        if ex.feasible:
+            msg += f". Checked exactly, the segment itself is feasible ({ex.summary()}): {hint}"
         raise InfeasibleError(msg)
-    if not ok.all():
-        k = int(np.argmin(ok))
-        why = pc.reason(k, ws.zeta_min, ws.min_distance_mm, links)
+    if not ex.feasible:
+        k = int(np.argmin(ex.ok))
+        why = ex.checks.reason(k, ws.zeta_min, ws.min_distance_mm, links)
         raise InfeasibleError(
             f"the straight segment {_fmt(a)}° → {_fmt(b)}° is infeasible at "
-            f"θ = {_fmt(pts[k])}°: {why}"
+            f"θ = {_fmt(ex.points[k])}°: {why}"
         )

@@ -115,8 +115,13 @@ def _start_nodes(ws: Workspace, th_deg: F) -> tuple[NDArray[np.int64], B]:
     return best, np.asarray(feas)
 
 
-def check_points(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F) -> PointChecks:
-    """Exact checks of θ (n, 3) deg, continuation from the nearest solved grid node."""
+def check_points(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F,
+                 steps: int | None = None) -> PointChecks:
+    """Exact checks of θ (n, 3) deg, continuation from the nearest solved grid node.
+
+    ``steps``: continuation steps per point (default: enough for the farthest point of each
+    chunk, ≤ :data:`STEP_RAD` each). A fixed count makes each point's verdict independent of
+    the other points checked with it (the refined certification memoizes verdicts)."""
     th_deg = np.atleast_2d(np.asarray(theta_deg, float))
     n = len(th_deg)
     lo, hi = ws.range_deg()
@@ -130,8 +135,8 @@ def check_points(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F)
     for s in range(0, n, CHUNK):
         sl = slice(s, s + CHUNK)
         span = float(np.abs(th[sl] - node_th[sl]).max()) if n else 0.0
-        steps = max(1, int(np.ceil(span / STEP_RAD)))
-        R, ok = track_from(model, node_th[sl], R_nodes[node[sl]], th[sl], steps)
+        n_steps = max(1, int(np.ceil(span / STEP_RAD))) if steps is None else int(steps)
+        R, ok = track_from(model, node_th[sl], R_nodes[node[sl]], th[sl], n_steps)
         R_all[sl], ok_all[sl] = R, ok
     # poses from home for rows whose start node was unreached
     for k in np.flatnonzero(~np.isfinite(R_nodes[node]).all((-2, -1))):

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from spm_console.core.planning import solve_mintime, solve_mvn
-from spm_console.core.region_build import region_containing
+from spm_console.core.region_build import choose_region, region_containing
 from spm_console.core.servo_model import discretize
 from spm_console.core.workspace import Workspace
 from spm_console.errors import InfeasibleError
@@ -18,6 +18,7 @@ from spm_console.report import paper_values as pv
 from spm_console.report.plot_run import plot_run
 from spm_console.report.repro_types import Check, Section
 from spm_console.run.oneshot import RunRequest, execute_once
+from spm_console.run.plan_check import verify_plan
 from spm_console.run.runlog import load_run
 from spm_console.store.workspace_cache import load_or_build
 
@@ -89,31 +90,44 @@ def _mvn(profile: Profile, ws: Workspace, out: Path, settings: ReproSettings) ->
     return sec
 
 
+def _mintime_on_1deg(profile: Profile, start: np.ndarray, goal: np.ndarray, n_profile: int) -> Check:
+    """The same minimum-time problem in a region built on a 1° grid (``--fine-grid``)."""
+    sm = discretize(profile.servo.p, profile.servo.ts_s, profile.servo.discretization)
+    fine = profile.model_copy(update={"workspace": profile.workspace.model_copy(update={"step_deg": 1.0})})
+    t0 = time.perf_counter()
+    ws1, _ = load_or_build(fine)
+    build = time.perf_counter() - t0
+    try:
+        choice = choose_region(ws1, start, goal)
+    except InfeasibleError as exc:
+        return Check("N* on a 1° grid (--fine-grid)", f"{pv.MINTIME_N}", "refused", None, None,
+                     explained=exc.message)
+    res = solve_mintime(sm, start, goal, choice.region, pv.MINTIME_VMAX_DEGPS)
+    return Check("N* on a 1° grid (--fine-grid)", f"{pv.MINTIME_N}",
+                 f"{res.N} ({ws1.counts()['nodes']:,} nodes, workspace {build:.1f} s, region "
+                 f"{choice.kind}); {n_profile} on the profile's {profile.workspace.step_deg:g}° grid",
+                 None, None)
+
+
 def _mintime(profile: Profile, ws: Workspace, out: Path, settings: ReproSettings) -> Section:
     t0 = time.perf_counter()
     sec = Section("Minimum-time references (Sec. VI-E3, Figs. 9–10)", "mintime")
     start, goal = np.array(pv.MINTIME_START_DEG), np.array(pv.MINTIME_GOAL_DEG)
     sm = discretize(profile.servo.p, profile.servo.ts_s, profile.servo.discretization)
-    grid_note = f"{profile.workspace.step_deg:g}° grid"
-    try:
-        region = region_containing(ws, start, goal)
-    except InfeasibleError as exc:
-        # the workspace's segment check has already checked the segment exactly and says so
-        why = (f"on the {profile.workspace.step_deg:g}° grid no convex region inside P′ contains both: "
-               f"{exc.message}; the cube criterion of P′ is conservative by up to Δ")
-        if settings.quick:
-            sec.checks.append(Check("N* for [70, 90, 80]° → goal, v_max = 50°/s",
-                                    f"{pv.MINTIME_N} ({pv.MINTIME_N * pv.TS_S:.2f} s)", "refused", None, None,
-                                    explained=why + "; the full run retries on a 1° grid"))
-            sec.seconds = time.perf_counter() - t0
-            return sec
-        fine = profile.model_copy(update={"workspace": profile.workspace.model_copy(update={"step_deg": 1.0})})
-        ws_fine, _ = load_or_build(fine)
-        region = region_containing(ws_fine, start, goal)
-        grid_note = "1° grid"
-        sec.text = (f"With the profile's grid, {why}. Halving Δ halves that conservatism: on a 1° grid "
-                    f"({ws_fine.counts()['nodes']:,} nodes) a convex region containing both exists, and the "
-                    "minimum-time problem is solved in it.")
+    step = profile.workspace.step_deg
+    choice = choose_region(ws, start, goal)
+    region = choice.region
+    grid_note = f"{step:g}° grid"
+    if choice.kind == "refined":
+        grid_note += f", refined to h = {choice.resolution_deg:g}° near the boundary"
+        sec.text = (f"On the profile's {step:g}° grid the straight start–goal segment passes within "
+                    f"Δ = {step:g}° of a singular grid node although it is feasible everywhere, so "
+                    "the grid criterion of P′ (a cube of half-width Δ around every infeasible node) "
+                    "cannot hold both configurations. The region is therefore grown with the grid "
+                    f"refined near the segment: the criterion is applied at h = "
+                    f"{choice.resolution_deg:g}° to the grid nodes there (their fine nodes checked "
+                    "exactly), and the runtime verifies the plan against the same refined criterion "
+                    "before it executes.")
     res = solve_mintime(sm, start, goal, region, pv.MINTIME_VMAX_DEGPS)
     sec.checks += [
         Check("N* (minimum feasible horizon)", f"{pv.MINTIME_N} ({pv.MINTIME_N * pv.TS_S:.2f} s)",
@@ -132,6 +146,11 @@ def _mintime(profile: Profile, ws: Workspace, out: Path, settings: ReproSettings
               f"{res.plan.check.max_speed_samples_degps:.4f}°/s (between samples "
               f"{res.plan.check.max_speed_between_degps:.2f}°/s)", res.plan.check.speed_excess_degps, 1e-6),
     ]
+    plan = res.to_plan("mintime", profile.digest())
+    check = verify_plan(profile, ws, plan)
+    sec.checks.append(Check("the runtime's plan verification (before torque-on)", "not printed",
+                            f"passed: {check.points:,} simulated instants certified by the workspace",
+                            None, None))
     res4 = solve_mintime(sm, start, goal, region, pv.MINTIME_VMAX_DEGPS, intersample=4)
     sec.checks.append(Check(
         "N* with the speed bound also enforced at 3 instants between samples (--intersample 4)",
@@ -144,5 +163,7 @@ def _mintime(profile: Profile, ws: Workspace, out: Path, settings: ReproSettings
         _execute(profile, plan, out, "fig9_10_mintime.png",
                  "Minimum time: reference, simulated and measured positions; estimated velocities "
                  "(cf. Figs. 9–10)", sec)
+    if settings.fine_grid:
+        sec.checks.append(_mintime_on_1deg(profile, start, goal, res.N))
     sec.seconds = time.perf_counter() - t0
     return sec

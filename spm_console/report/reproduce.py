@@ -27,6 +27,9 @@ class ReproSettings:
     """Execute the plans on the emulated bus (Figs. 7–10 equivalents)."""
     verify_samples: int = 100_000
     """Points sampled inside P by the verifier."""
+    fine_grid: bool = False
+    """Also plan the minimum-time pair on a 1° workspace grid (built, ~13 s and ~1 GB) and
+    compare its N* with the profile's grid refined near the boundary."""
 
 
 def _fmt(x: float | None) -> str:

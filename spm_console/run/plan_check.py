@@ -14,9 +14,12 @@ last reference, and refused (:class:`PlanRefusedError`, exit 26) unless
   within it plus :data:`BETWEEN_SPEED_ALLOWANCE` between samples (piecewise-constant
   references make the continuous speed overshoot the sampled one: 5 % for the paper's
   minimum-time plan; plans solved with ``--intersample`` meet the bound exactly);
-* every simulated position of a planned segment is certified by the workspace grid
-  (:class:`~spm_console.core.certify.CertifiedSet`, the grid's P′): a workspace with no
-  feasible node certifies nothing, so nothing can be executed in it;
+* every simulated position of a planned segment is certified by the workspace: by the grid
+  (:class:`~spm_console.core.certify.CertifiedSet`, the grid's P′) or, near the boundary, by
+  the same criterion at the fine resolution Δ/4
+  (:class:`~spm_console.core.refine.RefinedCertifiedSet`, fine nodes checked exactly by the
+  runtime itself from this profile's workspace, never taken from the plan): a workspace with
+  no feasible node certifies nothing, so nothing can be executed in it;
 * a straight homing/approach move (built by the runtime from a measured position, which
   may lie between grid nodes or outside the grid) passes the exact checks along its
   continuous motion instead: FK tracked in the home assembly mode, ζ ≥ ζ_min and links at
@@ -37,6 +40,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.certify import CertifiedSet
 from spm_console.core.plan import Plan
+from spm_console.core.refine import RefinedCertifiedSet
 from spm_console.core.servo_model import simulate_continuous
 from spm_console.core.workspace import Workspace
 from spm_console.core.workspace_check import check_points
@@ -87,7 +91,11 @@ class PlanVerifier:
     def __init__(self, profile: Profile, workspace: Workspace) -> None:
         self.profile = profile
         self.ws = workspace
-        self.certified: CertifiedSet = workspace.certified_set()
+        self.certified: CertifiedSet = (RefinedCertifiedSet.of(workspace)
+                                        if workspace.model is not None and workspace.links is not None
+                                        else workspace.certified_set())
+        """The grid's certified set, refined near the boundary when the workspace carries its
+        models (fine verdicts memoized: the executor's safety monitor shares them)."""
         self.lo, self.hi = servo_limits_deg(profile)
         self.vmax = profile.limits.vmax_degps
 
@@ -170,7 +178,14 @@ class PlanVerifier:
                                     f"{m // POINTS_PER_INTERVAL} and {m // POINTS_PER_INTERVAL + 1}), "
                                     "which this profile's workspace does not certify feasible "
                                     f"(within Δ = {self.certified.step_deg:g}° of an infeasible grid "
-                                    "node or outside the grid); whatever region the plan names")
+                                    f"node{self._fine_note()} or outside the grid); whatever region "
+                                    "the plan names")
+
+    def _fine_note(self) -> str:
+        c = self.certified
+        if isinstance(c, RefinedCertifiedSet) and c.fine is not None:
+            return f" and within h = {c.resolution_deg:g}° of a fine node that fails the exact checks"
+        return ""
 
     def _exact(self, seg: Segment, pos: F) -> None:
         ws, prof = self.ws, self.profile

@@ -1,0 +1,240 @@
+"""IRIS geometry (Deits & Tedrake 2015) against open axis-aligned cubes (obstacles).
+
+Separating planes in the metric of an ellipsoid, planes that keep required points, and the
+greedy reduction of a polytope to a half-space cap. Obstacles are open cubes given by
+centres and half-widths (one shared half-width, or one per cube: a grid node's cube of
+half-width Δ next to a fine node's cube of half-width h). Works in scaled coordinates
+x = (θ − centre) / half-range (:class:`Frame`); degrees where a docstring says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import linprog
+
+from spm_console.core.ellipsoid import Ellipsoid
+from spm_console.core.region import Region
+from spm_console.errors import InfeasibleError
+
+F = NDArray[np.float64]
+B = NDArray[np.bool_]
+
+#: Tolerance (deg) for "a node lies in P".
+INSIDE_TOL_DEG = 1e-7
+
+
+def half_widths(half: float | F, n: int) -> F:
+    """Per-obstacle half-widths (n,) from one shared value or an array."""
+    return np.asarray(np.broadcast_to(np.asarray(half, float), (n,)), float)
+
+
+@dataclass(frozen=True)
+class Frame:
+    """Scaling θ (deg) ↔ x = (θ − c) / s."""
+
+    c: F
+    s: float
+
+    def to_x(self, theta: F) -> F:
+        return np.asarray((np.asarray(theta, float) - self.c) / self.s)
+
+    def region(self, A: F, b: F) -> Region:
+        """Rows a·x ≤ b  →  (a/s)·θ ≤ b + a·c/s, normalized."""
+        return Region(A / self.s, b + A @ self.c / self.s).normalized()
+
+
+def closest_on_boxes(M: F, c: F, lo: F, hi: F) -> tuple[F, F]:
+    """argmin and min of (x − c)ᵀ M (x − c) over each box [lo_k, hi_k] (k rows of (n, 3)).
+
+    Exact: the minimizer is the centre (if inside) or lies in the relative interior
+    of a face, an edge or at a vertex; every face's unconstrained minimizer and every edge's clipped
+    minimizer is a candidate, the best feasible one wins (vertices are covered by
+    the clipped edges).
+    """
+    n = len(lo)
+    best = np.full(n, np.inf)
+    arg = np.zeros((n, 3))
+    bounds = (lo, hi)
+
+    def consider(x: F) -> None:
+        inside = np.all((x >= lo - 1e-12) & (x <= hi + 1e-12), -1)
+        y = x - c
+        val = np.where(inside, np.einsum("ni,ij,nj->n", y, M, y), np.inf)
+        better = val < best
+        best[better] = val[better]
+        arg[better] = x[better]
+
+    consider(np.broadcast_to(c, (n, 3)).copy())  # centre inside the box
+    for k in range(3):  # faces x_k = const
+        f = [i for i in range(3) if i != k]
+        gain = np.linalg.solve(M[np.ix_(f, f)], M[f, k])
+        for s in (0, 1):
+            x = np.empty((n, 3))
+            x[:, k] = bounds[s][:, k]
+            x[:, f] = c[f] - np.outer(x[:, k] - c[k], gain)
+            consider(x)
+    for i in range(3):  # edges along x_i
+        j, k = (m for m in range(3) if m != i)
+        for s1 in (0, 1):
+            for s2 in (0, 1):
+                x = np.empty((n, 3))
+                x[:, j] = bounds[s1][:, j]
+                x[:, k] = bounds[s2][:, k]
+                xi = c[i] - (M[i, j] * (x[:, j] - c[j]) + M[i, k] * (x[:, k] - c[k])) / M[i, i]
+                x[:, i] = np.clip(xi, lo[:, i], hi[:, i])
+                consider(x)
+    return arg, best
+
+
+def box_corners(lo: F, hi: F) -> F:
+    return np.array([[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1],
+                      hi[2] if i & 4 else lo[2]] for i in range(8)])
+
+
+def keeping_plane(req: F, lo: F, hi: F, g: F) -> tuple[F, float] | None:
+    """A plane a·x ≤ b keeping ``req`` (m, 3) with the box [lo, hi] beyond it.
+
+    First the smallest L1 change of the preferred normal ``g`` that separates
+    (LP), else the max-margin separator (LP). The offset touches the box."""
+    corners = box_corners(lo, hi)
+    m = len(req)
+    gn = g / np.linalg.norm(g)
+    # variables b, p (3), q (3) with a = gn + p − q, p, q ≥ 0; minimize Σ(p + q)
+    one = np.ones((m, 1))
+    A_ub = np.vstack([
+        np.hstack([-one, req, -req]),                    # a·q ≤ b
+        np.hstack([np.ones((8, 1)), -corners, corners]),  # a·y ≥ b
+        np.hstack([np.zeros((1, 1)), -gn[None], gn[None]]),  # a·gn ≥ 0.5
+    ])
+    b_ub = np.r_[-(req @ gn), corners @ gn, 0.5]
+    res = linprog(np.r_[0.0, np.ones(6)], A_ub=A_ub, b_ub=b_ub,
+                  bounds=[(None, None)] + [(0, None)] * 6, method="highs")
+    if res.status == 0:
+        a = gn + res.x[1:4] - res.x[4:7]
+        return a, float((corners @ a).min())
+    # max-margin: variables a (3), b, t: max t  s.t. a·q + t ≤ b, a·y ≥ b
+    A_ub = np.vstack([
+        np.hstack([req, -np.ones((m, 1)), np.ones((m, 1))]),
+        np.hstack([-corners, np.ones((8, 1)), np.zeros((8, 1))]),
+    ])
+    res = linprog(np.r_[0, 0, 0, 0, -1.0], A_ub=A_ub, b_ub=np.zeros(len(A_ub)),
+                  bounds=[(-1, 1)] * 3 + [(None, None), (None, 1.0)], method="highs")
+    if res.status != 0 or res.x[4] < 0 or not np.any(res.x[:3]):
+        return None
+    a = np.asarray(res.x[:3])
+    return a, float((corners @ a).min())
+
+
+def separating_planes(E: Ellipsoid, Q: F, half: float | F, req: F) -> tuple[F, F]:
+    """IRIS step 1: planes (k, 3), (k,) excluding every open cube (centres Q, half-width
+    ``half``: one value or one per cube) while keeping the required points ``req`` (m, 3)
+    (scaled coordinates)."""
+    M = E.metric()
+    hw = half_widths(half, len(Q))
+    lo, hi = Q - hw[:, None], Q + hw[:, None]
+    X, dist = closest_on_boxes(M, E.d, lo, hi)
+    order = np.argsort(dist, kind="stable")
+    alive = np.ones(len(Q), bool)
+    planes_a: list[F] = []
+    planes_b: list[float] = []
+    for k in order:
+        if not alive[k]:
+            continue
+        a = M @ (X[k] - E.d)
+        b = float(a @ X[k])
+        if np.linalg.norm(a) < 1e-12:  # centre on the cube's boundary: push away from it
+            a = Q[k] - E.d
+            b = float((box_corners(lo[k], hi[k]) @ a).min())
+        if len(req) and (req @ a > b - 1e-12).any():
+            alt = keeping_plane(req, lo[k], hi[k], a)
+            if alt is None:
+                raise InfeasibleError(
+                    "a required configuration lies inside an infeasible cell (the cube around "
+                    "an infeasible node)"
+                )
+            a, b = alt
+        planes_a.append(a)
+        planes_b.append(b)
+        alive &= (Q @ a - hw * np.abs(a).sum()) < b - 1e-12
+    if not planes_a:
+        return np.zeros((0, 3)), np.zeros(0)
+    return np.asarray(planes_a), np.asarray(planes_b)
+
+
+def inside(region: Region, pts: F) -> B:
+    return region.contains(pts, tol=INSIDE_TOL_DEG)
+
+
+def is_box_row(a: F) -> bool:
+    return int(np.count_nonzero(np.abs(a) > 1e-12)) == 1
+
+
+def reduce_halfspaces(
+    region: Region, frame: Frame, Q: F, half: float | F, req: F, max_n: int, pts: F
+) -> Region:
+    """Greedy plane removal: drop a plane and hand the obstacles only it excluded to
+    the other planes by lowering their offsets (never cutting a required point).
+    Each round drops the plane that loses the fewest of ``pts`` (deg) — often a
+    net gain, since the freed region can exceed what the lowered planes cut.
+    Rounds continue while there are more than ``max_n`` rows or a drop gains.
+    Grid-box rows are kept. ``half``: the cubes' half-width, one value or one per cube."""
+    A, b = region.A.copy(), region.b.copy()
+    box = frame.region(np.vstack([np.eye(3), -np.eye(3)]), np.ones(6))
+    Qd = Q * frame.s + frame.c
+    hd = half_widths(half, len(Q))[:, None] * frame.s
+    reqd = req * frame.s + frame.c
+    tol = INSIDE_TOL_DEG
+    while True:
+        n = len(b)
+        mins = Qd @ A.T - hd * np.abs(A).sum(1)  # (n_obs, n) min of a·θ over each cube
+        excl = mins >= b - 1e-9
+        nex = excl.sum(1)
+        req_max = (reqd @ A.T).max(0) if len(reqd) else np.full(n, -np.inf)
+        slk = b[:, None] - A @ pts.T  # slack, (n, n_pts): one row per plane
+        nviol = (slk < -tol).sum(0)
+        S_in = slk[:, nviol == 0]
+        S_one = slk[:, nviol == 1]
+        only = np.argmin(S_one, axis=0) if S_one.shape[1] else np.zeros(0, int)
+        # first the offsets each drop needs, then the losses on the points that matter
+        moves: list[tuple[int, F]] = []
+        for k in range(n):
+            if is_box_row(A[k]):
+                continue
+            sole = np.flatnonzero(excl[:, k] & (nex == 1))
+            nb = b.copy()
+            if len(sole):
+                ok = (mins[sole] >= req_max) & (np.arange(n) != k)
+                gain = np.where(ok, mins[sole] - b, -np.inf)
+                j = np.argmax(gain, axis=1)
+                if not np.isfinite(gain[np.arange(len(sole)), j]).all():
+                    continue
+                np.minimum.at(nb, j, mins[sole, j])
+            moves.append((k, nb))
+        if not moves:
+            break
+        reach = max(float((b - nb).max()) for _, nb in moves) + tol
+        S_in = S_in[:, S_in.min(0) < reach]
+        best: F | None = None
+        best_k, best_loss = -1, np.inf
+        for k, nb in moves:
+            moved = np.flatnonzero(nb < b)
+            shift = b[moved] - nb[moved]
+            freed = S_one[:, only == k]
+            lost = np.zeros(S_in.shape[1], bool)
+            kept = np.ones(freed.shape[1], bool)
+            for jj, sh in zip(moved, shift, strict=True):
+                lost |= S_in[jj] < sh - tol
+                kept &= freed[jj] >= sh - tol
+            loss = float(lost.sum() - kept.sum())
+            if loss < best_loss:
+                best_loss, best, best_k = loss, nb, k
+        if best is None or (n <= max_n and best_loss >= 0):
+            break
+        keep = np.arange(n) != best_k
+        # the grid box may have been redundant only because of the dropped plane
+        reduced = Region(np.vstack([A[keep], box.A]), np.r_[best[keep], box.b]).without_redundant()
+        A, b = reduced.A, reduced.b
+    return Region(A, b)
