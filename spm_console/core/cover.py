@@ -64,6 +64,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from spm_console.core import region_build as rb
+from spm_console.core.iris import Frame, reduce_halfspaces, separating_planes
 from spm_console.core.ellipsoid import Ellipsoid, inscribed_ellipsoid
 from spm_console.core.region import Region
 from spm_console.errors import InfeasibleError, SolverError
@@ -202,7 +203,7 @@ def _image(region: Region) -> Region:
 class _Grower:
     """IRIS for cover regions (fewer steps and rows than P), in P's scaled frame."""
 
-    frame: rb._Frame
+    frame: Frame
     Q: F
     half: float
     max_halfspaces: int
@@ -217,7 +218,7 @@ class _Grower:
         best: Region | None = None
         best_n = -1
         for it in range(self.iters):
-            Ap, bp = rb.separating_planes(E, self.Q, self.half, req)
+            Ap, bp = separating_planes(E, self.Q, self.half, req)
             cand = fr.region(np.vstack([Abox, Ap]), np.r_[np.ones(6), bp]).without_redundant()
             n = int(cand.contains(objective_deg, tol=INSIDE_TOL_DEG).sum())
             if n > best_n:
@@ -229,7 +230,7 @@ class _Grower:
                     break
         assert best is not None
         if best.halfspaces > self.max_halfspaces:
-            best = rb.reduce_halfspaces(best, fr, self.Q, self.half, req, self.max_halfspaces,
+            best = reduce_halfspaces(best, fr, self.Q, self.half, req, self.max_halfspaces,
                                         objective_deg)
         return best
 
@@ -318,7 +319,7 @@ def build_cover(
     covered = ws.region.contains(fpts, tol=INSIDE_TOL_DEG) if len(fpts) else np.zeros(0, bool)
     symmetric = cyclic_symmetric(ws)
     lo, hi = ws.range_deg()
-    frame = rb._Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
+    frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
     grower = _Grower(frame, frame.to_x(rb.obstacle_nodes(f, theta)), ws.step_deg / frame.s,
                      max_halfspaces, iters, ws.step_deg)
     need = int(np.ceil(target * len(fpts)))
@@ -392,7 +393,7 @@ def connector_regions(ws: Workspace, cover: RegionCover, points_deg: F,
     demand for a plan's ends; never stored. InfeasibleError when a point sits inside an
     obstacle cube (it is not certified)."""
     lo, hi = ws.range_deg()
-    frame = rb._Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
+    frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
     theta = ws.theta_deg()
     grower = _Grower(frame, frame.to_x(rb.obstacle_nodes(ws.feasible, theta)),
                      ws.step_deg / frame.s, COVER_HALFSPACES, iters, ws.step_deg)
