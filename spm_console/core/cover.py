@@ -64,8 +64,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from spm_console.core import region_build as rb
-from spm_console.core.iris import Frame, reduce_halfspaces, separating_planes
 from spm_console.core.ellipsoid import Ellipsoid, inscribed_ellipsoid
+from spm_console.core.iris import Frame, reduce_halfspaces, separating_planes
 from spm_console.core.region import Region
 from spm_console.errors import InfeasibleError, SolverError
 
