@@ -15,6 +15,7 @@ from spm_console.core.planning.reference import solve_reference
 from spm_console.core.region import Region
 from spm_console.core.servo_model import discretize
 from spm_console.errors import ExitCode
+from spm_console.store.plan_schema import plan_from_dict
 from tests.planning_cases import polytope
 
 START = ["127.53", "83.23", "85.25"]
@@ -137,26 +138,28 @@ def cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_paper_experiments_with_the_real_workspace(capsys: pytest.CaptureFixture[str],
                                                     cache_dir: Path, tmp_path: Path) -> None:
-    """MVN: the goal is outside the cached P, so a region around the segment is built and
-    the plan is optimal (cvxpy + Clarabel agree). Minimum time: the segment from [70, 90, 80]°
-    passes within Δ of a singular grid node with our link model, so the region is grown with
-    the grid refined near the segment (h = Δ/4) and the plan verifies."""
+    """MVN: the goal is outside the cached P, so the plan follows a route through the
+    workspace's region cover and is optimal for that route (cvxpy + Clarabel agree).
+    Minimum time: the paper's pair plans on the 2° grid through the cover too, at the lower
+    bound N* = 65 (joint 2 travels 65° at 50°/s); the single-region planner's refined region
+    gets the same N* (tests/test_refine_runtime.py)."""
     out = tmp_path / "mvn.json"
     code, so, err = run(capsys, "plan", "mvn", "--start", *START, "--goal", *GOAL,
                         "--cache-dir", str(cache_dir), "--out", str(out), "--json")
     assert code == 0, err
     rec = json.loads(so)
-    assert rec["region_kind"] == "grown" and rec["check"]["ok"]
-    assert rec["region"].startswith("a region grown around the segment (")
-    d = json.loads(out.read_text())
-    region = Region.from_dict(d["region"])
+    assert rec["region_kind"] == "route" and rec["check"]["ok"]
+    assert rec["region"].startswith("a route through 2 regions (P → ")
+    plan = plan_from_dict(json.loads(out.read_text()))
+    assert plan.route is not None and list(plan.route.switch) == rec["route"]["switch_samples"]
     pb = PlanProblem(discretize(32.22, 0.02), np.array(START, float), np.array(GOAL, float), 150,
-                     region, ref_lo_deg=np.full(3, 60.0), ref_hi_deg=np.full(3, 160.0))
+                     plan.region, ref_lo_deg=np.full(3, 60.0), ref_hi_deg=np.full(3, 160.0),
+                     route=plan.route)
     ref = solve_reference(pb)
     assert abs(rec["cost"] - ref.cost) <= 1e-4 * ref.cost
     code, so, err = run(capsys, "plan", "mintime", "--start", "70", "90", "80", "--goal", *GOAL,
                         "--vmax", "50", "--cache-dir", str(cache_dir), "--json")
     assert code == 0, err
     rec = json.loads(so)
-    assert rec["region_kind"] == "refined" and rec["check"]["ok"]
-    assert "refined resolution h = 0.5°" in rec["region"]
+    assert rec["region_kind"] == "route" and rec["check"]["ok"] and rec["N"] == 65
+    assert "for this sequence of 2 regions" in json.dumps(rec["n_minus_1_infeasible"])

@@ -11,14 +11,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from spm_console.core.planning import PlanProblem, solve_mintime_problem
 from spm_console.core.refine import RefinedCertifiedSet
+from spm_console.core.region_build import choose_region
 from spm_console.core.workspace import Workspace
 from spm_console.errors import PlanRefusedError
+from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.run.plan_check import PlanVerifier, verify_plan
-from spm_console.run.plan_request import PlanRequest, plan_motion
 from spm_console.run.plans import synthetic_plan
 from spm_console.run.safety import SafetyMonitor
 from spm_console.run.segments import Segment
+from spm_console.store.plan_file import plan_hash
 from tests.ws_helpers import MINTIME_START, MVN_GOAL, agile_profile, agile_workspace
 
 
@@ -29,10 +32,13 @@ def ws() -> Workspace:
 
 def test_the_paper_mintime_pair_plans_and_verifies_on_the_2deg_grid(ws: Workspace) -> None:
     prof = agile_profile()
-    req = PlanRequest("mintime", np.array(MINTIME_START), np.array(MVN_GOAL), vmax_degps=50.0)
-    planned = plan_motion(prof, ws, req)
-    assert planned.region.kind == "refined"
-    plan = planned.plan
+    start, goal = np.array(MINTIME_START, float), np.array(MVN_GOAL, float)
+    choice = choose_region(ws, start, goal)  # the single-region planner (reproduce uses it)
+    assert choice.kind == "refined"
+    lo, hi = servo_limits_deg(prof)
+    plan = solve_mintime_problem(PlanProblem(
+        servo_model_of(prof), start, goal, 2, choice.region, 50.0, ref_lo_deg=lo,
+        ref_hi_deg=hi)).to_plan("mintime", plan_hash(prof))
     # the lower bound: joint 2 travels 65° at ≤ 50°/s (1.30 s = 65 samples)
     assert plan.N >= 65
     assert plan.certificate is not None

@@ -138,7 +138,7 @@ def test_a_route_plan_file_round_trips_and_edits_are_refused(tmp_path, agile) ->
 ])
 def test_pairs_one_region_refuses_plan_through_the_cover_and_every_point_is_feasible(
         agile, start, goal) -> None:  # type: ignore[no-untyped-def]
-    from spm_console.core.region_build import choose_region
+    from spm_console.core.segment_check import check_segment
     from spm_console.core.workspace_check import check_points
     from spm_console.models import link_model_of, model_of
     from spm_console.run.plan_request import PlanRequest, plan_motion
@@ -147,7 +147,7 @@ def test_pairs_one_region_refuses_plan_through_the_cover_and_every_point_is_feas
     ws, _ = load_or_build(agile)
     s, g = np.array(start), np.array(goal)
     with pytest.raises(InfeasibleError, match="straight segment"):
-        choose_region(ws, s, g)  # no single region holds the straight segment
+        check_segment(ws, s, g)  # the grid's P′ does not hold the straight segment
     planned = plan_motion(agile, ws, PlanRequest("mvn", s, g, 250))  # verified inside
     assert planned.region_kind == "route" and planned.route is not None
     plan = planned.plan
