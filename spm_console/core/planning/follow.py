@@ -58,8 +58,8 @@ F = NDArray[np.float64]
 
 FollowStatus = Literal["reached", "tracking", "infeasible", "failed"]
 
-#: θ(H) within this of the terminal target counts as reached, deg.
-REACH_TOL_DEG = 1e-3
+#: θ(H) within this of the terminal target counts as reached, deg (a tenth of a servo tick).
+REACH_TOL_DEG = 1e-2
 #: Tolerance of the final check against the true region and speed bound (deg, deg/s).
 CHECK_TOL = 1e-6
 
@@ -202,7 +202,7 @@ class FollowSolver:
         self._lo, self._hi = lo, hi
         self._mats = build(self.model, self.region, self.vmax_degps, self.horizon, lo, hi,
                            self.weights.track, self.margin_deg, self.speed_margin_degps)
-        self._projector = TargetProjector(self.region, lo, hi, self.margin_deg)
+        self._projector = TargetProjector(self.region, lo, hi, 2.0 * self.margin_deg)
         self._osqp = osqp.OSQP()
         m = self._mats
         st = self.settings
@@ -328,7 +328,9 @@ class FollowSolver:
             reason = self._check(th, om)
             if status == "maximum iterations reached" and not reason:
                 reason = f"the follow QP did not converge ({status})"
-            if not reason:
+            polished = int(res.info.status_polish) == 1
+            # the loosest pass counts only when polished (its raw point is too rough)
+            if not reason and (polished or n > 0 or len(tols) == 1 or not self.settings.polish):
                 break
         if len(tols) > 1:
             self._osqp.update_settings(eps_abs=tols[0], eps_rel=tols[0])

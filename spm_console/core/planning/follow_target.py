@@ -46,7 +46,7 @@ class TargetProjector:
         self._qp.setup(sp.eye(3, format="csc") * 2.0, np.zeros(3), G,
                        np.concatenate([np.full(self.A.shape[0], -np.inf), self.lo]),
                        np.concatenate([self.b, self.hi]),
-                       verbose=False, eps_abs=1e-10, eps_rel=1e-10, polishing=True,
+                       verbose=False, eps_abs=1e-7, eps_rel=1e-7, polishing=True,
                        max_iter=20000, adaptive_rho_interval=25)
 
     def admissible(self, theta_deg: F) -> B:
