@@ -28,7 +28,7 @@ def _region() -> Region:
     box = Region.box(70.0, 150.0)
     n = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 0.0]])
     n /= np.linalg.norm(n, axis=1)[:, None]
-    return Region(np.vstack([box.A, n]), np.concatenate([box.b, n @ _at(12.0, 10.0)]))
+    return Region(np.vstack([box.A, n]), np.concatenate([box.b, n @ HOME + np.array([12.0, 10.0])]))
 
 
 REGION = _region()
