@@ -87,7 +87,8 @@ class FollowSettings:
     """Polish the ADMM point on its active set (exact answers, a factorization more)."""
     max_iter: int = 4000
     time_limit_s: float | None = None
-    """Wall-time limit of one OSQP solve, s (None: none); a solve that hits it fails."""
+    """Wall-time budget of one :meth:`FollowSolver.solve` call's OSQP passes together, s
+    (None: none); a solve that runs out of it fails (status 'failed', the previous plan goes on)."""
     check_every: int = 5
     """Iterations between OSQP termination checks."""
     rho: float = 0.1
@@ -281,8 +282,8 @@ class FollowSolver:
                                   y=self.layout.shift_dual(self._warm.y, elapsed))
         else:
             self._osqp.warm_start(x=np.zeros(self.layout.n), y=np.zeros(self.layout.m))
-        st, it, x, y, th, om, ref, reason = self._run(th0, om0)
-        if st.startswith("primal infeasible"):
+        st, it, x, y, th, om, ref, reason = self._run(th0, om0, t0)
+        if reason == "infeasible":
             self._warm = None
             return refuse("infeasible", "no reference keeps the wrist inside the region under the "
                           f"speed bound from θ = {np.round(th0, 3).tolist()}°, θ̇ = "
@@ -299,7 +300,7 @@ class FollowSolver:
         return FollowResult(status, ref, th, om, requested.copy(), terminal, clamped, moved, cost,
                             float(err.max()), time.perf_counter() - t0, it, used_warm, "", st)
 
-    def _run(self, th0: F, om0: F) -> tuple[str, int, F, F, F, F, F, str]:
+    def _run(self, th0: F, om0: F, t0: float) -> tuple[str, int, F, F, F, F, F, str]:
         """OSQP at the loose tolerance, then — only while its answer does not pass the check
         (polishing failed) — on from the same iterate at the tighter ones.
 
@@ -309,15 +310,24 @@ class FollowSolver:
         status = ""
         reason = ""
         x = y = th = om = ref = np.zeros(0)
+        best: tuple[str, F, F, F, F, F] | None = None  # a checked but unpolished answer
+        limit = self.settings.time_limit_s
         for n, tol in enumerate(tols):
             if n:
                 self._osqp.update_settings(eps_abs=tol, eps_rel=tol)
+            if limit is not None:
+                left = limit - (time.perf_counter() - t0)
+                if left <= 0:
+                    reason = f"out of time ({limit * 1e3:g} ms) after {it} iterations"
+                    break
+                self._osqp.update_settings(time_limit=left)
             res = self._osqp.solve(raise_error=False)
             status = str(res.info.status)
             it += int(res.info.iter)
             if status.startswith("primal infeasible"):
-                return status, it, x, y, th, om, ref, "infeasible"
-            if status not in ("solved", "solved inaccurate", "maximum iterations reached"):
+                reason = "infeasible"
+                break
+            if status not in ("solved", "solved inaccurate"):
                 reason = f"the follow QP did not converge ({status})"
                 continue
             x = np.asarray(res.x, float)
@@ -326,14 +336,17 @@ class FollowSolver:
             ref = np.clip(ref, self._lo, self._hi)  # round-off beyond a servo limit
             th, om = predict(self.model, th0, om0, ref)
             reason = self._check(th, om)
-            if status == "maximum iterations reached" and not reason:
-                reason = f"the follow QP did not converge ({status})"
-            polished = int(res.info.status_polish) == 1
-            # the loosest pass counts only when polished (its raw point is too rough)
-            if not reason and (polished or n > 0 or len(tols) == 1 or not self.settings.polish):
+            if reason:
+                continue
+            # the loosest pass's raw point is rough: prefer a polished or a tighter answer
+            if int(res.info.status_polish) == 1 or n > 0 or not self.settings.polish:
                 break
+            best = (status, x, y, th, om, ref)
         if len(tols) > 1:
             self._osqp.update_settings(eps_abs=tols[0], eps_rel=tols[0])
+        if reason and reason != "infeasible" and best is not None:
+            status, x, y, th, om, ref = best
+            reason = ""
         return status, it, x, y, th, om, ref, reason
 
     def _project_rows(self, targets: F) -> tuple[F, float]:
