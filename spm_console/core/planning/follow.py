@@ -25,10 +25,17 @@ Kalman estimate) toward the target t (one (3,) point, or a preview t(1..H))::
   ``speed_margin_degps`` so that the solver's tolerance never puts a sample outside the true
   region; every result is then re-simulated through the exact model and checked against the
   true (untightened) constraints before it is returned as ok.
-* Only the samples are constrained (as in (30) with K = 1); the motion between samples of
-  these short steps stays within the safety envelope's region margin.
-* Targets outside the region (or beyond the servo limits) are *projected* onto the nearest
-  point (L2) of the tightened region ∩ limits box, and the result says ``clamped``.
+* Only the samples are constrained (as in (30) with K = 1), not the motion between them
+  (benchmarks/bench_follow.py counts the exact continuous response outside P).
+* OSQP runs at tolerance 1e-3 with polishing (exact when it finds the active set); only
+  when that answer is unpolished or fails the check does it go on, from the same iterate,
+  at 1e-4 and then 1e-6 (``FollowSettings.tolerances``), within ``time_limit_s`` if set.
+* Targets are *projected* onto the nearest point (L2) of the region tightened by twice
+  ``margin_deg`` ∩ the servo limits box (a 3-variable QP, only for targets outside it), so
+  a terminal target never sits on a constraint the QP can only meet to its tolerance. The
+  result says ``clamped`` when a given target was outside the true region or the limits
+  (``clamp_deg``: how far it moved; a target inside but within 2·margin_deg of a face is
+  moved by at most that and not reported as clamped).
 * An initial state outside the region is refused (status ``"infeasible"``, with the reason)
   without calling the solver; so is a state from which the constraints cannot be met.
 
@@ -116,9 +123,10 @@ class FollowResult:
     target_deg: F
     """(3,) terminal target used (projected when the given one was outside)."""
     clamped: bool
-    """The given terminal target (or a preview sample) was outside the region or the limits."""
+    """A given target (terminal or preview sample) was outside the region or the limits."""
     clamp_deg: float
-    """Largest distance a target was moved by the projection, deg."""
+    """Largest distance a target was moved by the projection, deg (≤ 2·margin_deg when
+    not clamped)."""
     cost: float
     """Objective value on the predicted trajectory."""
     terminal_error_deg: float
