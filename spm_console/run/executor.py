@@ -28,7 +28,7 @@ import contextlib
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -53,6 +53,21 @@ F = NDArray[np.float64]
 BusFailure = (CommError, OSError, BusError)
 """What counts as one failed bus transaction (a serial exception is an OSError; a status
 packet carrying an error number raises BusError)."""
+
+
+@dataclass
+class _LoopState:
+    """What the cycles of one run share: filters, predictors, the safety monitor, the last
+    good position and the reference held since the last write."""
+
+    safety: SafetyMonitor
+    kf: KalmanVelocity
+    fd: FiniteDifference
+    pred: ModelPredictor
+    pred_t: ModelPredictor
+    last_good: F
+    t_state: float
+    u_prev: F
 
 
 class Executor:
@@ -268,64 +283,81 @@ class Executor:
         return None
 
     def _loop(self, refs: F, phases: list[str], regions: list[bool], theta0: F) -> StopReason | None:
+        st = self._loop_state(theta0)
+        for k in range(len(refs)):
+            stop = self._cycle(st, k, refs[k], phases[k], regions[k])
+            if stop is not None:
+                return stop
+        return None
+
+    def _loop_state(self, theta0: F) -> _LoopState:
+        """Filters, predictors and the safety monitor of a run starting at rest at θ0; sets the
+        first deadline (t0) and tells ``on_start``."""
         safety = SafetyMonitor(self.profile, self.verifier.certified)
         self.safety = safety
-        kf = KalmanVelocity(self.model, theta0, self.profile.estimation.measurement_noise_deg,
-                            self.profile.estimation.process_noise_deg)
-        fd = FiniteDifference(self.ts)
-        pred = ModelPredictor(self.model, theta0)  # ideal grid: the plan's 'simulated' curve
-        pred_t = ModelPredictor(self.model, theta0)  # actual write/read times: safety's model
-        last_good = theta0.copy()
+        st = _LoopState(
+            safety=safety,
+            kf=KalmanVelocity(self.model, theta0, self.profile.estimation.measurement_noise_deg,
+                              self.profile.estimation.process_noise_deg),
+            fd=FiniteDifference(self.ts),
+            pred=ModelPredictor(self.model, theta0),  # ideal grid: the plan's 'simulated' curve
+            pred_t=ModelPredictor(self.model, theta0),  # actual write/read times: safety's model
+            last_good=theta0.copy(), t_state=self.clock(), u_prev=theta0)
         self.t0 = self.clock() + 0.002
-        t_state, u_prev = self.clock(), theta0  # at rest at θ0, goal θ0: any start time works
+        st.t_state = self.clock()  # at rest at θ0, goal θ0: any start time works
         if self.on_start is not None:
             self.on_start()
-        for k in range(len(refs)):
-            deadline = self.t0 + k * self.ts
-            self._wait_until(deadline)
-            t_start = self.clock()
-            t = t_start - self.t0
-            if self._estop.is_set():
-                estop = SafetyMonitor.estop(self._estop_reason, t, k)
-                # woken before this cycle's deadline: the repeat goes out at that deadline
-                repeat_at = deadline if t_start < deadline else deadline + self.ts
-                self._apply_stop(estop, self._hold_target(last_good), repeat_at)
-                return estop
-            ref = refs[k]
-            t_write = self.clock()
-            z, retries, detail, t_read = self._cycle_io(ref)
-            t_end = self.clock()
-            bus_s = t_end - t_start
-            t_meas = t_read if z is not None else t_end
-            # θ*(k−1) held until the write, θ*(k) from then to the measurement
-            spans = [(t_write - t_state, u_prev), (t_meas - t_write, ref)]
-            t_state, u_prev = t_meas, ref
-            if z is not None:
-                last_good = self._last_good = z
-            filt, vel = kf.step_timed(spans, z)
-            fdv = fd.step(z, t_read if z is not None else None)
-            pred_t.propagate(spans)
-            p_pos, p_vel = pred.position_deg, pred.velocity_degps
-            p_read = pred_t.position_deg  # the model when the position was read
-            stop: StopReason | None = safety.comm(z is not None, retries, t, k, detail)
-            if stop is None and (self._alerted() or k % self.hw_poll_every == 0):
-                stop = self._poll_hw(safety, t, k)
-            if stop is None and z is not None:
-                stop = safety.position(z, p_read, regions[k], t, k)
-            meas = z if z is not None else np.full(3, np.nan)
-            err = float(np.abs(meas - p_read).max()) if z is not None else float("nan")
-            sample = Sample(t=t, k=k, phase=phases[k], reference_deg=ref, measured_deg=meas,
-                            predicted_deg=p_pos, predicted_velocity_degps=p_vel,
-                            filtered_deg=filt, velocity_degps=vel, fd_velocity_degps=fdv.copy(),
-                            tracking_error_deg=err, bus_s=bus_s, late_s=t_start - deadline,
-                            read_offset_s=(t_read - deadline) if z is not None else float("nan"),
-                            retries=retries,
-                            stale_replies=stale_replies(self.bus) - self._stale0)
-            self._publish(sample)
-            if stop is not None:
-                self._apply_stop(stop, self._hold_target(last_good), deadline + self.ts)
-                return stop
-            pred.advance(ref)
+        return st
+
+    def _cycle(self, st: _LoopState, k: int, ref: F, phase: str, region: bool,
+               target: F | None = None) -> StopReason | None:
+        """Cycle k: wait for its deadline, write ``ref``, read, filter, check, publish; the
+        stop (already applied) or None."""
+        deadline = self.t0 + k * self.ts
+        self._wait_until(deadline)
+        t_start = self.clock()
+        t = t_start - self.t0
+        if self._estop.is_set():
+            estop = SafetyMonitor.estop(self._estop_reason, t, k)
+            # woken before this cycle's deadline: the repeat goes out at that deadline
+            repeat_at = deadline if t_start < deadline else deadline + self.ts
+            self._apply_stop(estop, self._hold_target(st.last_good), repeat_at)
+            return estop
+        t_write = self.clock()
+        z, retries, detail, t_read = self._cycle_io(ref)
+        t_end = self.clock()
+        bus_s = t_end - t_start
+        t_meas = t_read if z is not None else t_end
+        # θ*(k−1) held until the write, θ*(k) from then to the measurement
+        spans = [(t_write - st.t_state, st.u_prev), (t_meas - t_write, ref)]
+        st.t_state, st.u_prev = t_meas, ref
+        if z is not None:
+            st.last_good = self._last_good = z
+        filt, vel = st.kf.step_timed(spans, z)
+        fdv = st.fd.step(z, t_read if z is not None else None)
+        st.pred_t.propagate(spans)
+        p_pos, p_vel = st.pred.position_deg, st.pred.velocity_degps
+        p_read = st.pred_t.position_deg  # the model when the position was read
+        safety = st.safety
+        stop: StopReason | None = safety.comm(z is not None, retries, t, k, detail)
+        if stop is None and (self._alerted() or k % self.hw_poll_every == 0):
+            stop = self._poll_hw(safety, t, k)
+        if stop is None and z is not None:
+            stop = safety.position(z, p_read, region, t, k)
+        meas = z if z is not None else np.full(3, np.nan)
+        err = float(np.abs(meas - p_read).max()) if z is not None else float("nan")
+        sample = Sample(t=t, k=k, phase=phase, reference_deg=ref, measured_deg=meas,
+                        predicted_deg=p_pos, predicted_velocity_degps=p_vel,
+                        filtered_deg=filt, velocity_degps=vel, fd_velocity_degps=fdv.copy(),
+                        tracking_error_deg=err, bus_s=bus_s, late_s=t_start - deadline,
+                        read_offset_s=(t_read - deadline) if z is not None else float("nan"),
+                        retries=retries,
+                        stale_replies=stale_replies(self.bus) - self._stale0, target_deg=target)
+        self._publish(sample)
+        if stop is not None:
+            self._apply_stop(stop, self._hold_target(st.last_good), deadline + self.ts)
+            return stop
+        st.pred.advance(ref)
         return None
 
     def _cycle_io(self, ref: F) -> tuple[F | None, int, str, float]:

@@ -57,10 +57,12 @@ COLUMNS: tuple[str, ...] = (
     "t", "k", "phase",
     *(f"{name}{i}" for name in _VEC for i in (1, 2, 3)),
     "track_err", "bus_ms", "late_ms", "retries", "read_ms",
+    "target1", "target2", "target3",
 )
 """samples.csv header: ref = θ*, meas = θ, pred = model at k·Ts, filt / vel = Kalman θ̂ / θ̇̂
 at the read instant, fd_vel = finite differences, track_err = max |θ − model at the read
-instant|, read_ms = read instant after k·Ts."""
+instant|, read_ms = read instant after k·Ts, target = live following's target (empty for
+planned motions)."""
 
 
 def logs_root(root: str | Path | None = None) -> Path:
@@ -168,6 +170,7 @@ class RunLog:
             row.extend(_fmt(float(x)) for x in vec)
         row += [_fmt(s.tracking_error_deg), _fmt(s.bus_s * 1e3), _fmt(s.late_s * 1e3),
                 str(s.retries), _fmt(s.read_offset_s * 1e3)]
+        row += (["", "", ""] if s.target_deg is None else [_fmt(float(x)) for x in s.target_deg])
         self._csv.writerow(row)
         self.sample_count += 1
         self._pending += 1

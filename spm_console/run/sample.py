@@ -49,6 +49,9 @@ class Sample:
     read_offset_s: float = 0.0
     """When the (successful) read was sent, after the cycle's deadline k·Ts, s (NaN when
     the read failed)."""
+    target_deg: F | None = None
+    """Live following: the target the reference was re-planned toward (3,), deg; None for
+    planned motions."""
     stale_replies: int = 0
     """Stale status packets the bus discarded since the run began, up to this cycle (late
     replies to earlier requests, or replies nothing asked for; not in samples.csv)."""
