@@ -195,10 +195,17 @@ class Executor:
         # planned segments stay in the certified set; runtime-built straight moves were
         # checked exactly along their path instead (plan_check.LINE_PHASES)
         regions = [s.phase not in LINE_PHASES for s in segments for _ in range(s.plan.N + 1)]
-        self._last_good = theta0.copy()
-        self._torque_on = False
         self._event("start", theta0_deg=theta0, cycles=len(refs),
                     segments=[(s.phase, s.plan.kind, s.plan.N) for s in segments])
+        return self._guarded(theta0, lambda: self._loop(refs, phases, regions, theta0),
+                             lambda: f"executed {len(refs)} cycles ({len(refs) * self.ts:.2f} s)")
+
+    def _guarded(self, theta0: F, loop: Callable[[], StopReason | None],
+                 done: Callable[[], str]) -> ExecutionResult:
+        """Real-time priority, preflight (hardware, watchdog, torque on), ``loop``; whatever
+        happens the wrist is left holding (or as the stop action says) and the log closed."""
+        self._last_good = theta0.copy()
+        self._torque_on = False
         stop: StopReason | None = None
         self.realtime = request_realtime(LOOP_PRIORITY)
         self._event("realtime", policy=self.realtime.policy, detail=self.realtime.detail)
@@ -211,7 +218,7 @@ class Executor:
             else:
                 stop = self._preflight(theta0)
             if stop is None:
-                stop = self._loop(refs, phases, regions, theta0)
+                stop = loop()
         except KeyboardInterrupt:
             stop = SafetyMonitor.estop("interrupted (Ctrl-C)", self._now(), len(self.samples))
             self._apply_stop(stop, self._hold_target(self._last_good), deadline=None)
@@ -230,7 +237,7 @@ class Executor:
             release_realtime(self.realtime)
         self._release_watchdog()
         if stop is None:
-            msg = f"executed {len(refs)} cycles ({len(refs) * self.ts:.2f} s)"
+            msg = done()
             self._event("done", message=msg)
             return self._finish("completed", ExitCode.OK, msg, None)
         return self._finish("stopped", stop.exit_code, stop.message, stop)
