@@ -28,9 +28,11 @@ from spm_console.profile import Profile
 from spm_console.run.motion_process import HEARTBEAT_S, REQUEST_TIMEOUT_S, Start
 from spm_console.run.motion_protocol import (
     Close,
+    EndFollow,
     EStop,
     Execute,
     Failed,
+    Follow,
     Heartbeat,
     Home,
     Ping,
@@ -38,6 +40,7 @@ from spm_console.run.motion_protocol import (
     Reboot,
     Reply,
     Request,
+    SetTarget,
     Status,
     Telemetry,
     Torque,
@@ -205,6 +208,27 @@ class MotionClient:
         ``skip_homing`` says why the operator overrides that)."""
         return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg, skip_homing, source),
                             on_sample)
+
+    def follow(self, timed: Any = None, initial_deg: Any = None, deadman_s: float | None = None,
+               on_sample: Callable[[Sample], None] | None = None, skip_homing: str = "",
+               source: str | None = None) -> Any:
+        """Follow timed targets, or live ones sent with :meth:`set_target` (see
+        :class:`~spm_console.run.motion_protocol.Follow`); blocks until the run ends."""
+        init: tuple[float, float, float] | None = None
+        if initial_deg is not None:
+            a, b, c = (float(x) for x in initial_deg)
+            init = (a, b, c)
+        return self._motion(lambda i: Follow(i, timed, init, deadman_s, skip_homing, source),
+                            on_sample)
+
+    def set_target(self, theta_deg: Any) -> None:
+        """A new live target (deg) for the following under way (any thread)."""
+        a, b, c = (float(x) for x in theta_deg)
+        self._send(SetTarget((a, b, c)))
+
+    def end_follow(self) -> None:
+        """The live source is done: the follower settles on the current target and ends."""
+        self._send(EndFollow())
 
     def estop(self, reason: str) -> None:
         """The message; a signal to the process is the second path when the pipe is gone.

@@ -37,9 +37,11 @@ from spm_console.profile import Profile
 from spm_console.realtime import HELPER_PRIORITY, normal_priority, request_realtime
 from spm_console.run.motion_protocol import (
     Close,
+    EndFollow,
     EStop,
     Execute,
     Failed,
+    Follow,
     Heartbeat,
     Home,
     Ping,
@@ -47,6 +49,7 @@ from spm_console.run.motion_protocol import (
     Reboot,
     Reply,
     Request,
+    SetTarget,
     Status,
     Telemetry,
     Torque,
@@ -165,6 +168,8 @@ class _Server:
         self.pending_estop = ""
         self.pending_clock: float | None = None
         self.last_heartbeat = time.monotonic()
+        self.feed: Any = None
+        """The target feed of the following under way (None otherwise)."""
 
     def send(self, msg: object) -> None:
         with self.send_lock, contextlib.suppress(OSError, EOFError, BrokenPipeError):
@@ -176,7 +181,15 @@ class _Server:
             self.last_heartbeat = time.monotonic()
         elif isinstance(req, EStop):
             self.estop(req.reason, req.sent_clock)
-        elif isinstance(req, (Home, Execute)):
+        elif isinstance(req, SetTarget):
+            feed = self.feed
+            if feed is not None:
+                with contextlib.suppress(SpmError):  # a malformed target changes nothing
+                    feed.set(req.theta_deg)
+        elif isinstance(req, EndFollow):
+            if self.feed is not None:
+                self.feed.end()
+        elif isinstance(req, (Home, Execute, Follow)):
             if self.moving():
                 self.send(Failed(req.id, "a motion is already running", int(ExitCode.BAD_INPUT)))
                 return
@@ -260,7 +273,7 @@ class _Server:
         if self.pending_estop:
             ex.request_estop(self.pending_estop, self.pending_clock)
 
-    def _motion(self, req: Home | Execute) -> None:
+    def _motion(self, req: Home | Execute | Follow) -> None:
         normal_priority()  # set-up may load the workspace; the executor raises the loop itself
         out = TelemetryOut(self.send)
         on_sample = out.put
@@ -275,6 +288,8 @@ class _Server:
                                   on_sample, self._attach)
                 self.homed = homing.execution.ok
                 result = Reply(req.id, homing)
+            elif isinstance(req, Follow):
+                result = Reply(req.id, self._follow(req, on_sample))
             else:
                 result = Reply(req.id, run_execute(
                     self.profile, self.bus, self.workspace, req.plan, self.ctx, on_sample,
@@ -288,9 +303,19 @@ class _Server:
             quiet_gc.stop()
             out.close()
             self.executor = None
+            self.feed = None
             self.pending_estop, self.pending_clock = "", None
             self.busy.clear()
         self.send(result)
+
+    def _follow(self, req: Follow, on_sample: Any) -> Any:
+        from spm_console.run.follow_run import run_follow
+        from spm_console.run.target_feed import TargetFeed
+
+        self.feed = TargetFeed(req.timed, req.initial_deg, req.deadman_s)
+        return run_follow(self.profile, self.bus, self.workspace, self.feed, self.ctx, on_sample,
+                          self._attach, homed=self.homed, skip_homing=req.skip_homing,
+                          source=req.source)
 
     def moving(self) -> bool:
         return self.busy.is_set()

@@ -11,6 +11,7 @@ from typing import Any
 
 from spm_console.core.plan import Plan
 from spm_console.run.sample import Sample
+from spm_console.run.target_feed import TimedTargets
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,32 @@ class Execute:
 
 
 @dataclass(frozen=True)
+class Follow:
+    """Follow targets live (:mod:`~spm_console.run.follow_loop`): a timed list, or live
+    targets sent with :class:`SetTarget` from ``initial_deg`` on; reply: FollowOutcome."""
+
+    id: int
+    timed: TimedTargets | None = None
+    initial_deg: tuple[float, float, float] | None = None
+    deadman_s: float | None = None
+    """Live targets: hold when none arrives for this long (None: never)."""
+    skip_homing: str = ""
+    source: str | None = None
+
+
+@dataclass(frozen=True)
+class SetTarget:
+    """A new live target for the following under way (deg); ignored when none runs."""
+
+    theta_deg: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class EndFollow:
+    """The live source is done: settle on the current target and end the run."""
+
+
+@dataclass(frozen=True)
 class EStop:
     """Stop the motion under way at once (the profile's stop action)."""
 
@@ -100,8 +127,8 @@ class Close:
     """Close the bus and end the process."""
 
 
-Request = (Ping | ReadPosition | Status | Torque | Reboot | Home | Execute | EStop | Heartbeat
-           | Close)
+Request = (Ping | ReadPosition | Status | Torque | Reboot | Home | Execute | Follow | SetTarget
+           | EndFollow | EStop | Heartbeat | Close)
 
 
 @dataclass(frozen=True)

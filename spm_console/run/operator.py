@@ -33,6 +33,7 @@ from spm_console.errors import (
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
 from spm_console.run.kin_record import FkGraphSource
+from spm_console.run.operator_follow import FollowTools
 from spm_console.run.operator_tools import ServoTools
 from spm_console.run.servo_tools import ServoHealth
 
@@ -88,7 +89,7 @@ class BusState:
     emulator_realtime_granted: bool = True
 
 
-class Session(ServoTools):
+class Session(ServoTools, FollowTools):
     """Profile, bus, workspace, plan and runs of one operator session (thread-safe enough:
     one motion at a time, E-stop from any thread). Servo health and tools (status, torque
     per joint, reboot, jog): :class:`~spm_console.run.operator_tools.ServoTools`."""

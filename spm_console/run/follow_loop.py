@@ -1,0 +1,202 @@
+"""Live following in the servo loop: the wrist tracks a target that may change at any time.
+
+Every period k, after the cycle's write and read (:meth:`Executor._cycle`), the loop
+
+1. predicts the Kalman state (θ̂, θ̇̂) at the next deadline under the reference just sent
+   (exact ZOH over the time left in the period);
+2. re-plans from it with :class:`~spm_console.core.planning.follow.FollowSolver` (MVN cost,
+   a tracking term and the target as terminal state when reachable within the 1 s horizon;
+   speed bound, servo limits and the workspace's region P; warm-started) toward the feed's
+   targets (a timed list gives a preview over the horizon);
+3. **verifies** the new plan itself before adopting it — its continuous motion from the
+   predicted state (10 points per period over the horizon, held at its end) certified by
+   this profile's workspace, speed within ``limits.vmax_degps`` + 10 % between samples,
+   references inside the servo limits, no reference step above 10° — the rules the
+   runtime applies to every plan (:mod:`spm_console.run.plan_check`);
+4. sends the adopted plan's next reference at the next deadline. A solve that fails, runs past
+   :data:`SOLVE_BUDGET_S` or is refused by the check is not used: the previous (verified)
+   plan's next reference goes out instead (held at its rest point past its horizon), and the
+   miss is counted. So every reference streamed comes from a verified plan.
+
+Targets outside P are projected to its nearest point (the solver's projection) and counted
+as clamped; the wrist never chases them through uncertified space. The run ends when the feed
+is finished (timed list over, or the live source ended) and the wrist has settled on the last
+target; E-stop and every safety stop act as in any run. Degrees, seconds.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.planning.follow import FollowResult, FollowSettings, FollowSolver
+from spm_console.core.servo_model import exact_step, simulate_continuous
+from spm_console.errors import BadInputError
+from spm_console.run.executor import Executor, _LoopState
+from spm_console.run.plan_check import BETWEEN_SPEED_ALLOWANCE, MAX_REFERENCE_STEP_DEG
+from spm_console.run.safety import StopReason
+from spm_console.run.segments import ExecutionResult
+from spm_console.run.stats import stale_replies
+from spm_console.run.target_feed import TargetFeed
+
+F = NDArray[np.float64]
+
+#: Receding horizon, samples (1 s at Ts = 20 ms).
+HORIZON = 50
+#: Time a re-plan may take in the loop before its answer is dropped, s (OSQP's time limit).
+SOLVE_BUDGET_S = 0.012
+#: Settled on the final target: within this, deg, …
+SETTLE_TOL_DEG = 0.2
+#: … slower than this, deg/s, …
+SETTLE_SPEED_DEGPS = 2.0
+#: … for this long, s.
+SETTLE_S = 0.3
+#: A finished feed ends the run at the latest this long after it finished, s.
+SETTLE_TIMEOUT_S = 10.0
+#: Points per period of the verification of each adopted plan.
+CHECK_POINTS = 10
+
+
+@dataclass(frozen=True)
+class FollowStats:
+    """How the re-planning went (logged as the ``follow`` event, returned to the client)."""
+
+    solves: int
+    adopted: int
+    """Plans that passed the runtime's check and were used."""
+    misses: int
+    """Solves not used (failed or past the budget): the previous plan went on."""
+    refused: int
+    """Plans the runtime's check refused."""
+    clamped: int
+    """Periods whose target lay outside the region (projected)."""
+    deadman_trips: int
+    solve_ms_p50: float
+    solve_ms_p99: float
+    solve_ms_max: float
+
+    def to_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in asdict(self).items()}
+
+
+class Follower(Executor):
+    """An :class:`Executor` whose references are re-planned every period toward a target."""
+
+    def follow(self, feed: TargetFeed, theta0_deg: F | None = None) -> ExecutionResult:
+        """Follow ``feed`` from where the wrist is until it is finished and settled."""
+        self.t0 = self.clock()
+        self._stale0 = stale_replies(self.bus)
+        theta0 = self.read_initial() if theta0_deg is None else np.asarray(theta0_deg, float)
+        ws = self.verifier.ws
+        region = ws.region
+        if not bool(region.contains(theta0, tol=1e-6)):
+            raise BadInputError(
+                f"the wrist is at θ = {np.round(theta0, 2).tolist()}°, outside the region P that "
+                "live following works in: home it (or move it into P) first")
+        vmax = self.profile.limits.vmax_degps
+        self.solver = FollowSolver(self.model, region, vmax, HORIZON, self.lo, self.hi,
+                                   settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S))
+        targets, _ = feed.targets(0.0, self.ts, HORIZON, theta0)
+        first = self.solver.solve(theta0, np.zeros(3), targets if feed.timed else targets[0],
+                                  warm=False)  # cold, before torque-on: not timed
+        if not first.ok or not self._plan_ok(first, theta0, np.zeros(3), theta0):
+            raise BadInputError(f"live following cannot start from θ = "
+                                f"{np.round(theta0, 2).tolist()}°: {first.reason or first.status}")
+        self._times: list[float] = []
+        self._counts = {"solves": 0, "adopted": 0, "misses": 0, "refused": 0, "clamped": 0}
+        self._event("start", theta0_deg=theta0, mode="follow", live=feed.live,
+                    horizon=HORIZON, budget_ms=SOLVE_BUDGET_S * 1e3, deadman_s=feed.deadman_s)
+        result = self._guarded(theta0, lambda: self._follow_loop(feed, theta0, first),
+                               lambda: f"followed for {len(self.samples) * self.ts:.2f} s")
+        return result
+
+    def stats(self, feed: TargetFeed) -> FollowStats:
+        ms = np.asarray(self._times, float) * 1e3
+        pct = (lambda q: float(np.percentile(ms, q))) if ms.size else (lambda q: float("nan"))
+        c = self._counts
+        return FollowStats(c["solves"], c["adopted"], c["misses"], c["refused"], c["clamped"],
+                           feed.deadman_trips, pct(50), pct(99),
+                           float(ms.max()) if ms.size else float("nan"))
+
+    # ------------------------------------------------------------------ the loop
+    def _follow_loop(self, feed: TargetFeed, theta0: F, first: FollowResult) -> StopReason | None:
+        st: _LoopState = self._loop_state(theta0)
+        plan, j = first, 0
+        ref = plan.reference_at(0)
+        shown = plan.target_deg
+        settled_since: float | None = None
+        finished_at: float | None = None
+        updates = feed.updates
+        k = 0
+        while True:
+            stop = self._cycle(st, k, ref, "follow", True, target=shown)
+            if stop is not None:
+                return stop
+            s = self.samples[-1]
+            t_next = (k + 1) * self.ts
+            th, om = self._predict(s.filtered_deg, s.velocity_degps, ref, s.read_offset_s)
+            if feed.updates != updates:  # a live target arrived: logged with the cycle it meets
+                updates = feed.updates
+                self._event("target", k=k, theta_deg=feed.final(s.filtered_deg))
+            targets, held = feed.targets(t_next, self.ts, HORIZON, s.filtered_deg)
+            if held and feed.deadman_trips != self._counts.get("deadman_logged", 0):
+                self._counts["deadman_logged"] = feed.deadman_trips
+                self._event("deadman", k=k, hold_deg=targets[0], silent_s=feed.deadman_s)
+            t0 = time.perf_counter()
+            res = self.solver.solve(th, om, targets if feed.timed else targets[0], elapsed=1)
+            self._times.append(time.perf_counter() - t0)
+            self._counts["solves"] += 1
+            self._counts["clamped"] += int(res.clamped)
+            j += 1
+            if res.ok and res.seconds <= SOLVE_BUDGET_S:
+                if self._plan_ok(res, th, om, ref):
+                    plan, j = res, 0
+                    self._counts["adopted"] += 1
+                else:
+                    self._counts["refused"] += 1
+            else:
+                self._counts["misses"] += 1
+            shown = plan.target_deg
+            ref = np.clip(plan.reference_at(j), self.lo, self.hi)
+            # the end: a finished feed, the wrist settled on the (projected) last target
+            if feed.finished(t_next):
+                finished_at = t_next if finished_at is None else finished_at
+                goal = plan.target_deg
+                near = (float(np.abs(s.filtered_deg - goal).max()) <= SETTLE_TOL_DEG
+                        and float(np.abs(s.velocity_degps).max()) <= SETTLE_SPEED_DEGPS)
+                settled_since = (settled_since if settled_since is not None else t_next) if near else None
+                if settled_since is not None and t_next - settled_since >= SETTLE_S:
+                    break
+                if t_next - finished_at >= SETTLE_TIMEOUT_S:
+                    self._event("settle_timeout", target_deg=goal, wrist_deg=s.filtered_deg)
+                    break
+            k += 1
+        self._event("follow", **self.stats(feed).to_dict())
+        return None
+
+    def _predict(self, theta: F, omega: F, ref: F, read_offset_s: float) -> tuple[F, F]:
+        """The model state at the next deadline, from the Kalman estimate at the read instant
+        under the reference just sent."""
+        dt = self.ts - (read_offset_s if np.isfinite(read_offset_s) else 0.0)
+        Phi, Gam = exact_step(self.model.p, max(dt, 0.0))
+        th = Phi[0, 0] * theta + Phi[0, 1] * omega + Gam[0] * ref
+        om = Phi[1, 0] * theta + Phi[1, 1] * omega + Gam[1] * ref
+        return np.asarray(th, float), np.asarray(om, float)
+
+    def _plan_ok(self, res: FollowResult, theta: F, omega: F, prev_ref: F) -> bool:
+        """The runtime's own check of a re-planned horizon (see the module docstring)."""
+        refs = np.vstack([res.reference_deg, res.reference_at(res.horizon)[None]])
+        if np.any(refs < self.lo - 1e-9) or np.any(refs > self.hi + 1e-9):
+            return False
+        steps = np.abs(np.diff(np.vstack([prev_ref[None], refs]), axis=0))
+        if float(steps.max()) > MAX_REFERENCE_STEP_DEG:
+            return False
+        x0 = np.column_stack([theta, omega])
+        _, xs = simulate_continuous(self.model.p, self.ts, x0, refs, CHECK_POINTS)
+        if float(np.abs(xs[..., 1]).max()) > self.profile.limits.vmax_degps * (
+                1.0 + BETWEEN_SPEED_ALLOWANCE):
+            return False
+        return bool(self.verifier.certified.contains(xs[..., 0]).all())

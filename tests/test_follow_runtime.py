@@ -1,0 +1,164 @@
+"""Live following on the emulated bus (issue 15): the servo loop re-plans every period
+toward targets that change, checks every plan itself and streams only verified references."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.devices.bus import open_bus
+from spm_console.devices.emulator import start_emulator
+from spm_console.profile import Profile
+from spm_console.run.follow_loop import Follower
+from spm_console.run.runlog import RunLog, load_run
+from spm_console.run.target_feed import TargetFeed, TimedTargets
+from tests.ws_helpers import agile_workspace
+
+def _follower(profile: Profile, tmp_path: Path, start: np.ndarray):  # type: ignore[no-untyped-def]
+    ws = agile_workspace()
+    emu = start_emulator(profile, record=False, initial_deg=list(start))
+    bus = open_bus(profile, emu.port)
+    log = RunLog.create("follow", profile.name, profile.digest(), [], root=tmp_path)
+    return Follower(profile, bus, workspace=ws, log=log), emu, bus, ws
+
+
+def test_timed_steps_are_followed_and_every_motion_is_certified(agile: Profile, tmp_path: Path) -> None:
+    ws = agile_workspace()
+    start = np.asarray(ws.theta_deg()[ws.home_index], float)
+    steps = TimedTargets(np.array([0.0, 0.4, 1.2]),
+                         np.vstack([start, start + [6.0, -5.0, 4.0], start + [-4.0, 3.0, -2.0]]))
+    ex, emu, bus, ws = _follower(agile, tmp_path, start)
+    try:
+        res = ex.follow(TargetFeed(steps))
+    finally:
+        bus.close()
+        emu.stop()
+    assert res.ok, res.message
+    np.testing.assert_allclose(res.final_deg, steps.theta_deg[-1], atol=0.3)
+    st = ex.stats(TargetFeed(steps))
+    assert st.adopted > 0.9 * st.solves and st.refused == 0 and st.clamped == 0
+    meas = np.array([s.measured_deg for s in ex.samples if s.read_ok])  # (a lost read is NaN)
+    assert ex.verifier.certified.contains(meas).all()
+    run = load_run(res.log_dir)
+    np.testing.assert_allclose(run.vec("target")[-1], steps.theta_deg[-1])
+    assert any(e["event"] == "follow" for e in run.events)
+
+
+def test_a_target_outside_the_region_is_projected_and_never_chased(agile: Profile, tmp_path: Path) -> None:
+    ws = agile_workspace()
+    start = np.asarray(ws.theta_deg()[ws.home_index], float)
+    outside = np.array([160.0, 60.0, 160.0])  # far outside P
+    assert not ws.region.contains(outside)
+    feed = TargetFeed(TimedTargets(np.array([0.0, 0.2]), np.vstack([start, outside])))
+    ex, emu, bus, ws = _follower(agile, tmp_path, start)
+    try:
+        res = ex.follow(feed)
+    finally:
+        bus.close()
+        emu.stop()
+    assert res.ok, res.message
+    st = ex.stats(feed)
+    assert st.clamped > 0
+    meas = np.array([s.measured_deg for s in ex.samples if s.read_ok])  # (a lost read is NaN)
+    refs = np.array([s.reference_deg for s in ex.samples])
+    assert ws.region.contains(refs, tol=1e-6).all()  # the references stay in P
+    assert ex.verifier.certified.contains(meas).all()
+    assert ws.region.violation_deg(res.final_deg) < 0.3  # settled on P's nearest point
+
+
+def test_solves_that_miss_their_deadline_continue_the_previous_plan(
+        agile: Profile, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    ws = agile_workspace()
+    start = np.asarray(ws.theta_deg()[ws.home_index], float)
+    feed = TargetFeed(TimedTargets(np.array([0.0, 0.1]), np.vstack([start, start + [5.0, 5.0, -5.0]])))
+    ex, emu, bus, ws = _follower(agile, tmp_path, start)
+    from spm_console.core.planning import follow as follow_mod
+
+    real = follow_mod.FollowSolver.solve
+    calls = [0]
+
+    def slow(self, *a, **k):  # type: ignore[no-untyped-def]
+        calls[0] += 1
+        out = real(self, *a, **k)
+        if calls[0] % 3 == 0:  # every third re-plan "takes" 30 ms: past the budget
+            from dataclasses import replace
+            return replace(out, seconds=0.030)
+        return out
+
+    monkeypatch.setattr(follow_mod.FollowSolver, "solve", slow)
+    try:
+        res = ex.follow(feed)
+    finally:
+        bus.close()
+        emu.stop()
+    assert res.ok, res.message
+    st = ex.stats(feed)
+    assert st.misses >= st.solves // 3 - 1 and st.misses > 0
+    np.testing.assert_allclose(res.final_deg, feed.final(start), atol=0.3)
+    refs = np.array([s.reference_deg for s in ex.samples])
+    assert np.abs(np.diff(refs, axis=0)).max() < 2.0  # smooth: misses continue the plan
+
+
+def _session(agile: Profile, tmp_path: Path):  # type: ignore[no-untyped-def]
+    from spm_console.run.operator import Session
+
+    s = Session(agile, sim=True, logs_root=tmp_path, emulator_process=True)
+    s.connect()
+    return s
+
+
+def test_live_targets_deadman_and_the_change_to_reference_delay(agile: Profile, tmp_path: Path) -> None:
+    """Through the runtime (the loop in the motion process): live targets sent from another
+    thread; the deadman holds when they stop; ending the source settles and completes."""
+    s = _session(agile, tmp_path)
+    try:
+        s.home()
+        home = s.theta_deg.copy()
+        new = home + np.array([4.0, -3.0, 2.0])
+        out: list[object] = []
+        th = threading.Thread(target=lambda: out.append(
+            s.follow(initial_deg=home, deadman_s=0.4, source="test")), daemon=True)
+        th.start()
+        time.sleep(0.2)
+        for _ in range(12):  # a live source: the same new target every 0.1 s for 1.2 s
+            assert s.set_target(new)
+            time.sleep(0.1)
+        time.sleep(1.0)  # then silent for > 0.4 s: the deadman holds (where the wrist is)
+        assert s.end_follow()
+        th.join(20)
+        fo = out[0]
+    finally:
+        s.close()
+    ex = fo.execution  # type: ignore[attr-defined]
+    assert ex.ok, ex.message
+    run = load_run(ex.log_dir)
+    k0 = int(next(e for e in run.events if e["event"] == "target")["k"])
+    refs = run.vec("ref")
+    moved = np.flatnonzero(np.abs(refs[k0:] - refs[k0]).max(axis=1) > 1e-6)
+    assert moved.size and moved[0] <= 2  # the first changed reference within 2 periods
+    assert [e["event"] for e in run.events].count("deadman") == 1
+    np.testing.assert_allclose(ex.final_deg, new, atol=0.5)
+    assert fo.stats.deadman_trips == 1  # type: ignore[attr-defined]
+
+
+def test_estop_while_following(agile: Profile, tmp_path: Path) -> None:
+    s = _session(agile, tmp_path)
+    try:
+        s.home()
+        home = s.theta_deg.copy()
+        out: list[object] = []
+        th = threading.Thread(target=lambda: out.append(s.follow(initial_deg=home)), daemon=True)
+        th.start()
+        time.sleep(0.8)
+        s.set_target(home + np.array([8.0, 8.0, -8.0]))
+        time.sleep(0.3)
+        assert s.estop("test stop")
+        th.join(20)
+    finally:
+        s.close()
+    ex = out[0].execution  # type: ignore[attr-defined]
+    assert ex.outcome == "stopped" and int(ex.exit_code) == 20
