@@ -18,6 +18,7 @@ from spm_console.run.runlog import RunLog, load_run
 from spm_console.run.target_feed import TargetFeed, TimedTargets
 from tests.ws_helpers import agile_workspace
 
+
 def _follower(profile: Profile, tmp_path: Path, start: np.ndarray):  # type: ignore[no-untyped-def]
     ws = agile_workspace()
     emu = start_emulator(profile, record=False, initial_deg=list(start))
@@ -30,7 +31,7 @@ def test_timed_steps_are_followed_and_every_motion_is_certified(agile: Profile, 
     ws = agile_workspace()
     start = np.asarray(ws.theta_deg()[ws.home_index], float)
     steps = TimedTargets(np.array([0.0, 0.4, 1.2]),
-                         np.vstack([start, start + [6.0, -5.0, 4.0], start + [-4.0, 3.0, -2.0]]))
+                         np.vstack([start, start + np.array([6.0, -5.0, 4.0]), start + np.array([-4.0, 3.0, -2.0])]))
     ex, emu, bus, ws = _follower(agile, tmp_path, start)
     try:
         res = ex.follow(TargetFeed(steps))
@@ -74,7 +75,7 @@ def test_solves_that_miss_their_deadline_continue_the_previous_plan(
         agile: Profile, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     ws = agile_workspace()
     start = np.asarray(ws.theta_deg()[ws.home_index], float)
-    feed = TargetFeed(TimedTargets(np.array([0.0, 0.1]), np.vstack([start, start + [5.0, 5.0, -5.0]])))
+    feed = TargetFeed(TimedTargets(np.array([0.0, 0.1]), np.vstack([start, start + np.array([5.0, 5.0, -5.0])])))
     ex, emu, bus, ws = _follower(agile, tmp_path, start)
     from spm_console.core.planning import follow as follow_mod
 

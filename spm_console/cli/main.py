@@ -29,6 +29,7 @@ COMMANDS: dict[str, str] = {
     "script": "spm_console.cli.script",
     "home": "spm_console.cli.run",
     "execute": "spm_console.cli.run",
+    "follow": "spm_console.cli.follow",
     "logs": "spm_console.cli.logs",
     "reproduce": "spm_console.cli.reproduce",
 }

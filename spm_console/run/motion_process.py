@@ -193,6 +193,14 @@ class _Server:
             if self.moving():
                 self.send(Failed(req.id, "a motion is already running", int(ExitCode.BAD_INPUT)))
                 return
+            if isinstance(req, Follow):  # the feed exists before any SetTarget can arrive
+                from spm_console.run.target_feed import TargetFeed
+
+                try:
+                    self.feed = TargetFeed(req.timed, req.initial_deg, req.deadman_s)
+                except SpmError as exc:
+                    self.send(Failed(req.id, exc.message, int(exc.exit_code)))
+                    return
             self.last_heartbeat = time.monotonic()
             self.busy.set()
             self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
@@ -310,9 +318,7 @@ class _Server:
 
     def _follow(self, req: Follow, on_sample: Any) -> Any:
         from spm_console.run.follow_run import run_follow
-        from spm_console.run.target_feed import TargetFeed
 
-        self.feed = TargetFeed(req.timed, req.initial_deg, req.deadman_s)
         return run_follow(self.profile, self.bus, self.workspace, self.feed, self.ctx, on_sample,
                           self._attach, homed=self.homed, skip_homing=req.skip_homing,
                           source=req.source)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,12 +32,14 @@ from spm_console.core.plan import Plan
 from spm_console.devices.faults import FaultSpec
 from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
 from spm_console.profile import Profile
+from spm_console.run.follow_run import FollowOutcome
 from spm_console.run.homing import HomingResult
 from spm_console.run.operator import Session
 from spm_console.run.operator_runs import RunContext, refused_run
 from spm_console.run.sample import Sample
 from spm_console.run.segments import ExecutionResult
 from spm_console.run.signals import stop_signals
+from spm_console.run.target_feed import TimedTargets
 
 F = NDArray[np.float64]
 T = TypeVar("T")
@@ -166,3 +169,52 @@ def home_once(profile: Profile, req: RunRequest) -> HomingResult:
         return session.homing
 
     return _one_shot(profile, "home", req, body)
+
+
+def follow_once(profile: Profile, req: RunRequest, timed: TimedTargets | None = None,
+                deadman_s: float | None = None,
+                live_source: Callable[[Session], None] | None = None,
+                source: str | None = None) -> FollowOneShot:
+    """Home (unless overridden), then follow ``timed`` targets, or live targets that
+    ``live_source(session)`` sends (from its own thread, once the following runs) with
+    ``session.set_target`` until ``session.end_follow``; the live run starts holding the
+    wrist's position."""
+
+    def body(session: Session) -> FollowOneShot:
+        homing = None
+        if not req.skip_homing:
+            session.home(req.on_sample)
+            homing = session.homing
+            assert homing is not None
+            if not homing.execution.ok:
+                return FollowOneShot(None, homing)
+        initial = None if timed is not None else session.read_position()
+        feeder = None
+        if live_source is not None:
+            def feed() -> None:
+                while not session.moving.is_set():  # the following has begun
+                    if done.wait(0.01):
+                        return
+                live_source(session)
+
+            done = threading.Event()
+            feeder = threading.Thread(target=feed, daemon=True, name="spm-follow-source")
+            feeder.start()
+        try:
+            out = session.follow(timed, initial, deadman_s, req.on_sample,
+                                 skip_homing=req.skip_homing, source=source)
+        finally:
+            if feeder is not None:
+                done.set()
+        return FollowOneShot(out, homing)
+
+    return _one_shot(profile, "follow", req, body)
+
+
+@dataclass(frozen=True)
+class FollowOneShot:
+    """A ``follow``: the homing run (None when skipped) and the following (None when homing
+    stopped, in which case nothing else moved)."""
+
+    follow: FollowOutcome | None
+    homing: HomingResult | None

@@ -1,0 +1,84 @@
+"""``follow``: the wrist tracks targets live, re-planned every servo period (issue 15).
+
+* ``--targets FILE.csv``: rows ``t, theta1, theta2, theta3`` (s, deg), or ``t, roll, pitch,
+  yaw`` (deg, relative to home, IK in the home working mode) with ``--rpy``; a header line and
+  ``#`` comments are skipped. Each target holds from its time until the next; the run ends
+  when the last one is reached and settled.
+* ``--udp PORT``: a socket on 127.0.0.1 only, receiving JSON lines ``{"theta_deg": [..]}`` or
+  ``{"rpy_deg": [..]}``; ``{"end": true}`` ends the run (settled on the last target). A
+  deadman (``--deadman``, default 0.5 s) holds the wrist when no target arrives for that
+  long; following resumes with the next target. See ``examples/follow_udp_client.py``.
+
+Homes first unless ``--skip-homing REASON``; signals E-stop (exit 20). Degrees, seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from spm_console.cli.common import finite_number, profile_of
+from spm_console.cli.follow_source import UdpTargets, read_target_csv
+from spm_console.cli.run import _bus_opts, _report, _request
+from spm_console.errors import BadInputError
+
+
+def register(sub: Any) -> None:
+    f = sub.add_parser("follow", help="track targets live (CSV file or UDP), re-planned every Ts")
+    _bus_opts(f)
+    src = f.add_mutually_exclusive_group(required=True)
+    src.add_argument("--targets", type=Path, metavar="FILE.csv",
+                     help="timed targets: t, theta1, theta2, theta3 (or t, roll, pitch, yaw "
+                          "with --rpy)")
+    src.add_argument("--udp", type=int, metavar="PORT",
+                     help='live targets: JSON lines {"theta_deg": [..]} or {"rpy_deg": [..]} '
+                          "on 127.0.0.1:PORT")
+    f.add_argument("--rpy", action="store_true",
+                   help="the CSV holds roll, pitch, yaw relative to home (deg)")
+    f.add_argument("--deadman", type=float, default=None, metavar="S",
+                   help="live targets: hold when none arrives for S seconds (default 0.5)")
+    f.add_argument("--skip-homing", metavar="REASON", default="",
+                   help="follow without homing first; REASON is written to the run log")
+    f.set_defaults(func=cmd_follow)
+
+
+def cmd_follow(args: argparse.Namespace) -> int:
+    from spm_console.run.oneshot import follow_once
+
+    profile = profile_of(args)
+    req = _request(args, profile)
+    if args.udp is not None:
+        if not 1 <= args.udp <= 65535:
+            raise BadInputError(f"--udp: a port in 1..65535, got {args.udp}")
+        if args.rpy:
+            raise BadInputError("--rpy applies to --targets (a UDP message says rpy_deg itself)")
+        deadman = 0.5 if args.deadman is None else finite_number(args.deadman, "--deadman", 0.0,
+                                                                 60.0, lo_open=True)
+        with UdpTargets(profile, args.udp) as udp:
+            out = follow_once(profile, req, None, deadman, udp.pump, source=f"udp:{args.udp}")
+            extra: dict[str, Any] = {"udp": {"port": args.udp, **udp.counts()}}
+    else:
+        if args.deadman is not None:
+            raise BadInputError("--deadman applies to --udp (timed targets never go silent)")
+        timed = read_target_csv(profile, args.targets, args.rpy)
+        out = follow_once(profile, req, timed, source=str(args.targets))
+        extra = {"targets": str(args.targets), "rows": len(timed.t_s)}
+    homing = out.homing
+    extra["homing"] = ({"skipped": req.skip_homing} if homing is None else
+                       {"outcome": homing.execution.outcome,
+                        "log_dir": str(homing.execution.log_dir or "") or None})
+    if out.follow is None:
+        assert homing is not None
+        extra["stopped_during"] = "homing"
+        return _report(args, homing.execution, extra)
+    st = out.follow.stats
+    if st is not None:
+        extra["follow"] = st.to_dict()
+        if not args.json:
+            sys.stdout.write(f"re-planned {st.solves} times: solve p99 {st.solve_ms_p99:.2f} ms, "
+                           f"max {st.solve_ms_max:.2f} ms; {st.misses} missed, {st.refused} "
+                           f"refused by the check, {st.clamped} periods with the target "
+                           f"projected into P, {st.deadman_trips} deadman holds\n")
+    return _report(args, out.follow.execution, extra)
