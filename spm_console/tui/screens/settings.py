@@ -138,7 +138,6 @@ class SettingsScreen(ModalScreen[SwitchRequest | None]):
     #settings-reason { color: $error; text-style: bold; height: auto; }
     #settings-buttons { height: 3; align: center middle; }
     #settings-buttons Button { margin: 0 2; }
-    SettingsScreen .param-label { width: 20; }
     """
 
     def __init__(self, current: Path | None, profile_name: str, grid_step_deg: float,
@@ -179,6 +178,8 @@ class SettingsScreen(ModalScreen[SwitchRequest | None]):
         options = self.query_one("#settings-profiles", OptionList)
         options.highlighted = self._current_index()
         options.focus()
+        # wider than the step screens' labels (app.tcss), so "(deg)" shows
+        self.query_one("#grid-step-row .param-label", Label).styles.width = 19
         self._compact()
 
     def on_resize(self, event: events.Resize) -> None:
