@@ -271,6 +271,8 @@ class SettingsScreen(ModalScreen[SwitchRequest | None]):
 
     def _checked(self, request: SwitchRequest, error: str, name: str = "") -> None:
         self.checking = False
+        if self.app.screen is not self:  # closed (esc) while the profile was checked
+            return
         if error:
             self.refuse(error)
             return
