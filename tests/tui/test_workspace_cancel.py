@@ -141,3 +141,23 @@ async def test_c_outside_a_build_does_nothing(coarse: Profile, tmp_path: Path,
         await pilot.press("c")
         await settle(pilot)
         assert status_of(app) == ready
+
+
+async def test_quitting_during_a_build_cancels_it(coarse: Profile, tmp_path: Path,
+                                                  gate: Gate) -> None:
+    """The app's exit waits for its worker threads: quitting cancels the build rather than
+    waiting for it to finish (and caches nothing)."""
+    cache = tmp_path / "cache"
+    gate.active = True
+    app = make_app(coarse, viewer=False, logs_root=tmp_path / "logs", cache_dir=cache)
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("3")
+        while not gate.reached.is_set():
+            await pilot.pause(0.02)
+        await pilot.press("q")
+        assert app.build_cancel is not None and app.build_cancel.is_set()
+        gate.release.set()
+    assert app.return_code == 0
+    assert gate.reports_after == 0
+    assert not cache.exists() or not any(cache.iterdir())
