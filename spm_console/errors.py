@@ -106,6 +106,14 @@ class InterruptedBySignalError(SpmError):
     exit_code = ExitCode.INTERRUPTED
 
 
+class BuildCancelledError(SpmError):
+    """The operator cancelled a workspace build. A front end raises it from the progress
+    callback it passes to the build, so the build stops at its next progress report; the
+    cache is written only after a complete build, so nothing half-built is kept."""
+
+    exit_code = ExitCode.INTERRUPTED
+
+
 class MotionProcessLostError(SpmError):
     """The motion process (the servo loop's own process) died or stopped answering; the
     servos' Bus Watchdog stops them if a motion was running."""

@@ -1,19 +1,25 @@
-"""``tui`` command: the operator console (Textual) on a serial port or the emulated bus."""
+"""``tui`` command: the operator console (Textual) on a serial port or the emulated bus.
+
+The console's settings (ctrl+o / F7: profile and workspace grid step) restart it: the app
+exits with a :class:`~spm_console.tui.screens.settings.SwitchRequest` after closing its
+session, and :func:`run_consoles` starts the next console in the same terminal.
+"""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
-from spm_console.cli.common import profile_of
 from spm_console.profile import DEFAULT_PROFILE
 
 
 def register(sub: Any) -> None:
     p = sub.add_parser("tui", help="operator console: connect, home, FK, workspace, plan, execute, logs")
     p.add_argument("--profile", default=str(DEFAULT_PROFILE),
-                   help=f"profile TOML file (default {DEFAULT_PROFILE})")
+                   help=f"profile TOML file (default {DEFAULT_PROFILE}); the console's settings "
+                        "(ctrl+o or F7) switch to another one")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--port", metavar="DEV", help="serial port of the servo bus (e.g. /dev/ttyUSB0)")
     g.add_argument("--sim", action="store_true",
@@ -23,7 +29,7 @@ def register(sub: Any) -> None:
     p.add_argument("--grid-step", type=float, default=None, metavar="DEG",
                    help="workspace grid step Δ instead of the profile's (e.g. 1 for the paper's "
                         "minimum-time pair); the workspace, the runtime's plan verification and "
-                        "plan files all use it")
+                        "plan files all use it; the console's settings change it too")
     p.add_argument("--logs", type=Path, default=None, metavar="DIR",
                    help="run log folder (default logs/ or $SPM_CONSOLE_LOGS)")
     p.add_argument("--cache-dir", type=Path, default=None, metavar="DIR",
@@ -31,21 +37,56 @@ def register(sub: Any) -> None:
     p.set_defaults(func=cmd_tui)
 
 
+class ConsoleApp(Protocol):
+    """What :func:`run_consoles` needs of a console: run it, then close it."""
+
+    def run(self) -> Any: ...
+
+    def shutdown(self) -> None: ...
+
+
+#: Builds the console for a profile file and an optional grid step (deg; None: the
+#: profile's own), with a note to show once it is up.
+ConsoleFactory = Callable[[Path, "float | None", str], ConsoleApp]
+
+
+def run_consoles(profile_path: Path, grid_step_deg: float | None,
+                 factory: ConsoleFactory) -> int:
+    """Run consoles until one exits with an exit code: each app is closed (its session
+    E-stops any motion and closes the motion process; the viewer closes) before the next
+    one, built for the settings the operator applied, starts in the same terminal."""
+    from spm_console.tui.app import SwitchRequest
+
+    note = ""
+    while True:
+        app = factory(profile_path, grid_step_deg, note)
+        try:
+            result = app.run()
+        finally:
+            app.shutdown()
+        if not isinstance(result, SwitchRequest):
+            return int(result or 0)
+        profile_path, grid_step_deg = result.profile_path, result.grid_step_deg
+        note = f"Console restarted: {result.describe()}."
+
+
 def cmd_tui(args: argparse.Namespace) -> int:
-    from spm_console.tui.app import make_app
+    from spm_console.cli.common import finite_number
 
-    profile = profile_of(args)
-    if args.grid_step is not None:
-        from spm_console.cli.common import finite_number
-        from spm_console.profile import with_grid_step
+    grid = args.grid_step
+    if grid is not None:
+        grid = finite_number(grid, "--grid-step", 0.0, 30.0, lo_open=True)
 
-        profile = with_grid_step(profile, finite_number(args.grid_step, "--grid-step", 0.0, 30.0,
-                                                        lo_open=True))
-    port = args.port or (None if args.sim else (profile.bus.port or None))
-    app = make_app(profile, port=port, sim=port is None, viewer=not args.no_viewer,
-                   logs_root=args.logs, cache_dir=args.cache_dir)
-    try:
-        code = app.run()
-    finally:
-        app.shutdown()
-    return int(code or 0)
+    def factory(path: Path, step_deg: float | None, note: str) -> ConsoleApp:
+        from spm_console.profile import load_profile, with_grid_step
+        from spm_console.tui.app import make_app
+
+        profile = load_profile(path)
+        if step_deg is not None:
+            profile = with_grid_step(profile, step_deg)
+        port = args.port or (None if args.sim else (profile.bus.port or None))
+        return make_app(profile, port=port, sim=port is None, viewer=not args.no_viewer,
+                        logs_root=args.logs, cache_dir=args.cache_dir, profile_path=path,
+                        note=note)
+
+    return run_consoles(Path(args.profile), grid, factory)

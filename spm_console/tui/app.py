@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import signal
+import threading
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
@@ -33,6 +34,7 @@ from spm_console.tui.screens.fk import FkScreen
 from spm_console.tui.screens.help import HelpScreen, KeyEntry, key_entries
 from spm_console.tui.screens.logs import LogsScreen
 from spm_console.tui.screens.plan import PlanScreen
+from spm_console.tui.screens.settings import SettingsScreen, SwitchRequest
 from spm_console.tui.screens.workspace import WorkspaceScreen
 from spm_console.tui.widgets.estop import ESTOP_KEY
 from spm_console.tui.widgets.steps import STEPS
@@ -57,8 +59,10 @@ def _step_bindings() -> list[Binding]:
     return out
 
 
-class SpmConsoleApp(App[int]):
-    """Six step screens (Textual modes) over one :class:`Session`."""
+class SpmConsoleApp(App[int | SwitchRequest]):
+    """Six step screens (Textual modes) over one :class:`Session`. It exits with a process
+    exit code, or with a :class:`SwitchRequest` when the operator applied other settings
+    (``spm-console tui`` then starts a new console for them)."""
 
     TITLE = "spm-console"
     CSS_PATH = "app.tcss"
@@ -81,6 +85,9 @@ class SpmConsoleApp(App[int]):
         Binding("question_mark", "help", "Keys", key_display="?",
                 tooltip="this list (also in the palette, ctrl+p)"),
         Binding("q", "quit", "Quit", tooltip="refused while the wrist moves"),
+        Binding("ctrl+o", "settings", "Settings", show=False, priority=True,
+                tooltip="profile and workspace grid step (applying restarts the console)"),
+        Binding("f7", "settings", "Settings", show=False, priority=True, key_display="F7"),
         Binding(ESTOP_KEY, "estop", "E-STOP", priority=True, key_display="SPACE",
                 tooltip="stops any motion (active while the wrist moves)"),
     ]
@@ -88,10 +95,20 @@ class SpmConsoleApp(App[int]):
     moving: reactive[bool] = reactive(False)
     """True while the wrist moves (homing or execution): E-stop shown, steps locked."""
 
-    def __init__(self, session: Session, view: WristView, start_viewer: bool = True) -> None:
+    def __init__(self, session: Session, view: WristView, start_viewer: bool = True,
+                 profile_path: Path | None = None, note: str = "") -> None:
         super().__init__()
         self.session = session
         self.view = view
+        self.profile_path = profile_path
+        """The profile file in use (None: not from a file); the settings list it."""
+        self._note = note
+        """Said once the console is up (e.g. after a restart with other settings)."""
+        self.sub_title = (f"{session.profile.name}, grid step "
+                          f"{session.profile.workspace.step_deg:g}°")
+        self.build_cancel: threading.Event | None = None
+        """Set by the workspace step while it loads or builds; setting the event cancels
+        the build at its next progress report."""
         self._start_viewer = start_viewer and isinstance(view, MeshcatView)
         self.viewer_url: str | None = None
         self.fk_done = False
@@ -112,6 +129,8 @@ class SpmConsoleApp(App[int]):
         self._restore_signals = install_stop_handler(self._on_stop_signal)
         if self._start_viewer:
             self._launch_viewer()
+        if self._note:
+            self.notify(self._note, title="Settings", timeout=8, markup=False)
 
     def _on_stop_signal(self, sig: signal.Signals) -> None:
         """SIGINT / SIGTERM / SIGHUP / SIGQUIT (signal handler, main thread): E-stop any motion
@@ -147,10 +166,12 @@ class SpmConsoleApp(App[int]):
         self.refresh_screen()
 
     def shutdown(self) -> None:
-        """Stop motion, close the bus and the viewer (idempotent; also on SIGTERM)."""
+        """Stop motion and any workspace build, close the bus and the viewer (idempotent;
+        also on SIGTERM)."""
         if self._closed:
             return
         self._closed = True
+        self.cancel_build()  # the app's exit waits for its worker threads
         self.session.close()
         self.view.close()
 
@@ -181,6 +202,43 @@ class SpmConsoleApp(App[int]):
             return
         self.shutdown()
         self.exit(0)
+
+    async def action_settings(self) -> None:
+        """The settings dialog (profile, grid step); applying restarts the console."""
+        if self.moving:
+            self.notify("The wrist is moving: settings wait until it stands still (SPACE "
+                        "stops it).", severity="warning")
+            return
+        while isinstance(self.screen, (HelpScreen, CommandPalette)):
+            await self.screen.dismiss()
+        if isinstance(self.screen, SettingsScreen):
+            return
+        if not isinstance(self.screen, StepScreen):
+            self.notify("Answer the dialog first (y / n, esc cancels).", severity="warning")
+            return
+        prof = self.session.profile
+        self.push_screen(SettingsScreen(self.profile_path, prof.name,
+                                        float(prof.workspace.step_deg)), self._apply_settings)
+
+    def _apply_settings(self, request: SwitchRequest | None) -> None:
+        """Exit with ``request`` (the CLI restarts the console with it), never while the
+        wrist moves."""
+        if request is None:
+            return
+        if self.moving:
+            self.notify("The wrist is moving: settings not applied (SPACE stops it).",
+                        severity="warning")
+            return
+        self.shutdown()
+        self.exit(request)
+
+    def cancel_build(self) -> bool:
+        """Cancel the running workspace load/build (False when none runs)."""
+        cancel = self.build_cancel
+        if cancel is None:
+            return False
+        cancel.set()
+        return True
 
     def action_help(self) -> None:
         """Open the key list of the current screen (or close it)."""
@@ -270,11 +328,15 @@ def make_app(
     cache_dir: Path | None = None,
     faults: Sequence[Any] = (),
     initial_deg: Sequence[float] | None = None,
+    profile_path: Path | None = None,
+    note: str = "",
 ) -> SpmConsoleApp:
-    """The console for ``profile`` on a serial ``port`` or the emulated bus (``sim``), with
-    or without the meshcat view. Nothing is opened until the app runs."""
+    """The console for ``profile`` (read from ``profile_path``, listed by the settings) on a
+    serial ``port`` or the emulated bus (``sim``), with or without the meshcat view; ``note``
+    is said once it is up. Nothing is opened until the app runs."""
     session = Session(profile, port=port, sim=sim and port is None, logs_root=logs_root,
                       cache_dir=cache_dir, faults=faults, initial_deg=initial_deg,
                       emulator_process=True)
     view: WristView = MeshcatView(profile) if viewer else NullView()
-    return SpmConsoleApp(session, view, start_viewer=viewer)
+    return SpmConsoleApp(session, view, start_viewer=viewer, profile_path=profile_path,
+                         note=note)

@@ -1,9 +1,11 @@
-"""Step 3: the workspace — load it from the cache (or build it with a progress bar),
-its counts and region P, and a pointwise check of θ."""
+"""Step 3: the workspace — load it from the cache (or build it with a progress bar; ``c``
+cancels a build at its next progress report), its counts and region P, and a pointwise
+check of θ."""
 
 from __future__ import annotations
 
 import functools
+import threading
 from typing import Any, ClassVar
 
 import numpy as np
@@ -13,9 +15,9 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import Input, ProgressBar, Static
 
-from spm_console.errors import BadInputError
+from spm_console.errors import BadInputError, BuildCancelledError
 from spm_console.formatting import fmt_deg
-from spm_console.tui.messages import Outcome, Progress, ThetaChecked, WorkspaceLoaded
+from spm_console.tui.messages import Failed, Outcome, Progress, ThetaChecked, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.confirm import ConfirmScreen
@@ -99,6 +101,8 @@ class WorkspaceScreen(StepScreen):
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("l", "load", "Load"),
         Binding("b", "rebuild", "Rebuild"),
+        Binding("c", "cancel_build", "Cancel build",
+                tooltip="stops a running build at its next progress report"),
         Binding("k", "check", "Check"),
         Binding("tab", "app.focus_next", "Fields"),
         Binding("escape", "leave_field", "Leave"),
@@ -129,20 +133,45 @@ class WorkspaceScreen(StepScreen):
     def action_leave_field(self) -> None:
         self.set_focus(None)
 
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action == "cancel_build":  # in the footer only while a load runs
+            return self.console.build_cancel is not None
+        return True
+
     def action_load(self, force: bool = False) -> None:
+        if self.busy_op:
+            self.status.error(f"busy: {self.busy_op} is still running")
+            return
+        cancel = threading.Event()
+
         def progress(stage: str, fraction: float) -> None:
+            # worker thread: a cancel lands at the build's next progress report
+            if cancel.is_set():
+                raise BuildCancelledError("workspace build cancelled by the operator")
             self.post_message(Progress(stage, fraction))
 
         bar = self.query_one("#ws-progress", ProgressBar)
         bar.update(progress=0)
         bar.display = True
+        self.query_one("#ws-stage", Static).update("")
+
         def load() -> WorkspaceLoaded:
             self.session.load_workspace(progress, force=force)
             return WorkspaceLoaded()
 
+        self.console.build_cancel = cancel
         self.run_blocking("load", load,
-                          "rebuilding the workspace …" if force else
-                          "loading the workspace (building it if there is no cache) …")
+                          "rebuilding the workspace (c cancels) …" if force else
+                          "loading the workspace (building it if there is no cache; "
+                          "c cancels a build) …")
+        self.refresh_bindings()
+
+    def action_cancel_build(self) -> None:
+        """Ask the running load/build to stop (at its next progress report)."""
+        if not self.console.cancel_build():
+            self.status.error("no workspace build is running")
+            return
+        self.status.busy("cancelling the build (it stops at its next progress report) …")
 
     def action_rebuild(self) -> None:
         body = ("Rebuild the workspace from scratch? It takes a while (the cache is replaced "
@@ -174,8 +203,35 @@ class WorkspaceScreen(StepScreen):
         self.run_blocking("check", lambda: ThetaChecked(self.session.check_theta(theta)),
                           f"checking θ = {fmt_deg(theta)} …")
 
+    def on_failed(self, message: Failed) -> None:
+        """A cancelled build is no error: it is said as such (the base handler, which
+        reports errors, runs for every other failure)."""
+        if message.op != "load":
+            return
+        cancel, self.console.build_cancel = self.console.build_cancel, None
+        self.refresh_bindings()
+        if cancel is None or not cancel.is_set():
+            return
+        message.stop()
+        message.prevent_default()
+        self.busy_op = ""
+        self.console.build_cancel = None
+        self.query_one("#ws-progress").display = False
+        self.query_one("#ws-stage", Static).update(Content("build cancelled"))
+        if self.session.workspace is not None:
+            self.status.error("build cancelled: the workspace shown, loaded before, stays in "
+                              "use (nothing was cached)")
+        else:
+            self.query_one("#ws-info", Static).update(Content(
+                "No workspace: the build was cancelled (nothing was cached).\n"
+                "Next: press l to load or build it."))
+            self.status.error("build cancelled: no workspace (press l to load or build it)")
+        self.refresh_view()
+
     def handle_done(self, outcome: Outcome) -> None:
         if isinstance(outcome, WorkspaceLoaded):
+            self.console.build_cancel = None
+            self.refresh_bindings()
             self.query_one("#ws-progress").display = False
             self.query_one("#ws-stage", Static).update("")
             self._ready()
