@@ -126,13 +126,13 @@ class Follower(Executor):
         st: _LoopState = self._loop_state(theta0)
         plan, j = first, 0
         ref = plan.reference_at(0)
-        shown = plan.target_deg
         settled_since: float | None = None
         finished_at: float | None = None
         updates = feed.updates
         k = 0
         while True:
-            stop = self._cycle(st, k, ref, "follow", True, target=shown)
+            asked = feed.now(k * self.ts, st.last_good)  # logged beside the reference
+            stop = self._cycle(st, k, ref, "follow", True, target=asked)
             if stop is not None:
                 return stop
             s = self.samples[-1]
@@ -159,7 +159,6 @@ class Follower(Executor):
                     self._counts["refused"] += 1
             else:
                 self._counts["misses"] += 1
-            shown = plan.target_deg
             ref = np.clip(plan.reference_at(j), self.lo, self.hi)
             # the end: a finished feed, the wrist settled on the (projected) last target
             if feed.finished(t_next):

@@ -117,6 +117,12 @@ class TargetFeed:
             assert tgt is not None
             return np.tile(tgt, (horizon, 1)), self._held is not None
 
+    def now(self, t_run: float, wrist_deg: F) -> F:
+        """The target asked for at ``t_run`` (before any projection into the region)."""
+        if self.timed is not None:
+            return np.asarray(self.timed.at(np.array([t_run]))[0])
+        return self.targets(t_run, 0.0, 1, wrist_deg)[0][0]
+
     def finished(self, t_run: float) -> bool:
         """No target will change any more (the timed list is over, or the live source ended)."""
         if self.timed is not None:
