@@ -26,6 +26,10 @@ EMULATOR_PRIORITY = 45
 #: for the GIL behind them (priority inversion: 10-20 ms stalls with one CPU-bound process
 #: per core). Real-time below the loop, they run their short work and release it.
 HELPER_PRIORITY = 30
+#: GIL switch interval of the processes that run the servo loop or the emulated servos, s:
+#: a thread that wants the GIL waits at most about this long for the holder to let it go
+#: (CPython's default, 5 ms, is a quarter of a servo period).
+GIL_SWITCH_S = 0.0005
 #: Nice value asked for when SCHED_FIFO is refused.
 FALLBACK_NICE = -10
 
@@ -84,3 +88,12 @@ def normal_priority() -> None:
     or building a workspace."""
     release_realtime(RtGrant("SCHED_FIFO", ""))
     release_realtime(RtGrant("nice", ""))
+
+
+def quick_gil_handoff() -> float:
+    """Set this process's GIL switch interval to :data:`GIL_SWITCH_S`; returns the old one."""
+    import sys
+
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(GIL_SWITCH_S)
+    return old

@@ -34,7 +34,7 @@ from typing import Any
 
 from spm_console.errors import ExitCode, SpmError
 from spm_console.profile import Profile
-from spm_console.realtime import HELPER_PRIORITY, normal_priority, request_realtime
+from spm_console.realtime import HELPER_PRIORITY, normal_priority, quick_gil_handoff, request_realtime
 from spm_console.run.motion_protocol import (
     Close,
     EndFollow,
@@ -347,6 +347,7 @@ def serve(conn: Connection, start: Start) -> None:
     """The child's main loop (see module docstring)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the client decides; Ctrl-C reaches it first
     request_realtime(HELPER_PRIORITY)  # this thread reads the pipe: see realtime.HELPER_PRIORITY
+    quick_gil_handoff()  # the loop thread gets the GIL within ~0.5 ms of asking
     try:
         server = _Server(conn, start.profile, start.ctx, start.cache_dir)
     except SpmError as exc:
