@@ -34,8 +34,8 @@ def test_follow_timed_rpy_targets_settles_on_the_last(tmp_path: Path,
                  str(tmp_path / "logs"), "--skip-homing", "test"])
     d = _json(capsys)
     assert code == 0 and d["outcome"] == "completed"
-    from spm_console.cli.follow_source import theta_of_rpy
     from spm_console.profile import load_profile
+    from spm_console.store.target_file import theta_of_rpy
 
     last = theta_of_rpy(load_profile(ROOT / "profiles" / "agile_wrist.toml"), np.array([0, -4, 3.0]))
     np.testing.assert_allclose(d["final_deg"], last, atol=0.3)

@@ -214,3 +214,34 @@ def test_a_signal_while_nothing_moves_interrupts_at_once(tmp_path) -> None:
     assert summary["message"] == "step 1 (wait) interrupted"
     assert summary["steps"] == [{"index": 1, "do": "wait", "ok": False, "seconds": summary["steps"][0]["seconds"],
                                  "error": "interrupted"}]
+
+
+FOLLOW = """
+[[step]]
+do = "home"
+
+[[step]]
+do = "follow"
+rpy = true
+targets = [[0.0, 0.0, 0.0, 0.0], [0.3, 5.0, 0.0, 0.0], [0.9, 0.0, -4.0, 2.0]]
+
+[[step]]
+do = "assert"
+outcome = "completed"
+"""
+
+
+def test_a_follow_step_tracks_timed_targets(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                            agile) -> None:  # type: ignore[no-untyped-def]
+    from spm_console.store.target_file import theta_of_rpy
+
+    code, d, err = _run(tmp_path, FOLLOW, capsys)
+    assert code == 0, err
+    step = d["steps"][1]
+    last = theta_of_rpy(agile, np.array([0.0, -4.0, 2.0]))
+    np.testing.assert_allclose(step["result"]["final_deg"], last, atol=0.3)
+    assert step["result"]["follow"]["solves"] > 0
+    assert sorted(r.meta["kind"] for r in list_runs(tmp_path / "logs")) == ["follow", "home"]
+    bad = FOLLOW.replace('targets = [[0.0, 0.0, 0.0, 0.0]', 'file = "t.csv"\ntargets = [[0.0, 0.0, 0.0, 0.0]')
+    code, d, _ = _run(tmp_path, bad, capsys)
+    assert code == int(ExitCode.BAD_INPUT) and "exactly one of targets or file" in d["message"]

@@ -20,9 +20,10 @@ from pathlib import Path
 from typing import Any
 
 from spm_console.cli.common import finite_number, profile_of
-from spm_console.cli.follow_source import UdpTargets, read_target_csv
+from spm_console.cli.follow_source import UdpTargets
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.errors import BadInputError
+from spm_console.store.target_file import read_target_csv
 
 
 def register(sub: Any) -> None:

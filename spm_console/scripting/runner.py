@@ -77,6 +77,7 @@ from spm_console.scripting.steps import (
     AssertStep,
     ExecuteStep,
     FkStep,
+    FollowStep,
     HomeStep,
     PlanStep,
     PoseIn,
@@ -262,6 +263,31 @@ class ScriptRunner:
         if not self.session.homed:
             raise BadInputError("execute step: the wrist is not homed (add a home step first)")
         return self._motion(self.session.execute(), step.allow_stop, "execution")
+
+    def _step_follow(self, step: FollowStep) -> tuple[dict[str, Any], str]:
+        from spm_console.core.targets import TimedTargets
+        from spm_console.store.target_file import read_target_csv, theta_of_rpy
+
+        if (step.targets is None) == (step.file is None):
+            raise BadInputError("follow step: give exactly one of targets or file")
+        if step.file is not None:
+            timed = read_target_csv(self.session.profile, Path(step.file), step.rpy)  # cwd-relative
+        else:
+            rows = np.asarray(step.targets, float)
+            th = rows[:, 1:]
+            if step.rpy:
+                th = np.vstack([theta_of_rpy(self.session.profile, r) for r in th])
+            timed = TimedTargets(rows[:, 0], th)
+        self._ensure_bus()
+        if not self.session.homed:
+            raise BadInputError("follow step: the wrist is not homed (add a home step first)")
+        out = self.session.follow(timed, source="script")
+        rec, text = self._motion(out.execution, step.allow_stop, "following")
+        if out.stats is not None:
+            rec["follow"] = out.stats.to_dict()
+            text += (f"; {out.stats.solves} re-plans, solve p99 {out.stats.solve_ms_p99:.2f} ms, "
+                     f"{out.stats.misses} missed")
+        return rec, text
 
     def _step_wait(self, step: WaitStep) -> tuple[dict[str, Any], str]:
         t_end = time.monotonic() + step.seconds

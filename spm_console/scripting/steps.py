@@ -92,6 +92,18 @@ class ExecuteStep(_Model):
     allow_stop: bool = False
 
 
+class FollowStep(_Model):
+    """Live following of timed targets: rows ``[t, a, b, c]`` (s; θ in degrees, or roll, pitch,
+    yaw in degrees from home with ``rpy``) or a CSV ``file`` of the same rows."""
+
+    do: Literal["follow"]
+    targets: tuple[tuple[float, float, float, float], ...] | None = Field(
+        default=None, min_length=1, max_length=100_000)
+    file: str | None = None
+    rpy: bool = False
+    allow_stop: bool = False
+
+
 class WaitStep(_Model):
     do: Literal["wait"]
     seconds: float = Field(ge=0.0, le=3600.0)
@@ -109,7 +121,8 @@ class AssertStep(_Model):
 
 
 Step = Annotated[
-    HomeStep | FkStep | WorkspaceStep | PlanStep | ExecuteStep | WaitStep | AssertStep,
+    HomeStep | FkStep | WorkspaceStep | PlanStep | ExecuteStep | FollowStep | WaitStep
+    | AssertStep,
     Field(discriminator="do"),
 ]
 
@@ -126,7 +139,7 @@ def _where(loc: tuple[int | str, ...], data: dict[str, Any]) -> str:
         steps = data.get("step")
         do = steps[i].get("do", "?") if isinstance(steps, list) and i < len(steps) and \
             isinstance(steps[i], dict) else "?"
-        rest = [str(x) for x in loc[2:] if x not in ("home", "fk", "workspace", "plan", "execute",
+        rest = [str(x) for x in loc[2:] if x not in ("home", "fk", "workspace", "plan", "execute", "follow",
                                                     "wait", "assert")]
         rest = [r for r in rest if r not in ("ThetaPose", "RpyPose") and not r.startswith("literal")]
         return f"step {i + 1} ({do})" + (f" key '{'.'.join(rest)}'" if rest else "")

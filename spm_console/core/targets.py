@@ -1,0 +1,47 @@
+"""Timed targets for live following: motor angles from given times on (degrees, seconds)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.errors import BadInputError
+
+F = NDArray[np.float64]
+
+#: Most timed targets one run accepts (a 10-minute file at 50 Hz has 30,000).
+MAX_TIMED_TARGETS = 100_000
+
+
+@dataclass(frozen=True)
+class TimedTargets:
+    """Targets θ (deg) from time t (s since the following began) until the next one."""
+
+    t_s: F
+    """(n,) strictly increasing, the first ≥ 0."""
+    theta_deg: F
+    """(n, 3)."""
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t_s, float).reshape(-1)
+        th = np.asarray(self.theta_deg, float).reshape(-1, 3)
+        if not 1 <= len(t) <= MAX_TIMED_TARGETS or th.shape != (len(t), 3):
+            raise BadInputError(f"timed targets: 1..{MAX_TIMED_TARGETS} rows of t and three angles")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(th))):
+            raise BadInputError("timed targets must be finite numbers")
+        if t[0] < 0 or np.any(np.diff(t) <= 0):
+            raise BadInputError("target times must start at t ≥ 0 and increase strictly")
+        object.__setattr__(self, "t_s", t)
+        object.__setattr__(self, "theta_deg", th)
+
+    def at(self, t: F) -> F:
+        """Targets (len(t), 3) at the times ``t``: the last one given at or before each
+        (the first one before it begins)."""
+        i = np.searchsorted(self.t_s, np.asarray(t, float), side="right") - 1
+        return np.asarray(self.theta_deg[np.clip(i, 0, len(self.t_s) - 1)])
+
+    @property
+    def end_s(self) -> float:
+        return float(self.t_s[-1])
