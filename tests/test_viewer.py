@@ -233,3 +233,48 @@ def test_the_websocket_is_refused_to_a_foreign_host_or_origin(server_port: int) 
     assert _status(p, f"127.0.0.1:{p}", "/", Origin="null", **WS_UPGRADE) == 403
     assert _status(p, f"127.0.0.1:{p}", "/", Origin=f"http://127.0.0.1:{p}", **WS_UPGRADE) == 101
     assert _status(p, f"localhost:{p}", "/", Origin=f"http://localhost:{p}", **WS_UPGRADE) == 101
+
+
+def test_a_batch_goes_out_in_one_burst_and_bad_batches_are_refused() -> None:
+    """One reply for a whole pose; the bridge's scene (what a page opened later receives)
+    holds the batched transforms; anything but transforms and properties is refused."""
+    import umsgpack
+    import zmq
+    from meshcat.commands import SetObject, SetTransform
+    from meshcat.geometry import Box
+    from meshcat.path import Path as MPath
+
+    from spm_console.viewer.client import MeshcatClient, path_of
+    from spm_console.viewer.process import ViewerError, ViewerServer
+
+    srv = ViewerServer()
+    urls = srv.start_server()
+    c = MeshcatClient(urls.zmq_url)
+    try:
+        c.set_object("probe", Box([0.1, 0.1, 0.1]))
+        sent = c.sent
+        with c.batch():
+            for k in range(5):
+                c.set_transform("probe", np.diag([1.0, 1.0, 1.0, 1.0]) + k * 0.01)
+            c.set_property("probe", "visible", True)
+            assert c.sent == sent  # nothing went out yet
+        assert c.sent == sent + 6  # one exchange acknowledged all six
+        # the bridge's own scene (sent to a page opened later) has the last transform
+        s = zmq.Context.instance().socket(zmq.REQ)
+        s.setsockopt(zmq.RCVTIMEO, 5000)
+        s.connect(urls.zmq_url)
+        s.send_multipart([b"get_scene"])
+        last = umsgpack.packb(SetTransform(np.diag([1.0, 1.0, 1.0, 1.0]) + 0.04,
+                                           path_of("probe")).lower())
+        import base64
+
+        assert base64.b64encode(last) in s.recv()  # meshcat embeds each command in base64
+        s.close(0)
+        bad = SetObject(Box([0.1, 0.1, 0.1]), None, MPath(("meshcat", "x"))).lower()
+        with pytest.raises(ViewerError, match="set_transform/set_property only"):
+            c._exchange([b"batch", b"set_object", b"/meshcat/x", umsgpack.packb(bad)])
+        with pytest.raises(ViewerError, match="batch frames"):
+            c._exchange([b"batch", b"set_transform"])
+    finally:
+        c.close()
+        srv.stop()

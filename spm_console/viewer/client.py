@@ -7,6 +7,8 @@ msgpack-encoded, three frames) and gives up after a timeout instead.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -35,6 +37,7 @@ class MeshcatClient:
         self.timeout_ms = timeout_ms
         self._ctx = zmq.Context()
         self._sock = self._connect()
+        self._batch: list[bytes] | None = None
         self.sent = 0
         """Commands acknowledged by the server."""
 
@@ -48,17 +51,37 @@ class MeshcatClient:
 
     def _send(self, command: Any) -> None:
         data = command.lower()
+        frames = [data["type"].encode(), data["path"].encode(), umsgpack.packb(data)]
+        if self._batch is not None and data["type"] in ("set_transform", "set_property"):
+            self._batch.extend(frames)
+            return
+        self._exchange(frames)
+
+    @contextlib.contextmanager
+    def batch(self) -> Iterator[None]:
+        """Transforms and properties sent inside the block go to the browser in one burst
+        (one frame drawn for all of them); sent when the block ends."""
+        self._batch = []
         try:
-            self._sock.send_multipart(
-                [data["type"].encode(), data["path"].encode(), umsgpack.packb(data)]
-            )
-            self._sock.recv()
+            yield
+            frames, self._batch = self._batch, None
+            if frames:
+                self._exchange([b"batch", *frames], count=len(frames) // 3)
+        finally:
+            self._batch = None
+
+    def _exchange(self, frames: list[bytes], count: int = 1) -> None:
+        try:
+            self._sock.send_multipart(frames)
+            reply = self._sock.recv()
         except zmq.ZMQError as exc:
             # a REQ socket is unusable after a missed reply: start a fresh one
             self._sock.close(0)
             self._sock = self._connect()
             raise ViewerError(f"3D viewer did not answer ({exc})") from None
-        self.sent += 1
+        if reply != b"ok" and frames[0] == b"batch":
+            raise ViewerError(f"3D viewer refused a batch: {reply.decode('utf-8', 'replace')}")
+        self.sent += count
 
     def set_object(self, name: str, geometry: Any, material: Any = None) -> None:
         self._send(SetObject(geometry, material, path_of(name)))

@@ -32,6 +32,10 @@ from typing import Any
 LOOPBACK = "127.0.0.1"
 #: How often the server checks that its parent is alive, ms.
 PARENT_POLL_MS = 500
+#: Most commands in one ``batch``.
+MAX_BATCH = 256
+#: Commands a ``batch`` may hold.
+BATCHABLE = ("set_transform", "set_property")
 #: Names of the loopback interface a browser may use in the Host header (with the port).
 LOOPBACK_NAMES = (LOOPBACK, "localhost")
 
@@ -83,7 +87,35 @@ def _bridge_class() -> Any:
             return origin_netloc(origin) in allowed_hosts(getattr(app, "port", None))
 
     class LoopbackBridge(zs.ZMQWebSocketBridge):
-        """meshcat's bridge, with its HTTP/WebSocket server on the loopback interface."""
+        """meshcat's bridge, with its HTTP/WebSocket server on the loopback interface, and
+        one command of ours: ``batch`` (frames: "batch", then type, path, data for each of
+        up to :data:`MAX_BATCH` ``set_transform``/``set_property`` commands), forwarded to the
+        browsers in one go and answered once — a pose change reaches the page in one burst,
+        so it draws one frame for it, not one per part (software WebGL pays per frame)."""
+
+        def handle_zmq(self, frames: list[bytes]) -> None:
+            if frames and frames[0] == b"batch":
+                body = frames[1:]
+                if len(body) % 3 or len(body) > 3 * MAX_BATCH:
+                    self.zmq_socket.send(b"error: batch frames")
+                    return
+                for k in range(0, len(body), 3):
+                    cmd = body[k].decode("utf-8", "replace")
+                    if cmd not in BATCHABLE:
+                        self.zmq_socket.send(b"error: batch holds set_transform/set_property only")
+                        return
+                for k in range(0, len(body), 3):
+                    cmd, raw_path, data = body[k].decode(), body[k + 1], body[k + 2]
+                    path = [x for x in raw_path.decode("utf-8", "replace").split("/") if x]
+                    self.forward_to_websockets([body[k], raw_path, data])
+                    node = zs.find_node(self.tree, path)
+                    if cmd == "set_transform":
+                        node.transform = data
+                    else:
+                        node.properties.append(data)
+                self.zmq_socket.send(b"ok")
+                return
+            super().handle_zmq(frames)
 
         def make_app(self) -> tornado.web.Application:
             return LoopbackApplication([

@@ -245,12 +245,13 @@ class MeshcatView:
                 if client is None:
                     continue
                 self.last_error = ""
-                if measured is not None:
-                    self._draw_measured(client, measured.value)
-                if path is not None:
-                    self._draw_path(client, path.value)
-                if target is not None:
-                    self._draw_target(client, target)
+                with client.batch():  # one burst to the browser: one frame drawn for it
+                    if measured is not None:
+                        self._draw_measured(client, measured.value)
+                    if path is not None:
+                        self._draw_path(client, path.value)
+                    if target is not None:
+                        self._draw_target(client, target)
             except ViewerError as exc:
                 self.last_error = exc.message
             except Exception as exc:  # the view must outlive one bad request
