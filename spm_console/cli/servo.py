@@ -1,4 +1,5 @@
-"""``servo ping|read|torque`` (talk to a real or emulated bus) and ``emulate`` (serve one)."""
+"""``servo ping|read|torque`` (talk to a real or emulated bus, through the operator runtime:
+the motion process owns the port, as for every motion) and ``emulate`` (serve one)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import json
 import sys
 import threading
 import time
+from dataclasses import asdict
 from typing import Any
 
 from spm_console.cli.common import (
@@ -18,12 +20,10 @@ from spm_console.cli.common import (
     theta_in_servo_limits,
     to_jsonable,
 )
-from spm_console.devices.base import CommError
-from spm_console.devices.bus import DynamixelBus, open_bus
 from spm_console.devices.emulator import start_emulator
 from spm_console.devices.faults import parse_fault
 from spm_console.errors import BadInputError, BusError, ExitCode
-from spm_console.profile import Profile
+from spm_console.run.servo_query import BusQuery, BusReport, check_ids
 from spm_console.run.signals import install_stop_handler
 
 #: Longest ``emulate --duration`` (one day; without --duration it runs until stopped).
@@ -70,97 +70,61 @@ def register(sub: Any) -> None:
     e.set_defaults(func=cmd_emulate)
 
 
-def _bus(args: argparse.Namespace, profile: Profile) -> DynamixelBus:
+def _query(args: argparse.Namespace, q: BusQuery) -> BusReport:
+    """Run ``q`` in the operator runtime: the motion process opens the port (as for every
+    motion), answers, and is closed again."""
+    from spm_console.run.operator import Session
+
+    profile = profile_of(args)
     if args.ids:  # checked before the port is opened
-        _check_ids(list(args.ids))
+        check_ids(list(args.ids))
     port = args.port or profile.bus.port
     if not port:
         raise BusError("no serial port: pass --port DEV (the profile's bus.port is empty); "
                        "'spm-console emulate' serves an emulated bus and prints its port")
-    return open_bus(profile, port)
-
-
-def _check_ids(ids: list[int]) -> list[int]:
-    bad = [i for i in ids if not 0 <= i <= 252]
-    if bad:
-        raise BadInputError(f"--ids: servo ids are 0..252, got {bad[:10]}")
-    if len(set(ids)) != len(ids):
-        raise BadInputError("--ids: give each servo id at most once")
-    return ids
-
-
-def _ids(args: argparse.Namespace, bus: DynamixelBus) -> list[int]:
-    return _check_ids(list(args.ids) if args.ids else list(bus.ids))
+    session = Session(profile, port=port)
+    try:
+        session.connect(check=False)  # a silent servo is what these commands report
+        report: BusReport = session.require_bus().query(q)
+        return report
+    finally:
+        session.close()
 
 
 def cmd_ping(args: argparse.Namespace) -> int:
-    profile = profile_of(args)
-    with _bus(args, profile) as bus:
-        ids = _ids(args, bus)
-        found, problems = [], []
-        for ident in ids:
-            try:
-                st = bus.ping(ident)
-                found.append({"id": st.id, "model_number": st.model_number,
-                              "firmware": st.firmware})
-            except BusError as exc:
-                problems.append(exc.message)
-        lines = [f"id {d['id']:3d}  model {d['model_number']}  firmware {d['firmware']}"
-                 for d in found]
-        emit(args, {"port": bus.port, "protocol": bus.protocol, "servos": found,
-                    "missing": problems}, "\n".join(lines) or "no servo answered")
-    if problems:
-        raise BusError("; ".join(problems))
+    r = _query(args, BusQuery("ping", tuple(args.ids or ())))
+    found = [asdict(f) for f in r.found]
+    lines = [f"id {d['id']:3d}  model {d['model_number']}  firmware {d['firmware']}" for d in found]
+    emit(args, {"port": r.port, "protocol": r.protocol, "servos": found,
+                "missing": list(r.missing)}, "\n".join(lines) or "no servo answered")
+    if r.missing:
+        raise BusError("; ".join(r.missing))
     return int(ExitCode.OK)
 
 
 def cmd_read(args: argparse.Namespace) -> int:
-    profile = profile_of(args)
-    with _bus(args, profile) as bus:
-        ids = _ids(args, bus)
-        try:
-            if args.register:
-                if args.register not in bus.table.registers:
-                    names = ", ".join(sorted(bus.table.registers))
-                    raise BadInputError(f"unknown register {args.register!r} on the "
-                                        f"{bus.table.model}; known: {names}")
-                values = {i: bus.read(i, args.register) for i in ids}
-                emit(args, {"register": args.register, "values": values},
-                     "\n".join(f"id {i:3d}  {args.register} = {v}" for i, v in values.items()))
-                return int(ExitCode.OK)
-            if args.ids:
-                raise BadInputError("--ids needs --register (positions are per joint)")
-            ticks = bus.read_ticks()
-            theta = [m.to_deg(t) for m, t in zip(bus.maps, ticks, strict=True)]
-            torque = bus.torque()
-            hw = bus.hardware_errors()
-        except CommError as exc:
-            raise BusError(f"reading from {bus.port} failed: {exc}") from None
-        joints = [
-            {"joint": m.joint, "id": m.id, "ticks": t, "theta_deg": th, "torque": tq,
-             "hardware_error": h, "hardware_error_text": bus.describe_hardware_error(h)}
-            for m, t, th, tq, h in zip(bus.maps, ticks, theta, torque, hw, strict=True)
-        ]
-        human = "\n".join(
-            f"joint {j['joint']} (id {j['id']}): θ = {j['theta_deg']:8.3f}°  ticks {j['ticks']:5d}"
-            f"  torque {'on' if j['torque'] else 'off'}  hw error: {j['hardware_error_text']}"
-            for j in joints)
-        emit(args, {"theta_deg": theta, "joints": joints}, human)
+    if args.register:
+        r = _query(args, BusQuery("register", tuple(args.ids or ()), args.register))
+        values = dict(r.values)
+        emit(args, {"register": args.register, "values": values},
+             "\n".join(f"id {i:3d}  {args.register} = {v}" for i, v in values.items()))
+        return int(ExitCode.OK)
+    if args.ids:
+        raise BadInputError("--ids needs --register (positions are per joint)")
+    r = _query(args, BusQuery("joints"))
+    joints = [asdict(j) for j in r.joints]
+    human = "\n".join(
+        f"joint {j['joint']} (id {j['id']}): θ = {j['theta_deg']:8.3f}°  ticks {j['ticks']:5d}"
+        f"  torque {'on' if j['torque'] else 'off'}  hw error: {j['hardware_error_text']}"
+        for j in joints)
+    emit(args, {"theta_deg": [j["theta_deg"] for j in joints], "joints": joints}, human)
     return int(ExitCode.OK)
 
 
 def cmd_torque(args: argparse.Namespace) -> int:
-    profile = profile_of(args)
-    with _bus(args, profile) as bus:
-        ids = _ids(args, bus)
-        on = args.state == "on"
-        try:
-            if on:
-                bus.hold()  # goal := present position first, so torque-on does not lunge
-            bus.set_torque(on, ids)
-        except CommError as exc:
-            raise BusError(f"torque {args.state} on {bus.port} failed: {exc}") from None
-        emit(args, {"ids": ids, "torque": on}, f"torque {args.state}: ids {ids}")
+    on = args.state == "on"
+    r = _query(args, BusQuery("torque", tuple(args.ids or ()), on=on))
+    emit(args, {"ids": list(r.ids), "torque": on}, f"torque {args.state}: ids {list(r.ids)}")
     return int(ExitCode.OK)
 
 

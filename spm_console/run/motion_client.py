@@ -36,6 +36,7 @@ from spm_console.run.motion_protocol import (
     Heartbeat,
     Home,
     Ping,
+    Query,
     ReadPosition,
     Reboot,
     Reply,
@@ -208,6 +209,10 @@ class MotionClient:
         ``skip_homing`` says why the operator overrides that)."""
         return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg, skip_homing, source),
                             on_sample)
+
+    def query(self, q: Any) -> Any:
+        """A bus diagnostic by servo id (BusQuery -> BusReport); refused while moving."""
+        return self._call(lambda i: Query(i, q), REQUEST_TIMEOUT_S)
 
     def follow(self, timed: Any = None, initial_deg: Any = None, deadman_s: float | None = None,
                on_sample: Callable[[Sample], None] | None = None, skip_homing: str = "",

@@ -45,6 +45,7 @@ from spm_console.run.motion_protocol import (
     Heartbeat,
     Home,
     Ping,
+    Query,
     ReadPosition,
     Reboot,
     Reply,
@@ -206,14 +207,14 @@ class _Server:
             self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
                                            name="spm-motion")
             self.motion.start()
-        elif isinstance(req, (Ping, ReadPosition, Status, Torque, Reboot)):
+        elif isinstance(req, (Ping, ReadPosition, Status, Torque, Reboot, Query)):
             if self.moving():  # the loop owns every bus cycle while the wrist moves
                 self.send(Failed(req.id, "the wrist is moving: the servo loop owns the bus; "
                                  "ask again when it has stopped", int(ExitCode.BAD_INPUT)))
                 return
             self._answer(req)
 
-    def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot) -> None:
+    def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot | Query) -> None:
         try:
             if isinstance(req, ReadPosition):
                 from spm_console.devices.base import read_position_checked
@@ -221,6 +222,10 @@ class _Server:
                 value: object = read_position_checked(self.bus, 3)
             elif isinstance(req, Ping):
                 value = self.ping()
+            elif isinstance(req, Query):
+                from spm_console.run.servo_query import answer
+
+                value = answer(self.bus, req.query)
             else:
                 value = self.servo_tool(req)
             self.send(Reply(req.id, value))

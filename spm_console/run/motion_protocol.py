@@ -11,6 +11,7 @@ from typing import Any
 
 from spm_console.core.plan import Plan
 from spm_console.run.sample import Sample
+from spm_console.run.servo_query import BusQuery
 from spm_console.run.target_feed import TimedTargets
 
 
@@ -57,6 +58,15 @@ class Reboot:
     id: int
     joint: int
     """1-based."""
+
+
+@dataclass(frozen=True)
+class Query:
+    """A bus diagnostic by servo id (:mod:`~spm_console.run.servo_query`); reply: BusReport.
+    Refused while moving."""
+
+    id: int
+    query: BusQuery
 
 
 @dataclass(frozen=True)
@@ -127,7 +137,7 @@ class Close:
     """Close the bus and end the process."""
 
 
-Request = (Ping | ReadPosition | Status | Torque | Reboot | Home | Execute | Follow | SetTarget
+Request = (Ping | ReadPosition | Status | Torque | Reboot | Query | Home | Execute | Follow | SetTarget
            | EndFollow | EStop | Heartbeat | Close)
 
 

@@ -153,9 +153,10 @@ class Session(ServoTools, FollowTools):
     def bus_label(self) -> str:
         return "emulated bus" if self.sim else f"serial port {self.port}"
 
-    def connect(self) -> BusState:
+    def connect(self, check: bool = True) -> BusState:
         """Start the motion process on the bus (the emulator first in sim mode): it owns the
-        port and runs every motion; then ping the servos (with their health) and read θ."""
+        port and runs every motion; then ping the servos (with their health) and read θ —
+        unless ``check`` is False (bus diagnostics: a silent servo is what they report)."""
         self.disconnect()
         port = self.port
         if self.sim and self.emulator_process:
@@ -183,9 +184,11 @@ class Session(ServoTools, FollowTools):
                                   sim=self.sim, faults=[str(f) for f in self.faults])
             self.bus = client
             rt, granted = self._emulator_realtime()
-            self.bus_state = BusState(port=port, emulated=self.sim, statuses=client.ping_all(),
+            self.bus_state = BusState(port=port, emulated=self.sim,
+                                      statuses=client.ping_all() if check else [],
                                       emulator_realtime=rt, emulator_realtime_granted=granted)
-            self.read_position()
+            if check:
+                self.read_position()
         except SpmError:
             self.disconnect()
             raise
