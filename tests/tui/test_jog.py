@@ -4,6 +4,7 @@ through the runtime's following; esc ends it (the run completes), SPACE stops it
 from __future__ import annotations
 
 import asyncio
+import re
 from collections.abc import Callable
 from typing import Any
 
@@ -18,6 +19,7 @@ from spm_console.tui.screens.execute import ExecuteScreen
 from spm_console.tui.screens.help import HelpScreen
 from spm_console.tui.screens.jog import JOG_SOURCE, JogScreen
 from spm_console.tui.screens.jog_target import JOG_STEPS_DEG, JogTarget, TargetSender
+from spm_console.viewer.view import NullView
 from tests.tui.helpers import settle, status_of, text_of
 
 SIZE = (130, 42)
@@ -62,6 +64,20 @@ async def _ended(app: SpmConsoleApp, pilot: Pilot[Any]) -> None:
     await settle(pilot)
 
 
+class ViewSpy(NullView):
+    """A 3D view that remembers what it was asked to show."""
+
+    def __init__(self) -> None:
+        self.measured: list[Any] = []
+        self.ghosts: list[Any] = []
+
+    def show_theta(self, theta_deg: Any) -> None:
+        self.measured.append(None if theta_deg is None else np.asarray(theta_deg, float))
+
+    def show_target(self, theta_deg: Any) -> None:
+        self.ghosts.append(None if theta_deg is None else np.asarray(theta_deg, float))
+
+
 def _spy_targets(app: SpmConsoleApp) -> list[np.ndarray]:
     """Record every target the console hands to the runtime."""
     sent: list[np.ndarray] = []
@@ -80,6 +96,7 @@ async def test_joint_jog_moves_the_target_and_ending_settles_there(console) -> N
     async with app.run_test(size=SIZE) as pilot:
         await _homed_on_step5(app, pilot)
         sent = _spy_targets(app)
+        view = app.view = ViewSpy()
         home = np.asarray(app.session.profile.home.theta_deg, float)
         jog = await _start_jog(app, pilot)
         assert jog.target is not None and jog.target.mode == "rpy"
@@ -92,6 +109,8 @@ async def test_joint_jog_moves_the_target_and_ending_settles_there(console) -> N
         await until(pilot, lambda: len(sent) == 4, "four targets sent")
         np.testing.assert_allclose(sent[0], home + np.array([step, 0, 0]))  # one per key, at once
         np.testing.assert_allclose(sent[-1], want)
+        np.testing.assert_allclose(view.ghosts[-1], want)  # the target: the ghost
+        assert len(view.measured) > 0  # the measured pose: solid, from the telemetry
         assert "inside P: not clamped" in text_of(app, "#jog-target")
         await until(pilot, lambda: jog.last_sample is not None
                     and jog.last_sample.target_deg is not None
@@ -101,6 +120,7 @@ async def test_joint_jog_moves_the_target_and_ending_settles_there(console) -> N
         res = app.session.last_run
         assert res is not None and res.ok and int(res.exit_code) == 0, res.message
         np.testing.assert_allclose(res.final_deg, want, atol=SETTLED_DEG)
+        assert view.ghosts[-1] is None  # no ghost once the jog ended
         out = text_of(app, "#exec-outcome")
         assert out.startswith("COMPLETED (exit code 0)") and "live jog: " in out
         assert "live jog completed" in status_of(app)
@@ -113,6 +133,35 @@ async def test_joint_jog_moves_the_target_and_ending_settles_there(console) -> N
         rows = app.screen.query_one("#runs", DataTable)
         kinds = [str(rows.get_row_at(i)[1]) for i in range(rows.row_count)]
         assert "follow" in kinds
+
+
+async def test_a_target_pushed_out_of_p_is_clamped_live_and_not_wound_up(console) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await _homed_on_step5(app, pilot)
+        sent = _spy_targets(app)
+        jog = await _start_jog(app, pilot)
+        assert jog.target is not None
+        await pilot.press("m", "plus", "plus")  # per joint, 5° steps
+        for _ in range(40):  # θ1 up until P's edge refuses the next step
+            await pilot.press("right")
+            if "already" in status_of(app):
+                break
+        assert status_of(app).startswith("the target is already")
+        assert "CLAMPED" in text_of(app, "#jog-target")
+        last = jog.target.theta_deg.copy()
+        await until(pilot, lambda: "CLAMPED" in text_of(app, "#jog-clamp"),
+                    "the loop's target shown clamped (from the telemetry)")
+        np.testing.assert_allclose(sent[-1], last)  # the refused step sent nothing
+        await pilot.press("escape")
+        await _ended(app, pilot)
+        res = app.session.last_run
+        assert res is not None and res.ok, res.message
+        ws = app.session.workspace
+        assert float(ws.region.violation_deg(res.final_deg)) < SETTLED_DEG  # P's nearest point
+        assert float(np.abs(res.final_deg - last).max()) > SETTLED_DEG  # not the target
+        m = re.search(r"(\d+) periods with the target clamped", text_of(app, "#exec-outcome"))
+        assert m is not None and int(m.group(1)) > 0
 
 
 async def test_rpy_jog_uses_ik_from_home_and_the_step_keys(console) -> None:

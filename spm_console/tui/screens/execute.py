@@ -237,6 +237,9 @@ class ExecuteScreen(StepScreen):
                      f"{st.misses} missed, {st.refused} refused, "
                      f"{st.clamped} periods with the target clamped into P")
         self.query_one("#exec-outcome", Static).update(Content(text))
+        if self.console.live_samples:  # the jog's last sample and its plot
+            self.show_sample(self.console.live_samples[-1], clock=False)
+            self.draw_plot()
         if ex.ok:
             self.status.ok(f"live jog completed: {ex.message}. Press 6 to look at the log")
         else:
@@ -267,7 +270,7 @@ class ExecuteScreen(StepScreen):
         self._fed = n
         self.query_one("#exec-timing", Static).update(Content(self.timing.timing().text()))
 
-    def show_sample(self, smp: Sample) -> None:
+    def show_sample(self, smp: Sample, clock: bool = True) -> None:
         t = self.query_one("#joints", DataTable)
         cols = list(t.columns.keys())
         for i in range(3):
@@ -277,6 +280,8 @@ class ExecuteScreen(StepScreen):
                     _diff(meas, float(smp.predicted_deg[i])), _diff(ref, meas))
             for c, v in zip(cols[1:], vals, strict=True):
                 t.update_cell(str(i), c, v)
+        if not clock:
+            return
         total = max(self.session.motion_total_s, 1e-9)
         self.query_one("#exec-clock", Static).update(Content(
             f"{smp.phase}: {smp.t:5.2f} s done, {max(total - smp.t, 0):5.2f} s to go"))

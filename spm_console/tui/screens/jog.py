@@ -50,8 +50,7 @@ RPY_ROUND_TRIP_DEG = 1e-3
 #: What the run log calls the console's jog (its ``source``).
 JOG_SOURCE = "console live jog"
 
-KEYS_TEXT = ("← → ↑ ↓ PgUp PgDn move the target · + / - step · m roll/pitch/yaw or per joint · "
-             "esc or j ends (the wrist settles) · SPACE E-stop")
+KEYS_TEXT = "←→ ↑↓ PgUp PgDn move the target · +/- step · m mode · esc ends · SPACE stops"
 
 JogResult = FollowDone | str | None
 """What the jog screen hands back: the ended run, why it could not start or failed, or
@@ -86,9 +85,9 @@ def outside_deg(session: Session, theta_deg: F) -> float:
 
 
 def clamp_text(out_deg: float) -> str:
+    """Whether a target ``out_deg`` outside P (or the servo limits) is projected."""
     if out_deg > OUTSIDE_TOL_DEG:
-        return (f"CLAMPED: the target is {out_deg:.2f}° outside P (or the servo limits); the "
-                "wrist goes to P's nearest point")
+        return f"CLAMPED: {out_deg:.2f}° outside P, the wrist goes to P's nearest point"
     return "inside P: not clamped"
 
 
@@ -260,7 +259,8 @@ class JogScreen(StepScreen):
         self.query_one("#jog-mode", Static).update(Content(tgt.describe()))
         rpy = "" if tgt.rpy_deg is None else f"   roll/pitch/yaw = {fmt_deg(tgt.rpy_deg)}"
         self.query_one("#jog-target", Static).update(Content(
-            f"target:     θ = {fmt_deg(tgt.theta_deg)}{rpy}\n            {clamp_text(tgt.outside_deg)}"))
+            f"target:      θ = {fmt_deg(tgt.theta_deg)}{rpy}\n"
+            f"             {clamp_text(tgt.outside_deg)}"))
 
     def on_telemetry(self, message: Telemetry) -> None:
         message.stop()
@@ -270,12 +270,12 @@ class JogScreen(StepScreen):
             self._go_live(self._prepared)
         looped = smp.target_deg
         self.query_one("#jog-measured", Static).update(Content(
-            f"measured:   θ = {_vec(smp.measured_deg if smp.read_ok else None)}   "
-            f"reference θ* = {_vec(smp.reference_deg)}   t = {smp.t:.1f} s"))
+            f"measured:    θ = {_vec(smp.measured_deg if smp.read_ok else None)}   "
+            f"θ* = {_vec(smp.reference_deg)}"))
         if looped is not None:
             self.query_one("#jog-clamp", Static).update(Content(
-                f"in the loop: target θ = {fmt_deg(looped)}   "
-                f"{clamp_text(outside_deg(self.session, looped))}"))
+                f"in the loop: θ = {fmt_deg(looped)} (the target this cycle)\n"
+                f"             {clamp_text(outside_deg(self.session, looped))}"))
         if smp.t - self._last_plot >= PLOT_EVERY_S:
             self._last_plot = smp.t
             self.draw_plot()
@@ -285,7 +285,7 @@ class JogScreen(StepScreen):
         self.phase = "live"
         self.console.view.show_target(tgt.theta_deg)
         self.query_one("#jog-head", Static).update(Content(
-            "Live jog: the wrist follows the target (re-planned every servo period inside P)"))
+            "Live jog: the wrist follows the target (re-planned each period inside P)"))
         self.show_target()
         if self._end_asked:
             self._end()
