@@ -214,6 +214,35 @@ async def test_jog_is_refused_before_homing_and_while_moving(console) -> None:
         app.moving = False
 
 
+async def test_esc_while_the_workspace_loads_closes_the_jog_and_nothing_moves(console) -> None:
+    import threading
+
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await _homed_on_step5(app, pilot)
+        s = app.session
+        runs_before = s.last_run
+        gate = threading.Event()
+        real = s.ensure_workspace
+
+        def slow() -> Any:
+            gate.wait(30)
+            return real()
+
+        s.ensure_workspace = slow  # type: ignore[method-assign]
+        await pilot.press("j")
+        await until(pilot, lambda: isinstance(app.screen, JogScreen), "the jog screen")
+        assert app.moving  # the steps are locked from the start
+        await pilot.press("right")
+        assert "workspace is loading" in status_of(app)
+        await pilot.press("escape")
+        await until(pilot, lambda: isinstance(app.screen, ExecuteScreen), "the execute step")
+        assert not app.moving and "nothing moved" in status_of(app)
+        gate.set()
+        await settle(pilot)
+        assert s.last_run is runs_before and isinstance(app.screen, ExecuteScreen)
+
+
 async def test_estop_during_jog_stops_with_exit_20(console) -> None:
     app = console()
     async with app.run_test(size=SIZE) as pilot:

@@ -229,6 +229,7 @@ class ExecuteScreen(StepScreen):
             self.status.error(f"live jog: {result}")
             return
         if not isinstance(result, FollowDone):
+            self.status.ok("live jog closed before it started: nothing moved")
             return
         ex, st = result.outcome.execution, result.outcome.stats
         text = outcome_text(ex)

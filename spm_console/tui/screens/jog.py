@@ -31,7 +31,7 @@ from spm_console.core.rotations import matrix_rpy
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.models import servo_limits_deg
-from spm_console.tui.messages import FollowDone, Outcome, Telemetry
+from spm_console.tui.messages import FollowDone, Outcome, Telemetry, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.jog_target import OUTSIDE_TOL_DEG, JogTarget, TargetSender
 from spm_console.tui.widgets.plot import PlotView, joint_series
@@ -143,8 +143,8 @@ class JogScreen(StepScreen):
         self._prepared: JogTarget | None = None
         """Made by the worker before the following starts; live at the first telemetry."""
         self.sender: TargetSender | None = None
-        self.phase = "starting"
-        """starting → live → ending → done."""
+        self.phase = "preparing"
+        """preparing (nothing moves yet) → starting → live → ending → done."""
         self._end_asked = False
         self._last_plot = -1.0
         self.last_sample: Sample | None = None
@@ -161,19 +161,29 @@ class JogScreen(StepScreen):
             yield PlotView(id="jog-plot")
 
     def on_mount(self) -> None:
+        """First the workspace (P, to tell the operator when a target gets clamped) and the
+        start pose's orientation, while nothing moves; then the following."""
         s, th0 = self.session, self.theta0_deg
+
+        def prepare() -> Outcome:
+            s.ensure_workspace()
+            self._prepared = JogTarget(th0, rpy_of(s, th0), s.ik, lambda t: outside_deg(s, t))
+            return WorkspaceLoaded()
+
+        self.console.moving = True  # the steps stay locked from here to the end of the run
+        if not self.run_blocking("jog-prepare", prepare, "live jog: loading the workspace …"):
+            self.console.moving = False
+
+    def _start_following(self) -> None:
+        s, th0 = self.session, self.theta0_deg
+        self.phase = "starting"
         self.sender = TargetSender(s.set_target, s.end_follow)
         on_sample = self.console.telemetry_sink(self)
         self.console.live_samples.clear()
-
-        def run() -> Outcome:
-            s.ensure_workspace()  # P, to tell the operator when a target gets clamped
-            self._prepared = JogTarget(th0, rpy_of(s, th0), s.ik, lambda t: outside_deg(s, t))
-            return FollowDone(s.follow(initial_deg=th0, deadman_s=None, on_sample=on_sample,
-                                       source=JOG_SOURCE))
-
         self.console.moving = True
-        if not self.run_blocking("jog", run, "live jog: starting … SPACE stops the wrist"):
+        if not self.run_blocking("jog", lambda: FollowDone(s.follow(
+                initial_deg=th0, deadman_s=None, on_sample=on_sample, source=JOG_SOURCE)),
+                "live jog: starting … SPACE stops the wrist"):
             self.console.moving = False
 
     def on_unmount(self) -> None:
@@ -183,7 +193,8 @@ class JogScreen(StepScreen):
     # ------------------------------------------------------------------ keys
     def _usable(self) -> JogTarget | None:
         if self.target is None or self.sender is None or self.phase != "live":
-            self.status.error({"starting": "wait: the following is starting",
+            self.status.error({"preparing": "wait: the workspace is loading",
+                               "starting": "wait: the following is starting",
                                "ending": "the jog is ending: the wrist settles on the last target",
                                "done": "the jog has ended"}.get(self.phase, self.phase))
             return None
@@ -231,7 +242,8 @@ class JogScreen(StepScreen):
         self.show_target()
 
     def action_end_jog(self) -> None:
-        if self.phase == "done":
+        if self.phase in ("done", "preparing"):  # nothing moves: just close
+            self.console.moving = False
             self._leave(None)
             return
         if self.phase == "ending":
@@ -303,6 +315,10 @@ class JogScreen(StepScreen):
 
     # ------------------------------------------------------------------ the end
     def handle_done(self, outcome: Outcome) -> None:
+        if isinstance(outcome, WorkspaceLoaded):
+            if self.phase == "preparing":
+                self._start_following()
+            return
         if not isinstance(outcome, FollowDone):
             return
         self.phase = "done"
@@ -311,7 +327,7 @@ class JogScreen(StepScreen):
         self._leave(outcome)
 
     def handle_failed(self, op: str, message: str) -> None:
-        if op != "jog":
+        if op not in ("jog", "jog-prepare"):
             return
         self.phase = "done"
         self.console.moving = False
