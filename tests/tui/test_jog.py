@@ -266,6 +266,7 @@ async def test_the_arrows_win_over_the_help_key_list_and_it_names_the_jog(consol
 
         descs = [e.description for _n, es in key_entries(app.screen, app) for e in es]
         assert "Live jog" in descs
+        assert any("Live jog" in c.title for c in app.get_system_commands(app.screen))  # palette
         jog = await _start_jog(app, pilot)
         entries = {e.description: e.keys_text for _n, es in key_entries(jog, app) for e in es}
         assert entries["Yaw or θ1 −/+"] == "← →" and entries["End jog"] == "esc j"
