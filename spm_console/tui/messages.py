@@ -11,6 +11,7 @@ from textual.message import Message
 if TYPE_CHECKING:
     from spm_console.core.plan import Plan
     from spm_console.core.workspace_check import ThetaCheck
+    from spm_console.run.follow_run import FollowOutcome
     from spm_console.run.operator import BusState
     from spm_console.run.runlog import RunData
     from spm_console.run.segments import ExecutionResult
@@ -33,6 +34,13 @@ class PositionRead:
 class MotionDone:
     kind: Literal["home", "execute", "jog"]
     result: ExecutionResult
+
+
+@dataclass(frozen=True)
+class FollowDone:
+    """A live following (the console's live jog) ended: its run and its re-planning figures."""
+
+    outcome: FollowOutcome
 
 
 @dataclass(frozen=True)
@@ -92,7 +100,8 @@ class BenchmarkDone:
 
 
 Outcome = (Connected | PositionRead | MotionDone | FkSolved | WorkspaceLoaded | ThetaChecked
-           | PlanSolved | PlanSaved | PlanLoaded | RunOpened | BenchmarkDone | ServoToolDone)
+           | PlanSolved | PlanSaved | PlanLoaded | RunOpened | BenchmarkDone | ServoToolDone
+           | FollowDone)
 
 
 class Done(Message):

@@ -1,6 +1,7 @@
 """Step 5: execute the plan — confirmation, live θ / velocity / tracking per joint, the
 servo loop's timing so far, plots, elapsed and remaining time, the E-stop, then the outcome
-and the log path."""
+and the log path. ``j`` starts the live jog (:mod:`.jog`): the wrist follows a target the
+arrow keys move."""
 
 from __future__ import annotations
 
@@ -17,8 +18,9 @@ from textual.content import Content
 from textual.widgets import DataTable, ProgressBar, Static
 
 from spm_console.formatting import fmt_deg
-from spm_console.tui.messages import MotionDone, Outcome, Telemetry
+from spm_console.tui.messages import FollowDone, MotionDone, Outcome, Telemetry
 from spm_console.tui.screens.base import StepScreen
+from spm_console.tui.screens.jog import JogResult, JogScreen
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
@@ -115,6 +117,8 @@ class ExecuteScreen(StepScreen):
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("x", "execute", "Execute"),
         Binding("p", "next_plot", "Plot"),
+        Binding("j", "jog", "Live jog",
+                tooltip="the wrist follows a target the arrow keys move (homed only)"),
     ]
 
     DEFAULT_CSS = """
@@ -201,6 +205,47 @@ class ExecuteScreen(StepScreen):
                              "executing … SPACE stops the wrist"):
             self.console.moving = False
 
+    def action_jog(self) -> None:
+        """Start the live jog from where the wrist is (homed only, nothing else moving)."""
+        s = self.session
+        if s.bus is None or not s.homed or s.theta_deg is None:
+            self.status.error("the wrist is not connected and homed: press 1, then c and h")
+            return
+        if self.busy_op or self.console.moving:
+            self.status.error("busy: a motion is already running")
+            return
+        here = np.asarray(s.theta_deg, float)
+        home = np.asarray(s.profile.home.theta_deg, float)
+        # near home (the homing's own tolerance), start from home itself: roll/pitch/yaw 0
+        if float(np.abs(here - home).max()) <= s.profile.safety.approach_tolerance_deg:
+            here = home
+        self.query_one("#exec-outcome", Static).update("")
+        self.app.push_screen(JogScreen(here, self._jog_ended))
+
+    def _jog_ended(self, result: JogResult) -> None:
+        """The jog screen closed: the run's outcome (or why it did not run) shows here."""
+        self.refresh_view()
+        if isinstance(result, str):
+            self.status.error(f"live jog: {result}")
+            return
+        if not isinstance(result, FollowDone):
+            self.status.ok("live jog closed before it started: nothing moved")
+            return
+        ex, st = result.outcome.execution, result.outcome.stats
+        text = outcome_text(ex)
+        if st is not None:
+            text += (f"\nlive jog: {st.adopted} of {st.solves} re-plans used, "
+                     f"{st.misses} missed, {st.refused} refused, "
+                     f"{st.clamped} periods with the target clamped into P")
+        self.query_one("#exec-outcome", Static).update(Content(text))
+        if self.console.live_samples:  # the jog's last sample and its plot
+            self.show_sample(self.console.live_samples[-1], clock=False)
+            self.draw_plot()
+        if ex.ok:
+            self.status.ok(f"live jog completed: {ex.message}. Press 6 to look at the log")
+        else:
+            self.status.error(f"live jog STOPPED: {ex.message}")
+
     def action_next_plot(self) -> None:
         self.plot_kind = (self.plot_kind + 1) % 2
         self.draw_plot()
@@ -226,7 +271,7 @@ class ExecuteScreen(StepScreen):
         self._fed = n
         self.query_one("#exec-timing", Static).update(Content(self.timing.timing().text()))
 
-    def show_sample(self, smp: Sample) -> None:
+    def show_sample(self, smp: Sample, clock: bool = True) -> None:
         t = self.query_one("#joints", DataTable)
         cols = list(t.columns.keys())
         for i in range(3):
@@ -236,6 +281,8 @@ class ExecuteScreen(StepScreen):
                     _diff(meas, float(smp.predicted_deg[i])), _diff(ref, meas))
             for c, v in zip(cols[1:], vals, strict=True):
                 t.update_cell(str(i), c, v)
+        if not clock:
+            return
         total = max(self.session.motion_total_s, 1e-9)
         self.query_one("#exec-clock", Static).update(Content(
             f"{smp.phase}: {smp.t:5.2f} s done, {max(total - smp.t, 0):5.2f} s to go"))

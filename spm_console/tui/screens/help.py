@@ -110,8 +110,13 @@ def key_entries(screen: Screen[Any], app: App[Any]) -> list[tuple[DOMNode, list[
 
 
 def screen_title(screen: Screen[Any]) -> str:
-    """"Plan (step 4)" for a step screen, else the screen's class name in words."""
+    """"Plan (step 4)" for a step screen (its ``HELP_TITLE`` when it has one), else the
+    screen's class name in words."""
     from spm_console.tui.widgets.steps import STEPS
+
+    title = getattr(screen, "HELP_TITLE", "")
+    if title:
+        return str(title)
 
     mode = getattr(screen, "MODE", "")
     for s in STEPS:
@@ -121,8 +126,8 @@ def screen_title(screen: Screen[Any]) -> str:
 
 
 def help_table(screen: Screen[Any], app: App[Any]) -> Group:
-    """Two sections (this screen, everywhere), one row per action: keys, name, note; then
-    the typing rule."""
+    """Two sections (this screen, everywhere), one row per action: keys, name, note; the
+    screen's ``HELP_NOTE`` when it has one; then the typing rule."""
     parts: list[Any] = []
     sections = key_entries(screen, app)
     keys_width = max([KEYS_WIDTH] + [len(e.keys_text) for _n, es in sections for e in es])
@@ -142,6 +147,9 @@ def help_table(screen: Screen[Any], app: App[Any]) -> Group:
                 note = note or "not available now"
             table.add_row(e.keys_text, e.description, note)
         parts += [table, Text("")]
+        note = getattr(screen, "HELP_NOTE", "")
+        if node is screen and note:
+            parts += [Text(str(note)), Text("")]
     parts += [Text("Typing", style="bold underline"), Text(TYPING_RULE)]
     return Group(*parts)
 
