@@ -33,7 +33,7 @@ SECONDS = 6.0
 
 
 def _roll_targets(profile_path: Path) -> TimedTargets:
-    from spm_console.cli.follow_source import theta_of_rpy
+    from spm_console.store.target_file import theta_of_rpy
 
     prof = load_profile(profile_path)
     t = np.arange(0.0, SECONDS, prof.servo.ts_s)
