@@ -205,7 +205,7 @@ def test_one_run_log_schema_for_every_front_end(agile: Profile, tmp_path: Path, 
 
 def test_telemetry_never_blocks_the_loop_and_counts_what_a_slow_client_missed() -> None:
     """The loop's side only appends; a client that does not read blocks the sender thread."""
-    from spm_console.run.motion_process import MAX_PENDING, TelemetryOut
+    from spm_console.run.motion_process import MAX_PENDING, TELEMETRY_CHUNK, TelemetryOut
     from spm_console.run.motion_protocol import Telemetry
     from spm_console.run.sample import Sample
 
@@ -228,3 +228,5 @@ def test_telemetry_never_blocks_the_loop_and_counts_what_a_slow_client_missed() 
     delivered = sum(len(m.samples) for m in sent)
     dropped = sum(m.dropped for m in sent)
     assert delivered + dropped == 3 * MAX_PENDING and dropped > 0
+    # a backlog goes out in small messages: pickling one holds the GIL the loop needs
+    assert max(len(m.samples) for m in sent) <= TELEMETRY_CHUNK

@@ -67,6 +67,8 @@ HEARTBEAT_S = 0.1
 DEADMAN_S = 1.0
 #: Telemetry to the client at most this often, s (the loop itself runs every Ts).
 TELEMETRY_S = 0.05
+#: Most samples in one telemetry message (a pickle of this many takes well under 1 ms).
+TELEMETRY_CHUNK = 10
 #: Most samples kept for a client that does not read (10 s at Ts = 20 ms).
 MAX_PENDING = 500
 #: How long a request other than a motion may take before the child counts as hung, s.
@@ -100,11 +102,16 @@ class TelemetryOut:
             self._q.append(sample)
 
     def _flush(self) -> None:
-        with self._lock:
-            batch, dropped = tuple(self._q), self.dropped
-            self._q.clear()
-            self.dropped = 0
-        if batch or dropped:
+        """Ship what accumulated in messages of at most :data:`TELEMETRY_CHUNK` samples:
+        pickling holds the GIL, and a backlog pickled at once kept the loop waiting for it
+        (late cycles of 5-13 ms behind a slow client)."""
+        while True:
+            with self._lock:
+                n = min(len(self._q), TELEMETRY_CHUNK)
+                batch = tuple(self._q.popleft() for _ in range(n))
+                dropped, self.dropped = self.dropped, 0
+            if not (batch or dropped):
+                return
             self._send(Telemetry(batch, dropped))
 
     def _run(self) -> None:
