@@ -50,6 +50,9 @@ from spm_console.run.stats import StopTiming, run_stats, stale_replies
 from spm_console.run.stop_action import apply_stop_action
 
 F = NDArray[np.float64]
+#: A cycle still busy after this fraction of the period is logged (``slow_cycle``: late start,
+#: bus, filter, hardware poll and checks, in ms).
+SLOW_CYCLE = 0.75
 BusFailure = (CommError, OSError, BusError)
 """What counts as one failed bus transaction (a serial exception is an OSError; a status
 packet carrying an error number raises BusError)."""
@@ -347,8 +350,10 @@ class Executor:
         p_read = st.pred_t.position_deg  # the model when the position was read
         safety = st.safety
         stop: StopReason | None = safety.comm(z is not None, retries, t, k, detail)
+        t_hw = self.clock()
         if stop is None and (self._alerted() or k % self.hw_poll_every == 0):
             stop = self._poll_hw(safety, t, k)
+        t_pos = self.clock()
         if stop is None and z is not None:
             stop = safety.position(z, p_read, region, t, k)
         meas = z if z is not None else np.full(3, np.nan)
@@ -361,6 +366,12 @@ class Executor:
                         retries=retries,
                         stale_replies=stale_replies(self.bus) - self._stale0, target_deg=target)
         self._publish(sample)
+        t_done = self.clock()
+        if t_done - deadline > SLOW_CYCLE * self.ts:  # where the period went (diagnostics)
+            self._event("slow_cycle", k=k, late_ms=round((t_start - deadline) * 1e3, 3),
+                        bus_ms=round(bus_s * 1e3, 3), filter_ms=round((t_hw - t_end) * 1e3, 3),
+                        hw_poll_ms=round((t_pos - t_hw) * 1e3, 3),
+                        checks_ms=round((t_done - t_pos) * 1e3, 3))
         if stop is not None:
             self._apply_stop(stop, self._hold_target(st.last_good), deadline + self.ts)
             return stop
