@@ -50,9 +50,8 @@ def workspace_text(ws: Any, info: Any) -> str:
         "feasible nodes",
     ]
     if ws.cover is not None:
-        lines.append(f"cover        {ws.cover.size} regions (P first), "
-                     f"{100 * ws.cover.covered:.1f}% of feasible nodes, "
-                     f"{len(ws.cover.edges)} overlaps")
+        lines.append(f"cover        {ws.cover.size} regions (P first) hold "
+                     f"{100 * ws.cover.covered:.1f}% of the feasible nodes; plans cross them")
     if span is not None:
         lines.append("P spans      " + "  ".join(
             f"θ{i + 1} ∈ [{span[0][i]:.1f}, {span[1][i]:.1f}]°" for i in range(3)))
