@@ -163,3 +163,39 @@ def test_estop_while_following(agile: Profile, tmp_path: Path) -> None:
         s.close()
     ex = out[0].execution  # type: ignore[attr-defined]
     assert ex.outcome == "stopped" and int(ex.exit_code) == 20
+
+
+def test_a_target_in_another_region_of_the_cover_is_reached_through_the_overlaps(
+        agile: Profile, tmp_path: Path) -> None:
+    """The target lies outside P, in a region of the cover only: the follower heads for the
+    overlap with the next region, plans there once inside it, and reaches the target — every
+    measured sample certified, the model's position always inside a region of the cover."""
+    ws = agile_workspace()
+    assert ws.cover is not None
+    start = np.asarray(ws.theta_deg()[ws.home_index], float)
+    far = next(np.asarray(ws.cover.seeds_deg[k]) for k in range(1, ws.cover.size)
+               if not ws.region.contains(ws.cover.seeds_deg[k], tol=1e-6)
+               and 0 not in ws.cover.containing(ws.cover.seeds_deg[k]))
+    feed = TargetFeed(TimedTargets(np.array([0.0, 0.1]), np.vstack([start, far])))
+    ex, emu, bus, ws = _follower(agile, tmp_path, start)
+    try:
+        res = ex.follow(feed)
+    finally:
+        bus.close()
+        emu.stop()
+    assert res.ok, res.message
+    np.testing.assert_allclose(res.final_deg, far, atol=0.3)
+    st = ex.stats(feed)
+    assert st.region_switches >= 1 and st.refused == 0 and st.clamped == 0
+    meas = np.array([s.measured_deg for s in ex.samples if s.read_ok])
+    assert ex.verifier.certified.contains(meas).all()
+    run = load_run(res.log_dir)
+    start_ev = next(e for e in run.events if e["event"] == "start")
+    hops = [e for e in run.events if e["event"] == "region"]
+    assert start_ev["regions"] == cover_size(ws) and (hops or start_ev["region"] != 0)
+    pred = np.array([s.predicted_deg for s in ex.samples])
+    assert all(ws.cover.containing(p, tol=1e-3) for p in pred)  # the model in some region
+
+
+def cover_size(ws) -> int:  # type: ignore[no-untyped-def]
+    return int(ws.cover.size)

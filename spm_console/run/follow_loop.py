@@ -6,8 +6,10 @@ Every period k, after the cycle's write and read (:meth:`Executor._cycle`), the 
    (exact ZOH over the time left in the period);
 2. re-plans from it with :class:`~spm_console.core.planning.follow.FollowSolver` (MVN cost,
    a tracking term and the target as terminal state when reachable within the 1 s horizon;
-   speed bound, servo limits and the workspace's region P; warm-started) toward the feed's
-   targets (a timed list gives a preview over the horizon);
+   speed bound, servo limits and one region of the workspace's cover — P, or the region the
+   wrist has moved on to, :mod:`.follow_regions`; warm-started) toward the feed's targets (a
+   timed list gives a preview over the horizon), or toward the overlap with the next region
+   when the target lies in another region of the cover;
 3. **verifies** the new plan itself before adopting it — its continuous motion from the
    predicted state (10 points per period over the horizon, held at its end) certified by
    this profile's workspace, speed within ``limits.vmax_degps`` + 10 % between samples,
@@ -18,8 +20,9 @@ Every period k, after the cycle's write and read (:meth:`Executor._cycle`), the 
    plan's next reference goes out instead (held at its rest point past its horizon), and the
    miss is counted. So every reference streamed comes from a verified plan.
 
-Targets outside P are projected to its nearest point (the solver's projection) and counted
-as clamped; the wrist never chases them through uncertified space. The run ends when the feed
+Targets in no region of the cover are projected to the nearest point of the current region
+(the solver's projection) and counted as clamped; the wrist never chases them through
+uncertified space. The run ends when the feed
 is finished (timed list over, or the live source ended) and the wrist has settled on the last
 target; E-stop and every safety stop act as in any run. Degrees, seconds.
 """
@@ -36,6 +39,7 @@ from spm_console.core.planning.follow import FollowResult, FollowSettings, Follo
 from spm_console.core.servo_model import exact_step, simulate_continuous
 from spm_console.errors import BadInputError
 from spm_console.run.executor import Executor, _LoopState
+from spm_console.run.follow_regions import RegionHopper
 from spm_console.run.plan_check import BETWEEN_SPEED_ALLOWANCE, MAX_REFERENCE_STEP_DEG
 from spm_console.run.safety import StopReason
 from spm_console.run.segments import ExecutionResult
@@ -77,9 +81,19 @@ class FollowStats:
     solve_ms_p50: float
     solve_ms_p99: float
     solve_ms_max: float
+    region_switches: int = 0
+    """Times the follower moved on to the next region of the cover."""
 
     def to_dict(self) -> dict[str, float]:
         return {k: float(v) for k, v in asdict(self).items()}
+
+
+def _aimed(feed: TargetFeed, targets: F, goal: F | None) -> F:
+    """What the solver heads for: the overlap with the next region (``goal``), else the
+    feed's target (with its preview for a timed feed)."""
+    if goal is not None:
+        return np.asarray(goal, float)
+    return targets if feed.timed else targets[0]
 
 
 class Follower(Executor):
@@ -91,24 +105,31 @@ class Follower(Executor):
         self._stale0 = stale_replies(self.bus)
         theta0 = self.read_initial() if theta0_deg is None else np.asarray(theta0_deg, float)
         ws = self.verifier.ws
-        region = ws.region
-        if not bool(region.contains(theta0, tol=1e-6)):
+        cover = ws.cover
+        regions = cover.regions if cover is not None else (ws.region,)
+        try:
+            self.hopper = RegionHopper(regions, cover, theta0)
+        except ValueError:
             raise BadInputError(
-                f"the wrist is at θ = {np.round(theta0, 2).tolist()}°, outside the region P that "
-                "live following works in: home it (or move it into P) first")
+                f"the wrist is at θ = {np.round(theta0, 2).tolist()}°, outside every region of the "
+                "workspace that live following works in: home it first") from None
         vmax = self.profile.limits.vmax_degps
-        self.solver = FollowSolver(self.model, region, vmax, HORIZON, self.lo, self.hi,
-                                   settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S))
+        # one solver per region, built before torque-on (about 15 ms each: not in the loop)
+        self.solvers = [FollowSolver(self.model, r, vmax, HORIZON, self.lo, self.hi,
+                                     settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S))
+                        for r in regions]
         targets, _ = feed.targets(0.0, self.ts, HORIZON, theta0)
-        first = self.solver.solve(theta0, np.zeros(3), targets if feed.timed else targets[0],
-                                  warm=False)  # cold, before torque-on: not timed
+        idx, goal = self.hopper.aim(theta0, targets[-1])
+        first = self.solvers[idx].solve(theta0, np.zeros(3), _aimed(feed, targets, goal),
+                                        warm=False)  # cold, before torque-on: not timed
         if not first.ok or not self._plan_ok(first, theta0, np.zeros(3), theta0):
             raise BadInputError(f"live following cannot start from θ = "
                                 f"{np.round(theta0, 2).tolist()}°: {first.reason or first.status}")
         self._times: list[float] = []
         self._counts = {"solves": 0, "adopted": 0, "misses": 0, "refused": 0, "clamped": 0}
         self._event("start", theta0_deg=theta0, mode="follow", live=feed.live,
-                    horizon=HORIZON, budget_ms=SOLVE_BUDGET_S * 1e3, deadman_s=feed.deadman_s)
+                    horizon=HORIZON, budget_ms=SOLVE_BUDGET_S * 1e3, deadman_s=feed.deadman_s,
+                    region=self.hopper.current, regions=len(self.solvers))
         result = self._guarded(theta0, lambda: self._follow_loop(feed, theta0, first),
                                lambda: f"followed for {len(self.samples) * self.ts:.2f} s")
         return result
@@ -119,7 +140,7 @@ class Follower(Executor):
         c = self._counts
         return FollowStats(c["solves"], c["adopted"], c["misses"], c["refused"], c["clamped"],
                            feed.deadman_trips, pct(50), pct(99),
-                           float(ms.max()) if ms.size else float("nan"))
+                           float(ms.max()) if ms.size else float("nan"), self.hopper.switches)
 
     # ------------------------------------------------------------------ the loop
     def _follow_loop(self, feed: TargetFeed, theta0: F, first: FollowResult) -> StopReason | None:
@@ -146,7 +167,12 @@ class Follower(Executor):
                 self._counts["deadman_logged"] = feed.deadman_trips
                 self._event("deadman", k=k, hold_deg=targets[0], silent_s=feed.deadman_s)
             t0 = time.perf_counter()
-            res = self.solver.solve(th, om, targets if feed.timed else targets[0], elapsed=1)
+            before = self.hopper.switches
+            idx, goal = self.hopper.aim(th, targets[-1])
+            if self.hopper.switches != before:  # inside the next region: plan there from now on
+                self.solvers[idx].reset()
+                self._event("region", k=k, region=idx, switches=self.hopper.switches)
+            res = self.solvers[idx].solve(th, om, _aimed(feed, targets, goal), elapsed=1)
             self._times.append(time.perf_counter() - t0)
             self._counts["solves"] += 1
             self._counts["clamped"] += int(res.clamped)
