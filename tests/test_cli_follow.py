@@ -61,6 +61,7 @@ def test_bad_target_files_are_refused(tmp_path: Path, capsys: pytest.CaptureFixt
     assert why in capsys.readouterr().err
 
 
+@pytest.mark.slow  # a whole real-time run (the slow set runs in CI as its own stage)
 def test_live_udp_targets_from_the_example_client(tmp_path: Path) -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))

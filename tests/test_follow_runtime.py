@@ -112,6 +112,7 @@ def _session(agile: Profile, tmp_path: Path):  # type: ignore[no-untyped-def]
     return s
 
 
+@pytest.mark.slow  # a whole real-time run (the slow set runs in CI as its own stage)
 def test_live_targets_deadman_and_the_change_to_reference_delay(agile: Profile, tmp_path: Path) -> None:
     """Through the runtime (the loop in the motion process): live targets sent from another
     thread; the deadman holds when they stop; ending the source settles and completes."""

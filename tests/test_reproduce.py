@@ -11,6 +11,7 @@ import pytest
 from spm_console.cli.main import main
 
 
+@pytest.mark.slow  # a whole real-time run (the slow set runs in CI as its own stage)
 def test_reproduce_quick(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "repro"
     code = main(["reproduce", "--out", str(out), "--quick", "--json"])

@@ -6,10 +6,13 @@ from __future__ import annotations
 
 import time
 
+import pytest
+
 from spm_console.run.runlog import list_runs
 from tests.test_tmux_smoke import env, pytestmark, tmux_console, ws_cache_dir  # noqa: F401
 
 
+@pytest.mark.slow  # a whole real-time run (the slow set runs in CI as its own stage)
 def test_walk_a_live_jog_by_keys(tmux_console, tmp_path) -> None:  # type: ignore[no-untyped-def]  # noqa: F811
     t = tmux_console("--sim", "--no-viewer")
     t.wait_for(r"press h to home")

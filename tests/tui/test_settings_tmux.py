@@ -25,6 +25,7 @@ def _children(pid: int) -> list[int]:
     return out
 
 
+@pytest.mark.slow  # a whole real-time run (the slow set runs in CI as its own stage)
 def test_switch_profile_and_grid_step_restarts_in_the_same_terminal(tmp_path: Path) -> None:
     env = {"SPM_CONSOLE_LOGS": str(tmp_path / "logs"), "SPM_CONSOLE_CACHE": str(tmp_path / "c"),
            "SPM_CONSOLE_CONFIG": str(tmp_path / "config"), "TERM": "xterm-256color",
