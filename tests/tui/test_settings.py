@@ -120,6 +120,8 @@ async def test_invalid_grid_steps_are_marked_kept_as_typed_and_refused(console) 
         await settle(pilot)
         assert isinstance(app.screen, SettingsScreen)
         assert "not a whole number of steps" in _reason(app)
+        await _type_step(pilot, "3")  # a new value: the refusal about the old one goes away
+        assert _reason(app) == ""
         # the settings in use are no change
         await _type_step(pilot, "2.0")
         await pilot.press("enter")
@@ -214,3 +216,14 @@ async def test_form_values_follow_the_profile_across_a_restart(console, agile) -
         await pilot.press("4")
         await settle(pilot)
         assert second.screen.query_one("#steps", Input).value == "77"
+
+
+def test_form_defaults_lie_inside_every_profiles_servo_limits(agile, coaxial) -> None:  # type: ignore[no-untyped-def]
+    from spm_console.models import servo_limits_deg
+    from spm_console.tui.widgets.rules import AGILE_GOAL_DEG, default_theta_deg
+
+    assert default_theta_deg(agile) == AGILE_GOAL_DEG
+    for prof in (agile, coaxial):
+        lo, hi = servo_limits_deg(prof)
+        th = default_theta_deg(prof)
+        assert all(lo[i] <= th[i] <= hi[i] for i in range(3))

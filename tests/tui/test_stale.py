@@ -80,6 +80,15 @@ async def test_a_failed_fk_clears_the_previous_result(console: Any) -> None:
         assert out.startswith("No result: FK failed.\nθ = [65.0, 155.0, 65.0]°"), out
         assert "FEASIBLE" not in out and "\nNext: " in out
         assert status_of(app).startswith("FK failed: θ = [65.0, 155.0, 65.0]°"), status_of(app)
+        theta.set_values([95, 110, 105])
+        await pilot.press("f")
+        await settle(pilot)
+        assert "FEASIBLE" in text_of(app, "#fk-result")
+        theta.query_one(Input).value = "abc"  # refused before anything is computed
+        await pilot.press("f")
+        await settle(pilot)
+        out = text_of(app, "#fk-result")
+        assert out.startswith("No result: FK refused.") and "FEASIBLE" not in out, out
 
 
 async def test_a_failed_check_clears_the_previous_verdict(console: Any) -> None:

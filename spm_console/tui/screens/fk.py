@@ -87,6 +87,11 @@ class FkScreen(StepScreen):
         except BadInputError as exc:  # the field says why too; nothing is computed
             self.status.error(f"{action} refused: {exc.message}. Fix the field, then "
                               f"press {key}.")
+            # the result shown was for other numbers: cleared, with the reason in its place
+            self.query_one("#fk-result", Static).update(Content(
+                f"No result: {action} refused.\n{exc.message}\nNext: fix the field, then "
+                f"press {key}."))
+            self.console.view.show_target(None)
             return None
 
     def action_fk(self, all_modes: bool = False) -> None:
@@ -131,7 +136,8 @@ class FkScreen(StepScreen):
         self.console.view.show_target(np.asarray(rec["theta_deg"], float))
         verdict = "feasible" if rec["feasible"] else "not feasible"
         where = " (shown as the target ghost in the 3D view)" if self.console.viewer_url else ""
-        self.status.ok(f"FK solved: ζ = {rec['zeta']:.3f}, {verdict}{where}")
+        what = "IK and FK solved" if outcome.from_ik else "FK solved"
+        self.status.ok(f"{what}: ζ = {rec['zeta']:.3f}, {verdict}{where}")
 
     def handle_failed(self, op: str, message: str) -> None:
         # the result this would have replaced is cleared; the 3D view goes back to the wrist

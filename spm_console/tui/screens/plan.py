@@ -26,6 +26,7 @@ from spm_console.tui.widgets.number import NumberRow
 from spm_console.tui.widgets.plot import PlotView, joint_series
 from spm_console.tui.widgets.rules import (
     THETA_NAMES,
+    default_theta_deg,
     ik_check,
     intersample_rule,
     rpy_rules,
@@ -41,7 +42,6 @@ METHOD_NAMES = {"mvn": "MVN", "mintime": "minimum-time"}
 #: Default horizon N of an MVN plan (minimum time finds its own N).
 DEFAULT_STEPS = 150
 #: Default goal: the θ of the paper's eq. (32) example, deg.
-DEFAULT_GOAL_DEG = (95.0, 110.0, 105.0)
 PLOTS = ("positions", "velocities")
 
 
@@ -94,7 +94,7 @@ class PlanScreen(StepScreen):
                                   rules=theta_rules(prof, "start "), id="start-values")
                 yield Label("Goal")
                 yield Select(POSE_KINDS, value="theta", allow_blank=False, id="goal-kind")
-                yield AnglesInput("", THETA_NAMES, DEFAULT_GOAL_DEG,
+                yield AnglesInput("", THETA_NAMES, default_theta_deg(self.session.profile),
                                   rules=theta_rules(prof, "goal "), id="goal-values")
                 yield Label("Method")
                 yield Select(METHODS, value="mvn", allow_blank=False, id="method")

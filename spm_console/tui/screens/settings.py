@@ -219,6 +219,14 @@ class SettingsScreen(ModalScreen[SwitchRequest | None]):
         event.stop()
         self.action_apply()
 
+    def on_input_changed(self, event: Input.Changed) -> None:
+        """A changed grid step: the refusal shown was about the value before."""
+        self.query_one("#settings-reason", Static).update("")
+
+    def on_option_list_option_highlighted(self, event: OptionList.OptionHighlighted) -> None:
+        """Another profile chosen: the refusal shown was about the one before."""
+        self.query_one("#settings-reason", Static).update("")
+
     def action_cancel(self) -> None:
         self.dismiss(None)
 

@@ -21,7 +21,7 @@ from spm_console.tui.messages import Failed, Outcome, Progress, ThetaChecked, Wo
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.confirm import ConfirmScreen
-from spm_console.tui.widgets.rules import THETA_NAMES, theta_rules
+from spm_console.tui.widgets.rules import THETA_NAMES, default_theta_deg, theta_rules
 
 STAGES = {"fk": "FK over the grid", "links": "link distances", "region": "convex region P",
           "cover": "region cover",
@@ -112,7 +112,7 @@ class WorkspaceScreen(StepScreen):
             yield Static(id="ws-info", markup=False, classes="result")
             yield ProgressBar(total=100, id="ws-progress", show_eta=False)
             yield Static(id="ws-stage", markup=False)
-            yield AnglesInput("Check θ (deg)", THETA_NAMES, (95.0, 110.0, 105.0),
+            yield AnglesInput("Check θ (deg)", THETA_NAMES, default_theta_deg(self.session.profile),
                               rules=theta_rules(self.session.profile), id="check-theta")
             yield Static(id="ws-check", markup=False, classes="result")
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
 from spm_console.errors import SpmError
 from spm_console.models import servo_limits_deg
@@ -77,3 +79,18 @@ def ik_check(session: Session, prefix: str = "") -> TripleCheck:
         return ""
 
     return check
+
+
+#: A goal away from home that suits the default profile (Agile Wrist), deg.
+AGILE_GOAL_DEG = (95.0, 110.0, 105.0)
+
+
+def default_theta_deg(profile: Profile) -> tuple[float, float, float]:
+    """The θ a form starts with: :data:`AGILE_GOAL_DEG` when it lies inside this profile's
+    servo limits, else the profile's home (every profile's home does)."""
+    lo, hi = servo_limits_deg(profile)
+    g = np.asarray(AGILE_GOAL_DEG)
+    if np.all(g >= lo) and np.all(g <= hi):
+        return AGILE_GOAL_DEG
+    a, b, c = (float(x) for x in profile.home.theta_deg)
+    return (a, b, c)
