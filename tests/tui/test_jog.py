@@ -124,6 +124,9 @@ async def test_joint_jog_moves_the_target_and_ending_settles_there(console) -> N
         out = text_of(app, "#exec-outcome")
         assert out.startswith("COMPLETED (exit code 0)") and "live jog: " in out
         assert "live jog completed" in status_of(app)
+        # the clock and loop-timing lines are the jog's, not an earlier plan's
+        assert text_of(app, "#exec-clock").startswith("live jog: ")
+        assert f"{res.stats.samples} cycles" in text_of(app, "#exec-timing")
         run = load_run(res.log_dir)
         np.testing.assert_allclose(run.vec("target")[-1], want)  # the log's target column
         np.testing.assert_allclose(run.vec("target")[0], home)

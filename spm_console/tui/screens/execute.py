@@ -232,6 +232,14 @@ class ExecuteScreen(StepScreen):
             self.status.ok("live jog closed before it started: nothing moved")
             return
         ex, st = result.outcome.execution, result.outcome.stats
+        # the progress, clock and loop timing shown were the last plan's: now the jog's run
+        self.query_one("#exec-progress", ProgressBar).update(progress=100 if ex.ok else 0)
+        self.query_one("#exec-clock", Static).update(Content(
+            f"live jog: {ex.stats.duration_s:.2f} s" if ex.ok or ex.stats.stop is None else
+            f"live jog stopped at {ex.stats.stop.detected_t:.2f} s"))
+        self.query_one("#exec-timing", Static).update(Content(
+            LoopTiming.of_run(ex.stats).text() if ex.stats.samples else
+            "servo loop timing: no cycle ran"))
         text = outcome_text(ex)
         if st is not None:
             text += (f"\nlive jog: {st.adopted} of {st.solves} re-plans used, "
