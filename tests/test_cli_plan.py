@@ -149,7 +149,7 @@ def test_paper_experiments_with_the_real_workspace(capsys: pytest.CaptureFixture
     assert code == 0, err
     rec = json.loads(so)
     assert rec["region_kind"] == "route" and rec["check"]["ok"]
-    assert rec["region"].startswith("a route through 2 regions (P → ")
+    assert rec["region"].startswith("a route through the workspace's region cover: 2 regions (P → ")
     plan = plan_from_dict(json.loads(out.read_text()))
     assert plan.route is not None and list(plan.route.switch) == rec["route"]["switch_samples"]
     pb = PlanProblem(discretize(32.22, 0.02), np.array(START, float), np.array(GOAL, float), 150,

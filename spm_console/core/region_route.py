@@ -107,8 +107,9 @@ class RegionRoute:
         if self.count == 1:
             return "one region"
         names = self.labels or tuple(f"region {i}" for i in range(self.count))
-        return (f"{self.count} regions ({' → '.join(names)}), switching at samples "
-                f"{', '.join(str(k) for k in self.switch)}")
+        at = ", ".join(str(k) for k in self.switch)
+        return (f"{self.count} regions ({' → '.join(names)}), switching at "
+                f"sample{'s' if len(self.switch) > 1 else ''} {at}")
 
 
 def spread(fractions: Sequence[float], N: int) -> tuple[int, ...]:

@@ -87,7 +87,8 @@ class PlannedMotion:
         if route.count == 1:
             name = self.route.regions[0] if self.route is not None else "?"
             return f"region {name} of the workspace's region cover ({sizes} half-spaces)"
-        return f"a route through {route.describe()} of the workspace's region cover ({sizes} half-spaces)"
+        return (f"a route through the workspace's region cover: {route.describe()} "
+                f"({sizes} half-spaces)")
 
 
 def precheck(profile: Profile, req: PlanRequest) -> None:

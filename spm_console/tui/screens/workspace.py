@@ -50,7 +50,8 @@ def workspace_text(ws: Any, info: Any) -> str:
         "feasible nodes",
     ]
     if ws.cover is not None:
-        lines.append(f"cover        {ws.cover.size} regions (P first) hold "
+        n = ws.cover.size
+        lines.append(f"cover        {n} region{'s' if n != 1 else ''} (P first) hold{'s' if n == 1 else ''} "
                      f"{100 * ws.cover.covered:.1f}% of the feasible nodes; plans cross them")
     if span is not None:
         lines.append("P spans      " + "  ".join(
