@@ -120,3 +120,26 @@ def test_every_step_fits_80_columns_when_all_are_done() -> None:
         assert line.cell_length <= SMALL[0]
         assert all(f"{t.fkey_display} ✔ {t.short}" in line.plain for t in STEPS)
     assert "Connect/home" in step_labels("plan", done, 120).plain
+
+
+async def test_the_reason_under_an_invalid_field_shows_at_80x24(console: Any) -> None:
+    """Compact fields are one line high; the reason line under them still appears."""
+    from spm_console.tui.widgets.angles import AnglesInput
+    from tests.tui.helpers import settle
+
+    app = console()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await settle(pilot)
+        await pilot.press("2")
+        await settle(pilot)
+        theta = app.screen.query_one("#theta", AnglesInput)
+        theta.fields[0].value = "12,5"
+        await pilot.pause()
+        reason = theta.query_one(".entry-reason")
+        # on screen inside its field group (a one-line group used to clip it away)
+        assert reason.display and reason.region.height >= 1
+        assert theta.region.contains_region(reason.region), (theta.region, reason.region)
+        assert "decimals take a point" in str(reason.render())
+        theta.fields[0].value = "127.5"
+        await pilot.pause()
+        assert not reason.display
