@@ -133,18 +133,23 @@ def _one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Sess
             session.close()
 
 
+def _home_first(session: Session, req: RunRequest) -> HomingResult | None:
+    """Home the wrist unless the operator overrode it (``req.skip_homing``); the result."""
+    if req.skip_homing:
+        return None
+    session.home(req.on_sample)
+    assert session.homing is not None
+    return session.homing
+
+
 def execute_once(profile: Profile, plan: Plan, req: RunRequest,
                  source: str | None = None) -> OneShotResult:
     """Home (unless overridden), then execute ``plan`` with an approach move when needed."""
 
     def body(session: Session) -> OneShotResult:
-        homing = None
-        if not req.skip_homing:
-            session.home(req.on_sample)
-            homing = session.homing
-            assert homing is not None
-            if not homing.execution.ok:
-                return OneShotResult(homing.execution, homing)
+        homing = _home_first(session, req)
+        if homing is not None and not homing.execution.ok:
+            return OneShotResult(homing.execution, homing)
         if not req.approach:  # the wrist must already be at the plan's start
             theta0, start = session.read_position(), plan.reference_deg[0]
             if float(np.abs(theta0 - start).max()) > profile.safety.approach_tolerance_deg:
@@ -181,13 +186,9 @@ def follow_once(profile: Profile, req: RunRequest, timed: TimedTargets | None = 
     wrist's position."""
 
     def body(session: Session) -> FollowOneShot:
-        homing = None
-        if not req.skip_homing:
-            session.home(req.on_sample)
-            homing = session.homing
-            assert homing is not None
-            if not homing.execution.ok:
-                return FollowOneShot(None, homing)
+        homing = _home_first(session, req)
+        if homing is not None and not homing.execution.ok:
+            return FollowOneShot(None, homing)
         initial = None if timed is not None else session.read_position()
         feeder = None
         if live_source is not None:
