@@ -56,8 +56,11 @@ def read_target_csv(profile: Profile, path: Path, rpy: bool) -> TimedTargets:
                 header_allowed = False
                 continue
             raise BadInputError(f"{path}:{n}: four numbers expected (t and three angles)") from None
-        if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
-            raise BadInputError(f"{path}:{n}: four finite numbers expected, got {len(vals)}")
+        if len(vals) != 4:
+            raise BadInputError(f"{path}:{n}: four numbers expected (t and three angles), "
+                                f"got {len(vals)}")
+        if not all(math.isfinite(v) for v in vals):
+            raise BadInputError(f"{path}:{n}: t and the angles must be finite numbers")
         rows.append(vals)
         if len(rows) > MAX_TIMED_TARGETS:
             raise BadInputError(f"{path}: more than {MAX_TIMED_TARGETS} targets")
