@@ -15,16 +15,23 @@ from spm_console.devices.emulator import start_emulator
 from spm_console.profile import Profile
 from spm_console.run.follow_loop import Follower
 from spm_console.run.runlog import RunLog, load_run
+from spm_console.run.segments import ExecutionResult
 from spm_console.run.target_feed import TargetFeed, TimedTargets
 from tests.ws_helpers import agile_workspace
 
 
-def _follower(profile: Profile, tmp_path: Path, start: np.ndarray):  # type: ignore[no-untyped-def]
-    ws = agile_workspace()
+def _follow(profile: Profile, tmp_path: Path, start: np.ndarray, feed: TargetFeed
+            ) -> tuple[ExecutionResult, Follower]:
+    """Follow ``feed`` over a fresh in-process emulated bus powered on at ``start``."""
     emu = start_emulator(profile, record=False, initial_deg=list(start))
     bus = open_bus(profile, emu.port)
-    log = RunLog.create("follow", profile.name, profile.digest(), [], root=tmp_path)
-    return Follower(profile, bus, workspace=ws, log=log), emu, bus, ws
+    try:
+        log = RunLog.create("follow", profile.name, profile.digest(), [], root=tmp_path)
+        ex = Follower(profile, bus, workspace=agile_workspace(), log=log)
+        return ex.follow(feed), ex
+    finally:
+        bus.close()
+        emu.stop()
 
 
 def test_timed_steps_are_followed_and_every_motion_is_certified(agile: Profile, tmp_path: Path) -> None:
@@ -32,12 +39,7 @@ def test_timed_steps_are_followed_and_every_motion_is_certified(agile: Profile, 
     start = np.asarray(ws.theta_deg()[ws.home_index], float)
     steps = TimedTargets(np.array([0.0, 0.4, 1.2]),
                          np.vstack([start, start + np.array([6.0, -5.0, 4.0]), start + np.array([-4.0, 3.0, -2.0])]))
-    ex, emu, bus, ws = _follower(agile, tmp_path, start)
-    try:
-        res = ex.follow(TargetFeed(steps))
-    finally:
-        bus.close()
-        emu.stop()
+    res, ex = _follow(agile, tmp_path, start, TargetFeed(steps))
     assert res.ok, res.message
     np.testing.assert_allclose(res.final_deg, steps.theta_deg[-1], atol=0.3)
     st = ex.stats(TargetFeed(steps))
@@ -55,12 +57,7 @@ def test_a_target_outside_the_region_is_projected_and_never_chased(agile: Profil
     outside = np.array([160.0, 60.0, 160.0])  # far outside P
     assert not ws.region.contains(outside)
     feed = TargetFeed(TimedTargets(np.array([0.0, 0.2]), np.vstack([start, outside])))
-    ex, emu, bus, ws = _follower(agile, tmp_path, start)
-    try:
-        res = ex.follow(feed)
-    finally:
-        bus.close()
-        emu.stop()
+    res, ex = _follow(agile, tmp_path, start, feed)
     assert res.ok, res.message
     st = ex.stats(feed)
     assert st.clamped > 0
@@ -76,7 +73,6 @@ def test_solves_that_miss_their_deadline_continue_the_previous_plan(
     ws = agile_workspace()
     start = np.asarray(ws.theta_deg()[ws.home_index], float)
     feed = TargetFeed(TimedTargets(np.array([0.0, 0.1]), np.vstack([start, start + np.array([5.0, 5.0, -5.0])])))
-    ex, emu, bus, ws = _follower(agile, tmp_path, start)
     from spm_console.core.planning import follow as follow_mod
 
     real = follow_mod.FollowSolver.solve
@@ -91,11 +87,7 @@ def test_solves_that_miss_their_deadline_continue_the_previous_plan(
         return out
 
     monkeypatch.setattr(follow_mod.FollowSolver, "solve", slow)
-    try:
-        res = ex.follow(feed)
-    finally:
-        bus.close()
-        emu.stop()
+    res, ex = _follow(agile, tmp_path, start, feed)
     assert res.ok, res.message
     st = ex.stats(feed)
     assert st.misses >= st.solves // 3 - 1 and st.misses > 0
@@ -178,12 +170,7 @@ def test_a_target_in_another_region_of_the_cover_is_reached_through_the_overlaps
                if not ws.region.contains(ws.cover.seeds_deg[k], tol=1e-6)
                and 0 not in ws.cover.containing(ws.cover.seeds_deg[k]))
     feed = TargetFeed(TimedTargets(np.array([0.0, 0.1]), np.vstack([start, far])))
-    ex, emu, bus, ws = _follower(agile, tmp_path, start)
-    try:
-        res = ex.follow(feed)
-    finally:
-        bus.close()
-        emu.stop()
+    res, ex = _follow(agile, tmp_path, start, feed)
     assert res.ok, res.message
     np.testing.assert_allclose(res.final_deg, far, atol=0.3)
     st = ex.stats(feed)
@@ -193,10 +180,6 @@ def test_a_target_in_another_region_of_the_cover_is_reached_through_the_overlaps
     run = load_run(res.log_dir)
     start_ev = next(e for e in run.events if e["event"] == "start")
     hops = [e for e in run.events if e["event"] == "region"]
-    assert start_ev["regions"] == cover_size(ws) and (hops or start_ev["region"] != 0)
+    assert start_ev["regions"] == ws.cover.size and (hops or start_ev["region"] != 0)
     pred = np.array([s.predicted_deg for s in ex.samples])
     assert all(ws.cover.containing(p, tol=1e-3) for p in pred)  # the model in some region
-
-
-def cover_size(ws) -> int:  # type: ignore[no-untyped-def]
-    return int(ws.cover.size)
