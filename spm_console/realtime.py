@@ -13,6 +13,7 @@ default) bounds it anyway. ``SPM_CONSOLE_REALTIME=0`` in the environment switche
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 from dataclasses import dataclass
@@ -97,3 +98,38 @@ def quick_gil_handoff() -> float:
     old = sys.getswitchinterval()
     sys.setswitchinterval(GIL_SWITCH_S)
     return old
+
+
+@functools.cache
+def kernel_preemption() -> str:
+    """The running kernel's preemption model, as far as this process can tell.
+
+    Real-time priority bounds how long a woken thread waits for *other threads*; a kernel
+    built without full preemption (``PREEMPT_NONE``/``VOLUNTARY``) can still hold a CPU in
+    a system call for milliseconds before the woken loop runs. Read from the scheduler's
+    debugfs file when it is readable (PREEMPT_DYNAMIC kernels switch at run time), else
+    from the kernel's build configuration; "unknown" when neither says.
+    """
+    try:
+        with open("/sys/kernel/debug/sched/preempt", encoding="ascii") as f:
+            modes = f.read().split()
+        current = next((m.strip("()") for m in modes if m.startswith("(")), "")
+        if current:
+            return f"{current} (set at run time)"
+    except OSError:
+        pass
+    try:
+        import gzip
+
+        with gzip.open("/proc/config.gz", "rt", encoding="ascii") as f:
+            config = f.read()
+    except OSError:
+        return "unknown"
+    dynamic = "\nCONFIG_PREEMPT_DYNAMIC=y" in config
+    for option, name in (("CONFIG_PREEMPT_RT=y", "full real-time (PREEMPT_RT)"),
+                         ("CONFIG_PREEMPT=y", "full"), ("CONFIG_PREEMPT_LAZY=y", "lazy"),
+                         ("CONFIG_PREEMPT_VOLUNTARY=y", "voluntary"),
+                         ("CONFIG_PREEMPT_NONE=y", "none")):
+        if f"\n{option}" in config:
+            return name + (" (boot default of a PREEMPT_DYNAMIC kernel)" if dynamic else "")
+    return "unknown"

@@ -40,7 +40,13 @@ from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_po
 from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
 from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.profile import Profile
-from spm_console.realtime import LOOP_PRIORITY, RtGrant, release_realtime, request_realtime
+from spm_console.realtime import (
+    LOOP_PRIORITY,
+    RtGrant,
+    kernel_preemption,
+    release_realtime,
+    request_realtime,
+)
 from spm_console.run.plan_check import LINE_PHASES, PlanCheck, PlanVerifier
 from spm_console.run.runlog import RunLog
 from spm_console.run.safety import SafetyMonitor, StopReason
@@ -211,7 +217,8 @@ class Executor:
         self._torque_on = False
         stop: StopReason | None = None
         self.realtime = request_realtime(LOOP_PRIORITY)
-        self._event("realtime", policy=self.realtime.policy, detail=self.realtime.detail)
+        self._event("realtime", policy=self.realtime.policy, detail=self.realtime.detail,
+                    kernel_preemption=kernel_preemption())
         try:
             if self._estop.is_set():  # E-stop before torque-on: nothing is switched on or moved
                 stop = SafetyMonitor.estop(f"{self._estop_reason or 'E-stop'} (before any motion)",

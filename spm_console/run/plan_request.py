@@ -137,8 +137,10 @@ def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMot
             verify_plan(profile, ws, routed[0])  # the executor's own check, as below
             return PlannedMotion(routed[0], None, checks[0], checks[1], routed[1])
     try:
-        choice = (RegionChoice(req.region, "given", req.region_source) if req.region is not None
-                  else choose_region(ws, s, g))
+        if req.region is not None:
+            choice = RegionChoice(req.region, "given", req.region_source)
+        else:  # P holds both ends (tested above), else a region grown for the segment
+            choice = RegionChoice(ws.region, "P") if in_p else choose_region(ws, s, g)
     except InfeasibleError as exc:
         if route_error:
             raise InfeasibleError(f"{exc}; along the workspace's region cover: {route_error}") from exc

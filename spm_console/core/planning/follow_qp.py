@@ -97,31 +97,29 @@ class FollowLayout:
     def shift_primal(self, z: F, steps: int) -> F:
         """The solution ``steps`` samples later: blocks moved forward, the tail held at rest
         at θ(H) (reference θ(H), speed 0) — feasible again whenever z was."""
-        H = self.H
-        out = z.copy()
-        j = min(max(steps, 0), H)
-        if j == 0:
-            return out
-        blk = z[: BLOCK * H].reshape(H, BLOCK)
-        new = np.empty_like(blk)
-        new[: H - j] = blk[j:]
-        hold = np.concatenate([blk[-1, 3:6], blk[-1, 3:6], np.zeros(3)])
-        new[H - j:] = hold
-        out[: BLOCK * H] = new.ravel()
-        return out
+        last = z[BLOCK * (self.H - 1): BLOCK * self.H]
+        hold = np.concatenate([last[3:6], last[3:6], np.zeros(3)])
+        return _shift_blocks(z, self.H, BLOCK, steps, hold)
 
     def shift_dual(self, y: F, steps: int) -> F:
         """Multipliers moved like :meth:`shift_primal`; the tail blocks get zeros."""
-        H, R = self.H, self.rows_per_block
-        out = y.copy()
-        j = min(max(steps, 0), H)
-        if j == 0:
-            return out
-        blk = y[: R * H].reshape(H, R)
-        new = np.zeros_like(blk)
-        new[: H - j] = blk[j:]
-        out[: R * H] = new.ravel()
+        return _shift_blocks(y, self.H, self.rows_per_block, steps,
+                             np.zeros(self.rows_per_block))
+
+
+def _shift_blocks(v: F, H: int, width: int, steps: int, tail: F) -> F:
+    """``v`` with its first ``H`` blocks of ``width`` moved ``steps`` blocks forward and
+    the freed blocks at the end set to ``tail``; entries after the blocks unchanged."""
+    out = v.copy()
+    j = min(max(steps, 0), H)
+    if j == 0:
         return out
+    blk = v[: width * H].reshape(H, width)
+    new = np.empty_like(blk)
+    new[: H - j] = blk[j:]
+    new[H - j:] = tail
+    out[: width * H] = new.ravel()
+    return out
 
 
 @dataclass(frozen=True)
