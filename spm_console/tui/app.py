@@ -21,19 +21,13 @@ from textual.command import CommandPalette
 from textual.dom import DOMNode
 from textual.reactive import reactive
 from textual.screen import Screen
-from textual.widgets import Select
 
 from spm_console.errors import ExitCode
 from spm_console.profile import Profile
 from spm_console.run.operator import Session
 from spm_console.run.signals import install_stop_handler
 from spm_console.tui.messages import Telemetry
-from spm_console.tui.screens.base import (
-    COMPACT_BELOW_COLUMNS,
-    COMPACT_BELOW_ROWS,
-    StepScreen,
-    takes_typing,
-)
+from spm_console.tui.screens.base import COMPACT_BELOW_COLUMNS, COMPACT_BELOW_ROWS, StepScreen
 from spm_console.tui.screens.connect import ConnectScreen
 from spm_console.tui.screens.execute import ExecuteScreen
 from spm_console.tui.screens.fk import FkScreen
@@ -63,28 +57,6 @@ def _step_bindings() -> list[Binding]:
             Binding(f"ctrl+{s.key}", action, desc, show=False, priority=True),
         ]
     return out
-
-
-#: The keys that move the focus act when the app reads them, before the keys behind them
-#: are handed to a widget (priority bindings): a burst "127.5 tab 83.2" (type-ahead, an
-#: unbracketed paste) then fills two fields, and "esc 6" leaves the field, then switches
-#: step. A non-priority binding would run only after the focused field had taken the keys
-#: queued behind it. The screens' own "tab Fields" / "esc Leave" entries name them.
-_FOCUS_BINDINGS = [
-    Binding("tab", "move_focus('next')", show=False, priority=True, system=True),
-    Binding("shift+tab", "move_focus('previous')", show=False, priority=True, system=True),
-    Binding("escape", "move_focus('leave')", show=False, priority=True, system=True),
-]
-
-
-def _in_open_dropdown(widget: DOMNode | None) -> bool:
-    """True inside a dropdown whose list is open (its own esc closes the list)."""
-    node = widget
-    while node is not None:
-        if isinstance(node, Select):
-            return bool(node.expanded)
-        node = node.parent
-    return False
 
 
 class SpmConsoleApp(App[int | SwitchRequest]):
@@ -118,7 +90,6 @@ class SpmConsoleApp(App[int | SwitchRequest]):
         Binding("f7", "settings", "Settings", show=False, priority=True, key_display="F7"),
         Binding(ESTOP_KEY, "estop", "E-STOP", priority=True, key_display="SPACE",
                 tooltip="stops any motion (active while the wrist moves)"),
-        *_FOCUS_BINDINGS,
     ]
 
     moving: reactive[bool] = reactive(False)
@@ -275,22 +246,6 @@ class SpmConsoleApp(App[int | SwitchRequest]):
             self.screen.dismiss(None)
             return
         self.push_screen(HelpScreen(self.screen))
-
-    def action_move_focus(self, how: str) -> None:
-        """tab / shift+tab (next / previous) and esc (leave the field) on a step screen;
-        elsewhere, and for esc outside a field or in an open dropdown, the key goes on to
-        the widgets and screens as usual."""
-        screen = self.screen
-        if not isinstance(screen, StepScreen):
-            raise SkipAction()
-        if how == "next":
-            screen.focus_next()
-        elif how == "previous":
-            screen.focus_previous()
-        elif takes_typing(screen.focused) and not _in_open_dropdown(screen.focused):
-            screen.set_focus(None)
-        else:
-            raise SkipAction()
 
     def action_estop(self) -> None:
         if not self.session.estop("operator E-stop (SPACE)"):

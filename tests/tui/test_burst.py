@@ -34,6 +34,8 @@ async def test_a_burst_with_tabs_fills_each_field_with_its_own_value(console: An
         await settle(pilot)
         assert [f.value for f in goal.fields] == ["127.5", "83.2", "85.2"]
         assert app.screen.focused is goal.fields[2]
+        footer = {k: b.binding for k, b in app.screen.active_bindings.items() if b.binding.show}
+        assert footer["tab"].description == "Fields" and footer["escape"].description == "Leave"
         burst(app, "shift+tab", "84", "shift+tab", "128")  # and back
         await settle(pilot)
         assert [f.value for f in goal.fields] == ["128", "84", "85.2"]
