@@ -48,9 +48,12 @@ PLOTS = ("positions", "velocities")
 def plan_text(plan: Plan, info: dict[str, Any]) -> str:
     chk = plan.check
     vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
+    start = info.get("start_deg", plan.position_deg[0])
+    read = " (read from the servos just before solving)" if info.get("start_read") else ""
     lines = [
         f"{plan.kind.upper()}: {info.get('start', '?')} → {info.get('goal', '?')}",
-        f"{fmt_deg(plan.reference_deg[0])} → {fmt_deg(plan.reference_deg[-1])}",
+        f"start θ = {fmt_deg(start)}{read}",
+        f"goal θ = {fmt_deg(info.get('goal_deg', plan.position_deg[-1]))}",
         f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
         f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
         f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
@@ -75,14 +78,17 @@ class PlanScreen(StepScreen):
         Binding("p", "next_plot", "Plot"),
         Binding("w", "save", "Save"),
         Binding("o", "open", "Open plan"),
-        Binding("tab", "app.focus_next", "Fields"),
-        Binding("escape", "leave_field", "Leave"),
+        Binding("tab", "move_focus('next')", "Fields", priority=True),
+        Binding("escape", "leave_field", "Leave", priority=True),
     ]
 
     def __init__(self) -> None:
         super().__init__()
         self.plot_kind = 0
         self.solving_method = "mvn"
+        self._typed: dict[str, list[str]] = {}
+        """What the operator typed into the start / goal fields while they show the pose
+        of "current pose" or "home" instead (given back when θ or r/p/y is chosen again)."""
 
     def compose_body(self) -> ComposeResult:
         prof = self.session.profile
@@ -124,22 +130,49 @@ class PlanScreen(StepScreen):
             self._apply_method()
 
     def _apply_kind(self, which: str) -> None:
-        """Judge the start/goal fields as θ or as an orientation; unused for home/current."""
+        """Judge the start/goal fields as θ or as an orientation (the typed text back in
+        them); for home / current pose they show, disabled, the θ a solve uses."""
         kind = self.query_one(f"#{which}-kind", Select).value
         angles = self.query_one(f"#{which}-values", AnglesInput)
-        if kind == "theta":
-            angles.set_rules(theta_rules(self.session.profile, f"{which} "))
-        elif kind == "rpy":
+        if kind == "rpy":
             angles.set_rules(rpy_rules(f"{which} "), ik_check(self.session, f"{which} "))
+        else:
+            angles.set_rules(theta_rules(self.session.profile, f"{which} "))
+        if kind in ("theta", "rpy"):
+            typed = self._typed.pop(which, None)
+            if typed is not None:
+                for field, text in zip(angles.fields, typed, strict=True):
+                    field.value = text
+        else:
+            self._typed.setdefault(which, [f.value for f in angles.fields])
+            self._show_pose(which)
         angles.set_enabled(kind in ("theta", "rpy"))
+
+    def _show_pose(self, which: str) -> None:
+        """The θ that "home" or "current pose" stands for now (the last reading of the
+        servos; empty, "not read", before the first)."""
+        kind = self.query_one(f"#{which}-kind", Select).value
+        if kind not in ("home", "current"):
+            return
+        angles = self.query_one(f"#{which}-values", AnglesInput)
+        pose = (self.session.profile.home.theta_deg if kind == "home"
+                else self.session.theta_deg)
+        if pose is None:
+            for field in angles.fields:
+                field.value = ""
+                field.placeholder = "not read"
+        else:
+            angles.set_values(pose)
+
+    def refresh_view(self) -> None:
+        super().refresh_view()
+        for which in ("start", "goal"):
+            self._show_pose(which)
 
     def _apply_method(self) -> None:
         """N is the MVN horizon; minimum time finds its own (the field is then unused)."""
         self.query_one("#steps-row", NumberRow).set_enabled(
             self.query_one("#method", Select).value == "mvn")
-
-    def action_leave_field(self) -> None:
-        self.set_focus(None)
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         event.stop()
@@ -170,12 +203,22 @@ class PlanScreen(StepScreen):
             return
         name = METHOD_NAMES[method]
         self.solving_method = method
-        self.run_blocking(
-            "solve",
-            lambda: PlanSolved(self.session.solve_plan(
-                method, start, goal, steps, vmax,  # type: ignore[arg-type]
-                intersample=k, hold_first=hold_first)),
-            f"solving the {name} problem ({start.describe()} → {goal.describe()}) …")
+        s = self.session
+        # "current pose" is where the servos are now: read it (when connected) just before
+        # solving, so the plan starts from it and the start fields show it
+        read = "current" in (start.kind, goal.kind) and s.bus is not None
+
+        def solve() -> PlanSolved:
+            if read:
+                s.read_position()
+            plan = s.solve_plan(method, start, goal, steps, vmax,  # type: ignore[arg-type]
+                                intersample=k, hold_first=hold_first)
+            s.plan_info["start_read"] = read and start.kind == "current"
+            return PlanSolved(plan)
+
+        self.run_blocking("solve", solve,
+                          f"solving the {name} problem ({start.describe()} → "
+                          f"{goal.describe()}) …")
 
     # --- saved plans and remembered values ------------------------------------------------
     def action_open(self) -> None:
@@ -202,10 +245,13 @@ class PlanScreen(StepScreen):
         return out
 
     def _remember(self) -> None:
-        """What the operator typed, as typed, for this profile's next session."""
+        """What the operator typed, as typed, for this profile's next session (not the pose
+        the start / goal fields show for home or current pose)."""
         mem, prof = self.console.form_memory, self.session.profile.name
         for key, field in self._fields().items():
-            mem.put(prof, f"plan.{key}", field.value)
+            which, _, i = key.partition(".")
+            typed = self._typed.get(which)
+            mem.put(prof, f"plan.{key}", typed[int(i)] if typed is not None else field.value)
         for sel in ("start-kind", "goal-kind", "method"):
             mem.put(prof, f"plan.{sel}", str(self.query_one(f"#{sel}", Select).value))
         mem.put(prof, "plan.free-first", str(bool(self.query_one("#free-first", Checkbox).value)))
