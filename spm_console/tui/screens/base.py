@@ -31,7 +31,7 @@ from textual.worker import get_current_worker
 
 from spm_console.errors import SpmError
 from spm_console.tui.messages import Done, Failed, Outcome
-from spm_console.tui.widgets.estop import EstopBanner
+from spm_console.tui.widgets.estop import ESTOP_KEY, EstopBanner
 from spm_console.tui.widgets.status import StatusLine
 from spm_console.tui.widgets.steps import StepBar
 
@@ -87,6 +87,11 @@ class StepScreen(Screen[None]):
     MODE: ClassVar[str] = ""
     AUTO_FOCUS = ""  # keys act on the screen until the operator tabs into a field (None = app default "*")
     BINDINGS: ClassVar[list[BindingType]] = [
+        # First of every step screen's keys, so the footer shows it first while the wrist
+        # moves (at 80 columns the keys after it are cut); shown and run only then (the
+        # app's check_action), the app's own SPACE binding does the same.
+        Binding(ESTOP_KEY, "app.estop", "E-STOP", priority=True, key_display="SPACE",
+                system=True),
         Binding("escape", "leave_field", "Leave field", show=False, priority=True),
         Binding("tab", "move_focus('next')", "Next field", show=False, priority=True,
                 system=True),
