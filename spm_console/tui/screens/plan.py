@@ -18,8 +18,9 @@ from spm_console.core.plan import Plan
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
 from spm_console.run.operator import PoseSpec
-from spm_console.tui.messages import Outcome, PlanLoaded, PlanSaved, PlanSolved
+from spm_console.tui.messages import Failed, Outcome, PlanLoaded, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
+from spm_console.tui.screens.plan_hints import console_words, next_step
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.ask_path import AskPathScreen
 from spm_console.tui.widgets.number import NumberRow
@@ -313,6 +314,11 @@ class PlanScreen(StepScreen):
         elif isinstance(outcome, PlanSaved):
             self.status.ok(f"plan saved to {outcome.path}")
 
+    def on_failed(self, message: Failed) -> None:
+        """The planner's words are the CLI's too: put the console's (fields, keys) in their
+        place. Runs first; Textual then calls StepScreen.on_failed with the new words."""
+        message.message = console_words(message.message)
+
     def handle_failed(self, op: str, message: str) -> None:
         if op == "open":  # the current plan stays: nothing replaced it
             self.status.error(f"plan not opened (the current plan is unchanged): {message}")
@@ -326,8 +332,7 @@ class PlanScreen(StepScreen):
         self.session.plan_info = {}
         self.console.view.clear_path()
         self.query_one("#plan-text", Static).update(Content(
-            f"No plan: the {name} solve failed.\n{message}\n"
-            "Next: change the start, the goal, the method or v_max, then press s."))
+            f"No plan: the {name} solve failed.\n{message}\nNext: {next_step(message)}"))
         self.query_one("#plan-plot", PlotView).plot("no plan", np.zeros(0), [])
         self.status.error(f"{name} solve failed (no plan now): {message}")
 
