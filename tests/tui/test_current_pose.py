@@ -87,3 +87,24 @@ async def test_typed_start_comes_back_when_theta_is_chosen_again(console: Any) -
         await pilot.pause()
         assert [f.value for f in start.fields] == ["101.5", "abc", "99"]
         assert start.fields[1].has_class("-invalid")
+
+
+async def test_start_fields_follow_the_servos_while_the_plan_step_shows(
+        console: Any) -> None:
+    """The wrist moves while the plan step is on screen (here: homed by the session, which
+    the screen is not told about): the fields catch up from the servos by themselves."""
+    import asyncio
+
+    from spm_console.tui.screens.plan import POSE_EVERY_S
+
+    app = console(initial_deg=THERE)
+    async with app.run_test(size=SIZE) as pilot:
+        await _to_plan(pilot)
+        np.testing.assert_allclose(shown(app), THERE, atol=0.05)
+        await asyncio.to_thread(app.session.home)
+        home = app.session.profile.home.theta_deg
+        loop = asyncio.get_running_loop()
+        t_end = loop.time() + 20 * POSE_EVERY_S
+        while loop.time() < t_end and not np.allclose(shown(app), home, atol=0.5):
+            await pilot.pause(POSE_EVERY_S / 5)
+        np.testing.assert_allclose(shown(app), home, atol=0.5)

@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from textual.widgets import Input, Select
 
-from spm_console.tui.screens.plan_hints import next_step
+from spm_console.tui.screens.plan_words import next_step
 from spm_console.tui.widgets.angles import AnglesInput
 from tests.tui.helpers import settle, status_of, text_of
 

@@ -3,24 +3,23 @@ minimum time, solved in a worker; result table and plots."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
+from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
+from textual.message import Message
 from textual.widgets import Checkbox, Input, Label, Select, Static
 
-from spm_console.core.plan import Plan
-from spm_console.errors import BadInputError
-from spm_console.formatting import fmt_deg
+from spm_console.errors import BadInputError, SpmError
 from spm_console.run.operator import PoseSpec
 from spm_console.tui.messages import Failed, Outcome, PlanLoaded, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
-from spm_console.tui.screens.plan_hints import console_words, next_step
+from spm_console.tui.screens.plan_words import console_words, next_step, plan_text
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.ask_path import AskPathScreen
 from spm_console.tui.widgets.number import NumberRow
@@ -44,32 +43,12 @@ METHOD_NAMES = {"mvn": "MVN", "mintime": "minimum-time"}
 DEFAULT_STEPS = 150
 #: Default goal: the θ of the paper's eq. (32) example, deg.
 PLOTS = ("positions", "velocities")
+#: Period of the position read while the plan step shows "current pose", s.
+POSE_EVERY_S = 0.5
 
 
-def plan_text(plan: Plan, info: dict[str, Any]) -> str:
-    chk = plan.check
-    vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
-    start = info.get("start_deg", plan.position_deg[0])
-    read = " (read from the servos just before solving)" if info.get("start_read") else ""
-    lines = [
-        f"{plan.kind.upper()}: {info.get('start', '?')} → {info.get('goal', '?')}",
-        f"start θ = {fmt_deg(start)}{read}",
-        f"goal θ = {fmt_deg(info.get('goal_deg', plan.position_deg[-1]))}",
-        f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
-        f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
-        f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
-        + (f" (v_max {vmax:g})" if vmax else ""),
-    ]
-    if info.get("region"):
-        lines.append(f"region: {info['region']}")
-    if chk is not None:
-        if not math.isnan(chk.max_speed_between_degps):
-            lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s, outside P by "
-                         f"{chk.region_violation_between_deg:.2g}°")
-        lines.append("constraints verified" if chk.ok else "constraints NOT verified")
-    if plan.certificate is not None:  # minimum time: N is the smallest feasible horizon
-        lines.append(plan.certificate.describe())
-    return "\n".join(lines)
+class PoseRead(Message):
+    """A background read of the servos' position ended (the session holds the result)."""
 
 
 class PlanScreen(StepScreen):
@@ -87,6 +66,7 @@ class PlanScreen(StepScreen):
         super().__init__()
         self.plot_kind = 0
         self.solving_method = "mvn"
+        self._reading = False
         self._typed: dict[str, list[str]] = {}
         """What the operator typed into the start / goal fields while they show the pose
         of "current pose" or "home" instead (given back when θ or r/p/y is chosen again)."""
@@ -123,6 +103,36 @@ class PlanScreen(StepScreen):
         self._apply_method()
         if self.session.plan is not None:
             self.show_plan()
+        self.set_interval(POSE_EVERY_S, self._poll_pose)
+
+    def _poll_pose(self) -> None:
+        """Timer: while "current pose" is chosen and the step shows, read the servos (one
+        read at a time, never while a solve runs or the wrist moves) and show the pose."""
+        s = self.session
+        if (self._reading or not self.is_active or self.busy_op or s.bus is None
+                or self.console.moving or s.moving.is_set()
+                or "current" not in (self._kind("start"), self._kind("goal"))):
+            return
+        self._reading = True
+        self._read_pose()
+
+    @work(thread=True, group="plan-pose", exit_on_error=False)
+    def _read_pose(self) -> None:
+        try:
+            self.session.read_position()
+        except SpmError:
+            pass  # no reply this time: the last reading stays shown (step 1 shows the bus)
+        finally:
+            self.post_message(PoseRead())
+
+    def on_pose_read(self, message: PoseRead) -> None:
+        message.stop()
+        self._reading = False
+        for which in ("start", "goal"):
+            self._show_pose(which)
+
+    def _kind(self, which: str) -> object:
+        return self.query_one(f"#{which}-kind", Select).value
 
     def on_select_changed(self, event: Select.Changed) -> None:
         if event.select.id in ("start-kind", "goal-kind"):

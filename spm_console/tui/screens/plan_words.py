@@ -1,5 +1,6 @@
-"""What to do in the console after a failed solve on the plan step: which field to change
-or which key to press, never a shell command.
+"""The plan step's words: a solved plan's summary (:func:`plan_text`), and what to do in
+the console after a failed solve (:func:`next_step`): which field to change or which key
+to press, never a shell command.
 
 The planner's messages are shared with the CLI and may name its commands or options
 ("use more steps or 'plan mintime'"); :func:`console_words` puts the console's words in
@@ -9,6 +10,13 @@ wrong.
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
+import numpy as np
+
+from spm_console.core.plan import Plan
+from spm_console.formatting import fmt_deg
 from spm_console.tui.widgets.steps import keys_of
 
 #: CLI wording in planner messages → what it means on the plan step.
@@ -61,3 +69,29 @@ def next_step(message: str) -> str:
         if any(w in message for w in words):
             return advice
     return _GENERIC
+
+
+def plan_text(plan: Plan, info: dict[str, Any]) -> str:
+    chk = plan.check
+    vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
+    start = info.get("start_deg", plan.position_deg[0])
+    read = " (read from the servos just before solving)" if info.get("start_read") else ""
+    lines = [
+        f"{plan.kind.upper()}: {info.get('start', '?')} → {info.get('goal', '?')}",
+        f"start θ = {fmt_deg(start)}{read}",
+        f"goal θ = {fmt_deg(info.get('goal_deg', plan.position_deg[-1]))}",
+        f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
+        f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
+        f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
+        + (f" (v_max {vmax:g})" if vmax else ""),
+    ]
+    if info.get("region"):
+        lines.append(f"region: {info['region']}")
+    if chk is not None:
+        if not math.isnan(chk.max_speed_between_degps):
+            lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s, outside P by "
+                         f"{chk.region_violation_between_deg:.2g}°")
+        lines.append("constraints verified" if chk.ok else "constraints NOT verified")
+    if plan.certificate is not None:  # minimum time: N is the smallest feasible horizon
+        lines.append(plan.certificate.describe())
+    return "\n".join(lines)
