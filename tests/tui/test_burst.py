@@ -87,6 +87,19 @@ async def test_a_paste_stays_whole_in_the_focused_field(console: Any) -> None:
         assert app.screen.focused is goal.fields[0]
 
 
+async def test_a_pasted_text_of_several_lines_shows_whole(console: Any) -> None:
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        goal = await _plan_goal(pilot)
+        goal.fields[0].focus()
+        goal.fields[0].value = ""
+        await pilot.pause()
+        app.post_message(events.Paste("127.5\n83.2\n85.2"))
+        await settle(pilot)
+        assert [f.value for f in goal.fields] == ["127.5 83.2 85.2", "110", "105"]
+        assert goal.fields[0].has_class("-invalid")
+
+
 async def test_esc_in_an_open_dropdown_closes_its_list_and_keeps_the_focus(
         console: Any) -> None:
     from textual.widgets import Select

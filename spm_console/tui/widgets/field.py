@@ -7,6 +7,10 @@ one key at a time nobody notices; in a burst (type-ahead, an unbracketed paste, 
 ``send-keys``) "127.6⌫5" became "127.65" and the backspace hit whichever field had the
 focus by then. :class:`TextField` runs its own bindings as the key comes out of its queue,
 in line with the characters around it.
+
+A pasted text stays whole too: Textual's field keeps only the first line of a multi-line
+paste; here the lines are joined by spaces, so everything pasted shows (and a number field
+refuses it with the reason).
 """
 
 from __future__ import annotations
@@ -17,6 +21,19 @@ from textual.widgets import Input
 
 class TextField(Input):
     """An :class:`~textual.widgets.Input` whose own bindings run in typing order."""
+
+    def on_paste(self, event: events.Paste) -> None:
+        # Runs before Input's handler, which would drop every line after the first.
+        lines = event.text.splitlines()
+        if len(lines) <= 1:
+            return
+        event.stop()
+        event.prevent_default()
+        text = " ".join(lines)
+        if self.selection.is_empty:
+            self.insert_text_at_cursor(text)
+        else:
+            self.replace(text, *self.selection)
 
     async def on_key(self, event: events.Key) -> None:
         # Runs before Input's handler (subclass first); printable keys go on to it.
