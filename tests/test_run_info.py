@@ -76,3 +76,16 @@ def test_malformed_meta_reads_as_unknown_never_raises(meta: dict[str, object]) -
         assert info.duration_s == pytest.approx(2.0)
     else:
         assert info.duration_s is None
+
+
+@pytest.mark.parametrize(("outcome", "stop", "reason"), [
+    ("completed", None, ""),
+    ("refused", None, "execute refused: the wrist is not homed"),
+    ("error", None, "execute refused: the wrist is not homed"),
+    ("stopped", "estop", "E-stop"),
+])
+def test_the_reason_of_a_run(outcome: str, stop: str | None, reason: str) -> None:
+    meta = {"outcome": outcome, "exit_code": 5,
+            "message": "execute refused: the wrist is not homed",
+            "stats": {"stop": {"kind": stop}} if stop else {}}
+    assert run_info("r", meta).reason == reason

@@ -93,6 +93,17 @@ class RunInfo:
             return ""
         return STOP_LABELS.get(self.stop_kind, self.stop_kind)
 
+    @property
+    def reason(self) -> str:
+        """Why the run ended as it did: the stop's label for a stopped run ('E-stop', …),
+        the log's message for any other run that did not complete (a refusal's reason, an
+        error, a killed writer); '' for a completed or running one."""
+        if self.outcome == "stopped":
+            return self.stop_label or self.message
+        if self.outcome in ("completed", "running"):
+            return ""
+        return self.message
+
 
 def _str(x: Any) -> str | None:
     return x if isinstance(x, str) else None

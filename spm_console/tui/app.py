@@ -31,7 +31,7 @@ from spm_console.tui.screens.base import COMPACT_BELOW_COLUMNS, COMPACT_BELOW_RO
 from spm_console.tui.screens.connect import ConnectScreen
 from spm_console.tui.screens.execute import ExecuteScreen
 from spm_console.tui.screens.fk import FkScreen
-from spm_console.tui.screens.help import HelpScreen, KeyEntry, key_entries
+from spm_console.tui.screens.help import HelpScreen, KeyEntry, key_entries, step_actions
 from spm_console.tui.screens.logs import LogsScreen
 from spm_console.tui.screens.plan import PlanScreen
 from spm_console.tui.screens.settings import SettingsScreen, SwitchRequest
@@ -181,18 +181,24 @@ class SpmConsoleApp(App[int | SwitchRequest]):
 
     # ------------------------------------------------------------------ actions
     async def action_step(self, mode: str) -> None:
+        await self._go_to(mode)
+
+    async def _go_to(self, mode: str) -> bool:
+        """Show step ``mode``; False (and a notice) while the wrist moves or a dialog waits."""
         if self.moving:
             self.notify("The wrist is moving: wait, or press SPACE to stop it.",
                         severity="warning")
-            return
+            return False
         # The help and the palette close first; a dialog must be answered (it would stay
         # behind on the step it belongs to).
         while isinstance(self.screen, (HelpScreen, CommandPalette)):
             await self.screen.dismiss()
         if not isinstance(self.screen, StepScreen):
             self.notify("Answer the dialog first (y / n, esc cancels).", severity="warning")
-            return
-        self.switch_mode(mode)
+            return False
+        if self.current_mode != mode:
+            await self.switch_mode(mode)
+        return True
 
     async def action_quit(self) -> None:
         """q and ctrl+q: stop nothing by surprise (refused while the wrist moves)."""
@@ -255,15 +261,30 @@ class SpmConsoleApp(App[int | SwitchRequest]):
     # ------------------------------------------------------------------ command palette
     def get_system_commands(self, screen: Screen[Any]) -> Iterable[SystemCommand]:
         """Every action of ``screen`` and of the app (from the bindings, with their keys),
-        then Textual's theme, maximize and screenshot commands."""
+        the E-stop (also when nothing moves: it says so), every other step's own actions
+        ("Plan: Solve" switches to the plan step, then solves), then Textual's theme,
+        maximize and screenshot commands."""
         under = screen
         for node, entries in key_entries(under, self):
             where = "this screen" if node is under else "everywhere"
             for e in entries:
-                if e.single_action and e.state is not False:
+                estop = e.action == "estop"
+                if e.single_action and (e.state is not False or estop):
+                    note = ("nothing moves now; stops any motion while the wrist moves"
+                            if estop and not self.moving else e.tooltip)
                     yield SystemCommand(e.description, f"key {e.keys_text} ({where})"
-                                        + (f": {e.tooltip}" if e.tooltip else ""),
+                                        + (f": {note}" if note else ""),
                                         self._palette_runner(e))
+        here = getattr(under, "MODE", "")
+        for step in STEPS:
+            if step.mode == here:
+                continue  # listed above, as this screen's
+            for e in step_actions(self.MODES[step.mode], self):  # type: ignore[arg-type]
+                yield SystemCommand(f"{step.title}: {e.description}",
+                                    f"key {e.keys_text} on step {step.key} ({step.fkey_display}),"
+                                    " which this command switches to first"
+                                    + (f": {e.tooltip}" if e.tooltip else ""),
+                                    self._palette_step_runner(step.mode, e))
         for cmd in super().get_system_commands(screen):
             if cmd.title not in ("Quit", "Keys"):  # ours are above (q refuses while moving)
                 yield cmd
@@ -272,7 +293,20 @@ class SpmConsoleApp(App[int | SwitchRequest]):
         node: DOMNode = entry.node
 
         async def run() -> None:
-            if not await self.run_action(entry.action, node):
+            if await self.run_action(entry.action, node):
+                return
+            if entry.action == "estop":
+                self.notify("E-STOP: nothing moves now.", severity="information")
+            else:
+                self.notify(f"{entry.description}: not available now", severity="warning")
+
+        return run
+
+    def _palette_step_runner(self, mode: str, entry: KeyEntry) -> Callable[[], Any]:
+        async def run() -> None:
+            if not await self._go_to(mode):
+                return
+            if not await self.run_action(entry.action, self.screen):
                 self.notify(f"{entry.description}: not available now", severity="warning")
 
         return run

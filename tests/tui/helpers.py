@@ -69,3 +69,25 @@ class MotionSpy:
             if self.press_while_moving:
                 key, self.press_while_moving = self.press_while_moving, ""
                 self.app.post_message(events.Key(key, key))
+
+
+#: Keys by name, as the terminal sends them (their character, if any).
+_NAMED_KEYS = {"tab": "\t", "shift+tab": None, "enter": "\r", "escape": "\x1b",
+               "backspace": "\x7f", "ctrl+u": "\x15", "end": None, "space": " "}
+
+
+def burst(app: SpmConsoleApp, *parts: str) -> None:
+    """Queue keys as a terminal delivers type-ahead or an unbracketed paste: all at once,
+    none waiting for the one before to be handled (``pilot.press`` waits after each key).
+    A part is a named key (``"tab"``, ``"enter"`` …) or text sent character by character."""
+    from textual import events
+    from textual.keys import _character_to_key
+
+    for part in parts:
+        if part in _NAMED_KEYS:
+            keys = [events.Key(part, _NAMED_KEYS[part])]
+        else:
+            keys = [events.Key(_character_to_key(c), c) for c in part]
+        for key in keys:
+            key.set_sender(app)
+            app.post_message(key)

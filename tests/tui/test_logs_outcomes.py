@@ -128,3 +128,31 @@ async def test_the_environment_log_root_is_shown(agile: Profile, ws_cache: Path,
         head = text_of(app, "#logs-head")
         assert f"logs in {elsewhere.absolute()} " in head and "1 of 1 runs" in head
         assert len(_rows(app)) == 1
+
+
+async def test_a_refused_run_shows_its_reason(console, tmp_path) -> None:
+    """A refusal logged by the runtime (homing from a pose home cannot be reached from):
+    its reason in the table's reason column (cut to the column, at a word) and in full
+    when the run is opened."""
+    from spm_console.run.runlog import list_runs
+    from spm_console.tui.screens.logs import REASON_CHARS
+
+    app = console(initial_deg=(62.0, 158.0, 62.0))
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("h", "y")
+        await settle(pilot)
+        [run] = list_runs(tmp_path / "logs")
+        assert run.meta["outcome"] == "refused"
+        message = run.meta["message"]
+        assert len(message) > REASON_CHARS  # long enough to be cut in the table
+        await pilot.press("6")
+        await settle(pilot)
+        row = _rows(app)[run.path.name]
+        assert row["outcome"] == "refused" and row["exit"] == str(run.meta["exit_code"])
+        reason = row["reason"]
+        assert reason.endswith("…") and len(reason) <= REASON_CHARS
+        assert message.startswith(reason[:-1]) and len(reason) > REASON_CHARS // 2
+        await pilot.press("enter")
+        await settle(pilot)
+        assert message in " ".join(text_of(app, "#run-text").split())

@@ -5,6 +5,12 @@ reports back by messages.
 Typing is never an action: while a text field or a dropdown has focus, a printable key
 (letter, digit, '?', '.') goes to that widget and never reaches the screen's or the app's
 bindings (step digits, single-letter actions). F-keys, ctrl+p and the E-stop still work.
+
+The keys that move the focus (tab, shift+tab, esc) are priority bindings: they act when the
+app reads them, before the keys behind them are handed to a widget. A burst of keys
+(type-ahead, an unbracketed paste, tmux send-keys) "127.5 tab 83.2" then fills two fields
+and "esc 6" leaves the field, then switches step; a non-priority binding runs only once the
+key has bubbled up from the focused field, after the field took the keys queued behind it.
 """
 
 from __future__ import annotations
@@ -25,7 +31,7 @@ from textual.worker import get_current_worker
 
 from spm_console.errors import SpmError
 from spm_console.tui.messages import Done, Failed, Outcome
-from spm_console.tui.widgets.estop import EstopBanner
+from spm_console.tui.widgets.estop import ESTOP_KEY, EstopBanner
 from spm_console.tui.widgets.status import StatusLine
 from spm_console.tui.widgets.steps import StepBar
 
@@ -65,13 +71,31 @@ def takes_typing(widget: DOMNode | None) -> bool:
     return False
 
 
+def _in_open_dropdown(widget: DOMNode | None) -> bool:
+    """True inside a dropdown whose list is open."""
+    node = widget
+    while node is not None and not isinstance(node, Screen):
+        if isinstance(node, Select):
+            return bool(node.expanded)
+        node = node.parent
+    return False
+
+
 class StepScreen(Screen[None]):
     """Base of the six step screens."""
 
     MODE: ClassVar[str] = ""
     AUTO_FOCUS = ""  # keys act on the screen until the operator tabs into a field (None = app default "*")
     BINDINGS: ClassVar[list[BindingType]] = [
-        Binding("escape", "leave_field", "Leave field", show=False),
+        # First of every step screen's keys, so the footer shows it first while the wrist
+        # moves (at 80 columns the keys after it are cut); shown and run only then (the
+        # app's check_action), the app's own SPACE binding does the same.
+        Binding(ESTOP_KEY, "app.estop", "E-STOP", priority=True, key_display="SPACE",
+                system=True),
+        Binding("escape", "leave_field", "Leave field", show=False, priority=True),
+        Binding("tab", "move_focus('next')", "Focus Next", show=False, priority=True),
+        Binding("shift+tab", "move_focus('previous')", "Focus Previous", show=False,
+                priority=True),
         Binding("up", "scroll_panel('up')", _SCROLL, show=False, tooltip=_SCROLL_TIP),
         Binding("down", "scroll_panel('down')", _SCROLL, show=False, tooltip=_SCROLL_TIP),
         Binding("pageup", "scroll_panel('page_up')", _SCROLL, show=False, tooltip=_SCROLL_TIP,
@@ -152,8 +176,18 @@ class StepScreen(Screen[None]):
                 self.app.bell()
 
     def action_leave_field(self) -> None:
-        """Give the keys back to the screen (no widget focused)."""
+        """Give the keys back to the screen (no widget focused). Outside a field, and in a
+        dropdown whose list is open (its own esc closes the list), esc goes on as usual."""
+        if not takes_typing(self.focused) or _in_open_dropdown(self.focused):
+            raise SkipAction()
         self.set_focus(None)
+
+    def action_move_focus(self, how: str) -> None:
+        """tab (next) / shift+tab (previous): the focus moves before the next key is read."""
+        if how == "previous":
+            self.focus_previous()
+        else:
+            self.focus_next()
 
     def scroll_target(self) -> Widget | None:
         """What the scroll keys move: the nearest scrollable container around the focused

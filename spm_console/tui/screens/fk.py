@@ -49,8 +49,8 @@ class FkScreen(StepScreen):
         Binding("i", "ik", "IK"),
         Binding("m", "modes", "Modes"),
         Binding("c", "current", "Current"),
-        Binding("tab", "app.focus_next", "Fields", show=True),
-        Binding("escape", "leave_field", "Leave"),
+        Binding("tab", "move_focus('next')", "Fields", priority=True),
+        Binding("escape", "leave_field", "Leave", priority=True),
     ]
 
     def compose_body(self) -> ComposeResult:
@@ -67,9 +67,6 @@ class FkScreen(StepScreen):
             self.query_one("#theta", AnglesInput).set_values(self.session.theta_deg)
         self.query_one("#fk-result", Static).update(Content(
             "Enter θ and press f (or Enter), or an orientation and press i."))
-
-    def action_leave_field(self) -> None:
-        self.set_focus(None)
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         event.stop()

@@ -12,7 +12,7 @@ from rich.table import Table
 from rich.text import Text
 from textual.actions import ActionError, parse
 from textual.app import ComposeResult
-from textual.binding import Binding, BindingType
+from textual.binding import Binding, BindingsMap, BindingType
 from textual.containers import Vertical, VerticalScroll
 from textual.content import Content
 from textual.dom import DOMNode
@@ -107,6 +107,25 @@ def key_entries(screen: Screen[Any], app: App[Any]) -> list[tuple[DOMNode, list[
                                     action_state(node, bs[0].action), tooltip))
         out.append((node, entries))
     return out
+
+
+#: Actions that move the focus, not operations of a step (left out of :func:`step_actions`).
+_NAVIGATION = ("leave_field", "move_focus")
+
+
+def step_actions(screen_class: type[Screen[Any]], app: App[Any]) -> list[KeyEntry]:
+    """The actions a step screen's class declares itself (its operations, not the keys it
+    inherits such as scrolling), one entry per description, for a screen that may not
+    exist yet; ``state`` is None (unknown until the step shows)."""
+    groups: dict[str, list[Binding]] = {}
+    for _key, b in BindingsMap(screen_class.__dict__.get("BINDINGS", ())):
+        if b.system or b.action.partition("(")[0] in _NAVIGATION:
+            continue
+        groups.setdefault(b.description or b.action.replace("_", " "), []).append(b)
+    return [KeyEntry(tuple(dict.fromkeys(app.get_key_display(b) for b in bs)), desc,
+                     bs[0].action, len({b.action for b in bs}) == 1, app, None,
+                     next((b.tooltip for b in bs if b.tooltip), ""))
+            for desc, bs in groups.items() if len({b.action for b in bs}) == 1]
 
 
 def screen_title(screen: Screen[Any]) -> str:

@@ -48,11 +48,26 @@ def plan_text(info: RunInfo) -> str:
             + (" (after an approach move)" if p.after_approach else ""))
 
 
+#: Characters of a run's reason in the table (the whole reason: Enter opens the run).
+REASON_CHARS = 40
+
+
+def short_reason(reason: str, width: int = REASON_CHARS) -> str:
+    """``reason`` on one line, cut at a word to ``width`` characters with '…' if longer."""
+    text = " ".join(reason.split())
+    if len(text) <= width:
+        return text
+    cut = text[:width - 1]
+    if " " in cut:
+        cut = cut[:cut.rindex(" ")]
+    return cut.rstrip(" ,;:") + "…"
+
+
 def run_row(info: RunInfo) -> tuple[str, ...]:
     """The runs table's cells of one run (RUN_COLUMNS)."""
     return (info.name, info.kind, info.outcome,
             "" if info.exit_code is None else str(info.exit_code),
-            info.stop_label, _secs(info.duration_s),
+            short_reason(info.reason), _secs(info.duration_s),
             "" if info.plan is None else info.plan.kind)
 
 

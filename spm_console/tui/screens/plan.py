@@ -3,23 +3,23 @@ minimum time, solved in a worker; result table and plots."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
+from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
+from textual.message import Message
 from textual.widgets import Checkbox, Input, Label, Select, Static
 
-from spm_console.core.plan import Plan
-from spm_console.errors import BadInputError
-from spm_console.formatting import fmt_deg
+from spm_console.errors import BadInputError, SpmError
 from spm_console.run.operator import PoseSpec
-from spm_console.tui.messages import Outcome, PlanLoaded, PlanSaved, PlanSolved
+from spm_console.tui.messages import Failed, Outcome, PlanLoaded, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
+from spm_console.tui.screens.plan_words import console_words, next_step, plan_text
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.ask_path import AskPathScreen
 from spm_console.tui.widgets.number import NumberRow
@@ -43,29 +43,12 @@ METHOD_NAMES = {"mvn": "MVN", "mintime": "minimum-time"}
 DEFAULT_STEPS = 150
 #: Default goal: the θ of the paper's eq. (32) example, deg.
 PLOTS = ("positions", "velocities")
+#: Period of the position read while the plan step shows "current pose", s.
+POSE_EVERY_S = 0.5
 
 
-def plan_text(plan: Plan, info: dict[str, Any]) -> str:
-    chk = plan.check
-    vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
-    lines = [
-        f"{plan.kind.upper()}: {info.get('start', '?')} → {info.get('goal', '?')}",
-        f"{fmt_deg(plan.reference_deg[0])} → {fmt_deg(plan.reference_deg[-1])}",
-        f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
-        f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
-        f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
-        + (f" (v_max {vmax:g})" if vmax else ""),
-    ]
-    if info.get("region"):
-        lines.append(f"region: {info['region']}")
-    if chk is not None:
-        if not math.isnan(chk.max_speed_between_degps):
-            lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s, outside P by "
-                         f"{chk.region_violation_between_deg:.2g}°")
-        lines.append("constraints verified" if chk.ok else "constraints NOT verified")
-    if plan.certificate is not None:  # minimum time: N is the smallest feasible horizon
-        lines.append(plan.certificate.describe())
-    return "\n".join(lines)
+class PoseRead(Message):
+    """A background read of the servos' position ended (the session holds the result)."""
 
 
 class PlanScreen(StepScreen):
@@ -75,14 +58,18 @@ class PlanScreen(StepScreen):
         Binding("p", "next_plot", "Plot"),
         Binding("w", "save", "Save"),
         Binding("o", "open", "Open plan"),
-        Binding("tab", "app.focus_next", "Fields"),
-        Binding("escape", "leave_field", "Leave"),
+        Binding("tab", "move_focus('next')", "Fields", priority=True),
+        Binding("escape", "leave_field", "Leave", priority=True),
     ]
 
     def __init__(self) -> None:
         super().__init__()
         self.plot_kind = 0
         self.solving_method = "mvn"
+        self._reading = False
+        self._typed: dict[str, list[str]] = {}
+        """What the operator typed into the start / goal fields while they show the pose
+        of "current pose" or "home" instead (given back when θ or r/p/y is chosen again)."""
 
     def compose_body(self) -> ComposeResult:
         prof = self.session.profile
@@ -116,6 +103,36 @@ class PlanScreen(StepScreen):
         self._apply_method()
         if self.session.plan is not None:
             self.show_plan()
+        self.set_interval(POSE_EVERY_S, self._poll_pose)
+
+    def _poll_pose(self) -> None:
+        """Timer: while "current pose" is chosen and the step shows, read the servos (one
+        read at a time, never while a solve runs or the wrist moves) and show the pose."""
+        s = self.session
+        if (self._reading or not self.is_active or self.busy_op or s.bus is None
+                or self.console.moving or s.moving.is_set()
+                or "current" not in (self._kind("start"), self._kind("goal"))):
+            return
+        self._reading = True
+        self._read_pose()
+
+    @work(thread=True, group="plan-pose", exit_on_error=False)
+    def _read_pose(self) -> None:
+        try:
+            self.session.read_position()
+        except SpmError:
+            pass  # no reply this time: the last reading stays shown (step 1 shows the bus)
+        finally:
+            self.post_message(PoseRead())
+
+    def on_pose_read(self, message: PoseRead) -> None:
+        message.stop()
+        self._reading = False
+        for which in ("start", "goal"):
+            self._show_pose(which)
+
+    def _kind(self, which: str) -> object:
+        return self.query_one(f"#{which}-kind", Select).value
 
     def on_select_changed(self, event: Select.Changed) -> None:
         if event.select.id in ("start-kind", "goal-kind"):
@@ -124,22 +141,49 @@ class PlanScreen(StepScreen):
             self._apply_method()
 
     def _apply_kind(self, which: str) -> None:
-        """Judge the start/goal fields as θ or as an orientation; unused for home/current."""
+        """Judge the start/goal fields as θ or as an orientation (the typed text back in
+        them); for home / current pose they show, disabled, the θ a solve uses."""
         kind = self.query_one(f"#{which}-kind", Select).value
         angles = self.query_one(f"#{which}-values", AnglesInput)
-        if kind == "theta":
-            angles.set_rules(theta_rules(self.session.profile, f"{which} "))
-        elif kind == "rpy":
+        if kind == "rpy":
             angles.set_rules(rpy_rules(f"{which} "), ik_check(self.session, f"{which} "))
+        else:
+            angles.set_rules(theta_rules(self.session.profile, f"{which} "))
+        if kind in ("theta", "rpy"):
+            typed = self._typed.pop(which, None)
+            if typed is not None:
+                for field, text in zip(angles.fields, typed, strict=True):
+                    field.value = text
+        else:
+            self._typed.setdefault(which, [f.value for f in angles.fields])
+            self._show_pose(which)
         angles.set_enabled(kind in ("theta", "rpy"))
+
+    def _show_pose(self, which: str) -> None:
+        """The θ that "home" or "current pose" stands for now (the last reading of the
+        servos; empty, "not read", before the first)."""
+        kind = self.query_one(f"#{which}-kind", Select).value
+        if kind not in ("home", "current"):
+            return
+        angles = self.query_one(f"#{which}-values", AnglesInput)
+        pose = (self.session.profile.home.theta_deg if kind == "home"
+                else self.session.theta_deg)
+        if pose is None:
+            for field in angles.fields:
+                field.value = ""
+                field.placeholder = "not read"
+        else:
+            angles.set_values(pose)
+
+    def refresh_view(self) -> None:
+        super().refresh_view()
+        for which in ("start", "goal"):
+            self._show_pose(which)
 
     def _apply_method(self) -> None:
         """N is the MVN horizon; minimum time finds its own (the field is then unused)."""
         self.query_one("#steps-row", NumberRow).set_enabled(
             self.query_one("#method", Select).value == "mvn")
-
-    def action_leave_field(self) -> None:
-        self.set_focus(None)
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         event.stop()
@@ -170,12 +214,22 @@ class PlanScreen(StepScreen):
             return
         name = METHOD_NAMES[method]
         self.solving_method = method
-        self.run_blocking(
-            "solve",
-            lambda: PlanSolved(self.session.solve_plan(
-                method, start, goal, steps, vmax,  # type: ignore[arg-type]
-                intersample=k, hold_first=hold_first)),
-            f"solving the {name} problem ({start.describe()} → {goal.describe()}) …")
+        s = self.session
+        # "current pose" is where the servos are now: read it (when connected) just before
+        # solving, so the plan starts from it and the start fields show it
+        read = "current" in (start.kind, goal.kind) and s.bus is not None
+
+        def solve() -> PlanSolved:
+            if read:
+                s.read_position()
+            plan = s.solve_plan(method, start, goal, steps, vmax,  # type: ignore[arg-type]
+                                intersample=k, hold_first=hold_first)
+            s.plan_info["start_read"] = read and start.kind == "current"
+            return PlanSolved(plan)
+
+        self.run_blocking("solve", solve,
+                          f"solving the {name} problem ({start.describe()} → "
+                          f"{goal.describe()}) …")
 
     # --- saved plans and remembered values ------------------------------------------------
     def action_open(self) -> None:
@@ -202,10 +256,13 @@ class PlanScreen(StepScreen):
         return out
 
     def _remember(self) -> None:
-        """What the operator typed, as typed, for this profile's next session."""
+        """What the operator typed, as typed, for this profile's next session (not the pose
+        the start / goal fields show for home or current pose)."""
         mem, prof = self.console.form_memory, self.session.profile.name
         for key, field in self._fields().items():
-            mem.put(prof, f"plan.{key}", field.value)
+            which, _, i = key.partition(".")
+            typed = self._typed.get(which)
+            mem.put(prof, f"plan.{key}", typed[int(i)] if typed is not None else field.value)
         for sel in ("start-kind", "goal-kind", "method"):
             mem.put(prof, f"plan.{sel}", str(self.query_one(f"#{sel}", Select).value))
         mem.put(prof, "plan.free-first", str(bool(self.query_one("#free-first", Checkbox).value)))
@@ -267,6 +324,11 @@ class PlanScreen(StepScreen):
         elif isinstance(outcome, PlanSaved):
             self.status.ok(f"plan saved to {outcome.path}")
 
+    def on_failed(self, message: Failed) -> None:
+        """The planner's words are the CLI's too: put the console's (fields, keys) in their
+        place. Runs first; Textual then calls StepScreen.on_failed with the new words."""
+        message.message = console_words(message.message)
+
     def handle_failed(self, op: str, message: str) -> None:
         if op == "open":  # the current plan stays: nothing replaced it
             self.status.error(f"plan not opened (the current plan is unchanged): {message}")
@@ -280,8 +342,7 @@ class PlanScreen(StepScreen):
         self.session.plan_info = {}
         self.console.view.clear_path()
         self.query_one("#plan-text", Static).update(Content(
-            f"No plan: the {name} solve failed.\n{message}\n"
-            "Next: change the start, the goal, the method or v_max, then press s."))
+            f"No plan: the {name} solve failed.\n{message}\nNext: {next_step(message)}"))
         self.query_one("#plan-plot", PlotView).plot("no plan", np.zeros(0), [])
         self.status.error(f"{name} solve failed (no plan now): {message}")
 

@@ -104,8 +104,8 @@ class WorkspaceScreen(StepScreen):
         Binding("c", "cancel_build", "Cancel build",
                 tooltip="stops a running build at its next progress report"),
         Binding("k", "check", "Check"),
-        Binding("tab", "app.focus_next", "Fields"),
-        Binding("escape", "leave_field", "Leave"),
+        Binding("tab", "move_focus('next')", "Fields", priority=True),
+        Binding("escape", "leave_field", "Leave", priority=True),
     ]
 
     def compose_body(self) -> ComposeResult:
@@ -129,9 +129,6 @@ class WorkspaceScreen(StepScreen):
         info = self.session.cache_info
         self.status.ok("workspace ready (" + ("from the cache" if info.hit else "built")
                        + "): press 4 to plan a motion")
-
-    def action_leave_field(self) -> None:
-        self.set_focus(None)
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action == "cancel_build":  # in the footer only while a load runs

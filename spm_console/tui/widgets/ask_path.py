@@ -10,6 +10,8 @@ from textual.containers import Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Footer, Input, Static
 
+from spm_console.tui.widgets.field import TextField
+
 #: Longest path accepted, characters.
 MAX_PATH = 1024
 
@@ -27,7 +29,7 @@ class AskPathScreen(ModalScreen[str | None]):
         with Vertical(id="confirm-box"):
             yield Static(self._title, id="confirm-title", markup=False)
             yield Static(self._body, id="confirm-body", markup=False)
-            yield Input(value=self._value, id="ask-path", max_length=MAX_PATH)
+            yield TextField(value=self._value, id="ask-path", max_length=MAX_PATH)
         yield Footer()
 
     def on_mount(self) -> None:

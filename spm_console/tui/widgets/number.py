@@ -20,6 +20,7 @@ from textual.content import Content
 from textual.widgets import Input, Label, Static
 
 from spm_console.errors import BadInputError
+from spm_console.tui.widgets.field import TextField
 
 #: Characters a number field shows in full (its CSS width is this + cursor, padding, border);
 #: a longer text is refused, so an accepted value is never partly hidden.
@@ -97,7 +98,7 @@ class NumberRule:
         return ""
 
 
-class NumberField(Input):
+class NumberField(TextField):
     """A plain text field checked against a :class:`NumberRule` as it is typed.
 
     ``-invalid`` marks a refused text (or, via :attr:`extra_reason`, a value its container

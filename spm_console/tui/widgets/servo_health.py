@@ -14,6 +14,7 @@ from textual.content import Content
 from textual.widgets import DataTable, Input, Static
 
 from spm_console.run.servo_tools import JOG_MAX_STEP_DEG
+from spm_console.tui.widgets.field import TextField
 
 if TYPE_CHECKING:
     from spm_console.run.operator import BusState
@@ -97,7 +98,7 @@ class JogStepField(Horizontal):
 
     def compose(self) -> ComposeResult:
         yield Static("Jog step (°):", markup=False)
-        yield Input(value="1", id="jog-step", max_length=12)
+        yield TextField(value="1", id="jog-step", max_length=12)
         yield Static(id="jog-note", markup=False)
 
     def on_mount(self) -> None:

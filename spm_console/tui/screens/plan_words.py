@@ -1,0 +1,97 @@
+"""The plan step's words: a solved plan's summary (:func:`plan_text`), and what to do in
+the console after a failed solve (:func:`next_step`): which field to change or which key
+to press, never a shell command.
+
+The planner's messages are shared with the CLI and may name its commands or options
+("use more steps or 'plan mintime'"); :func:`console_words` puts the console's words in
+their place, and :func:`next_step` picks the "Next:" line from what the message says went
+wrong.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from spm_console.core.plan import Plan
+from spm_console.formatting import fmt_deg
+from spm_console.tui.widgets.steps import keys_of
+
+#: CLI wording in planner messages → what it means on the plan step.
+_CLI_WORDS: tuple[tuple[str, str], ...] = (
+    ("'plan mintime'", "the minimum-time method (Method dropdown)"),
+    ("'plan mvn'", "the MVN method (Method dropdown)"),
+    ("--steps", "the steps N field"),
+    ("--vmax", "the v_max field"),
+    ("--intersample", "the intersample K field"),
+    ("--free-first", "the 'free first reference' box"),
+)
+
+_FIELDS = "tab moves from field to field"
+
+#: (words in the failure's message, what to do next), first match wins.
+_NEXT: tuple[tuple[tuple[str, ...], str], ...] = (
+    (("current pose unknown",),
+     f"connect first (press {keys_of('connect')}, then c), or choose 'home' or motor "
+     "angles θ as the start; then press s."),
+    (("no reference reaches the goal in N =", "too few for a route", "no room for the route"),
+     "raise steps N (the 'steps N' field; " + _FIELDS + "), or choose 'minimum time' in the "
+     "Method dropdown (it finds the shortest N itself); then press s."),
+    (("use a speed bound of at least",),
+     "raise v_max in the 'v_max °/s' field (" + _FIELDS + ") to at least the speed named "
+     "above, or choose a goal nearer the start; then press s."),
+    (("no feasible plan with N ≤",),
+     "raise v_max in the 'v_max °/s' field, or choose a goal nearer the start; then press s."),
+    (("constrained instants", "intersample"),
+     "lower steps N or the intersample K field (" + _FIELDS + "); then press s."),
+    (("outside the servo limits", "NOT feasible", "not feasible", "singular", "collid",
+      "below the reference limits", "above the reference limits"),
+     "change the start or goal fields (the θ or r/p/y you typed, " + _FIELDS + "); the "
+     f"workspace step ({keys_of('workspace')}) checks a θ first (k); then press s."),
+)
+
+_GENERIC = ("change the start, the goal, the method, steps N or v_max (" + _FIELDS + "), "
+            "then press s.")
+
+
+def console_words(message: str) -> str:
+    """``message`` with any CLI command or option replaced by the console's words."""
+    for cli, here in _CLI_WORDS:
+        message = message.replace(cli, here)
+    return message
+
+
+def next_step(message: str) -> str:
+    """The "Next:" advice for a solve that failed with ``message`` (keys and fields)."""
+    for words, advice in _NEXT:
+        if any(w in message for w in words):
+            return advice
+    return _GENERIC
+
+
+def plan_text(plan: Plan, info: dict[str, Any]) -> str:
+    chk = plan.check
+    vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
+    start = info.get("start_deg", plan.position_deg[0])
+    read = " (read from the servos just before solving)" if info.get("start_read") else ""
+    lines = [
+        f"{plan.kind.upper()}: {info.get('start', '?')} → {info.get('goal', '?')}",
+        f"start θ = {fmt_deg(start)}{read}",
+        f"goal θ = {fmt_deg(info.get('goal_deg', plan.position_deg[-1]))}",
+        f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
+        f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
+        f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
+        + (f" (v_max {vmax:g})" if vmax else ""),
+    ]
+    if info.get("region"):
+        lines.append(f"region: {info['region']}")
+    if chk is not None:
+        if not math.isnan(chk.max_speed_between_degps):
+            lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s, outside P by "
+                         f"{chk.region_violation_between_deg:.2g}°")
+        lines.append("constraints verified" if chk.ok else "constraints NOT verified")
+    if plan.certificate is not None:  # minimum time: N is the smallest feasible horizon
+        lines.append(plan.certificate.describe())
+    return "\n".join(lines)

@@ -1,0 +1,61 @@
+"""A failed solve on the plan step says what to do in the console (which field, which key),
+never a shell command: the planner's messages are shared with the CLI."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import pytest
+from textual.widgets import Input, Select
+
+from spm_console.tui.screens.plan_words import next_step
+from spm_console.tui.widgets.angles import AnglesInput
+from tests.tui.helpers import settle, status_of, text_of
+
+SIZE = (120, 40)
+#: What a shell command or option looks like in a message.
+CLI = re.compile(r"spm-console|'plan |'workspace |--[a-z]")
+
+
+@pytest.mark.parametrize(("method", "steps", "vmax", "field"), [
+    ("mvn", "2", "50", "'steps N' field"),  # 40° in two 20 ms steps: no reference
+    ("mintime", "150", "0.01", "'v_max °/s' field"),  # no horizon is long enough
+], ids=["mvn-too-few-steps", "mintime-too-slow"])
+async def test_a_failed_solve_says_which_field_to_change(
+        console: Any, method: str, steps: str, vmax: str, field: str) -> None:
+    app = console()
+    said: list[str] = []
+    notify = app.notify
+    app.notify = lambda message, **kw: (said.append(str(message)),  # type: ignore[method-assign]
+                                        notify(message, **kw))[1]
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("4")
+        await pilot.pause()
+        app.screen.query_one("#goal-values", AnglesInput).set_values([95, 110, 105])
+        app.screen.query_one("#method", Select).value = method
+        app.screen.query_one("#steps", Input).value = steps
+        app.screen.query_one("#vmax", Input).value = vmax
+        await pilot.pause()
+        await pilot.press("s")
+        await settle(pilot, timeout_s=120)
+        assert app.session.plan is None
+        out, status = text_of(app, "#plan-text"), status_of(app)
+        assert out.startswith("No plan:"), out
+        for text in (out, status, *said):
+            assert not CLI.search(text), text
+        next_line = out.split("\nNext: ", 1)[1]
+        assert field in next_line and "press s" in next_line, next_line
+        assert len([s for s in said if "solve" in s or "N =" in s or "v_max" in s]) <= 1
+
+
+def test_each_kind_of_failure_gets_its_own_advice() -> None:
+    assert "connect first (press 1 (F1), then c)" in next_step(
+        "current pose unknown: connect to the servos first (step 1)")
+    assert "'v_max °/s' field" in next_step(
+        "no plan within N ≤ 5000 steps (100 s): at v_max = 0.01 deg/s the largest joint "
+        "move (40°) needs about 4e+03 s; use a speed bound of at least about 0.4 deg/s")
+    assert "start or goal fields" in next_step(
+        "goal θ = [62.0, 135.0, 135.0]° is NOT feasible (singular)")
+    assert "then press s" in next_step("something else went wrong")
