@@ -10,7 +10,6 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 
-import cvxpy as cp
 import numpy as np
 from numpy.typing import NDArray
 
@@ -43,6 +42,8 @@ class Ellipsoid:
 
 def inscribed_ellipsoid(A: F, b: F) -> Ellipsoid:
     """The maximum-volume ellipsoid inside {x : A x ≤ b} (bounded, full-dimensional)."""
+    import cvxpy as cp  # here, not at import: loading cvxpy costs ~0.4 s per process
+
     n = A.shape[1]
     C = cp.Variable((n, n), PSD=True)
     d = cp.Variable(n)

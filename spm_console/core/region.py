@@ -6,8 +6,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import linprog
-from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 F = NDArray[np.float64]
 
@@ -53,6 +51,8 @@ class Region:
 
     def chebyshev(self) -> tuple[F, float]:
         """Centre and radius (deg) of the largest ball inside (LP); radius < 0 if empty."""
+        from scipy.optimize import linprog  # here: scipy.optimize costs ~0.25 s to import
+
         n = np.linalg.norm(self.A, axis=1)
         A_ub = np.hstack([self.A, n[:, None]])
         res = linprog(np.r_[0.0, 0.0, 0.0, -1.0], A_ub=A_ub, b_ub=self.b,
@@ -64,6 +64,8 @@ class Region:
     def redundant_rows(self, tol: float = 1e-7) -> list[int]:
         """Rows that can be removed without changing the polytope (one LP per row,
         removed one at a time so duplicated rows keep one copy)."""
+        from scipy.optimize import linprog
+
         keep = list(range(self.halfspaces))
         out = []
         for k in range(self.halfspaces):
@@ -119,6 +121,8 @@ class Region:
 
     def vertices(self) -> F:
         """Vertices (n, 3) of the bounded polytope, deg (qhull)."""
+        from scipy.spatial import HalfspaceIntersection  # here: ~0.2 s to import
+
         c, r = self.chebyshev()
         if r <= 0:
             return np.zeros((0, 3))
@@ -127,6 +131,8 @@ class Region:
 
     def volume(self) -> float:
         """Volume of the bounded polytope, deg³ (0 if empty or flat)."""
+        from scipy.spatial import ConvexHull
+
         V = self.vertices()
         if len(V) < 4:
             return 0.0
