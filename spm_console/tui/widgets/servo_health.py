@@ -4,7 +4,6 @@ typed; an invalid step is marked, with the reason beside it). Degrees."""
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 from rich.text import Text
@@ -15,6 +14,7 @@ from textual.widgets import DataTable, Input, Static
 
 from spm_console.run.servo_tools import JOG_MAX_STEP_DEG
 from spm_console.tui.widgets.field import TextField
+from spm_console.tui.widgets.number import NumberRule
 
 if TYPE_CHECKING:
     from spm_console.run.operator import BusState
@@ -82,6 +82,11 @@ class ServoTable(DataTable[str | Text]):
                 alarm = value == NO_REPLY or (key == "hardware" and value not in ("none", "-"))
                 self.update_cell(str(j), key, Text(value, style="bold red") if alarm else value)
 
+#: The jog step: more than 0°, at most the runtime's own bound; a longer text than fits the
+#: field is refused with the reason (never cut).
+JOG_STEP_RULE = NumberRule("jog step", "a number of degrees", "°", lo=0.0, lo_open=True,
+                           hi=JOG_MAX_STEP_DEG, max_chars=10)
+
 
 class JogStepField(Horizontal):
     """'Jog step (°): [1    ] - / + move the chosen joint by 1°' — or the reason it is
@@ -98,7 +103,7 @@ class JogStepField(Horizontal):
 
     def compose(self) -> ComposeResult:
         yield Static("Jog step (°):", markup=False)
-        yield TextField(value="1", id="jog-step", max_length=12)
+        yield TextField(value="1", id="jog-step")
         yield Static(id="jog-note", markup=False)
 
     def on_mount(self) -> None:
@@ -111,19 +116,13 @@ class JogStepField(Horizontal):
     def check(self) -> float | None:
         """The step typed (deg, > 0), or None with the field marked and the reason shown."""
         field = self.query_one(Input)
-        text = field.value.strip()
-        reason = ""
-        try:
-            step = float(text)
-        except ValueError:
-            step = math.nan
-            reason = ("use a decimal point, e.g. 2.5" if "," in text
-                      else "not a number" if text else "empty")
-        if not reason and not (math.isfinite(step) and 0 < step <= JOG_MAX_STEP_DEG):
-            reason = f"must be > 0 and ≤ {JOG_MAX_STEP_DEG:g}°"
+        reason = JOG_STEP_RULE.reason(field.value)
         field.set_class(bool(reason), "-invalid")
         note = self.query_one("#jog-note", Static)
         note.set_class(bool(reason), "-invalid")
-        note.update(Content(f"invalid: {reason}" if reason else
-                            f"- / + move the chosen joint by {step:g}°"))
-        return None if reason else step
+        if reason:
+            note.update(Content(f"invalid: {reason}"))
+            return None
+        step = JOG_STEP_RULE.parse(field.value)
+        note.update(Content(f"- / + move the chosen joint by {step:g}°"))
+        return step
