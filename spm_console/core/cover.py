@@ -62,10 +62,20 @@ from numpy.typing import NDArray
 from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import QhullError
 
 from spm_console.core import region_build as rb
+from spm_console.core.cover_graph import S_CYCLIC
+from spm_console.core.cover_graph import overlap_graph as overlap_graph
+from spm_console.core.cover_refine import (
+    FineObstacles,
+    refine_cells,
+    region_clear,
+    uncertified_cells,
+)
 from spm_console.core.ellipsoid import Ellipsoid, inscribed_ellipsoid
-from spm_console.core.iris import Frame, reduce_halfspaces, separating_planes
+from spm_console.core.iris import Frame, half_widths, reduce_halfspaces, separating_planes
+from spm_console.core.refine import FineGrid
 from spm_console.core.region import Region
 from spm_console.errors import InfeasibleError, SolverError
 
@@ -79,7 +89,7 @@ I64 = NDArray[np.int64]
 #: Fraction of the feasible nodes the cover aims at.
 COVER_TARGET = 0.99
 #: Most regions in a cover, P included (bounds the build time and the overlap graph).
-COVER_MAX_REGIONS = 28
+COVER_MAX_REGIONS = 64
 #: Most half-spaces of a cover region (P keeps the profile's limit).
 COVER_HALFSPACES = 24
 #: IRIS steps per cover region (the best one by new coverage is kept).
@@ -91,8 +101,11 @@ MIN_OVERLAP_STEPS = 0.25
 CONNECTOR_REACH_STEPS = 8
 #: Tolerance (deg) for "a node lies in a region".
 INSIDE_TOL_DEG = 1e-7
-#: Cyclic permutation θ ↦ (θ2, θ3, θ1) as a matrix: σ(θ) = S θ.
-_S = np.eye(3)[[1, 2, 0]]
+#: Seeds are chosen by the uncovered nodes within this many grid steps (L∞) of them.
+SEED_WINDOW = 2
+#: Longest pause between two progress reports of a cover build, s (a cancel waits for one).
+REPORT_EVERY_S = 0.1
+_S = S_CYCLIC
 
 
 @dataclass(frozen=True)
@@ -116,7 +129,15 @@ class RegionCover:
     covered: float
     """Fraction of the workspace's feasible nodes inside at least one region."""
     seconds: float = 0.0
-    """Wall time of the build (regions + graph), s."""
+    """Wall time of the build (refinement + regions + graph), s."""
+    resolution_deg: float | None = None
+    """Fine resolution h of the refined obstacles the regions avoid (None: the grid's)."""
+    refined_cells: int = 0
+    """Grid cells refined for the build."""
+    fine_nodes: int = 0
+    """Fine nodes of those cells (checked exactly, memoized)."""
+    refine_seconds: float = 0.0
+    """Wall time of the refinement alone, s."""
 
     @property
     def size(self) -> int:
@@ -243,71 +264,55 @@ def _deepest(uncovered: B) -> tuple[int, int, int]:
     return (int(i[0]), int(i[1]), int(i[2]))
 
 
-def _bbox(region: Region) -> tuple[F, F]:
-    V = region.vertices()
-    if len(V) == 0:
-        return np.full(3, np.inf), np.full(3, -np.inf)
-    return V.min(0), V.max(0)
+class _Reporter:
+    """progress(fraction) at most every :data:`REPORT_EVERY_S` (and always when forced)."""
+
+    def __init__(self, progress: Callable[[float], None] | None) -> None:
+        self.progress = progress
+        self.last = time.perf_counter()
+
+    def __call__(self, fraction: float, force: bool = False) -> None:
+        now = time.perf_counter()
+        if self.progress is not None and (force or now - self.last >= REPORT_EVERY_S):
+            self.last = now
+            self.progress(min(1.0, max(0.0, fraction)))
 
 
-def overlap_graph(regions: tuple[Region, ...], min_radius_deg: float,
-                  symmetric: bool = False) -> tuple[I64, F, F]:
-    """Edges (m, 2), Chebyshev centres (m, 3) and radii (m,) of the pairwise intersections
-    with an inscribed ball of radius ≥ ``min_radius_deg`` (one LP per pair whose bounding
-    boxes, shrunk by that radius, still meet). With ``symmetric`` the regions come in
-    orbits (i, i+1, i+2 = r, σr, σ²r) after region 0, and a pair's images are not solved
-    again."""
-    k = len(regions)
-    boxes = [_bbox(r) for r in regions]
-    lo = np.array([b[0] for b in boxes]).reshape(k, 3)
-    hi = np.array([b[1] for b in boxes]).reshape(k, 3)
-    found: dict[tuple[int, int], tuple[F, float]] = {}
-    done: set[tuple[int, int]] = set()
+def _dense_seed(f: B, fidx: I64, uncovered: B, candidates: B) -> int:
+    """Index (into ``fidx``) of the candidate node with the most uncovered feasible nodes in
+    the (2·:data:`SEED_WINDOW`+1)³ nodes around it; ties go to the first in C order."""
+    g = np.zeros(f.shape, np.float64)
+    g[tuple(fidx[uncovered].T)] = 1.0
+    dens = ndimage.uniform_filter(g, size=2 * SEED_WINDOW + 1, mode="constant")
+    score = np.where(candidates, dens[tuple(fidx.T)], -1.0)
+    return int(np.argmax(score))
 
-    def orbit(i: int) -> list[int]:
-        if not symmetric or i == 0:
-            return [i, i, i]
-        base = 1 + 3 * ((i - 1) // 3)
-        o = (i - 1) % 3
-        return [base + (o + s) % 3 for s in range(3)]
 
-    for i in range(k):
-        for j in range(i + 1, k):
-            if (i, j) in done:
-                continue
-            if ((np.minimum(hi[i], hi[j]) - np.maximum(lo[i], lo[j])) < 2 * min_radius_deg).any():
-                continue
-            both = Region(np.vstack([regions[i].A, regions[j].A]), np.r_[regions[i].b, regions[j].b])
-            c, r = both.chebyshev()
-            if symmetric and (i == 0 or j == 0):
-                images = [(i, j)]  # P has no images
-            else:
-                oi, oj = orbit(i), orbit(j)
-                images = [(oi[s], oj[s]) for s in range(3)] if symmetric else [(i, j)]
-            for s, (a, b) in enumerate(images):
-                key = (min(a, b), max(a, b))
-                if key in done:
-                    continue
-                done.add(key)
-                if r >= min_radius_deg:
-                    pt = np.linalg.matrix_power(_S, s) @ c
-                    found[key] = (pt, r)
-    keys = sorted(found)
-    edges = np.array(keys, np.int64).reshape(-1, 2)
-    pts = np.array([found[q][0] for q in keys], float).reshape(-1, 3)
-    rad = np.array([found[q][1] for q in keys], float)
-    return edges, pts, rad
+def _obstacles(ws: Workspace, covered: B, fidx: I64, fine: FineGrid | None,
+               report: Callable[[float], None]) -> tuple[F, F, FineObstacles | None]:
+    """(centres (n, 3) deg, half-widths (n,) deg, the refined set or None): refined near the
+    nodes P leaves uncovered when the workspace carries its models, else the grid's cubes."""
+    if ws.model is None or ws.links is None:
+        return rb.obstacle_nodes(ws.feasible, ws.theta_deg()), np.full(1, ws.step_deg), None
+    want = np.zeros(ws.feasible.shape, bool)
+    want[tuple(fidx[~covered].T)] = True
+    obs = refine_cells(ws, FineGrid(ws) if fine is None else fine, want, report)
+    return obs.centres_deg, obs.half_deg, obs
 
 
 def build_cover(
     ws: Workspace, target: float = COVER_TARGET, max_regions: int = COVER_MAX_REGIONS,
     max_halfspaces: int = COVER_HALFSPACES, iters: int = COVER_ITERS,
     min_overlap_deg: float | None = None, progress: Callable[[float], None] | None = None,
+    fine: FineGrid | None = None,
 ) -> RegionCover:
     """Grow regions from the workspace's P (``ws.region``) until ``target`` of the feasible
     nodes are covered or ``max_regions`` regions exist, then build the overlap graph.
-    ``min_overlap_deg`` defaults to MIN_OVERLAP_STEPS · Δ."""
+    ``min_overlap_deg`` defaults to MIN_OVERLAP_STEPS · Δ. With the workspace's models the
+    regions avoid the refined obstacles (:mod:`spm_console.core.cover_refine`; ``fine``
+    memoizes the exact checks), else the grid's obstacle cubes."""
     t0 = time.perf_counter()
+    report = _Reporter(progress)
     rmin = MIN_OVERLAP_STEPS * ws.step_deg if min_overlap_deg is None else float(min_overlap_deg)
     f = ws.feasible
     theta = ws.theta_deg()
@@ -317,71 +322,82 @@ def build_cover(
     regions: list[Region] = [ws.region]
     seeds: list[F] = [home]
     covered = ws.region.contains(fpts, tol=INSIDE_TOL_DEG) if len(fpts) else np.zeros(0, bool)
+    need = int(np.ceil(target * len(fpts)))
+    refine_share = 0.5
+    obs: FineObstacles | None = None
+    if int(covered.sum()) < need:
+        centres, half, obs = _obstacles(ws, covered, fidx, fine,
+                                        lambda x: report(refine_share * x))
+    else:
+        centres, half = np.zeros((0, 3)), np.zeros(1)
+    t_refine = time.perf_counter() - t0
     symmetric = cyclic_symmetric(ws)
+    orbits = symmetric
     lo, hi = ws.range_deg()
     frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
-    grower = _Grower(frame, frame.to_x(rb.obstacle_nodes(f, theta)), ws.step_deg / frame.s,
+    grower = _Grower(frame, frame.to_x(centres), half_widths(half, len(centres)) / frame.s,
                      max_halfspaces, iters, ws.step_deg)
-    need = int(np.ceil(target * len(fpts)))
-    tried = np.zeros(f.shape, bool)
+    # a node a region can hold in its interior: every fine cell around it clear
+    easy = obs.node_clear(fidx) if obs is not None else np.ones(len(fidx), bool)
+    tried = np.zeros(len(fidx), bool)
+    pos = np.full(f.shape, -1, np.int64)
+    pos[f] = np.arange(len(fidx))
     group = 3 if symmetric else 1
+    start = int(covered.sum())
     while int(covered.sum()) < need and len(regions) + group <= max_regions:
-        unc = np.zeros(f.shape, bool)
-        unc[tuple(fidx[~covered].T)] = True
-        unc &= ~tried
-        if not unc.any():
+        cand = ~covered & ~tried & easy
+        if not cand.any():
             break
-        i = _deepest(unc)
-        tried[i] = True
-        seed = np.asarray(theta[i], float)
+        j = _dense_seed(f, fidx, ~covered, cand)
+        tried[j] = True
+        seed = np.asarray(fpts[j], float)
         try:
             reg = grower.grow(seed, fpts[~covered])
-        except (InfeasibleError, SolverError):
+        except (InfeasibleError, SolverError, QhullError):
             continue
         new = [reg, _image(reg), _image(_image(reg))] if symmetric else [reg]
-        news = [seed, _S @ seed, _S @ _S @ seed] if symmetric else [seed]
+        news = [seed, S_CYCLIC @ seed, S_CYCLIC @ S_CYCLIC @ seed] if symmetric else [seed]
         for r, s in zip(new, news, strict=True):
+            # the refined obstacles need not be symmetric: every region is checked
+            if obs is not None and not region_clear(r, obs):
+                orbits = False
+                continue
             rest = ~covered
             covered[rest] = r.contains(fpts[rest], tol=INSIDE_TOL_DEG)
             regions.append(r)
             seeds.append(s)
-        if symmetric:
-            for s in news[1:]:
-                j = ws.index_of(s)
-                if j is not None:
-                    tried[j] = True
-        if progress is not None:
-            progress(min(1.0, len(regions) / max_regions))
-    edges, pts, rad = overlap_graph(tuple(regions), rmin, symmetric)
-    if progress is not None:
-        progress(1.0)
+        for s in news[1:]:
+            k = ws.index_of(s)
+            if k is not None and pos[k] >= 0:
+                tried[pos[k]] = True
+        done = (int(covered.sum()) - start) / max(need - start, 1)
+        report(refine_share + (0.9 - refine_share) * done, force=True)
+    edges, pts, rad = overlap_graph(tuple(regions), rmin, orbits,
+                                    tick=lambda x: report(0.9 + 0.1 * x))
+    report(1.0, force=True)
     return RegionCover(
         regions=tuple(regions), seeds_deg=np.array(seeds, float).reshape(-1, 3), edges=edges,
         edge_points_deg=pts, edge_radius_deg=rad, min_overlap_deg=rmin,
         covered=float(covered.mean()) if len(fpts) else 0.0,
         seconds=time.perf_counter() - t0,
+        resolution_deg=None if obs is None else obs.h_deg,
+        refined_cells=0 if obs is None else obs.refined_cells,
+        fine_nodes=0 if obs is None else obs.fine_nodes,
+        refine_seconds=t_refine,
     )
 
 
-def uncertified_regions(ws: Workspace, cover: RegionCover, tol_deg: float = 1e-7) -> list[int]:
-    """Regions whose interior meets an obstacle cube (open, half-width Δ, around an
-    infeasible node with a feasible 26-neighbour): empty for a certified cover. Exact:
-    a cube is clear when one row's minimum over it reaches that row's offset; otherwise
-    (several rows exclude it together) when the region ∩ closed cube holds no ball of
-    radius > ``tol_deg`` (LP)."""
-    Q = rb.obstacle_nodes(ws.feasible, ws.theta_deg())
-    h = ws.step_deg
-    box = np.vstack([np.eye(3), -np.eye(3)])
-    bad = []
-    for k, r in enumerate(cover.regions):
-        Rn = r.normalized()
-        mins = Q @ Rn.A.T - h * np.abs(Rn.A).sum(1)
-        for q in Q[~(mins >= Rn.b - tol_deg).any(1)]:
-            both = Region(np.vstack([Rn.A, box]), np.r_[Rn.b, q + h, h - q])
-            if both.chebyshev()[1] > tol_deg:
-                bad.append(k)
-                break
-    return bad
+def uncertified_regions(ws: Workspace, cover: RegionCover, fine: FineGrid | None = None,
+                        tol_deg: float = 1e-7) -> list[int]:
+    """Regions not inside the certified set (grid or fine criterion of
+    :class:`~spm_console.core.refine.RefinedCertifiedSet`): empty for a certified cover.
+    Exact and independent of the build's obstacle list
+    (:func:`~spm_console.core.cover_refine.uncertified_cells`: every fine cell of a bad grid
+    cell the region's interior meets must have exactly feasible corners; ``fine`` memoizes
+    the verdicts, a fresh :class:`~spm_console.core.refine.FineGrid` by default)."""
+    fg = FineGrid(ws) if fine is None else fine
+    return [k for k, r in enumerate(cover.regions)
+            if len(uncertified_cells(ws, r, fg, tol_deg))]
 
 
 def connector_regions(ws: Workspace, cover: RegionCover, points_deg: F,
