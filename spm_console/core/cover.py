@@ -7,26 +7,33 @@ of them (or a cap on their number is reached), then joins every two regions whos
 intersection holds a ball of radius ≥ ``min_overlap_deg`` (default Δ/4: room for a
 plan's switch sample) by an edge of the *region graph*.
 
-Growth of one region: the uncovered feasible node deepest inside the uncovered set
-(Euclidean distance transform on the grid) is the seed and the required point;
-IRIS steps (separating planes around the current ellipsoid, then its maximum-volume
-inscribed ellipsoid) start from a ball of radius Δ there; the step holding the most
-uncovered nodes wins, reduced to ``max_halfspaces`` rows with the uncovered nodes as
-the objective. When the classified grid is invariant under the cyclic permutation
-θ ↦ (θ2, θ3, θ1) (a symmetric manipulator on a cubic grid) every grown region is
-added with its two images, at the price of one.
+Obstacles. P avoids the grid's obstacles (open cubes of half-width Δ around infeasible
+nodes). There a feasible node whose face neighbour in direction ±e_k is infeasible
+("terrace" node) lies on a face of that neighbour's cube, so a region holds such nodes of
+one level per direction only (on the 2° Agile Wrist grid greedy growth needed ~400 regions
+for 99 %). The cover's other regions avoid finer obstacles instead
+(:mod:`spm_console.core.cover_refine`): the grid cells with both feasible and infeasible
+corners next to the nodes P leaves uncovered are refined to h = Δ/4, every fine node in them
+is checked exactly (the runtime's own memoized verdicts), and a region may enter such a cell
+wherever the fine criterion of :class:`~spm_console.core.refine.RefinedCertifiedSet`
+certifies it. A workspace without its models (no exact checks) falls back to the grid's cubes.
 
-**Certification.** Every region is built exactly like P: the grid box cut by planes
-from :func:`~spm_console.core.region_build.separating_planes`, each of which leaves
-beyond it every obstacle cube it is responsible for (the open cubes of half-width Δ
-around the infeasible nodes with a feasible 26-neighbour), and
-:func:`~spm_console.core.region_build.reduce_halfspaces` only hands excluded cubes
-from one plane to another. So no region meets an obstacle cube: every region lies
-in the grid's certified set P′, and the sample verifier
-(:func:`~spm_console.core.workspace_verify.verify_region`) applies to each one. A
-permuted image of a region avoids the permuted obstacles, which are the same set
-when the grid is symmetric (checked exactly on the node classes before use).
-:func:`uncertified_regions` checks the property independently.
+Growth of one region: the seed (and required point) is the uncovered feasible node, among
+those whose surrounding fine cells are all clear, with the most uncovered nodes within
+:data:`SEED_WINDOW` steps; IRIS steps (separating planes around the current ellipsoid, then
+its maximum-volume inscribed ellipsoid) start from a ball of radius Δ there; the step
+holding the most uncovered nodes wins, reduced to ``max_halfspaces`` rows with the uncovered
+nodes as the objective. When the classified grid is invariant under the cyclic permutation
+θ ↦ (θ2, θ3, θ1) (a symmetric manipulator on a cubic grid) every grown region is tried
+with its two images.
+
+**Certification.** P is built against the grid's cubes (it lies in the grid's certified
+set P′). Every other region is kept only when :func:`~spm_console.core.cover_refine.region_clear`
+finds it clear of the refined obstacles (exact: one row or an LP per obstacle) with its
+Chebyshev centre in a clear fine cell — images included, since the fine verdicts need not be
+symmetric; then every point of it is certified (grid or fine criterion; the argument is in
+:mod:`spm_console.core.cover_refine`), so the runtime's verification accepts plans through
+it. :func:`uncertified_regions` checks this independently of the obstacle list.
 
 **Home connectivity.** Each region is convex and contains its seed, a feasible grid
 node (feasible includes "connected to home through feasible nodes"). P contains
@@ -34,18 +41,14 @@ the home node, so every point of P joins home by a straight segment inside P. A
 region joined to P by a path in the region graph joins home too: go straight to
 the overlap's centre (inside both regions, convexity), then on to the next region,
 and so on to P and home — every piece is a straight segment inside one region,
-hence inside P′. Regions outside P's component of the graph (see
+hence certified. Regions outside P's component of the graph (see
 :meth:`RegionCover.components`) are joined to home only through the grid's
 6-connected feasible nodes, not (yet) through regions; the planner cannot use them
 from home.
 
-**Why the cap binds before the target on a coarse grid.** A feasible node whose face
-neighbour in direction ±e_k is infeasible lies inside a face of that neighbour's
-obstacle cube, so the only plane that can bound a region holding it is θ_k = const
-through the node: a region holds such "terrace" nodes of one level per direction
-only. On the 2° Agile Wrist grid 1,725 feasible nodes are of this kind (over ~32
-levels per direction), and greedy growth needs ~400 regions for 99 % of the nodes
-(97 % with 64). Finer obstacles near the boundary (refined cells) lift this limit.
+**What stays uncovered.** A feasible node with an infeasible fine node within h (the true
+boundary passes within 0.5° of it on the 2° grid) can only lie on a region's face; these
+~0.8 % of the nodes are not used as seeds.
 
 Angles in degrees (θ) at this interface.
 """
@@ -226,10 +229,16 @@ class _Grower:
 
     frame: Frame
     Q: F
-    half: float
+    half: float | F
     max_halfspaces: int
     iters: int
     step_deg: float
+    tick: Callable[[], None] | None = None
+    """Called between the steps of a growth (progress; may raise to cancel)."""
+
+    def _tick(self) -> None:
+        if self.tick is not None:
+            self.tick()
 
     def grow(self, seed_deg: F, objective_deg: F) -> Region:
         fr = self.frame
@@ -240,8 +249,10 @@ class _Grower:
         best_n = -1
         for it in range(self.iters):
             Ap, bp = separating_planes(E, self.Q, self.half, req)
+            self._tick()
             cand = fr.region(np.vstack([Abox, Ap]), np.r_[np.ones(6), bp]).without_redundant()
             n = int(cand.contains(objective_deg, tol=INSIDE_TOL_DEG).sum())
+            self._tick()
             if n > best_n:
                 best, best_n = cand, n
             if it + 1 < self.iters:
@@ -252,7 +263,7 @@ class _Grower:
         assert best is not None
         if best.halfspaces > self.max_halfspaces:
             best = reduce_halfspaces(best, fr, self.Q, self.half, req, self.max_halfspaces,
-                                        objective_deg)
+                                        objective_deg, tick=self.tick)
         return best
 
 
@@ -313,6 +324,7 @@ def build_cover(
     memoizes the exact checks), else the grid's obstacle cubes."""
     t0 = time.perf_counter()
     report = _Reporter(progress)
+    report(0.0, force=True)
     rmin = MIN_OVERLAP_STEPS * ws.step_deg if min_overlap_deg is None else float(min_overlap_deg)
     f = ws.feasible
     theta = ws.theta_deg()
@@ -335,8 +347,9 @@ def build_cover(
     orbits = symmetric
     lo, hi = ws.range_deg()
     frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
+    frac = [refine_share]
     grower = _Grower(frame, frame.to_x(centres), half_widths(half, len(centres)) / frame.s,
-                     max_halfspaces, iters, ws.step_deg)
+                     max_halfspaces, iters, ws.step_deg, tick=lambda: report(frac[0]))
     # a node a region can hold in its interior: every fine cell around it clear
     easy = obs.node_clear(fidx) if obs is not None else np.ones(len(fidx), bool)
     tried = np.zeros(len(fidx), bool)
@@ -359,6 +372,7 @@ def build_cover(
         news = [seed, S_CYCLIC @ seed, S_CYCLIC @ S_CYCLIC @ seed] if symmetric else [seed]
         for r, s in zip(new, news, strict=True):
             # the refined obstacles need not be symmetric: every region is checked
+            report(frac[0])
             if obs is not None and not region_clear(r, obs):
                 orbits = False
                 continue
@@ -371,7 +385,8 @@ def build_cover(
             if k is not None and pos[k] >= 0:
                 tried[pos[k]] = True
         done = (int(covered.sum()) - start) / max(need - start, 1)
-        report(refine_share + (0.9 - refine_share) * done, force=True)
+        frac[0] = refine_share + (0.9 - refine_share) * done
+        report(frac[0], force=True)
     edges, pts, rad = overlap_graph(tuple(regions), rmin, orbits,
                                     tick=lambda x: report(0.9 + 0.1 * x))
     report(1.0, force=True)

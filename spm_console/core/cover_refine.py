@@ -77,18 +77,20 @@ def _corners_count(a: B) -> NDArray[np.int64]:
     return out
 
 
-def _cells_to_nodes(cells: B) -> B:
-    """Node mask: nodes that are a corner of at least one True cell."""
-    n = cells.shape
-    out = np.zeros(tuple(s + 1 for s in n), bool)
-    for d in np.ndindex(2, 2, 2):
-        out[d[0]:d[0] + n[0], d[1]:d[1] + n[1], d[2]:d[2] + n[2]] |= cells
-    return out
-
-
 def _up(a: B, r: int) -> B:
     """Cell mask refined r times per axis (each cell → r³ fine cells)."""
     return np.asarray(np.repeat(np.repeat(np.repeat(a, r, 0), r, 1), r, 2))
+
+
+def _refined_nodes(refined: B, r: int) -> I64:
+    """Fine-node indices (n, 3), each once and in C order, of the refined grid cells."""
+    cells = np.argwhere(refined)
+    k = np.arange(r + 1)
+    offs = np.stack(np.meshgrid(k, k, k, indexing="ij"), -1).reshape(-1, 3)
+    shape = tuple(int(s) * r + 1 for s in refined.shape)
+    idx = (cells[:, None, :] * r + offs[None]).reshape(-1, 3)
+    flat = np.unique(np.ravel_multi_index(tuple(idx.T), shape))
+    return np.column_stack(np.unravel_index(flat, shape)).astype(np.int64)
 
 
 def bad_cells(feasible: B) -> tuple[B, B]:
@@ -151,7 +153,9 @@ def refine_cells(ws: Workspace, fine: FineGrid, want_nodes: B | None = None,
     r = fine.refine
     bad, mixed = bad_cells(ws.feasible)
     refined = mixed if want_nodes is None else mixed & ~_corners_all(~np.asarray(want_nodes))
-    nodes = np.argwhere(_cells_to_nodes(_up(refined, r)))
+    nodes = _refined_nodes(refined, r)
+    if progress is not None:
+        progress(0.0)
     ok_nodes = np.zeros(fine.shape, bool)
     for s in range(0, len(nodes), VERDICT_CHUNK):
         part = nodes[s:s + VERDICT_CHUNK]
@@ -160,11 +164,18 @@ def refine_cells(ws: Workspace, fine: FineGrid, want_nodes: B | None = None,
         if progress is not None:
             progress(min(1.0, (s + len(part)) / max(len(nodes), 1)))
     fine_refined = _up(refined, r)
-    clear = ~_up(bad, r) | (fine_refined & _corners_all(ok_nodes))
+    clear = ~_up(bad, r)
+    clear |= fine_refined & _corners_all(ok_nodes)
+    del ok_nodes
+    if progress is not None:
+        progress(1.0)
     # frontier: fine obstacles of refined cells next to a clear fine cell; blocked grid cells
     # next to a grid cell holding a clear fine cell
     touch = ndimage.binary_dilation(clear, structure=_S6)
+    if progress is not None:
+        progress(1.0)
     fine_front = np.argwhere(fine_refined & ~clear & touch)
+    del touch
     n = bad.shape
     has_clear = np.asarray(clear.reshape(n[0], r, n[1], r, n[2], r).any(axis=(1, 3, 5)))
     blocked = bad & ~refined

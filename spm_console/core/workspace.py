@@ -37,7 +37,7 @@ B = NDArray[np.bool_]
 
 #: Version of the workspace algorithm and its stored arrays (part of the cache key):
 #: bump it whenever the grid, classification or region construction changes.
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 #: Nodes per chunk of the link-distance computation (bounds temporary memory).
 LINK_CHUNK = 1024
 #: Neighbourhood of the home-connectivity flood fill: 6 = face neighbours.

@@ -6,7 +6,8 @@ A different key means stale: rebuild and overwrite. A corrupt or truncated file
 (zip CRC, missing arrays, wrong shapes) gives a clear message and is rebuilt; a file
 of an older format is stale by its key (read before anything else). The region cover
 (:mod:`spm_console.core.cover`) is stored with the grid, P excluded (it is
-``region_A``/``region_b``), under the same content digest.
+``region_A``/``region_b``), under the same content digest: only its regions and graph (the
+fine verdicts of its refinement are not stored; the runtime checks fine nodes itself).
 Writes are atomic: a temporary file in the same directory, fsync, ``os.replace``.
 
 Default directory: ``$SPM_CONSOLE_CACHE`` if set, else ``~/.cache/spm_console``.
@@ -33,8 +34,10 @@ from spm_console.core import region_build
 from spm_console.core import workspace as core_ws
 from spm_console.core.cover import RegionCover
 from spm_console.core.kinematics import NEWTON_TOL, PATH_ZETA_FLOOR
+from spm_console.core.refine import REFINE
 from spm_console.core.region import Region
 from spm_console.core.workspace import Progress, Workspace
+from spm_console.core.workspace_check import STEP_RAD
 from spm_console.errors import CacheError
 from spm_console.models import build_workspace, grid_axes_deg, link_model_of, model_of
 from spm_console.profile import Profile
@@ -111,7 +114,8 @@ def cache_key(profile: Profile) -> str:
             "max_iters": region_build.MAX_ITERS,
             "cover": [core_cover.COVER_TARGET, core_cover.COVER_MAX_REGIONS,
                       core_cover.COVER_HALFSPACES, core_cover.COVER_ITERS,
-                      core_cover.MIN_OVERLAP_STEPS],
+                      core_cover.MIN_OVERLAP_STEPS, core_cover.SEED_WINDOW, REFINE,
+                      STEP_RAD],
         },
     }, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
@@ -140,7 +144,9 @@ def save(ws: Workspace, path: Path, key: str) -> None:
     data.update(_cover_arrays(ws.cover))
     meta["cover"] = None if ws.cover is None else {
         "covered": ws.cover.covered, "min_overlap_deg": ws.cover.min_overlap_deg,
-        "seconds": ws.cover.seconds}
+        "seconds": ws.cover.seconds, "resolution_deg": ws.cover.resolution_deg,
+        "refined_cells": ws.cover.refined_cells, "fine_nodes": ws.cover.fine_nodes,
+        "refine_seconds": ws.cover.refine_seconds}
     meta["content"] = content_digest(data)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -212,6 +218,10 @@ def _cover_of(d: dict[str, Any], p: Region, info: object) -> RegionCover | None:
         regions=regions, seeds_deg=seeds, edges=edges, edge_points_deg=pts,
         edge_radius_deg=rad, min_overlap_deg=float(info["min_overlap_deg"]),
         covered=float(info["covered"]), seconds=float(info["seconds"]),
+        resolution_deg=None if info.get("resolution_deg") is None
+        else float(info["resolution_deg"]),
+        refined_cells=int(info.get("refined_cells", 0)), fine_nodes=int(info.get("fine_nodes", 0)),
+        refine_seconds=float(info.get("refine_seconds", 0.0)),
     )
 
 
