@@ -82,10 +82,10 @@ def test_the_exact_certification_check_can_fail(ws: Workspace, cover: RegionCove
 
 def test_every_region_passes_the_sample_verifier(ws: Workspace) -> None:
     model, links = ws.exact_models()
-    reports = verify_cover(ws, model, links, n=5000, seed=11)
+    reports = verify_cover(ws, model, links, n=2000, seed=11)
     assert len(reports) == ws.cover.size  # type: ignore[union-attr]
     for k, r in enumerate(reports):
-        assert r.samples == 5000 and r.infeasible == 0 and r.fk_failures == 0, k
+        assert r.samples == 2000 and r.infeasible == 0 and r.fk_failures == 0, k
         assert r.min_zeta >= ws.zeta_min and r.min_link_mm >= ws.min_distance_mm, k
 
 
@@ -161,18 +161,14 @@ def test_a_disconnected_cover_says_so(ws: Workspace) -> None:
     assert "2 components" in c.describe() and c.neighbours(0) == []
 
 
-def test_build_stops_at_the_region_cap() -> None:
+def test_build_stops_at_the_region_cap_and_reports_progress_in_order() -> None:
     ws5 = coarse_workspace()  # 5° grid: a fast build
-    c = build_cover(ws5, max_regions=4)
+    seen: list[float] = []
+    c = build_cover(ws5, max_regions=4, progress=seen.append)
     assert c.size == 4 and ws5.coverage() < c.covered < ws5.cover.covered  # type: ignore[union-attr]
     assert c.connected
-
-
-def test_progress_is_reported_in_order() -> None:
-    seen: list[float] = []
-    c = build_cover(coarse_workspace(), progress=seen.append)
     assert c.refined_cells > 0 and len(seen) >= 3
-    assert seen == sorted(seen) and seen[-1] == 1.0 and seen[0] <= 0.5
+    assert seen == sorted(seen) and seen[0] == 0.0 and seen[-1] == 1.0
 
 
 # --- cache -------------------------------------------------------------------------------

@@ -54,6 +54,8 @@ I64 = NDArray[np.int64]
 
 #: Fine nodes checked per call of the exact verdicts (bounds the gap between progress reports).
 VERDICT_CHUNK = 6000
+#: Grid cells whose fine nodes are listed at once (bounds the gap between progress reports).
+CELL_CHUNK = 2000
 #: A box is clear of a region when one row's minimum over it is at least b − this (deg), or
 #: when region ∩ closed box holds no ball of radius above it.
 CLEAR_TOL_DEG = 1e-7
@@ -82,15 +84,19 @@ def _up(a: B, r: int) -> B:
     return np.asarray(np.repeat(np.repeat(np.repeat(a, r, 0), r, 1), r, 2))
 
 
-def _refined_nodes(refined: B, r: int) -> I64:
+def _refined_nodes(refined: B, r: int,
+                   progress: Callable[[float], None] | None = None) -> I64:
     """Fine-node indices (n, 3), each once and in C order, of the refined grid cells."""
     cells = np.argwhere(refined)
     k = np.arange(r + 1)
     offs = np.stack(np.meshgrid(k, k, k, indexing="ij"), -1).reshape(-1, 3)
-    shape = tuple(int(s) * r + 1 for s in refined.shape)
-    idx = (cells[:, None, :] * r + offs[None]).reshape(-1, 3)
-    flat = np.unique(np.ravel_multi_index(tuple(idx.T), shape))
-    return np.column_stack(np.unravel_index(flat, shape)).astype(np.int64)
+    mask = np.zeros(tuple(int(s) * r + 1 for s in refined.shape), bool)
+    for c in range(0, len(cells), CELL_CHUNK):
+        idx = (cells[c:c + CELL_CHUNK, None, :] * r + offs[None]).reshape(-1, 3)
+        mask[idx[:, 0], idx[:, 1], idx[:, 2]] = True
+        if progress is not None:
+            progress(0.0)
+    return np.argwhere(mask).astype(np.int64)
 
 
 def bad_cells(feasible: B) -> tuple[B, B]:
@@ -153,7 +159,9 @@ def refine_cells(ws: Workspace, fine: FineGrid, want_nodes: B | None = None,
     r = fine.refine
     bad, mixed = bad_cells(ws.feasible)
     refined = mixed if want_nodes is None else mixed & ~_corners_all(~np.asarray(want_nodes))
-    nodes = _refined_nodes(refined, r)
+    if progress is not None:
+        progress(0.0)
+    nodes = _refined_nodes(refined, r, progress)
     if progress is not None:
         progress(0.0)
     ok_nodes = np.zeros(fine.shape, bool)
@@ -165,6 +173,8 @@ def refine_cells(ws: Workspace, fine: FineGrid, want_nodes: B | None = None,
             progress(min(1.0, (s + len(part)) / max(len(nodes), 1)))
     fine_refined = _up(refined, r)
     clear = ~_up(bad, r)
+    if progress is not None:
+        progress(1.0)
     clear |= fine_refined & _corners_all(ok_nodes)
     del ok_nodes
     if progress is not None:
@@ -176,6 +186,8 @@ def refine_cells(ws: Workspace, fine: FineGrid, want_nodes: B | None = None,
         progress(1.0)
     fine_front = np.argwhere(fine_refined & ~clear & touch)
     del touch
+    if progress is not None:
+        progress(1.0)
     n = bad.shape
     has_clear = np.asarray(clear.reshape(n[0], r, n[1], r, n[2], r).any(axis=(1, 3, 5)))
     blocked = bad & ~refined

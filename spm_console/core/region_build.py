@@ -139,7 +139,8 @@ def _iris(
         if it > 1 and grow < np.log1p(VOLUME_TOL):
             break
     assert best is not None
-    final = reduce_halfspaces(best.region, frame, Q, half, req, max_halfspaces, obj)
+    final = reduce_halfspaces(best.region, frame, Q, half, req, max_halfspaces, obj,
+                              tick=None if progress is None else lambda: progress(it / MAX_ITERS))
     cov = float(inside(final, feas_pts).mean()) if len(feas_pts) else 0.0
     return RegionBuild(final, cov, it, best.obstacles, best.log_volume,
                        time.perf_counter() - t0, best.iris_planes)
