@@ -62,7 +62,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import QhullError
@@ -70,14 +69,15 @@ from scipy.spatial import QhullError
 from spm_console.core import region_build as rb
 from spm_console.core.cover_graph import S_CYCLIC
 from spm_console.core.cover_graph import overlap_graph as overlap_graph
+from spm_console.core.cover_grow import SEED_WINDOW as SEED_WINDOW
+from spm_console.core.cover_grow import Grower, Reporter, dense_seed
 from spm_console.core.cover_refine import (
     FineObstacles,
     refine_cells,
     region_clear,
     uncertified_cells,
 )
-from spm_console.core.ellipsoid import Ellipsoid, inscribed_ellipsoid
-from spm_console.core.iris import Frame, half_widths, reduce_halfspaces, separating_planes
+from spm_console.core.iris import Frame, half_widths
 from spm_console.core.refine import FineGrid
 from spm_console.core.region import Region
 from spm_console.errors import InfeasibleError, SolverError
@@ -104,10 +104,6 @@ MIN_OVERLAP_STEPS = 0.25
 CONNECTOR_REACH_STEPS = 8
 #: Tolerance (deg) for "a node lies in a region".
 INSIDE_TOL_DEG = 1e-7
-#: Seeds are chosen by the uncovered nodes within this many grid steps (L∞) of them.
-SEED_WINDOW = 2
-#: Longest pause between two progress reports of a cover build, s (a cancel waits for one).
-REPORT_EVERY_S = 0.1
 #: Points per membership test of P while the cover build starts (bounds the report gaps).
 CONTAINS_CHUNK = 50_000
 _S = S_CYCLIC
@@ -225,82 +221,6 @@ def _image(region: Region) -> Region:
     return Region(region.A @ _S.T, region.b.copy())
 
 
-@dataclass
-class _Grower:
-    """IRIS for cover regions (fewer steps and rows than P), in P's scaled frame."""
-
-    frame: Frame
-    Q: F
-    half: float | F
-    max_halfspaces: int
-    iters: int
-    step_deg: float
-    tick: Callable[[], None] | None = None
-    """Called between the steps of a growth (progress; may raise to cancel)."""
-
-    def _tick(self) -> None:
-        if self.tick is not None:
-            self.tick()
-
-    def grow(self, seed_deg: F, objective_deg: F) -> Region:
-        fr = self.frame
-        req = fr.to_x(seed_deg).reshape(1, 3)
-        Abox = np.vstack([np.eye(3), -np.eye(3)])
-        E = Ellipsoid.ball(fr.to_x(seed_deg), self.step_deg / fr.s)
-        best: Region | None = None
-        best_n = -1
-        for it in range(self.iters):
-            Ap, bp = separating_planes(E, self.Q, self.half, req)
-            self._tick()
-            cand = fr.region(np.vstack([Abox, Ap]), np.r_[np.ones(6), bp]).without_redundant()
-            n = int(cand.contains(objective_deg, tol=INSIDE_TOL_DEG).sum())
-            self._tick()
-            if n > best_n:
-                best, best_n = cand, n
-            if it + 1 < self.iters:
-                try:
-                    E = inscribed_ellipsoid(cand.A * fr.s, cand.b - cand.A @ fr.c)
-                except SolverError:
-                    break
-        assert best is not None
-        if best.halfspaces > self.max_halfspaces:
-            best = reduce_halfspaces(best, fr, self.Q, self.half, req, self.max_halfspaces,
-                                        objective_deg, tick=self.tick)
-        return best
-
-
-def _deepest(uncovered: B) -> tuple[int, int, int]:
-    """Index of the node deepest inside ``uncovered`` (Euclidean distance transform; the
-    grid box's faces do not count as its boundary); ties go to the first in C order."""
-    d = ndimage.distance_transform_edt(uncovered)
-    i = np.unravel_index(int(np.argmax(d)), d.shape)
-    return (int(i[0]), int(i[1]), int(i[2]))
-
-
-class _Reporter:
-    """progress(fraction) at most every :data:`REPORT_EVERY_S` (and always when forced)."""
-
-    def __init__(self, progress: Callable[[float], None] | None) -> None:
-        self.progress = progress
-        self.last = time.perf_counter()
-
-    def __call__(self, fraction: float, force: bool = False) -> None:
-        now = time.perf_counter()
-        if self.progress is not None and (force or now - self.last >= REPORT_EVERY_S):
-            self.last = now
-            self.progress(min(1.0, max(0.0, fraction)))
-
-
-def _dense_seed(f: B, fidx: I64, uncovered: B, candidates: B) -> int:
-    """Index (into ``fidx``) of the candidate node with the most uncovered feasible nodes in
-    the (2·:data:`SEED_WINDOW`+1)³ nodes around it; ties go to the first in C order."""
-    g = np.zeros(f.shape, np.float64)
-    g[tuple(fidx[uncovered].T)] = 1.0
-    dens = ndimage.uniform_filter(g, size=2 * SEED_WINDOW + 1, mode="constant")
-    score = np.where(candidates, dens[tuple(fidx.T)], -1.0)
-    return int(np.argmax(score))
-
-
 def _obstacles(ws: Workspace, covered: B, fidx: I64, fine: FineGrid | None,
                report: Callable[[float], None]) -> tuple[F, F, FineObstacles | None]:
     """(centres (n, 3) deg, half-widths (n,) deg, the refined set or None): refined near the
@@ -327,7 +247,7 @@ def build_cover(
     regions avoid the refined obstacles (:mod:`spm_console.core.cover_refine`; ``fine``
     memoizes the exact checks), else the grid's obstacle cubes."""
     t0 = time.perf_counter()
-    report = _Reporter(progress)
+    report = Reporter(progress)
     report(0.0, force=True)
     rmin = MIN_OVERLAP_STEPS * ws.step_deg if min_overlap_deg is None else float(min_overlap_deg)
     f = ws.feasible
@@ -357,7 +277,7 @@ def build_cover(
     lo, hi = ws.range_deg()
     frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
     frac = [refine_share]
-    grower = _Grower(frame, frame.to_x(centres), half_widths(half, len(centres)) / frame.s,
+    grower = Grower(frame, frame.to_x(centres), half_widths(half, len(centres)) / frame.s,
                      max_halfspaces, iters, ws.step_deg, tick=lambda: report(frac[0]))
     # a node a region can hold in its interior: every fine cell around it clear
     easy = obs.node_clear(fidx) if obs is not None else np.ones(len(fidx), bool)
@@ -371,7 +291,7 @@ def build_cover(
         cand = ~covered & ~tried & easy
         if not cand.any():
             break
-        j = _dense_seed(f, fidx, ~covered, cand)
+        j = dense_seed(f, fidx, ~covered, cand)
         tried[j] = True
         seed = np.asarray(fpts[j], float)
         try:
@@ -436,7 +356,7 @@ def connector_regions(ws: Workspace, cover: RegionCover, points_deg: F,
     lo, hi = ws.range_deg()
     frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
     theta = ws.theta_deg()
-    grower = _Grower(frame, frame.to_x(rb.obstacle_nodes(ws.feasible, theta)),
+    grower = Grower(frame, frame.to_x(rb.obstacle_nodes(ws.feasible, theta)),
                      ws.step_deg / frame.s, COVER_HALFSPACES, iters, ws.step_deg)
     feasible = theta[ws.feasible]
     new: list[Region] = []
