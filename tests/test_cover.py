@@ -19,19 +19,28 @@ from spm_console.core.cover import (
     overlap_graph,
     uncertified_regions,
 )
+from spm_console.core.cover_refine import boxes_met
 from spm_console.core.refine import FineGrid
 from spm_console.core.region import Region
+from spm_console.core.region_build import obstacle_nodes
 from spm_console.core.workspace import Workspace
 from spm_console.core.workspace_verify import verify_cover
 from spm_console.errors import ExitCode
 from spm_console.store import workspace_cache as wc
 from spm_console.store.workspace_cache import cache_key, cache_path, load_or_build, save
-from tests.ws_helpers import agile_profile, agile_workspace, coarse_workspace, with_step
+from tests.ws_helpers import (
+    agile_profile,
+    agile_workspace,
+    agile_workspace_refined,
+    coarse_workspace,
+    with_step,
+)
 
 
-@pytest.fixture(scope="module")
-def ws() -> Workspace:
-    return agile_workspace()
+@pytest.fixture(scope="module", params=["default", "refined"])
+def ws(request: pytest.FixtureRequest) -> Workspace:
+    """The 2° workspace with the default cover (grid cubes) and with the refined one."""
+    return agile_workspace_refined() if request.param == "refined" else agile_workspace()
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +51,7 @@ def cover(ws: Workspace) -> RegionCover:
 
 def test_cover_starts_with_p_and_covers_more(ws: Workspace, cover: RegionCover) -> None:
     assert cover.regions[0] is ws.region
-    assert 1 < cover.size <= cv.COVER_MAX_REGIONS
+    assert 1 < cover.size <= max(cv.COVER_MAX_REGIONS, cv.REFINED_MAX_REGIONS)
     assert all(r.halfspaces <= cv.COVER_HALFSPACES for r in cover.regions[1:])
     feas = ws.theta_deg()[ws.feasible]
     # the stored fraction is the union's, recomputed independently of the build
@@ -51,9 +60,30 @@ def test_cover_starts_with_p_and_covers_more(ws: Workspace, cover: RegionCover) 
         inside |= r.contains(feas, tol=1e-7)
     assert cover.covered == pytest.approx(float(inside.mean()), abs=1e-12)
     assert cover.coverage(feas) == pytest.approx(cover.covered, abs=1e-12)
+
+
+def test_the_default_cover_avoids_the_grid_cubes() -> None:
+    ws = agile_workspace()
+    c = ws.cover
+    assert c is not None and c.resolution_deg is None and c.refined_cells == 0
+    assert c.size <= cv.COVER_MAX_REGIONS
+    # more than P alone; the 99 % target needs far more regions on the grid's cubes (cover.py)
+    assert c.covered > ws.coverage() + 0.02
+    # every region avoids every obstacle cube: a plain grid check, no fine verdicts needed
+    Q = obstacle_nodes(ws.feasible, ws.theta_deg())
+    hw = np.full((len(Q), 3), ws.step_deg)
+    for k, r in enumerate(c.regions):
+        assert not boxes_met(r, Q - hw, Q + hw).any(), k
+
+
+def test_the_refined_cover_reaches_the_target() -> None:
+    ws = agile_workspace_refined()
+    c = ws.cover
+    assert c is not None and c.size <= cv.REFINED_MAX_REGIONS
     # the issue's target on the profile's own 2° grid (P alone holds far less)
-    assert cover.covered >= 0.99 > ws.coverage()
-    assert cover.resolution_deg == pytest.approx(ws.step_deg / 4)
+    assert c.covered >= 0.99 > ws.coverage()
+    assert c.resolution_deg == pytest.approx(ws.step_deg / 4) and c.refined_cells > 0
+    assert c.covered > agile_workspace().cover.covered  # type: ignore[union-attr]
 
 
 def test_seeds_are_feasible_nodes_inside_their_regions(ws: Workspace, cover: RegionCover) -> None:
@@ -161,14 +191,17 @@ def test_a_disconnected_cover_says_so(ws: Workspace) -> None:
     assert "2 components" in c.describe() and c.neighbours(0) == []
 
 
-def test_build_stops_at_the_region_cap_and_reports_progress_in_order() -> None:
+@pytest.mark.parametrize("refined", [False, True])
+def test_build_stops_at_the_region_cap_and_reports_progress_in_order(refined: bool) -> None:
     ws5 = coarse_workspace()  # 5° grid: a fast build
     seen: list[float] = []
-    c = build_cover(ws5, max_regions=4, progress=seen.append)
-    assert c.size == 4 and ws5.coverage() < c.covered < ws5.cover.covered  # type: ignore[union-attr]
+    c = build_cover(ws5, max_regions=4, progress=seen.append, refined=refined)
+    assert c.size == 4 and ws5.coverage() < c.covered
     assert c.connected
-    assert c.refined_cells > 0 and len(seen) >= 3
+    assert (c.refined_cells > 0) is refined and len(seen) >= 3
     assert seen == sorted(seen) and seen[0] == 0.0 and seen[-1] == 1.0
+    if not refined:
+        assert c.covered < ws5.cover.covered  # type: ignore[union-attr]
 
 
 # --- cache -------------------------------------------------------------------------------
@@ -270,3 +303,19 @@ def test_cli_verify_cover(cache_dir: Path, capsys: pytest.CaptureFixture[str]) -
     d = json.loads(capsys.readouterr().out)
     assert code == ExitCode.OK and d["infeasible"] == 0
     assert len(d["regions"]) == coarse_workspace().cover.size  # type: ignore[union-attr]
+
+
+def test_cli_builds_a_refined_cover(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setenv("SPM_CONSOLE_CACHE", str(tmp_path))
+    prof = _profile_file(tmp_path)
+    argv = ["workspace", "build", "--profile", str(prof), "--json"]
+    assert main([*argv, "--refined-cover"]) == ExitCode.OK
+    d = json.loads(capsys.readouterr().out)
+    assert d["cache"]["hit"] is False and d["cover"]["refined_cells"] > 0
+    assert d["cover"]["resolution_deg"] == pytest.approx(5.0 / 4)
+    assert d["cover"]["covered"] > coarse_workspace().cover.covered  # type: ignore[union-attr]
+    assert d["cache"]["path"].endswith("-refined.npz")
+    assert main([*argv, "--refined-cover"]) == ExitCode.OK  # the refined file again
+    again = json.loads(capsys.readouterr().out)
+    assert again["cache"]["hit"] is True and again["cover"]["covered"] == d["cover"]["covered"]

@@ -14,12 +14,12 @@ from spm_console.core.region import Region
 from spm_console.core.workspace import Workspace
 from spm_console.core.workspace_check import check_points
 from spm_console.run.plan_request import PlanRequest, plan_motion
-from tests.ws_helpers import agile_profile, agile_workspace, coarse_workspace
+from tests.ws_helpers import agile_profile, agile_workspace_refined, coarse_workspace
 
 
 @pytest.fixture(scope="module")
 def ws() -> Workspace:
-    return agile_workspace()
+    return agile_workspace_refined()
 
 
 @pytest.fixture(scope="module")

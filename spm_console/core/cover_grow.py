@@ -94,3 +94,13 @@ def dense_seed(f: B, fidx: I64, uncovered: B, candidates: B) -> int:
     dens = ndimage.uniform_filter(g, size=2 * SEED_WINDOW + 1, mode="constant")
     score = np.where(candidates, dens[tuple(fidx.T)], -1.0)
     return int(np.argmax(score))
+
+
+def deepest_seed(f: B, fidx: I64, candidates: B) -> int:
+    """Index (into ``fidx``) of the candidate node deepest inside the candidate set (Euclidean
+    distance transform on the grid; the box's faces do not count as its boundary); ties go to
+    the first in C order."""
+    g = np.zeros(f.shape, bool)
+    g[tuple(fidx[candidates].T)] = True
+    d = ndimage.distance_transform_edt(g)
+    return int(np.argmax(np.where(candidates, d[tuple(fidx.T)], -1.0)))

@@ -278,8 +278,9 @@ def build_grid(spec: GridSpec, progress: Progress | None = None) -> Workspace:
 
 
 def build_workspace(spec: GridSpec, progress: Progress | None = None,
-                    cover: bool = True) -> Workspace:
-    """Grid (Algorithm 2) plus the convex region P and (``cover``) the region cover;
+                    cover: bool = True, refined_cover: bool = False) -> Workspace:
+    """Grid (Algorithm 2) plus the convex region P and (``cover``) the region cover, refined
+    near the boundary with ``refined_cover`` (:func:`~spm_console.core.cover.build_cover`);
     ``progress(stage, fraction)`` if given."""
     from dataclasses import replace
 
@@ -296,7 +297,7 @@ def build_workspace(spec: GridSpec, progress: Progress | None = None,
                   region_info={**res.info(),
                                "max_halfspaces": float(spec.max_halfspaces)})
     if cover:
-        rc = build_cover(out, progress=_stage(progress, "cover"))
+        rc = build_cover(out, progress=_stage(progress, "cover"), refined=refined_cover)
         out = replace(out, cover=rc, seconds=time.perf_counter() - t0)
     if progress is not None:
         progress("done", 1.0)
