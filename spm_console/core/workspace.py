@@ -255,9 +255,14 @@ def build_grid(spec: GridSpec, progress: Progress | None = None) -> Workspace:
     reached = g.reached.ravel()
     th = g.theta().reshape(-1, 3)[reached]
     Rr = g.R.reshape(-1, 3, 3)[reached]
+    links_progress = _stage(progress, "links")
+    if links_progress is not None:
+        links_progress(0.0)
     w = model.geom.w(th)
+    if links_progress is not None:
+        links_progress(0.0)
     v = platform_axes(Rr, model.v_home)
-    d_r, k_r = link_distances(links, model.u, w, v, progress=_stage(progress, "links"))
+    d_r, k_r = link_distances(links, model.u, w, v, progress=links_progress)
     dmin = np.full(reached.size, np.nan)
     dmin[reached] = d_r
     pair = np.full(reached.size, -1, np.int16)
