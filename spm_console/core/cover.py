@@ -287,7 +287,7 @@ def build_cover(
                                         lambda x: report(refine_share * x))
     else:
         centres, half = np.zeros((0, 3)), np.zeros(1)
-    t_refine = time.perf_counter() - t0
+    t_refine = time.perf_counter() - t0 if obs is not None else 0.0
     report(refine_share)
     symmetric = cyclic_symmetric(ws)
     orbits = symmetric
