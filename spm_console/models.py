@@ -76,6 +76,8 @@ def grid_spec(profile: Profile) -> GridSpec:
     )
 
 
-def build_workspace(profile: Profile, progress: Progress | None = None) -> Workspace:
-    """The profile's workspace (grid + region P), built by the core from :func:`grid_spec`."""
-    return _build_workspace(grid_spec(profile), progress)
+def build_workspace(profile: Profile, progress: Progress | None = None,
+                    refined_cover: bool = False) -> Workspace:
+    """The profile's workspace (grid + region P + region cover, refined near the boundary with
+    ``refined_cover``), built by the core from :func:`grid_spec`."""
+    return _build_workspace(grid_spec(profile), progress, refined_cover=refined_cover)

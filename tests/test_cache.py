@@ -197,3 +197,28 @@ def test_another_grid_step_has_its_own_file(tmp_path: Path, coarse) -> None:  # 
     assert cache_key(finer) != cache_key(prof)
     with pytest.raises(ProfileError, match="step"):  # the range is no whole number of steps
         with_grid_step(prof, 0.7 * prof.workspace.step_deg)
+
+
+def test_a_refined_cover_has_its_own_key_and_file(tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    prof = with_step(agile_profile(), 5.0)
+    assert cache_key(prof, refined_cover=True) != cache_key(prof)
+    assert cache_path(prof, tmp_path, refined_cover=True) != cache_path(prof, tmp_path)
+    asked: list[bool] = []
+
+    def fake_build(profile, progress=None, refined_cover=False):  # type: ignore[no-untyped-def]
+        asked.append(refined_cover)
+        return coarse_workspace()
+
+    monkeypatch.setattr(wc, "build_workspace", fake_build)
+    _, i1 = load_or_build(prof, tmp_path, refined_cover=True)
+    assert not i1.hit and asked == [True] and i1.key == cache_key(prof, refined_cover=True)
+    # the default workspace is not the refined file: built (and stored) on its own
+    _, i2 = load_or_build(prof, tmp_path)
+    assert not i2.hit and i2.rebuilt_because == "no cache file" and asked == [True, False]
+    _, i3 = load_or_build(prof, tmp_path, refined_cover=True)
+    assert i3.hit and len(asked) == 2
+    # a refined file under the default name (copied by hand) is stale, never a hit
+    cache_path(prof, tmp_path).write_bytes(i1.path.read_bytes())
+    _, i4 = load_or_build(prof, tmp_path)
+    assert not i4.hit and i4.rebuilt_because.startswith("stale key")

@@ -37,3 +37,9 @@ def agile_workspace() -> Workspace:
 def coarse_workspace() -> Workspace:
     """The Agile Wrist on a 5° grid (19³ nodes), for cache and CLI tests."""
     return build_workspace(with_step(agile_profile(), 5.0))
+
+
+@functools.lru_cache(maxsize=1)
+def agile_workspace_refined() -> Workspace:
+    """The Agile Wrist workspace on the 2° grid with the refined region cover (~12 s)."""
+    return build_workspace(agile_profile(), refined_cover=True)

@@ -7,26 +7,40 @@ of them (or a cap on their number is reached), then joins every two regions whos
 intersection holds a ball of radius ≥ ``min_overlap_deg`` (default Δ/4: room for a
 plan's switch sample) by an edge of the *region graph*.
 
-Growth of one region: the uncovered feasible node deepest inside the uncovered set
-(Euclidean distance transform on the grid) is the seed and the required point;
-IRIS steps (separating planes around the current ellipsoid, then its maximum-volume
-inscribed ellipsoid) start from a ball of radius Δ there; the step holding the most
-uncovered nodes wins, reduced to ``max_halfspaces`` rows with the uncovered nodes as
-the objective. When the classified grid is invariant under the cyclic permutation
-θ ↦ (θ2, θ3, θ1) (a symmetric manipulator on a cubic grid) every grown region is
-added with its two images, at the price of one.
+Obstacles. P avoids the grid's obstacles (open cubes of half-width Δ around infeasible
+nodes), and so do the cover's other regions by default (seed: the uncovered node deepest
+inside the uncovered set; ~96.5 % of the 2° Agile Wrist grid's feasible nodes with 28
+regions, in about a second). There a feasible node whose face neighbour in direction ±e_k is
+infeasible ("terrace" node) lies on a face of that neighbour's cube, so a region holds such
+nodes of one level per direction only (on the 2° Agile Wrist grid greedy growth needed ~400
+regions for 99 %). The *refined* cover (``build_cover(refined=True)``, a build option: it
+costs several seconds of exact checks) avoids finer obstacles instead
+(:mod:`spm_console.core.cover_refine`): the grid cells with both feasible and infeasible
+corners next to the nodes P leaves uncovered are refined to h = Δ/4, every fine node in them
+is checked exactly (the runtime's own memoized verdicts), and a region may enter such a cell
+wherever the fine criterion of :class:`~spm_console.core.refine.RefinedCertifiedSet`
+certifies it. A workspace without its models (no exact checks) falls back to the grid's cubes.
 
-**Certification.** Every region is built exactly like P: the grid box cut by planes
-from :func:`~spm_console.core.region_build.separating_planes`, each of which leaves
-beyond it every obstacle cube it is responsible for (the open cubes of half-width Δ
-around the infeasible nodes with a feasible 26-neighbour), and
-:func:`~spm_console.core.region_build.reduce_halfspaces` only hands excluded cubes
-from one plane to another. So no region meets an obstacle cube: every region lies
-in the grid's certified set P′, and the sample verifier
-(:func:`~spm_console.core.workspace_verify.verify_region`) applies to each one. A
-permuted image of a region avoids the permuted obstacles, which are the same set
-when the grid is symmetric (checked exactly on the node classes before use).
-:func:`uncertified_regions` checks the property independently.
+Growth of one refined region: the seed (and required point) is the uncovered feasible node, among
+those whose surrounding fine cells are all clear, with the most uncovered nodes within
+:data:`SEED_WINDOW` steps; IRIS steps (separating planes around the current ellipsoid, then
+its maximum-volume inscribed ellipsoid) start from a ball of radius Δ there; the step
+holding the most uncovered nodes wins, reduced to ``max_halfspaces`` rows with the uncovered
+nodes as the objective. When the classified grid is invariant under the cyclic permutation
+θ ↦ (θ2, θ3, θ1) (a symmetric manipulator on a cubic grid) every grown region is tried
+with its two images.
+
+**Certification.** P and the default cover's regions are built against the grid's cubes
+(planes from :func:`~spm_console.core.region_build.separating_planes`, reduced by
+:func:`~spm_console.core.iris.reduce_halfspaces`, which only hands excluded cubes from one
+plane to another; a permuted image avoids the permuted cubes, the same set on a symmetric
+grid): they lie in the grid's certified set P′. Every refined region is kept only when
+:func:`~spm_console.core.cover_refine.region_clear` finds it clear of the refined obstacles
+(exact: one row or an LP per obstacle) with its Chebyshev centre in a clear fine cell —
+images included, since the fine verdicts need not be symmetric; then every point of it is
+certified (grid or fine criterion; the argument is in :mod:`spm_console.core.cover_refine`),
+so the runtime's verification accepts plans through it. :func:`uncertified_regions` checks
+both kinds independently of the obstacle list.
 
 **Home connectivity.** Each region is convex and contains its seed, a feasible grid
 node (feasible includes "connected to home through feasible nodes"). P contains
@@ -34,18 +48,14 @@ the home node, so every point of P joins home by a straight segment inside P. A
 region joined to P by a path in the region graph joins home too: go straight to
 the overlap's centre (inside both regions, convexity), then on to the next region,
 and so on to P and home — every piece is a straight segment inside one region,
-hence inside P′. Regions outside P's component of the graph (see
+hence certified. Regions outside P's component of the graph (see
 :meth:`RegionCover.components`) are joined to home only through the grid's
 6-connected feasible nodes, not (yet) through regions; the planner cannot use them
 from home.
 
-**Why the cap binds before the target on a coarse grid.** A feasible node whose face
-neighbour in direction ±e_k is infeasible lies inside a face of that neighbour's
-obstacle cube, so the only plane that can bound a region holding it is θ_k = const
-through the node: a region holds such "terrace" nodes of one level per direction
-only. On the 2° Agile Wrist grid 1,725 feasible nodes are of this kind (over ~32
-levels per direction), and greedy growth needs ~400 regions for 99 % of the nodes
-(97 % with 64). Finer obstacles near the boundary (refined cells) lift this limit.
+**What stays uncovered** (refined). A feasible node with an infeasible fine node within h (the true
+boundary passes within 0.5° of it on the 2° grid) can only lie on a region's face; these
+~0.8 % of the nodes are not used as seeds.
 
 Angles in degrees (θ) at this interface.
 """
@@ -59,13 +69,23 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import QhullError
 
 from spm_console.core import region_build as rb
-from spm_console.core.ellipsoid import Ellipsoid, inscribed_ellipsoid
-from spm_console.core.iris import Frame, reduce_halfspaces, separating_planes
+from spm_console.core.cover_graph import S_CYCLIC
+from spm_console.core.cover_graph import overlap_graph as overlap_graph
+from spm_console.core.cover_grow import SEED_WINDOW as SEED_WINDOW
+from spm_console.core.cover_grow import Grower, Reporter, deepest_seed, dense_seed
+from spm_console.core.cover_refine import (
+    FineObstacles,
+    refine_cells,
+    region_clear,
+    uncertified_cells,
+)
+from spm_console.core.iris import Frame, half_widths
+from spm_console.core.refine import FineGrid
 from spm_console.core.region import Region
 from spm_console.errors import InfeasibleError, SolverError
 
@@ -80,6 +100,8 @@ I64 = NDArray[np.int64]
 COVER_TARGET = 0.99
 #: Most regions in a cover, P included (bounds the build time and the overlap graph).
 COVER_MAX_REGIONS = 28
+#: Most regions of a refined cover (``refined=True``), P included.
+REFINED_MAX_REGIONS = 64
 #: Most half-spaces of a cover region (P keeps the profile's limit).
 COVER_HALFSPACES = 24
 #: IRIS steps per cover region (the best one by new coverage is kept).
@@ -91,8 +113,9 @@ MIN_OVERLAP_STEPS = 0.25
 CONNECTOR_REACH_STEPS = 8
 #: Tolerance (deg) for "a node lies in a region".
 INSIDE_TOL_DEG = 1e-7
-#: Cyclic permutation θ ↦ (θ2, θ3, θ1) as a matrix: σ(θ) = S θ.
-_S = np.eye(3)[[1, 2, 0]]
+#: Points per membership test of P while the cover build starts (bounds the report gaps).
+CONTAINS_CHUNK = 50_000
+_S = S_CYCLIC
 
 
 @dataclass(frozen=True)
@@ -116,7 +139,15 @@ class RegionCover:
     covered: float
     """Fraction of the workspace's feasible nodes inside at least one region."""
     seconds: float = 0.0
-    """Wall time of the build (regions + graph), s."""
+    """Wall time of the build (refinement + regions + graph), s."""
+    resolution_deg: float | None = None
+    """Fine resolution h of the refined obstacles the regions avoid (None: the grid's)."""
+    refined_cells: int = 0
+    """Grid cells refined for the build."""
+    fine_nodes: int = 0
+    """Fine nodes of those cells (checked exactly, memoized)."""
+    refine_seconds: float = 0.0
+    """Wall time of the refinement alone, s."""
 
     @property
     def size(self) -> int:
@@ -199,115 +230,42 @@ def _image(region: Region) -> Region:
     return Region(region.A @ _S.T, region.b.copy())
 
 
-@dataclass
-class _Grower:
-    """IRIS for cover regions (fewer steps and rows than P), in P's scaled frame."""
-
-    frame: Frame
-    Q: F
-    half: float
-    max_halfspaces: int
-    iters: int
-    step_deg: float
-
-    def grow(self, seed_deg: F, objective_deg: F) -> Region:
-        fr = self.frame
-        req = fr.to_x(seed_deg).reshape(1, 3)
-        Abox = np.vstack([np.eye(3), -np.eye(3)])
-        E = Ellipsoid.ball(fr.to_x(seed_deg), self.step_deg / fr.s)
-        best: Region | None = None
-        best_n = -1
-        for it in range(self.iters):
-            Ap, bp = separating_planes(E, self.Q, self.half, req)
-            cand = fr.region(np.vstack([Abox, Ap]), np.r_[np.ones(6), bp]).without_redundant()
-            n = int(cand.contains(objective_deg, tol=INSIDE_TOL_DEG).sum())
-            if n > best_n:
-                best, best_n = cand, n
-            if it + 1 < self.iters:
-                try:
-                    E = inscribed_ellipsoid(cand.A * fr.s, cand.b - cand.A @ fr.c)
-                except SolverError:
-                    break
-        assert best is not None
-        if best.halfspaces > self.max_halfspaces:
-            best = reduce_halfspaces(best, fr, self.Q, self.half, req, self.max_halfspaces,
-                                        objective_deg)
-        return best
-
-
-def _deepest(uncovered: B) -> tuple[int, int, int]:
-    """Index of the node deepest inside ``uncovered`` (Euclidean distance transform; the
-    grid box's faces do not count as its boundary); ties go to the first in C order."""
-    d = ndimage.distance_transform_edt(uncovered)
-    i = np.unravel_index(int(np.argmax(d)), d.shape)
-    return (int(i[0]), int(i[1]), int(i[2]))
-
-
-def _bbox(region: Region) -> tuple[F, F]:
-    V = region.vertices()
-    if len(V) == 0:
-        return np.full(3, np.inf), np.full(3, -np.inf)
-    return V.min(0), V.max(0)
-
-
-def overlap_graph(regions: tuple[Region, ...], min_radius_deg: float,
-                  symmetric: bool = False) -> tuple[I64, F, F]:
-    """Edges (m, 2), Chebyshev centres (m, 3) and radii (m,) of the pairwise intersections
-    with an inscribed ball of radius ≥ ``min_radius_deg`` (one LP per pair whose bounding
-    boxes, shrunk by that radius, still meet). With ``symmetric`` the regions come in
-    orbits (i, i+1, i+2 = r, σr, σ²r) after region 0, and a pair's images are not solved
-    again."""
-    k = len(regions)
-    boxes = [_bbox(r) for r in regions]
-    lo = np.array([b[0] for b in boxes]).reshape(k, 3)
-    hi = np.array([b[1] for b in boxes]).reshape(k, 3)
-    found: dict[tuple[int, int], tuple[F, float]] = {}
-    done: set[tuple[int, int]] = set()
-
-    def orbit(i: int) -> list[int]:
-        if not symmetric or i == 0:
-            return [i, i, i]
-        base = 1 + 3 * ((i - 1) // 3)
-        o = (i - 1) % 3
-        return [base + (o + s) % 3 for s in range(3)]
-
-    for i in range(k):
-        for j in range(i + 1, k):
-            if (i, j) in done:
-                continue
-            if ((np.minimum(hi[i], hi[j]) - np.maximum(lo[i], lo[j])) < 2 * min_radius_deg).any():
-                continue
-            both = Region(np.vstack([regions[i].A, regions[j].A]), np.r_[regions[i].b, regions[j].b])
-            c, r = both.chebyshev()
-            if symmetric and (i == 0 or j == 0):
-                images = [(i, j)]  # P has no images
-            else:
-                oi, oj = orbit(i), orbit(j)
-                images = [(oi[s], oj[s]) for s in range(3)] if symmetric else [(i, j)]
-            for s, (a, b) in enumerate(images):
-                key = (min(a, b), max(a, b))
-                if key in done:
-                    continue
-                done.add(key)
-                if r >= min_radius_deg:
-                    pt = np.linalg.matrix_power(_S, s) @ c
-                    found[key] = (pt, r)
-    keys = sorted(found)
-    edges = np.array(keys, np.int64).reshape(-1, 2)
-    pts = np.array([found[q][0] for q in keys], float).reshape(-1, 3)
-    rad = np.array([found[q][1] for q in keys], float)
-    return edges, pts, rad
+def _obstacles(ws: Workspace, covered: B, fidx: I64, fine: FineGrid | None, refined: bool,
+               report: Callable[[float], None]) -> tuple[F, F, FineObstacles | None]:
+    """(centres (n, 3) deg, half-widths (n,) deg, the refined set or None): with ``refined``
+    and the workspace's models, refined near the nodes P leaves uncovered, else the grid's
+    cubes."""
+    if not refined or ws.model is None or ws.links is None:
+        return rb.obstacle_nodes(ws.feasible, ws.theta_deg()), np.full(1, ws.step_deg), None
+    want = np.zeros(ws.feasible.shape, bool)
+    want[tuple(fidx[~covered].T)] = True
+    fg = FineGrid(ws) if fine is None else fine
+    report(0.0)
+    obs = refine_cells(ws, fg, want, report)
+    return obs.centres_deg, obs.half_deg, obs
 
 
 def build_cover(
-    ws: Workspace, target: float = COVER_TARGET, max_regions: int = COVER_MAX_REGIONS,
+    ws: Workspace, target: float = COVER_TARGET, max_regions: int | None = None,
     max_halfspaces: int = COVER_HALFSPACES, iters: int = COVER_ITERS,
     min_overlap_deg: float | None = None, progress: Callable[[float], None] | None = None,
+    fine: FineGrid | None = None, refined: bool = False,
 ) -> RegionCover:
     """Grow regions from the workspace's P (``ws.region``) until ``target`` of the feasible
-    nodes are covered or ``max_regions`` regions exist, then build the overlap graph.
-    ``min_overlap_deg`` defaults to MIN_OVERLAP_STEPS · Δ."""
+    nodes are covered or ``max_regions`` regions exist (default :data:`COVER_MAX_REGIONS`,
+    refined :data:`REFINED_MAX_REGIONS`), then build the overlap graph. ``min_overlap_deg``
+    defaults to MIN_OVERLAP_STEPS · Δ.
+
+    By default the regions avoid the grid's obstacle cubes and seeds are the uncovered nodes
+    deepest inside the uncovered set (fast; ~96.5 % on the 2° Agile Wrist grid). With
+    ``refined`` (and the workspace's models) they avoid the refined obstacles instead
+    (:mod:`spm_console.core.cover_refine`; ``fine`` memoizes the exact checks), seeds go by
+    local density, and every region is checked clear (≥ 99 %, several times slower)."""
+    if max_regions is None:
+        max_regions = REFINED_MAX_REGIONS if refined else COVER_MAX_REGIONS
     t0 = time.perf_counter()
+    report = Reporter(progress)
+    report(0.0, force=True)
     rmin = MIN_OVERLAP_STEPS * ws.step_deg if min_overlap_deg is None else float(min_overlap_deg)
     f = ws.feasible
     theta = ws.theta_deg()
@@ -316,72 +274,92 @@ def build_cover(
     home = np.asarray(theta[ws.home_index], float)
     regions: list[Region] = [ws.region]
     seeds: list[F] = [home]
-    covered = ws.region.contains(fpts, tol=INSIDE_TOL_DEG) if len(fpts) else np.zeros(0, bool)
+    covered = np.zeros(len(fpts), bool)
+    for c in range(0, len(fpts), CONTAINS_CHUNK):  # in pieces: 1.4 s for P on the 1° grid
+        covered[c:c + CONTAINS_CHUNK] = ws.region.contains(fpts[c:c + CONTAINS_CHUNK],
+                                                          tol=INSIDE_TOL_DEG)
+        report(0.0)
+    need = int(np.ceil(target * len(fpts)))
+    refine_share = 0.5 if refined else 0.0
+    obs: FineObstacles | None = None
+    if int(covered.sum()) < need:
+        centres, half, obs = _obstacles(ws, covered, fidx, fine, refined,
+                                        lambda x: report(refine_share * x))
+    else:
+        centres, half = np.zeros((0, 3)), np.zeros(1)
+    t_refine = time.perf_counter() - t0 if obs is not None else 0.0
+    report(refine_share)
     symmetric = cyclic_symmetric(ws)
+    orbits = symmetric
     lo, hi = ws.range_deg()
     frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
-    grower = _Grower(frame, frame.to_x(rb.obstacle_nodes(f, theta)), ws.step_deg / frame.s,
-                     max_halfspaces, iters, ws.step_deg)
-    need = int(np.ceil(target * len(fpts)))
-    tried = np.zeros(f.shape, bool)
+    frac = [refine_share]
+    grower = Grower(frame, frame.to_x(centres), half_widths(half, len(centres)) / frame.s,
+                     max_halfspaces, iters, ws.step_deg, tick=lambda: report(frac[0]))
+    # a node a region can hold in its interior: every fine cell around it clear
+    easy = obs.node_clear(fidx) if obs is not None else np.ones(len(fidx), bool)
+    report(refine_share)
+    tried = np.zeros(len(fidx), bool)
+    pos = np.full(f.shape, -1, np.int64)
+    pos[f] = np.arange(len(fidx))
     group = 3 if symmetric else 1
+    start = int(covered.sum())
     while int(covered.sum()) < need and len(regions) + group <= max_regions:
-        unc = np.zeros(f.shape, bool)
-        unc[tuple(fidx[~covered].T)] = True
-        unc &= ~tried
-        if not unc.any():
+        cand = ~covered & ~tried & easy
+        if not cand.any():
             break
-        i = _deepest(unc)
-        tried[i] = True
-        seed = np.asarray(theta[i], float)
+        j = dense_seed(f, fidx, ~covered, cand) if obs is not None else deepest_seed(f, fidx, cand)
+        tried[j] = True
+        seed = np.asarray(fpts[j], float)
         try:
             reg = grower.grow(seed, fpts[~covered])
-        except (InfeasibleError, SolverError):
+        except (InfeasibleError, SolverError, QhullError):
             continue
         new = [reg, _image(reg), _image(_image(reg))] if symmetric else [reg]
-        news = [seed, _S @ seed, _S @ _S @ seed] if symmetric else [seed]
+        news = [seed, S_CYCLIC @ seed, S_CYCLIC @ S_CYCLIC @ seed] if symmetric else [seed]
         for r, s in zip(new, news, strict=True):
+            # the refined obstacles need not be symmetric: every region is checked
+            report(frac[0])
+            if obs is not None and not region_clear(r, obs):
+                orbits = False
+                continue
             rest = ~covered
             covered[rest] = r.contains(fpts[rest], tol=INSIDE_TOL_DEG)
             regions.append(r)
             seeds.append(s)
-        if symmetric:
-            for s in news[1:]:
-                j = ws.index_of(s)
-                if j is not None:
-                    tried[j] = True
-        if progress is not None:
-            progress(min(1.0, len(regions) / max_regions))
-    edges, pts, rad = overlap_graph(tuple(regions), rmin, symmetric)
-    if progress is not None:
-        progress(1.0)
+        for s in news[1:]:
+            k = ws.index_of(s)
+            if k is not None and pos[k] >= 0:
+                tried[pos[k]] = True
+        done = (int(covered.sum()) - start) / max(need - start, 1)
+        frac[0] = refine_share + (0.9 - refine_share) * done
+        report(frac[0], force=True)
+    edges, pts, rad = overlap_graph(tuple(regions), rmin, orbits,
+                                    tick=lambda x: report(0.9 + 0.1 * x))
+    report(1.0, force=True)
     return RegionCover(
         regions=tuple(regions), seeds_deg=np.array(seeds, float).reshape(-1, 3), edges=edges,
         edge_points_deg=pts, edge_radius_deg=rad, min_overlap_deg=rmin,
         covered=float(covered.mean()) if len(fpts) else 0.0,
         seconds=time.perf_counter() - t0,
+        resolution_deg=None if obs is None else obs.h_deg,
+        refined_cells=0 if obs is None else obs.refined_cells,
+        fine_nodes=0 if obs is None else obs.fine_nodes,
+        refine_seconds=t_refine,
     )
 
 
-def uncertified_regions(ws: Workspace, cover: RegionCover, tol_deg: float = 1e-7) -> list[int]:
-    """Regions whose interior meets an obstacle cube (open, half-width Δ, around an
-    infeasible node with a feasible 26-neighbour): empty for a certified cover. Exact:
-    a cube is clear when one row's minimum over it reaches that row's offset; otherwise
-    (several rows exclude it together) when the region ∩ closed cube holds no ball of
-    radius > ``tol_deg`` (LP)."""
-    Q = rb.obstacle_nodes(ws.feasible, ws.theta_deg())
-    h = ws.step_deg
-    box = np.vstack([np.eye(3), -np.eye(3)])
-    bad = []
-    for k, r in enumerate(cover.regions):
-        Rn = r.normalized()
-        mins = Q @ Rn.A.T - h * np.abs(Rn.A).sum(1)
-        for q in Q[~(mins >= Rn.b - tol_deg).any(1)]:
-            both = Region(np.vstack([Rn.A, box]), np.r_[Rn.b, q + h, h - q])
-            if both.chebyshev()[1] > tol_deg:
-                bad.append(k)
-                break
-    return bad
+def uncertified_regions(ws: Workspace, cover: RegionCover, fine: FineGrid | None = None,
+                        tol_deg: float = 1e-7) -> list[int]:
+    """Regions not inside the certified set (grid or fine criterion of
+    :class:`~spm_console.core.refine.RefinedCertifiedSet`): empty for a certified cover.
+    Exact and independent of the build's obstacle list
+    (:func:`~spm_console.core.cover_refine.uncertified_cells`: every fine cell of a bad grid
+    cell the region's interior meets must have exactly feasible corners; ``fine`` memoizes
+    the verdicts, a fresh :class:`~spm_console.core.refine.FineGrid` by default)."""
+    fg = FineGrid(ws) if fine is None else fine
+    return [k for k, r in enumerate(cover.regions)
+            if len(uncertified_cells(ws, r, fg, tol_deg))]
 
 
 def connector_regions(ws: Workspace, cover: RegionCover, points_deg: F,
@@ -395,7 +373,7 @@ def connector_regions(ws: Workspace, cover: RegionCover, points_deg: F,
     lo, hi = ws.range_deg()
     frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
     theta = ws.theta_deg()
-    grower = _Grower(frame, frame.to_x(rb.obstacle_nodes(ws.feasible, theta)),
+    grower = Grower(frame, frame.to_x(rb.obstacle_nodes(ws.feasible, theta)),
                      ws.step_deg / frame.s, COVER_HALFSPACES, iters, ws.step_deg)
     feasible = theta[ws.feasible]
     new: list[Region] = []

@@ -9,6 +9,7 @@ x = (θ − centre) / half-range (:class:`Frame`); degrees where a docstring say
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,14 +174,16 @@ def is_box_row(a: F) -> bool:
 
 
 def reduce_halfspaces(
-    region: Region, frame: Frame, Q: F, half: float | F, req: F, max_n: int, pts: F
+    region: Region, frame: Frame, Q: F, half: float | F, req: F, max_n: int, pts: F,
+    tick: Callable[[], None] | None = None,
 ) -> Region:
     """Greedy plane removal: drop a plane and hand the obstacles only it excluded to
     the other planes by lowering their offsets (never cutting a required point).
     Each round drops the plane that loses the fewest of ``pts`` (deg) — often a
     net gain, since the freed region can exceed what the lowered planes cut.
     Rounds continue while there are more than ``max_n`` rows or a drop gains.
-    Grid-box rows are kept. ``half``: the cubes' half-width, one value or one per cube."""
+    Grid-box rows are kept. ``half``: the cubes' half-width, one value or one per cube.
+    ``tick()`` is called every round (progress; may raise to cancel)."""
     A, b = region.A.copy(), region.b.copy()
     box = frame.region(np.vstack([np.eye(3), -np.eye(3)]), np.ones(6))
     Qd = Q * frame.s + frame.c
@@ -188,6 +191,8 @@ def reduce_halfspaces(
     reqd = req * frame.s + frame.c
     tol = INSIDE_TOL_DEG
     while True:
+        if tick is not None:
+            tick()
         n = len(b)
         mins = Qd @ A.T - hd * np.abs(A).sum(1)  # (n_obs, n) min of a·θ over each cube
         excl = mins >= b - 1e-9

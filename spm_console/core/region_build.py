@@ -58,6 +58,8 @@ VOLUME_TOL = 0.02
 MAX_ITERS = 6
 #: Feasible nodes used as the objective of the heuristics (random subset beyond this).
 OBJECTIVE_POINTS = 20_000
+#: Feasible nodes per piece of P's final coverage count (bounds the gap between reports).
+COVERAGE_CHUNK = 50_000
 
 
 @dataclass(frozen=True)
@@ -139,8 +141,14 @@ def _iris(
         if it > 1 and grow < np.log1p(VOLUME_TOL):
             break
     assert best is not None
-    final = reduce_halfspaces(best.region, frame, Q, half, req, max_halfspaces, obj)
-    cov = float(inside(final, feas_pts).mean()) if len(feas_pts) else 0.0
+    final = reduce_halfspaces(best.region, frame, Q, half, req, max_halfspaces, obj,
+                              tick=None if progress is None else lambda: progress(it / MAX_ITERS))
+    n_in = 0
+    for c in range(0, len(feas_pts), COVERAGE_CHUNK):  # in pieces: ~1.3 s on the 1° grid
+        n_in += int(inside(final, feas_pts[c:c + COVERAGE_CHUNK]).sum())
+        if progress is not None:
+            progress(it / MAX_ITERS)
+    cov = n_in / len(feas_pts) if len(feas_pts) else 0.0
     return RegionBuild(final, cov, it, best.obstacles, best.log_volume,
                        time.perf_counter() - t0, best.iris_planes)
 

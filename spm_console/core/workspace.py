@@ -37,7 +37,7 @@ B = NDArray[np.bool_]
 
 #: Version of the workspace algorithm and its stored arrays (part of the cache key):
 #: bump it whenever the grid, classification or region construction changes.
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 #: Nodes per chunk of the link-distance computation (bounds temporary memory).
 LINK_CHUNK = 1024
 #: Neighbourhood of the home-connectivity flood fill: 6 = face neighbours.
@@ -255,9 +255,14 @@ def build_grid(spec: GridSpec, progress: Progress | None = None) -> Workspace:
     reached = g.reached.ravel()
     th = g.theta().reshape(-1, 3)[reached]
     Rr = g.R.reshape(-1, 3, 3)[reached]
+    links_progress = _stage(progress, "links")
+    if links_progress is not None:
+        links_progress(0.0)
     w = model.geom.w(th)
+    if links_progress is not None:
+        links_progress(0.0)
     v = platform_axes(Rr, model.v_home)
-    d_r, k_r = link_distances(links, model.u, w, v, progress=_stage(progress, "links"))
+    d_r, k_r = link_distances(links, model.u, w, v, progress=links_progress)
     dmin = np.full(reached.size, np.nan)
     dmin[reached] = d_r
     pair = np.full(reached.size, -1, np.int16)
@@ -278,8 +283,9 @@ def build_grid(spec: GridSpec, progress: Progress | None = None) -> Workspace:
 
 
 def build_workspace(spec: GridSpec, progress: Progress | None = None,
-                    cover: bool = True) -> Workspace:
-    """Grid (Algorithm 2) plus the convex region P and (``cover``) the region cover;
+                    cover: bool = True, refined_cover: bool = False) -> Workspace:
+    """Grid (Algorithm 2) plus the convex region P and (``cover``) the region cover, refined
+    near the boundary with ``refined_cover`` (:func:`~spm_console.core.cover.build_cover`);
     ``progress(stage, fraction)`` if given."""
     from dataclasses import replace
 
@@ -296,7 +302,7 @@ def build_workspace(spec: GridSpec, progress: Progress | None = None,
                   region_info={**res.info(),
                                "max_halfspaces": float(spec.max_halfspaces)})
     if cover:
-        rc = build_cover(out, progress=_stage(progress, "cover"))
+        rc = build_cover(out, progress=_stage(progress, "cover"), refined=refined_cover)
         out = replace(out, cover=rc, seconds=time.perf_counter() - t0)
     if progress is not None:
         progress("done", 1.0)

@@ -6,7 +6,8 @@ A different key means stale: rebuild and overwrite. A corrupt or truncated file
 (zip CRC, missing arrays, wrong shapes) gives a clear message and is rebuilt; a file
 of an older format is stale by its key (read before anything else). The region cover
 (:mod:`spm_console.core.cover`) is stored with the grid, P excluded (it is
-``region_A``/``region_b``), under the same content digest.
+``region_A``/``region_b``), under the same content digest: only its regions and graph (the
+fine verdicts of its refinement are not stored; the runtime checks fine nodes itself).
 Writes are atomic: a temporary file in the same directory, fsync, ``os.replace``.
 
 Default directory: ``$SPM_CONSOLE_CACHE`` if set, else ``~/.cache/spm_console``.
@@ -33,8 +34,10 @@ from spm_console.core import region_build
 from spm_console.core import workspace as core_ws
 from spm_console.core.cover import RegionCover
 from spm_console.core.kinematics import NEWTON_TOL, PATH_ZETA_FLOOR
+from spm_console.core.refine import REFINE
 from spm_console.core.region import Region
 from spm_console.core.workspace import Progress, Workspace
+from spm_console.core.workspace_check import STEP_RAD
 from spm_console.errors import CacheError
 from spm_console.models import build_workspace, grid_axes_deg, link_model_of, model_of
 from spm_console.profile import Profile
@@ -100,8 +103,9 @@ def default_cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "spm_console"
 
 
-def cache_key(profile: Profile) -> str:
-    """SHA-256 over the profile sections and constants the workspace depends on."""
+def cache_key(profile: Profile, refined_cover: bool = False) -> str:
+    """SHA-256 over the profile sections and constants the workspace depends on, and the build
+    option ``refined_cover`` (a refined and a default cover never share a key)."""
     blob = json.dumps({
         "format": core_ws.FORMAT_VERSION,
         "sections": profile.section_digest("geometry", "home", "links", "workspace"),
@@ -113,17 +117,23 @@ def cache_key(profile: Profile) -> str:
                       core_cover.COVER_HALFSPACES, core_cover.COVER_ITERS,
                       core_cover.MIN_OVERLAP_STEPS],
         },
+        # the refined cover's own constants only in its key (the default key is unchanged)
+        **({"refined_cover": [core_cover.REFINED_MAX_REGIONS, core_cover.SEED_WINDOW, REFINE,
+                              STEP_RAD]} if refined_cover else {}),
     }, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def cache_path(profile: Profile, cache_dir: Path | None = None) -> Path:
-    """One file per profile name and grid step (a 1° workspace built for the paper's
-    minimum-time pair does not evict the profile's own 2° one); any other change rebuilds it."""
+def cache_path(profile: Profile, cache_dir: Path | None = None,
+               refined_cover: bool = False) -> Path:
+    """One file per profile name, grid step and cover kind (a 1° workspace built for the
+    paper's minimum-time pair does not evict the profile's own 2° one, nor a refined cover the
+    default one); any other change rebuilds it."""
     d = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in profile.name)
     step = f"{float(profile.workspace.step_deg):g}".replace(".", "p")
-    return d / f"workspace-{safe}-{step}deg.npz"
+    kind = "-refined" if refined_cover else ""
+    return d / f"workspace-{safe}-{step}deg{kind}.npz"
 
 
 def save(ws: Workspace, path: Path, key: str) -> None:
@@ -140,7 +150,9 @@ def save(ws: Workspace, path: Path, key: str) -> None:
     data.update(_cover_arrays(ws.cover))
     meta["cover"] = None if ws.cover is None else {
         "covered": ws.cover.covered, "min_overlap_deg": ws.cover.min_overlap_deg,
-        "seconds": ws.cover.seconds}
+        "seconds": ws.cover.seconds, "resolution_deg": ws.cover.resolution_deg,
+        "refined_cells": ws.cover.refined_cells, "fine_nodes": ws.cover.fine_nodes,
+        "refine_seconds": ws.cover.refine_seconds}
     meta["content"] = content_digest(data)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -212,6 +224,10 @@ def _cover_of(d: dict[str, Any], p: Region, info: object) -> RegionCover | None:
         regions=regions, seeds_deg=seeds, edges=edges, edge_points_deg=pts,
         edge_radius_deg=rad, min_overlap_deg=float(info["min_overlap_deg"]),
         covered=float(info["covered"]), seconds=float(info["seconds"]),
+        resolution_deg=None if info.get("resolution_deg") is None
+        else float(info["resolution_deg"]),
+        refined_cells=int(info.get("refined_cells", 0)), fine_nodes=int(info.get("fine_nodes", 0)),
+        refine_seconds=float(info.get("refine_seconds", 0.0)),
     )
 
 
@@ -285,14 +301,17 @@ def load(path: Path, profile: Profile, key: str) -> Workspace:
 
 def load_or_build(
     profile: Profile, cache_dir: Path | str | None = None, force: bool = False,
-    progress: Progress | None = None,
+    progress: Progress | None = None, refined_cover: bool = False,
 ) -> tuple[Workspace, CacheInfo]:
     """The profile's workspace from the cache, or built (and cached) when missing,
-    stale, corrupt or ``force``. ``progress(stage, fraction)`` reports a build."""
-    path = cache_path(profile, Path(cache_dir) if cache_dir is not None else None)
+    stale, corrupt or ``force``. ``progress(stage, fraction)`` reports a build.
+    ``refined_cover``: the workspace whose region cover is refined near the boundary
+    (≥ 99 % of the feasible nodes, a slower build; its own cache file and key)."""
+    path = cache_path(profile, Path(cache_dir) if cache_dir is not None else None,
+                      refined_cover)
     if path.parent.exists() and not path.parent.is_dir():
         raise CacheError(f"workspace cache folder {path.parent} is not a folder")
-    key = cache_key(profile)
+    key = cache_key(profile, refined_cover)
     why = "forced"
     load_s = 0.0
     if not force:
@@ -309,7 +328,9 @@ def load_or_build(
             why = exc.message
         load_s = time.perf_counter() - t0
     t1 = time.perf_counter()
-    ws = build_workspace(profile, progress)
+    # the option is passed only when set: the default call is the plain (profile, progress)
+    ws = (build_workspace(profile, progress, refined_cover=True) if refined_cover
+          else build_workspace(profile, progress))
     build_s = time.perf_counter() - t1
     write_error = ""
     try:

@@ -1,0 +1,82 @@
+"""The overlap graph of a region cover: which regions share a ball of a given radius.
+
+Angles in degrees at this interface.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import QhullError
+
+from spm_console.core.region import Region
+
+F = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+#: Cyclic permutation θ ↦ (θ2, θ3, θ1) as a matrix: σ(θ) = S θ.
+S_CYCLIC = np.eye(3)[[1, 2, 0]]
+
+
+def _bbox(region: Region) -> tuple[F, F]:
+    try:
+        V = region.vertices()
+    except QhullError:  # too thin for qhull: no pruning for this region
+        return np.full(3, -np.inf), np.full(3, np.inf)
+    if len(V) == 0:
+        return np.full(3, np.inf), np.full(3, -np.inf)
+    return V.min(0), V.max(0)
+
+
+def overlap_graph(regions: tuple[Region, ...], min_radius_deg: float,
+                  symmetric: bool = False,
+                  tick: Callable[[float], None] | None = None) -> tuple[I64, F, F]:
+    """Edges (m, 2), Chebyshev centres (m, 3) and radii (m,) of the pairwise intersections
+    with an inscribed ball of radius ≥ ``min_radius_deg`` (one LP per pair whose bounding
+    boxes, shrunk by that radius, still meet). With ``symmetric`` the regions come in
+    orbits (i, i+1, i+2 = r, σr, σ²r) after region 0, and a pair's images are not solved
+    again. ``tick(fraction)`` is called after every LP (progress; may raise to cancel)."""
+    k = len(regions)
+    boxes = [_bbox(r) for r in regions]
+    lo = np.array([b[0] for b in boxes]).reshape(k, 3)
+    hi = np.array([b[1] for b in boxes]).reshape(k, 3)
+    found: dict[tuple[int, int], tuple[F, float]] = {}
+    done: set[tuple[int, int]] = set()
+
+    def orbit(i: int) -> list[int]:
+        if not symmetric or i == 0:
+            return [i, i, i]
+        base = 1 + 3 * ((i - 1) // 3)
+        o = (i - 1) % 3
+        return [base + (o + s) % 3 for s in range(3)]
+
+    for i in range(k):
+        for j in range(i + 1, k):
+            if (i, j) in done:
+                continue
+            if ((np.minimum(hi[i], hi[j]) - np.maximum(lo[i], lo[j])) < 2 * min_radius_deg).any():
+                continue
+            both = Region(np.vstack([regions[i].A, regions[j].A]), np.r_[regions[i].b, regions[j].b])
+            c, r = both.chebyshev()
+            if tick is not None:
+                tick((i + (j - i) / (k - i)) / k)
+            if symmetric and (i == 0 or j == 0):
+                images = [(i, j)]  # P has no images
+            else:
+                oi, oj = orbit(i), orbit(j)
+                images = [(oi[s], oj[s]) for s in range(3)] if symmetric else [(i, j)]
+            for s, (a, b) in enumerate(images):
+                key = (min(a, b), max(a, b))
+                if key in done:
+                    continue
+                done.add(key)
+                if r >= min_radius_deg:
+                    pt = np.linalg.matrix_power(S_CYCLIC, s) @ c
+                    found[key] = (pt, r)
+    keys = sorted(found)
+    edges = np.array(keys, np.int64).reshape(-1, 2)
+    pts = np.array([found[q][0] for q in keys], float).reshape(-1, 3)
+    rad = np.array([found[q][1] for q in keys], float)
+    return edges, pts, rad
