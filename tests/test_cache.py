@@ -222,3 +222,29 @@ def test_a_refined_cover_has_its_own_key_and_file(tmp_path: Path,
     cache_path(prof, tmp_path).write_bytes(i1.path.read_bytes())
     _, i4 = load_or_build(prof, tmp_path)
     assert not i4.hit and i4.rebuilt_because.startswith("stale key")
+
+
+def test_the_profile_chooses_the_refined_cover_for_every_loader(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``workspace.refined_cover = true`` in a profile: every caller of load_or_build (the
+    runtime, plan, the console) gets the refined workspace without passing the option;
+    plan hashes do not depend on it (the runtime verifies against its own certified set)."""
+    from spm_console.profile import parse_profile
+    from spm_console.store.plan_file import plan_hash
+
+    prof = with_step(agile_profile(), 5.0)
+    data = prof.model_dump(mode="json")
+    data["workspace"] = {**data["workspace"], "refined_cover": True}
+    refined = parse_profile(data, "test")
+    asked: list[bool] = []
+
+    def fake_build(profile, progress=None, refined_cover=False):  # type: ignore[no-untyped-def]
+        asked.append(refined_cover)
+        return coarse_workspace()
+
+    monkeypatch.setattr(wc, "build_workspace", fake_build)
+    _, info = load_or_build(refined, tmp_path)
+    assert asked == [True] and info.path == cache_path(prof, tmp_path, refined_cover=True)
+    _, info = load_or_build(refined, tmp_path, refined_cover=False)  # an explicit choice wins
+    assert asked == [True, False] and info.path == cache_path(prof, tmp_path)
+    assert plan_hash(refined) == plan_hash(prof)

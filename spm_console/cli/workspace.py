@@ -88,7 +88,7 @@ def _load(args: argparse.Namespace, force: bool = False,
     profile = profile or profile_of(args)
     prog = _progress if sys.stderr.isatty() else None
     ws, ci = load_or_build(profile, args.cache_dir, force=force, progress=prog,
-                           refined_cover=args.refined_cover)
+                           refined_cover=args.refined_cover or None)
     if not ci.hit:
         info(f"workspace built in {ci.build_seconds:.2f} s ({ci.rebuilt_because})")
     if ci.write_error:

@@ -301,12 +301,15 @@ def load(path: Path, profile: Profile, key: str) -> Workspace:
 
 def load_or_build(
     profile: Profile, cache_dir: Path | str | None = None, force: bool = False,
-    progress: Progress | None = None, refined_cover: bool = False,
+    progress: Progress | None = None, refined_cover: bool | None = None,
 ) -> tuple[Workspace, CacheInfo]:
     """The profile's workspace from the cache, or built (and cached) when missing,
     stale, corrupt or ``force``. ``progress(stage, fraction)`` reports a build.
     ``refined_cover``: the workspace whose region cover is refined near the boundary
-    (≥ 99 % of the feasible nodes, a slower build; its own cache file and key)."""
+    (≥ 99 % of the feasible nodes, a slower build; its own cache file and key); by
+    default the profile's ``workspace.refined_cover``."""
+    if refined_cover is None:
+        refined_cover = profile.workspace.refined_cover
     path = cache_path(profile, Path(cache_dir) if cache_dir is not None else None,
                       refined_cover)
     if path.parent.exists() and not path.parent.is_dir():
