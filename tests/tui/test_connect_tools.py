@@ -130,6 +130,9 @@ async def test_jog_only_when_homed_with_a_confirmation(console, tmp_path) -> Non
         field.focus()
         await pilot.press("backspace", "1", "2", ",", "5")
         assert field.value == "12,5"
+        # focused, the one-line field keeps no border (a border would take its only line
+        # and hide the text being typed)
+        assert field.has_focus and field.styles.border_top[0] in ("", "none")
         assert "decimals take a point" in text_of(app, "#jog-note")
         await pilot.press("ctrl+u", *"0.000000000001")  # longer than fits: kept, refused
         assert field.value == "0.000000000001"

@@ -14,7 +14,7 @@ from spm_console.errors import BadInputError
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.number import FIELD_CHARS, NumberField, NumberRow
 from spm_console.tui.widgets.rules import rpy_rules, steps_rule, theta_rules, vmax_rule
-from tests.tui.helpers import settle, status_of
+from tests.tui.helpers import settle, status_of, text_of
 
 SMALL = (80, 24)
 LARGE = (160, 48)
@@ -133,6 +133,9 @@ async def test_invalid_fields_are_marked_with_the_reason_and_refuse_the_solve(co
         goal = app.screen.query_one("#goal-values", AnglesInput)
         steps = app.screen.query_one("#steps-row", NumberRow)
         vmax = app.screen.query_one("#vmax-row", NumberRow)
+        await pilot.press("s")  # a plan from the defaults, which a refused solve must drop
+        await settle(pilot)
+        assert app.session.plan is not None, status_of(app)
         for widget, field, text, reason in [
             (goal, goal.fields[1], "250", "goal θ2: 250 is outside the servo limits 60…160°"),
             (goal, goal.fields[0], "12,5", "goal θ1: '12,5' is not a number"),
@@ -147,8 +150,10 @@ async def test_invalid_fields_are_marked_with_the_reason_and_refuse_the_solve(co
             assert reason_under(widget).startswith(reason), reason_under(widget)
             await pilot.press("escape", "s")  # leave the field, ask to solve
             await settle(pilot)
-            assert status_of(app).startswith(f"Solve refused: {reason}"), status_of(app)
-            assert app.session.plan is None  # nothing was solved
+            assert status_of(app).startswith(f"Solve refused (no plan now): {reason}"), \
+                status_of(app)
+            assert app.session.plan is None  # nothing solved, the previous plan dropped
+            assert text_of(app, "#plan-text").startswith("No plan: the solve was refused.")
             field.value = before  # fixed: the mark and the reason go away
             await pilot.pause()
             assert not field.has_class("-invalid") and reason_under(widget) == ""
@@ -213,8 +218,13 @@ async def test_fk_and_check_refuse_while_invalid(console) -> None:
         await pilot.press("escape", "3")
         await settle(pilot)
         check = app.screen.query_one("#check-theta", AnglesInput)
+        await pilot.press("k")  # a verdict for the valid default θ first
+        await settle(pilot)
+        assert text_of(app, "#ws-check").startswith("θ = "), text_of(app, "#ws-check")
         await type_into(pilot, check.fields[0], "1e9")
         await pilot.press("enter")
         await settle(pilot)
         assert status_of(app).startswith(
             "Check refused: θ1: 1e9 is outside the servo limits 60…160°"), status_of(app)
+        # the verdict of the θ checked before is gone with the refusal
+        assert text_of(app, "#ws-check").startswith("No verdict: the check was refused.")

@@ -210,7 +210,10 @@ class PlanScreen(StepScreen):
             start, goal = self._spec("start"), self._spec("goal")
             method, steps, vmax, k, hold_first = self._params()
         except BadInputError as exc:  # the field says why too; nothing is solved
-            self.status.error(f"Solve refused: {exc.message}. Fix the field, then press s.")
+            self._drop_plan(f"No plan: the solve was refused.\n{exc.message}\n"
+                            "Next: fix the field marked invalid, then press s.")
+            self.status.error(f"Solve refused (no plan now): {exc.message}. Fix the field, "
+                              "then press s.")
             return
         name = METHOD_NAMES[method]
         self.solving_method = method
@@ -335,16 +338,20 @@ class PlanScreen(StepScreen):
             return
         if op != "solve":
             return  # a failed save replaces nothing: the status line says why
-        # The plan this solve would have replaced is gone from the screen, the 3D view and
-        # the session: "execute" must never run a plan the operator tried to replace.
         name = METHOD_NAMES.get(self.solving_method, self.solving_method)
+        self._drop_plan(f"No plan: the {name} solve failed.\n{message}\n"
+                        f"Next: {next_step(message)}")
+        self.status.error(f"{name} solve failed (no plan now): {message}")
+
+    def _drop_plan(self, text: str) -> None:
+        """The plan a refused or failed solve would have replaced is gone from the screen,
+        the 3D view and the session: "execute" never runs a plan the operator tried to
+        replace."""
         self.session.plan = None
         self.session.plan_info = {}
         self.console.view.clear_path()
-        self.query_one("#plan-text", Static).update(Content(
-            f"No plan: the {name} solve failed.\n{message}\nNext: {next_step(message)}"))
+        self.query_one("#plan-text", Static).update(Content(text))
         self.query_one("#plan-plot", PlotView).plot("no plan", np.zeros(0), [])
-        self.status.error(f"{name} solve failed (no plan now): {message}")
 
     def show_plan(self) -> None:
         plan = self.session.plan

@@ -192,6 +192,9 @@ class WorkspaceScreen(StepScreen):
         try:
             theta = angles.values()
         except BadInputError as exc:  # the field says why too; nothing is checked
+            self.query_one("#ws-check", Static).update(Content(  # no verdict of older θ left
+                f"No verdict: the check was refused.\n{exc.message}\n"
+                "Next: fix the field marked invalid, then press k."))
             self.status.error(f"Check refused: {exc.message}. Fix the field, then press k.")
             return
         if self.session.workspace is None:

@@ -95,7 +95,7 @@ class JogStepField(Horizontal):
     DEFAULT_CSS = """
     JogStepField { height: 1; margin: 1 0 0 0; }
     JogStepField > Static { width: auto; }
-    JogStepField > Input { width: 12; height: 1; border: none; padding: 0 1; }
+    JogStepField > Input { width: 12; height: 1; padding: 0 1; }
     JogStepField > Input.-invalid { background: $error 30%; }
     JogStepField > #jog-note { padding: 0 1; }
     JogStepField > #jog-note.-invalid { color: $error; }
@@ -103,7 +103,7 @@ class JogStepField(Horizontal):
 
     def compose(self) -> ComposeResult:
         yield Static("Jog step (°):", markup=False)
-        yield TextField(value="1", id="jog-step")
+        yield TextField(value="1", id="jog-step", compact=True)  # no border, focused too
         yield Static(id="jog-note", markup=False)
 
     def on_mount(self) -> None:
