@@ -115,7 +115,8 @@ class ServoTools:
 
         theta0, target = self.jog_plan_target(joint, step_deg)
         client = self.require_bus()
-        plan = line_plan(self.profile, theta0, target, self.profile.safety.home_speed_degps)
+        plan = line_plan(self.profile, theta0, target, self.profile.safety.home_speed_degps,
+                         kind="jog")
         self.motion_total_s = plan.duration_s
         tol = self.profile.safety.approach_tolerance_deg
         source = (f"jog: joint {joint} by {step_deg:+g}° "

@@ -39,7 +39,7 @@ def settle_samples(profile: Profile) -> int:
 def plan_from_references(
     profile: Profile,
     reference_deg: F,
-    kind: Literal["synthetic", "homing"],
+    kind: Literal["synthetic", "homing", "jog"],
     region: Region | None = None,
     notes: dict[str, float] | None = None,
 ) -> Plan:
@@ -69,8 +69,10 @@ def quantization_speed_margin(profile: Profile) -> float:
     return tick * profile.servo.p / math.e
 
 
-def line_plan(profile: Profile, start_deg: F, goal_deg: F, speed_degps: float) -> Plan:
-    """Straight line in θ from start to goal, no joint faster than ``speed_degps``.
+def line_plan(profile: Profile, start_deg: F, goal_deg: F, speed_degps: float,
+              kind: Literal["homing", "jog"] = "homing") -> Plan:
+    """Straight line in θ from start to goal, no joint faster than ``speed_degps``; ``kind``
+    names it in plan files and run logs ("homing", or "jog" for a one-joint jog).
 
     References ramp at constant speed (all joints arrive together), then hold the
     goal for :func:`settle_samples`. The model (27) is critically damped, so its
@@ -87,7 +89,7 @@ def line_plan(profile: Profile, start_deg: F, goal_deg: F, speed_degps: float) -
     n_move = max(1, math.ceil(dist / ramp / ts))
     s = np.minimum(np.arange(n_move + 1 + settle_samples(profile)) / n_move, 1.0)
     ref = a + s[:, None] * (b - a)
-    return plan_from_references(profile, ref, "homing",
+    return plan_from_references(profile, ref, kind,
                                 notes={"speed_bound_degps": speed_degps, "ramp_degps": ramp,
                                        "move_samples": n_move})
 

@@ -157,6 +157,7 @@ async def test_jog_only_when_homed_with_a_confirmation(console, tmp_path) -> Non
         runs = list_runs(tmp_path / "logs")
         assert [r.meta["outcome"] for r in runs] == ["completed", "completed"]
         assert runs[-1].meta["plans"][0]["source"].startswith("jog: joint 2 by -2.5°")
+        assert runs[-1].meta["plans"][0]["kind"] == "jog"  # not logged as a homing
 
 
 async def test_reboot_clears_an_injected_hardware_error(console) -> None:
