@@ -187,9 +187,10 @@ class ThetaCheck:
 
     @property
     def plannable(self) -> bool:
-        """A plan can start or end here: feasible. Inside P the planner uses P; outside it a
-        region is grown around the segment (``core.region_build.choose_region``), which is
-        refused only when the segment itself leaves the feasible set."""
+        """A plan can start or end here: feasible. Inside P the planner uses P; outside it,
+        a route through the workspace's region cover (with a small region grown around an
+        end that no cover region holds), else one region grown around the segment
+        (``run.plan_request.plan_motion``, in that order)."""
         return self.feasible
 
     @property
@@ -199,8 +200,8 @@ class ThetaCheck:
             return f"NOT feasible: {self.reason}"
         if self.in_region:
             return "feasible, inside P: plannable in P"
-        return (f"feasible, outside P by {-self.region_slack_deg:.2f}°: plannable in a region "
-                "grown around the segment")
+        return (f"feasible, outside P by {-self.region_slack_deg:.2f}°: plannable through the "
+                "region cover or a region grown around the segment")
 
 
 def check_one(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F) -> ThetaCheck:
