@@ -24,13 +24,19 @@ async def _plan_goal(pilot: Any) -> AnglesInput:
     return pilot.app.screen.query_one("#goal-values", AnglesInput)
 
 
+async def _empty_first_goal_field(pilot: Any) -> AnglesInput:
+    """The plan step's goal fields, the first one emptied and focused."""
+    goal = await _plan_goal(pilot)
+    goal.fields[0].focus()
+    goal.fields[0].value = ""
+    await pilot.pause()
+    return goal
+
+
 async def test_a_burst_with_tabs_fills_each_field_with_its_own_value(console: Any) -> None:
     app = console()
     async with app.run_test(size=SIZE) as pilot:
-        goal = await _plan_goal(pilot)
-        goal.fields[0].focus()
-        goal.fields[0].value = ""
-        await pilot.pause()
+        goal = await _empty_first_goal_field(pilot)
         burst(app, "127.5", "tab", "83.2", "tab", "85.2")
         await settle(pilot)
         assert [f.value for f in goal.fields] == ["127.5", "83.2", "85.2"]
@@ -48,10 +54,7 @@ async def test_editing_keys_in_a_burst_act_where_they_were_typed(console: Any) -
     tab empties the next field before "83.2" goes in (not after)."""
     app = console()
     async with app.run_test(size=SIZE) as pilot:
-        goal = await _plan_goal(pilot)
-        goal.fields[0].focus()
-        goal.fields[0].value = ""
-        await pilot.pause()
+        goal = await _empty_first_goal_field(pilot)
         burst(app, "127.6", "backspace", "5", "tab", "end", "ctrl+u", "83.2")
         await settle(pilot)
         assert [f.value for f in goal.fields][:2] == ["127.5", "83.2"]
@@ -77,10 +80,7 @@ async def test_a_burst_after_leaving_a_field_reaches_the_screen_not_the_field(
 async def test_a_paste_stays_whole_in_the_focused_field(console: Any, pasted: str) -> None:
     app = console()
     async with app.run_test(size=SIZE) as pilot:
-        goal = await _plan_goal(pilot)
-        goal.fields[0].focus()
-        goal.fields[0].value = ""
-        await pilot.pause()
+        goal = await _empty_first_goal_field(pilot)
         app.post_message(events.Paste(pasted))
         await settle(pilot)
         # as pasted (lines joined by spaces), in the field that had the focus, marked
