@@ -273,6 +273,7 @@ class _Browser(threading.Thread):
         try:
             from playwright.sync_api import sync_playwright
 
+            _unplaced()  # an operator's browser is not ours to place: every allowed CPU
             with sync_playwright() as pw:
                 b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
                 page = b.new_page(viewport={"width": 800, "height": 600})
@@ -292,11 +293,27 @@ class _Browser(threading.Thread):
             self.ready.set()
 
 
+def _unplaced() -> None:
+    """The calling thread (and what it starts) back on every CPU the console may use: the
+    console placed this process beside the servo loop (spm_console.cpus)."""
+    from spm_console.cpus import ENV_SET
+
+    cpus = os.environ.get(ENV_SET, "")
+    if cpus and hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {int(c) for c in cpus.split(",")})
+
+
 @contextlib.contextmanager
 def _busy_loops() -> Iterator[int]:
-    """One CPU-bound process per core while the block runs; yields how many."""
-    n = os.cpu_count() or 1
-    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    """One CPU-bound process on each core (the servo loop's CPU too) while the block
+    runs; yields how many."""
+    from spm_console.cpus import ENV_SET
+
+    cpus = sorted(int(c) for c in os.environ.get(ENV_SET, "").split(",") if c) or list(
+        range(os.cpu_count() or 1))
+    busy = "import os, sys; os.sched_setaffinity(0, {int(sys.argv[1])})\nwhile True: pass"
+    procs = [subprocess.Popen([sys.executable, "-c", busy, str(c)]) for c in cpus]
+    n = len(procs)
     try:
         yield n
     finally:

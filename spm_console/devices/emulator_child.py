@@ -60,8 +60,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--parent", type=int, default=0, help="exit when this process is gone")
     args = parser.parse_args(argv)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from spm_console.cpus import place_on_loop_cpu
     from spm_console.realtime import HELPER_PRIORITY, quick_gil_handoff, request_realtime
 
+    place_on_loop_cpu()  # the emulated servos answer the loop: the same CPU, see spm_console.cpus
     request_realtime(HELPER_PRIORITY)  # shares the emulator's GIL: see realtime.HELPER_PRIORITY
     quick_gil_handoff()  # the servo thread answers within ~0.5 ms of a request
     stop = threading.Event()

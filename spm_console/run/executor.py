@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
 from spm_console.core.workspace import Workspace
+from spm_console.cpus import placement
 from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_checked
 from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
 from spm_console.models import servo_limits_deg, servo_model_of
@@ -218,7 +219,7 @@ class Executor:
         stop: StopReason | None = None
         self.realtime = request_realtime(LOOP_PRIORITY)
         self._event("realtime", policy=self.realtime.policy, detail=self.realtime.detail,
-                    kernel_preemption=kernel_preemption())
+                    kernel_preemption=kernel_preemption(), cpus=placement())
         try:
             if self._estop.is_set():  # E-stop before torque-on: nothing is switched on or moved
                 stop = SafetyMonitor.estop(f"{self._estop_reason or 'E-stop'} (before any motion)",

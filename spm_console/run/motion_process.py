@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import Any
 
+from spm_console.cpus import place_on_loop_cpu
 from spm_console.errors import ExitCode, SpmError
 from spm_console.profile import Profile
 from spm_console.realtime import HELPER_PRIORITY, normal_priority, quick_gil_handoff, request_realtime
@@ -394,6 +395,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="spm_console motion process (started by a client)")
     parser.add_argument("--fd", type=int, required=True)
     args = parser.parse_args(argv)
+    place_on_loop_cpu()  # before any thread starts: see spm_console.cpus
     conn = Connection(args.fd)
     try:
         start = conn.recv()

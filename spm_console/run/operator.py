@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from spm_console.core.ik import ik_rpy
 from spm_console.core.modes import assembly_modes
 from spm_console.core.plan import Plan
+from spm_console.cpus import cpu_plan, place_beside_loop
 from spm_console.devices.base import ServoStatus
 from spm_console.errors import (
     BadInputError,
@@ -87,6 +88,8 @@ class BusState:
     emulator_realtime: str = ""
     """The emulated servos' scheduling ("" on a real bus)."""
     emulator_realtime_granted: bool = True
+    cpu_placement: str = ""
+    """Where the servo loop and the console run (see :mod:`spm_console.cpus`)."""
 
 
 class Session(ServoTools, FollowTools):
@@ -159,6 +162,7 @@ class Session(ServoTools, FollowTools):
         unless ``check`` is False (bus diagnostics: a silent servo is what they report)."""
         self.disconnect()
         port = self.port
+        cpu_plan()  # the CPU set is fixed before any child starts (see spm_console.cpus)
         if self.sim and self.emulator_process:
             from spm_console.devices.emulator_child import EmulatorChild
 
@@ -183,10 +187,12 @@ class Session(ServoTools, FollowTools):
                                   logs_root=None if self.logs_root is None else str(self.logs_root),
                                   sim=self.sim, faults=[str(f) for f in self.faults])
             self.bus = client
+            placed = place_beside_loop()  # the loop's children started: off their CPU
             rt, granted = self._emulator_realtime()
             self.bus_state = BusState(port=port, emulated=self.sim,
                                       statuses=client.ping_all() if check else [],
-                                      emulator_realtime=rt, emulator_realtime_granted=granted)
+                                      emulator_realtime=rt, emulator_realtime_granted=granted,
+                                      cpu_placement=placed)
             if check:
                 self.read_position()
         except SpmError:
