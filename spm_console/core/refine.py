@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.certify import CertifiedSet, nodes_near
-from spm_console.core.workspace_check import STEP_RAD, check_points
+from spm_console.core.workspace_check import STEP_RAD, check_points, exact_ok
 
 if TYPE_CHECKING:
     from spm_console.core.workspace import Workspace
@@ -81,8 +81,7 @@ class FineGrid:
         todo = np.unique(flat[table[flat] == _UNKNOWN])
         if len(todo):
             pts = self.theta_deg(np.column_stack(np.unravel_index(todo, self.shape)))
-            pc = check_points(self.ws, self.model, self.links, pts, steps=self._steps)
-            ok = pc.pointwise_ok(self.ws.zeta_min, self.ws.min_distance_mm) & pc.start_feasible
+            ok = exact_ok(self.ws, self.model, self.links, pts, self._steps)
             table[todo] = np.where(ok, _FEASIBLE, _INFEASIBLE)
             self.evaluated += len(todo)
         return np.asarray(table[flat] == _FEASIBLE).reshape(idx.shape[:-1])
