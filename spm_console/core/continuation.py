@@ -77,10 +77,20 @@ def _matmul(X: Mat, Y: Mat) -> Mat:
             for i in range(3)]
 
 
+def _adjugate(rows: list[Vec]) -> tuple[list[Vec], F]:
+    """(columns of adj(M), det M) of the matrix with these rows."""
+    cols = [_cross(rows[1], rows[2]), _cross(rows[2], rows[0]), _cross(rows[0], rows[1])]
+    return cols, _dot(rows[0], cols[0])
+
+
 def _solve(rows: list[Vec], r: Vec) -> Vec:
     """x with rows·x = r (Cramer); 0 where the system is singular or not finite."""
-    c0, c1, c2 = _cross(rows[1], rows[2]), _cross(rows[2], rows[0]), _cross(rows[0], rows[1])
-    det = _dot(rows[0], c0)
+    cols, det = _adjugate(rows)
+    return _solve_adj(cols, det, r)
+
+
+def _solve_adj(cols: list[Vec], det: F, r: Vec) -> Vec:
+    c0, c1, c2 = cols
     with np.errstate(all="ignore"):
         x = [(c0[k] * r[0] + c1[k] * r[1] + c2[k] * r[2]) / det for k in range(3)]
     return [np.where(np.isfinite(xk), xk, 0.0) for xk in x]
@@ -102,6 +112,22 @@ def _expm(w: Vec) -> Mat:
         [bw[1] * w[0] + aw[2], d + bw[1] * w[1], bw[1] * w[2] - aw[0]],
         [bw[2] * w[0] - aw[1], bw[2] * w[1] + aw[0], d + bw[2] * w[2]],
     ]
+
+
+@dataclass(frozen=True)
+class Local:
+    """What a pose's mode check computes and the next predictor needs (component arrays):
+    w(θ), the rows of J1, the columns of adj(J1), det J1 and the diagonal of J2."""
+
+    w: list[Vec]
+    cols: list[Vec]
+    det: F
+    j2: Vec
+
+    def take(self, idx: NDArray[np.int64]) -> Local:
+        """The rows ``idx``."""
+        return Local([[x[idx] for x in v] for v in self.w], [[x[idx] for x in v] for v in self.cols],
+                     self.det[idx], [x[idx] for x in self.j2])
 
 
 class Kernel:
@@ -149,7 +175,8 @@ class Kernel:
         NEWTON_ITERS times per row. Returns (R, max |f|)."""
         n = len(R[0][0])
         for _ in range(NEWTON_ITERS):
-            f, res = self._residual(self.axes(R), w)
+            v = self.axes(R)
+            f, res = self._residual(v, w)
             todo = res > NEWTON_TOL
             k = np.flatnonzero(todo)
             if len(k) == 0:
@@ -157,7 +184,7 @@ class Kernel:
             sub = len(k) < n
             Rk = [[x[k] for x in row] for row in R] if sub else R
             wk = [[x[k] for x in wi] for wi in w] if sub else w
-            vk = self.axes(Rk)
+            vk = [[x[k] for x in vi] for vi in v] if sub else v
             J1 = [_cross(vk[i], wk[i]) for i in range(3)]
             om = _solve(J1, [-(fi[k] if sub else fi) for fi in f])
             Rn = _matmul(_expm(om), Rk)
@@ -170,12 +197,12 @@ class Kernel:
                 R = Rn
         return R, self._residual(self.axes(R), w)[1]
 
-    def modes(self, w: list[Vec], R: Mat) -> tuple[F, F, Vec]:
-        """(ζ, det J1 · home sign, J2 diagonal · home signs) at (θ, R), w = w(θ)."""
+    def modes(self, w: list[Vec], R: Mat) -> tuple[F, F, Vec, Local]:
+        """(ζ, det J1 · home sign, J2 diagonal · home signs, the Jacobians) at (θ, R),
+        w = w(θ)."""
         v = self.axes(R)
         rows = [_cross(v[i], w[i]) for i in range(3)]
-        cols = [_cross(rows[1], rows[2]), _cross(rows[2], rows[0]), _cross(rows[0], rows[1])]
-        det = _dot(rows[0], cols[0])
+        cols, det = _adjugate(rows)
         d = self.j2(v, w)
         # ζ (jacobian.conditioning_index): |det J1| |det J2| / (‖adj(J1) J2‖ ‖adj(J2) J1‖)
         nM2 = sum(d[j] * d[j] * _dot(cols[j], cols[j]) for j in range(3))
@@ -186,16 +213,20 @@ class Kernel:
         with np.errstate(divide="ignore", invalid="ignore"):
             z = np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0)
         z = np.clip(z, 0.0, 1.0)
-        return z, det * self.det_sign, [d[i] * self.signs[i] for i in range(3)]
+        return z, det * self.det_sign, [d[i] * self.signs[i] for i in range(3)], Local(w, cols, det, d)
 
-    def step(self, th_old: Vec, R_old: Mat, th_new: Vec) -> tuple[Mat, F, F, F, F, Vec]:
+    def step(self, th_old: Vec, R_old: Mat, th_new: Vec, at_old: Local | None = None
+             ) -> tuple[Mat, F, F, F, F, Vec, Local]:
         """Predict from (θ_old, R_old), correct at θ_new. Returns (R, residual, correction,
-        ζ, det side, leg sides) as component arrays."""
-        w_old = self.w(th_old)
-        v_old = self.axes(R_old)
-        j2 = self.j2(v_old, w_old)
-        rhs = [j2[i] * (th_new[i] - th_old[i]) for i in range(3)]
-        om = _solve([_cross(v_old[i], w_old[i]) for i in range(3)], rhs)
+        ζ, det side, leg sides, the Jacobians at the new pose) as component arrays.
+        ``at_old``: the Jacobians at (θ_old, R_old) when the previous step returned them."""
+        if at_old is None:
+            w_old = self.w(th_old)
+            v_old = self.axes(R_old)
+            cols, det = _adjugate([_cross(v_old[i], w_old[i]) for i in range(3)])
+            at_old = Local(w_old, cols, det, self.j2(v_old, w_old))
+        rhs = [at_old.j2[i] * (th_new[i] - th_old[i]) for i in range(3)]
+        om = _solve_adj(at_old.cols, at_old.det, rhs)
         Rp = _matmul(_expm(om), R_old)
         w_new = self.w(th_new)
         Rc, res = self.newton(w_new, [row[:] for row in Rp])
@@ -210,8 +241,8 @@ class Kernel:
              for a in range(3)]
         H = [[(3.0 * float(a == b) - G[a][b]) * 0.5 for b in range(3)] for a in range(3)]
         Rc = _matmul(X, H)
-        z, d1, d2 = self.modes(w_new, Rc)
-        return Rc, res, corr, z, d1, d2
+        z, d1, d2, at_new = self.modes(w_new, Rc)
+        return Rc, res, corr, z, d1, d2, at_new
 
 
 def to_vec(x: F) -> Vec:
@@ -235,5 +266,6 @@ def continuation_step(model: SpmModel, th_old: F, R_old: F, th_new: F) -> Step:
     th_old = np.asarray(th_old, float).reshape(-1, 3)
     th_new = np.asarray(th_new, float).reshape(-1, 3)
     R_old = np.asarray(R_old, float).reshape(-1, 3, 3)
-    Rc, res, corr, z, d1, d2 = Kernel(model).step(to_vec(th_old), to_mat(R_old), to_vec(th_new))
+    Rc, res, corr, z, d1, d2, _ = Kernel(model).step(to_vec(th_old), to_mat(R_old),
+                                                     to_vec(th_new))
     return Step(from_mat(Rc), res, corr, z, d1, np.stack(d2, -1))

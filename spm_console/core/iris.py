@@ -25,6 +25,8 @@ B = NDArray[np.bool_]
 
 #: Tolerance (deg) for "a node lies in P".
 INSIDE_TOL_DEG = 1e-7
+#: Cubes whose closest points :func:`separating_planes` computes first (then twice as many).
+SEPARATION_BATCH = 512
 
 
 def half_widths(half: float | F, n: int) -> F:
@@ -134,32 +136,58 @@ def separating_planes(E: Ellipsoid, Q: F, half: float | F, req: F) -> tuple[F, F
     ``half``: one value or one per cube) while keeping the required points ``req`` (m, 3)
     (scaled coordinates)."""
     M = E.metric()
-    hw = half_widths(half, len(Q))
+    n = len(Q)
+    hw = half_widths(half, n)
     lo, hi = Q - hw[:, None], Q + hw[:, None]
-    X, dist = closest_on_boxes(M, E.d, lo, hi)
-    order = np.argsort(dist, kind="stable")
-    alive = np.ones(len(Q), bool)
+    # Cubes are taken in order of their distance in E's metric (ties by index); the closest
+    # points are computed batch by batch, nearest lower bound first, and only for cubes no
+    # plane has excluded yet. Bound: a cube lies in the ball of radius √3·hw around its
+    # centre, whose points are at most √3·hw·√λ_max(M) closer in the metric than the centre.
+    y = Q - E.d
+    centre = np.sqrt(np.maximum(((y @ M) * y).sum(1), 0.0))
+    reach = np.sqrt(3.0 * float(np.linalg.eigvalsh(M)[-1])) * hw
+    lb = np.maximum(centre - reach, 0.0) ** 2 * (1.0 - 1e-9)
+    by_lb = np.argsort(lb, kind="stable")
+    X = np.zeros((n, 3))
+    dist = np.full(n, np.inf)
+    known = np.zeros(n, bool)
+    alive = np.ones(n, bool)
     planes_a: list[F] = []
     planes_b: list[float] = []
-    for k in order:
-        if not alive[k]:
-            continue
-        a = M @ (X[k] - E.d)
-        b = float(a @ X[k])
-        if np.linalg.norm(a) < 1e-12:  # centre on the cube's boundary: push away from it
-            a = Q[k] - E.d
-            b = float((box_corners(lo[k], hi[k]) @ a).min())
-        if len(req) and (req @ a > b - 1e-12).any():
-            alt = keeping_plane(req, lo[k], hi[k], a)
-            if alt is None:
-                raise InfeasibleError(
-                    "a required configuration lies inside an infeasible cell (the cube around "
-                    "an infeasible node)"
-                )
-            a, b = alt
-        planes_a.append(a)
-        planes_b.append(b)
-        alive &= (Q @ a - hw * np.abs(a).sum()) < b - 1e-12
+    start, batch = 0, SEPARATION_BATCH
+    while True:
+        nxt = by_lb[start:start + batch]
+        nxt = nxt[alive[nxt]]
+        if len(nxt):
+            X[nxt], dist[nxt] = closest_on_boxes(M, E.d, lo[nxt], hi[nxt])
+            known[nxt] = True
+        start += batch
+        batch *= 2
+        # every cube closer than this bound has its closest point now
+        bound = float(lb[by_lb[start]]) if start < n else np.inf
+        ready = np.flatnonzero(known & alive & (dist < bound))
+        for k in ready[np.argsort(dist[ready], kind="stable")]:
+            if not alive[k]:
+                continue
+            a = M @ (X[k] - E.d)
+            b = float(a @ X[k])
+            if np.linalg.norm(a) < 1e-12:  # centre on the cube's boundary: push away from it
+                a = Q[k] - E.d
+                b = float((box_corners(lo[k], hi[k]) @ a).min())
+            if len(req) and (req @ a > b - 1e-12).any():
+                alt = keeping_plane(req, lo[k], hi[k], a)
+                if alt is None:
+                    raise InfeasibleError(
+                        "a required configuration lies inside an infeasible cell (the cube "
+                        "around an infeasible node)"
+                    )
+                a, b = alt
+            planes_a.append(a)
+            planes_b.append(b)
+            alive &= (Q @ a - hw * np.abs(a).sum()) < b - 1e-12
+        known[ready] = False  # taken (or excluded)
+        if start >= n:
+            break
     if not planes_a:
         return np.zeros((0, 3)), np.zeros(0)
     return np.asarray(planes_a), np.asarray(planes_b)

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.continuation import PATH_ZETA_FLOOR, Kernel, from_mat, to_mat, to_vec
+from spm_console.core.continuation import PATH_ZETA_FLOOR, Kernel, Local, from_mat, to_mat, to_vec
 from spm_console.core.jacobian import conditioning_index
 from spm_console.core.kinematics import SpmModel, platform_axes
 from spm_console.core.links import LinkModel
@@ -43,9 +43,10 @@ def track_from(model: SpmModel, th0: F, R0: F, th1: F, steps: int) -> tuple[F, B
     a, b = to_vec(th0), to_vec(th1)
     R = to_mat(R0)
     th = a
+    at: Local | None = None
     for k in range(1, steps + 1):
         th_new = [a[i] + (b[i] - a[i]) * (k / steps) for i in range(3)]
-        R, res, corr, z, d1, d2 = kern.step(th, R, th_new)
+        R, res, corr, z, d1, d2, at = kern.step(th, R, th_new, at)
         ok &= _good(res, corr, z, d1, d2)
         th = th_new
     return from_mat(R), np.asarray(ok, bool)
@@ -76,22 +77,19 @@ def exact_ok(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F, ste
         R = to_mat(R_nodes[node[rows]])
         th = a
         z = np.zeros(len(rows))
+        at: Local | None = None
         for k in range(1, steps + 1):
             th_new = [a[i] + (b[i] - a[i]) * (k / steps) for i in range(3)]
-            R, res, corr, z, d1, d2 = kern.step(th, R, th_new)
+            R, res, corr, z, d1, d2, at = kern.step(th, R, th_new, at)
             keep = np.flatnonzero(_good(res, corr, z, d1, d2))
-            rows, z = rows[keep], z[keep]
+            rows, z, at = rows[keep], z[keep], at.take(keep)
             a, b = [x[keep] for x in a], [x[keep] for x in b]
             th = [x[keep] for x in th_new]
             R = [[x[keep] for x in row] for row in R]
-        sing = z >= ws.zeta_min
-        rows = rows[sing]
-        th_rad = np.stack(b, -1)[sing]
-        v = platform_axes(from_mat(R)[sing], model.v_home)
-        w = model.geom.w(th_rad)
-        for c in range(0, len(rows), 1024):
-            d = links.pair_distances(model.u, w[c:c + 1024], v[c:c + 1024])
-            out[rows[c:c + 1024]] = d.min(-1) >= ws.min_distance_mm
+        sing = np.flatnonzero(z >= ws.zeta_min)
+        R = [[x[sing] for x in row] for row in R]
+        w = [[x[sing] for x in wi] for wi in at.w] if at is not None else []
+        out[rows[sing]] = links.apart(model.u, w, kern.axes(R), ws.min_distance_mm)
     return out
 
 
