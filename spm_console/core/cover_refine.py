@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
+from scipy.spatial import QhullError
 
 from spm_console.core.refine import FineGrid
 from spm_console.core.region import Region
@@ -256,7 +257,16 @@ def region_clear(region: Region, obs: FineObstacles, tol: float = CLEAR_TOL_DEG)
     if radius <= tol or not obs.clear_at(centre):
         return False
     hw = obs.half_deg[:, None]
-    return not bool(boxes_met(region, obs.centres_deg - hw, obs.centres_deg + hw, tol).any())
+    lo, hi = obs.centres_deg - hw, obs.centres_deg + hw
+    # only boxes meeting the region's bounding box can meet the region
+    try:
+        V = region.vertices(interior=centre)
+    except QhullError:  # too thin for qhull: every box is tested
+        V = np.zeros((0, 3))
+    if len(V):
+        near = np.flatnonzero(np.all((lo < V.max(0) + tol) & (hi > V.min(0) - tol), axis=1))
+        lo, hi = lo[near], hi[near]
+    return not bool(boxes_met(region, lo, hi, tol).any())
 
 
 def uncertified_cells(ws: Workspace, region: Region, fine: FineGrid,

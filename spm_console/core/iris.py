@@ -263,36 +263,29 @@ def reduce_halfspaces(
             tick()
         n = len(b)
         A = A_all[ids]
-        # the cubes only one plane excludes, grouped by that plane
+        # the cubes only one plane excludes (their owner), and for each the plane that would
+        # take it over if its owner were dropped: the one it is least inside, never moving
+        # past a required point
         s1 = np.flatnonzero(ex.count == 1)
         pos = np.full(ex.next, -1, np.int64)
         pos[toks] = np.arange(n)
         owner = pos[ex.token_sum[s1]]
-        order = np.argsort(owner, kind="stable")
-        by_owner = s1[order]
-        bounds = np.searchsorted(owner[order], np.arange(n + 1))
         req_max = req_all[ids]
+        m = mins_t[s1][:, ids]  # (n_sole, n)
+        gain = np.where((m >= req_max) & (np.arange(n)[None, :] != owner[:, None]), m - b, -np.inf)
+        j = np.argmax(gain, axis=1)
+        rows_s = np.arange(len(s1))
+        stuck = np.zeros(n, bool)
+        stuck[owner[~np.isfinite(gain[rows_s, j])]] = True
+        new_b = np.broadcast_to(b, (n, n)).copy()  # row k: the offsets if plane k is dropped
+        np.minimum.at(new_b, (owner, j), m[rows_s, j])
         slk = b[:, None] - dots_all[ids]  # slack, (n, n_pts): one row per plane
         nviol = (slk < -tol).sum(0)
         S_in = slk[:, nviol == 0]
         S_one = slk[:, nviol == 1]
         only = np.argmin(S_one, axis=0) if S_one.shape[1] else np.zeros(0, int)
         # first the offsets each drop needs, then the losses on the points that matter
-        moves: list[tuple[int, F]] = []
-        for k in range(n):
-            if is_box_row(A[k]):
-                continue
-            sole = by_owner[bounds[k]:bounds[k + 1]]
-            nb = b.copy()
-            if len(sole):
-                m = mins_t[sole][:, ids]  # (n_sole, n)
-                ok = (m >= req_max) & (np.arange(n) != k)
-                gain = np.where(ok, m - b, -np.inf)
-                j = np.argmax(gain, axis=1)
-                if not np.isfinite(gain[np.arange(len(sole)), j]).all():
-                    continue
-                np.minimum.at(nb, j, m[np.arange(len(sole)), j])
-            moves.append((k, nb))
+        moves = [(k, new_b[k]) for k in range(n) if not is_box_row(A[k]) and not stuck[k]]
         if not moves:
             break
         reach = max(float((b - nb).max()) for _, nb in moves) + tol
