@@ -6,11 +6,14 @@ node) can only sit on a region's face. :class:`~spm_console.core.refine.RefinedC
 also certifies θ when the ≤ 8 fine nodes within L∞ distance < h of it (the corners of its
 *fine cell*, the grid cell split :data:`~spm_console.core.refine.REFINE` times per axis) are
 exactly feasible. Here the bad cells with a feasible corner (*mixed* cells; optionally only
-those holding a node still to cover) are **refined**: all their fine nodes are checked with
-the same memoized exact verdicts the runtime uses (:class:`~spm_console.core.refine.FineGrid`).
-The obstacles are then
+those holding a node still to cover) are **refined**: their fine nodes are checked with the
+same memoized exact verdicts the runtime uses (:class:`~spm_console.core.refine.FineGrid`),
+by a flood fill from the feasible grid nodes (a node is checked when a face neighbour was
+found feasible: the interior of infeasible blobs is never checked, and a node left unchecked
+counts as not exactly feasible; on the 2° Agile Wrist grid every feasible fine node is
+reached, 152k checks instead of 239k). The obstacles are then
 
-* every open fine cell of a refined cell with a corner that is not exactly feasible;
+* every open fine cell of a refined cell with a corner that is not known exactly feasible;
 * every open bad cell that is not refined (blocked: no fine node of it is known).
 
 A fine cell that is neither is *clear*. Only obstacles with a face neighbour that is clear
