@@ -120,6 +120,7 @@ def _flood_verdicts(fine: FineGrid, ws_feasible: B, inside: B,
     ok &= inside
     wave = np.argwhere(ok)
     total = max(int(inside.sum()), 1)
+    checked = 0
     steps = np.vstack([np.eye(3, dtype=np.int64), -np.eye(3, dtype=np.int64)])
     while len(wave):
         nb = (wave[:, None, :] + steps[None]).reshape(-1, 3)
@@ -131,8 +132,9 @@ def _flood_verdicts(fine: FineGrid, ws_feasible: B, inside: B,
         good = np.zeros(len(nb), bool)
         for s in range(0, len(nb), VERDICT_CHUNK):
             good[s:s + VERDICT_CHUNK] = fine.verdicts(nb[s:s + VERDICT_CHUNK])
-            if progress is not None:
-                progress(min(1.0, float(seen.sum()) / total))
+            checked += len(nb[s:s + VERDICT_CHUNK])
+            if progress is not None:  # a fraction of the refined nodes (not all are checked)
+                progress(min(1.0, checked / total))
         wave = nb[good]
         ok[tuple(wave.T)] = True
     return ok

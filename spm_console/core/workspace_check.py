@@ -63,7 +63,10 @@ def own_steps(ws: Workspace, theta_deg: F) -> NDArray[np.int64]:
     choice): as few as keep every step ≤ :data:`STEP_RAD` in every joint. A function of the
     point alone, so its verdict does not depend on the points checked with it."""
     th_deg = np.atleast_2d(np.asarray(theta_deg, float))
-    node, _ = _start_nodes(ws, th_deg)
+    return _steps_from(ws, th_deg, _start_nodes(ws, th_deg)[0])
+
+
+def _steps_from(ws: Workspace, th_deg: F, node: NDArray[np.int64]) -> NDArray[np.int64]:
     span = np.abs(np.radians(th_deg) - np.radians(ws.theta_deg().reshape(-1, 3)[node])).max(-1)
     return np.maximum(1, np.ceil(span / STEP_RAD - 1e-9)).astype(np.int64)
 
@@ -80,7 +83,7 @@ def exact_ok(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F,
     lo, hi = ws.range_deg()
     in_range = np.all((th_deg >= lo - 1e-9) & (th_deg <= hi + 1e-9), -1)
     node, feas = _start_nodes(ws, th_deg)
-    count = own_steps(ws, th_deg) if steps is None else np.full(len(th_deg), int(steps))
+    count = _steps_from(ws, th_deg, node) if steps is None else np.full(len(th_deg), int(steps))
     kern = Kernel(model)
     R_nodes = ws.R.reshape(-1, 3, 3)
     node_th = np.radians(ws.theta_deg().reshape(-1, 3))
