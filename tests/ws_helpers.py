@@ -41,5 +41,5 @@ def coarse_workspace() -> Workspace:
 
 @functools.lru_cache(maxsize=1)
 def agile_workspace_refined() -> Workspace:
-    """The Agile Wrist workspace on the 2° grid with the refined region cover (~12 s)."""
+    """The Agile Wrist workspace on the 2° grid with the refined region cover (~2× the default build)."""
     return build_workspace(agile_profile(), refined_cover=True)

@@ -20,14 +20,31 @@ I64 = NDArray[np.int64]
 S_CYCLIC = np.eye(3)[[1, 2, 0]]
 
 
-def _bbox(region: Region) -> tuple[F, F]:
+def _vertices(region: Region) -> F | None:
+    """The region's vertices, or None when qhull cannot tell (no pruning for it)."""
     try:
-        V = region.vertices()
-    except QhullError:  # too thin for qhull: no pruning for this region
+        return region.vertices()
+    except QhullError:  # too thin for qhull
+        return None
+
+
+def _bbox(V: F | None) -> tuple[F, F]:
+    if V is None:
         return np.full(3, -np.inf), np.full(3, np.inf)
     if len(V) == 0:
         return np.full(3, np.inf), np.full(3, -np.inf)
     return V.min(0), V.max(0)
+
+
+def _apart(r1: Region, V2: F | None, radius: float) -> bool:
+    """True when a row a·θ ≤ b of ``r1`` (unit rows) leaves the polytope with vertices ``V2``
+    less than 2·radius: every point of it has a·θ > b − 2·radius, so no ball of that radius
+    lies in both (a centre c would need min a·V2 + radius ≤ a·c ≤ b − radius)."""
+    if V2 is None or len(V2) == 0:
+        return False
+    Rn = r1.normalized()
+    low = (V2 @ Rn.A.T).min(0)
+    return bool((low > Rn.b - 2.0 * radius + 1e-9 * max(1.0, float(np.abs(V2).max()))).any())
 
 
 def overlap_graph(regions: tuple[Region, ...], min_radius_deg: float,
@@ -35,11 +52,13 @@ def overlap_graph(regions: tuple[Region, ...], min_radius_deg: float,
                   tick: Callable[[float], None] | None = None) -> tuple[I64, F, F]:
     """Edges (m, 2), Chebyshev centres (m, 3) and radii (m,) of the pairwise intersections
     with an inscribed ball of radius ≥ ``min_radius_deg`` (one LP per pair whose bounding
-    boxes, shrunk by that radius, still meet). With ``symmetric`` the regions come in
+    boxes, shrunk by that radius, still meet and that no row of one region leaves the other
+    thinner than twice that radius). With ``symmetric`` the regions come in
     orbits (i, i+1, i+2 = r, σr, σ²r) after region 0, and a pair's images are not solved
     again. ``tick(fraction)`` is called after every LP (progress; may raise to cancel)."""
     k = len(regions)
-    boxes = [_bbox(r) for r in regions]
+    verts = [_vertices(r) for r in regions]
+    boxes = [_bbox(V) for V in verts]
     lo = np.array([b[0] for b in boxes]).reshape(k, 3)
     hi = np.array([b[1] for b in boxes]).reshape(k, 3)
     found: dict[tuple[int, int], tuple[F, float]] = {}
@@ -57,6 +76,9 @@ def overlap_graph(regions: tuple[Region, ...], min_radius_deg: float,
             if (i, j) in done:
                 continue
             if ((np.minimum(hi[i], hi[j]) - np.maximum(lo[i], lo[j])) < 2 * min_radius_deg).any():
+                continue
+            if (_apart(regions[i], verts[j], min_radius_deg)
+                    or _apart(regions[j], verts[i], min_radius_deg)):
                 continue
             both = Region(np.vstack([regions[i].A, regions[j].A]), np.r_[regions[i].b, regions[j].b])
             c, r = both.chebyshev()

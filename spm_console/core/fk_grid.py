@@ -53,15 +53,6 @@ class GridFk:
         return np.stack(g, -1)
 
 
-def _shift(a: NDArray[np.generic], d: tuple[int, int, int], fill: object) -> NDArray[np.generic]:
-    """out[x] = a[x + d] (neighbour in direction d), ``fill`` outside the grid."""
-    out = np.full_like(a, fill)
-    src = tuple(slice(max(k, 0), a.shape[i] + min(k, 0)) for i, k in enumerate(d))
-    dst = tuple(slice(max(-k, 0), a.shape[i] + min(-k, 0)) for i, k in enumerate(d))
-    out[dst] = a[src]
-    return out
-
-
 def track_grid(
     model: SpmModel,
     axes: tuple[F, F, F],
@@ -88,29 +79,35 @@ def track_grid(
                       valid.reshape(shape), res.reshape(shape), 0)
     R[s], zeta[s], res[s], valid[s] = r0.pose.R, r0.pose.zeta, r0.pose.residual, True
     waves = 0
+    dirs = np.asarray(_DIRS, np.int64)
+    dims = np.asarray(shape, np.int64)
+    new = np.array([s], np.int64)  # nodes validated by the last wave
     while True:
-        V3 = valid.reshape(shape)
-        Z3 = np.where(V3, zeta.reshape(shape), -1.0)
-        best = np.full(shape, -1.0)
-        parent_dir = np.full(shape, -1, int)
-        for k, d in enumerate(_DIRS):
-            zn = _shift(Z3, d, -1.0)
-            better = zn > best
-            best = np.where(better, zn, best)
-            parent_dir = np.where(better, k, parent_dir)
-        cand = np.flatnonzero((best.ravel() >= 0.0) & ~tried)
+        # candidates: untried 6-neighbours of the nodes the last wave validated (those of
+        # older valid nodes were tried before); parent: the valid neighbour with the largest
+        # ζ, the first in _DIRS order on a tie
+        ni = np.array(np.unravel_index(new, shape)).T
+        nb = (ni[:, None, :] + dirs[None]).reshape(-1, 3)
+        nb = nb[np.all((nb >= 0) & (nb < dims), axis=1)]
+        flat = np.unique(np.ravel_multi_index(nb.T, shape))
+        cand = flat[~tried[flat]]
         if len(cand) == 0:
             break
         waves += 1
         tried[cand] = True
         ci = np.array(np.unravel_index(cand, shape)).T
-        dirs = np.asarray(_DIRS)[parent_dir.ravel()[cand]]
-        par = np.ravel_multi_index((ci + dirs).T, shape)
+        around = ci[:, None, :] + dirs[None]  # (n, 6, 3)
+        inside = np.all((around >= 0) & (around < dims), axis=2)
+        fl = np.ravel_multi_index(tuple(np.clip(around, 0, dims - 1).reshape(-1, 3).T), shape)
+        zn = np.where(inside & valid[fl].reshape(-1, 6), zeta[fl].reshape(-1, 6), -1.0)
+        k = np.argmax(zn, axis=1)
+        par = fl.reshape(-1, 6)[np.arange(len(cand)), k]
         st = continuation_step(model, TH[par], R[par], TH[cand])
         good = st.good(zeta_floor)
         z, Rc, rc = st.zeta, st.R, st.residual
         g = cand[good]
         R[g], zeta[g], res[g], valid[g] = Rc[good], z[good], rc[good], True
+        new = g
         if progress is not None:
             progress(float(tried.sum()) / n_nodes)
     Rg = R.reshape(*shape, 3, 3)

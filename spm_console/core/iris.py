@@ -25,6 +25,8 @@ B = NDArray[np.bool_]
 
 #: Tolerance (deg) for "a node lies in P".
 INSIDE_TOL_DEG = 1e-7
+#: Cubes whose closest points :func:`separating_planes` computes first (then twice as many).
+SEPARATION_BATCH = 512
 
 
 def half_widths(half: float | F, n: int) -> F:
@@ -134,32 +136,58 @@ def separating_planes(E: Ellipsoid, Q: F, half: float | F, req: F) -> tuple[F, F
     ``half``: one value or one per cube) while keeping the required points ``req`` (m, 3)
     (scaled coordinates)."""
     M = E.metric()
-    hw = half_widths(half, len(Q))
+    n = len(Q)
+    hw = half_widths(half, n)
     lo, hi = Q - hw[:, None], Q + hw[:, None]
-    X, dist = closest_on_boxes(M, E.d, lo, hi)
-    order = np.argsort(dist, kind="stable")
-    alive = np.ones(len(Q), bool)
+    # Cubes are taken in order of their distance in E's metric (ties by index); the closest
+    # points are computed batch by batch, nearest lower bound first, and only for cubes no
+    # plane has excluded yet. Bound: a cube lies in the ball of radius √3·hw around its
+    # centre, whose points are at most √3·hw·√λ_max(M) closer in the metric than the centre.
+    y = Q - E.d
+    centre = np.sqrt(np.maximum(((y @ M) * y).sum(1), 0.0))
+    reach = np.sqrt(3.0 * float(np.linalg.eigvalsh(M)[-1])) * hw
+    lb = np.maximum(centre - reach, 0.0) ** 2 * (1.0 - 1e-9)
+    by_lb = np.argsort(lb, kind="stable")
+    X = np.zeros((n, 3))
+    dist = np.full(n, np.inf)
+    known = np.zeros(n, bool)
+    alive = np.ones(n, bool)
     planes_a: list[F] = []
     planes_b: list[float] = []
-    for k in order:
-        if not alive[k]:
-            continue
-        a = M @ (X[k] - E.d)
-        b = float(a @ X[k])
-        if np.linalg.norm(a) < 1e-12:  # centre on the cube's boundary: push away from it
-            a = Q[k] - E.d
-            b = float((box_corners(lo[k], hi[k]) @ a).min())
-        if len(req) and (req @ a > b - 1e-12).any():
-            alt = keeping_plane(req, lo[k], hi[k], a)
-            if alt is None:
-                raise InfeasibleError(
-                    "a required configuration lies inside an infeasible cell (the cube around "
-                    "an infeasible node)"
-                )
-            a, b = alt
-        planes_a.append(a)
-        planes_b.append(b)
-        alive &= (Q @ a - hw * np.abs(a).sum()) < b - 1e-12
+    start, batch = 0, SEPARATION_BATCH
+    while True:
+        nxt = by_lb[start:start + batch]
+        nxt = nxt[alive[nxt]]
+        if len(nxt):
+            X[nxt], dist[nxt] = closest_on_boxes(M, E.d, lo[nxt], hi[nxt])
+            known[nxt] = True
+        start += batch
+        batch *= 2
+        # every cube closer than this bound has its closest point now
+        bound = float(lb[by_lb[start]]) if start < n else np.inf
+        ready = np.flatnonzero(known & alive & (dist < bound))
+        for k in ready[np.argsort(dist[ready], kind="stable")]:
+            if not alive[k]:
+                continue
+            a = M @ (X[k] - E.d)
+            b = float(a @ X[k])
+            if np.linalg.norm(a) < 1e-12:  # centre on the cube's boundary: push away from it
+                a = Q[k] - E.d
+                b = float((box_corners(lo[k], hi[k]) @ a).min())
+            if len(req) and (req @ a > b - 1e-12).any():
+                alt = keeping_plane(req, lo[k], hi[k], a)
+                if alt is None:
+                    raise InfeasibleError(
+                        "a required configuration lies inside an infeasible cell (the cube "
+                        "around an infeasible node)"
+                    )
+                a, b = alt
+            planes_a.append(a)
+            planes_b.append(b)
+            alive &= (Q @ a - hw * np.abs(a).sum()) < b - 1e-12
+        known[ready] = False  # taken (or excluded)
+        if start >= n:
+            break
     if not planes_a:
         return np.zeros((0, 3)), np.zeros(0)
     return np.asarray(planes_a), np.asarray(planes_b)
@@ -173,6 +201,31 @@ def is_box_row(a: F) -> bool:
     return int(np.count_nonzero(np.abs(a) > 1e-12)) == 1
 
 
+class _Exclusion:
+    """Which rows exclude which cubes, kept up to date as rows come and go: per cube the
+    number of rows excluding it and the sum of their tokens (the token of the only one when
+    the number is 1). A row is identified by a token, new whenever its offset changes."""
+
+    def __init__(self, n_obs: int) -> None:
+        self.count = np.zeros(n_obs, np.int64)
+        self.token_sum = np.zeros(n_obs, np.int64)
+        self.rows: dict[int, B] = {}
+        self.next = 0
+
+    def add(self, excl: B) -> int:
+        tok = self.next
+        self.next += 1
+        self.rows[tok] = excl
+        self.count += excl
+        self.token_sum += tok * excl
+        return tok
+
+    def remove(self, tok: int) -> None:
+        excl = self.rows.pop(tok)
+        self.count -= excl
+        self.token_sum -= tok * excl
+
+
 def reduce_halfspaces(
     region: Region, frame: Frame, Q: F, half: float | F, req: F, max_n: int, pts: F,
     tick: Callable[[], None] | None = None,
@@ -183,41 +236,56 @@ def reduce_halfspaces(
     net gain, since the freed region can exceed what the lowered planes cut.
     Rounds continue while there are more than ``max_n`` rows or a drop gains.
     Grid-box rows are kept. ``half``: the cubes' half-width, one value or one per cube.
-    ``tick()`` is called every round (progress; may raise to cancel)."""
-    A, b = region.A.copy(), region.b.copy()
+    ``tick()`` is called every round (progress; may raise to cancel).
+
+    Rows only ever come from the region and the grid box, and a row's normal never changes
+    (only its offset), so each row's minimum over every cube is computed once and the
+    exclusions are updated only for the rows a round changes."""
     box = frame.region(np.vstack([np.eye(3), -np.eye(3)]), np.ones(6))
     Qd = Q * frame.s + frame.c
-    hd = half_widths(half, len(Q))[:, None] * frame.s
+    hd = half_widths(half, len(Q)) * frame.s
     reqd = req * frame.s + frame.c
     tol = INSIDE_TOL_DEG
+    A_all = np.vstack([region.A, box.A])
+    box_ids = np.arange(region.halfspaces, len(A_all))
+    # per row: min of a·θ over each cube, max over the required points, a·p over pts
+    mins_t = Qd @ A_all.T - hd[:, None] * np.abs(A_all).sum(1)  # (n_obs, rows)
+    req_all = (A_all @ reqd.T).max(1) if len(reqd) else np.full(len(A_all), -np.inf)
+    dots_all = A_all @ pts.T
+    ex = _Exclusion(len(Q))
+    ids = np.arange(region.halfspaces)
+    b = region.b.copy()
+    toks = np.array([ex.add(mins_t[:, i] >= bi - 1e-9) for i, bi in zip(ids, b, strict=True)],
+                    np.int64)
+    inner: F | None = None
     while True:
         if tick is not None:
             tick()
         n = len(b)
-        mins = Qd @ A.T - hd * np.abs(A).sum(1)  # (n_obs, n) min of a·θ over each cube
-        excl = mins >= b - 1e-9
-        nex = excl.sum(1)
-        req_max = (reqd @ A.T).max(0) if len(reqd) else np.full(n, -np.inf)
-        slk = b[:, None] - A @ pts.T  # slack, (n, n_pts): one row per plane
+        A = A_all[ids]
+        # the cubes only one plane excludes (their owner), and for each the plane that would
+        # take it over if its owner were dropped: the one it is least inside, never moving
+        # past a required point
+        s1 = np.flatnonzero(ex.count == 1)
+        pos = np.full(ex.next, -1, np.int64)
+        pos[toks] = np.arange(n)
+        owner = pos[ex.token_sum[s1]]
+        req_max = req_all[ids]
+        m = mins_t[s1][:, ids]  # (n_sole, n)
+        gain = np.where((m >= req_max) & (np.arange(n)[None, :] != owner[:, None]), m - b, -np.inf)
+        j = np.argmax(gain, axis=1)
+        rows_s = np.arange(len(s1))
+        stuck = np.zeros(n, bool)
+        stuck[owner[~np.isfinite(gain[rows_s, j])]] = True
+        new_b = np.broadcast_to(b, (n, n)).copy()  # row k: the offsets if plane k is dropped
+        np.minimum.at(new_b, (owner, j), m[rows_s, j])
+        slk = b[:, None] - dots_all[ids]  # slack, (n, n_pts): one row per plane
         nviol = (slk < -tol).sum(0)
         S_in = slk[:, nviol == 0]
         S_one = slk[:, nviol == 1]
         only = np.argmin(S_one, axis=0) if S_one.shape[1] else np.zeros(0, int)
         # first the offsets each drop needs, then the losses on the points that matter
-        moves: list[tuple[int, F]] = []
-        for k in range(n):
-            if is_box_row(A[k]):
-                continue
-            sole = np.flatnonzero(excl[:, k] & (nex == 1))
-            nb = b.copy()
-            if len(sole):
-                ok = (mins[sole] >= req_max) & (np.arange(n) != k)
-                gain = np.where(ok, mins[sole] - b, -np.inf)
-                j = np.argmax(gain, axis=1)
-                if not np.isfinite(gain[np.arange(len(sole)), j]).all():
-                    continue
-                np.minimum.at(nb, j, mins[sole, j])
-            moves.append((k, nb))
+        moves = [(k, new_b[k]) for k in range(n) if not is_box_row(A[k]) and not stuck[k]]
         if not moves:
             break
         reach = max(float((b - nb).max()) for _, nb in moves) + tol
@@ -238,8 +306,21 @@ def reduce_halfspaces(
                 best_loss, best, best_k = loss, nb, k
         if best is None or (n <= max_n and best_loss >= 0):
             break
-        keep = np.arange(n) != best_k
+        keep = np.flatnonzero(np.arange(n) != best_k)
         # the grid box may have been redundant only because of the dropped plane
-        reduced = Region(np.vstack([A[keep], box.A]), np.r_[best[keep], box.b]).without_redundant()
-        A, b = reduced.A, reduced.b
-    return Region(A, b)
+        cand_ids = np.r_[ids[keep], box_ids]
+        cand_b = np.r_[best[keep], box.b]
+        reduced = Region(A_all[cand_ids], cand_b)
+        inner = reduced.interior_point(inner)
+        rows = reduced.facet_rows(interior=inner)
+        new_toks = []
+        for r in rows:
+            same = r < len(keep) and cand_b[r] == b[keep[r]]
+            new_toks.append(int(toks[keep[r]]) if same else
+                            ex.add(mins_t[:, cand_ids[r]] >= cand_b[r] - 1e-9))
+        for t in set(toks.tolist()) - set(new_toks):
+            ex.remove(t)
+        ids, b, toks = cand_ids[rows], cand_b[rows], np.asarray(new_toks, np.int64)
+    return Region(A_all[ids], b)
+
+

@@ -21,16 +21,18 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.continuation import NEWTON_TOL as NEWTON_TOL
+from spm_console.core.continuation import PATH_ZETA_FLOOR as PATH_ZETA_FLOOR
+from spm_console.core.continuation import Step as Step
+from spm_console.core.continuation import continuation_step as continuation_step
 from spm_console.core.geometry import SpmGeometry
 from spm_console.core.jacobian import conditioning_index, j1_matrix, j2_diag
 from spm_console.core.rotations import expm_so3
 
 F = NDArray[np.float64]
 
-#: Residual below which Newton stops (max |w·v − cos α2|).
-NEWTON_TOL = 1e-14
-#: Smallest ζ tolerated along a continuation path.
-PATH_ZETA_FLOOR = 1e-3
+# NEWTON_TOL (Newton's stop on max |w·v − cos α2|), PATH_ZETA_FLOOR (smallest ζ along a
+# path), Step and continuation_step live in spm_console.core.continuation.
 
 
 def platform_axes(R: F, v_home: F) -> F:
@@ -79,12 +81,6 @@ def newton(
     v = platform_axes(R, v_home)
     res = np.abs(residual(geom, w, v)).max(-1)
     return R, res
-
-
-def orthonormalize(R: F) -> F:
-    """Nearest rotation matrices (polar decomposition) to remove drift."""
-    U, _, Vt = np.linalg.svd(R)
-    return np.asarray(U @ Vt)
 
 
 @dataclass(frozen=True)
@@ -272,50 +268,6 @@ class SpmModel:
                 )
             )
         return results
-
-
-@dataclass(frozen=True)
-class Step:
-    """One predictor-corrector continuation step, vectorized over rows."""
-
-    R: F
-    """Corrected rotations (n, 3, 3), orthonormalized (identity where not finite)."""
-    residual: F
-    """Max |f| after Newton (n,)."""
-    correction: F
-    """‖R_corrected − R_predicted‖_F (n,): large means the corrector jumped."""
-    zeta: F
-    """ζ at the new pose (n,)."""
-    det_side: F
-    """det J1 times its home sign (n,): positive = same assembly mode."""
-    leg_sides: F
-    """J2 diagonal times the home signs (n, 3): positive = same working modes."""
-
-    @property
-    def converged(self) -> NDArray[np.bool_]:
-        return np.asarray(np.isfinite(self.residual) & (self.residual <= 1e-10) & (self.correction <= 0.05))
-
-    def good(self, zeta_floor: float = PATH_ZETA_FLOOR) -> NDArray[np.bool_]:
-        """Converged, in the home modes, and ζ ≥ ``zeta_floor``."""
-        return np.asarray(self.converged & (self.det_side > 0) & (self.leg_sides > 0).all(-1)
-                          & (self.zeta >= zeta_floor))
-
-
-def continuation_step(model: SpmModel, th_old: F, R_old: F, th_new: F) -> Step:
-    """Predict with J1 ω = J2 dθ from (θ_old, R_old), correct by Newton at θ_new (rad)."""
-    geom, u = model.geom, model.u
-    w_old = geom.w(th_old)
-    v_old = platform_axes(R_old, model.v_home)
-    rhs = j2_diag(u, v_old, w_old) * (th_new - th_old)
-    with np.errstate(all="ignore"):
-        om_raw = np.linalg.solve(j1_matrix(v_old, w_old), rhs[..., None])[..., 0]
-    om: F = np.where(np.isfinite(om_raw), om_raw, 0.0).astype(np.float64)
-    Rp = expm_so3(om) @ R_old
-    Rc, res = newton(geom, geom.w(th_new), Rp, model.v_home)
-    corr = np.linalg.norm(Rc - Rp, axis=(-2, -1))
-    Rc = orthonormalize(np.where(np.isfinite(Rc), Rc, np.eye(3)))
-    z, d1, d2 = model.mode_check(th_new, Rc)
-    return Step(Rc, res, corr, z, d1, d2)
 
 
 def _fmt(theta_rad: F) -> str:

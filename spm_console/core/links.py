@@ -69,6 +69,40 @@ class LinkModel:
             np.stack(P1, -2), np.stack(Q1, -2), np.stack(P2, -2), np.stack(Q2, -2)
         )
 
+    def apart(self, u: F, w: list[list[F]], v: list[list[F]], dist_mm: float) -> NDArray[np.bool_]:
+        """(n,) True where every checked pair is at least ``dist_mm`` apart: the verdict
+        :meth:`pair_distances` ``.min(-1) >= dist_mm``, per component (``w[i][a]``, ``v[i][a]``:
+        (n,) arrays, leg i, axis a; u (3, 3)). The exact distance is computed only for pairs
+        whose bounding spheres (centred on each segment's midpoint) are closer than that."""
+        seg: dict[tuple[int, str], tuple[list[F], list[F]]] = {}
+        for i in range(3):
+            wi, vi, ui = w[i], v[i], [float(x) for x in u[i]]
+            uw = [ui[a] + wi[a] for a in range(3)]
+            k = self.ob / np.sqrt(uw[0] * uw[0] + uw[1] * uw[1] + uw[2] * uw[2])
+            vw = [vi[a] + wi[a] for a in range(3)]
+            m = self.oe / np.sqrt(vw[0] * vw[0] + vw[1] * vw[1] + vw[2] * vw[2])
+            pts = {"A": [np.full(wi[a].shape, ui[a] * self.oa) for a in range(3)],
+                   "B": [uw[a] * k for a in range(3)], "C": [wi[a] * self.oc for a in range(3)],
+                   "D": [wi[a] * self.od for a in range(3)], "E": [vw[a] * m for a in range(3)],
+                   "F": [vi[a] * self.of for a in range(3)]}
+            for s in self.segments:
+                seg[(i, s)] = (pts[SEGMENT_ENDS[s][0]], pts[SEGMENT_ENDS[s][1]])
+        mid = {key: [0.5 * (p[a] + q[a]) for a in range(3)] for key, (p, q) in seg.items()}
+        rad = {key: 0.5 * np.sqrt(sum((q[a] - p[a]) ** 2 for a in range(3)))
+               for key, (p, q) in seg.items()}
+        ok = np.ones(len(w[0][0]), bool)
+        for i, s1, j, s2 in self.pairs():
+            m1, m2 = mid[(i, s1)], mid[(j, s2)]
+            d2 = sum((m1[a] - m2[a]) ** 2 for a in range(3))
+            reach = rad[(i, s1)] + rad[(j, s2)] + dist_mm
+            close = np.flatnonzero(ok & (d2 < reach * reach))
+            if len(close):
+                (p1, q1), (p2, q2) = seg[(i, s1)], seg[(j, s2)]
+                e = [np.stack([x[a][close] for a in range(3)], -1) for x in (p1, q1, p2, q2)]
+                d = segment_distance(e[0], e[1], e[2], e[3])
+                ok[close] = d >= dist_mm
+        return ok
+
     def min_distance(self, u: F, w: F, v: F) -> tuple[F, NDArray[np.int64]]:
         """Closest inter-leg link distance (mm) and the index of that pair in :meth:`pairs`."""
         d = self.pair_distances(u, w, v)

@@ -13,9 +13,12 @@ A fine node is exactly feasible when it passes the workspace's exact checks
 (:func:`~spm_console.core.workspace_check.check_points`: FK continued from a
 home-connected feasible grid node of its cell in the home assembly and working modes,
 ζ ≥ ζ_min, links ≥ 2δ apart). Verdicts are memoized by integer fine index; fine nodes that
-are grid nodes take the grid's verdict. The continuation uses a fixed number of steps so a
-verdict never depends on which other points were evaluated with it: the planner and the
-runtime (another process, from the same workspace) reach the same verdicts.
+are grid nodes take the grid's verdict. The continuation takes as few steps as keep each
+step ≤ :data:`~spm_console.core.workspace_check.STEP_RAD` in every joint, counted from the
+point's own distance to its start node
+(:func:`~spm_console.core.workspace_check.own_steps`), so a verdict never depends on which
+other points were evaluated with it: the planner and the runtime (another process, from the
+same workspace) reach the same verdicts.
 
 Angles in degrees at this interface.
 """
@@ -29,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.certify import CertifiedSet, nodes_near
-from spm_console.core.workspace_check import STEP_RAD, check_points
+from spm_console.core.workspace_check import check_points, exact_ok, own_steps
 
 if TYPE_CHECKING:
     from spm_console.core.workspace import Workspace
@@ -40,6 +43,9 @@ I64 = NDArray[np.int64]
 
 #: Fine nodes per grid step and axis: resolution h = Δ / REFINE (Δ/4 or finer).
 REFINE = 4
+#: Version of the fine verdicts (part of the refined cover's cache key): 2 = continuation
+#: steps counted per point (:func:`~spm_console.core.workspace_check.own_steps`).
+VERDICTS_VERSION = 2
 #: Verdict codes of the memo table.
 _UNKNOWN, _INFEASIBLE, _FEASIBLE = -1, 0, 1
 
@@ -60,8 +66,6 @@ class FineGrid:
         self._verdict = np.full(self.shape, _UNKNOWN, np.int8)
         r = self.refine
         self._verdict[::r, ::r, ::r] = np.where(ws.feasible, _FEASIBLE, _INFEASIBLE)
-        # continuation from a corner of the point's grid cell: at most Δ per axis
-        self._steps = max(1, int(np.ceil(np.radians(ws.step_deg) / STEP_RAD)))
         self.evaluated = 0
         """Fine nodes checked exactly so far (grid nodes and repeats not counted)."""
 
@@ -81,8 +85,7 @@ class FineGrid:
         todo = np.unique(flat[table[flat] == _UNKNOWN])
         if len(todo):
             pts = self.theta_deg(np.column_stack(np.unravel_index(todo, self.shape)))
-            pc = check_points(self.ws, self.model, self.links, pts, steps=self._steps)
-            ok = pc.pointwise_ok(self.ws.zeta_min, self.ws.min_distance_mm) & pc.start_feasible
+            ok = exact_ok(self.ws, self.model, self.links, pts)
             table[todo] = np.where(ok, _FEASIBLE, _INFEASIBLE)
             self.evaluated += len(todo)
         return np.asarray(table[flat] == _FEASIBLE).reshape(idx.shape[:-1])
@@ -103,7 +106,8 @@ class FineGrid:
     def reason(self, idx: I64) -> str:
         """Why one fine node (3,) fails the exact checks, in words."""
         th = self.theta_deg(np.asarray(idx).reshape(1, 3))
-        pc = check_points(self.ws, self.model, self.links, th, steps=self._steps)
+        pc = check_points(self.ws, self.model, self.links, th,
+                          steps=int(own_steps(self.ws, th)[0]))
         if pc.pointwise_ok(self.ws.zeta_min, self.ws.min_distance_mm)[0] and not pc.start_feasible[0]:
             return "not continued from a home-connected feasible grid node of its cell"
         return pc.reason(0, self.ws.zeta_min, self.ws.min_distance_mm, self.links)

@@ -9,6 +9,9 @@ from numpy.typing import NDArray
 
 F = NDArray[np.float64]
 
+#: Smallest slack (relative to the point's size) of a hint used as qhull's interior point.
+INTERIOR_MARGIN = 1e-4
+
 
 @dataclass(frozen=True)
 class Region:
@@ -80,51 +83,66 @@ class Region:
                 keep.remove(k)
         return out
 
-    def facet_rows(self, tol: float = 1e-7) -> list[int]:
+    def facet_rows(self, tol: float = 1e-7, interior: F | None = None) -> list[int]:
         """Rows that define a facet (2-D face) of the bounded, full-dimensional polytope,
         one row per facet: found from the vertices (qhull), no LP. A row is redundant
-        exactly when it defines no facet."""
-        V = self.vertices()
+        exactly when it defines no facet. ``interior``: see :meth:`vertices`."""
+        V = self.vertices(interior)
         if len(V) < 4:
             return list(range(self.halfspaces))
         n = np.linalg.norm(self.A, axis=1)
         An, bn = self.A / n[:, None], self.b / n
         scale = max(1.0, float(np.abs(V).max()))
         tight = np.abs(V @ An.T - bn) <= tol * scale  # (n_vertices, n_rows)
+        # a row defines a facet when its tight vertices span a plane: the second singular
+        # value of the centred vertices, from the eigenvalues of their scatter matrices
+        cnt = tight.sum(0)
+        mean = (tight.T @ V) / np.maximum(cnt, 1)[:, None]
+        D = (V[None, :, :] - mean[:, None, :]) * tight.T[:, :, None]
+        ev = np.linalg.eigvalsh(np.einsum("kvi,kvj->kij", D, D))  # ascending
+        sv1 = np.sqrt(np.maximum(ev[:, 1], 0.0))
+        flat = (cnt >= 3) & (sv1 > 1e3 * tol * scale)
         out: list[int] = []
-        seen: list[tuple[F, float]] = []
-        for k in range(self.halfspaces):
-            T = V[tight[:, k]]
-            if len(T) < 3:
-                continue
-            sv = np.linalg.svd(T - T.mean(0), compute_uv=False)
-            if sv[1] <= 1e3 * tol * scale:
-                continue
-            if any(np.abs(a - An[k]).max() < 1e-9 and abs(c - bn[k]) < 1e-9 * scale
-                   for a, c in seen):
-                continue
-            seen.append((An[k], float(bn[k])))
-            out.append(k)
+        for k in np.flatnonzero(flat):
+            if out and bool(((np.abs(An[out] - An[k]).max(1) < 1e-9)
+                             & (np.abs(bn[out] - bn[k]) < 1e-9 * scale)).any()):
+                continue  # a copy of a row kept already
+            out.append(int(k))
         return out
 
-    def without_redundant(self, tol: float = 1e-7, method: str = "vertices") -> Region:
+    def without_redundant(self, tol: float = 1e-7, method: str = "vertices",
+                          interior: F | None = None) -> Region:
         """The polytope with every redundant half-space removed.
 
-        ``method="vertices"`` keeps the facet-defining rows (qhull, fast);
-        ``"lp"`` solves one LP per row (slow, independent check)."""
+        ``method="vertices"`` keeps the facet-defining rows (qhull, fast; ``interior``: see
+        :meth:`vertices`); ``"lp"`` solves one LP per row (slow, independent check)."""
         if method == "lp":
             drop = set(self.redundant_rows(tol))
             keep = [k for k in range(self.halfspaces) if k not in drop]
         else:
-            keep = self.facet_rows(tol)
+            keep = self.facet_rows(tol, interior)
         return Region(self.A[keep], self.b[keep])
 
-    def vertices(self) -> F:
-        """Vertices (n, 3) of the bounded polytope, deg (qhull)."""
+    def interior_point(self, hint: F | None = None) -> F | None:
+        """A point well inside the polytope: ``hint`` when every row's (normalized) slack
+        there is at least :data:`INTERIOR_MARGIN` (relative to the point's size), else the
+        Chebyshev centre (an LP); None when the polytope has no interior."""
+        if hint is not None:
+            h = np.asarray(hint, float).reshape(3)
+            n = np.linalg.norm(self.A, axis=1)
+            if np.all(np.isfinite(h)) and float(((self.b - self.A @ h) / n).min()) >= \
+                    INTERIOR_MARGIN * max(1.0, float(np.abs(h).max())):
+                return h
+        c, r = self.chebyshev()
+        return c if r > 0 else None
+
+    def vertices(self, interior: F | None = None) -> F:
+        """Vertices (n, 3) of the bounded polytope, deg (qhull, around
+        :meth:`interior_point` of ``interior``: a known inner point saves its LP)."""
         from scipy.spatial import HalfspaceIntersection  # here: ~0.2 s to import
 
-        c, r = self.chebyshev()
-        if r <= 0:
+        c = self.interior_point(interior)
+        if c is None:
             return np.zeros((0, 3))
         hs = HalfspaceIntersection(np.hstack([self.A, -self.b[:, None]]), c)
         return np.asarray(hs.intersections)

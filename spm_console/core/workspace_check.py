@@ -15,8 +15,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.continuation import PATH_ZETA_FLOOR, Kernel, Local, from_mat, to_mat, to_vec
 from spm_console.core.jacobian import conditioning_index
-from spm_console.core.kinematics import SpmModel, continuation_step, platform_axes
+from spm_console.core.kinematics import SpmModel, platform_axes
 from spm_console.core.links import LinkModel
 
 if TYPE_CHECKING:
@@ -35,16 +36,91 @@ def track_from(model: SpmModel, th0: F, R0: F, th1: F, steps: int) -> tuple[F, B
     """Vectorized continuation, row k from (th0[k], R0[k]) to th1[k] (rad) in ``steps``
     equal steps. Returns (R (n, 3, 3), ok (n,)); ok is False where the corrector
     failed or the path left the home assembly/working modes."""
-    R = R0.copy()
-    th = th0.copy()
-    ok = np.isfinite(R).all((-2, -1))
-    R[~ok] = np.eye(3)
+    R0 = np.array(R0, float)
+    ok = np.isfinite(R0).all((-2, -1))
+    R0[~ok] = np.eye(3)
+    kern = Kernel(model)
+    a, b = to_vec(th0), to_vec(th1)
+    R = to_mat(R0)
+    th = a
+    at: Local | None = None
     for k in range(1, steps + 1):
-        th_new = th0 + (th1 - th0) * (k / steps)
-        st = continuation_step(model, th, R, th_new)
-        ok &= st.good()
-        R, th = st.R, th_new
-    return R, np.asarray(ok, bool)
+        th_new = [a[i] + (b[i] - a[i]) * (k / steps) for i in range(3)]
+        R, res, corr, z, d1, d2, at = kern.step(th, R, th_new, at)
+        ok &= _good(res, corr, z, d1, d2)
+        th = th_new
+    return from_mat(R), np.asarray(ok, bool)
+
+
+def _good(res: F, corr: F, z: F, d1: F, d2: list[F]) -> B:
+    """:meth:`~spm_console.core.continuation.Step.good` on component arrays."""
+    return np.asarray(np.isfinite(res) & (res <= 1e-10) & (corr <= 0.05) & (d1 > 0)
+                      & (d2[0] > 0) & (d2[1] > 0) & (d2[2] > 0) & (z >= PATH_ZETA_FLOOR))
+
+
+def own_steps(ws: Workspace, theta_deg: F) -> NDArray[np.int64]:
+    """(n,) continuation steps of each point from its start node (:func:`check_points`'s
+    choice): as few as keep every step ≤ :data:`STEP_RAD` in every joint. A function of the
+    point alone, so its verdict does not depend on the points checked with it."""
+    th_deg = np.atleast_2d(np.asarray(theta_deg, float))
+    return _steps_from(ws, th_deg, _start_nodes(ws, th_deg)[0])
+
+
+def _steps_from(ws: Workspace, th_deg: F, node: NDArray[np.int64]) -> NDArray[np.int64]:
+    span = np.abs(np.radians(th_deg) - np.radians(ws.theta_deg().reshape(-1, 3)[node])).max(-1)
+    return np.maximum(1, np.ceil(span / STEP_RAD - 1e-9)).astype(np.int64)
+
+
+def exact_ok(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F,
+             steps: int | None = None) -> B:
+    """(n,) the verdict ``pointwise_ok & start_feasible`` of :func:`check_points` with
+    ``steps`` continuation steps per point (default :func:`own_steps`), computed only as far
+    as needed: rows outside the box or without a home-connected feasible start node are
+    refused at once, a row is dropped at the first step that fails, and link distances are
+    computed only where ζ ≥ ζ_min."""
+    th_deg = np.atleast_2d(np.asarray(theta_deg, float))
+    out = np.zeros(len(th_deg), bool)
+    lo, hi = ws.range_deg()
+    in_range = np.all((th_deg >= lo - 1e-9) & (th_deg <= hi + 1e-9), -1)
+    node, feas = _start_nodes(ws, th_deg)
+    count = _steps_from(ws, th_deg, node) if steps is None else np.full(len(th_deg), int(steps))
+    kern = Kernel(model)
+    R_nodes = ws.R.reshape(-1, 3, 3)
+    node_th = np.radians(ws.theta_deg().reshape(-1, 3))
+    go = in_range & feas
+    for n_steps in np.unique(count[go]):
+        todo = np.flatnonzero(go & (count == n_steps))
+        for s in range(0, len(todo), CHUNK):
+            rows = todo[s:s + CHUNK]
+            out[rows] = _track_and_check(ws, kern, links, node_th[node[rows]],
+                                         R_nodes[node[rows]], np.radians(th_deg[rows]),
+                                         int(n_steps))
+    return out
+
+
+def _track_and_check(ws: Workspace, kern: Kernel, links: LinkModel, th0: F, R0: F, th1: F,
+                     steps: int) -> B:
+    """Continue rows from (th0, R0) to th1 (rad) in ``steps`` steps, then ζ and the links."""
+    out = np.zeros(len(th0), bool)
+    rows = np.arange(len(th0))
+    a, b = to_vec(th0), to_vec(th1)
+    R = to_mat(R0)
+    th = a
+    z = np.zeros(len(rows))
+    at: Local | None = None
+    for k in range(1, steps + 1):
+        th_new = [a[i] + (b[i] - a[i]) * (k / steps) for i in range(3)]
+        R, res, corr, z, d1, d2, at = kern.step(th, R, th_new, at)
+        keep = np.flatnonzero(_good(res, corr, z, d1, d2))
+        rows, z, at = rows[keep], z[keep], at.take(keep)
+        a, b = [x[keep] for x in a], [x[keep] for x in b]
+        th = [x[keep] for x in th_new]
+        R = [[x[keep] for x in row] for row in R]
+    sing = np.flatnonzero(z >= ws.zeta_min)
+    R = [[x[sing] for x in row] for row in R]
+    w = [[x[sing] for x in wi] for wi in at.w] if at is not None else []
+    out[rows[sing]] = links.apart(np.asarray(kern.u), w, kern.axes(R), ws.min_distance_mm)
+    return out
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,7 @@ from spm_console.core import region_build
 from spm_console.core import workspace as core_ws
 from spm_console.core.cover import RegionCover
 from spm_console.core.kinematics import NEWTON_TOL, PATH_ZETA_FLOOR
-from spm_console.core.refine import REFINE
+from spm_console.core.refine import REFINE, VERDICTS_VERSION
 from spm_console.core.region import Region
 from spm_console.core.workspace import Progress, Workspace
 from spm_console.core.workspace_check import STEP_RAD
@@ -119,7 +119,7 @@ def cache_key(profile: Profile, refined_cover: bool = False) -> str:
         },
         # the refined cover's own constants only in its key (the default key is unchanged)
         **({"refined_cover": [core_cover.REFINED_MAX_REGIONS, core_cover.SEED_WINDOW, REFINE,
-                              STEP_RAD]} if refined_cover else {}),
+                              STEP_RAD, VERDICTS_VERSION]} if refined_cover else {}),
     }, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
 
