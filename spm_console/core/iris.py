@@ -271,10 +271,12 @@ def reduce_halfspaces(
         pos[toks] = np.arange(n)
         owner = pos[ex.token_sum[s1]]
         req_max = req_all[ids]
-        m = mins_t[s1][:, ids]  # (n_sole, n)
-        gain = np.where((m >= req_max) & (np.arange(n)[None, :] != owner[:, None]), m - b, -np.inf)
-        j = np.argmax(gain, axis=1)
+        m = mins_t.take(s1, axis=0).take(ids, axis=1)  # (n_sole, n)
         rows_s = np.arange(len(s1))
+        gain = m - b
+        gain[m < req_max] = -np.inf
+        gain[rows_s, owner] = -np.inf
+        j = np.argmax(gain, axis=1)
         stuck = np.zeros(n, bool)
         stuck[owner[~np.isfinite(gain[rows_s, j])]] = True
         new_b = np.broadcast_to(b, (n, n)).copy()  # row k: the offsets if plane k is dropped
