@@ -36,6 +36,7 @@ from spm_console.tui.screens.logs import LogsScreen
 from spm_console.tui.screens.plan import PlanScreen
 from spm_console.tui.screens.settings import SettingsScreen, SwitchRequest
 from spm_console.tui.screens.workspace import WorkspaceScreen
+from spm_console.tui.widgets.confirm import QuitConfirm
 from spm_console.tui.widgets.estop import ESTOP_KEY
 from spm_console.tui.widgets.steps import STEPS
 from spm_console.viewer.view import MeshcatView, NullView, WristView
@@ -90,7 +91,8 @@ class SpmConsoleApp(App[int | SwitchRequest]):
         *_step_bindings(),
         Binding("question_mark", "help", "Keys", key_display="?",
                 tooltip="this list (also in the palette, ctrl+p)"),
-        Binding("q", "quit", "Quit", tooltip="refused while the wrist moves"),
+        Binding("q", "quit", "Quit", tooltip="asks first (q again or y); refused while the wrist "
+                "moves"),
         # the palette finds a command by its title only: the title names what it sets
         Binding("ctrl+o", "settings", SETTINGS_TITLE, show=False, priority=True,
                 tooltip="choose another profile or workspace grid step (applying restarts "
@@ -208,9 +210,25 @@ class SpmConsoleApp(App[int | SwitchRequest]):
             await self.switch_mode(mode)
         return True
 
+    def _wrist_moving(self) -> bool:
+        return self.moving or self.session.moving.is_set()
+
     async def action_quit(self) -> None:
-        """q and ctrl+q: stop nothing by surprise (refused while the wrist moves)."""
-        if self.moving:
+        """q and ctrl+q: ask first (q again or y quits); stop nothing by surprise (refused
+        while the wrist moves: SPACE stops it first)."""
+        if self._wrist_moving():
+            self.notify("The wrist is moving: press SPACE to stop it before quitting.",
+                        severity="warning")
+            return
+        if isinstance(self.screen, QuitConfirm):  # ctrl+q twice
+            self.screen.dismiss(True)
+            return
+        self.push_screen(QuitConfirm(), self._quit_answered)
+
+    def _quit_answered(self, yes: bool | None) -> None:
+        if not yes:
+            return
+        if self._wrist_moving():  # started meanwhile: never quit under way
             self.notify("The wrist is moving: press SPACE to stop it before quitting.",
                         severity="warning")
             return
