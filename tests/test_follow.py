@@ -232,3 +232,16 @@ def test_bad_state_or_target_shape() -> None:
         s.solve(HOME[:2], np.zeros(3), HOME)
     with pytest.raises(BadInputError):
         s.solve(HOME, np.array([0.0, np.nan, 0.0]), HOME)
+
+
+def test_an_untimed_solve_ignores_the_time_limit_and_the_next_timed_one_keeps_it() -> None:
+    """The follower's first solve, before torque-on, runs without the loop's budget (a cold
+    solve in a fresh region may need more); the budget holds again for the next solve."""
+    s = _solver(settings=FollowSettings(time_limit_s=1e-9))
+    target = _at(5.0, 5.0, -5.0)
+    assert not s.solve(HOME, np.zeros(3), target, warm=False).ok  # out of time
+    first = s.solve(HOME, np.zeros(3), target, warm=False, timed=False)
+    assert first.ok, first.reason
+    _assert_safe(first, s)
+    again = s.solve(HOME, np.zeros(3), target, warm=False)
+    assert not again.ok and "out of time" in again.reason

@@ -183,3 +183,30 @@ def test_a_target_in_another_region_of_the_cover_is_reached_through_the_overlaps
     assert start_ev["regions"] == ws.cover.size and (hops or start_ev["region"] != 0)
     pred = np.array([s.predicted_deg for s in ex.samples])
     assert all(ws.cover.containing(p, tol=1e-3) for p in pred)  # the model in some region
+
+
+#: A feasible node on the boundary of the Agile Wrist's certified set that no region of its
+#: 2° cover holds (where a plan through a region grown around its goal leaves the wrist).
+BOUNDARY_NODE = (87.0, 87.0, 153.0)
+
+
+def test_following_starts_at_a_boundary_pose_outside_every_cover_region(
+        agile: Profile, tmp_path: Path) -> None:
+    """The follower grows a certified region around a start no cover region holds, joined to
+    the cover by its overlaps, and follows from there: toward home through P, every measured
+    sample certified."""
+    ws = agile_workspace()
+    assert ws.cover is not None
+    start = np.asarray(BOUNDARY_NODE)
+    assert not ws.cover.containing(start, tol=1e-3)  # the case: no cover region holds it
+    home = np.asarray(ws.theta_deg()[ws.home_index], float)
+    toward = start + 0.25 * (home - start)
+    feed = TargetFeed(TimedTargets(np.array([0.0, 0.2]), np.vstack([start, toward])))
+    res, ex = _follow(agile, tmp_path, start, feed)
+    assert res.ok, res.message
+    np.testing.assert_allclose(res.final_deg, toward, atol=0.3)
+    meas = np.array([s.measured_deg for s in ex.samples if s.read_ok])
+    assert ex.verifier.certified.contains(meas).all()
+    start_ev = next(e for e in load_run(res.log_dir).events if e["event"] == "start")
+    assert start_ev["grown_around_start"] == 1
+    assert start_ev["regions"] == ws.cover.size + 1

@@ -88,3 +88,31 @@ def test_round_off_past_the_grid_edge_is_on_it() -> None:
     cs = CertifiedSet(np.ones((3, 3, 3), bool), np.zeros(3), 1.0)
     assert cs.contains(np.array([2.0 + 1e-10, 1.0, 1.0]))
     assert not cs.contains(np.array([2.0 + 1e-6, 1.0, 1.0]))
+
+
+@pytest.mark.parametrize("argv", [
+    ["fk", "--json", "--theta", "1", "2"],
+    ["fk", "--json"],
+    ["ik", "--json", "--rpy", "x", "0", "0"],
+    ["workspace", "--json"],
+    ["workspace", "check", "--json", "--bogus"],
+    ["plan", "mvn", "--json", "--steps", "x"],
+    ["servo", "ping", "--json", "--nope"],
+    ["execute", "--json", "--plan"],
+    ["follow", "--json", "--deadman", "soon"],
+    ["logs", "--json", "--nope"],
+    ["script", "--json"],
+    ["bogus", "--json"],
+])
+def test_usage_errors_with_json_give_their_reason_in_one_object(
+        capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
+    """argparse's reason is on stderr (after the usage line) and in the one JSON object on
+    stdout (it said "usage error (see stderr)")."""
+    code, out, err = _run(capsys, *argv)
+    assert code == ExitCode.USAGE
+    [line] = out.splitlines()
+    obj = json.loads(line)
+    assert set(obj) == {"ok", "exit_code", "error"} and obj["ok"] is False
+    assert obj["exit_code"] == 2
+    reason = obj["error"].split(": ", 1)[1]  # after "spm-console CMD: "
+    assert f"error: {reason}" in err and "see stderr" not in obj["error"]

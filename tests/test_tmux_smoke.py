@@ -142,7 +142,7 @@ def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type
     t.wait_for(r"-execute")
     t.keys("enter")
     t.wait_for(r"outcome completed \(exit code 0\)")
-    t.keys("q")
+    t.keys("q", "q")
     t0 = time.monotonic()
     while t.alive() and time.monotonic() - t0 < 10:
         time.sleep(0.1)
@@ -169,7 +169,7 @@ def test_viewer_url_shown_loopback_only_and_stopped_on_quit(tmux_console) -> Non
     port = _viewer_port(screen)
     addrs = listening(port)
     assert addrs and all(a in ("0100007F", "00000000000000000000000001000000") for a in addrs), addrs
-    t.keys("q")
+    t.keys("q", "q")
     _wait_gone(port)
 
 
@@ -244,7 +244,7 @@ def test_walk_the_new_tools_in_a_real_terminal(tmux_console) -> None:  # type: i
     t.keys("Escape", "?")
     t.wait_for(r"(?i)keys|help")
     assert "Traceback" not in t.screen()
-    t.keys("Escape", "q")
+    t.keys("Escape", "q", "q")
     t0 = time.monotonic()
     while t.alive() and time.monotonic() - t0 < 10:
         time.sleep(0.1)

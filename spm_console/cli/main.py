@@ -10,6 +10,7 @@ import sys
 import threading
 from collections.abc import Sequence
 from types import FrameType
+from typing import NoReturn
 
 from spm_console import __version__
 from spm_console.errors import ExitCode, SpmError
@@ -36,9 +37,32 @@ COMMANDS: dict[str, str] = {
 COMMAND_MODULES = list(dict.fromkeys(COMMANDS.values()))
 
 
+class UsageError(SystemExit):
+    """A bad command line (exit 2), with argparse's reason for the ``--json`` object."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(int(ExitCode.USAGE))
+        self.message = message
+
+
+class CliParser(argparse.ArgumentParser):
+    """argparse's parser (usage and reason on stderr, exit 2) whose usage errors keep their
+    reason; its subparsers are of the same class (argparse's default)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise UsageError(f"{self.prog}: {message}")
+
+
+def _wants_json(args: Sequence[str]) -> bool:
+    """Whether the command line asks for JSON (before it is parsed, for usage errors)."""
+    return "--json" in (a for a in args if a != "--")
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The CLI parser; with ``command``, only that command's module is imported."""
-    parser = argparse.ArgumentParser(
+    parser = CliParser(
         prog="spm-console",
         description="Operator console for 3-DOF spherical parallel manipulators "
         "(degrees, mm, seconds at every interface).",
@@ -82,19 +106,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     if common is not None:  # in-process callers (tests) run main() more than once
         common.EMITTED.clear()
     args_list = list(sys.argv[1:] if argv is None else argv)
-    as_json = "--json" in args_list
+    as_json = _wants_json(args_list)
     try:
         parser = build_parser(args_list[0] if args_list else None)
         try:
             args = parser.parse_args(args_list)
         except SystemExit as exc:  # argparse: usage errors exit 2, --help exits 0
             code = int(exc.code or 0)
-            if code and as_json:
-                sys.stdout.write(json.dumps({"ok": False, "exit_code": code,
-                                             "error": "usage error (see stderr)"}) + "\n")
+            if code and as_json:  # the reason is on stderr too, after the usage line
+                why = exc.message if isinstance(exc, UsageError) else "bad command line"
+                sys.stdout.write(json.dumps({"ok": False, "exit_code": code, "error": why})
+                                 + "\n")
             return code
         if not getattr(args, "func", None):
             parser.print_help(sys.stderr)
+            if as_json:
+                sys.stdout.write(json.dumps({"ok": False, "exit_code": int(ExitCode.USAGE),
+                                             "error": "no command given"}) + "\n")
             return int(ExitCode.USAGE)
         as_json = bool(getattr(args, "json", False))
         return int(args.func(args))

@@ -67,7 +67,7 @@ def run_consoles(profile_path: Path, grid_step_deg: float | None,
         if not isinstance(result, SwitchRequest):
             return int(result or 0)
         profile_path, grid_step_deg = result.profile_path, result.grid_step_deg
-        note = f"Console restarted: {result.describe()}."
+        note = f"Settings applied: {result.describe()} (the console restarted for them)."
 
 
 def cmd_tui(args: argparse.Namespace) -> int:

@@ -385,11 +385,21 @@ def connector_regions(ws: Workspace, cover: RegionCover, points_deg: F,
         # has to reach into the cover, and the whole grid makes each step 10× slower)
         near = feasible[np.abs(feasible - p).max(axis=1) <= CONNECTOR_REACH_STEPS * ws.step_deg]
         new.append(grower.grow(p, near))
+    return new, connector_overlaps(cover, new)[1]
+
+
+def connector_overlaps(cover: RegionCover, new: list[Region]) -> tuple[I64, F]:
+    """The overlaps (inscribed radius ≥ the cover's ``min_overlap_deg``) of each region of
+    ``new`` with the cover's regions and the regions of ``new`` before it: (m, 2) pairs
+    (i, j), i < j, indexing ``(*cover.regions, *new)``, and their Chebyshev centres (m, 3)."""
+    pairs: list[tuple[int, int]] = []
     pts: list[F] = []
+    n = len(cover.regions)
     for k, r in enumerate(new):
-        for other in (*cover.regions, *new[:k]):
+        for i, other in enumerate((*cover.regions, *new[:k])):
             both = Region(np.vstack([r.A, other.A]), np.r_[r.b, other.b])
             c, rad = both.chebyshev()
             if rad >= cover.min_overlap_deg:
+                pairs.append((i, n + k))
                 pts.append(c)
-    return new, np.asarray(pts, float).reshape(-1, 3)
+    return np.asarray(pairs, np.int64).reshape(-1, 2), np.asarray(pts, float).reshape(-1, 3)

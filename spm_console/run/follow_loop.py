@@ -39,7 +39,7 @@ from spm_console.core.planning.follow import FollowResult, FollowSettings, Follo
 from spm_console.core.servo_model import exact_step, simulate_continuous
 from spm_console.errors import BadInputError
 from spm_console.run.executor import Executor, _LoopState
-from spm_console.run.follow_regions import RegionHopper
+from spm_console.run.follow_regions import RegionHopper, follow_regions
 from spm_console.run.plan_check import BETWEEN_SPEED_ALLOWANCE, MAX_REFERENCE_STEP_DEG
 from spm_console.run.safety import StopReason
 from spm_console.run.segments import ExecutionResult
@@ -104,15 +104,9 @@ class Follower(Executor):
         self.t0 = self.clock()
         self._stale0 = stale_replies(self.bus)
         theta0 = self.read_initial() if theta0_deg is None else np.asarray(theta0_deg, float)
-        ws = self.verifier.ws
-        cover = ws.cover
-        regions = cover.regions if cover is not None else (ws.region,)
-        try:
-            self.hopper = RegionHopper(regions, cover, theta0)
-        except ValueError:
-            raise BadInputError(
-                f"the wrist is at θ = {np.round(theta0, 2).tolist()}°, outside every region of the "
-                "workspace that live following works in: home it first") from None
+        graph = follow_regions(self.verifier.ws, theta0)  # BadInputError: why not
+        regions = graph.regions
+        self.hopper = RegionHopper(graph, theta0)
         vmax = self.profile.limits.vmax_degps
         # one solver per region, built before torque-on (about 15 ms each: not in the loop)
         self.solvers = [FollowSolver(self.model, r, vmax, HORIZON, self.lo, self.hi,
@@ -121,7 +115,7 @@ class Follower(Executor):
         targets, _ = feed.targets(0.0, self.ts, HORIZON, theta0)
         idx, goal = self.hopper.aim(theta0, targets[-1])
         first = self.solvers[idx].solve(theta0, np.zeros(3), _aimed(feed, targets, goal),
-                                        warm=False)  # cold, before torque-on: not timed
+                                        warm=False, timed=False)  # cold, before torque-on
         if not first.ok or not self._plan_ok(first, theta0, np.zeros(3), theta0):
             raise BadInputError(f"live following cannot start from θ = "
                                 f"{np.round(theta0, 2).tolist()}°: {first.reason or first.status}")
@@ -129,7 +123,8 @@ class Follower(Executor):
         self._counts = {"solves": 0, "adopted": 0, "misses": 0, "refused": 0, "clamped": 0}
         self._event("start", theta0_deg=theta0, mode="follow", live=feed.live,
                     horizon=HORIZON, budget_ms=SOLVE_BUDGET_S * 1e3, deadman_s=feed.deadman_s,
-                    region=self.hopper.current, regions=len(self.solvers))
+                    region=self.hopper.current, regions=len(self.solvers),
+                    grown_around_start=graph.grown)
         result = self._guarded(theta0, lambda: self._follow_loop(feed, theta0, first),
                                lambda: f"followed for {len(self.samples) * self.ts:.2f} s")
         return result

@@ -7,20 +7,34 @@ path of the overlap graph (fewest regions, then the shortest way between overlap
 and plans in that next region once the wrist's predicted state is inside it — so the switch
 happens inside the overlap, where both regions hold it, exactly as a plan across regions
 switches at a sample inside two regions. A target in no region of the cover is projected
-into the current region (the solver reports it as clamped). Degrees.
+into the current region (the solver reports it as clamped).
+
+A wrist that stands where no cover region reaches — a plan through a region grown around its
+end left it on the boundary of the certified set — starts in a region grown around its own
+position, as the planner grows one around a plan's end (:func:`~spm_console.core.cover.
+connector_regions`: the cover's obstacles, so certified alike), computed by the runtime from
+its own workspace and joined to the cover through its overlaps. Degrees.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from spm_console.core.cover import RegionCover
+from spm_console.core.cover import connector_overlaps, connector_regions
 from spm_console.core.region import Region
+from spm_console.errors import BadInputError, InfeasibleError
+
+if TYPE_CHECKING:
+    from spm_console.core.workspace import Workspace
 
 F = NDArray[np.float64]
+I64 = NDArray[np.int64]
 
 #: A point lies in a region when it violates no half-space by more than this, deg.
 INSIDE_TOL_DEG = 1e-6
@@ -28,20 +42,67 @@ INSIDE_TOL_DEG = 1e-6
 HOP_COST_DEG = 1000.0
 
 
-class RegionHopper:
-    """The follower's current region in ``regions`` (the cover's, or P alone)."""
+@dataclass(frozen=True)
+class FollowRegions:
+    """The regions live following plans in and the graph of their overlaps."""
 
-    def __init__(self, regions: tuple[Region, ...], cover: RegionCover | None, theta0_deg: F) -> None:
-        self.regions = regions
-        self.cover = cover
+    regions: tuple[Region, ...]
+    edges: I64
+    """(m, 2) pairs of regions whose overlap holds a switch point."""
+    points_deg: F
+    """(m, 3) the switch point of each pair (its overlap's Chebyshev centre), deg."""
+    grown: int = 0
+    """Regions grown around the start (the last ones of ``regions``): 0 or 1."""
+
+
+def _where(theta_deg: F) -> str:
+    return f"θ = {np.round(np.asarray(theta_deg, float), 2).tolist()}°"
+
+
+def follow_regions(ws: Workspace, theta0_deg: F) -> FollowRegions:
+    """The workspace's cover (P alone without one) and, when none of its regions holds
+    ``theta0_deg``, a region grown around it and joined to the cover. BadInputError, with the
+    reason, when the start cannot be held by a certified region."""
+    th = np.asarray(theta0_deg, float).reshape(3)
+    cover = ws.cover
+    if cover is None:
+        if not bool(ws.region.contains(th, tol=INSIDE_TOL_DEG)):
+            raise BadInputError(f"the wrist is at {_where(th)}, outside the workspace's region P "
+                                "(this workspace has no region cover): home it first")
+        return FollowRegions((ws.region,), np.zeros((0, 2), np.int64), np.zeros((0, 3)))
+    if any(r.contains(th, tol=INSIDE_TOL_DEG) for r in cover.regions):
+        return FollowRegions(cover.regions, cover.edges, cover.edge_points_deg)
+    try:
+        grown, _ = connector_regions(ws, cover, th[None])
+    except InfeasibleError as exc:
+        raise BadInputError(f"the wrist is at {_where(th)}, outside the workspace's certified "
+                            f"set ({exc.message}): no region to follow in; home it first"
+                            ) from None
+    if not grown or not bool(grown[0].contains(th, tol=INSIDE_TOL_DEG)):
+        raise BadInputError(f"the wrist is at {_where(th)}: no certified region grown around it "
+                            "holds it; home it first")
+    pairs, pts = connector_overlaps(cover, grown)
+    if not len(pairs):
+        raise BadInputError(f"the wrist is at {_where(th)}: the region grown around it overlaps "
+                            "no region of the cover, so following could not leave it; home it "
+                            "first")
+    return FollowRegions((*cover.regions, *grown), np.vstack([cover.edges, pairs]),
+                         np.vstack([cover.edge_points_deg, pts]), grown=len(grown))
+
+
+class RegionHopper:
+    """The follower's current region in ``graph.regions`` (see :func:`follow_regions`)."""
+
+    def __init__(self, graph: FollowRegions, theta0_deg: F) -> None:
+        self.regions = regions = graph.regions
         n = len(regions)
         self.points: dict[tuple[int, int], F] = {}
         rows: list[int] = []
         cols: list[int] = []
         w: list[float] = []
-        if cover is not None:
+        if len(graph.edges):
             centres = np.array([self._centre(i) for i in range(n)])
-            for (i, j), p in zip(cover.edges, cover.edge_points_deg, strict=True):
+            for (i, j), p in zip(graph.edges, graph.points_deg, strict=True):
                 self.points[(int(i), int(j))] = self.points[(int(j), int(i))] = np.asarray(p)
                 rows.append(int(i))
                 cols.append(int(j))

@@ -31,6 +31,7 @@ from spm_console.errors import (
     SpmError,
     UnreachableError,
 )
+from spm_console.formatting import fmt_deg
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
 from spm_console.run.kin_record import FkGraphSource
@@ -407,7 +408,8 @@ class Session(ServoTools, FollowTools):
         plan = load_plan(path, self.profile)
         verify_plan(self.profile, self.ensure_workspace(), plan)
         self.plan = plan
-        self.plan_info = {"method": plan.kind, "start": "from the file", "goal": "from the file",
+        ends = (f"θ = {fmt_deg(plan.position_deg[0])}", f"θ = {fmt_deg(plan.position_deg[-1])}")
+        self.plan_info = {"method": plan.kind, "start": ends[0], "goal": ends[1],
                           "start_deg": plan.position_deg[0], "goal_deg": plan.position_deg[-1],
                           "vmax_degps": None if plan.options is None else plan.options.vmax_degps,
                           "region": (f"stored in the plan ({plan.region.halfspaces} half-spaces)"

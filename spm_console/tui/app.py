@@ -36,10 +36,17 @@ from spm_console.tui.screens.logs import LogsScreen
 from spm_console.tui.screens.plan import PlanScreen
 from spm_console.tui.screens.settings import SettingsScreen, SwitchRequest
 from spm_console.tui.screens.workspace import WorkspaceScreen
+from spm_console.tui.widgets.confirm import QuitConfirm
 from spm_console.tui.widgets.estop import ESTOP_KEY
 from spm_console.tui.widgets.steps import STEPS
 from spm_console.viewer.view import MeshcatView, NullView, WristView
 
+#: The settings' name in the key list and the palette (which searches titles only: "grid" or
+#: "profile" must find it).
+SETTINGS_TITLE = "Settings: profile, workspace grid step"
+#: How long the note after a restart with other settings stays up, s (the console connects
+#: meanwhile).
+NOTE_TIMEOUT_S = 30
 #: Shortest interval between two telemetry updates of the UI, s.
 TELEMETRY_EVERY_S = 0.1
 
@@ -84,10 +91,13 @@ class SpmConsoleApp(App[int | SwitchRequest]):
         *_step_bindings(),
         Binding("question_mark", "help", "Keys", key_display="?",
                 tooltip="this list (also in the palette, ctrl+p)"),
-        Binding("q", "quit", "Quit", tooltip="refused while the wrist moves"),
-        Binding("ctrl+o", "settings", "Settings", show=False, priority=True,
-                tooltip="profile and workspace grid step (applying restarts the console)"),
-        Binding("f7", "settings", "Settings", show=False, priority=True, key_display="F7"),
+        Binding("q", "quit", "Quit", tooltip="asks first (q again or y); refused while the wrist "
+                "moves"),
+        # the palette finds a command by its title only: the title names what it sets
+        Binding("ctrl+o", "settings", SETTINGS_TITLE, show=False, priority=True,
+                tooltip="choose another profile or workspace grid step (applying restarts "
+                "the console)"),
+        Binding("f7", "settings", SETTINGS_TITLE, show=False, priority=True, key_display="F7"),
         Binding(ESTOP_KEY, "estop", "E-STOP", priority=True, key_display="SPACE",
                 tooltip="stops any motion (active while the wrist moves)"),
     ]
@@ -123,14 +133,14 @@ class SpmConsoleApp(App[int | SwitchRequest]):
         self._loop: asyncio.AbstractEventLoop | None = None
 
     # ------------------------------------------------------------------ lifecycle
-    def on_mount(self) -> None:
-        self.switch_mode("connect")
+    async def on_mount(self) -> None:
+        await self.switch_mode("connect")  # before the note: a toast needs its screen up
         self._loop = asyncio.get_running_loop()
         self._restore_signals = install_stop_handler(self._on_stop_signal)
         if self._start_viewer:
             self._launch_viewer()
         if self._note:
-            self.notify(self._note, title="Settings", timeout=8, markup=False)
+            self.notify(self._note, title="Settings", timeout=NOTE_TIMEOUT_S, markup=False)
 
     def _on_stop_signal(self, sig: signal.Signals) -> None:
         """SIGINT / SIGTERM / SIGHUP / SIGQUIT (signal handler, main thread): E-stop any motion
@@ -200,9 +210,25 @@ class SpmConsoleApp(App[int | SwitchRequest]):
             await self.switch_mode(mode)
         return True
 
+    def _wrist_moving(self) -> bool:
+        return self.moving or self.session.moving.is_set()
+
     async def action_quit(self) -> None:
-        """q and ctrl+q: stop nothing by surprise (refused while the wrist moves)."""
-        if self.moving:
+        """q and ctrl+q: ask first (q again or y quits); stop nothing by surprise (refused
+        while the wrist moves: SPACE stops it first)."""
+        if self._wrist_moving():
+            self.notify("The wrist is moving: press SPACE to stop it before quitting.",
+                        severity="warning")
+            return
+        if isinstance(self.screen, QuitConfirm):  # ctrl+q twice
+            self.screen.dismiss(True)
+            return
+        self.push_screen(QuitConfirm(), self._quit_answered)
+
+    def _quit_answered(self, yes: bool | None) -> None:
+        if not yes:
+            return
+        if self._wrist_moving():  # started meanwhile: never quit under way
             self.notify("The wrist is moving: press SPACE to stop it before quitting.",
                         severity="warning")
             return

@@ -136,7 +136,7 @@ async def test_jog_only_when_homed_with_a_confirmation(console, tmp_path) -> Non
         assert "decimals take a point" in text_of(app, "#jog-note")
         await pilot.press("ctrl+u", *"0.000000000001")  # longer than fits: kept, refused
         assert field.value == "0.000000000001"
-        assert "at most 10 fit" in text_of(app, "#jog-note")
+        assert "at most 10 are accepted" in text_of(app, "#jog-note")
         await pilot.press("ctrl+u", *"12,5")
         await pilot.press("enter", "minus")  # enter: back to the table, then jog
         assert "jog step is invalid" in status_of(app)

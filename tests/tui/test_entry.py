@@ -39,9 +39,10 @@ def test_rules_accept_numbers_as_written(agile: Any) -> None:
     ("theta2", "1_10", "θ2: '1_10' is not a number of degrees"),
     ("theta2", "nan", "θ2: 'nan' is not a number of degrees"),
     ("theta2", "1e400", "θ2: 1e400 is outside the servo limits 60…160°"),
-    ("theta2", "95.0000001", f"θ2: 10 characters, at most {FIELD_CHARS} fit the field"),
+    ("theta2", "95.0000001", f"θ2: 10 characters, at most {FIELD_CHARS} are accepted"),
     ("steps", "1e9", f"steps N: 1e9 is outside 2…{N_MAX}"),
-    ("steps", "2.5", "steps N: 2.5 is not a whole number"),
+    ("steps", "2.5", "steps N: 2.5 must be a whole number"),
+    ("steps", "1.5", "steps N: 1.5 must be a whole number"),  # not "outside 2…": below 2 too
     ("steps", "1", f"steps N: 1 is outside 2…{N_MAX}"),
     ("vmax", "0", "v_max: 0 must be above 0°/s"),
     ("vmax", "300", "v_max: 300 is above the profile's planning limit 50°/s"),
@@ -141,7 +142,7 @@ async def test_invalid_fields_are_marked_with_the_reason_and_refuse_the_solve(co
             (goal, goal.fields[0], "12,5", "goal θ1: '12,5' is not a number"),
             (goal, goal.fields[2], "ab", "goal θ3: 'ab' is not a number of degrees"),
             (steps, steps.field, "1e9", f"steps N: 1e9 is outside 2…{N_MAX}"),
-            (steps, steps.field, "2.5", "steps N: 2.5 is not a whole number"),
+            (steps, steps.field, "1.5", "steps N: 1.5 must be a whole number"),
             (vmax, vmax.field, "0", "v_max: 0 must be above 0°/s"),
         ]:
             before = field.value
@@ -228,3 +229,18 @@ async def test_fk_and_check_refuse_while_invalid(console) -> None:
             "Check refused: θ1: 1e9 is outside the servo limits 60…160°"), status_of(app)
         # the verdict of the θ checked before is gone with the refusal
         assert text_of(app, "#ws-check").startswith("No verdict: the check was refused.")
+
+
+async def test_a_too_long_number_is_refused_without_claiming_what_fits(console) -> None:
+    """At 80×24 the plan's angle fields are wider than the accepted length: the refusal
+    names the accepted length, not a number of characters that "fit" (which depends on the
+    layout)."""
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await _to(pilot, "4")
+        goal = app.screen.query_one("#goal-values", AnglesInput)
+        await type_into(pilot, goal.fields[0], "95.0000001")
+        assert goal.fields[0].content_region.width > FIELD_CHARS + 1  # more than 9 fit here
+        why = reason_under(goal)
+        assert why == f"goal θ1: 10 characters, at most {FIELD_CHARS} are accepted", why
+        assert "fit" not in why

@@ -98,3 +98,14 @@ async def test_bad_input_is_a_message_not_a_crash(console) -> None:
         msg = status_of(app)
         assert msg.startswith("FK failed: θ = [65.0, 155.0, 65.0]°"), msg
         assert app.is_running
+
+
+async def test_the_orientation_fields_are_named_roll_pitch_yaw_in_degrees(console) -> None:
+    app = console()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await settle(pilot)
+        await pilot.press("2")
+        await pilot.pause()
+        rpy = app.screen.query_one("#rpy")
+        assert [str(n.render()) for n in rpy.query(".angle-name")] == [
+            "roll (°)", "pitch (°)", "yaw (°)"]

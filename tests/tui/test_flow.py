@@ -67,7 +67,7 @@ async def test_whole_flow_by_keys(console, tmp_path) -> None:
         await settle(pilot)
         assert "joint 2: velocities" in str(app.screen.query_one("#run-plot").render())
 
-        await pilot.press("q")
+        await pilot.press("q", "q")  # quitting asks first
     assert app.return_code == 0
     assert len(list_runs(tmp_path / "logs")) == 2
     assert app.session.bus is None and app.session.emulator is None  # closed on quit

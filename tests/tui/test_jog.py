@@ -299,7 +299,7 @@ def test_a_target_outside_is_sent_once_and_not_wound_up() -> None:
     assert t.nudge(0, 1) == "" and t.outside_deg == pytest.approx(0.0)
     assert t.nudge(0, 1) == "" and t.outside_deg == pytest.approx(1.0)  # out once: clamped
     why = t.nudge(0, 1)
-    assert why.startswith("the target is already 1.00° outside P")
+    assert why.startswith("the target is already 1.00° outside every region")
     assert t.theta_deg[0] == pytest.approx(11.0)
     assert t.nudge(1, 1) == ""  # along the edge: allowed
     assert t.nudge(0, -1) == "" and t.outside_deg == pytest.approx(0.0)  # back in
@@ -318,3 +318,55 @@ def test_the_sender_keeps_the_order_and_ends_after_the_last_target() -> None:
     sender.close()
     assert got == [(float(i), 0.0, 0.0) for i in range(5)] + ["end"]
     assert sender.sent == 5 and sender.error is None
+
+
+async def test_jog_starts_where_a_plan_to_a_boundary_pose_left_the_wrist(console) -> None:
+    """A plan to a pose no cover region holds (the planner grew a region around it) leaves
+    the wrist there; the jog starts from it (the runtime grows its own region around the
+    start), the start is not shown clamped, and the jog ends completed."""
+    from spm_console.run.operator import PoseSpec
+    from tests.test_follow_runtime import BOUNDARY_NODE
+
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        s = app.session
+        await asyncio.to_thread(s.home)
+        ws = s.ensure_workspace()
+        assert ws.cover is not None and not ws.cover.containing(np.asarray(BOUNDARY_NODE), tol=1e-3)
+        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
+                                PoseSpec("theta", BOUNDARY_NODE), 150)
+        done = await asyncio.to_thread(s.execute)
+        assert done.ok, done.message
+        await pilot.press("5")
+        await settle(pilot)
+        jog = await _start_jog(app, pilot)
+        assert jog.target is not None
+        assert "not clamped" in text_of(app, "#jog-target")
+        await pilot.press("escape")
+        await _ended(app, pilot)
+        res = s.last_run
+        assert res is not None and res.ok, res.message
+        assert text_of(app, "#exec-outcome").startswith("COMPLETED")
+
+
+async def test_a_refused_jog_keeps_its_reason_on_the_screen(console) -> None:
+    from spm_console.errors import BadInputError
+
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await _homed_on_step5(app, pilot)
+
+        def refuse(**_: Any) -> None:
+            raise BadInputError("live following cannot start from here: a test's reason")
+
+        app.session.follow = refuse  # type: ignore[method-assign,assignment]
+        await pilot.press("j")
+        await until(pilot, lambda: isinstance(app.screen, ExecuteScreen) and not app.moving,
+                    "the refusal")
+        await settle(pilot)
+        out = text_of(app, "#exec-outcome")
+        assert out.startswith("LIVE JOG REFUSED (nothing moved)")
+        assert "a test's reason" in out
+        await pilot.press("p")  # another key: the status line moves on, the reason stays
+        assert "a test's reason" in text_of(app, "#exec-outcome")

@@ -37,7 +37,7 @@ def test_walk_a_live_jog_by_keys(tmux_console, tmp_path) -> None:  # type: ignor
     t.wait_for(r"live: move the target", timeout_s=60)
     t.keys("Left", "Left", "Space")
     t.wait_for(r"STOPPED \(exit code 20\)", timeout_s=30)
-    t.keys("q")
+    t.keys("q", "q")
     t0 = time.monotonic()
     while t.alive() and time.monotonic() - t0 < 10:
         time.sleep(0.1)

@@ -156,3 +156,24 @@ async def test_a_refused_run_shows_its_reason(console, tmp_path) -> None:
         await pilot.press("enter")
         await settle(pilot)
         assert message in " ".join(text_of(app, "#run-text").split())
+
+
+async def test_at_80_columns_the_highlighted_run_shows_outcome_exit_reason_duration_plan(
+        console, tmp_path) -> None:
+    """80×24: the table shows only its first columns; the line above it names the highlighted
+    run's outcome, exit code, stop reason, duration and plan kind, and follows the cursor."""
+    names = _runs(tmp_path / "logs")
+    app = console()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await settle(pilot)
+        await pilot.press("6")
+        await settle(pilot)
+        line = app.screen.query_one("#run-line")
+        assert line.region.right <= 80 and line.region.bottom <= 24  # on screen, no scrolling
+        assert text_of(app, "#run-line").startswith("▸ killed · exit –")  # newest first
+        await pilot.press("down")  # the communication loss
+        rows = _rows(app)
+        comm = rows[names["comm"]]
+        want = f"▸ stopped · exit 22 · communication lost · {comm['duration']} · plan mvn"
+        assert text_of(app, "#run-line") == want
+        assert app.screen.query_one("#runs").region.width >= 72  # the table: all the width

@@ -9,6 +9,7 @@ from typing import Any
 from textual.binding import Binding
 from textual.command import CommandPalette
 
+from spm_console.tui.app import SETTINGS_TITLE
 from spm_console.tui.widgets.steps import STEPS
 from tests.tui.helpers import settle, status_of
 
@@ -51,7 +52,7 @@ async def test_the_palette_lists_every_step_s_actions_from_any_step(console: Any
                     assert {f"{s.title}: {op}" for op in OPERATIONS[s.mode]} <= titles, s.mode
                 else:  # the current step's own, under their plain names
                     assert OPERATIONS[s.mode] <= titles
-            assert {"Keys", "Quit", "Settings", "E-STOP"} <= titles
+            assert {"Keys", "Quit", SETTINGS_TITLE, "E-STOP"} <= titles
 
 
 async def test_a_palette_command_of_another_step_switches_there_and_runs(console: Any) -> None:
@@ -84,3 +85,25 @@ async def test_the_palette_e_stop_says_when_nothing_moves(console: Any) -> None:
         await estop.callback()  # type: ignore[misc]
         await pilot.pause()
         assert said == ["E-STOP: nothing moves now."]
+
+
+async def test_the_palette_finds_the_settings_by_grid_and_by_profile(console: Any) -> None:
+    """The palette matches titles only: the settings' title names what they set."""
+    from textual.fuzzy import Matcher as Fuzzy
+
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        titles = [c.title for c in app.get_system_commands(app.screen)]
+        for query in ("grid", "profile", "grid step", "settings"):
+            found = [t for t in titles if Fuzzy(query).match(t) > 0]
+            assert SETTINGS_TITLE in found, (query, found)
+        await pilot.press("ctrl+p")
+        await pilot.pause()
+        await pilot.press(*"grid step")
+        await settle(pilot)
+        await pilot.press("enter")
+        await settle(pilot)
+        from spm_console.tui.screens.settings import SettingsScreen
+
+        assert isinstance(app.screen, SettingsScreen)

@@ -9,7 +9,7 @@ from textual.widgets import Checkbox, Input
 
 from spm_console.run.operator import PoseSpec
 from spm_console.store.plan_file import save_plan
-from tests.tui.helpers import settle, status_of
+from tests.tui.helpers import settle, status_of, text_of
 
 SIZE = (130, 42)
 
@@ -64,6 +64,10 @@ async def test_a_saved_plan_opens_verified_and_a_bad_file_changes_nothing(
         await settle(pilot)
         assert s.plan is not None and s.plan_source == str(path), status_of(app)
         assert "verified" in status_of(app)
+        # the title names the plan's real ends (it said "from the file → from the file")
+        title = text_of(app, "#plan-text").splitlines()[0]
+        assert title == "MVN: θ = [135.00, 135.00, 135.00]° → θ = [125.00, 130.00, 128.00]°"
+        assert f"opened from {path}" in text_of(app, "#plan-text")
         opened = s.plan
         await pilot.press("o")
         await pilot.pause()

@@ -11,6 +11,7 @@ from pathlib import Path
 from rich.console import Console
 from textual.widgets import Input, OptionList, Static
 
+from spm_console.tui.app import SETTINGS_TITLE
 from spm_console.tui.screens.help import HelpScreen
 from spm_console.tui.screens.settings import SettingsScreen, SwitchRequest, list_profiles
 from spm_console.tui.widgets.confirm import ConfirmScreen
@@ -94,7 +95,7 @@ async def test_settings_are_listed_in_the_help_and_the_palette(console) -> None:
         assert "^o F7" in line and "grid step" in line
         await pilot.press("escape")
         titles = [c.title for c in app.get_system_commands(app.screen)]
-        assert "Settings" in titles
+        assert SETTINGS_TITLE in titles
 
 
 async def test_invalid_grid_steps_are_marked_kept_as_typed_and_refused(console) -> None:
@@ -227,3 +228,20 @@ def test_form_defaults_lie_inside_every_profiles_servo_limits(agile, coaxial) ->
         lo, hi = servo_limits_deg(prof)
         th = default_theta_deg(prof)
         assert all(lo[i] <= th[i] <= hi[i] for i in range(3))
+
+
+async def test_after_a_restart_the_note_names_the_applied_settings_on_screen(console) -> None:
+    """The note a restart passes in shows as a toast on the first step, up long enough to
+    read while the console connects (it was gone after 8 s)."""
+    from textual.widgets._toast import Toast
+
+    from spm_console.tui.app import NOTE_TIMEOUT_S
+
+    note = "Settings applied: profile profiles/coaxial_spm.toml, grid step 3° (the console " \
+           "restarted for them)."
+    app = console(note=note)
+    async with app.run_test(size=(80, 24), notifications=True) as pilot:
+        await pilot.pause()
+        toasts = list(app.screen.query(Toast))
+        assert [str(t.render()) for t in toasts] == [f"Settings\n{note}"]
+        assert NOTE_TIMEOUT_S >= 20 and toasts[0]._notification.timeout == NOTE_TIMEOUT_S

@@ -81,6 +81,6 @@ def test_cmd_tui_builds_each_console_for_the_requested_profile_and_grid_step(
         ("agile_wrist", 1.0, AGILE), ("coaxial_spm", 3.0, COAXIAL)]
     assert all(b["sim"] and b["port"] is None and b["cache_dir"] == tmp_path / "c"
                for b in built)
-    assert built[1]["note"].startswith("Console restarted")
+    assert built[1]["note"].startswith("Settings applied")
     assert events == ["run agile_wrist", "shutdown agile_wrist", "run coaxial_spm",
                       "shutdown coaxial_spm"]

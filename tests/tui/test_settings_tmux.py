@@ -45,7 +45,7 @@ def test_switch_profile_and_grid_step_restarts_in_the_same_terminal(tmp_path: Pa
         assert "coaxial_spm" in t.screen()
         t.keys("y")
         # the toast wraps: its words, in order
-        t.wait_for(r"(?s)Console restarted: profile \S*coaxial_spm\.toml,.*grid step 10°")
+        t.wait_for(r"(?s)Settings applied: profile \S*coaxial_spm\.toml,.*grid[\s▌]+step 10°")
         screen = t.wait_for(r"press h to home")  # the new console starts at the connect step
         assert "profile coaxial_spm" in screen
         # the old session closed: its motion process and emulator are gone, not doubled
@@ -54,7 +54,7 @@ def test_switch_profile_and_grid_step_restarts_in_the_same_terminal(tmp_path: Pa
         screen = t.wait_for(r"workspace ready", timeout_s=120)
         assert "step 10°" in screen and "no cache file" in screen
         assert "Traceback" not in screen
-        t.keys("q")
+        t.keys("q", "q")
         t0 = time.monotonic()
         while t.alive() and time.monotonic() - t0 < 10:
             time.sleep(0.1)

@@ -155,7 +155,7 @@ async def test_quitting_during_a_build_cancels_it(coarse: Profile, tmp_path: Pat
         await pilot.press("3")
         while not gate.reached.is_set():
             await pilot.pause(0.02)
-        await pilot.press("q")
+        await pilot.press("q", "q")  # asked first, then quit
         assert app.build_cancel is not None and app.build_cancel.is_set()
         gate.release.set()
     assert app.return_code == 0

@@ -69,6 +69,8 @@ FollowStatus = Literal["reached", "tracking", "infeasible", "failed"]
 REACH_TOL_DEG = 1e-2
 #: Tolerance of the final check against the true region and speed bound (deg, deg/s).
 CHECK_TOL = 1e-6
+#: OSQP's own "no time limit" (its default), s.
+NO_TIME_LIMIT_S = 1e10
 
 
 @dataclass(frozen=True)
@@ -247,12 +249,13 @@ class FollowSolver:
         return self._projector.project(np.asarray(target_deg, float))
 
     def solve(self, theta_deg: F, omega_degps: F, target_deg: F, elapsed: int = 1,
-              warm: bool = True) -> FollowResult:
+              warm: bool = True, timed: bool = True) -> FollowResult:
         """Re-plan from the state θ(0) = ``theta_deg``, θ̇(0) = ``omega_degps`` (3,) toward
         ``target_deg``: (3,) held over the horizon, or (H, 3) a preview t(1..H).
 
         ``elapsed``: periods since the previous solve (the warm start is shifted by that);
-        ``warm=False``: solve cold (from OSQP's zero start)."""
+        ``warm=False``: solve cold (from OSQP's zero start); ``timed=False``: without the
+        settings' ``time_limit_s`` (a solve before the motion starts, where nothing waits)."""
         t0 = time.perf_counter()
         H = self.horizon
         th0 = np.asarray(theta_deg, float).reshape(-1)
@@ -290,7 +293,7 @@ class FollowSolver:
                                   y=self.layout.shift_dual(self._warm.y, elapsed))
         else:
             self._osqp.warm_start(x=np.zeros(self.layout.n), y=np.zeros(self.layout.m))
-        st, it, x, y, th, om, ref, reason = self._run(th0, om0, t0)
+        st, it, x, y, th, om, ref, reason = self._run(th0, om0, t0, timed)
         if reason == "infeasible":
             self._warm = None
             return refuse("infeasible", "no reference keeps the wrist inside the region under the "
@@ -308,9 +311,11 @@ class FollowSolver:
         return FollowResult(status, ref, th, om, requested.copy(), terminal, clamped, moved, cost,
                             float(err.max()), time.perf_counter() - t0, it, used_warm, "", st)
 
-    def _run(self, th0: F, om0: F, t0: float) -> tuple[str, int, F, F, F, F, F, str]:
+    def _run(self, th0: F, om0: F, t0: float, timed: bool = True
+             ) -> tuple[str, int, F, F, F, F, F, str]:
         """OSQP at the loose tolerance, then — only while its answer does not pass the check
-        (polishing failed) — on from the same iterate at the tighter ones.
+        (polishing failed) — on from the same iterate at the tighter ones (within the time
+        limit when ``timed``).
 
         Returns (OSQP status, iterations, x, y, θ (H+1, 3), θ̇ (H+1, 3), θ* (H, 3), reason)."""
         tols = self.settings.tolerances
@@ -319,7 +324,9 @@ class FollowSolver:
         reason = ""
         x = y = th = om = ref = np.zeros(0)
         best: tuple[str, F, F, F, F, F] | None = None  # a checked but unpolished answer
-        limit = self.settings.time_limit_s
+        limit = self.settings.time_limit_s if timed else None
+        if not timed and self.settings.time_limit_s is not None:
+            self._osqp.update_settings(time_limit=NO_TIME_LIMIT_S)
         for n, tol in enumerate(tols):
             if n:
                 self._osqp.update_settings(eps_abs=tol, eps_rel=tol)

@@ -20,7 +20,7 @@ from textual.widgets import DataTable, ProgressBar, Static
 from spm_console.formatting import fmt_deg
 from spm_console.tui.messages import FollowDone, MotionDone, Outcome, Telemetry
 from spm_console.tui.screens.base import StepScreen
-from spm_console.tui.screens.jog import JogResult, JogScreen
+from spm_console.tui.screens.jog import JogFailure, JogResult, JogScreen
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
@@ -225,8 +225,11 @@ class ExecuteScreen(StepScreen):
     def _jog_ended(self, result: JogResult) -> None:
         """The jog screen closed: the run's outcome (or why it did not run) shows here."""
         self.refresh_view()
-        if isinstance(result, str):
-            self.status.error(f"live jog: {result}")
+        if isinstance(result, JogFailure):
+            # kept on the screen (the status line is the next action's)
+            head = "LIVE JOG FAILED" if result.moved else "LIVE JOG REFUSED (nothing moved)"
+            self.query_one("#exec-outcome", Static).update(Content(f"{head}: {result.reason}"))
+            self.status.error(f"live jog: {result.reason}")
             return
         if not isinstance(result, FollowDone):
             self.status.ok("live jog closed before it started: nothing moved")
@@ -244,7 +247,7 @@ class ExecuteScreen(StepScreen):
         if st is not None:
             text += (f"\nlive jog: {st.adopted} of {st.solves} re-plans used, "
                      f"{st.misses} missed, {st.refused} refused, "
-                     f"{st.clamped} periods with the target clamped into P")
+                     f"{st.clamped} periods with the target clamped into its region")
         self.query_one("#exec-outcome", Static).update(Content(text))
         if self.console.live_samples:  # the jog's last sample and its plot
             self.show_sample(self.console.live_samples[-1], clock=False)

@@ -1,9 +1,10 @@
 """Live jog (from step 5): the wrist follows a target the arrow keys move, live.
 
 The runtime's live following (:meth:`Session.follow <spm_console.run.operator_follow.FollowTools.follow>`)
-runs in a worker thread: it re-plans every servo period inside the workspace region P toward
-the latest target and streams only references it verified; a target outside P is projected
-to its nearest point (clamped). Each key press moves the target by the chosen step — in
+runs in a worker thread: it re-plans every servo period inside one region of the workspace
+(P, a region of its cover, or a region the runtime grows around a start on the boundary)
+toward the latest target and streams only references it verified; a target outside every
+region is projected into the wrist's region (clamped). Each key press moves the target by the chosen step — in
 roll/pitch/yaw from home (IK in the home working mode) or per joint — and goes to the runtime
 at once, from the :class:`~spm_console.tui.screens.jog_target.TargetSender` thread. The 3D view
 shows the target as the ghost and the measured pose solid. esc (or j) ends the jog: the wrist
@@ -17,6 +18,7 @@ process's client-heartbeat deadman, which holds the wrist. Degrees, seconds.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -27,10 +29,12 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import Static
 
+from spm_console.core.region import Region
 from spm_console.core.rotations import matrix_rpy
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.models import servo_limits_deg
+from spm_console.run.follow_regions import follow_regions
 from spm_console.tui.messages import FollowDone, Outcome, Telemetry, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.jog_target import OUTSIDE_TOL_DEG, JogTarget, TargetSender
@@ -52,7 +56,16 @@ JOG_SOURCE = "console live jog"
 
 KEYS_TEXT = "←→ ↑↓ PgUp PgDn move the target · +/- step · m mode · esc ends · SPACE stops"
 
-JogResult = FollowDone | str | None
+@dataclass(frozen=True)
+class JogFailure:
+    """Why a jog was refused or failed."""
+
+    reason: str
+    moved: bool
+    """Whether the following had started (the wrist may have moved)."""
+
+
+JogResult = FollowDone | JogFailure | None
 """What the jog screen hands back: the ended run, why it could not start or failed, or
 nothing."""
 
@@ -72,23 +85,28 @@ def rpy_of(session: Session, theta_deg: F) -> F | None:
     return np.asarray(rpy, float)
 
 
-def outside_deg(session: Session, theta_deg: F) -> float:
-    """How far θ (deg) lies outside the workspace region P or the servo limits, deg (0
-    inside): the follower projects such a target to P's nearest point (clamped)."""
+def outside_deg(session: Session, theta_deg: F, regions: tuple[Region, ...] | None = None
+                ) -> float:
+    """How far θ (deg) lies outside every one of ``regions`` (those the follower plans in;
+    None: the workspace region P) or the servo limits, deg (0 inside): the follower projects
+    such a target into the wrist's region (clamped)."""
     th = np.asarray(theta_deg, float)
     lo, hi = servo_limits_deg(session.profile)
     over = float(max(0.0, np.max(lo - th), np.max(th - hi)))
     ws = session.workspace
-    if ws is None:
+    if regions is None:
+        regions = () if ws is None else (ws.region,)
+    if not regions:
         return over
-    return max(over, float(ws.region.violation_deg(th)))
+    return max(over, min(float(r.violation_deg(th)) for r in regions))
 
 
-def clamp_text(out_deg: float) -> str:
-    """Whether a target ``out_deg`` outside P (or the servo limits) is projected."""
+def clamp_text(out_deg: float, in_p: bool = True) -> str:
+    """Whether a target ``out_deg`` outside every region (or the servo limits) is projected;
+    ``in_p``: whether it lies in P."""
     if out_deg > OUTSIDE_TOL_DEG:
-        return f"CLAMPED: {out_deg:.2f}° outside P, the wrist goes to P's nearest point"
-    return "inside P: not clamped"
+        return f"CLAMPED: {out_deg:.2f}° outside every region: the wrist stops at the edge"
+    return "inside P: not clamped" if in_p else "outside P, inside the cover: not clamped"
 
 
 def _vec(v: F | None) -> str:
@@ -102,8 +120,9 @@ class JogScreen(StepScreen):
     MODE = "execute"
     HELP_TITLE = "Live jog (from step 5)"
     HELP_NOTE = ("Each key press sends a new target at once; the wrist follows it inside the "
-                 "workspace region P. A target outside P is projected to P's nearest point "
-                 "(shown as CLAMPED); a key that would take it farther out is refused. "
+                 "workspace's regions (P and its cover). A target outside every region is "
+                 "projected into the wrist's region (shown as CLAMPED); a key that would take "
+                 "it farther out is refused. "
                  "esc or j ends the jog: the wrist settles on the last target and the run "
                  "completes (its log is in step 6). SPACE stops the wrist at once.")
     BINDINGS: ClassVar[list[BindingType]] = [
@@ -148,6 +167,8 @@ class JogScreen(StepScreen):
         self._end_asked = False
         self._last_plot = -1.0
         self.last_sample: Sample | None = None
+        self.regions: tuple[Region, ...] | None = None
+        """The regions the follower plans in (found while preparing; None before)."""
 
     def compose_body(self) -> ComposeResult:
         with Vertical(classes="body"):
@@ -166,8 +187,12 @@ class JogScreen(StepScreen):
         s, th0 = self.session, self.theta0_deg
 
         def prepare() -> Outcome:
-            s.ensure_workspace()
-            self._prepared = JogTarget(th0, rpy_of(s, th0), s.ik, lambda t: outside_deg(s, t))
+            ws = s.ensure_workspace()
+            # the runtime's own choice (it repeats it from the measured start): refused here,
+            # with the reason, before anything moves
+            self.regions = regions = follow_regions(ws, th0).regions
+            self._prepared = JogTarget(th0, rpy_of(s, th0), s.ik,
+                                       lambda t: outside_deg(s, t, regions))
             return WorkspaceLoaded()
 
         self.console.moving = True  # the steps stay locked from here to the end of the run
@@ -272,7 +297,7 @@ class JogScreen(StepScreen):
         rpy = "" if tgt.rpy_deg is None else f"   roll/pitch/yaw = {fmt_deg(tgt.rpy_deg)}"
         self.query_one("#jog-target", Static).update(Content(
             f"target:      θ = {fmt_deg(tgt.theta_deg)}{rpy}\n"
-            f"             {clamp_text(tgt.outside_deg)}"))
+            f"             {clamp_text(tgt.outside_deg, self._in_p(tgt.theta_deg))}"))
 
     def on_telemetry(self, message: Telemetry) -> None:
         message.stop()
@@ -285,9 +310,10 @@ class JogScreen(StepScreen):
             f"measured:    θ = {_vec(smp.measured_deg if smp.read_ok else None)}   "
             f"θ* = {_vec(smp.reference_deg)}"))
         if looped is not None:
+            out = outside_deg(self.session, looped, self.regions)
             self.query_one("#jog-clamp", Static).update(Content(
                 f"in the loop: θ = {fmt_deg(looped)} (the target this cycle)\n"
-                f"             {clamp_text(outside_deg(self.session, looped))}"))
+                f"             {clamp_text(out, self._in_p(looped))}"))
         if smp.t - self._last_plot >= PLOT_EVERY_S:
             self._last_plot = smp.t
             self.draw_plot()
@@ -297,12 +323,17 @@ class JogScreen(StepScreen):
         self.phase = "live"
         self.console.view.show_target(tgt.theta_deg)
         self.query_one("#jog-head", Static).update(Content(
-            "Live jog: the wrist follows the target (re-planned each period inside P)"))
+            "Live jog: the wrist follows the target (re-planned each period in a region)"))
         self.show_target()
         if self._end_asked:
             self._end()
         else:
             self.status.ok("live: move the target with the arrow keys")
+
+    def _in_p(self, theta_deg: F) -> bool:
+        ws = self.session.workspace
+        return ws is None or bool(ws.region.contains(np.asarray(theta_deg, float),
+                                                     tol=OUTSIDE_TOL_DEG))
 
     def draw_plot(self) -> None:
         samples = [s for s in list(self.console.live_samples) if s.target_deg is not None]
@@ -329,9 +360,10 @@ class JogScreen(StepScreen):
     def handle_failed(self, op: str, message: str) -> None:
         if op not in ("jog", "jog-prepare"):
             return
+        moved = self.phase not in ("preparing", "starting")
         self.phase = "done"
         self.console.moving = False
-        self._leave(message)
+        self._leave(JogFailure(message, moved))
 
     def _leave(self, result: JogResult) -> None:
         """Close (with the help or the palette opened over it) and hand ``result`` back."""

@@ -32,7 +32,7 @@ RPY_AXES = (2, 1, 0)
 #: … per joint θ1, θ2, θ3.
 JOINT_AXES = (0, 1, 2)
 RPY_NAMES = ("roll", "pitch", "yaw")
-#: A target farther than this outside P or the servo limits is projected by the follower
+#: A target farther than this outside every region or the servo limits is projected by the follower
 #: (reported as clamped), deg (the follow solver's own check tolerance).
 OUTSIDE_TOL_DEG = 1e-6
 
@@ -47,7 +47,8 @@ class JogTarget:
     as roll/pitch/yaw from home (deg) when known.
 
     ``ik(rpy_deg) -> θ_deg`` (home working mode; raises SpmError when unreachable),
-    ``outside(θ_deg) -> deg`` how far a target lies outside P or the servo limits (0 inside).
+    ``outside(θ_deg) -> deg`` how far a target lies outside every region the follower plans
+    in, or the servo limits (0 inside).
     A key press that would take a target already outside farther out is refused: the
     follower holds the projection of the first one anyway, and a target wound up far out
     would need as many presses to come back.
@@ -117,8 +118,8 @@ class JogTarget:
             theta[JOINT_AXES[slot]] += d
         out = self._outside(theta)
         if self.outside_deg > OUTSIDE_TOL_DEG and out > self.outside_deg + OUTSIDE_TOL_DEG:
-            return (f"the target is already {self.outside_deg:.2f}° outside P (the wrist holds "
-                    "its nearest point): step back, or along the edge")
+            return (f"the target is already {self.outside_deg:.2f}° outside every region (the "
+                    "wrist holds at the edge): step back, or along the edge")
         self.theta_deg, self.rpy_deg, self.outside_deg = theta, rpy, out
         return ""
 

@@ -71,6 +71,16 @@ def run_row(info: RunInfo) -> tuple[str, ...]:
             "" if info.plan is None else info.plan.kind)
 
 
+def run_line(info: RunInfo) -> str:
+    """The highlighted run in one line under the log root, for a table too narrow for its
+    columns (80 columns show only the first three): outcome, exit code, stop reason,
+    duration and plan kind."""
+    parts = [info.outcome, "exit –" if info.exit_code is None else f"exit {info.exit_code}",
+             short_reason(info.reason), _secs(info.duration_s),
+             "no plan recorded" if info.plan is None else f"plan {info.plan.kind}"]
+    return "▸ " + " · ".join(p for p in parts if p)
+
+
 def run_text(run: RunData) -> str:
     info = run.info
     code = "none" if info.exit_code is None else str(info.exit_code)
@@ -111,6 +121,7 @@ class LogsScreen(StepScreen):
 
     DEFAULT_CSS = """
     LogsScreen #logs-head { height: auto; padding: 0 1; }
+    LogsScreen #run-line { height: auto; padding: 0 1; text-style: bold; }
     LogsScreen #logs-main { height: 1fr; }
     """
 
@@ -119,6 +130,8 @@ class LogsScreen(StepScreen):
         self.plot_kind = 0
         self.joint = 0
         self.run: RunData | None = None
+        self._listed: dict[str, RunInfo] = {}
+        """The listed runs by row key (their folder)."""
         self.outcome_filter = "all"
         """One of FILTERS: which runs the table lists."""
 
@@ -133,6 +146,7 @@ class LogsScreen(StepScreen):
     def compose_body(self) -> ComposeResult:
         with Vertical(classes="body"):
             yield Static(id="logs-head", markup=False)
+            yield Static(id="run-line", markup=False)
             with Horizontal(id="logs-main"):
                 yield DataTable(id="runs", cursor_type="row", zebra_stripes=True)
                 with Vertical(id="run-detail"):
@@ -142,8 +156,6 @@ class LogsScreen(StepScreen):
     def on_mount(self) -> None:
         table = self.query_one("#runs", DataTable)
         table.add_columns(*RUN_COLUMNS)
-        table.styles.width = "auto"  # as wide as its columns, at most 60 % of the screen
-        table.styles.max_width = "60%"
         self.query_one("#run-text", Static).update(Content(
             "Pick a run with ↑/↓ and press Enter to plot it."))
 
@@ -156,6 +168,8 @@ class LogsScreen(StepScreen):
 
         table = self.query_one("#runs", DataTable)
         table.clear()
+        self._listed.clear()
+        self.query_one("#run-line", Static).update("")
         root = self.root
         try:
             runs = list_runs(root)
@@ -183,6 +197,7 @@ class LogsScreen(StepScreen):
             if self.outcome_filter != "all" and info.outcome != self.outcome_filter:
                 continue
             table.add_row(*run_row(info), key=str(r.path))
+            self._listed[str(r.path)] = info
             shown += 1
         return shown
 
@@ -206,6 +221,11 @@ class LogsScreen(StepScreen):
         from spm_console.run.runlog import load_run
 
         self.run_blocking("open", lambda: RunOpened(load_run(str(key))), "reading the run …")
+
+    def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
+        info = self._listed.get(str(event.row_key.value))
+        self.query_one("#run-line", Static).update(
+            "" if info is None else Content(run_line(info)))
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
         event.stop()

@@ -22,6 +22,7 @@ from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.plan_words import console_words, next_step, plan_text
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.ask_path import AskPathScreen
+from spm_console.tui.widgets.checkbox import TickBox
 from spm_console.tui.widgets.number import NumberRow
 from spm_console.tui.widgets.plot import PlotView, joint_series
 from spm_console.tui.widgets.rules import (
@@ -89,7 +90,7 @@ class PlanScreen(StepScreen):
                 yield NumberRow("v_max °/s", vmax_rule(prof), f"{prof.limits.vmax_degps:g}",
                                 id="vmax")
                 yield NumberRow("intersample K", intersample_rule(), "1", id="intersample")
-                yield Checkbox("free first reference θ*(0)", False, id="free-first")
+                yield TickBox("free first reference θ*(0)", False, id="free-first")
             with Vertical(id="plan-result"):
                 yield Static(id="plan-text", markup=False, classes="result")
                 yield PlotView(id="plan-plot")

@@ -87,11 +87,32 @@ def plan_text(plan: Plan, info: dict[str, Any]) -> str:
     ]
     if info.get("region"):
         lines.append(f"region: {info['region']}")
+    if info.get("source"):
+        lines.append(f"opened from {info['source']}")
     if chk is not None:
         if not math.isnan(chk.max_speed_between_degps):
             lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s, outside P by "
                          f"{chk.region_violation_between_deg:.2g}°")
         lines.append("constraints verified" if chk.ok else "constraints NOT verified")
     if plan.certificate is not None:  # minimum time: N is the smallest feasible horizon
-        lines.append(plan.certificate.describe())
+        lines.append(proof_text(plan))
     return "\n".join(lines)
+
+
+def proof_text(plan: Plan) -> str:
+    """What a minimum-time plan's infeasibility certificate proves, for an operator: no
+    reference reaches the goal one step sooner within the plan's limits (the CLI prints the
+    certificate's numbers)."""
+    rec = plan.certificate
+    assert rec is not None
+    n = rec.N
+    if rec.certificate is None:
+        return f"fastest possible: N = {n + 1} steps is the fewest a plan can have"
+    claim = (f"no reference reaches the goal in N−1 = {n} steps ({n * plan.Ts:.2f} s) within "
+             "these limits (v_max, the servo limits, the workspace region"
+             + (", along this route of regions: another route might be faster)" if rec.scope
+                else ")"))
+    if rec.certificate.valid:
+        return f"fastest possible: {claim}; proven by a checked infeasibility certificate"
+    return (f"NOT proven fastest: the proof that {claim} did not check out, so a shorter "
+            "plan may exist")

@@ -7,6 +7,7 @@ from typing import Any
 
 from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
+from textual.content import Content
 from textual.widgets import Input, Label, Static
 
 from spm_console.errors import BadInputError
@@ -14,8 +15,16 @@ from spm_console.tui.widgets.number import NumberField, NumberRule, show_reasons
 from spm_console.tui.widgets.rules import TripleCheck
 
 
+def field_name(rule: NumberRule) -> str:
+    """What the label above a field says: its quantity without the "start "/"goal " the
+    messages carry, and its unit ("roll (°)", "θ2 (°)")."""
+    name = rule.name.split()[-1] if rule.name.split() else rule.name
+    return f"{name} ({rule.unit})" if rule.unit else name
+
+
 class AnglesInput(Vertical):
-    """A label and three :class:`NumberField`, the reasons of any refusal below them.
+    """A label and three :class:`NumberField`, each named above it (with its unit), the
+    reasons of any refusal below them.
 
     Each field is checked against its rule as it is typed; when all three are accepted,
     ``check`` (if any) judges them together (e.g. IK reach) and marks all three if it
@@ -40,8 +49,11 @@ class AnglesInput(Vertical):
                 yield Label(self._label, classes="angles-label", markup=False)
             for i, rule in enumerate(self._rules):
                 value = "" if self._initial is None else f"{self._initial[i]:g}"
-                yield NumberField(rule, value, classes="angle",
-                                  id=f"{self.id}-{i}" if self.id else None)
+                with Vertical(classes="angle-cell"):
+                    # the placeholder names a field only while it is empty
+                    yield Label(field_name(rule), classes="angle-name", markup=False)
+                    yield NumberField(rule, value, classes="angle",
+                                      id=f"{self.id}-{i}" if self.id else None)
         yield Static(classes="entry-reason", markup=False)
 
     @property
@@ -58,10 +70,12 @@ class AnglesInput(Vertical):
         """Judge the fields by other rules (the text stays as typed)."""
         self._rules = list(rules)
         self._check = check
-        for field, rule in zip(self.fields, self._rules, strict=True):
+        names = list(self.query(".angle-name").results(Label))
+        for field, name, rule in zip(self.fields, names, self._rules, strict=True):
             field.rule = rule
             field.placeholder = rule.name
             field.tooltip = f"{rule.name}: {rule.quantity}"
+            name.update(Content(field_name(rule)))
         self.revalidate()
 
     def set_enabled(self, enabled: bool) -> None:

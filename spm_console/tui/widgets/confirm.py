@@ -45,3 +45,18 @@ class ConfirmScreen(ModalScreen[bool]):
 
     def action_answer(self, yes: bool) -> None:
         self.dismiss(yes)
+
+
+class QuitConfirm(ConfirmScreen):
+    """Asked on q (or ctrl+q): q again or y quits, n or esc stays."""
+
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("q", "answer(True)", "Quit", show=False),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__(
+            "Quit the console?",
+            "The session closes: the servos' bus is disconnected, a workspace build under way "
+            "is cancelled and the 3D view stops.\nPress q again or y to quit, n or esc to "
+            "stay.", yes="Quit (q, y)", no="Stay (n)")

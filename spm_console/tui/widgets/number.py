@@ -22,8 +22,10 @@ from textual.widgets import Input, Label, Static
 from spm_console.errors import BadInputError
 from spm_console.tui.widgets.field import TextField
 
-#: Characters a number field shows in full (its CSS width is this + cursor, padding, border);
-#: a longer text is refused, so an accepted value is never partly hidden.
+#: Characters a number field accepts: its narrowest form shows this many in full (its CSS
+#: width is this + cursor, padding, border; wider layouts show more), so an accepted value is
+#: never partly hidden. The refusal says "accepted", not how many fit: that depends on the
+#: layout.
 FIELD_CHARS = 9
 
 #: A decimal number as an operator writes it: optional sign (ASCII or U+2212 minus), digits
@@ -70,7 +72,7 @@ class NumberRule:
             raise BadInputError(f"{self.name}: empty, type {self.quantity}")
         if len(s) > self.max_chars:
             raise BadInputError(f"{self.name}: {len(s)} characters, at most {self.max_chars} "
-                                "fit the field")
+                                "are accepted")
         if not _NUMBER.fullmatch(s):
             if "," in s and _NUMBER.fullmatch(s.replace(",", ".", 1)):
                 raise BadInputError(f"{self.name}: {s!r} is not a number; decimals take a "
@@ -79,14 +81,14 @@ class NumberRule:
         v = float(s.replace("\u2212", "-"))  # finite, or ±inf when the exponent overflows
         if v > self.hi and self.hi_reason:
             raise BadInputError(f"{self.name}: {s} is above {self.hi_reason}")
+        if self.integer and math.isfinite(v) and not v.is_integer():
+            raise BadInputError(f"{self.name}: {s} must be a whole number")
         if self.lo_open and v <= self.lo:
             raise BadInputError(f"{self.name}: {s} must be above {self.lo:g}{self.unit}")
         if v < self.lo or v > self.hi:
             raise BadInputError(f"{self.name}: {s} is outside {self._range()}")
         if not math.isfinite(v):
             raise BadInputError(f"{self.name}: {s} is too large")
-        if self.integer and not v.is_integer():
-            raise BadInputError(f"{self.name}: {s} is not a whole number")
         return float(int(v)) if self.integer else v
 
     def reason(self, text: str) -> str:
