@@ -46,17 +46,24 @@ def workspace_text(ws: Any, info: Any) -> str:
         f"{ws.min_distance_mm:g} mm apart)",
         f"singular     {c['singular']}   colliding {c['colliding']}   unreached "
         f"{c['unreached']}   disconnected {c['disconnected']}",
-        f"region P     {region.halfspaces} half-spaces, covers {100 * ws.coverage():.1f}% of the "
+        f"region P     {region.halfspaces} half-spaces, covers {_pct(ws.coverage())} of the "
         "feasible nodes",
     ]
     if ws.cover is not None:
         n = ws.cover.size
         lines.append(f"cover        {n} region{'s' if n != 1 else ''} (P first) hold{'s' if n == 1 else ''} "
-                     f"{100 * ws.cover.covered:.1f}% of the feasible nodes; plans cross them")
+                     f"{_pct(ws.cover.covered)} of the feasible nodes; plans cross them")
     if span is not None:
         lines.append("P spans      " + "  ".join(
             f"θ{i + 1} ∈ [{span[0][i]:.1f}, {span[1][i]:.1f}]°" for i in range(3)))
     return "\n".join(lines)
+
+
+def _pct(fraction: float) -> str:
+    """A coverage in whole percent, rounded down. The regions' planes come from numerical
+    solvers whose last bits depend on the machine's BLAS kernel, and that moves a coverage
+    by about 0.1 %: a decimal would read differently on another CPU."""
+    return f"{int(100 * fraction)}%"
 
 
 @functools.lru_cache(maxsize=4)
