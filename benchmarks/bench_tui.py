@@ -194,11 +194,17 @@ async def _latency_rows(cache: Path) -> list[Row]:
             if app.viewer_url or not CHROMIUM.exists():
                 break
             await pilot.pause(0.1)
-        if app.viewer_url:
-            browser = _Browser(app.viewer_url)
-            browser.start()
-            while not browser.ready.wait(0.05):
+        async def open_browser(cpus: str) -> _Browser | None:
+            if not app.viewer_url:
+                return None
+            b = _Browser(app.viewer_url, cpus)
+            b.start()
+            while not b.ready.wait(0.05):
                 await pilot.pause(0.05)
+            return b
+
+        # the browser where the README advises: off the servo loop's CPU
+        browser = await open_browser("console")
 
         async def execute_runs(n: int, reload_first: bool = False) -> list[Any]:
             done = []
@@ -215,6 +221,14 @@ async def _latency_rows(cache: Path) -> list[Row]:
 
         with wakeup_probe() as probe:
             loop_runs = await execute_runs(LOOP_RUNS)
+        # the same with the browser left on every CPU (reported beside the target)
+        target_browser = browser
+        if browser is not None:
+            browser.stop.set()
+            browser.join(30)
+        browser = await open_browser("all")
+        with wakeup_probe() as anywhere_probe:
+            anywhere_runs = await execute_runs(ANYWHERE_RUNS)
         # the stress case beside the target: the page reloaded mid-motion (as when an operator
         # opens the view during a run) — a burst of software WebGL on both cores
         reload_runs = []
@@ -226,7 +240,8 @@ async def _latency_rows(cache: Path) -> list[Row]:
         with _busy_loops() as n_busy, wakeup_probe() as loaded_probe:
             loaded_runs = await execute_runs(LOADED_RUNS)
 
-    rows += _loop_rows(loop_runs, browser, probe)
+    rows += _loop_rows(loop_runs, target_browser, probe)
+    rows += _anywhere_rows(anywhere_runs, anywhere_probe)
     rows += _reload_rows(reload_runs)
     rows += _loaded_rows(loaded_runs, n_busy, loaded_probe)
     base = statistics.quantiles(idle, n=20)[-1] if len(idle) >= 2 else max(idle, default=0)
@@ -247,6 +262,8 @@ async def _latency_rows(cache: Path) -> list[Row]:
 
 #: Executions driven from the console for the loop-timing rows.
 LOOP_RUNS = 20
+#: Executions with the browser on every CPU, the loop's included (reported, no target).
+ANYWHERE_RUNS = 10
 #: Executions during which the 3D view's page is reloaded (the stress row, no target).
 RELOAD_RUNS = 3
 #: Executions driven from the console with one CPU-bound process per core beside it.
@@ -260,9 +277,12 @@ CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swi
 class _Browser(threading.Thread):
     """Headless Chromium showing the console's 3D view (Playwright), until ``stop``."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, cpus: str) -> None:
         super().__init__(daemon=True, name="bench-browser")
         self.url = url
+        self.cpus = cpus
+        """"console": the CPUs the console runs on (as the README advises); "all": every
+        allowed CPU, the servo loop's included."""
         self.ready = threading.Event()
         self.reload = threading.Event()
         self.stop = threading.Event()
@@ -273,7 +293,7 @@ class _Browser(threading.Thread):
         try:
             from playwright.sync_api import sync_playwright
 
-            _unplaced()  # an operator's browser is not ours to place: every allowed CPU
+            _browser_cpus(self.cpus)
             with sync_playwright() as pw:
                 b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
                 page = b.new_page(viewport={"width": 800, "height": 600})
@@ -293,14 +313,16 @@ class _Browser(threading.Thread):
             self.ready.set()
 
 
-def _unplaced() -> None:
-    """The calling thread (and what it starts) back on every CPU the console may use: the
-    console placed this process beside the servo loop (spm_console.cpus)."""
-    from spm_console.cpus import ENV_SET
+def _browser_cpus(where: str) -> None:
+    """Put the calling thread (and the browser it starts) on the console's CPUs, or back on
+    every CPU the console may use (the console placed this process beside the servo loop,
+    spm_console.cpus). An operator's browser is not ours to place: "all" is what it gets
+    unless started as the README advises (``taskset``)."""
+    from spm_console.cpus import cpu_plan
 
-    cpus = os.environ.get(ENV_SET, "")
-    if cpus and hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {int(c) for c in cpus.split(",")})
+    plan = cpu_plan()
+    if plan.active and hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, plan.rest if where == "console" else plan.loop | plan.rest)
 
 
 @contextlib.contextmanager
@@ -369,6 +391,18 @@ def _reload_rows(runs: list[Any]) -> list[Row]:
                      "workers wait behind it: a stop here is a hold with exit 22")]
 
 
+def _anywhere_rows(runs: list[Any], probe: ProbeResult) -> list[Row]:
+    """The browser on every CPU: what an operator gets who does not follow the README."""
+    if not runs:
+        return []
+    comm = sum(1 for r in runs if int(r.exit_code) == 22)
+    mx = [r.stats.jitter_ms.max for r in runs if r.stats.jitter_ms]
+    return [Row("tui: comm-loss stops, browser on every CPU", comm, "", f"reported ({len(runs)} runs)",
+                note=f"the same executions with the 3D view's browser also on the servo loop's CPU; "
+                     f"loop jitter max per run {', '.join(f'{v:.3g}' for v in mx)} ms; the machine "
+                     f"meanwhile: {probe.summary()}")]
+
+
 def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult) -> list[Row]:
     """Loop timing of executions started from the console (the loop in its own process)."""
     if not runs:
@@ -383,7 +417,8 @@ def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult) ->
     elif browser.error:
         view = f"3D view in headless Chromium FAILED: {browser.error}"
     else:
-        view = "3D view rendered in headless Chromium"
+        view = ("3D view rendered in headless Chromium, started on the console's CPUs as the README "
+                "advises (taskset), off the servo loop's CPU")
     ctx = (f"{len(runs)} executions of the paper-like MVN (150 steps) with their approach moves, "
            f"started by keys in the console (Pilot); {view}; loop in the motion process")
     return [
