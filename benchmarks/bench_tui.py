@@ -391,6 +391,16 @@ def _reload_rows(runs: list[Any]) -> list[Row]:
                      "workers wait behind it: a stop here is a hold with exit 22")]
 
 
+def _placement_words() -> str:
+    from spm_console.cpus import cpu_plan
+
+    plan = cpu_plan()
+    if plan.active:
+        return ("CPU placement on (" + plan.detail + "), the browser started on the console's "
+                "CPUs as the README advises (taskset)")
+    return f"the browser on every CPU ({plan.detail})"
+
+
 def _anywhere_rows(runs: list[Any], probe: ProbeResult) -> list[Row]:
     """The browser on every CPU: what an operator gets who does not follow the README."""
     if not runs:
@@ -398,7 +408,8 @@ def _anywhere_rows(runs: list[Any], probe: ProbeResult) -> list[Row]:
     comm = sum(1 for r in runs if int(r.exit_code) == 22)
     mx = [r.stats.jitter_ms.max for r in runs if r.stats.jitter_ms]
     return [Row("tui: comm-loss stops, browser on every CPU", comm, "", f"reported ({len(runs)} runs)",
-                note=f"the same executions with the 3D view's browser also on the servo loop's CPU; "
+                note=f"the same executions with the 3D view's browser on every CPU, the servo loop's "
+                     f"included ({_placement_words()} above); "
                      f"loop jitter max per run {', '.join(f'{v:.3g}' for v in mx)} ms; the machine "
                      f"meanwhile: {probe.summary()}")]
 
@@ -417,8 +428,7 @@ def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult) ->
     elif browser.error:
         view = f"3D view in headless Chromium FAILED: {browser.error}"
     else:
-        view = ("3D view rendered in headless Chromium, started on the console's CPUs as the README "
-                "advises (taskset), off the servo loop's CPU")
+        view = "3D view rendered in headless Chromium, " + _placement_words()
     ctx = (f"{len(runs)} executions of the paper-like MVN (150 steps) with their approach moves, "
            f"started by keys in the console (Pilot); {view}; loop in the motion process")
     return [

@@ -8,14 +8,18 @@ machine, they waited up to 77 ms behind normal-priority processes on the same CP
 console's own UI process, the 3D view's server, a browser), long enough for three missed
 replies in a row, a "communication lost" stop.
 
-So, when at least two CPUs are allowed, the servo loop's process and the emulated servos'
+So, when asked and at least two CPUs are allowed, the servo loop's process and the emulated servos'
 process run on one CPU (the highest-numbered allowed one, :func:`place_on_loop_cpu`) and
 the console's other processes on the rest (:func:`place_beside_loop`). The loop CPU then
 holds nothing but short real-time work, and a kernel worker woken there runs at once.
 Other programs (a browser showing the 3D view) are not ours to place; see the README.
 
-``SPM_CONSOLE_LOOP_CPU`` in the environment: ``auto`` (default), ``off`` (no placement),
-or a CPU number. The first process that decides writes the CPU set it saw into
+``SPM_CONSOLE_LOOP_CPU`` in the environment: ``off`` (default: no placement), ``auto`` (the
+highest-numbered allowed CPU) or a CPU number. It is not the default because it halves what
+the console itself gets: on 2 cores with the browser kept off the loop's CPU it removed the
+communication-loss stops (0 of 20 console-driven runs against 5 of 10 with the browser on
+every CPU), but with one busy process per core the console's heartbeat then stalled past the
+motion process's deadman in 2 of 5 runs (a hold, exit 20). The first process that decides writes the CPU set it saw into
 ``SPM_CONSOLE_CPUS`` so that the children it starts, whose own affinity may already be
 narrowed, decide alike.
 """
@@ -63,9 +67,10 @@ def _allowed() -> frozenset[int]:
 
 def cpu_plan() -> CpuPlan:
     """The placement for this machine and environment (see the module docstring)."""
-    choice = os.environ.get(ENV_CHOICE, "auto").strip().lower() or "auto"
+    choice = os.environ.get(ENV_CHOICE, "off").strip().lower() or "off"
     if choice in ("off", "0-", "no", "none"):
-        return CpuPlan(frozenset(), frozenset(), f"CPU placement switched off ({ENV_CHOICE}=off)")
+        return CpuPlan(frozenset(), frozenset(),
+                       f"no CPU placement ({ENV_CHOICE}=auto or a CPU number asks for it)")
     cpus = _allowed()
     if len(cpus) < 2:
         return CpuPlan(frozenset(), frozenset(),
