@@ -363,7 +363,7 @@ def _loaded_rows(runs: list[Any], n_busy: int, probe: ProbeResult) -> list[Row]:
     rt = [_realtime(r) for r in runs]
     granted = all(p == "SCHED_FIFO" for p in rt)
     med = statistics.median(p99) if p99 else float("nan")
-    stopped = [int(r.exit_code) for r in runs if not r.ok]
+    stopped = _stops(runs)
     return [Row("tui: loop jitter p99 under load (median)", med, "ms",
                 "≤ 2 ms where RT granted", passed=(med <= 2.0 or not granted) and not stopped,
                 note=f"{len(runs)} console-driven executions with {n_busy} CPU-bound processes "
@@ -382,13 +382,18 @@ def _reload_rows(runs: list[Any]) -> list[Row]:
     if not runs:
         return []
     mx = [r.stats.jitter_ms.max for r in runs if r.stats.jitter_ms]
-    stopped = [int(r.exit_code) for r in runs if not r.ok]
+    stopped = _stops(runs)
     return [Row("tui: page reloaded mid-motion, stops", float(len(stopped)), "",
                 f"reported ({len(runs)} runs)", None, None,
                 note=f"exit codes {stopped or 'none'}; jitter max per run "
                      + ", ".join(f"{v:.3g}" for v in mx) + " ms; loading the page in software "
                      "WebGL takes both cores for about a second, and the pseudo-terminal's kernel "
                      "workers wait behind it: a stop here is a hold with exit 22")]
+
+
+def _stops(runs: list[Any]) -> list[str]:
+    """Each stopped run's exit code and the start of its reason."""
+    return [f"{int(r.exit_code)}: {(r.message or '')[:70]}" for r in runs if not r.ok]
 
 
 def _placement_words() -> str:
@@ -422,7 +427,7 @@ def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult) ->
     p99 = [r.stats.jitter_ms.p99 for r in runs if r.stats.jitter_ms]
     mx = [r.stats.jitter_ms.max for r in runs if r.stats.jitter_ms]
     comm = sum(1 for r in runs if int(r.exit_code) == 22)
-    stopped = [int(r.exit_code) for r in runs if not r.ok]
+    stopped = _stops(runs)
     if browser is None:
         view = "3D view NOT rendered (no /usr/bin/chromium)"
     elif browser.error:

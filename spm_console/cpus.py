@@ -18,8 +18,9 @@ Other programs (a browser showing the 3D view) are not ours to place; see the RE
 highest-numbered allowed CPU) or a CPU number. It is not the default because it halves what
 the console itself gets: on 2 cores with the browser kept off the loop's CPU it removed the
 communication-loss stops (0 of 20 console-driven runs against 5 of 10 with the browser on
-every CPU), but with one busy process per core the console's heartbeat then stalled past the
-motion process's deadman in 2 of 5 runs (a hold, exit 20). The first process that decides writes the CPU set it saw into
+every CPU), but with one busy process per core beside it 2 of 5 runs ended in a hold with
+exit 20 (in one trial under heavier load: the motion process's heartbeat deadman, the console
+having one CPU only). See the README. The first process that decides writes the CPU set it saw into
 ``SPM_CONSOLE_CPUS`` so that the children it starts, whose own affinity may already be
 narrowed, decide alike.
 """
