@@ -10,8 +10,9 @@ replies in a row, a "communication lost" stop.
 
 So, when asked and at least two CPUs are allowed, the servo loop's process and the emulated servos'
 process run on one CPU (the highest-numbered allowed one, :func:`place_on_loop_cpu`) and
-the console's other processes on the rest (:func:`place_beside_loop`). The loop CPU then
-holds nothing but short real-time work, and a kernel worker woken there runs at once.
+the console's other processes on the rest (:func:`place_beside_loop`). A kernel worker woken
+on the loop's CPU then waits behind none of our normal-priority work (other programs may still
+run there).
 Other programs (a browser showing the 3D view) are not ours to place; see the README.
 
 ``SPM_CONSOLE_LOOP_CPU`` in the environment: ``off`` (default: no placement), ``auto`` (the
