@@ -121,10 +121,12 @@ def test_live_targets_deadman_and_the_change_to_reference_delay(agile: Profile, 
         home = s.theta_deg.copy()
         new = home + np.array([4.0, -3.0, 2.0])
         out: list[object] = []
+        following = threading.Event()  # the first sample: the loop runs (the deadman is armed)
         th = threading.Thread(target=lambda: out.append(
-            s.follow(initial_deg=home, deadman_s=0.4, source="test")), daemon=True)
+            s.follow(initial_deg=home, deadman_s=0.4, source="test",
+                     on_sample=lambda _s: following.set())), daemon=True)
         th.start()
-        time.sleep(0.2)
+        assert following.wait(30)
         for _ in range(12):  # a live source: the same new target every 0.1 s for 1.2 s
             assert s.set_target(new)
             time.sleep(0.1)

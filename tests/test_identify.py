@@ -81,8 +81,9 @@ def test_bad_input_is_refused() -> None:
         identify(t, ref, bad)
 
 
-def test_recovers_p_from_the_emulated_bus(agile) -> None:  # type: ignore[no-untyped-def]
-    """Step responses read back through the emulator (real protocol over a pty, 4096 ticks)."""
+def _bus_steps(agile) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:  # type: ignore[no-untyped-def]
+    """One step-response record through the emulator: (t, refs, measured, the worst
+    disturbance of the timing, s: a cycle's lateness or its read-and-write time)."""
     import time
 
     from spm_console.devices.bus import open_bus
@@ -94,15 +95,28 @@ def test_recovers_p_from_the_emulated_bus(agile) -> None:  # type: ignore[no-unt
         step1, step2 = home + np.array([15.0, -10.0, 5.0]), home + np.array([-5.0, 8.0, -12.0])
         plan = [home] * 3 + [step1] * 30 + [step2] * 30
         ts, refs, meas = [], [], []
+        worst = 0.0
         t_next = time.perf_counter()
         for ref in plan:
             while time.perf_counter() < t_next:
                 time.sleep(0.0005)
-            t_next += TS
             ts.append(time.perf_counter())
             meas.append(bus.read_position_deg())  # read, then send: the reference acts after t_k
             bus.write_goal_deg(ref)
+            worst = max(worst, ts[-1] - t_next, time.perf_counter() - ts[-1])
+            t_next += TS
             refs.append(ref)
-    res = identify(np.array(ts), np.array(refs), np.array(meas), fit_delay=True)
+    return np.array(ts), np.array(refs), np.array(meas), worst
+
+
+def test_recovers_p_from_the_emulated_bus(agile) -> None:  # type: ignore[no-untyped-def]
+    """Step responses read back through the emulator (real protocol over a pty, 4096 ticks).
+    The emulator's servos move in real time, so a cycle a loaded machine ran late skews the
+    record: such a record (a cycle > 3 ms late or slow) is taken again, at most twice."""
+    for _attempt in range(3):
+        t, refs, meas, worst = _bus_steps(agile)
+        if worst <= 0.003:
+            break
+    res = identify(t, refs, meas, fit_delay=True)
     assert abs(res.p / agile.servo.p - 1) < 0.02
     assert res.delay_s < 0.01

@@ -144,7 +144,8 @@ class Follower(Executor):
         ref = plan.reference_at(0)
         settled_since: float | None = None
         finished_at: float | None = None
-        updates = feed.updates
+        updates = 0  # targets that arrived before the start are logged with cycle 0
+        feed.arm()
         k = 0
         while True:
             asked = feed.now(k * self.ts, st.last_good)  # logged beside the reference

@@ -3,8 +3,9 @@
 The follower asks, once per servo period, for the target at the next period and — for a timed
 list — a preview of the targets over its horizon (so the re-planned references anticipate the
 steps). Live updates (a UDP client, the console's jog keys) replace the target at once; a
-**deadman** turns a silent live feed into a hold: when no update arrived for ``deadman_s``,
-the target becomes the position the wrist had then, until updates resume. Degrees, seconds.
+**deadman** turns a silent live feed into a hold: when no update arrived for ``deadman_s``
+since following started (:meth:`TargetFeed.arm`), the target becomes the position the wrist
+had then, until updates resume. Degrees, seconds.
 """
 
 from __future__ import annotations
@@ -60,6 +61,13 @@ class TargetFeed:
             self._last_update = self.clock()
             self._held = None
             self.updates += 1
+
+    def arm(self) -> None:
+        """Following starts now: the deadman counts silence from here (or from the last
+        update, if later). The time spent before — homing, finding the regions, the first
+        solve — is not the source's silence."""
+        with self._lock:
+            self._last_update = max(self._last_update, self.clock())
 
     def end(self) -> None:
         """The live source is done: the follower settles on the current target and ends."""
