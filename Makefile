@@ -19,8 +19,14 @@ $(UV):
 	$(PY) -m venv $(UV_DIR)
 	$(UV_DIR)/bin/python -m pip install -q uv==$(UV_VERSION)
 
+# Bytecode is compiled at install: where PYTHONDONTWRITEBYTECODE is set (CI machines, some
+# containers) nothing is ever cached, and every process (the motion process, the emulated
+# servos, each CLI run) would compile its imports again: about 7.6 s instead of 2.7 s for
+# the motion process. The project's own modules are compiled too; an edited one is simply
+# compiled again in memory (its stale bytecode is never used).
 $(STAMP): pyproject.toml uv.lock | $(UV)
-	$(UV_ENV) $(UV) sync --frozen --extra dev --quiet
+	$(UV_ENV) $(UV) sync --frozen --extra dev --quiet --compile-bytecode
+	$(BIN)/python -m compileall -q spm_console benchmarks >/dev/null
 	touch $(STAMP)
 
 lock: $(UV)
