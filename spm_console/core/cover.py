@@ -70,9 +70,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import QhullError
 
 from spm_console.core import region_build as rb
 from spm_console.core.cover_graph import S_CYCLIC
@@ -192,6 +189,9 @@ class RegionCover:
 
     def components(self) -> I64:
         """Connected component label per region; label 0 is P's component."""
+        from scipy.sparse import coo_matrix  # here: scipy.sparse.csgraph costs ~0.15 s to import
+        from scipy.sparse.csgraph import connected_components
+
         k = self.size
         e = self.edges
         g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(k, k)) if len(e) else \
@@ -262,6 +262,8 @@ def build_cover(
     ``refined`` (and the workspace's models) they avoid the refined obstacles instead
     (:mod:`spm_console.core.cover_refine`; ``fine`` memoizes the exact checks), seeds go by
     local density, and every region is checked clear (≥ 99 %, several times slower)."""
+    from scipy.spatial import QhullError  # here: the runtime only loads a cover
+
     if max_regions is None:
         max_regions = REFINED_MAX_REGIONS if refined else COVER_MAX_REGIONS
     t0 = time.perf_counter()

@@ -9,7 +9,6 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import QhullError
 
 from spm_console.core.region import Region
 
@@ -22,6 +21,8 @@ S_CYCLIC = np.eye(3)[[1, 2, 0]]
 
 def _vertices(region: Region) -> F | None:
     """The region's vertices, or None when qhull cannot tell (no pruning for it)."""
+    from scipy.spatial import QhullError  # (loaded by Region.vertices anyway)
+
     try:
         return region.vertices()
     except QhullError:  # too thin for qhull

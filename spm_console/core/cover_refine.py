@@ -43,8 +43,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
-from scipy.spatial import QhullError
 
 from spm_console.core.refine import FineGrid
 from spm_console.core.region import Region
@@ -63,7 +61,9 @@ CELL_CHUNK = 2000
 #: A box is clear of a region when one row's minimum over it is at least b − this (deg), or
 #: when region ∩ closed box holds no ball of radius above it.
 CLEAR_TOL_DEG = 1e-7
-_S6 = ndimage.generate_binary_structure(3, 1)
+#: 6-connectivity (faces): ``scipy.ndimage.generate_binary_structure(3, 1)``.
+_S6 = np.zeros((3, 3, 3), bool)
+_S6[1, 1, :] = _S6[1, :, 1] = _S6[:, 1, 1] = True
 
 
 def _corners_all(a: B) -> B:
@@ -195,6 +195,8 @@ def refine_cells(ws: Workspace, fine: FineGrid, want_nodes: B | None = None,
     """Refine the mixed grid cells (those with a corner in ``want_nodes`` when given) and build
     the obstacle set of the module docstring. ``progress(fraction)`` after every chunk of
     exact checks."""
+    from scipy import ndimage  # here: only a build needs it (~0.4 s to import)
+
     t0 = time.perf_counter()
     before = fine.evaluated
     r = fine.refine
@@ -258,6 +260,8 @@ def boxes_met(region: Region, lo_deg: F, hi_deg: F, tol: float = CLEAR_TOL_DEG) 
 def region_clear(region: Region, obs: FineObstacles, tol: float = CLEAR_TOL_DEG) -> bool:
     """True when the region meets no frontier obstacle and its Chebyshev centre lies in a
     clear fine cell (the conditions of the module docstring's argument)."""
+    from scipy.spatial import QhullError  # (loaded by Region.vertices anyway)
+
     centre, radius = region.chebyshev()
     if radius <= tol or not obs.clear_at(centre):
         return False

@@ -34,7 +34,6 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from spm_console.core.ellipsoid import Ellipsoid, inscribed_ellipsoid
 from spm_console.core.iris import INSIDE_TOL_DEG as INSIDE_TOL_DEG
@@ -91,6 +90,8 @@ class RegionBuild:
 
 def obstacle_nodes(feasible: B, theta_deg: F) -> F:
     """θ (deg) of the infeasible nodes that have a feasible 26-neighbour: (n, 3)."""
+    from scipy import ndimage  # here: only a build needs it (~0.4 s to import)
+
     near = ndimage.binary_dilation(feasible, structure=np.ones((3, 3, 3), bool))
     return np.asarray(theta_deg[near & ~feasible])
 

@@ -22,7 +22,6 @@ from enum import IntEnum
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from spm_console.core.certify import CertifiedSet
 from spm_console.core.cover import RegionCover
@@ -215,6 +214,9 @@ def link_distances(
 
 def home_connected(ok: B, home: tuple[int, int, int]) -> B:
     """Nodes of ``ok`` connected to ``home`` through ``ok`` nodes (6-connectivity)."""
+    from scipy import ndimage  # here: scipy.ndimage costs ~0.4 s to import (the runtime
+    # loads a cached workspace and never labels)
+
     if not ok[home]:
         return np.zeros_like(ok)
     structure = ndimage.generate_binary_structure(3, 1)
