@@ -154,16 +154,22 @@ def test_low_rate_losses_are_retried_without_stopping(
     agile: Profile, tmp_path: Path, fault: str
 ) -> None:
     plan = synthetic_plan(agile, PAPER_START, GOAL, 1.5)
-    run = run_on_emulator(agile, [Segment("plan", plan)], tmp_path, faults=[parse_fault(fault)])
-    res = run.result
-    assert res.ok, res.message
-    st = res.stats
+    for attempt in range(3):  # a run a loaded machine disturbed (a cycle > 2 ms late) again
+        (tmp_path / str(attempt)).mkdir()
+        run = run_on_emulator(agile, [Segment("plan", plan)], tmp_path / str(attempt),
+                              faults=[parse_fault(fault)])
+        res = run.result
+        assert res.ok, res.message
+        st = res.stats
+        if st.jitter_ms is not None and st.jitter_ms.max <= 2.0:
+            break
     assert st.comm_retries > 0  # losses happened and were retried
     log = load_run(res.log_dir)  # type: ignore[arg-type]
     retries = [e for e in log.events if e["event"] == "comm_retry" and e["op"] == "read"]
     assert len(retries) == st.read_retries > 0  # every retry counted and logged
     assert st.failed_reads == sum(1 for e in log.events if e["event"] == "comm_fail")
-    # against the model at each actual read instant (a retried read lands ~4 ms late)
+    # against the model at each actual read instant (a retried read lands ~4 ms late; on a
+    # disturbed run the instant a reply was stamped can be ms away from when it was sampled)
     assert st.timed_tracking_max_deg < 0.2
     emu_stats = run.emulator.stats
     assert (emu_stats.dropped if fault.startswith("drop") else emu_stats.corrupted) > 0

@@ -86,6 +86,7 @@ def _bus_steps(agile) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:  # ty
     disturbance of the timing, s: a cycle's lateness or its read-and-write time)."""
     import time
 
+    from spm_console.devices.base import CommError
     from spm_console.devices.bus import open_bus
     from spm_console.devices.emulator import start_emulator
 
@@ -101,7 +102,14 @@ def _bus_steps(agile) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:  # ty
             while time.perf_counter() < t_next:
                 time.sleep(0.0005)
             ts.append(time.perf_counter())
-            meas.append(bus.read_position_deg())  # read, then send: the reference acts after t_k
+            for attempt in range(3):  # read, then send: the reference acts after t_k
+                try:
+                    meas.append(bus.read_position_deg())
+                    break
+                except CommError:  # a reply a loaded machine read late: retried, a disturbance
+                    worst = float("inf")
+                    if attempt == 2:
+                        raise
             bus.write_goal_deg(ref)
             worst = max(worst, ts[-1] - t_next, time.perf_counter() - ts[-1])
             t_next += TS
@@ -112,7 +120,8 @@ def _bus_steps(agile) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:  # ty
 def test_recovers_p_from_the_emulated_bus(agile) -> None:  # type: ignore[no-untyped-def]
     """Step responses read back through the emulator (real protocol over a pty, 4096 ticks).
     The emulator's servos move in real time, so a cycle a loaded machine ran late skews the
-    record: such a record (a cycle > 3 ms late or slow) is taken again, at most twice."""
+    record: such a record (a cycle > 3 ms late or slow, a read retried) is taken again, at
+    most twice."""
     for _attempt in range(3):
         t, refs, meas, worst = _bus_steps(agile)
         if worst <= 0.003:
