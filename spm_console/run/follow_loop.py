@@ -113,6 +113,7 @@ class Follower(Executor):
         self.solvers = [FollowSolver(self.model, r, vmax, HORIZON, self.lo, self.hi,
                                      settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S))
                         for r in regions]
+        feed.arm()  # (again when the loop starts): the set-up is not the source's silence
         targets, _ = feed.targets(0.0, self.ts, HORIZON, theta0)
         idx, goal = self.hopper.aim(theta0, targets[-1])
         first = self.solvers[idx].solve(theta0, np.zeros(3), _aimed(feed, targets, goal),
