@@ -103,6 +103,8 @@ class Refinement:
 def refine_near(ws: Workspace, fine: FineGrid, a: F, b: F,
                 reach_steps: float = REACH_STEPS) -> Refinement:
     """Steps 1–3 of the module docstring for the segment a→b (deg)."""
+    from scipy import ndimage  # here: only a build needs it (~0.4 s to import)
+
     t0 = time.perf_counter()
     before = fine.evaluated
     feasible = ws.feasible
@@ -116,8 +118,6 @@ def refine_near(ws: Workspace, fine: FineGrid, a: F, b: F,
     flat_n = np.zeros(feasible.size, bool)
     flat_n[refined] = True
     in_n = flat_n.reshape(feasible.shape)
-    from scipy import ndimage  # here: only a build needs it (~0.4 s to import)
-
     k26 = np.ones((3, 3, 3), bool)
     listed = ~feasible & ~in_n & (ndimage.binary_dilation(feasible, structure=k26)
                                   | ndimage.binary_dilation(in_n, structure=k26))

@@ -214,8 +214,8 @@ def link_distances(
 
 def home_connected(ok: B, home: tuple[int, int, int]) -> B:
     """Nodes of ``ok`` connected to ``home`` through ``ok`` nodes (6-connectivity)."""
-    from scipy import ndimage  # here: scipy.ndimage costs ~0.4 s to import (the runtime
-    # loads a cached workspace and never labels)
+    from scipy import ndimage  # here: ~0.4 s to import, and loading a cached workspace
+    # never labels
 
     if not ok[home]:
         return np.zeros_like(ok)

@@ -14,8 +14,8 @@ Every period k, after the cycle's write and read (:meth:`Executor._cycle`), the 
    predicted state (10 points per period over the horizon, held at its end) certified by
    this profile's workspace, speed within ``limits.vmax_degps`` + 10 % between samples (a
    joint predicted faster than that may not get faster), references inside the servo limits,
-   no reference step above 10° — the rules the
-   runtime applies to every plan (:mod:`spm_console.run.plan_check`);
+   no reference step above 10° — the rules the runtime applies to every plan
+   (:mod:`spm_console.run.plan_check`);
 4. sends the adopted plan's next reference at the next deadline. A solve that fails, runs past
    :data:`SOLVE_BUDGET_S` or is refused by the check is not used: the previous (verified)
    plan's next reference goes out instead (held at its rest point past its horizon), and the
