@@ -21,6 +21,7 @@ def test_the_deadman_counts_from_the_start_of_following() -> None:
     home, new, wrist = np.zeros(3), np.array([4.0, -3.0, 2.0]), np.array([1.0, 1.0, 1.0])
     feed = TargetFeed(initial_deg=home, deadman_s=0.4, clock=clock)
     clock.t += 2.0  # homing, the regions, the first solve: longer than the deadman
+    assert not feed.targets(0.0, 0.02, 1, home)[1]  # not armed: never a hold
     feed.arm()
     clock.t += 0.3
     targets, held = feed.targets(0.0, 0.02, 2, wrist)
@@ -45,5 +46,4 @@ def test_an_update_after_arming_counts_from_itself() -> None:
     clock.t += 0.3  # 0.6 s since the start, 0.3 s since the update
     assert not feed.targets(0.0, 0.02, 1, np.zeros(3))[1]
     clock.t += 0.15  # 0.45 s since the update
-
     assert feed.targets(0.0, 0.02, 1, np.zeros(3))[1]

@@ -113,7 +113,6 @@ class Follower(Executor):
         self.solvers = [FollowSolver(self.model, r, vmax, HORIZON, self.lo, self.hi,
                                      settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S))
                         for r in regions]
-        feed.arm()  # (again when the loop starts): the set-up is not the source's silence
         targets, _ = feed.targets(0.0, self.ts, HORIZON, theta0)
         idx, goal = self.hopper.aim(theta0, targets[-1])
         first = self.solvers[idx].solve(theta0, np.zeros(3), _aimed(feed, targets, goal),
@@ -147,7 +146,7 @@ class Follower(Executor):
         settled_since: float | None = None
         finished_at: float | None = None
         updates = 0  # targets that arrived before the start are logged with cycle 0
-        feed.arm()
+        feed.arm()  # the deadman counts from here: the set-up is not the source's silence
         k = 0
         while True:
             asked = feed.now(k * self.ts, st.last_good)  # logged beside the reference

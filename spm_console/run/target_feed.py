@@ -40,6 +40,7 @@ class TargetFeed:
         self._lock = threading.Lock()
         self._live = None if initial_deg is None else np.asarray(initial_deg, float).reshape(3)
         self._last_update = clock()
+        self._armed = False  # the deadman counts only once following started (:meth:`arm`)
         self._ended = False
         self._held: F | None = None
         self.updates = 0
@@ -64,9 +65,10 @@ class TargetFeed:
 
     def arm(self) -> None:
         """Following starts now: the deadman counts silence from here (or from the last
-        update, if later). The time spent before — homing, finding the regions, the first
-        solve — is not the source's silence."""
+        update, if later); before, it never trips. The time spent before — homing, finding
+        the regions, the first solve — is not the source's silence."""
         with self._lock:
+            self._armed = True
             self._last_update = max(self._last_update, self.clock())
 
     def end(self) -> None:
@@ -81,7 +83,7 @@ class TargetFeed:
             t = np.asarray(t_run + ts * np.arange(1, horizon + 1), float)
             return self.timed.at(t), False
         with self._lock:
-            silent = (self.deadman_s is not None and not self._ended
+            silent = (self.deadman_s is not None and self._armed and not self._ended
                       and self.clock() - self._last_update > self.deadman_s)
             if silent and self._held is None:
                 self._held = np.asarray(wrist_deg, float).copy()
