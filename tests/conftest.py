@@ -22,6 +22,26 @@ os.environ.setdefault("SPM_CONSOLE_LOGS", str(_SCRATCH / "logs"))
 os.environ["SPM_CONSOLE_CONFIG"] = str(_SCRATCH / "config")
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """Host stall probes and the retake rule of ``tests/host_stalls.py`` (off with
+    ``SPM_TESTS_HOST_STALLS=0``: every failure is then final)."""
+    from tests.host_stalls import MAX_SUITE_RERUNS, HostStalls
+
+    if os.environ.get("SPM_TESTS_HOST_STALLS", "1") == "0":
+        return
+    if config.option.max_suite_reruns is None:
+        config.option.max_suite_reruns = MAX_SUITE_RERUNS
+    stalls = HostStalls()
+    config.pluginmanager.register(stalls, "spm_host_stalls")
+    stalls.start()
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    stalls = config.pluginmanager.get_plugin("spm_host_stalls")
+    if stalls is not None:
+        stalls.stop()
+
+
 @pytest.fixture(autouse=True)
 def _no_collection_pause_during_a_test() -> Iterator[None]:
     """No cyclic collection of this process's heap while a test runs.

@@ -73,8 +73,11 @@ def run_on_emulator(
 def true_velocity_at_reads(run: EmuRun) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(true position, true velocity, sample index) at the instant each position was read.
 
-    The emulator records its exact state whenever it handles a packet; the last record
-    inside a cycle's bus window is the sync read that produced the measurement.
+    The emulator records its exact state whenever it wakes, and marks the records that
+    answered a read; the first such record after the cycle's good read was sent
+    (``read_offset_s``) and inside the cycle's bus window is the sync read that produced the
+    measurement. (Not merely the window's last record: the emulator also wakes for other
+    packets and its timers within the window, later when the host stalled it.)
     """
     tr = run.emulator.true_state()
     T = tr["t"] + run.emulator.t0
@@ -83,9 +86,9 @@ def true_velocity_at_reads(run: EmuRun) -> tuple[np.ndarray, np.ndarray, np.ndar
         if not s.read_ok:
             continue
         a = run.executor.t0 + s.t
-        hit = np.flatnonzero((a <= T) & (a + s.bus_s + 1e-6 >= T))
+        hit = np.flatnonzero(tr["read"] & (a + s.read_offset_s <= T) & (a + s.bus_s + 1e-6 >= T))
         if hit.size:
-            pos.append(tr["position_deg"][hit[-1]])
-            vel.append(tr["velocity_degps"][hit[-1]])
+            pos.append(tr["position_deg"][hit[0]])
+            vel.append(tr["velocity_degps"][hit[0]])
             idx.append(j)
     return np.array(pos), np.array(vel), np.array(idx, int)

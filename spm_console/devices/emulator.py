@@ -44,6 +44,8 @@ IDLE_S = 0.005
 #: A partial packet older than this when new bytes arrive is dropped (like the firmware's
 #: byte-to-byte timeout), so a garbage header with a huge length cannot hold the line.
 GAP_S = 0.01
+#: Instructions that read a servo's state (READ and BULK_READ in both protocols, 2.0's SYNC_READ).
+_READS = frozenset((p2.Inst.READ, p2.Inst.SYNC_READ, p2.Inst.BULK_READ, p1.Inst.READ, p1.Inst.BULK_READ))
 
 
 @dataclass
@@ -91,6 +93,8 @@ class EmulatorHandle:
         self._t: list[float] = []
         self._pos: list[list[float]] = []
         self._vel: list[list[float]] = []
+        self._reads: list[int] = []
+        """Indices of the records whose state answered a read (READ, SYNC_READ, BULK_READ)."""
         self._faults: list[FaultSpec] = []
         self._fired: set[int] = set()
         self._frng = random.Random(profile.emulator.seed + 1)
@@ -133,13 +137,16 @@ class EmulatorHandle:
             self._faults.append(fault)
 
     def true_state(self) -> dict[str, F]:
-        """Recorded truth: 't' (n,) s from clock start, 'position_deg' and 'velocity_degps' (n, 3)."""
+        """Recorded truth: 't' (n,) s from clock start, 'position_deg' and 'velocity_degps' (n, 3),
+        'read' (n,): the records whose state answered a read instruction."""
         with self._lock:
             self._advance(time.perf_counter())
             t = np.asarray(self._t, float) - self.t0
             pos = np.asarray(self._pos, float).reshape(-1, 3)
             vel = np.asarray(self._vel, float).reshape(-1, 3)
-        return {"t": t, "position_deg": pos, "velocity_degps": vel}
+            read = np.zeros(len(t), bool)
+            read[self._reads] = True
+        return {"t": t, "position_deg": pos, "velocity_degps": vel, "read": read}
 
     def joint_deg(self) -> F:
         """True joint angles now, deg."""
@@ -258,6 +265,8 @@ class EmulatorHandle:
                 continue
             replies = (dispatch2(self._by_id, pkt) if isinstance(pkt, p2.Packet)
                        else dispatch1(self._by_id, pkt))
+            if replies and self._record and self._t and pkt.instruction in _READS:
+                self._reads.append(len(self._t) - 1)  # the record _advance(now) just took
             for _ident, raw in replies:
                 self._emit(raw, now)
 
