@@ -4,11 +4,13 @@ Many tests run the servo loop in real time against the emulated servos over a
 pseudo-terminal: a read that waits longer than the bus's reply timeout (4 ms in the
 shipped profiles) fails, a late wake-up stamps a read late, three failed cycles in a row
 stop a run. On a virtual machine the host decides when a virtual CPU runs. Measured on the
-2-core CI-like machine with ``tests/stall_probe.py`` (SCHED_FIFO, 2 ms sleeps), *idle*:
+2-core CI-like machine with ``spm_console.host_latency`` (SCHED_FIFO, 2 ms sleeps), *idle*:
 about 90 wake-ups per minute and CPU more than 5 ms late, the longest 14-15 ms; under a
 loaded host the longest are longer. Nothing a test or the product does can prevent it.
 
-So the session runs one stall probe per CPU (``tests/stall_probe.py``) and every test is
+So the session runs one stall probe per CPU (``python -m spm_console.host_latency --stream``,
+pinned, SCHED_FIFO :data:`PRIORITY`: above every thread of ours, so a late wake-up is the
+host's doing, never ours) and every test is
 marked ``flaky(reruns=2, condition=…)`` (pytest-rerunfailures) with a condition that is
 true only when, during the failed attempt, a probe saw its CPU withheld for at least
 :data:`STALL_MS` (the shipped reply timeout). A failure without such a stall is final at
@@ -27,7 +29,6 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -37,7 +38,10 @@ import pytest
 STALL_MS = 4.0
 RERUNS = 2
 MAX_SUITE_RERUNS = 10
-PROBE = Path(__file__).with_name("stall_probe.py")
+#: The probes' SCHED_FIFO priority (the emulated servos run at 45, the servo loop at 40).
+PRIORITY = 50
+PERIOD_MS = 2.0
+REPORT_MS = 2.0
 
 
 @dataclass
@@ -67,8 +71,10 @@ class HostStalls:
     # --- probes ---------------------------------------------------------------------
     def start(self) -> None:
         for c in self.cpus:
-            p = subprocess.Popen([sys.executable, "-u", str(PROBE), str(c.cpu)],
-                                 stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
+            p = subprocess.Popen(
+                [sys.executable, "-u", "-m", "spm_console.host_latency", "--stream", "--cpu", str(c.cpu),
+                 "--priority", str(PRIORITY), "--period-ms", str(PERIOD_MS), "--report-ms", str(REPORT_MS)],
+                stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
             self.procs.append(p)
             threading.Thread(target=self._read, args=(p, c), daemon=True,
                              name=f"stall-probe-{c.cpu}").start()

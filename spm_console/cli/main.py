@@ -33,6 +33,7 @@ COMMANDS: dict[str, str] = {
     "follow": "spm_console.cli.follow",
     "logs": "spm_console.cli.logs",
     "reproduce": "spm_console.cli.reproduce",
+    "latency": "spm_console.cli.host",
 }
 COMMAND_MODULES = list(dict.fromkeys(COMMANDS.values()))
 
