@@ -102,8 +102,11 @@ class Executor:
         spin_s: float = 0.0015,
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
+        emulated: bool = False,
     ) -> None:
         self.profile = profile
+        self.emulated = emulated
+        """Driving the emulated bus (said in a communication-loss stop's reason)."""
         self.bus = bus
         self.verifier = PlanVerifier(profile, workspace)
         """Checks every plan against this profile's workspace before torque-on."""
@@ -311,7 +314,7 @@ class Executor:
     def _loop_state(self, theta0: F) -> _LoopState:
         """Filters, predictors and the safety monitor of a run starting at rest at θ0; sets the
         first deadline (t0) and tells ``on_start``."""
-        safety = SafetyMonitor(self.profile, self.verifier.certified)
+        safety = SafetyMonitor(self.profile, self.verifier.certified, emulated=self.emulated)
         self.safety = safety
         st = _LoopState(
             safety=safety,

@@ -55,7 +55,7 @@ def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,
               on_sample: SampleCallback | None) -> Executor:
     log = RunLog.create(kind, profile.name, profile.digest(), plans, root=ctx.logs_root,
                         extra=ctx.meta())
-    return Executor(profile, bus, workspace=ws, log=log, on_sample=on_sample)
+    return Executor(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim)
 
 
 @contextlib.contextmanager

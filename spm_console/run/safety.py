@@ -53,11 +53,18 @@ def _vec(v: F, digits: int = 2) -> str:
     return "[" + ", ".join(f"{float(x):.{digits}f}" for x in np.ravel(v)) + "]"
 
 
+_EMULATED_HINT = ("on the emulated bus: an injected fault, or this machine did not run the emulated "
+                  "servos in time (`spm-console latency` measures how late it wakes them)")
+
+
 class SafetyMonitor:
     """Stateful checks: tracking, region, servo limits, communication, hardware errors."""
 
-    def __init__(self, profile: Profile, certified: CertifiedSet | None = None) -> None:
+    def __init__(self, profile: Profile, certified: CertifiedSet | None = None, *,
+                 emulated: bool = False) -> None:
         self.cfg = profile.safety
+        self.emulated = emulated
+        """The emulated bus: a lost reply is then an injected fault or this machine's doing."""
         self.certified = certified
         """The workspace's certified set: where a planned motion's measured position must stay."""
         self.region_half_width_deg = 0.0
@@ -88,7 +95,8 @@ class SafetyMonitor:
             return StopReason(
                 "comm",
                 f"communication lost: {n} consecutive bus cycles without a valid reply "
-                f"(last: {detail or 'no status packet'}); check the cable, power and port",
+                f"(last: {detail or 'no status packet'}); " + (
+                    _EMULATED_HINT if self.emulated else "check the cable, power and port"),
                 t, k,
             )
         return None
