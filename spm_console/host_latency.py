@@ -12,7 +12,9 @@ priority, sleeps ``period`` at a time and records by how much each wake-up came 
 JSON object (:class:`CpuLatency`); ``--stream`` instead prints one line per wake-up at least
 ``--report-ms`` late (``<CLOCK_MONOTONIC s> <late ms>``) until its parent ends (the test
 suite's stall probes). :func:`measure` runs one such process per allowed CPU at once (one
-process each: threads of one interpreter would wait for each other's GIL).
+process each: threads of one interpreter would wait for each other's GIL) for a given time;
+:func:`measured_meanwhile` while a block runs (the benchmarks' baseline for the loop's own
+lateness). Each result also carries the CPU time the hypervisor took from that CPU (steal).
 Times: seconds, except fields named ``_ms``.
 """
 
@@ -22,10 +24,11 @@ import argparse
 import contextlib
 import json
 import os
+import select
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -60,6 +63,9 @@ class CpuLatency:
     late: tuple[tuple[float, int], ...]
     """(threshold ms, wake-ups at least that late), thresholds ascending (by default
     :data:`THRESHOLDS_MS`)."""
+    steal_ms: float = float("nan")
+    """CPU time the hypervisor took from this CPU meanwhile (``/proc/stat`` steal), ms;
+    NaN where the kernel does not say."""
 
     def per_minute(self, threshold_ms: float) -> float:
         """Wake-ups at least ``threshold_ms`` late per minute (thresholds of :attr:`late`)."""
@@ -68,7 +74,8 @@ class CpuLatency:
 
 
 def summarize(cpu: int, scheduling: str, seconds: float, period_s: float, late_ms: np.ndarray,
-              thresholds_ms: Sequence[float] = THRESHOLDS_MS) -> CpuLatency:
+              thresholds_ms: Sequence[float] = THRESHOLDS_MS,
+              steal_ms: float = float("nan")) -> CpuLatency:
     """The statistics of one CPU's wake-up lateness (ms, one value per wake-up)."""
     x = np.asarray(late_ms, float)
     q = (lambda p: float(np.percentile(x, p))) if x.size else (lambda p: float("nan"))
@@ -77,6 +84,7 @@ def summarize(cpu: int, scheduling: str, seconds: float, period_s: float, late_m
         wakeups=int(x.size), p50_ms=q(50), p99_ms=q(99),
         max_ms=float(x.max()) if x.size else float("nan"),
         late=tuple((float(t), int((x >= t).sum())) for t in sorted(set(thresholds_ms))),
+        steal_ms=steal_ms,
     )
 
 
@@ -85,18 +93,35 @@ def _pin(cpu: int, priority: int) -> str:
     return request_realtime(priority).detail
 
 
-def _run_one(cpu: int, seconds: float, period_s: float, priority: int,
+def _steal_ms(cpu: int) -> float:
+    """This CPU's steal time so far, ms (USER_HZ ticks of ``/proc/stat``), NaN if unknown."""
+    try:
+        with open("/proc/stat", encoding="ascii") as f:
+            for line in f:
+                if line.startswith(f"cpu{cpu} "):
+                    return int(line.split()[8]) * 1e3 / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        pass
+    return float("nan")
+
+
+def _run_one(cpu: int, seconds: float | None, period_s: float, priority: int,
              thresholds_ms: Sequence[float]) -> CpuLatency:
+    """Measure for ``seconds``, or (None) until standard input has data or ends."""
     scheduling = _pin(cpu, priority)
     late: list[float] = []
-    t_end = time.monotonic() + seconds
-    prev = time.monotonic()
+    t_start = prev = time.monotonic()
+    steal0 = _steal_ms(cpu)
+    t_end = t_start + seconds if seconds is not None else float("inf")
     while prev < t_end:
         time.sleep(period_s)
         now = time.monotonic()
         late.append(max(0.0, (now - prev - period_s) * 1e3))
         prev = now
-    return summarize(cpu, scheduling, seconds, period_s, np.array(late), thresholds_ms)
+        if seconds is None and len(late) % 64 == 0 and select.select([sys.stdin], [], [], 0)[0]:
+            break
+    return summarize(cpu, scheduling, prev - t_start, period_s, np.array(late), thresholds_ms,
+                     _steal_ms(cpu) - steal0)
 
 
 def _stream(cpu: int, period_s: float, priority: int, report_ms: float) -> None:
@@ -116,25 +141,28 @@ def _stream(cpu: int, period_s: float, priority: int, report_ms: float) -> None:
             return
 
 
-def measure(seconds: float, period_s: float = DEFAULT_PERIOD_S, priority: int = LOOP_PRIORITY,
-            cpus: Sequence[int] | None = None,
-            thresholds_ms: Sequence[float] = THRESHOLDS_MS) -> list[CpuLatency]:
-    """Measure every allowed CPU (or ``cpus``) at once for ``seconds``; one process each."""
-    chosen = sorted(os.sched_getaffinity(0)) if cpus is None else list(cpus)
-    procs = [subprocess.Popen(
-        [sys.executable, "-m", "spm_console.host_latency", "--cpu", str(c), "--seconds",
-         repr(seconds), "--period-ms", repr(period_s * 1e3), "--priority", str(priority),
+def _start(cpus: Sequence[int], period_s: float, priority: int, thresholds_ms: Sequence[float],
+           seconds: float | None) -> list[subprocess.Popen[str]]:
+    length = ["--seconds", repr(seconds)] if seconds is not None else ["--until-input"]
+    return [subprocess.Popen(
+        [sys.executable, "-m", "spm_console.host_latency", "--cpu", str(c), *length,
+         "--period-ms", repr(period_s * 1e3), "--priority", str(priority),
          "--thresholds-ms", ",".join(repr(float(t)) for t in thresholds_ms)],
-        stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True) for c in chosen]
+        stdout=subprocess.PIPE, stdin=subprocess.PIPE if seconds is None else subprocess.DEVNULL,
+        text=True) for c in cpus]
+
+
+def _collect(cpus: Sequence[int], procs: list[subprocess.Popen[str]], timeout_s: float,
+             say_stop: bool) -> list[CpuLatency]:
     out: list[CpuLatency] = []
     try:
-        for c, p in zip(chosen, procs, strict=True):
+        for c, p in zip(cpus, procs, strict=True):
             try:
-                text, _ = p.communicate(timeout=seconds + 60.0)
+                text, _ = p.communicate("stop\n" if say_stop else None, timeout=timeout_s)
                 d = json.loads(text)
                 d["late"] = tuple((float(t), int(n)) for t, n in d["late"])
                 out.append(CpuLatency(**d))
-            except (subprocess.TimeoutExpired, ValueError, TypeError, KeyError) as exc:
+            except (subprocess.TimeoutExpired, ValueError, TypeError, KeyError, OSError) as exc:
                 raise HostLatencyError(f"the measurement on CPU {c} failed "
                                        f"(exit code {p.poll()}): {exc}") from None
     finally:
@@ -145,10 +173,36 @@ def measure(seconds: float, period_s: float = DEFAULT_PERIOD_S, priority: int = 
     return out
 
 
+def measure(seconds: float, period_s: float = DEFAULT_PERIOD_S, priority: int = LOOP_PRIORITY,
+            cpus: Sequence[int] | None = None,
+            thresholds_ms: Sequence[float] = THRESHOLDS_MS) -> list[CpuLatency]:
+    """Measure every allowed CPU (or ``cpus``) at once for ``seconds``; one process each."""
+    chosen = sorted(os.sched_getaffinity(0)) if cpus is None else list(cpus)
+    procs = _start(chosen, period_s, priority, thresholds_ms, seconds)
+    return _collect(chosen, procs, seconds + 60.0, say_stop=False)
+
+
+@contextlib.contextmanager
+def measured_meanwhile(period_s: float = DEFAULT_PERIOD_S, priority: int = LOOP_PRIORITY,
+                       thresholds_ms: Sequence[float] = THRESHOLDS_MS) -> Iterator[list[CpuLatency]]:
+    """Measure every allowed CPU while the block runs; the list is filled when it ends
+    (and stays empty when a measurement failed: the block's own outcome is not masked)."""
+    chosen = sorted(os.sched_getaffinity(0))
+    procs = _start(chosen, period_s, priority, thresholds_ms, None)
+    out: list[CpuLatency] = []
+    try:
+        yield out
+    finally:
+        with contextlib.suppress(HostLatencyError):
+            out.extend(_collect(chosen, procs, 30.0, say_stop=True))
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description="wake-up lateness of a real-time thread on one CPU")
     ap.add_argument("--cpu", type=int, required=True)
     ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--until-input", action="store_true",
+                    help="measure until standard input has a line or ends (not --seconds)")
     ap.add_argument("--period-ms", type=float, default=DEFAULT_PERIOD_S * 1e3)
     ap.add_argument("--priority", type=int, default=LOOP_PRIORITY)
     ap.add_argument("--stream", action="store_true", help="print late wake-ups until the parent ends")
@@ -161,7 +215,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             _stream(a.cpu, period_s, a.priority, a.report_ms)
         return 0
     thresholds = [float(t) for t in a.thresholds_ms.split(",") if t.strip()]
-    r = _run_one(a.cpu, a.seconds, period_s, a.priority, thresholds)
+    r = _run_one(a.cpu, None if a.until_input else a.seconds, period_s, a.priority, thresholds)
     print(json.dumps(asdict(r)), flush=True)
     return 0
 

@@ -17,7 +17,7 @@ import pytest
 from spm_console.cli.host import VERDICTS, verdict
 from spm_console.cli.main import main
 from spm_console.errors import ExitCode
-from spm_console.host_latency import THRESHOLDS_MS, summarize
+from spm_console.host_latency import THRESHOLDS_MS, measured_meanwhile, summarize
 
 
 def test_summary_counts_each_threshold_and_the_percentiles() -> None:
@@ -83,3 +83,16 @@ def test_a_probe_stopped_for_150_ms_reports_a_stall_of_at_least_that() -> None:
         p.wait()
     assert late_ms >= 150.0 - 1.0  # the stop, less at most one 1 ms period
     assert abs(time.monotonic() - t) < 60.0  # stamped on the shared monotonic clock
+
+
+def test_measured_meanwhile_covers_the_block_on_every_cpu() -> None:
+    t0 = time.monotonic()
+    with measured_meanwhile() as cpus:
+        assert cpus == []  # filled when the block ends
+        time.sleep(0.5)
+    block = time.monotonic() - t0
+    assert sorted(c.cpu for c in cpus) == sorted(os.sched_getaffinity(0))
+    for c in cpus:
+        # from the probe's first sleep (after its start-up) to the line that ended it
+        assert 0.0 < c.seconds <= block and c.wakeups > 0
+        assert np.isnan(c.steal_ms) or c.steal_ms >= 0.0
