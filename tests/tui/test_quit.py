@@ -3,6 +3,8 @@ wrist moves: q is then refused with a notice, the motion goes on to its end."""
 
 from __future__ import annotations
 
+import time
+
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.confirm import QuitConfirm
 from tests.tui.helpers import burst, settle
@@ -49,7 +51,9 @@ async def test_q_while_the_wrist_moves_is_refused_and_the_motion_ends_normally(c
                                             notify(message, **kw))[1]
         await settle(pilot)
         await pilot.press("h", "y")
-        while not app.session.moving.is_set():  # the homing has started
+        t_end = time.monotonic() + 30.0
+        while not app.session.moving.is_set():  # the homing has started (bounded: never a hang)
+            assert time.monotonic() < t_end, "the homing did not start within 30 s"
             await pilot.pause(0.02)
         await pilot.press("q")
         assert app.moving and app.session.moving.is_set()  # still under way

@@ -47,7 +47,9 @@ async def test_a_signal_mid_motion_stops_the_wrist_and_the_console(console, tmp_
         await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
                                 PoseSpec("theta", (95.0, 110.0, 105.0)), 150)  # 3 s
         await pilot.press("5", "x", "y")
-        while not s.moving.is_set():
+        t_end = asyncio.get_running_loop().time() + 30.0
+        while not s.moving.is_set():  # bounded: a motion that never starts fails, never hangs
+            assert asyncio.get_running_loop().time() < t_end, status_of(app)
             await asyncio.sleep(0.01)
         await asyncio.sleep(0.3)
         _send(app, sig)

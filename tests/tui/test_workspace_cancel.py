@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -59,9 +60,16 @@ def coarse(agile: Profile) -> Profile:
     return with_grid_step(agile, 5.0)
 
 
-async def _cancel_when_held(pilot: Any, gate: Gate) -> None:
+async def _until_held(pilot: Any, gate: Gate, timeout_s: float = 60.0) -> None:
+    """Pump the app until the build reaches the gate (bounded: fails, never hangs)."""
+    t_end = time.monotonic() + timeout_s
     while not gate.reached.is_set():
+        assert time.monotonic() < t_end, f"the build did not reach the gate within {timeout_s:.0f} s"
         await pilot.pause(0.02)
+
+
+async def _cancel_when_held(pilot: Any, gate: Gate) -> None:
+    await _until_held(pilot, gate)
     assert "c cancels" in status_of(pilot.app)
     await pilot.press("c")
     assert "cancelling the build" in status_of(pilot.app)
@@ -153,8 +161,7 @@ async def test_quitting_during_a_build_cancels_it(coarse: Profile, tmp_path: Pat
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
         await pilot.press("3")
-        while not gate.reached.is_set():
-            await pilot.pause(0.02)
+        await _until_held(pilot, gate)
         await pilot.press("q", "q")  # asked first, then quit
         assert app.build_cancel is not None and app.build_cancel.is_set()
         gate.release.set()
