@@ -105,38 +105,39 @@ def _steal_ms(cpu: int) -> float:
     return float("nan")
 
 
+def _wakeups(period_s: float) -> Iterator[tuple[float, float]]:
+    """Sleep ``period_s`` at a time, forever; yield (CLOCK_MONOTONIC s, lateness ms) each wake-up."""
+    prev = time.monotonic()
+    while True:
+        time.sleep(period_s)
+        now = time.monotonic()
+        yield now, (now - prev - period_s) * 1e3
+        prev = now
+
+
 def _run_one(cpu: int, seconds: float | None, period_s: float, priority: int,
              thresholds_ms: Sequence[float]) -> CpuLatency:
     """Measure for ``seconds``, or (None) until standard input has data or ends."""
     scheduling = _pin(cpu, priority)
     late: list[float] = []
-    t_start = prev = time.monotonic()
+    t_start = now = time.monotonic()
     steal0 = _steal_ms(cpu)
     t_end = t_start + seconds if seconds is not None else float("inf")
-    while prev < t_end:
-        time.sleep(period_s)
-        now = time.monotonic()
-        late.append(max(0.0, (now - prev - period_s) * 1e3))
-        prev = now
-        if seconds is None and len(late) % 64 == 0 and select.select([sys.stdin], [], [], 0)[0]:
+    for now, late_ms in _wakeups(period_s):
+        late.append(max(0.0, late_ms))
+        if now >= t_end or (seconds is None and len(late) % 64 == 0
+                            and select.select([sys.stdin], [], [], 0)[0]):
             break
-    return summarize(cpu, scheduling, prev - t_start, period_s, np.array(late), thresholds_ms,
+    return summarize(cpu, scheduling, now - t_start, period_s, np.array(late), thresholds_ms,
                      _steal_ms(cpu) - steal0)
 
 
 def _stream(cpu: int, period_s: float, priority: int, report_ms: float) -> None:
     parent = os.getppid()
     print(f"# cpu {cpu}: {_pin(cpu, priority)}", flush=True)
-    prev = time.monotonic()
-    n = 0
-    while True:
-        time.sleep(period_s)
-        now = time.monotonic()
-        late_ms = (now - prev - period_s) * 1e3
+    for n, (now, late_ms) in enumerate(_wakeups(period_s), 1):
         if late_ms >= report_ms:
             print(f"{now:.6f} {late_ms:.3f}", flush=True)
-        prev = now
-        n += 1
         if n % 256 == 0 and os.getppid() != parent:
             return
 

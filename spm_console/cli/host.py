@@ -21,7 +21,8 @@ VERDICTS = {
 
 def register(sub: Any) -> None:
     p = sub.add_parser("latency", help="measure how late this machine wakes a real-time thread "
-                                       "(per CPU), against the profile's bus timing")
+                                       "(per CPU), against the profile's bus timing (not while "
+                                       "the wrist moves: it loads the machine a little)")
     add_common(p)
     p.add_argument("--seconds", type=float, default=10.0,
                    help=f"how long to measure, s (0 < s ≤ {MAX_SECONDS:g}; default 10)")
