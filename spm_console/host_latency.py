@@ -123,9 +123,10 @@ def _run_one(cpu: int, seconds: float | None, period_s: float, priority: int,
     t_start = now = time.monotonic()
     steal0 = _steal_ms(cpu)
     t_end = t_start + seconds if seconds is not None else float("inf")
+    look_every = max(1, round(0.05 / period_s))  # at standard input: about every 50 ms
     for now, late_ms in _wakeups(period_s):
         late.append(max(0.0, late_ms))
-        if now >= t_end or (seconds is None and len(late) % 64 == 0
+        if now >= t_end or (seconds is None and len(late) % look_every == 0
                             and select.select([sys.stdin], [], [], 0)[0]):
             break
     return summarize(cpu, scheduling, now - t_start, period_s, np.array(late), thresholds_ms,
