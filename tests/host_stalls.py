@@ -43,9 +43,11 @@ RERUNS = 2
 MAX_SUITE_RERUNS = 10
 #: The probes' SCHED_FIFO priority (the emulated servos run at 45, the servo loop at 40).
 PRIORITY = 50
-#: The probes sleep as long as a servo period: at 2 ms they harmed what they watch (the
-#: emulated-bus executor tests failed in 5 of 6 runs with them, 1 of 6 without; at 20 ms,
-#: 0 of 3): on a virtual machine every timer wake-up costs the host's attention.
+#: The probes sleep as long as a servo period: at 2 ms they harmed what they watch. The two
+#: emulated-bus executor tests (tests/test_executor_emulated.py), on a host in a bad phase:
+#: with 2 ms probes 9 of 12 failed for good even after two retakes each (6 runs); without
+#: probes 4 of 14 failed (7 runs, no retakes); with 20 ms probes 0 of 6 (3 runs). On a
+#: virtual machine every timer wake-up costs the host's attention.
 PERIOD_MS = 20.0
 REPORT_MS = 2.0
 
@@ -100,11 +102,10 @@ class HostStalls:
 
     # --- probes ---------------------------------------------------------------------
     def start(self) -> None:
-        """One probe process per CPU, writing to its own file. Nothing of the probes runs in
-        this process while a test does: many tests run an emulated bus and a servo loop in
-        threads of this process, and a reader thread here would take the interpreter's lock
-        from them (measured: the emulated-bus executor tests then failed in 5 of 6 runs
-        instead of 1 of 6)."""
+        """One probe process per CPU, writing to its own file, read between tests. Nothing
+        of the probes runs in this process while a test does: many tests run an emulated bus
+        and a servo loop in threads of this process, and a reader thread here would compete
+        with them for the interpreter's lock."""
         for c in self.cpus:
             with open(c.path, "wb") as out:
                 self.procs.append(subprocess.Popen(
