@@ -12,13 +12,14 @@ or the product does can prevent it.
 So the session runs one stall probe per CPU (``python -m spm_console.host_latency --stream``,
 pinned, SCHED_FIFO :data:`PRIORITY`: above every thread of ours, so a late wake-up is the
 machine's doing, the hypervisor's or a kernel that does not preempt a system call, not our
-threads') and every test is marked ``flaky(reruns=2, condition=…)`` (pytest-rerunfailures) with a condition that is
-true only when, during the failed attempt, a probe saw its CPU withheld for at least
-:data:`STALL_MS` (the shipped reply timeout). A failure without such a stall is final at
-once, whatever the test. At most :data:`MAX_SUITE_RERUNS` attempts are taken again in a
-whole run. Every retake is listed at the end of the run with the stall that allowed it,
-and every final failure with the longest stall seen during it; the assertions are the
-same on every attempt.
+threads') and every test is marked ``flaky(reruns=2, condition=…)`` (pytest-rerunfailures)
+with a condition that is true only when, during the failed attempt, a probe saw its CPU
+withheld for at least :data:`STALL_MS` (the shipped reply timeout). A failure without such
+a stall is final at once, whatever the test, and so is one whose attempt took longer than
+:data:`MAX_RETAKE_S`. At most :data:`MAX_SUITE_RERUNS` attempts are taken again in a whole
+run. Every retake is listed at the end of the run with the stall that allowed it, and every
+final failure with the longest stall seen during it; the assertions are the same on every
+attempt.
 """
 
 from __future__ import annotations
@@ -41,6 +42,10 @@ import pytest
 STALL_MS = 4.0
 RERUNS = 2
 MAX_SUITE_RERUNS = 10
+#: An attempt that took longer than this (s) is not taken again: a retake of a long test
+#: (the slow stage's 100k-sample certification runs for many minutes) could push a CI run
+#: past its time limit.
+MAX_RETAKE_S = 120.0
 #: The probes' SCHED_FIFO priority (the emulated servos run at 45, the servo loop at 40).
 PRIORITY = 50
 #: The probes sleep as long as a servo period: at 2 ms they harmed what they watch. The two
@@ -134,8 +139,12 @@ class HostStalls:
 
     def explains_failure(self) -> bool:
         """The rerun condition, evaluated when an attempt has ended."""
-        ms, cpu = self.longest(self.t0, time.monotonic())
+        now = time.monotonic()
+        ms, cpu = self.longest(self.t0, now)
         self._last = f"longest host stall during the attempt: {ms:.0f} ms on CPU {cpu}"
+        if now - self.t0 > MAX_RETAKE_S:
+            self._last += f"; not retaken: the attempt took {now - self.t0:.0f} s"
+            return False
         return ms >= STALL_MS
 
     # --- hooks ------------------------------------------------------------------------
