@@ -134,8 +134,7 @@ class HostStalls:
         """Longest stall (ms) any CPU saw in [t0, t1], and its CPU."""
         for c in self.cpus:
             c.read_new()
-        worst = max(self.cpus, key=lambda c: c.longest(t0, t1))
-        return worst.longest(t0, t1), worst.cpu
+        return max((c.longest(t0, t1), c.cpu) for c in self.cpus)
 
     def explains_failure(self) -> bool:
         """The rerun condition, evaluated when an attempt has ended."""
@@ -159,8 +158,7 @@ class HostStalls:
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
         if report.outcome == "rerun":
             self.retaken.append((report.nodeid, self._last))
-        elif report.failed:
-            self.explains_failure()
+        elif report.failed:  # the condition has just been evaluated for this attempt
             self.final[report.nodeid] = self._last
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
