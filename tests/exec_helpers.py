@@ -75,9 +75,10 @@ def true_velocity_at_reads(run: EmuRun) -> tuple[np.ndarray, np.ndarray, np.ndar
 
     The emulator records its exact state whenever it wakes, and marks the records that
     answered a read; the first such record after the cycle's good read was sent
-    (``read_offset_s``) and inside the cycle's bus window is the sync read that produced the
-    measurement. (Not merely the window's last record: the emulator also wakes for other
-    packets and its timers within the window, later when the host stalled it.)
+    (``read_offset_s``, counted from the cycle's deadline) and before the cycle's bus work
+    ended is the sync read that produced the measurement. (Not merely the window's last
+    record: the emulator also wakes for other packets and its timers within the window,
+    later when the host stalled it.)
     """
     tr = run.emulator.true_state()
     T = tr["t"] + run.emulator.t0
@@ -85,8 +86,9 @@ def true_velocity_at_reads(run: EmuRun) -> tuple[np.ndarray, np.ndarray, np.ndar
     for j, s in enumerate(run.samples):
         if not s.read_ok:
             continue
-        a = run.executor.t0 + s.t
-        hit = np.flatnonzero(tr["read"] & (a + s.read_offset_s <= T) & (a + s.bus_s + 1e-6 >= T))
+        sent = run.executor.t0 + s.k * run.executor.ts + s.read_offset_s  # offset from the deadline
+        end = run.executor.t0 + s.t + s.bus_s  # t is the cycle's actual start, after any lateness
+        hit = np.flatnonzero(tr["read"] & (sent <= T) & (end + 1e-6 >= T))
         if hit.size:
             pos.append(tr["position_deg"][hit[0]])
             vel.append(tr["velocity_degps"][hit[0]])

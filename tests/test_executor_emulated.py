@@ -35,6 +35,8 @@ def test_paper_mvn_tracks_model_and_kalman_beats_finite_differences(
     assert np.allclose(meas[-1], plan.reference_deg[-1], atol=0.1)
 
     true_pos, true_vel, idx = true_velocity_at_reads(run)
+    clean = [j for j, s in enumerate(run.samples) if s.read_ok and s.retries == 0]
+    assert set(clean) <= set(idx.tolist())  # every read on the first attempt is found
     assert len(idx) >= 0.95 * len(run.samples)
     # the alignment is right: each measurement is the true position at that instant, quantized
     assert np.abs(true_pos - meas[idx]).max() <= 0.5 * 360 / 4096 + 1e-6
