@@ -76,6 +76,37 @@ def test_the_default_cover_avoids_the_grid_cubes() -> None:
         assert not boxes_met(r, Q - hw, Q + hw).any(), k
 
 
+def test_boxes_met_agrees_with_one_lp_per_box() -> None:
+    """The centre-ball shortcut and the row screen give the LP's verdict: every box checked
+    against the largest ball of region ∩ box, on boxes around a region's faces (some met by a
+    sliver, some missed by one) and inside it."""
+    region = agile_workspace().region
+    centre, radius = region.chebyshev()
+    rng = np.random.default_rng(5)
+    # box centres near the region's faces and vertices, where a box can pass every one-row
+    # screen and still miss the region (half-widths 0.001…0.5°), and a few deep inside
+    d = rng.normal(size=(100, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    Ad = d @ region.A.T
+    exit_at = np.where(Ad > 0, (region.b - centre @ region.A.T) / np.where(Ad > 0, Ad, 1.0),
+                       np.inf).min(axis=1)
+    on_faces = centre + d * (exit_at + rng.uniform(-0.6, 0.6, 100))[:, None]
+    V = region.vertices(interior=centre)
+    near_vertices = V[rng.integers(len(V), size=100)] + 0.6 * rng.uniform(-1, 1, (100, 3))
+    c = np.vstack([on_faces, near_vertices, centre + 0.5 * radius * d[:20]])
+    n = len(c)
+    hw = np.exp(rng.uniform(np.log(1e-3), np.log(0.5), size=(n, 3)))
+    lo, hi = c - hw, c + hw
+    box = np.vstack([np.eye(3), -np.eye(3)])
+    ref = np.array([Region(np.vstack([region.A, box]), np.r_[region.b, h, -x]).chebyshev()[1]
+                    for x, h in zip(lo, hi, strict=True)])
+    tol = 1e-6
+    decided = np.abs(ref - tol) > 1e-7  # the LP's own tolerance decides the rest
+    got = boxes_met(region, lo, hi, tol=tol)
+    assert (got == (ref > tol))[decided].all()
+    assert 0.2 * n < int(got.sum()) < 0.8 * n  # both verdicts, many of each
+
+
 def test_the_refined_cover_reaches_the_target() -> None:
     ws = agile_workspace_refined()
     c = ws.cover

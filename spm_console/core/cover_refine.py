@@ -243,15 +243,19 @@ def refine_cells(ws: Workspace, fine: FineGrid, want_nodes: B | None = None,
 
 def boxes_met(region: Region, lo_deg: F, hi_deg: F, tol: float = CLEAR_TOL_DEG) -> B:
     """(n,) which closed boxes [lo, hi] (n, 3) deg the region's interior meets (a ball of
-    radius > ``tol`` in region ∩ box). Exact: a box no single row excludes is settled by an LP."""
+    radius > ``tol`` in region ∩ box). Exact: a box that no single row excludes, and whose
+    centre does not already hold such a ball, is settled by an LP (the largest ball)."""
     Rn = region.normalized()
     c = 0.5 * (lo_deg + hi_deg)
     hw = 0.5 * (hi_deg - lo_deg)
     mins = c @ Rn.A.T - hw @ np.abs(Rn.A).T
     maybe = ~(mins >= Rn.b - tol).any(axis=1)
-    out = np.zeros(len(c), bool)
+    # the ball at the box's centre: radius its distance to the nearer of the box's and the
+    # (unit-row) region's faces; larger than tol, the LP's optimum is too
+    centre_ball = np.minimum((Rn.b - c @ Rn.A.T).min(axis=1), hw.min(axis=1))
+    out = maybe & (centre_ball > tol)
     box = np.vstack([np.eye(3), -np.eye(3)])
-    for k in np.flatnonzero(maybe):
+    for k in np.flatnonzero(maybe & ~out):
         both = Region(np.vstack([Rn.A, box]), np.r_[Rn.b, hi_deg[k], -lo_deg[k]])
         out[k] = both.chebyshev()[1] > tol
     return out
