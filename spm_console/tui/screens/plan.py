@@ -353,6 +353,7 @@ class PlanScreen(StepScreen):
         self.console.view.clear_path()
         self.query_one("#plan-text", Static).update(Content(text))
         self.query_one("#plan-plot", PlotView).plot("no plan", np.zeros(0), [])
+        self.refresh_view()  # the step bar's tick and "Next:" line no longer name a plan
 
     def show_plan(self) -> None:
         plan = self.session.plan
