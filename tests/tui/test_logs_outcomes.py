@@ -101,6 +101,10 @@ async def test_the_filter_lists_one_outcome_at_a_time(console, tmp_path) -> None
         await pilot.press("enter")
         await settle(pilot)
         assert app.screen.run is not None and app.screen.run.path.name == names["comm"]
+        await pilot.press("f")  # refused: none listed, and the opened run is not shown either
+        await settle(pilot)
+        assert app.screen.run is None and names["comm"] in text_of(app, "#run-text")
+        assert "is not listed now" in text_of(app, "#run-text")
 
 
 async def test_the_configured_log_root_is_shown(console, tmp_path) -> None:
@@ -153,6 +157,8 @@ async def test_a_refused_run_shows_its_reason(console, tmp_path) -> None:
         reason = row["reason"]
         assert reason.endswith("…") and len(reason) <= REASON_CHARS
         assert message.startswith(reason[:-1]) and len(reason) > REASON_CHARS // 2
+        # the line above the table names the whole reason, wrapped, whatever the width
+        assert message in " ".join(text_of(app, "#run-line").split())
         await pilot.press("enter")
         await settle(pilot)
         assert message in " ".join(text_of(app, "#run-text").split())

@@ -72,11 +72,11 @@ def run_row(info: RunInfo) -> tuple[str, ...]:
 
 
 def run_line(info: RunInfo) -> str:
-    """The highlighted run in one line under the log root, for a table too narrow for its
-    columns (80 columns show only the first three): outcome, exit code, stop reason,
-    duration and plan kind."""
+    """The highlighted run under the log root, for a table too narrow for its columns (80
+    columns show only the first three): outcome, exit code, the whole stop reason (the line
+    wraps), duration and plan kind."""
     parts = [info.outcome, "exit –" if info.exit_code is None else f"exit {info.exit_code}",
-             short_reason(info.reason), _secs(info.duration_s),
+             " ".join(info.reason.split()), _secs(info.duration_s),
              "no plan recorded" if info.plan is None else f"plan {info.plan.kind}"]
     return "▸ " + " · ".join(p for p in parts if p)
 
@@ -179,6 +179,9 @@ class LogsScreen(StepScreen):
             return
         shown = self.fill(table, runs)
         self.show_head(root, shown, len(runs))
+        if self.run is not None and str(self.run.path) not in self._listed:
+            self._close_run(f"The run opened before ({self.run.path.name}) is not listed "
+                            "now. Pick a run with ↑/↓ and press Enter to plot it.")
         table.focus()
         if not runs:
             self.status.ok(f"no runs logged yet in {root}: execute a plan first (step 5)")
@@ -221,6 +224,12 @@ class LogsScreen(StepScreen):
         from spm_console.run.runlog import load_run
 
         self.run_blocking("open", lambda: RunOpened(load_run(str(key))), "reading the run …")
+
+    def _close_run(self, text: str) -> None:
+        """Nothing on the detail side but ``text``: no run shown that the table hides."""
+        self.run = None
+        self.query_one("#run-text", Static).update(Content(text))
+        self.query_one("#run-plot", PlotView).plot("no run opened", np.zeros(0), [])
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         info = self._listed.get(str(event.row_key.value))
