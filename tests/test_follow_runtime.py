@@ -219,3 +219,17 @@ def test_following_starts_at_a_boundary_pose_outside_every_cover_region(
     start_ev = next(e for e in load_run(res.log_dir).events if e["event"] == "start")
     assert start_ev["grown_around_start"] == 1
     assert start_ev["regions"] == ws.cover.size + 1
+
+
+def test_a_start_a_servo_tick_beyond_the_grid_says_where_and_what_to_do() -> None:
+    """The paper's goal θ2 = 155° is the grid's edge; a wrist settled 0.04° beyond it has no
+    certified region to follow in. The refusal says by how much and how to get back in."""
+    from spm_console.errors import BadInputError
+    from spm_console.run.follow_regions import MOVE_IN
+
+    ws = agile_workspace()
+    hi = float(ws.axes_deg[1][-1])
+    with pytest.raises(BadInputError) as info:
+        follow_regions(ws, np.array([66.8, hi + 0.04, 131.48]))
+    assert f"θ2 is 0.04° beyond the grid's {float(ws.axes_deg[1][0]):g}…{hi:g}°" in info.value.message
+    assert info.value.message.endswith(MOVE_IN) and "home it first" not in info.value.message

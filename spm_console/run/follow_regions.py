@@ -59,6 +59,22 @@ def _where(theta_deg: F) -> str:
     return f"θ = {np.round(np.asarray(theta_deg, float), 2).tolist()}°"
 
 
+#: What to do about a start no certified region holds (the console's and the CLI's advice).
+MOVE_IN = "move the wrist inside the workspace first (plan a motion there, or home it)"
+
+
+def _beyond_grid(ws: Workspace, th: F) -> str:
+    """Where ``th`` leaves the workspace's grid, as a clause ('' when inside it): a plan that
+    ended on the grid's edge can settle a servo tick beyond it."""
+    out = []
+    for j, (axis, x) in enumerate(zip(ws.axes_deg, th, strict=True)):
+        lo, hi = float(axis[0]), float(axis[-1])
+        if not lo <= x <= hi:
+            out.append(f"θ{j + 1} is {min(abs(x - lo), abs(x - hi)):.2f}° beyond the grid's "
+                       f"{lo:g}…{hi:g}°")
+    return f" ({'; '.join(out)})" if out else ""
+
+
 def follow_regions(ws: Workspace, theta0_deg: F) -> FollowRegions:
     """The workspace's cover (P alone without one) and, when none of its regions holds
     ``theta0_deg``, a region grown around it and joined to the cover. BadInputError, with the
@@ -67,25 +83,25 @@ def follow_regions(ws: Workspace, theta0_deg: F) -> FollowRegions:
     cover = ws.cover
     if cover is None:
         if not bool(ws.region.contains(th, tol=INSIDE_TOL_DEG)):
-            raise BadInputError(f"the wrist is at {_where(th)}, outside the workspace's region P "
-                                "(this workspace has no region cover): home it first")
+            raise BadInputError(f"the wrist is at {_where(th)}{_beyond_grid(ws, th)}, outside the "
+                                f"workspace's region P (this workspace has no region cover): "
+                                f"{MOVE_IN}")
         return FollowRegions((ws.region,), np.zeros((0, 2), np.int64), np.zeros((0, 3)))
     if any(r.contains(th, tol=INSIDE_TOL_DEG) for r in cover.regions):
         return FollowRegions(cover.regions, cover.edges, cover.edge_points_deg)
     try:
         grown, _ = connector_regions(ws, cover, th[None])
     except InfeasibleError as exc:
-        raise BadInputError(f"the wrist is at {_where(th)}, outside the workspace's certified "
-                            f"set ({exc.message}): no region to follow in; home it first"
-                            ) from None
+        raise BadInputError(f"the wrist is at {_where(th)}{_beyond_grid(ws, th)}, outside the "
+                            f"workspace's certified set ({exc.message}): no region to follow "
+                            f"in; {MOVE_IN}") from None
     if not grown or not bool(grown[0].contains(th, tol=INSIDE_TOL_DEG)):
-        raise BadInputError(f"the wrist is at {_where(th)}: no certified region grown around it "
-                            "holds it; home it first")
+        raise BadInputError(f"the wrist is at {_where(th)}{_beyond_grid(ws, th)}: no certified "
+                            f"region grown around it holds it; {MOVE_IN}")
     pairs, pts = connector_overlaps(cover, grown)
     if not len(pairs):
         raise BadInputError(f"the wrist is at {_where(th)}: the region grown around it overlaps "
-                            "no region of the cover, so following could not leave it; home it "
-                            "first")
+                            f"no region of the cover, so following could not leave it; {MOVE_IN}")
     return FollowRegions((*cover.regions, *grown), np.vstack([cover.edges, pairs]),
                          np.vstack([cover.edge_points_deg, pts]), grown=len(grown))
 
