@@ -233,3 +233,31 @@ def test_a_start_a_servo_tick_beyond_the_grid_says_where_and_what_to_do() -> Non
         follow_regions(ws, np.array([66.8, hi + 0.04, 131.48]))
     assert f"θ2 is 0.04° beyond the grid's {float(ws.axes_deg[1][0]):g}…{hi:g}°" in info.value.message
     assert info.value.message.endswith(MOVE_IN) and "home it first" not in info.value.message
+
+
+def test_a_communication_loss_while_following_the_emulated_bus_names_its_causes(
+        agile: Profile, tmp_path: Path) -> None:
+    """Through the runtime's follow run (RunContext sim): the same reason as an execution on
+    the emulated bus, not 'check the cable'."""
+    from spm_console.devices.faults import FaultSpec
+    from spm_console.errors import ExitCode
+    from spm_console.run.follow_run import run_follow
+    from spm_console.run.operator_runs import RunContext
+
+    ws = agile_workspace()
+    start = np.asarray(ws.theta_deg()[ws.home_index], float)
+    emu = start_emulator(agile, record=False, initial_deg=list(start))
+    emu.inject(FaultSpec("unplug", 0.3))
+    bus = open_bus(agile, emu.port)
+    feed = TargetFeed(TimedTargets(np.array([0.0, 2.0]), np.vstack([start, start + 5.0])))
+    try:
+        out = run_follow(agile, bus, ws, feed, RunContext(port=emu.port, sim=True,
+                                                          logs_root=str(tmp_path)),
+                         None, lambda ex: None, homed=True)
+    finally:
+        bus.close()
+        emu.stop()
+    res = out.execution
+    assert res.exit_code == ExitCode.STOP_COMM, res.message
+    assert "on the emulated bus: an injected fault, or this machine" in res.message
+    assert "cable" not in res.message

@@ -33,7 +33,7 @@ def run_follow(profile: Profile, bus: ServoBus, ws: Workspace, feed: TargetFeed,
             "targets": 0 if feed.timed is None else len(feed.timed.t_s)}
     log = RunLog.create("follow", profile.name, profile.digest(), [what], root=ctx.logs_root,
                         extra=ctx.meta())
-    ex = Follower(profile, bus, workspace=ws, log=log, on_sample=on_sample)
+    ex = Follower(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim)
     with refusals_logged(log):
         log.meta["homing"] = "done" if homed else f"skipped by the operator: {skip_homing}"
         if not homed and not skip_homing:
