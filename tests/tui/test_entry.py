@@ -127,6 +127,23 @@ async def test_typed_text_stays_as_typed_and_shows_in_full(console: Any, size: A
                 assert shown_in_full(app, field) == texts[-1], (step, field.id, size)
 
 
+async def test_a_text_longer_than_its_field_shows_its_start_once_left(console) -> None:
+    """Twelve digits in a θ field: refused with the reason, and once the field is left it
+    shows the text from its first character (not the tail, a plausible number)."""
+    text = "123456789012"
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await _to(pilot, "2")
+        field = app.screen.query_one(NumberField)
+        await type_into(pilot, field, text)
+        assert field.value == text and field.has_class("-invalid")
+        app.screen.set_focus(None)
+        await pilot.pause()
+        r = field.content_region
+        shown = screen_lines(app)[r.y][r.x:r.x + r.width].strip()
+        assert len(shown) >= 9 and text.startswith(shown), shown
+
+
 async def test_invalid_fields_are_marked_with_the_reason_and_refuse_the_solve(console) -> None:
     app = console()
     async with app.run_test(size=SMALL) as pilot:

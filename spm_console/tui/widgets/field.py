@@ -11,6 +11,10 @@ in line with the characters around it.
 A pasted text stays whole too: Textual's field keeps only the first line of a multi-line
 paste; here the lines are joined by spaces, so everything pasted shows (and a number field
 refuses it with the reason).
+
+A field that is left shows its text from the start: a text longer than the field (refused,
+with the reason under it) then reads as typed from its first character, not as its tail,
+which could pass for a plausible number.
 """
 
 from __future__ import annotations
@@ -34,6 +38,9 @@ class TextField(Input):
             self.insert_text_at_cursor(text)
         else:
             self.replace(text, *self.selection)
+
+    def on_blur(self, event: events.Blur) -> None:
+        self.cursor_position = 0  # the view follows the cursor: the text's start shows
 
     async def on_key(self, event: events.Key) -> None:
         # Runs before Input's handler (subclass first); printable keys go on to it.
