@@ -228,7 +228,11 @@ def size_text(n_bytes: float) -> str:
 def grid_problems(prof: Profile) -> list[Problem]:
     """θ range ordered, whole number of steps, and a grid that fits in memory."""
     ws = prof.workspace
-    lo, hi, step = ws.theta_min_deg, ws.theta_max_deg, ws.step_deg
+    return grid_step_problems(ws.theta_min_deg, ws.theta_max_deg, ws.step_deg)
+
+
+def grid_step_problems(lo: float, hi: float, step: float) -> list[Problem]:
+    """:func:`grid_problems` of the θ range ``lo``..``hi`` in steps of ``step`` (deg > 0)."""
     if hi <= lo:
         return [Problem("workspace.theta_max_deg", hi,
                         f"must be greater than workspace.theta_min_deg = {num(lo)} "

@@ -114,15 +114,18 @@ async def test_invalid_grid_steps_are_marked_kept_as_typed_and_refused(console) 
             assert isinstance(app.screen, SettingsScreen)  # still open: refused
             assert _reason(app).startswith("Not applied: grid step Δ")
             assert why in _reason(app)
-        # in range, but the profile check refuses it: 7° does not divide the 90° grid range
-        field = await _type_step(pilot, "7")
-        assert not field.has_class("-invalid")
-        await pilot.press("enter")
-        await settle(pilot)
-        assert isinstance(app.screen, SettingsScreen)
-        assert "not a whole number of steps" in _reason(app)
-        await _type_step(pilot, "3")  # a new value: the refusal about the old one goes away
-        assert _reason(app) == ""
+        # in range, but not a grid of the chosen profile's 90° range: marked as typed too
+        for typed, why in (("7", "not a whole number of steps"), ("0.01", "nodes")):
+            field = await _type_step(pilot, typed)
+            assert field.value == typed and field.has_class("-invalid"), typed
+            assert why in text_of(app, "#grid-step-row .entry-reason")
+            await pilot.press("enter")
+            await settle(pilot)
+            assert isinstance(app.screen, SettingsScreen)
+            assert why in _reason(app)
+        field = await _type_step(pilot, "3")  # a new value: the refusal about the old one goes
+        assert _reason(app) == "" and not field.has_class("-invalid")
+        assert text_of(app, "#grid-step-row .entry-reason") == ""
         # the settings in use are no change
         await _type_step(pilot, "2.0")
         await pilot.press("enter")

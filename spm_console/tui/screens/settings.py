@@ -29,6 +29,7 @@ from textual.widgets.option_list import Option
 
 from spm_console.errors import BadInputError, SpmError
 from spm_console.profile import DEFAULT_PROFILE, load_profile, with_grid_step
+from spm_console.profile_checks import grid_step_problems
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.number import NumberRow, NumberRule
 
@@ -69,6 +70,9 @@ class ProfileEntry:
     step_deg: float | None = None
     """The profile's own workspace.step_deg, deg (None when unreadable)."""
     error: str = ""
+    range_deg: tuple[float, float] | None = None
+    """Its workspace.theta_min_deg, theta_max_deg (None when unreadable): a typed grid step
+    is checked against this range at once (whole steps, node cap)."""
 
     def label(self) -> str:
         if self.error:
@@ -103,7 +107,12 @@ def read_entry(path: Path) -> ProfileEntry:
         return ProfileEntry(path, error="not a profile (no profile.name / workspace.step_deg)")
     if not isinstance(name, str) or not math.isfinite(step):
         return ProfileEntry(path, error="not a profile (bad profile.name / workspace.step_deg)")
-    return ProfileEntry(path, name, step)
+    try:
+        lo, hi = (float(data["workspace"][k]) for k in ("theta_min_deg", "theta_max_deg"))
+        rng = (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else None
+    except (KeyError, TypeError, ValueError):
+        rng = None  # Apply's whole-profile check says what is wrong
+    return ProfileEntry(path, name, step, range_deg=rng)
 
 
 def list_profiles(current: Path | None, dirs: Iterable[Path] | None = None) -> list[ProfileEntry]:
@@ -222,10 +231,24 @@ class SettingsScreen(ModalScreen[SwitchRequest | None]):
     def on_input_changed(self, event: Input.Changed) -> None:
         """A changed grid step: the refusal shown was about the value before."""
         self.query_one("#settings-reason", Static).update("")
+        self._check_grid()
 
     def on_option_list_option_highlighted(self, event: OptionList.OptionHighlighted) -> None:
         """Another profile chosen: the refusal shown was about the one before."""
         self.query_one("#settings-reason", Static).update("")
+        self._check_grid()
+
+    def _check_grid(self) -> None:
+        """The typed grid step against the chosen profile's θ range, as typed: a whole number
+        of steps and at most the node cap (the reason under the field; Apply refuses it)."""
+        row = self.query_one("#grid-step-row", NumberRow)
+        field, entry = row.field, self.chosen()
+        reason = ""
+        if not field.rule.reason(field.value) and entry is not None and entry.range_deg:
+            problems = grid_step_problems(*entry.range_deg, field.rule.parse(field.value))
+            reason = f"grid step Δ: {problems[0].reason}" if problems else ""
+        field.extra_reason = reason
+        row.revalidate()
 
     def action_cancel(self) -> None:
         self.dismiss(None)
