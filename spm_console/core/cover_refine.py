@@ -241,19 +241,31 @@ def refine_cells(ws: Workspace, fine: FineGrid, want_nodes: B | None = None,
     )
 
 
+#: The signs of the 8 corners of a box.
+_OCTANTS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+
+
 def boxes_met(region: Region, lo_deg: F, hi_deg: F, tol: float = CLEAR_TOL_DEG) -> B:
     """(n,) which closed boxes [lo, hi] (n, 3) deg the region's interior meets (a ball of
-    radius > ``tol`` in region ∩ box). Exact: a box that no single row excludes, and whose
-    centre does not already hold such a ball, is settled by an LP (the largest ball)."""
+    radius > ``tol`` in region ∩ box). Exact: a box that no single row excludes, and where
+    neither the centre nor a point halfway to a corner already holds such a ball, is settled
+    by an LP (the largest ball)."""
     Rn = region.normalized()
     c = 0.5 * (lo_deg + hi_deg)
     hw = 0.5 * (hi_deg - lo_deg)
     mins = c @ Rn.A.T - hw @ np.abs(Rn.A).T
     maybe = ~(mins >= Rn.b - tol).any(axis=1)
-    # the ball at the box's centre: radius its distance to the nearer of the box's and the
-    # (unit-row) region's faces; larger than tol, the LP's optimum is too
-    centre_ball = np.minimum((Rn.b - c @ Rn.A.T).min(axis=1), hw.min(axis=1))
-    out = maybe & (centre_ball > tol)
+    # a ball at a point p of the box: radius p's distance to the nearer of the box's and the
+    # (unit-row) region's faces; larger than tol, the LP's optimum is too. p: the centre, then
+    # the 8 points halfway to the corners (a box reaching into the region by a corner)
+    out = maybe & (np.minimum((Rn.b - c @ Rn.A.T).min(axis=1), hw.min(axis=1)) > tol)
+    for sign in _OCTANTS:
+        rest = np.flatnonzero(maybe & ~out)
+        if not len(rest):
+            break
+        p = c[rest] + 0.5 * hw[rest] * sign
+        ball = np.minimum((Rn.b - p @ Rn.A.T).min(axis=1), 0.5 * hw[rest].min(axis=1))
+        out[rest[ball > tol]] = True
     box = np.vstack([np.eye(3), -np.eye(3)])
     for k in np.flatnonzero(maybe & ~out):
         both = Region(np.vstack([Rn.A, box]), np.r_[Rn.b, hi_deg[k], -lo_deg[k]])
