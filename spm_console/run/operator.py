@@ -297,6 +297,7 @@ class Session(ServoTools, FollowTools):
         src = source if source is not None else self.plan_source
         result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, src))
         self.plan_info["executed"] = True
+        self.plan_info["executed_ok"] = result.ok
         return result
 
     def estop(self, reason: str = "operator E-stop") -> bool:

@@ -71,6 +71,7 @@ async def test_execute_runs_the_plan_live_and_logs_it(console, tmp_path) -> None
         run = load_run(res.log_dir)
         assert run.meta["outcome"] == "completed" and run.rows >= 51
         assert "press 6" in text_of(app, "#hint-line")
+        assert "F5 ✔" in text_of(app, "#steps-line")
 
 
 async def test_space_is_an_estop_during_execution(console) -> None:
@@ -84,6 +85,7 @@ async def test_space_is_an_estop_during_execution(console) -> None:
         res = app.session.last_run
         assert res is not None and res.exit_code == ExitCode.STOP_ESTOP
         assert text_of(app, "#exec-outcome").startswith("STOPPED (exit code 20)")
+        assert "F5 ✔" not in text_of(app, "#steps-line")  # a stopped run is no tick
         run = load_run(res.log_dir)
         assert run.meta["outcome"] == "stopped"
         # the key press reached the loop in its own process within a period; hold within 2

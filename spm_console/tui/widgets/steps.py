@@ -68,8 +68,8 @@ def done_steps(session: Session) -> set[str]:
         done.add("workspace")
     if session.plan is not None:
         done.add("plan")
-    if session.plan is not None and session.plan_info.get("executed"):
-        done.add("execute")
+    if session.plan is not None and session.plan_info.get("executed_ok"):
+        done.add("execute")  # a stopped run of the plan is no tick
     return done
 
 
