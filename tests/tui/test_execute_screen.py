@@ -41,6 +41,9 @@ async def test_execute_needs_a_plan(console) -> None:
         await settle(pilot)
         assert "no plan" in status_of(app)
         assert type(app.screen).__name__ == "ExecuteScreen"
+        await pilot.press("4")
+        await _homed_with_plan(pilot, 50)  # back on step 5 with a plan: the refusal is gone
+        assert "no plan" not in status_of(app), status_of(app)
 
 
 async def test_execute_runs_the_plan_live_and_logs_it(console, tmp_path) -> None:

@@ -137,6 +137,7 @@ class StepScreen(Screen[None]):
 
     def on_screen_resume(self) -> None:
         self.compact_fields()
+        self.status.drop_refusal()
         self.refresh_view()
 
     def on_resize(self) -> None:

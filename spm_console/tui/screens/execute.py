@@ -170,10 +170,10 @@ class ExecuteScreen(StepScreen):
     def action_execute(self) -> None:
         s = self.session
         if s.plan is None:
-            self.status.error("no plan: press 4 and solve one first")
+            self.status.refused("no plan: press 4 and solve one first")
             return
         if s.bus is None or not s.homed:
-            self.status.error("the wrist is not connected and homed: press 1, then c and h")
+            self.status.refused("the wrist is not connected and homed: press 1, then c and h")
             return
         if self.busy_op or self.console.moving:
             self.status.error("busy: a motion is already running")
@@ -209,7 +209,7 @@ class ExecuteScreen(StepScreen):
         """Start the live jog from where the wrist is (homed only, nothing else moving)."""
         s = self.session
         if s.bus is None or not s.homed or s.theta_deg is None:
-            self.status.error("the wrist is not connected and homed: press 1, then c and h")
+            self.status.refused("the wrist is not connected and homed: press 1, then c and h")
             return
         if self.busy_op or self.console.moving:
             self.status.error("busy: a motion is already running")

@@ -11,7 +11,10 @@ class StatusLine(Static):
 
     DEFAULT_CLASSES = "status-line"
 
+    _refusal = False
+
     def _show(self, text: str, cls: str) -> None:
+        self._refusal = False
         self.remove_class("-ok", "-error", "-busy")
         self.add_class(cls)
         self.update(Content(text))
@@ -21,6 +24,18 @@ class StatusLine(Static):
 
     def error(self, text: str) -> None:
         self._show(text, "-error")
+
+    def refused(self, text: str) -> None:
+        """An action refused for the state of the session (no plan yet, not homed): shown as
+        an error until :meth:`drop_refusal`, as the state may have changed since."""
+        self._show(text, "-error")
+        self._refusal = True
+
+    def drop_refusal(self) -> None:
+        """Clear the line if it shows a refusal (the screen shows again: the state it was
+        about may have changed)."""
+        if self._refusal:
+            self._show("", "-ok")
 
     def busy(self, text: str) -> None:
         self._show(text, "-busy")
