@@ -40,7 +40,8 @@ class TextField(Input):
             self.replace(text, *self.selection)
 
     def on_blur(self, event: events.Blur) -> None:
-        self.cursor_position = 0  # the view follows the cursor: the text's start shows
+        if self.app.screen_stack:  # (not while the app closes: moving the cursor needs one)
+            self.cursor_position = 0  # the view follows the cursor: the text's start shows
 
     async def on_key(self, event: events.Key) -> None:
         # Runs before Input's handler (subclass first); printable keys go on to it.
