@@ -29,12 +29,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 
 from spm_console.core.servo_model import ServoModel, exact_step
+
+if TYPE_CHECKING:
+    from filterpy.kalman import KalmanFilter
 
 F = NDArray[np.float64]
 
@@ -60,6 +63,8 @@ class KalmanVelocity:
         process_noise_deg: float,
         velocity0_std_degps: float = 1.0,
     ) -> None:
+        from filterpy.kalman import KalmanFilter  # here: ~1 s to import (it loads scipy.stats)
+
         self.model = model
         theta0 = np.asarray(theta0_deg, float).reshape(3)
         self.filters: list[KalmanFilter] = []

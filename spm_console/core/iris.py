@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import linprog
 
 from spm_console.core.ellipsoid import Ellipsoid
 from spm_console.core.region import Region
@@ -102,6 +101,8 @@ def keeping_plane(req: F, lo: F, hi: F, g: F) -> tuple[F, float] | None:
 
     First the smallest L1 change of the preferred normal ``g`` that separates
     (LP), else the max-margin separator (LP). The offset touches the box."""
+    from scipy.optimize import linprog  # here: only a build needs it (~0.7 s to import)
+
     corners = box_corners(lo, hi)
     m = len(req)
     gn = g / np.linalg.norm(g)

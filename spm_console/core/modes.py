@@ -13,8 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import fsolve
-from scipy.spatial.transform import Rotation
 
 from spm_console.core.geometry import SpmGeometry
 from spm_console.core.jacobian import conditioning_index, j1_matrix, j2_diag
@@ -60,6 +58,8 @@ def _lm_solve(geom: SpmGeometry, w: F, v_ref: F, starts: F, iters: int = 80) -> 
 
 def solve_all(geom: SpmGeometry, theta: F, v_ref: F, tol: float = 1e-11) -> list[F]:
     """Every rigid pose (rotation of ``v_ref``) satisfying (4) at θ (rad), deduplicated."""
+    from scipy.spatial.transform import Rotation  # here: ~0.1 s to import
+
     starts = Rotation.random(_N_STARTS, random_state=12345).as_matrix()
     starts = np.concatenate([np.eye(3)[None], starts])
     w = geom.w(np.asarray(theta, float))
@@ -191,6 +191,8 @@ def seeded_solve(geom: SpmGeometry, theta: F, x0: F, method: str = "hybr") -> tu
                 break
         ok = bool(np.all(np.isfinite(x)) and np.abs(eqs(x)).max() < 1e-9)
         return x.reshape(3, 3), ok
+    from scipy.optimize import fsolve  # here: the paper's Algorithm 1 only (~0.7 s to import)
+
     x, _info, ier, _msg = fsolve(eqs, x, fprime=jac, full_output=True, xtol=1e-13)
     v = np.asarray(x).reshape(3, 3)
     return v, bool(ier == 1 and np.abs(eqs(x)).max() < 1e-9)

@@ -179,6 +179,9 @@ class _Server:
         self.last_heartbeat = time.monotonic()
         self.feed: Any = None
         """The target feed of the following under way (None otherwise)."""
+        self.warm_up = threading.Thread(target=_warm_up, daemon=True, name="spm-warm-up")
+        """Imports only a motion needs, started once the client has its answer (see
+        :func:`_warm_up`); every motion joins it before anything else."""
 
     def send(self, msg: object) -> None:
         with self.send_lock, contextlib.suppress(OSError, EOFError, BrokenPipeError):
@@ -296,6 +299,7 @@ class _Server:
 
     def _motion(self, req: Home | Execute | Follow) -> None:
         normal_priority()  # set-up may load the workspace; the executor raises the loop itself
+        self.warm_up.join()  # no import runs beside the loop
         out = TelemetryOut(self.send)
         on_sample = out.put
 
@@ -347,6 +351,16 @@ class _Server:
                 self.estop(f"client lost: no heartbeat for more than {DEADMAN_S * 1e3:.0f} ms")
 
 
+def _warm_up() -> None:
+    """Import what only a motion needs (the Kalman filters load scipy.stats: ~1 s) after the
+    process has announced itself, so that the client is served at once and the first motion
+    finds them loaded. Normal priority: it must never compete with the serving thread."""
+    normal_priority()
+    import filterpy.kalman  # noqa: F401
+
+    import spm_console.run.follow_run  # noqa: F401
+
+
 @dataclass(frozen=True)
 class Start:
     """The first message to the child: what to serve."""
@@ -367,6 +381,7 @@ def serve(conn: Connection, start: Start) -> None:
         conn.send(Failed(0, exc.message, int(exc.exit_code)))
         return
     conn.send(Reply(0, os.getpid()))
+    server.warm_up.start()
     signal.signal(signal.SIGUSR1, lambda *_: server.estop("E-stop signal to the motion process"))
     stop = threading.Event()
     threading.Thread(target=server.deadman, args=(stop,), daemon=True, name="spm-deadman").start()
