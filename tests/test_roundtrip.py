@@ -84,3 +84,23 @@ def test_zeta_matches_direct_formula_and_is_zero_at_singularity(agile_model) -> 
     v = agile_model.v_home.copy()
     v[1] = agile_model.u[1]
     assert conditioning_index(agile_model.u, v, w) == 0.0
+
+
+def test_mode_search_finds_the_same_poses_from_scipys_random_rotations(  # type: ignore[no-untyped-def]
+        agile_model, monkeypatch) -> None:
+    """The multi-start search seeds from our own uniform rotations; seeding it instead from
+    scipy's ``Rotation.random`` (an independent sampler) finds the same set of poses."""
+    from scipy.spatial.transform import Rotation
+
+    import spm_console.core.modes as modes
+
+    rng = np.random.default_rng(4)
+    thetas = np.radians(np.vstack([[95.0, 110.0, 105.0], rng.uniform(70.0, 150.0, (5, 3))]))
+    ours = [modes.solve_all(agile_model.geom, th, agile_model.v_home) for th in thetas]
+    monkeypatch.setattr(modes, "random_rotations",
+                        lambda n, seed: Rotation.random(n, random_state=seed).as_matrix())
+    theirs = [modes.solve_all(agile_model.geom, th, agile_model.v_home) for th in thetas]
+    for a, b in zip(ours, theirs, strict=True):
+        assert len(a) == len(b) >= 2
+        for Ra in a:
+            assert min(np.abs(Ra - Rb).max() for Rb in b) < 1e-8

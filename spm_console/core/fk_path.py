@@ -32,8 +32,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from spm_console.core.kinematics import PATH_ZETA_FLOOR, FkResult, SpmModel
 from spm_console.core.workspace import NodeClass, Workspace
@@ -162,6 +160,9 @@ def graph_of(axes_deg: tuple[F, F, F], step_deg: float, nodes: B, zeta: F, R: F,
     """The graph on ``nodes`` (M1, M2, M3) with edge weights from ``zeta`` and the
     shortest-path tree from ``home_index``."""
     shape = nodes.shape
+    from scipy.sparse import coo_matrix  # here: ~0.3 s to import, not before the first screen
+    from scipy.sparse.csgraph import dijkstra
+
     n = nodes.size
     flat = np.arange(n).reshape(shape)
     z = np.where(nodes, zeta, 0.0)

@@ -24,7 +24,7 @@ from spm_console.core.kinematics import (
     platform_axes,
     residual,
 )
-from spm_console.core.rotations import expm_so3
+from spm_console.core.rotations import expm_so3, random_rotations
 
 F = NDArray[np.float64]
 
@@ -58,9 +58,7 @@ def _lm_solve(geom: SpmGeometry, w: F, v_ref: F, starts: F, iters: int = 80) -> 
 
 def solve_all(geom: SpmGeometry, theta: F, v_ref: F, tol: float = 1e-11) -> list[F]:
     """Every rigid pose (rotation of ``v_ref``) satisfying (4) at θ (rad), deduplicated."""
-    from scipy.spatial.transform import Rotation  # here: ~0.1 s to import
-
-    starts = Rotation.random(_N_STARTS, random_state=12345).as_matrix()
+    starts = random_rotations(_N_STARTS, seed=12345)
     starts = np.concatenate([np.eye(3)[None], starts])
     w = geom.w(np.asarray(theta, float))
     R, res = _lm_solve(geom, w, v_ref, starts)

@@ -26,7 +26,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.viewer import scene
-from spm_console.viewer.labels import TextSprite, label_transform
 
 if TYPE_CHECKING:
     from spm_console.viewer.client import MeshcatClient
@@ -122,6 +121,8 @@ def build_wrist(c: MeshcatClient, parts: scene.WristParts, look: Look) -> None:
     n = normal_home(p)
     _axis(c, f"{root}/platform/normal", p.distal_reach, 0x000000, op)
     c.set_transform(f"{root}/platform/normal", scene.transform(scene.align_y(n), np.zeros(3)))
+    from spm_console.viewer.labels import TextSprite, label_transform  # meshcat: see view.py
+
     c.set_object(f"{root}/platform/label", TextSprite(look.label))
     c.set_transform(f"{root}/platform/label",
                     label_transform(n * p.distal_reach * look.label_reach, POSE_LABEL_M))
@@ -131,6 +132,8 @@ def build_scene(c: MeshcatClient, parts: scene.WristParts) -> None:
     """Send every part once (the server keeps them for browsers that connect later).
     Both wrists start hidden: nothing is known yet."""
     import meshcat.geometry as g
+
+    from spm_console.viewer.labels import TextSprite, label_transform
 
     p = parts
     grey = g.MeshLambertMaterial(color=0x8C8C8C)
