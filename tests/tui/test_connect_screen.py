@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+
 import numpy as np
 from textual.widgets import DataTable
 
@@ -59,6 +61,14 @@ async def test_home_moves_to_home_and_logs_the_run(console, tmp_path) -> None:
         assert len(runs) == 1 and runs[0].meta["outcome"] == "completed"
         assert str(runs[0].path) in status_of(app)
         assert "press 2" in text_of(app, "#hint-line")
+        await pilot.press("f2", "f1")  # nothing ran since: the outcome stays
+        assert str(runs[0].path) in status_of(app)
+        await pilot.press("f2")
+        later = await asyncio.to_thread(app.session.jog, 1, 2.0)  # a later run, elsewhere
+        assert later.ok
+        await pilot.press("f1")
+        await settle(pilot)
+        assert status_of(app) == ""  # not the homing's outcome, as if it were the last run
 
 
 async def test_space_stops_homing_and_says_so(console, tmp_path) -> None:

@@ -8,6 +8,7 @@ import time
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.confirm import QuitConfirm
 from tests.tui.helpers import burst, settle
+from tests.tui.test_small_terminal import screen_text
 
 SIZE = (100, 30)
 
@@ -20,6 +21,8 @@ async def test_q_asks_first_and_n_or_esc_stays(console) -> None:
             await pilot.press("q")
             await pilot.pause()
             assert isinstance(app.screen, QuitConfirm)  # a single q does not quit
+            footer = screen_text(app).splitlines()[-1]  # the footer names the dialog's keys
+            assert "q/y Quit" in footer and "n Stay" in footer and "Yes" not in footer, footer
             await pilot.press(stay)
             await pilot.pause()
             assert isinstance(app.screen, StepScreen) and app.is_running

@@ -138,6 +138,7 @@ class StepScreen(Screen[None]):
     def on_screen_resume(self) -> None:
         self.compact_fields()
         self.status.drop_refusal()
+        self.status.drop_older_run(self.session.last_run)
         self.refresh_view()
 
     def on_resize(self) -> None:

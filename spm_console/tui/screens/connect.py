@@ -289,10 +289,10 @@ class ConnectScreen(StepScreen):
             self.console.after_motion(result)
             what = "homed" if outcome.kind == "home" else f"{self._motion_label}: done"
             if result.ok:
-                self.status.ok(f"{what}: {result.message}. Log: {result.log_dir}")
+                self.status.run_result(f"{what}: {result.message}. Log: {result.log_dir}", result)
             else:
-                self.status.error(f"{self._motion_label} stopped: {result.message}. "
-                                  f"Log: {result.log_dir}")
+                self.status.run_result(f"{self._motion_label} stopped: {result.message}. "
+                                       f"Log: {result.log_dir}", result)
         self.show_bus()
 
     def _tool_done(self, done: ServoToolDone) -> None:

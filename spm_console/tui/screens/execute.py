@@ -339,10 +339,8 @@ class ExecuteScreen(StepScreen):
             self.query_one("#exec-timing", Static).update(
                 Content("servo loop timing: no cycle ran"))
         self.query_one("#exec-outcome", Static).update(Content(outcome_text(result)))
-        if result.ok:
-            self.status.ok(f"completed: {result.message}. Press 6 to look at the log")
-        else:
-            self.status.error(f"STOPPED: {result.message}")
+        self.status.run_result(f"completed: {result.message}. Press 6 to look at the log"
+                               if result.ok else f"STOPPED: {result.message}", result)
 
     def handle_failed(self, op: str, message: str) -> None:
         if op == "execute":

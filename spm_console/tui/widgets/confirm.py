@@ -48,10 +48,12 @@ class ConfirmScreen(ModalScreen[bool]):
 
 
 class QuitConfirm(ConfirmScreen):
-    """Asked on q (or ctrl+q): q again or y quits, n or esc stays."""
+    """Asked on q (or ctrl+q): q again or y quits, n or esc stays (the footer says so)."""
 
     BINDINGS: ClassVar[list[BindingType]] = [
-        Binding("q", "answer(True)", "Quit", show=False),
+        Binding("q,y", "answer(True)", "Quit", key_display="q/y"),
+        Binding("n", "answer(False)", "Stay"),
+        Binding("escape", "answer(False)", "Stay", show=False),
     ]
 
     def __init__(self) -> None:

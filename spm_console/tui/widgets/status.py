@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from textual.content import Content
 from textual.widgets import Static
 
@@ -12,9 +14,11 @@ class StatusLine(Static):
     DEFAULT_CLASSES = "status-line"
 
     _refusal = False
+    _run: Any = None
 
     def _show(self, text: str, cls: str) -> None:
         self._refusal = False
+        self._run = None
         self.remove_class("-ok", "-error", "-busy")
         self.add_class(cls)
         self.update(Content(text))
@@ -35,6 +39,18 @@ class StatusLine(Static):
         """Clear the line if it shows a refusal (the screen shows again: the state it was
         about may have changed)."""
         if self._refusal:
+            self._show("", "-ok")
+
+    def run_result(self, text: str, run: Any) -> None:
+        """The outcome of ``run`` (ok or not, by ``run.ok``), shown until a later run ends:
+        see :meth:`drop_older_run`."""
+        self._show(text, "-ok" if run.ok else "-error")
+        self._run = run
+
+    def drop_older_run(self, last_run: Any) -> None:
+        """Clear the line if it tells of a run other than ``last_run`` (a later run ended,
+        on another step: this line would show an old outcome as the current one)."""
+        if self._run is not None and self._run is not last_run:
             self._show("", "-ok")
 
     def busy(self, text: str) -> None:
