@@ -259,6 +259,8 @@ async def test_estop_during_jog_stops_with_exit_20(console) -> None:
         assert text_of(app, "#exec-outcome").startswith("STOPPED (exit code 20)")
         assert "STOPPED" in status_of(app)
         assert jog.phase == "done"
+        # a jog has no planned length: no progress bar (a stopped one read "0%")
+        assert not app.screen.query_one("#exec-progress").display
 
 
 async def test_the_arrows_win_over_the_help_key_list_and_it_names_the_jog(console) -> None:

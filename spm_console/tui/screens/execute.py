@@ -235,8 +235,10 @@ class ExecuteScreen(StepScreen):
             self.status.ok("live jog closed before it started: nothing moved")
             return
         ex, st = result.outcome.execution, result.outcome.stats
-        # the progress, clock and loop timing shown were the last plan's: now the jog's run
-        self.query_one("#exec-progress", ProgressBar).update(progress=100 if ex.ok else 0)
+        # the progress, clock and loop timing shown were the last plan's: now the jog's run,
+        # which has no planned length (a stopped jog read "0%"): the bar is hidden until a
+        # plan runs again
+        self.query_one("#exec-progress", ProgressBar).display = False
         self.query_one("#exec-clock", Static).update(Content(
             f"live jog: {ex.stats.duration_s:.2f} s" if ex.ok or ex.stats.stop is None else
             f"live jog stopped at {ex.stats.stop.detected_t:.2f} s"))
@@ -297,7 +299,9 @@ class ExecuteScreen(StepScreen):
         total = max(self.session.motion_total_s, 1e-9)
         self.query_one("#exec-clock", Static).update(Content(
             f"{smp.phase}: {smp.t:5.2f} s done, {max(total - smp.t, 0):5.2f} s to go"))
-        self.query_one("#exec-progress", ProgressBar).update(progress=min(100, 100 * smp.t / total))
+        bar = self.query_one("#exec-progress", ProgressBar)
+        bar.display = True
+        bar.update(progress=min(100, 100 * smp.t / total))
 
     def draw_plot(self) -> None:
         samples = list(self.console.live_samples)
@@ -325,7 +329,9 @@ class ExecuteScreen(StepScreen):
         if self.console.live_samples:
             self.show_sample(self.console.live_samples[-1])  # telemetry is throttled: the last
         if result.ok:
-            self.query_one("#exec-progress", ProgressBar).update(progress=100)
+            bar = self.query_one("#exec-progress", ProgressBar)
+            bar.display = True
+            bar.update(progress=100)
             self.query_one("#exec-clock", Static).update(
                 Content(f"done: {result.stats.duration_s:.2f} s"))
         elif result.stats.stop is not None:

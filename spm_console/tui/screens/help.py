@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
 #: Smallest width of the keys column, cells.
 KEYS_WIDTH = 10
-#: Smallest width of the action column, cells.
+#: An action's name is padded to this width before its note, cells.
 ACTION_WIDTH = 16
 
 TYPING_RULE = (
@@ -150,21 +150,24 @@ def help_table(screen: Screen[Any], app: App[Any]) -> Group:
     parts: list[Any] = []
     sections = key_entries(screen, app)
     keys_width = max([KEYS_WIDTH] + [len(e.keys_text) for _n, es in sections for e in es])
-    action_width = max([ACTION_WIDTH] + [len(e.description) for _n, es in sections for e in es])
     for node, entries in sections:
         head = f"On this step: {screen_title(screen)}" if node is screen else "Everywhere"
         parts.append(Text(head, style="bold underline"))
+        # keys, then the action and its note in one column that wraps: at 80 columns a
+        # third column for the notes was left about 10 cells wide
         table = Table.grid(padding=(0, 2), expand=True)
         table.add_column(no_wrap=True, style="bold", min_width=keys_width)
-        table.add_column(no_wrap=True, min_width=action_width)
-        table.add_column(style="dim", ratio=1)
+        table.add_column(ratio=1)
         for e in entries:
             note = e.tooltip
             if e.state is None:
                 note = "not now" + (f": {note}" if note else "")
             elif e.state is False:
                 note = note or "not available now"
-            table.add_row(e.keys_text, e.description, note)
+            what = Text(e.description.ljust(ACTION_WIDTH) if note else e.description)
+            if note:
+                what.append(f"  {note}", style="dim")
+            table.add_row(e.keys_text, what)
         parts += [table, Text("")]
         note = getattr(screen, "HELP_NOTE", "")
         if node is screen and note:
