@@ -46,7 +46,8 @@ HEAVY = ("filterpy", "scipy.stats", "scipy.optimize")
 
 def test_the_motion_process_answers_before_it_loads_what_only_a_motion_needs() -> None:
     """Each console and CLI run starts a motion process and waits for its first answer: its
-    imports were 2.5 s, now about 0.5 s; the rest loads in its warm-up thread."""
+    imports were 2.5 s, now about 0.5 s; the rest loads after that answer, before the first
+    request is read (``motion_process._warm_up``)."""
     code = (
         "import sys\n"
         "import spm_console.run.motion_process\n"

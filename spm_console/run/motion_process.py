@@ -179,9 +179,6 @@ class _Server:
         self.last_heartbeat = time.monotonic()
         self.feed: Any = None
         """The target feed of the following under way (None otherwise)."""
-        self.warm_up = threading.Thread(target=_warm_up, daemon=True, name="spm-warm-up")
-        """Imports only a motion needs, started once the client has its answer (see
-        :func:`_warm_up`); every motion joins it before anything else."""
 
     def send(self, msg: object) -> None:
         with self.send_lock, contextlib.suppress(OSError, EOFError, BrokenPipeError):
@@ -299,7 +296,6 @@ class _Server:
 
     def _motion(self, req: Home | Execute | Follow) -> None:
         normal_priority()  # set-up may load the workspace; the executor raises the loop itself
-        self.warm_up.join()  # no import runs beside the loop
         out = TelemetryOut(self.send)
         on_sample = out.put
 
@@ -352,9 +348,11 @@ class _Server:
 
 
 def _warm_up() -> None:
-    """Import what only a motion needs (the Kalman filters load scipy.stats: ~1 s) after the
-    process has announced itself, so that the client is served at once and the first motion
-    finds them loaded. Normal priority: it must never compete with the serving thread."""
+    """Import what only a motion needs (the Kalman filters load scipy.stats: ~1 s), after
+    the process has announced itself (its client goes on starting meanwhile) and before the
+    first request is read: no import ever runs beside a bus transaction or the servo loop
+    (an import can hold the interpreter's lock for longer than a reply timeout). At normal
+    priority: the serving thread's real-time priority is taken again afterwards."""
     normal_priority()
     import filterpy.kalman  # noqa: F401
 
@@ -381,8 +379,9 @@ def serve(conn: Connection, start: Start) -> None:
         conn.send(Failed(0, exc.message, int(exc.exit_code)))
         return
     conn.send(Reply(0, os.getpid()))
-    server.warm_up.start()
     signal.signal(signal.SIGUSR1, lambda *_: server.estop("E-stop signal to the motion process"))
+    _warm_up()
+    request_realtime(HELPER_PRIORITY)
     stop = threading.Event()
     threading.Thread(target=server.deadman, args=(stop,), daemon=True, name="spm-deadman").start()
     try:
