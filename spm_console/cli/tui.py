@@ -8,6 +8,11 @@ session, and :func:`run_consoles` starts the next console in the same terminal.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import sys
+import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
@@ -43,6 +48,29 @@ class ConsoleApp(Protocol):
     def run(self) -> Any: ...
 
     def shutdown(self) -> None: ...
+
+
+#: How long the threads left after the last console closed may take to end, s.
+LINGER_S = 2.0
+
+
+def end_if_threads_linger(code: int, before: set[threading.Thread],
+                          wait_s: float = LINGER_S) -> None:
+    """After the last console has closed (its session, run log and viewer closed), end the
+    process with ``code`` if a thread started since ``before`` (not a daemon) would keep it
+    alive past ``wait_s``; a normal quit leaves none. A terminal that went away while the
+    console was ending (its pseudo-terminal deleted) can leave the UI library's input thread
+    reading end-of-file in a loop and its output thread waiting: the interpreter waited for
+    them for good (seen: a console at 83 % of a CPU long after a test closed its terminal)."""
+    t_end = time.monotonic() + wait_s
+    left = [t for t in threading.enumerate() if t not in before and not t.daemon]
+    for t in left:
+        t.join(max(0.0, t_end - time.monotonic()))
+    if any(t.is_alive() for t in left):
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):  # the terminal is gone
+                stream.flush()
+        os._exit(code)
 
 
 #: Builds the console for a profile file and an optional grid step (deg; None: the
@@ -89,4 +117,7 @@ def cmd_tui(args: argparse.Namespace) -> int:
                         logs_root=args.logs, cache_dir=args.cache_dir, profile_path=path,
                         note=note)
 
-    return run_consoles(Path(args.profile), grid, factory)
+    before = set(threading.enumerate())
+    code = run_consoles(Path(args.profile), grid, factory)
+    end_if_threads_linger(code, before)
+    return code

@@ -84,3 +84,27 @@ def test_cmd_tui_builds_each_console_for_the_requested_profile_and_grid_step(
     assert built[1]["note"].startswith("Settings applied")
     assert events == ["run agile_wrist", "shutdown agile_wrist", "run coaxial_spm",
                       "shutdown coaxial_spm"]
+
+
+def test_a_thread_left_running_after_the_console_closed_does_not_keep_the_process() -> None:
+    """A terminal that went away can leave the UI library's input thread looping: once the
+    console has closed, the process ends with the console's exit code instead of waiting."""
+    import subprocess
+    import sys
+
+    code = (
+        "import threading, time\n"
+        "from spm_console.cli.tui import end_if_threads_linger\n"
+        "before = set(threading.enumerate())\n"
+        "threading.Thread(target=lambda: time.sleep(600), name='stuck').start()\n"
+        "end_if_threads_linger(20, before, wait_s=0.2)\n"
+        "print('not reached')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 20 and "not reached" not in out.stdout
+    # a thread that was already there (an in-process caller's) is not the console's
+    code = code.replace("before = set(threading.enumerate())\n", "").replace(
+        "end_if_threads_linger(20, before", "end_if_threads_linger(20, set(threading.enumerate())")
+    out = subprocess.run([sys.executable, "-c", code.replace("sleep(600)", "sleep(1)")],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and "not reached" in out.stdout
