@@ -238,7 +238,7 @@ class ExecuteScreen(StepScreen):
         # the progress, clock and loop timing shown were the last plan's: now the jog's run,
         # which has no planned length (a stopped jog read "0%"): the bar is hidden until a
         # plan runs again
-        self.query_one("#exec-progress", ProgressBar).display = False
+        self._progress(None)
         self.query_one("#exec-clock", Static).update(Content(
             f"live jog: {ex.stats.duration_s:.2f} s" if ex.ok or ex.stats.stop is None else
             f"live jog stopped at {ex.stats.stop.detected_t:.2f} s"))
@@ -299,9 +299,15 @@ class ExecuteScreen(StepScreen):
         total = max(self.session.motion_total_s, 1e-9)
         self.query_one("#exec-clock", Static).update(Content(
             f"{smp.phase}: {smp.t:5.2f} s done, {max(total - smp.t, 0):5.2f} s to go"))
+        self._progress(min(100, 100 * smp.t / total))
+
+    def _progress(self, percent: float | None) -> None:
+        """The plan's progress bar at ``percent``; hidden for None (a run without a planned
+        length: a live jog)."""
         bar = self.query_one("#exec-progress", ProgressBar)
-        bar.display = True
-        bar.update(progress=min(100, 100 * smp.t / total))
+        bar.display = percent is not None
+        if percent is not None:
+            bar.update(progress=percent)
 
     def draw_plot(self) -> None:
         samples = list(self.console.live_samples)
@@ -329,9 +335,7 @@ class ExecuteScreen(StepScreen):
         if self.console.live_samples:
             self.show_sample(self.console.live_samples[-1])  # telemetry is throttled: the last
         if result.ok:
-            bar = self.query_one("#exec-progress", ProgressBar)
-            bar.display = True
-            bar.update(progress=100)
+            self._progress(100)
             self.query_one("#exec-clock", Static).update(
                 Content(f"done: {result.stats.duration_s:.2f} s"))
         elif result.stats.stop is not None:
