@@ -43,8 +43,13 @@ def _estop_at(k0: int) -> Trigger:
 
 def _push_past_limit_at(k0: int) -> Trigger:
     def trigger(_ex: Executor, emu: EmulatorHandle, s: Sample) -> None:
-        if s.k == k0:  # something moves joint 1 past its 160° servo limit
-            emu.set_joint_deg([162.0, *s.measured_deg[1:]])
+        # something moves joint 1 past its 160° servo limit. The next cycle writes its goal
+        # before it reads, so the shaft is already heading back when read: at 170° it needs
+        # ≥ 22 ms (pole 32.22 rad/s, ≤ 60° from the goal) to get under 160°, at 162° only 9 ms,
+        # and a host stall between that write and read made 162° read as 158.2° (in the region
+        # margin, not past the limit)
+        if s.k == k0:
+            emu.set_joint_deg([170.0, *s.measured_deg[1:]])
     return trigger
 
 
