@@ -39,6 +39,7 @@ from spm_console.core.workspace import Workspace
 from spm_console.cpus import placement
 from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_checked
 from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
+from spm_console.formatting import fmt_deg
 from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.profile import Profile
 from spm_console.realtime import (
@@ -198,8 +199,8 @@ class Executor:
         gap = float(np.abs(theta0 - start).max())
         if gap > self.start_tolerance_deg:
             raise BadInputError(
-                f"the wrist is at θ = {np.round(theta0, 2).tolist()}° but the plan starts at "
-                f"{np.round(start, 2).tolist()}° ({gap:.2f}° away, tolerance "
+                f"the wrist is at θ = {fmt_deg(theta0)} but the plan starts at "
+                f"{fmt_deg(start)} ({gap:.2f}° away, tolerance "
                 f"{self.start_tolerance_deg}°); move there first (execute adds an approach move)"
             )
         # verified within 1e-9° of the servo limits: on them exactly (the bus refuses any goal past)

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from spm_console.core.kinematics import Pose
 from spm_console.core.plan import Plan
 from spm_console.errors import UnreachableError
+from spm_console.formatting import fmt_deg
 from spm_console.models import model_of
 from spm_console.profile import Profile
 from spm_console.run.executor import ExecutionResult, Executor, Segment
@@ -52,7 +53,7 @@ def check_assembly_mode(profile: Profile, theta_deg: F, what: str = "measured po
     r = model_of(profile).track(np.radians(theta))
     if not r.ok or r.pose is None:
         raise UnreachableError(
-            f"{what} θ = {np.round(theta, 2).tolist()}° is not reachable from home in the known "
+            f"{what} θ = {fmt_deg(theta)} is not reachable from home in the known "
             f"assembly mode: {r.reason}. Nothing moved; bring the wrist near home by hand "
             "(torque off) and home again"
         )

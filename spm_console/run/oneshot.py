@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from spm_console.core.plan import Plan
 from spm_console.devices.faults import FaultSpec
 from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
+from spm_console.formatting import fmt_deg
 from spm_console.profile import Profile
 from spm_console.run.follow_run import FollowOutcome
 from spm_console.run.homing import HomingResult
@@ -154,8 +155,8 @@ def execute_once(profile: Profile, plan: Plan, req: RunRequest,
             theta0, start = session.read_position(), plan.reference_deg[0]
             if float(np.abs(theta0 - start).max()) > profile.safety.approach_tolerance_deg:
                 exc = BadInputError(
-                    f"the wrist is at θ = {np.round(theta0, 2).tolist()}°, not at the plan's "
-                    f"start {np.round(start, 2).tolist()}° (approach move disabled)")
+                    f"the wrist is at θ = {fmt_deg(theta0)}, not at the plan's "
+                    f"start {fmt_deg(start)} (approach move disabled)")
                 refused_run(profile, "execute", _context(profile, req), exc)
                 raise exc
         session.plan = plan

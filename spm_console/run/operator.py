@@ -318,7 +318,7 @@ class Session(ServoTools, FollowTools):
         th = theta3(theta_deg, "θ")
         r = fk_route(self.profile, self.model, th, self._fk_graph)
         if not r.ok or r.pose is None:
-            raise UnreachableError(f"θ = {np.round(th, 2).tolist()}°: {r.reason}")
+            raise UnreachableError(f"θ = {fmt_deg(th)}: {r.reason}")
         rec = fk_record(self.profile, self.model, self.links, r)
         if all_modes:
             rec["modes"] = [

@@ -28,6 +28,7 @@ from spm_console.core.region_build import RegionChoice, choose_region
 from spm_console.core.workspace import Workspace, check_theta
 from spm_console.core.workspace_check import ThetaCheck
 from spm_console.errors import BadInputError, InfeasibleError
+from spm_console.formatting import fmt_deg, fmt_vec
 from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.profile import Profile
 from spm_console.run.plan_check import verify_plan
@@ -101,8 +102,8 @@ def precheck(profile: Profile, req: PlanRequest) -> None:
         for name, th in (("start", s), ("goal", g)):
             if np.any(th < lo) or np.any(th > hi):
                 raise BadInputError(
-                    f"{name} θ = {np.round(th, 2).tolist()}° is outside the servo limits "
-                    f"{np.round(lo, 2).tolist()}…{np.round(hi, 2).tolist()}°")
+                    f"{name} θ = {fmt_deg(th)} is outside the servo limits "
+                    f"{fmt_vec(lo, 2)}…{fmt_deg(hi)}")
     if req.method == "mintime":
         vmax = profile.limits.vmax_degps if req.vmax_degps is None else float(req.vmax_degps)
         check_horizon(servo_model_of(profile), s, g, vmax,
@@ -120,7 +121,7 @@ def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMot
     for name, th in (("start", s), ("goal", g)):
         chk = check_theta(ws, th)
         if not chk.feasible:
-            raise InfeasibleError(f"{name} θ = {np.round(th, 2).tolist()}° is {chk.verdict}")
+            raise InfeasibleError(f"{name} θ = {fmt_deg(th)} is {chk.verdict}")
         checks.append(chk)
     vmax = profile.limits.vmax_degps if req.vmax_degps is None else float(req.vmax_degps)
     pb = PlanProblem(servo_model_of(profile), s, g, int(req.steps), ws.region, vmax,

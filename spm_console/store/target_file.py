@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.targets import MAX_TIMED_TARGETS, TimedTargets
 from spm_console.errors import BadInputError
+from spm_console.formatting import fmt_deg
 from spm_console.profile import Profile
 from spm_console.safe_io import MB, read_text
 
@@ -34,7 +35,7 @@ def theta_of_rpy(profile: Profile, rpy_deg: F) -> F:
     res = ik_rpy(model_of(profile), *np.radians(r))
     th = np.asarray(res.theta_deg, float)
     if not np.all(np.isfinite(th)):
-        raise BadInputError(f"no IK solution for roll, pitch, yaw = {r.tolist()}°")
+        raise BadInputError(f"no IK solution for roll, pitch, yaw = {fmt_deg(r)}")
     return th
 
 

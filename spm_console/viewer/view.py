@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.kinematics import Pose, SpmModel
 from spm_console.core.links import LinkModel
+from spm_console.formatting import fmt_deg
 from spm_console.models import link_model_of, model_of
 from spm_console.profile import Profile
 from spm_console.viewer import draw, scene
@@ -270,7 +271,7 @@ class MeshcatView:
         if (not r.ok or r.pose is None) and seed is not None:
             r = self.model.track(th)  # the seed may be on the other side of a bad path
         if not r.ok or r.pose is None:
-            self.last_error = f"cannot draw θ = {np.round(theta_deg, 2).tolist()}°: {r.reason}"
+            self.last_error = f"cannot draw θ = {fmt_deg(theta_deg)}: {r.reason}"
             return None
         return r.pose
 

@@ -96,7 +96,7 @@ async def test_bad_input_is_a_message_not_a_crash(console) -> None:
         await pilot.press("f")
         await settle(pilot)
         msg = status_of(app)
-        assert msg.startswith("FK failed: θ = [65.0, 155.0, 65.0]°"), msg
+        assert msg.startswith("FK failed: θ = [65.00, 155.00, 65.00]°"), msg
         assert app.is_running
 
 

@@ -57,5 +57,5 @@ def test_each_kind_of_failure_gets_its_own_advice() -> None:
         "no plan within N ≤ 5000 steps (100 s): at v_max = 0.01 deg/s the largest joint "
         "move (40°) needs about 4e+03 s; use a speed bound of at least about 0.4 deg/s")
     assert "start or goal fields" in next_step(
-        "goal θ = [62.0, 135.0, 135.0]° is NOT feasible (singular)")
+        "goal θ = [62.00, 135.00, 135.00]° is NOT feasible (singular)")
     assert "then press s" in next_step("something else went wrong")

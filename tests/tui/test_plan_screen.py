@@ -81,7 +81,7 @@ async def test_form_errors_are_messages(console) -> None:
         await settle(pilot)
         msg = status_of(app)
         assert app.session.plan is None
-        assert "goal θ = [62.0, 135.0, 135.0]° is NOT feasible" in msg, msg
+        assert "goal θ = [62.00, 135.00, 135.00]° is NOT feasible" in msg, msg
         assert "outside the workspace grid" in msg
 
 

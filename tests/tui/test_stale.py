@@ -25,7 +25,7 @@ async def _plan_screen(pilot: Any) -> None:
 
 @pytest.mark.parametrize(("method", "steps", "goal", "why"), [
     # the case: minimum time after an MVN plan; N is not used by it (left invalid)
-    ("mintime", "2.5", [62, 135, 135], "goal θ = [62.0, 135.0, 135.0]° is NOT feasible"),
+    ("mintime", "2.5", [62, 135, 135], "goal θ = [62.00, 135.00, 135.00]° is NOT feasible"),
     # the solver itself finds no plan: 40° in two 20 ms steps under 50°/s
     ("mvn", "2", [95, 110, 105], ""),
 ], ids=["mintime", "mvn"])
@@ -77,9 +77,9 @@ async def test_a_failed_fk_clears_the_previous_result(console: Any) -> None:
         await pilot.press("f")
         await settle(pilot)
         out = text_of(app, "#fk-result")
-        assert out.startswith("No result: FK failed.\nθ = [65.0, 155.0, 65.0]°"), out
+        assert out.startswith("No result: FK failed.\nθ = [65.00, 155.00, 65.00]°"), out
         assert "FEASIBLE" not in out and "\nNext: " in out
-        assert status_of(app).startswith("FK failed: θ = [65.0, 155.0, 65.0]°"), status_of(app)
+        assert status_of(app).startswith("FK failed: θ = [65.00, 155.00, 65.00]°"), status_of(app)
         theta.set_values([95, 110, 105])
         await pilot.press("f")
         await settle(pilot)

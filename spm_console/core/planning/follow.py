@@ -60,6 +60,7 @@ from spm_console.core.planning.follow_target import TargetProjector
 from spm_console.core.region import Region
 from spm_console.core.servo_model import ServoModel
 from spm_console.errors import BadInputError
+from spm_console.formatting import fmt_deg
 
 F = NDArray[np.float64]
 
@@ -281,7 +282,7 @@ class FollowSolver:
         viol = float(self.region.violation_deg(th0))
         if viol > CHECK_TOL:
             self._warm = None
-            return refuse("infeasible", f"the state θ = {np.round(th0, 3).tolist()}° is outside the "
+            return refuse("infeasible", f"the state θ = {fmt_deg(th0, 3)} is outside the "
                           f"region by {viol:.3g}°: following starts only inside it")
         q = linear_cost(self.layout, targets, self.weights.track, self.weights.terminal)
         lo, hi = fill_bounds(self._mats, self.model, th0, om0, terminal)
@@ -297,8 +298,8 @@ class FollowSolver:
         if reason == "infeasible":
             self._warm = None
             return refuse("infeasible", "no reference keeps the wrist inside the region under the "
-                          f"speed bound from θ = {np.round(th0, 3).tolist()}°, θ̇ = "
-                          f"{np.round(om0, 2).tolist()}°/s", st, it, used_warm)
+                          f"speed bound from θ = {fmt_deg(th0, 3)}, θ̇ = "
+                          f"{fmt_deg(om0)}/s", st, it, used_warm)
         if reason:
             self._warm = None
             return refuse("failed", reason, st, it, used_warm)

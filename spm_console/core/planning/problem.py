@@ -18,6 +18,7 @@ from spm_console.core.region import Region
 from spm_console.core.region_route import RegionRoute
 from spm_console.core.servo_model import ServoModel, substeps
 from spm_console.errors import BadInputError, InfeasibleError
+from spm_console.formatting import fmt_deg
 
 F = NDArray[np.float64]
 
@@ -113,15 +114,15 @@ class PlanProblem:
                 rows = np.flatnonzero(region.slack(th) / np.linalg.norm(region.A, axis=1)
                                       < -ENDPOINT_TOL_DEG)
                 raise InfeasibleError(
-                    f"{name} θ = {np.round(th, 4).tolist()}° is outside the region P by "
+                    f"{name} θ = {fmt_deg(th, 4)} is outside the region P by "
                     f"{viol:.4g}° (half-spaces {rows.tolist()[:8]}); choose a region that contains it")
         for name, th in (("start", self.start_deg), ("goal", self.goal_deg)):
             if self.ref_lo_deg is not None and np.any(th < self.ref_lo_deg - 1e-9):
-                raise InfeasibleError(f"{name} θ = {th.tolist()}° is below the reference limits "
-                                      f"{self.ref_lo_deg.tolist()}°")
+                raise InfeasibleError(f"{name} θ = {fmt_deg(th, 4)} is below the reference limits "
+                                      f"{fmt_deg(self.ref_lo_deg)}")
             if self.ref_hi_deg is not None and np.any(th > self.ref_hi_deg + 1e-9):
-                raise InfeasibleError(f"{name} θ = {th.tolist()}° is above the reference limits "
-                                      f"{self.ref_hi_deg.tolist()}°")
+                raise InfeasibleError(f"{name} θ = {fmt_deg(th, 4)} is above the reference limits "
+                                      f"{fmt_deg(self.ref_hi_deg)}")
 
 
 @dataclass(frozen=True)
