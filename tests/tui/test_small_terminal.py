@@ -143,3 +143,27 @@ async def test_the_reason_under_an_invalid_field_shows_at_80x24(console: Any) ->
         theta.fields[0].value = "127.5"
         await pilot.pause()
         assert not reason.display
+
+
+async def test_every_steps_footer_keys_show_whole_at_80_columns(console: Any) -> None:
+    """The connect step has nine keys: at 80 columns the footer drops its padding and the
+    palette's entry (ctrl+p stays bound) so none is cut; at 160 columns both come back."""
+    from textual.widgets._footer import FooterKey
+
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        for s in STEPS:
+            await pilot.press(s.fkey)
+            await settle(pilot)
+            await pilot.pause(0.05)  # the footer recomposes after a resize or a step change
+            last = screen_text(app).splitlines()[-1]
+            keys = [k.description for k in app.screen.query(FooterKey) if k.description]
+            assert len(keys) >= 4, (s.mode, keys)
+            for d in keys:
+                assert d in last, (s.mode, d, last)
+            assert cell_len(last.rstrip()) <= SMALL[0]
+        await pilot.resize_terminal(160, 48)
+        await settle(pilot)
+        await pilot.pause(0.05)
+        assert "palette" in screen_text(app).splitlines()[-1]

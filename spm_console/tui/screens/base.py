@@ -32,6 +32,7 @@ from textual.worker import get_current_worker
 from spm_console.errors import SpmError
 from spm_console.tui.messages import Done, Failed, Outcome
 from spm_console.tui.widgets.estop import ESTOP_KEY, EstopBanner
+from spm_console.tui.widgets.footer import ConsoleFooter
 from spm_console.tui.widgets.status import StatusLine
 from spm_console.tui.widgets.steps import StepBar
 
@@ -126,7 +127,7 @@ class StepScreen(Screen[None]):
         yield EstopBanner()
         yield from self.compose_body()
         yield StatusLine(id="status")
-        yield Footer()
+        yield ConsoleFooter()
 
     def compose_body(self) -> ComposeResult:
         yield from ()

@@ -17,7 +17,9 @@ from textual.containers import Vertical, VerticalScroll
 from textual.content import Content
 from textual.dom import DOMNode
 from textual.screen import ModalScreen, Screen
-from textual.widgets import Footer, Static
+from textual.widgets import Static
+
+from spm_console.tui.widgets.footer import ConsoleFooter
 
 if TYPE_CHECKING:
     from textual.app import App
@@ -194,7 +196,7 @@ class HelpScreen(ModalScreen[None]):
                          id="help-title")
             with VerticalScroll(id="help-scroll"):
                 yield Static(help_table(self.under, self.app), id="help-text")
-        yield Footer()
+        yield ConsoleFooter()
 
     def on_mount(self) -> None:
         self.query_one("#help-scroll", VerticalScroll).focus()

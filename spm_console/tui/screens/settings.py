@@ -24,13 +24,14 @@ from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, VerticalScroll
 from textual.content import Content
 from textual.screen import ModalScreen
-from textual.widgets import Button, Footer, Input, Label, OptionList, Static
+from textual.widgets import Button, Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 from spm_console.errors import BadInputError, SpmError
 from spm_console.profile import DEFAULT_PROFILE, load_profile, with_grid_step
 from spm_console.profile_checks import grid_step_problems
 from spm_console.tui.widgets.confirm import ConfirmScreen
+from spm_console.tui.widgets.footer import ConsoleFooter
 from spm_console.tui.widgets.number import NumberRow, NumberRule
 
 if TYPE_CHECKING:
@@ -181,7 +182,7 @@ class SettingsScreen(ModalScreen[SwitchRequest | None]):
             with Horizontal(id="settings-buttons"):
                 yield Button("Apply (a)", id="apply", variant="warning")
                 yield Button("Close (esc)", id="close", variant="primary")
-        yield Footer()
+        yield ConsoleFooter()
 
     def on_mount(self) -> None:
         options = self.query_one("#settings-profiles", OptionList)

@@ -8,9 +8,10 @@ from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Footer, Input, Static
+from textual.widgets import Input, Static
 
 from spm_console.tui.widgets.field import TextField
+from spm_console.tui.widgets.footer import ConsoleFooter
 
 #: Longest path accepted, characters.
 MAX_PATH = 1024
@@ -30,7 +31,7 @@ class AskPathScreen(ModalScreen[str | None]):
             yield Static(self._title, id="confirm-title", markup=False)
             yield Static(self._body, id="confirm-body", markup=False)
             yield TextField(value=self._value, id="ask-path", max_length=MAX_PATH)
-        yield Footer()
+        yield ConsoleFooter()
 
     def on_mount(self) -> None:
         self.query_one("#ask-path", Input).focus()

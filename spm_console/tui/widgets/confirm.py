@@ -8,7 +8,9 @@ from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
-from textual.widgets import Button, Footer, Static
+from textual.widgets import Button, Static
+
+from spm_console.tui.widgets.footer import ConsoleFooter
 
 
 class ConfirmScreen(ModalScreen[bool]):
@@ -34,7 +36,7 @@ class ConfirmScreen(ModalScreen[bool]):
             with Horizontal(id="confirm-buttons"):
                 yield Button(self._yes, id="yes", variant="warning")
                 yield Button(self._no, id="no", variant="primary")
-        yield Footer()
+        yield ConsoleFooter()
 
     def on_mount(self) -> None:
         self.query_one("#no", Button).focus()
