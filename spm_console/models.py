@@ -59,6 +59,11 @@ def servo_limits_deg(profile: Profile) -> tuple[F, F]:
             np.array([j.max_deg for j in profile.bus.joints], float))
 
 
+def servo_tick_deg(profile: Profile) -> float:
+    """One encoder tick of the servos, deg (MX-106: 360/4096 ≈ 0.088°)."""
+    return 360.0 / float(profile.bus.ticks_per_turn)
+
+
 def grid_axes_deg(profile: Profile) -> tuple[F, F, F]:
     """The workspace grid values of θ1, θ2, θ3, deg."""
     a = np.asarray(profile.workspace.axis_deg, float)

@@ -261,3 +261,40 @@ def test_a_communication_loss_while_following_the_emulated_bus_names_its_causes(
     assert res.exit_code == ExitCode.STOP_COMM, res.message
     assert "on the emulated bus: an injected fault, or this machine" in res.message
     assert "cable" not in res.message
+
+
+def test_follow_start_moves_a_start_just_beyond_the_grid_one_tick_inside() -> None:
+    from spm_console.run.follow_regions import follow_start
+
+    ws = agile_workspace()
+    hi = float(ws.axes_deg[1][-1])
+    inside = np.array([100.0, 120.0, 110.0])
+    assert follow_start(ws, inside, 0.5, 0.088) is inside or np.array_equal(
+        follow_start(ws, inside, 0.5, 0.088), inside)
+    out = follow_start(ws, np.array([66.8, hi + 0.04, 131.48]), 0.5, 0.088)
+    np.testing.assert_allclose(out, [66.8, hi - 0.088, 131.48])
+    far = np.array([66.8, hi + 0.6, 131.48])  # beyond the approach tolerance: left as it is
+    np.testing.assert_array_equal(follow_start(ws, far, 0.5, 0.088), far)
+
+
+def test_following_starts_from_a_wrist_settled_a_tick_beyond_the_grid(
+        agile: Profile, tmp_path: Path) -> None:
+    """The paper's goal θ2 = 155° is the grid's edge, where a plan's end settles a servo tick
+    beyond it. The follower moves the wrist into the region first (to its point nearest the
+    wrist two ticks deep, every cycle under the region check), then plans: the run
+    succeeds (no region stop) and logs where it started planning."""
+    ws = agile_workspace()
+    hi = float(ws.axes_deg[1][-1])
+    start = np.array([66.8, hi + 0.04, 131.48])
+    toward = np.array([70.0, 150.0, 128.0])
+    feed = TargetFeed(TimedTargets(np.array([0.0, 0.2]), np.vstack([start, toward])))
+    res, ex = _follow(agile, tmp_path, start, feed)
+    assert res.ok, res.message
+    np.testing.assert_allclose(res.final_deg, toward, atol=0.3)
+    events = load_run(res.log_dir).events
+    start_ev = next(e for e in events if e["event"] == "start")
+    begin = np.asarray(start_ev["start_deg"])  # inside the grid, within the approach tolerance
+    assert begin[1] < hi - 360 / 4096 and np.abs(begin - start).max() <= agile.safety.approach_tolerance_deg
+    assert any(e["event"] == "approached" for e in events)
+    st = ex.stats(feed)
+    assert st.approach_cycles < 25 and st.adopted > 0

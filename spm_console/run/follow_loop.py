@@ -37,12 +37,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.planning.follow import FollowResult, FollowSettings, FollowSolver
+from spm_console.core.planning.follow_target import TargetProjector
+from spm_console.core.region import Region
 from spm_console.core.servo_model import exact_step, simulate_continuous
 from spm_console.errors import BadInputError
+from spm_console.formatting import fmt_deg
+from spm_console.models import servo_tick_deg
 from spm_console.run.executor import Executor, _LoopState
-from spm_console.run.follow_regions import RegionHopper, follow_regions
+from spm_console.run.follow_regions import (
+    INSIDE_TOL_DEG,
+    MOVE_IN,
+    RegionHopper,
+    follow_regions,
+    follow_start,
+)
 from spm_console.run.plan_check import BETWEEN_SPEED_ALLOWANCE, MAX_REFERENCE_STEP_DEG
-from spm_console.run.safety import StopReason
+from spm_console.run.safety import SafetyMonitor, StopReason
 from spm_console.run.segments import ExecutionResult
 from spm_console.run.stats import stale_replies
 from spm_console.run.target_feed import TargetFeed
@@ -63,6 +73,8 @@ SETTLE_S = 0.3
 SETTLE_TIMEOUT_S = 10.0
 #: Points per period of the verification of each adopted plan.
 CHECK_POINTS = 10
+#: A wrist just beyond the grid first moves this many servo ticks inside the region.
+APPROACH_DEPTH_TICKS = 2.0
 
 
 @dataclass(frozen=True)
@@ -84,6 +96,8 @@ class FollowStats:
     solve_ms_max: float
     region_switches: int = 0
     """Times the follower moved on to the next region of the cover."""
+    approach_cycles: int = 0
+    """Periods spent moving in from just beyond the grid before the first re-plan."""
 
     def to_dict(self) -> dict[str, float]:
         return {k: float(v) for k, v in asdict(self).items()}
@@ -105,28 +119,34 @@ class Follower(Executor):
         self.t0 = self.clock()
         self._stale0 = stale_replies(self.bus)
         theta0 = self.read_initial() if theta0_deg is None else np.asarray(theta0_deg, float)
-        graph = follow_regions(self.verifier.ws, theta0)  # BadInputError: why not
+        start = self._start(theta0)
+        graph = follow_regions(self.verifier.ws, start)  # BadInputError: why not
         regions = graph.regions
-        self.hopper = RegionHopper(graph, theta0)
+        self.hopper = RegionHopper(graph, start)
+        if start is not theta0:  # just beyond the grid: plans start where the wrist moves in to
+            start = self._approach_point(theta0, regions[self.hopper.current])
         vmax = self.profile.limits.vmax_degps
         # one solver per region, built before torque-on (about 15 ms each: not in the loop)
         self.solvers = [FollowSolver(self.model, r, vmax, HORIZON, self.lo, self.hi,
                                      settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S))
                         for r in regions]
         targets, _ = feed.targets(0.0, self.ts, HORIZON, theta0)
-        idx, goal = self.hopper.aim(theta0, targets[-1])
-        first = self.solvers[idx].solve(theta0, np.zeros(3), _aimed(feed, targets, goal),
+        idx, goal = self.hopper.aim(start, targets[-1])
+        first = self.solvers[idx].solve(start, np.zeros(3), _aimed(feed, targets, goal),
                                         warm=False, timed=False)  # cold, before torque-on
-        if not first.ok or not self._plan_ok(first, theta0, np.zeros(3), theta0):
+        if not first.ok or not self._plan_ok(first, start, np.zeros(3), start):
             raise BadInputError(f"live following cannot start from θ = "
-                                f"{np.round(theta0, 2).tolist()}°: {first.reason or first.status}")
+                                f"{fmt_deg(theta0)}: {first.reason or first.status}")
         self._times: list[float] = []
-        self._counts = {"solves": 0, "adopted": 0, "misses": 0, "refused": 0, "clamped": 0}
+        self._counts = {"solves": 0, "adopted": 0, "misses": 0, "refused": 0, "clamped": 0,
+                        "approach": 0}
+        moved = start is not theta0
         self._event("start", theta0_deg=theta0, mode="follow", live=feed.live,
                     horizon=HORIZON, budget_ms=SOLVE_BUDGET_S * 1e3, deadman_s=feed.deadman_s,
                     region=self.hopper.current, regions=len(self.solvers),
-                    grown_around_start=graph.grown)
-        result = self._guarded(theta0, lambda: self._follow_loop(feed, theta0, first),
+                    grown_around_start=graph.grown, **({"start_deg": start} if moved else {}))
+        result = self._guarded(theta0, lambda: self._follow_loop(feed, theta0, first,
+                                                                 start if moved else None),
                                lambda: f"followed for {len(self.samples) * self.ts:.2f} s")
         return result
 
@@ -136,13 +156,55 @@ class Follower(Executor):
         c = self._counts
         return FollowStats(c["solves"], c["adopted"], c["misses"], c["refused"], c["clamped"],
                            feed.deadman_trips, pct(50), pct(99),
-                           float(ms.max()) if ms.size else float("nan"), self.hopper.switches)
+                           float(ms.max()) if ms.size else float("nan"), self.hopper.switches,
+                           c["approach"])
+
+    def _start(self, theta0: F) -> F:
+        """Where the plans start (:func:`follow_start`): θ0, or the point just inside the grid's
+        box when the wrist stands a little beyond it — then only if the executor's region
+        check (with its margin) accepts θ0, so that the move in is checked like any cycle."""
+        start = follow_start(self.verifier.ws, theta0, self.start_tolerance_deg,
+                             servo_tick_deg(self.profile))
+        if np.array_equal(start, theta0):
+            return theta0
+        certified = self.verifier.certified
+        half = SafetyMonitor(self.profile, certified).region_half_width_deg
+        if not bool(certified.contains(theta0, half)):
+            raise BadInputError(
+                f"the wrist is at θ = {fmt_deg(theta0)}, beyond the workspace grid and outside "
+                f"the certified set even with the region margin "
+                f"({self.profile.safety.region_margin_deg:.2f}°): {MOVE_IN}")
+        return start
+
+    def _approach_point(self, theta0: F, region: Region) -> F:
+        """The point of ``region`` nearest θ0 at least :data:`APPROACH_DEPTH_TICKS` servo ticks
+        inside it (the servo settles on a tick, the state must end up inside); BadInputError
+        when it lies farther than the approach tolerance."""
+        depth = APPROACH_DEPTH_TICKS * servo_tick_deg(self.profile)
+        point, _ = TargetProjector(region, self.lo, self.hi, depth).project(theta0)
+        gap = float(np.abs(point - theta0).max())
+        if gap > self.start_tolerance_deg:
+            raise BadInputError(
+                f"the wrist is at θ = {fmt_deg(theta0)}, beyond the workspace grid; the nearest "
+                f"point a region holds is {gap:.2f}° away (more than the approach tolerance, "
+                f"{self.start_tolerance_deg:g}°): {MOVE_IN}")
+        return point
+
+    def _inside(self, theta: F) -> bool:
+        """θ (deg) is in the current region and certified: plans may start from it."""
+        region = self.hopper.regions[self.hopper.current]
+        return bool(region.contains(theta, tol=INSIDE_TOL_DEG)) and bool(
+            self.verifier.certified.contains(theta))
 
     # ------------------------------------------------------------------ the loop
-    def _follow_loop(self, feed: TargetFeed, theta0: F, first: FollowResult) -> StopReason | None:
+    def _follow_loop(self, feed: TargetFeed, theta0: F, first: FollowResult,
+                     approach: F | None = None) -> StopReason | None:
+        """The servo loop; ``approach``: the point plans start from when the wrist stands just
+        beyond the grid (:meth:`_start`): it is the reference until the predicted state is in
+        the region, then re-planning begins."""
         st: _LoopState = self._loop_state(theta0)
         plan, j = first, 0
-        ref = plan.reference_at(0)
+        ref = plan.reference_at(0) if approach is None else approach
         settled_since: float | None = None
         finished_at: float | None = None
         updates = 0  # targets that arrived before the start are logged with cycle 0
@@ -163,26 +225,14 @@ class Follower(Executor):
             if held and feed.deadman_trips != self._counts.get("deadman_logged", 0):
                 self._counts["deadman_logged"] = feed.deadman_trips
                 self._event("deadman", k=k, hold_deg=targets[0], silent_s=feed.deadman_s)
-            t0 = time.perf_counter()
-            before = self.hopper.switches
-            idx, goal = self.hopper.aim(th, targets[-1])
-            if self.hopper.switches != before:  # inside the next region: plan there from now on
-                self.solvers[idx].reset()
-                self._event("region", k=k, region=idx, switches=self.hopper.switches)
-            res = self.solvers[idx].solve(th, om, _aimed(feed, targets, goal), elapsed=1)
-            self._times.append(time.perf_counter() - t0)
-            self._counts["solves"] += 1
-            self._counts["clamped"] += int(res.clamped)
-            j += 1
-            if res.ok and res.seconds <= SOLVE_BUDGET_S:
-                if self._plan_ok(res, th, om, ref):
-                    plan, j = res, 0
-                    self._counts["adopted"] += 1
-                else:
-                    self._counts["refused"] += 1
+            if approach is not None and not self._inside(th):
+                ref = approach  # moving in: no plan starts outside the region
+                self._counts["approach"] += 1
             else:
-                self._counts["misses"] += 1
-            ref = np.clip(plan.reference_at(j), self.lo, self.hi)
+                if approach is not None:
+                    approach = None
+                    self._event("approached", k=k, theta_deg=th)
+                plan, j, ref = self._replan(feed, targets, th, om, ref, plan, j, k)
             # the end: a finished feed, the wrist settled on the (projected) last target
             if feed.finished(t_next):
                 finished_at = t_next if finished_at is None else finished_at
@@ -198,6 +248,30 @@ class Follower(Executor):
             k += 1
         self._event("follow", **self.stats(feed).to_dict())
         return None
+
+    def _replan(self, feed: TargetFeed, targets: F, th: F, om: F, ref: F, plan: FollowResult,
+                j: int, k: int) -> tuple[FollowResult, int, F]:
+        """Step 2–4 of the module docstring: (plan in use, its sample index, next reference)."""
+        t0 = time.perf_counter()
+        before = self.hopper.switches
+        idx, goal = self.hopper.aim(th, targets[-1])
+        if self.hopper.switches != before:  # inside the next region: plan there from now on
+            self.solvers[idx].reset()
+            self._event("region", k=k, region=idx, switches=self.hopper.switches)
+        res = self.solvers[idx].solve(th, om, _aimed(feed, targets, goal), elapsed=1)
+        self._times.append(time.perf_counter() - t0)
+        self._counts["solves"] += 1
+        self._counts["clamped"] += int(res.clamped)
+        j += 1
+        if res.ok and res.seconds <= SOLVE_BUDGET_S:
+            if self._plan_ok(res, th, om, ref):
+                plan, j = res, 0
+                self._counts["adopted"] += 1
+            else:
+                self._counts["refused"] += 1
+        else:
+            self._counts["misses"] += 1
+        return plan, j, np.clip(plan.reference_at(j), self.lo, self.hi)
 
     def _predict(self, theta: F, omega: F, ref: F, read_offset_s: float) -> tuple[F, F]:
         """The model state at the next deadline, from the Kalman estimate at the read instant

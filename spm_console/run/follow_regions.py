@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 from spm_console.core.cover import connector_overlaps, connector_regions
 from spm_console.core.region import Region
 from spm_console.errors import BadInputError, InfeasibleError
+from spm_console.formatting import fmt_deg
 
 if TYPE_CHECKING:
     from spm_console.core.workspace import Workspace
@@ -54,7 +55,7 @@ class FollowRegions:
 
 
 def _where(theta_deg: F) -> str:
-    return f"θ = {np.round(np.asarray(theta_deg, float), 2).tolist()}°"
+    return f"θ = {fmt_deg(np.asarray(theta_deg, float))}"
 
 
 #: What to do about a start no certified region holds (the console's and the CLI's advice).
@@ -71,6 +72,23 @@ def _beyond_grid(ws: Workspace, th: F) -> str:
             out.append(f"θ{j + 1} is {min(abs(x - lo), abs(x - hi)):.2f}° beyond the grid's "
                        f"{lo:g}…{hi:g}°")
     return f" ({'; '.join(out)})" if out else ""
+
+
+def follow_start(ws: Workspace, theta0_deg: F, tolerance_deg: float, inset_deg: float) -> F:
+    """Where following plans from, deg: ``theta0_deg`` itself, or — when it lies beyond the
+    workspace grid's box by at most ``tolerance_deg`` on every axis (a plan that ended on the
+    grid's edge settles a servo tick beyond it, where no region reaches) — the point
+    ``inset_deg`` inside the faces it crossed (the other axes unchanged), which the follower
+    first moves to. ``inset_deg``: one servo tick, so that the servo's nearest tick lies in
+    the box."""
+    th = np.asarray(theta0_deg, float).reshape(3)
+    lo = np.array([float(a[0]) for a in ws.axes_deg])
+    hi = np.array([float(a[-1]) for a in ws.axes_deg])
+    beyond = (th < lo) | (th > hi)
+    if not beyond.any():
+        return th
+    inner = np.where(beyond, np.clip(th, lo + inset_deg, hi - inset_deg), th)
+    return inner if float(np.abs(inner - th).max()) <= tolerance_deg else th
 
 
 def follow_regions(ws: Workspace, theta0_deg: F) -> FollowRegions:

@@ -372,3 +372,30 @@ async def test_a_refused_jog_keeps_its_reason_on_the_screen(console) -> None:
         assert "a test's reason" in out
         await pilot.press("p")  # another key: the status line moves on, the reason stays
         assert "a test's reason" in text_of(app, "#exec-outcome")
+
+
+async def test_jog_starts_from_the_papers_goal_a_servo_tick_beyond_the_grid(console) -> None:
+    """The paper's goal θ2 = 155° is the grid's edge; the servo settles on the tick 0.04°
+    beyond it. The jog is not refused: the runtime moves the wrist just inside first."""
+    from spm_console.run.operator import PoseSpec
+
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        s = app.session
+        await asyncio.to_thread(s.home)
+        ws = s.ensure_workspace()
+        goal = (66.80, float(ws.axes_deg[1][-1]), 131.48)
+        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"), PoseSpec("theta", goal), 150)
+        done = await asyncio.to_thread(s.execute)
+        assert done.ok, done.message
+        assert done.final_deg[1] > ws.axes_deg[1][-1]  # the case: settled beyond the grid
+        await pilot.press("5")
+        await settle(pilot)
+        jog = await _start_jog(app, pilot)
+        assert jog.target is not None
+        await pilot.press("escape")
+        await _ended(app, pilot)
+        res = s.last_run
+        assert res is not None and res.ok, res.message
+        assert text_of(app, "#exec-outcome").startswith("COMPLETED")

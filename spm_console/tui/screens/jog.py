@@ -33,8 +33,8 @@ from spm_console.core.region import Region
 from spm_console.core.rotations import matrix_rpy
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
-from spm_console.models import servo_limits_deg
-from spm_console.run.follow_regions import follow_regions
+from spm_console.models import servo_limits_deg, servo_tick_deg
+from spm_console.run.follow_regions import follow_regions, follow_start
 from spm_console.tui.messages import FollowDone, Outcome, Telemetry, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.jog_target import OUTSIDE_TOL_DEG, JogTarget, TargetSender
@@ -190,7 +190,10 @@ class JogScreen(StepScreen):
             ws = s.ensure_workspace()
             # the runtime's own choice (it repeats it from the measured start): refused here,
             # with the reason, before anything moves
-            self.regions = regions = follow_regions(ws, th0).regions
+            # (a wrist a servo tick beyond the grid's edge starts just inside it)
+            start = follow_start(ws, th0, s.profile.safety.approach_tolerance_deg,
+                                 servo_tick_deg(s.profile))
+            self.regions = regions = follow_regions(ws, start).regions
             self._prepared = JogTarget(th0, rpy_of(s, th0), s.ik,
                                        lambda t: outside_deg(s, t, regions))
             return WorkspaceLoaded()
