@@ -101,7 +101,7 @@ def keeping_plane(req: F, lo: F, hi: F, g: F) -> tuple[F, float] | None:
 
     First the smallest L1 change of the preferred normal ``g`` that separates
     (LP), else the max-margin separator (LP). The offset touches the box."""
-    from scipy.optimize import linprog  # here: only a build needs it (~0.7 s to import)
+    from spm_console.core.lp import solve_lp
 
     corners = box_corners(lo, hi)
     m = len(req)
@@ -114,8 +114,7 @@ def keeping_plane(req: F, lo: F, hi: F, g: F) -> tuple[F, float] | None:
         np.hstack([np.zeros((1, 1)), -gn[None], gn[None]]),  # a·gn ≥ 0.5
     ])
     b_ub = np.r_[-(req @ gn), corners @ gn, 0.5]
-    res = linprog(np.r_[0.0, np.ones(6)], A_ub=A_ub, b_ub=b_ub,
-                  bounds=[(None, None)] + [(0, None)] * 6, method="highs")
+    res = solve_lp(np.r_[0.0, np.ones(6)], A_ub, b_ub, lower=np.r_[-np.inf, np.zeros(6)])
     if res.status == 0:
         a = gn + res.x[1:4] - res.x[4:7]
         return a, float((corners @ a).min())
@@ -124,8 +123,9 @@ def keeping_plane(req: F, lo: F, hi: F, g: F) -> tuple[F, float] | None:
         np.hstack([req, -np.ones((m, 1)), np.ones((m, 1))]),
         np.hstack([-corners, np.ones((8, 1)), np.zeros((8, 1))]),
     ])
-    res = linprog(np.r_[0, 0, 0, 0, -1.0], A_ub=A_ub, b_ub=np.zeros(len(A_ub)),
-                  bounds=[(-1, 1)] * 3 + [(None, None), (None, 1.0)], method="highs")
+    res = solve_lp(np.r_[0, 0, 0, 0, -1.0], A_ub, np.zeros(len(A_ub)),
+                   lower=np.r_[-1.0, -1.0, -1.0, -np.inf, -np.inf],
+                   upper=np.r_[1.0, 1.0, 1.0, np.inf, 1.0])
     if res.status != 0 or res.x[4] < 0 or not np.any(res.x[:3]):
         return None
     a = np.asarray(res.x[:3])
