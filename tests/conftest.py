@@ -21,6 +21,15 @@ os.environ.setdefault("SPM_CONSOLE_LOGS", str(_SCRATCH / "logs"))
 # the console remembers form values per profile: never in the tester's own ~/.config
 os.environ["SPM_CONSOLE_CONFIG"] = str(_SCRATCH / "config")
 
+# Property tests draw the same examples on every run and machine (a failure found once is
+# found again, and CI cannot fail on a draw the last run did not make); set
+# HYPOTHESIS_PROFILE=explore to search with fresh random examples instead.
+from hypothesis import settings as _hypothesis_settings  # noqa: E402
+
+_hypothesis_settings.register_profile("suite", derandomize=True, database=None)
+_hypothesis_settings.register_profile("explore", derandomize=False, database=None)
+_hypothesis_settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "suite"))
+
 
 def pytest_configure(config: pytest.Config) -> None:
     """Host stall probes and the retake rule of ``tests/host_stalls.py`` (off with
