@@ -394,8 +394,15 @@ async def test_jog_starts_from_the_papers_goal_a_servo_tick_beyond_the_grid(cons
         await settle(pilot)
         jog = await _start_jog(app, pilot)
         assert jog.target is not None
+        # the target starts just inside the grid, not where no region reaches
+        assert jog.target.theta_deg[1] < goal[1] and "not clamped" in text_of(app, "#jog-target")
+        await pilot.press("m", "down")  # per joint; θ2 one step in
+        assert jog.target.mode == "joint"
+        want = jog.target.theta_deg.copy()
+        assert want[1] < goal[1] - 0.5 * jog.target.step_deg
         await pilot.press("escape")
         await _ended(app, pilot)
         res = s.last_run
         assert res is not None and res.ok, res.message
         assert text_of(app, "#exec-outcome").startswith("COMPLETED")
+        np.testing.assert_allclose(res.final_deg, want, atol=SETTLED_DEG)

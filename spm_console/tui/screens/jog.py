@@ -156,6 +156,9 @@ class JogScreen(StepScreen):
         super().__init__()
         self._on_end = on_end
         self.theta0_deg = np.asarray(theta0_deg, float).copy()
+        self.start_deg = self.theta0_deg
+        """Where the target starts: θ0, or just inside the grid when the wrist stands a servo
+        tick beyond it (:func:`~spm_console.run.follow_regions.follow_start`)."""
         """Where the jog starts: the target before any key (deg)."""
         self.target: JogTarget | None = None
         """The live target (None until the first cycle of the following ran)."""
@@ -191,10 +194,12 @@ class JogScreen(StepScreen):
             # the runtime's own choice (it repeats it from the measured start): refused here,
             # with the reason, before anything moves
             # (a wrist a servo tick beyond the grid's edge starts just inside it)
+            # — and the target starts there too, not where no region reaches
             start = follow_start(ws, th0, s.profile.safety.approach_tolerance_deg,
                                  servo_tick_deg(s.profile))
             self.regions = regions = follow_regions(ws, start).regions
-            self._prepared = JogTarget(th0, rpy_of(s, th0), s.ik,
+            self.start_deg = start
+            self._prepared = JogTarget(start, rpy_of(s, start), s.ik,
                                        lambda t: outside_deg(s, t, regions))
             return WorkspaceLoaded()
 
@@ -203,7 +208,7 @@ class JogScreen(StepScreen):
             self.console.moving = False
 
     def _start_following(self) -> None:
-        s, th0 = self.session, self.theta0_deg
+        s, th0 = self.session, self.start_deg
         self.phase = "starting"
         self.sender = TargetSender(s.set_target, s.end_follow)
         on_sample = self.console.telemetry_sink(self)
