@@ -248,3 +248,23 @@ def test_the_profile_chooses_the_refined_cover_for_every_loader(
     _, info = load_or_build(refined, tmp_path, refined_cover=False)  # an explicit choice wins
     assert asked == [True, False] and info.path == cache_path(prof, tmp_path)
     assert plan_hash(refined) == plan_hash(prof)
+
+
+def test_a_cover_of_p_alone_is_read_back(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A workspace whose cover is P alone (the coaxial profile's: P already covers 99 %)
+    stores no cover rows; loading it was refused as corrupt and rebuilt every time."""
+    from dataclasses import replace
+
+    from spm_console.core.cover import RegionCover
+
+    ws = coarse_workspace()
+    alone = RegionCover(regions=(ws.region,), seeds_deg=np.zeros((1, 3)),
+                        edges=np.zeros((0, 2), np.int64), edge_points_deg=np.zeros((0, 3)),
+                        edge_radius_deg=np.zeros(0), min_overlap_deg=0.5, covered=0.995,
+                        seconds=0.1)
+    monkeypatch.setattr(wc, "build_workspace", lambda profile, progress=None: replace(ws, cover=alone))
+    prof = with_step(agile_profile(), 5.0)
+    load_or_build(prof, tmp_path)
+    ws2, info = load_or_build(prof, tmp_path)
+    assert info.hit, info.rebuilt_because
+    assert ws2.cover is not None and ws2.cover.size == 1 and len(ws2.cover.edges) == 0

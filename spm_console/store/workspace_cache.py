@@ -207,8 +207,9 @@ def _cover_of(d: dict[str, Any], p: Region, info: object) -> RegionCover | None:
     if rows.ndim != 1 or (rows < 1).any() or int(rows.sum()) != len(A) or len(A) != len(b):
         raise ValueError("cover rows do not add up")
     cuts = np.cumsum(rows)[:-1]
-    regions = (p, *(Region.from_dict({"A": a, "b": c})
-                    for a, c in zip(np.split(A, cuts), np.split(b, cuts), strict=True)))
+    # (np.split of nothing gives one empty piece: a cover of P alone stores no rows)
+    pieces = zip(np.split(A, cuts), np.split(b, cuts), strict=True) if len(rows) else ()
+    regions = (p, *(Region.from_dict({"A": a, "b": c}) for a, c in pieces))
     k = len(regions)
     seeds = np.asarray(d["cover_seeds"], float)
     edges = np.asarray(d["cover_edges"], np.int64)
