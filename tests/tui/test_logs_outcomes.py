@@ -183,3 +183,28 @@ async def test_at_80_columns_the_highlighted_run_shows_outcome_exit_reason_durat
         want = f"▸ stopped · exit 22 · communication lost · {comm['duration']} · plan mvn"
         assert text_of(app, "#run-line") == want
         assert app.screen.query_one("#runs").region.width >= 72  # the table: all the width
+
+
+async def test_at_80x24_an_opened_run_scrolls_to_its_plot_by_keyboard(console, tmp_path) -> None:
+    """80×24: the opened run's text and plot do not fit under the table; tab moves to them
+    and End scrolls to the plot's bottom, tab again goes back to the runs."""
+    _runs(tmp_path / "logs")
+    app = console()
+    async with app.run_test(size=(80, 24)) as pilot:
+        await settle(pilot)
+        await pilot.press("6")
+        await settle(pilot)
+        await pilot.press("enter")
+        await settle(pilot)
+        detail = app.screen.query_one("#run-detail")
+        plot = app.screen.query_one("#run-plot")
+        assert detail.max_scroll_y > 0  # the case: more than fits
+        await pilot.press("tab")
+        assert app.focused is detail
+        await pilot.press("end")
+        await pilot.pause(0.2)
+        assert detail.scroll_y == detail.max_scroll_y
+        visible = plot.region.intersection(detail.region)
+        assert visible.height >= 8 and plot.region.bottom <= 24, (plot.region, detail.region)
+        await pilot.press("tab")
+        assert app.focused is app.screen.query_one("#runs")

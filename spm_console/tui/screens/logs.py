@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.content import Content
 from textual.widgets import DataTable, Static
 
@@ -150,7 +150,8 @@ class LogsScreen(StepScreen):
             yield Static(id="run-line", markup=False)
             with Horizontal(id="logs-main"):
                 yield DataTable(id="runs", cursor_type="row", zebra_stripes=True)
-                with Vertical(id="run-detail"):
+                # focusable (tab): ↑/↓, PgUp/PgDn, Home/End scroll an opened run's text and plot
+                with VerticalScroll(id="run-detail"):
                     yield Static(id="run-text", markup=False, classes="result")
                     yield PlotView(id="run-plot")
 
@@ -158,7 +159,8 @@ class LogsScreen(StepScreen):
         table = self.query_one("#runs", DataTable)
         table.add_columns(*RUN_COLUMNS)
         self.query_one("#run-text", Static).update(Content(
-            "Pick a run with ↑/↓ and press Enter to plot it."))
+            "Pick a run with ↑/↓ and press Enter to plot it; tab moves to its details (they "
+            "scroll), tab again back to the runs."))
 
     def on_screen_resume(self) -> None:
         super().on_screen_resume()
