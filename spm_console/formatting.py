@@ -22,10 +22,15 @@ def fmt_residual(value: float) -> str:
     return f"{value:.1e}"
 
 
+def fmt_num(x: float, digits: int = 2, signed: bool = False) -> str:
+    """``x`` at ``digits`` decimals; a value that rounds to zero reads 0 (never −0.00)."""
+    r = round(float(x), digits) + 0.0  # (−0.0 + 0.0 is +0.0)
+    return f"{r:{'+' if signed else ''}.{digits}f}"
+
+
 def fmt_vec(v: Any, digits: int = 4, signed: bool = False) -> str:
     """``[a, b, c]`` at ``digits`` decimals (with a sign on every value when ``signed``)."""
-    sign = "+" if signed else ""
-    return "[" + ", ".join(f"{float(x):{sign}.{digits}f}" for x in np.ravel(v)) + "]"
+    return "[" + ", ".join(fmt_num(x, digits, signed) for x in np.ravel(v)) + "]"
 
 
 def fmt_deg(v: Any, digits: int = 2) -> str:

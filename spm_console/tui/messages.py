@@ -57,6 +57,8 @@ class FkSolved:
     record: dict[str, Any]
     """The ``fk --json`` record (``run.kin_record.fk_record``)."""
     from_ik: bool = False
+    rpy_deg: Any = None
+    """Roll, pitch, yaw from home (deg) of an FK result, when θ is that orientation's IK."""
 
 
 @dataclass(frozen=True)

@@ -263,3 +263,13 @@ async def test_a_too_long_number_is_refused_without_claiming_what_fits(console) 
         why = reason_under(goal)
         assert why == f"goal θ1: 10 characters, at most {FIELD_CHARS} are accepted", why
         assert "fit" not in why
+
+
+def test_an_open_lower_bound_reads_the_same_in_both_refusals() -> None:
+    """0 "must be above 0°" and 15 "is outside (0, 10]°": not "outside 0…10°", which would
+    make 0 look accepted."""
+    from spm_console.tui.widgets.servo_health import JOG_STEP_RULE
+
+    assert JOG_STEP_RULE.reason("0").endswith("0 must be above 0°")
+    assert JOG_STEP_RULE.reason("15").endswith(f"15 is outside (0, {JOG_STEP_RULE.hi:g}]°")
+    assert JOG_STEP_RULE.reason("2.5") == ""

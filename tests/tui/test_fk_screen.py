@@ -68,6 +68,25 @@ async def test_ik_from_roll_pitch_yaw_round_trips(console) -> None:
         assert "FK solved" in status_of(app)
 
 
+async def test_fk_fills_the_orientation_fields_with_the_poses_own(console) -> None:
+    """After FK of θ the orientation fields show that pose's roll/pitch/yaw (not an older
+    orientation, nor its refusal), and IK of them gives θ back."""
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        await pilot.press("2")
+        rpy = app.screen.query_one("#rpy", AnglesInput)
+        rpy.set_values([0, 0, 170])  # an orientation IK cannot reach within the servo limits
+        await pilot.pause()
+        app.screen.query_one("#theta", AnglesInput).set_values([95, 110, 105])
+        await pilot.press("f")
+        await settle(pilot)
+        assert "FK solved" in status_of(app)
+        shown = rpy.values()  # valid now: no refusal left beside the new result
+        assert not np.allclose(shown, [0, 0, 170])
+        np.testing.assert_allclose(app.session.ik(shown), [95, 110, 105], atol=0.05)
+
+
 async def test_all_modes_flags_the_home_connected_one(console) -> None:
     app = console()
     async with app.run_test(size=SIZE) as pilot:

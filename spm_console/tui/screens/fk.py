@@ -96,8 +96,14 @@ class FkScreen(StepScreen):
         if theta is None:
             return
         what = "all assembly modes" if all_modes else "FK"
-        self.run_blocking("fk", lambda: FkSolved(self.session.fk(theta, all_modes=all_modes)),
-                          f"solving {what} of θ = {fmt_deg(theta)} …")
+        s = self.session
+
+        def go() -> FkSolved:
+            from spm_console.tui.screens.jog import rpy_of
+
+            return FkSolved(s.fk(theta, all_modes=all_modes), rpy_deg=rpy_of(s, np.asarray(theta)))
+
+        self.run_blocking("fk", go, f"solving {what} of θ = {fmt_deg(theta)} …")
 
     def action_modes(self) -> None:
         self.action_fk(all_modes=True)
@@ -128,6 +134,8 @@ class FkScreen(StepScreen):
         rec = outcome.record
         if outcome.from_ik:
             self.query_one("#theta", AnglesInput).set_values(rec["theta_deg"], digits=3)
+        elif outcome.rpy_deg is not None:  # the orientation fields show this pose's, not older ones
+            self.query_one("#rpy", AnglesInput).set_values(outcome.rpy_deg)
         self.query_one("#fk-result", Static).update(Content(fk_text(rec)))
         self.console.fk_done = True
         self.console.view.show_target(np.asarray(rec["theta_deg"], float))

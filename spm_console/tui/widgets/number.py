@@ -62,6 +62,8 @@ class NumberRule:
         lo = "−∞" if math.isinf(self.lo) else f"{self.lo:g}"
         hi = "∞" if math.isinf(self.hi) else f"{self.hi:g}"
         words = f"{self.limits} " if self.limits else ""
+        if self.lo_open:  # "0 must be above 0°" and "15 is outside (0, 10]°" agree
+            return f"{words}({lo}, {hi}]{self.unit}"
         return f"{words}{lo}…{hi}{self.unit}"
 
     def parse(self, text: str) -> float:
