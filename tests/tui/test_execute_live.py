@@ -118,3 +118,13 @@ async def test_during_a_real_execution_the_timing_line_updates(console) -> None:
         measured = [float(str(c).strip().rstrip("°"))
                     for c in app.screen.query_one("#joints", DataTable).get_row_at(0)[2:3]]
         np.testing.assert_allclose(measured, [95.0], atol=1.0)
+
+
+def test_after_a_run_the_table_shows_the_last_position_read() -> None:
+    """A run whose last cycle lost its reply: the table shows where the wrist ended (the last
+    sample read), not "no reply" beside the final θ."""
+    from spm_console.tui.screens.execute import _last_read
+
+    samples = [sample(0), sample(1), sample(2, ok=False), sample(3, ok=False)]
+    assert _last_read(samples) is samples[1]
+    assert _last_read(samples[2:]) is samples[3]  # nothing read: the last one

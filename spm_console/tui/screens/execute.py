@@ -103,6 +103,12 @@ class LiveTiming:
                           stale_replies=self.stale_replies)
 
 
+def _last_read(samples: list[Sample]) -> Sample:
+    """The last sample whose position read succeeded (after a run the table shows where the
+    wrist ended, not a final cycle's lost reply), else the last one."""
+    return next((s for s in reversed(samples) if s.read_ok), samples[-1])
+
+
 def _angle(x: float, fmt: str) -> str:
     return f"{x:{fmt}}°" if math.isfinite(x) else NO_REPLY
 
@@ -252,7 +258,7 @@ class ExecuteScreen(StepScreen):
                      f"{st.clamped} periods with the target clamped into its region")
         self.query_one("#exec-outcome", Static).update(Content(text))
         if self.console.live_samples:  # the jog's last sample and its plot
-            self.show_sample(self.console.live_samples[-1], clock=False)
+            self.show_sample(_last_read(self.console.live_samples), clock=False)
             self.draw_plot()
         if ex.ok:
             self.status.ok(f"live jog completed: {ex.message}. Press 6 to look at the log")
@@ -332,8 +338,8 @@ class ExecuteScreen(StepScreen):
         result = outcome.result
         self.console.moving = False
         self.console.after_motion(result)
-        if self.console.live_samples:
-            self.show_sample(self.console.live_samples[-1])  # telemetry is throttled: the last
+        if self.console.live_samples:  # (telemetry is throttled: the last one sent)
+            self.show_sample(_last_read(self.console.live_samples))
         if result.ok:
             self._progress(100)
             self.query_one("#exec-clock", Static).update(
