@@ -167,3 +167,22 @@ async def test_every_steps_footer_keys_show_whole_at_80_columns(console: Any) ->
         await settle(pilot)
         await pilot.pause(0.05)
         assert "palette" in screen_text(app).splitlines()[-1]
+
+
+async def test_notices_never_cover_the_status_line_or_the_step_bar(console: Any) -> None:
+    from textual.widgets._toast import Toast
+
+    app = console()
+    async with app.run_test(size=SMALL, notifications=True) as pilot:
+        await settle(pilot)
+        app.screen.status.ok("homed: executed 18 cycles (0.36 s). Log: /somewhere/long")
+        app.notify("Settings applied: a notice several words long to take some room.",
+                   title="Settings", timeout=30)
+        await pilot.pause(0.3)
+        toasts = list(app.screen.query(Toast))
+        assert toasts, "no notice shown"
+        status = app.screen.query_one("#status").region
+        steps = app.screen.query_one("#steps-line").region
+        for t in toasts:
+            assert not t.region.overlaps(status), (t.region, status)
+            assert not t.region.overlaps(steps), (t.region, steps)
