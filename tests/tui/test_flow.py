@@ -71,3 +71,21 @@ async def test_whole_flow_by_keys(console, tmp_path) -> None:
     assert app.return_code == 0
     assert len(list_runs(tmp_path / "logs")) == 2
     assert app.session.bus is None and app.session.emulator is None  # closed on quit
+
+
+def test_the_hint_on_the_step_it_names_says_what_to_do_there() -> None:
+    """"press 2 (F2) for an FK check" on step 2 itself read oddly: there it names the key of
+    the step's own action; elsewhere the step's key."""
+    import threading
+    from types import SimpleNamespace
+
+    from spm_console.tui.widgets.steps import next_hint
+
+    homed = SimpleNamespace(moving=threading.Event(), bus=object(), homed=True, workspace=None,
+                            plan=None, last_run=None, plan_info={})
+    elsewhere = next_hint(homed, current="connect")  # type: ignore[arg-type]
+    assert elsewhere == "Next: press 2 (F2) for an FK check, or 3 (F3) for the workspace."
+    here = next_hint(homed, current="fk")  # type: ignore[arg-type]
+    assert here == "Next: type θ and press f for an FK check, or 3 (F3) for the workspace."
+    there = next_hint(homed, current="workspace")  # type: ignore[arg-type]
+    assert there.endswith("or press l to load the workspace.")

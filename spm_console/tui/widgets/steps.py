@@ -73,8 +73,26 @@ def done_steps(session: Session) -> set[str]:
     return done
 
 
-def next_hint(session: Session, fk_done: bool = False) -> str:
-    """The obvious next step, as one sentence with its key."""
+#: What to do on a step to get its work done: the hint says this on that step itself
+#: ("press 2 (F2) for an FK check" read oddly on step 2).
+HERE = {
+    "fk": "type θ and press f for an FK check",
+    "workspace": "press l to load the workspace",
+    "plan": "choose start and goal, then press s to plan a motion",
+    "execute": "press x to execute the plan",
+    "logs": "pick a run and press Enter to look at its log",
+}
+
+
+def next_hint(session: Session, fk_done: bool = False, current: str = "") -> str:
+    """The obvious next step, as one sentence with its key (on the ``current`` step: what to
+    do there)."""
+    def act(mode: str, what: str) -> str:
+        return HERE[mode] if mode == current else f"{press(mode)}{what}"
+
+    def alt(mode: str, what: str) -> str:  # the second choice of a hint
+        return HERE[mode] if mode == current else f"{keys_of(mode)}{what}"
+
     if session.moving.is_set():
         return "The wrist is moving: SPACE stops it."
     if session.bus is None:
@@ -82,18 +100,18 @@ def next_hint(session: Session, fk_done: bool = False) -> str:
     if not session.homed:
         return "Next: press h to home the wrist."
     if not fk_done and session.workspace is None:
-        return f"Next: {press('fk')} for an FK check, or {keys_of('workspace')} for the workspace."
+        return f"Next: {act('fk', ' for an FK check')}, or {alt('workspace', ' for the workspace')}."
     if session.workspace is None:
-        return f"Next: {press('workspace')} to load the workspace."
+        return f"Next: {act('workspace', ' to load the workspace')}."
     if session.plan is None and not fk_done:
-        return (f"Next: {press('fk')} for an FK check, or {keys_of('plan')} to plan a motion "
-                "(s solves).")
+        return (f"Next: {act('fk', ' for an FK check')}, or "
+                f"{alt('plan', ' to plan a motion (s solves)')}.")
     if session.plan is None:
-        return f"Next: {press('plan')} to plan a motion (s solves)."
+        return f"Next: {act('plan', ' to plan a motion (s solves)')}."
     run = session.last_run
     if run is None or session.plan_info.get("executed") is not True:
-        return f"Next: {press('execute')}, then x to execute the plan."
-    return f"Next: {press('logs')} to look at the run log, or {keys_of('plan')} to plan another."
+        return f"Next: {act('execute', ', then x to execute the plan')}."
+    return f"Next: {act('logs', ' to look at the run log')}, or {alt('plan', ' to plan another')}."
 
 
 def step_labels(current: str, done: set[str], width: int) -> Content:
@@ -157,4 +175,5 @@ class StepBar(Vertical):
         view = self.query_one("#view-line", Static)
         view.display = bool(viewer_url)
         view.update(Content.styled(f" 3D view: {viewer_url} (open it in a browser)", "cyan"))
-        self.query_one("#hint-line", Static).update(Content(next_hint(session, fk_done)))
+        self.query_one("#hint-line", Static).update(
+            Content(next_hint(session, fk_done, self.current)))
