@@ -21,6 +21,7 @@ from spm_console.formatting import fmt_deg
 from spm_console.tui.messages import FollowDone, MotionDone, Outcome, Telemetry
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.jog import JogFailure, JogResult, JogScreen
+from spm_console.tui.screens.plan_words import KIND_WORDS
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
@@ -168,7 +169,7 @@ class ExecuteScreen(StepScreen):
             text = "No plan yet: press 4 to plan a motion."
         else:
             p = s.plan
-            text = (f"Plan: {p.kind.upper()} {fmt_deg(p.reference_deg[0])} → "
+            text = (f"Plan: {KIND_WORDS.get(p.kind, p.kind)} {fmt_deg(p.reference_deg[0])} → "
                     f"{fmt_deg(p.reference_deg[-1])}, {p.duration_s:.2f} s, on the {s.bus_label}"
                     + ("" if s.homed else "   (not homed: press 1, then h)"))
         self.query_one("#exec-plan", Static).update(Content(text))
@@ -186,7 +187,8 @@ class ExecuteScreen(StepScreen):
             return
         p = s.plan
         here = fmt_deg(s.theta_deg) if s.theta_deg is not None else "unknown"
-        body = (f"The wrist moves on the {s.bus_label}: {p.kind.upper()} plan of "
+        kind = "minimum-time" if p.kind == "mintime" else KIND_WORDS.get(p.kind, p.kind)
+        body = (f"The wrist moves on the {s.bus_label}: {kind} plan of "
                 f"{p.duration_s:.2f} s from {fmt_deg(p.reference_deg[0])} to "
                 f"{fmt_deg(p.reference_deg[-1])} (now at {here}; a straight approach move at "
                 f"≤ {s.profile.safety.home_speed_degps:g}°/s comes first if needed).\n"

@@ -19,6 +19,7 @@ from spm_console.formatting import fmt_deg
 from spm_console.run.run_info import RunInfo
 from spm_console.tui.messages import Outcome, RunOpened
 from spm_console.tui.screens.base import StepScreen, describe_error
+from spm_console.tui.screens.plan_words import KIND_WORDS
 from spm_console.tui.widgets.plot import PlotView, Series
 
 if TYPE_CHECKING:  # the run-log reader is imported when the screen first lists runs
@@ -46,7 +47,7 @@ def plan_text(info: RunInfo) -> str:
     ends = ("" if p.start_deg is None or p.goal_deg is None
             else f" {fmt_deg(p.start_deg)} → {fmt_deg(p.goal_deg)}")
     length = "" if p.duration_s is None else f", {p.duration_s:.2f} s"
-    return (f"plan: {p.kind.upper()}{ends}{length}"
+    return (f"plan: {KIND_WORDS.get(p.kind, p.kind)}{ends}{length}"
             + (" (after an approach move)" if p.after_approach else ""))
 
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from spm_console.core.plan import Plan
 from spm_console.formatting import fmt_deg
+from spm_console.run.plan_check import BETWEEN_SPEED_ALLOWANCE
 from spm_console.tui.widgets.steps import keys_of
 
 #: CLI wording in planner messages → what it means on the plan step.
@@ -71,13 +72,18 @@ def next_step(message: str) -> str:
     return _GENERIC
 
 
+#: How the console names a plan's kind (the CLI's ``mvn`` / ``mintime``).
+KIND_WORDS = {"mvn": "MVN", "mintime": "Minimum time"}
+
+
 def plan_text(plan: Plan, info: dict[str, Any]) -> str:
     chk = plan.check
     vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
     start = info.get("start_deg", plan.position_deg[0])
     read = " (read from the servos just before solving)" if info.get("start_read") else ""
     lines = [
-        f"{plan.kind.upper()}: {info.get('start', '?')} → {info.get('goal', '?')}",
+        f"{KIND_WORDS.get(plan.kind, plan.kind)}: {info.get('start', '?')} → "
+        f"{info.get('goal', '?')}",
         f"start θ = {fmt_deg(start)}{read}",
         f"goal θ = {fmt_deg(info.get('goal_deg', plan.position_deg[-1]))}",
         f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
@@ -91,8 +97,10 @@ def plan_text(plan: Plan, info: dict[str, Any]) -> str:
         lines.append(f"opened from {info['source']}")
     if chk is not None:
         if not math.isnan(chk.max_speed_between_degps):
-            lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s, outside P by "
-                         f"{chk.region_violation_between_deg:.2g}°")
+            allowed = (f" (allowed: v_max + {BETWEEN_SPEED_ALLOWANCE:.0%} between samples)"
+                       if vmax else "")
+            lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s{allowed}, "
+                         f"outside the plan's region by {chk.region_violation_between_deg:.2g}°")
         lines.append("constraints verified" if chk.ok else "constraints NOT verified")
     if plan.certificate is not None:  # minimum time: N is the smallest feasible horizon
         lines.append(proof_text(plan))
