@@ -211,8 +211,11 @@ class RegionCover:
         """One line: regions, coverage, edges, connectivity."""
         comps = len(np.unique(self.components()))
         conn = "connected" if comps == 1 else f"{comps} components"
-        return (f"cover: {self.size} regions, {100 * self.covered:.1f} % of feasible nodes, "
-                f"{len(self.edges)} overlaps ≥ {self.min_overlap_deg:g}° ({conn})")
+        regions = "P alone" if self.size == 1 else f"{self.size} regions"
+        m = len(self.edges)
+        overlaps = f"{m} overlap{'' if m == 1 else 's'}"
+        return (f"cover: {regions}, {100 * self.covered:.1f} % of feasible nodes, "
+                f"{overlaps} ≥ {self.min_overlap_deg:g}° ({conn})")
 
 
 def cyclic_symmetric(ws: Workspace) -> bool:

@@ -50,7 +50,7 @@ _NEXT: tuple[tuple[tuple[str, ...], str], ...] = (
     (("outside the servo limits", "NOT feasible", "not feasible", "singular", "collid",
       "below the reference limits", "above the reference limits"),
      "change the start or goal fields (the θ or r/p/y you typed, " + _FIELDS + "); the "
-     f"workspace step ({keys_of('workspace')}) checks a θ first (k); then press s."),
+     f"workspace step checks a θ first ({keys_of('workspace')}, then k); then press s."),
 )
 
 _GENERIC = ("change the start, the goal, the method, steps N or v_max (" + _FIELDS + "), "
