@@ -322,34 +322,48 @@ def test_the_sender_keeps_the_order_and_ends_after_the_last_target() -> None:
     assert sender.sent == 5 and sender.error is None
 
 
+async def _jog_after_a_plan_to(app: Any, pilot: Any, goal: Any) -> tuple[Any, Any]:
+    """Home, plan (MVN) to ``goal`` (deg), execute it, then start a jog on step 5: (the jog
+    screen, the execution's result)."""
+    from spm_console.run.operator import PoseSpec
+
+    await settle(pilot)
+    s = app.session
+    await asyncio.to_thread(s.home)
+    s.ensure_workspace()
+    await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"), PoseSpec("theta", goal), 150)
+    done = await asyncio.to_thread(s.execute)
+    assert done.ok, done.message
+    await pilot.press("5")
+    await settle(pilot)
+    jog = await _start_jog(app, pilot)
+    assert jog.target is not None
+    return jog, done
+
+
+async def _end_completed(app: Any, pilot: Any) -> Any:
+    """End the jog with esc: it completes; the run's result."""
+    await pilot.press("escape")
+    await _ended(app, pilot)
+    res = app.session.last_run
+    assert res is not None and res.ok, res.message
+    assert text_of(app, "#exec-outcome").startswith("COMPLETED")
+    return res
+
+
 async def test_jog_starts_where_a_plan_to_a_boundary_pose_left_the_wrist(console) -> None:
     """A plan to a pose no cover region holds (the planner grew a region around it) leaves
     the wrist there; the jog starts from it (the runtime grows its own region around the
     start), the start is not shown clamped, and the jog ends completed."""
-    from spm_console.run.operator import PoseSpec
     from tests.test_follow_runtime import BOUNDARY_NODE
 
     app = console()
     async with app.run_test(size=SIZE) as pilot:
-        await settle(pilot)
-        s = app.session
-        await asyncio.to_thread(s.home)
-        ws = s.ensure_workspace()
+        await _jog_after_a_plan_to(app, pilot, BOUNDARY_NODE)
+        ws = app.session.ensure_workspace()
         assert ws.cover is not None and not ws.cover.containing(np.asarray(BOUNDARY_NODE), tol=1e-3)
-        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
-                                PoseSpec("theta", BOUNDARY_NODE), 150)
-        done = await asyncio.to_thread(s.execute)
-        assert done.ok, done.message
-        await pilot.press("5")
-        await settle(pilot)
-        jog = await _start_jog(app, pilot)
-        assert jog.target is not None
         assert "not clamped" in text_of(app, "#jog-target")
-        await pilot.press("escape")
-        await _ended(app, pilot)
-        res = s.last_run
-        assert res is not None and res.ok, res.message
-        assert text_of(app, "#exec-outcome").startswith("COMPLETED")
+        await _end_completed(app, pilot)
 
 
 async def test_a_refused_jog_keeps_its_reason_on_the_screen(console) -> None:
@@ -377,32 +391,18 @@ async def test_a_refused_jog_keeps_its_reason_on_the_screen(console) -> None:
 async def test_jog_starts_from_the_papers_goal_a_servo_tick_beyond_the_grid(console) -> None:
     """The paper's goal θ2 = 155° is the grid's edge; the servo settles on the tick 0.04°
     beyond it. The jog is not refused: the runtime moves the wrist just inside first."""
-    from spm_console.run.operator import PoseSpec
-
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
-        s = app.session
-        await asyncio.to_thread(s.home)
-        ws = s.ensure_workspace()
-        goal = (66.80, float(ws.axes_deg[1][-1]), 131.48)
-        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"), PoseSpec("theta", goal), 150)
-        done = await asyncio.to_thread(s.execute)
-        assert done.ok, done.message
-        assert done.final_deg[1] > ws.axes_deg[1][-1]  # the case: settled beyond the grid
-        await pilot.press("5")
-        await settle(pilot)
-        jog = await _start_jog(app, pilot)
-        assert jog.target is not None
+        edge = float(app.session.ensure_workspace().axes_deg[1][-1])
+        goal = (66.80, edge, 131.48)
+        jog, done = await _jog_after_a_plan_to(app, pilot, goal)
+        assert done.final_deg[1] > edge  # the case: settled beyond the grid
         # the target starts just inside the grid, not where no region reaches
-        assert jog.target.theta_deg[1] < goal[1] and "not clamped" in text_of(app, "#jog-target")
+        assert jog.target.theta_deg[1] < edge and "not clamped" in text_of(app, "#jog-target")
         await pilot.press("m", "down")  # per joint; θ2 one step in
         assert jog.target.mode == "joint"
         want = jog.target.theta_deg.copy()
-        assert want[1] < goal[1] - 0.5 * jog.target.step_deg
-        await pilot.press("escape")
-        await _ended(app, pilot)
-        res = s.last_run
-        assert res is not None and res.ok, res.message
-        assert text_of(app, "#exec-outcome").startswith("COMPLETED")
+        assert want[1] < edge - 0.5 * jog.target.step_deg
+        res = await _end_completed(app, pilot)
         np.testing.assert_allclose(res.final_deg, want, atol=SETTLED_DEG)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import html
 import re
 from collections import defaultdict
+from collections.abc import AsyncIterator
 from typing import Any
 
 from rich.cells import cell_len
@@ -28,14 +29,20 @@ def screen_text(app: Any) -> str:
     return "\n".join("".join(t for _x, t in sorted(rows[y])) for y in sorted(rows))
 
 
+async def each_step(app: Any, pilot: Any) -> AsyncIterator[Any]:
+    """Switch to every step in turn by its F-key (settled): yields the step."""
+    await settle(pilot)
+    for s in STEPS:
+        await pilot.press(s.fkey)
+        await settle(pilot)
+        assert app.current_mode == s.mode
+        yield s
+
+
 async def test_the_step_bar_shows_every_step_at_80_columns(console) -> None:
     app = console()
     async with app.run_test(size=SMALL) as pilot:
-        await settle(pilot)
-        for s in STEPS:
-            await pilot.press(s.fkey)
-            await settle(pilot)
-            assert app.current_mode == s.mode
+        async for s in each_step(app, pilot):
             line = text_of(app, "#steps-line")
             assert cell_len(line) <= SMALL[0]
             for t in STEPS:
@@ -152,10 +159,7 @@ async def test_every_steps_footer_keys_show_whole_at_80_columns(console: Any) ->
 
     app = console()
     async with app.run_test(size=SMALL) as pilot:
-        await settle(pilot)
-        for s in STEPS:
-            await pilot.press(s.fkey)
-            await settle(pilot)
+        async for s in each_step(app, pilot):
             await pilot.pause(0.05)  # the footer recomposes after a resize or a step change
             last = screen_text(app).splitlines()[-1]
             keys = [k.description for k in app.screen.query(FooterKey) if k.description]
