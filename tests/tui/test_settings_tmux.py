@@ -44,8 +44,8 @@ def test_switch_profile_and_grid_step_restarts_in_the_same_terminal(tmp_path: Pa
         t.wait_for(r"Restart with the new settings\?")
         assert "coaxial_spm" in t.screen()
         t.keys("y")
-        # the toast wraps: its words, in order
-        t.wait_for(r"(?s)Settings applied: profile \S*coaxial_spm\.toml,.*grid[\s▌]+step 10°")
+        # the notice wraps (at the top right, beside the servo table): its words, in order
+        t.wait_for(r"(?s)Settings applied: profile \S*coaxial_spm\.toml,.*grid.*step 10°")
         screen = t.wait_for(r"press h to home")  # the new console starts at the connect step
         assert "profile coaxial_spm" in screen
         # the old session closed: its motion process and emulator are gone, not doubled
