@@ -123,30 +123,31 @@ class Follower(Executor):
         graph = follow_regions(self.verifier.ws, start)  # BadInputError: why not
         regions = graph.regions
         self.hopper = RegionHopper(graph, start)
-        if start is not theta0:  # just beyond the grid: plans start where the wrist moves in to
-            start = self._approach_point(theta0, regions[self.hopper.current])
+        # just beyond the grid: the wrist first moves in, plans start from where it moves to
+        approach = (None if start is theta0
+                    else self._approach_point(theta0, regions[self.hopper.current]))
+        begin = theta0 if approach is None else approach
         vmax = self.profile.limits.vmax_degps
         # one solver per region, built before torque-on (about 15 ms each: not in the loop)
         self.solvers = [FollowSolver(self.model, r, vmax, HORIZON, self.lo, self.hi,
                                      settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S))
                         for r in regions]
         targets, _ = feed.targets(0.0, self.ts, HORIZON, theta0)
-        idx, goal = self.hopper.aim(start, targets[-1])
-        first = self.solvers[idx].solve(start, np.zeros(3), _aimed(feed, targets, goal),
+        idx, goal = self.hopper.aim(begin, targets[-1])
+        first = self.solvers[idx].solve(begin, np.zeros(3), _aimed(feed, targets, goal),
                                         warm=False, timed=False)  # cold, before torque-on
-        if not first.ok or not self._plan_ok(first, start, np.zeros(3), start):
+        if not first.ok or not self._plan_ok(first, begin, np.zeros(3), begin):
             raise BadInputError(f"live following cannot start from θ = "
                                 f"{fmt_deg(theta0)}: {first.reason or first.status}")
         self._times: list[float] = []
         self._counts = {"solves": 0, "adopted": 0, "misses": 0, "refused": 0, "clamped": 0,
                         "approach": 0}
-        moved = start is not theta0
         self._event("start", theta0_deg=theta0, mode="follow", live=feed.live,
                     horizon=HORIZON, budget_ms=SOLVE_BUDGET_S * 1e3, deadman_s=feed.deadman_s,
                     region=self.hopper.current, regions=len(self.solvers),
-                    grown_around_start=graph.grown, **({"start_deg": start} if moved else {}))
-        result = self._guarded(theta0, lambda: self._follow_loop(feed, theta0, first,
-                                                                 start if moved else None),
+                    grown_around_start=graph.grown,
+                    **({} if approach is None else {"start_deg": approach}))
+        result = self._guarded(theta0, lambda: self._follow_loop(feed, theta0, first, approach),
                                lambda: f"followed for {len(self.samples) * self.ts:.2f} s")
         return result
 
