@@ -56,6 +56,17 @@ def test_delay_is_fitted_when_asked() -> None:
     assert abs(plain.p / 32.22 - 1) > 0.05
 
 
+@pytest.mark.parametrize("clock_s", [0.0, 78_000.0])
+def test_a_small_delay_is_fitted_on_a_clock_far_from_zero(clock_s: float) -> None:
+    """A delay of a few ms (a goal written after the read, as the executor does), on a log
+    whose clock reads ~1e5 s (perf_counter): the fit leaves the delay's bound of 0."""
+    t, ref = _steps()
+    meas = _quantize(response(32.22, 0.002, t, ref, ref[0]))
+    res = identify(t + clock_s, ref, meas, fit_delay=True)
+    assert res.delay_s == pytest.approx(0.002, abs=0.0005)
+    assert abs(res.p / 32.22 - 1) < 0.01
+
+
 def test_single_joint_step_and_irregular_times() -> None:
     rng = np.random.default_rng(1)
     t = np.cumsum(rng.uniform(0.018, 0.022, 50))
@@ -97,19 +108,22 @@ def _bus_steps(agile) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:  # ty
         plan = [home] * 3 + [step1] * 30 + [step2] * 30
         ts, refs, meas = [], [], []
         worst = 0.0
+
+        def read() -> np.ndarray:  # a reply a loaded machine read late: retried, a disturbance
+            nonlocal worst
+            for _attempt in range(2):
+                try:
+                    return bus.read_position_deg()
+                except CommError:
+                    worst = float("inf")
+            return bus.read_position_deg()
+
         t_next = time.perf_counter()
         for ref in plan:
             while time.perf_counter() < t_next:
                 time.sleep(0.0005)
             ts.append(time.perf_counter())
-            for attempt in range(3):  # read, then send: the reference acts after t_k
-                try:
-                    meas.append(bus.read_position_deg())
-                    break
-                except CommError:  # a reply a loaded machine read late: retried, a disturbance
-                    worst = float("inf")
-                    if attempt == 2:
-                        raise
+            meas.append(read())  # read, then send: the reference acts after t_k
             bus.write_goal_deg(ref)
             worst = max(worst, ts[-1] - t_next, time.perf_counter() - ts[-1])
             t_next += TS
@@ -121,11 +135,13 @@ def test_recovers_p_from_the_emulated_bus(agile) -> None:  # type: ignore[no-unt
     """Step responses read back through the emulator (real protocol over a pty, 4096 ticks).
     The emulator's servos move in real time, so a cycle a loaded machine ran late skews the
     record: such a record (a cycle > 3 ms late or slow, a read retried) is taken again, at
-    most twice."""
-    for _attempt in range(3):
-        t, refs, meas, worst = _bus_steps(agile)
-        if worst <= 0.003:
+    most four times, and the least disturbed record is fitted."""
+    records = []
+    for _attempt in range(5):
+        records.append(_bus_steps(agile))
+        if records[-1][3] <= 0.003:
             break
+    t, refs, meas, _worst = min(records, key=lambda r: r[3])
     res = identify(t, refs, meas, fit_delay=True)
     assert abs(res.p / agile.servo.p - 1) < 0.02
     assert res.delay_s < 0.01

@@ -30,6 +30,12 @@ P_BOUNDS = (0.5, 1000.0)
 """Search range of p, rad/s."""
 DELAY_MAX_S = 0.25
 """Largest pure delay considered, s."""
+DELAY_GRID_S = (0.0, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.15)
+"""Delays (s) of the coarse grid the fit starts from."""
+DIFF_STEP_P = 1e-6
+"""Finite-difference step of p, relative."""
+DIFF_STEP_ABS = 1e-6
+"""Finite-difference step of the delay (s) and of θ0 (deg)."""
 
 
 @dataclass(frozen=True)
@@ -59,6 +65,23 @@ class IdentifyResult:
         d = asdict(self)
         d["theta0_deg"] = self.theta0_deg.tolist()
         return d
+
+
+def _forward_jacobian(resid: Any, v: F, hi: list[float]) -> F:
+    """Forward differences with absolute steps: p by 1e-6 of itself, the delay by 1 µs, each
+    θ0 by 1e-6°. (least_squares' relative steps vanish for a delay at its bound of 0, which
+    left the delay where the coarse grid put it.) A step that would cross the upper bound is
+    taken backwards."""
+    r0 = resid(v)
+    out = np.empty((r0.size, v.size))
+    for i in range(v.size):
+        h = DIFF_STEP_P * max(abs(v[0]), 1.0) if i == 0 else DIFF_STEP_ABS
+        if v[i] + h > hi[i]:
+            h = -h
+        w = v.copy()
+        w[i] += h
+        out[:, i] = (resid(w) - r0) / h
+    return out
 
 
 def _as2d(a: F, n: int, what: str) -> F:
@@ -122,15 +145,20 @@ def identify(t: F, reference: F, measured: F, fit_delay: bool = False) -> Identi
     if excitation <= 0:
         raise BadInputError("the reference never moves: nothing to identify")
 
+    tt = tt - tt[0]  # a log's clock may read 1e5 s: a microsecond must still move an event
+
     def resid(v: F) -> F:
         p, d = v[0], (v[1] if fit_delay else 0.0)
         th0 = v[2:] if fit_delay else v[1:]
         return (response(p, d, tt, ref, th0) - meas).ravel()
 
+    def jac(v: F) -> F:
+        return _forward_jacobian(resid, v, hi)
+
     th_init = meas[0].copy()
     best = None
     for p in np.geomspace(2.0, 400.0, 12):
-        for d in (np.linspace(0, DELAY_MAX_S * 0.6, 4) if fit_delay else [0.0]):
+        for d in (DELAY_GRID_S if fit_delay else [0.0]):
             v = np.r_[p, d, th_init] if fit_delay else np.r_[p, th_init]
             c = float(np.sum(resid(v) ** 2))
             if best is None or c < best[0]:
@@ -139,7 +167,7 @@ def identify(t: F, reference: F, measured: F, fit_delay: bool = False) -> Identi
     lo = [P_BOUNDS[0]] + ([0.0] if fit_delay else []) + [-np.inf] * J
     hi = [P_BOUNDS[1]] + ([DELAY_MAX_S] if fit_delay else []) + [np.inf] * J
     v0 = np.clip(best[1], np.array(lo) + 1e-9, np.array(hi) - 1e-9)
-    sol = least_squares(resid, v0, bounds=(lo, hi), x_scale="jac", diff_step=1e-6,
+    sol = least_squares(resid, v0, jac=jac, bounds=(lo, hi), x_scale="jac",
                         xtol=1e-12, ftol=1e-12, gtol=1e-12)
     if not sol.success:
         raise SolverError(f"identification did not converge: {sol.message}")

@@ -322,9 +322,24 @@ def test_the_sender_keeps_the_order_and_ends_after_the_last_target() -> None:
     assert sender.sent == 5 and sender.error is None
 
 
+def _settled_deg(session: Any, timeout_s: float = 2.0) -> Any:
+    """The wrist's position once three reads in a row agree (the servos reach their last
+    goal's tick after a run's last cycle; how far they got by then depends on the host)."""
+    import time
+
+    reads = [session.read_position()]
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        time.sleep(0.03)
+        reads.append(session.read_position())
+        if len(reads) >= 3 and all(np.array_equal(r, reads[-1]) for r in reads[-3:]):
+            break
+    return reads[-1]
+
+
 async def _jog_after_a_plan_to(app: Any, pilot: Any, goal: Any) -> tuple[Any, Any]:
-    """Home, plan (MVN) to ``goal`` (deg), execute it, then start a jog on step 5: (the jog
-    screen, the execution's result)."""
+    """Home, plan (MVN) to ``goal`` (deg), execute it, wait for the wrist to settle, then start
+    a jog on step 5: (the jog screen, the settled joint angles, deg)."""
     from spm_console.run.operator import PoseSpec
 
     await settle(pilot)
@@ -334,11 +349,12 @@ async def _jog_after_a_plan_to(app: Any, pilot: Any, goal: Any) -> tuple[Any, An
     await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"), PoseSpec("theta", goal), 150)
     done = await asyncio.to_thread(s.execute)
     assert done.ok, done.message
+    settled = await asyncio.to_thread(_settled_deg, s)
     await pilot.press("5")
     await settle(pilot)
     jog = await _start_jog(app, pilot)
     assert jog.target is not None
-    return jog, done
+    return jog, settled
 
 
 async def _end_completed(app: Any, pilot: Any) -> Any:
@@ -396,8 +412,8 @@ async def test_jog_starts_from_the_papers_goal_a_servo_tick_beyond_the_grid(cons
         await settle(pilot)
         edge = float(app.session.ensure_workspace().axes_deg[1][-1])
         goal = (66.80, edge, 131.48)
-        jog, done = await _jog_after_a_plan_to(app, pilot, goal)
-        assert done.final_deg[1] > edge  # the case: settled beyond the grid
+        jog, settled = await _jog_after_a_plan_to(app, pilot, goal)
+        assert settled[1] > edge  # the case: settled beyond the grid
         # the target starts just inside the grid, not where no region reaches
         assert jog.target.theta_deg[1] < edge and "not clamped" in text_of(app, "#jog-target")
         await pilot.press("m", "down")  # per joint; θ2 one step in
