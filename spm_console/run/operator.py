@@ -74,8 +74,8 @@ class PoseSpec:
     """θ1..θ3 (deg) for 'theta'; roll, pitch, yaw from home (deg) for 'rpy'."""
 
     def describe(self) -> str:
-        v = ", ".join(f"{x:g}" for x in self.values)
-        return {"theta": f"θ = [{v}]°", "rpy": f"roll/pitch/yaw = [{v}]°",
+        v = fmt_deg(self.values)  # the format of every other message
+        return {"theta": f"θ = {v}", "rpy": f"roll/pitch/yaw = {v}",
                 "current": "current pose", "home": "home"}[self.kind]
 
 

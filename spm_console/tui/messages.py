@@ -22,6 +22,9 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class Connected:
     state: BusState
+    restarted_emulator: bool = False
+    """A connection replaced an emulated one: the emulated servos started again (at the
+    profile's initial pose, torque off, not homed)."""
 
 
 @dataclass(frozen=True)
@@ -118,10 +121,13 @@ class Done(Message):
 class Failed(Message):
     """A blocking operation failed with a message for the operator (no traceback)."""
 
-    def __init__(self, op: str, message: str) -> None:
+    def __init__(self, op: str, message: str, solver_failed: bool = False) -> None:
         super().__init__()
         self.op = op
         self.message = message
+        self.solver_failed = solver_failed
+        """A solver (or the code) failed; False when the request was refused with a reason
+        (bad input, an end not feasible, no feasible plan)."""
 
 
 class Telemetry(Message):

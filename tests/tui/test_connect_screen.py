@@ -28,6 +28,25 @@ async def test_connects_on_start_and_lists_each_servo(console) -> None:
         assert "press h to home" in text_of(app, "#hint-line")
 
 
+async def test_reconnecting_the_emulated_bus_says_the_servos_started_again(console) -> None:
+    """c on the emulated bus starts new emulated servos (initial pose, torque off): the
+    status line says so instead of a plain "connected" beside a wrist that jumped."""
+    app = console(initial_deg=(125.0, 140.0, 130.0))
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        assert "started again" not in status_of(app)  # the first connection restarts nothing
+        await pilot.press("h", "y")
+        await settle(pilot)
+        assert app.session.homed, status_of(app)
+        await pilot.press("c")
+        await settle(pilot)
+        status = status_of(app)
+        assert "3 servos answer" in status and "servos started again at θ = [" in status, status
+        shown = status.split("θ = [")[1].split("]°")[0]
+        np.testing.assert_allclose([float(x) for x in shown.split(",")], [125, 140, 130], atol=0.1)
+        assert "not homed" in status and not app.session.homed
+
+
 async def test_home_asks_first_and_no_moves_nothing(console, tmp_path) -> None:
     app = console(initial_deg=(125.0, 140.0, 130.0))
     async with app.run_test(size=SIZE) as pilot:

@@ -73,6 +73,11 @@ async def test_execute_runs_the_plan_live_and_logs_it(console, tmp_path) -> None
         assert out.startswith("COMPLETED (exit code 0)") and str(res.log_dir) in out
         run = load_run(res.log_dir)
         assert run.meta["outcome"] == "completed" and run.rows >= 51
+        # the time shown here is the one the Logs step lists for the run (its servo loop)
+        from spm_console.tui.screens.logs import RUN_COLUMNS, run_row
+
+        loop = run_row(run.info)[RUN_COLUMNS.index("loop")]
+        assert text_of(app, "#exec-clock") == f"done: servo loop {loop}"
         assert "press 6" in text_of(app, "#hint-line")
         assert "F5 ✔" in text_of(app, "#steps-line")
 

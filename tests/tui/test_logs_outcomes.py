@@ -54,8 +54,8 @@ async def test_stopped_runs_say_e_stop_or_communication_lost_with_exit_codes(
             "stopped", "22", "communication lost")
         done, killed = rows[names["completed"]], rows[names["killed"]]
         assert (done["outcome"], done["exit"], done["reason"]) == ("completed", "0", "")
-        assert (killed["outcome"], killed["exit"], killed["duration"]) == ("killed", "", "–")
-        assert done["plan"] == "mvn" and done["duration"].endswith(" s")
+        assert (killed["outcome"], killed["exit"], killed["loop"]) == ("killed", "", "–")
+        assert done["plan"] == "mvn" and done["loop"].endswith(" s")
 
         await pilot.press("down", "enter")  # the communication loss
         await settle(pilot)
@@ -64,7 +64,7 @@ async def test_stopped_runs_say_e_stop_or_communication_lost_with_exit_codes(
         assert "stop reason: communication lost" in out and "E-stop" not in out
         assert "plan: MVN [135.00, 135.00, 135.00]° → [95.00, 110.00, 105.00]°, 1.00 s" in out
         assert "(after an approach move)" in out
-        assert "servo loop 0.40 s, 20 cycles" in out and "duration " in out
+        assert "servo loop 0.40 s (20 cycles)" in out and "wall time " in out
 
         await pilot.press("down", "enter")  # the E-stop
         await settle(pilot)
@@ -180,7 +180,7 @@ async def test_at_80_columns_the_highlighted_run_shows_outcome_exit_reason_durat
         await pilot.press("down")  # the communication loss
         rows = _rows(app)
         comm = rows[names["comm"]]
-        want = f"▸ stopped · exit 22 · communication lost · {comm['duration']} · plan mvn"
+        want = f"▸ stopped · exit 22 · communication lost · servo loop {comm['loop']} · plan mvn"
         assert text_of(app, "#run-line") == want
         assert app.screen.query_one("#runs").region.width >= 72  # the table: all the width
 

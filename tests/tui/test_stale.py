@@ -53,14 +53,37 @@ async def test_a_failed_solve_clears_the_plan_it_would_have_replaced(
         name = {"mvn": "MVN", "mintime": "minimum-time"}[method]
         assert app.session.plan is None  # nothing left that "execute" could run
         out = text_of(app, "#plan-text")
-        assert out.startswith(f"No plan: the {name} solve failed."), out
+        # a goal refused with its reason is not a solver's failure
+        assert out.startswith(f"No {name} plan:\n"), out
+        assert "solve failed" not in out
         assert "N = 60" not in out and "\nNext: " in out
         assert why in out
         assert text_of(app, "#plan-plot") == "no plan"
         assert cleared  # the 3D path preview of the old plan is gone
         status = status_of(app)
-        assert status.startswith(f"{name} solve failed (no plan now): {why}"), status
+        assert status.startswith(f"no {name} plan: {why}"), status
         assert "✔ Plan" not in text_of(app, "#steps-line")
+
+
+async def test_a_solver_failure_is_told_apart_from_a_refusal(console: Any) -> None:
+    """Only a solver that failed reads "the … solve failed" (a refused request gives its
+    reason under "No … plan:", see above)."""
+    from spm_console.errors import SolverError
+
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await _plan_screen(pilot)
+
+        def fail(*_: Any, **__: Any) -> None:
+            raise SolverError("the QP solvers failed on the MVN problem (N = 60): a test's reason")
+
+        app.session.solve_plan = fail  # type: ignore[method-assign,assignment]
+        await pilot.press("s")
+        await settle(pilot)
+        out = text_of(app, "#plan-text")
+        assert out.startswith("No plan: the MVN solve failed.\n"), out
+        assert status_of(app).startswith("MVN solve failed (no plan now): the QP solvers"), \
+            status_of(app)
 
 
 async def test_a_failed_fk_clears_the_previous_result(console: Any) -> None:

@@ -106,7 +106,7 @@ def solve_problem(problem: PlanProblem, guess: F | None = None,
         extra = f" under v_max = {problem.vmax_degps}°/s" if problem.vmax_degps else ""
         raise InfeasibleError(
             f"no reference reaches the goal in N = {problem.N} steps ({problem.N * problem.model.ts:g} s)"
-            f"{extra} inside the region ({out.method}); use more steps or 'plan mintime'")
+            f"{extra} inside the region (infeasibility certified); use more steps or 'plan mintime'")
     if out.status != "solved":
         raise SolverError(f"the QP solvers failed on the MVN problem (N = {problem.N}): "
                           f"{out.status} {out.detail}")

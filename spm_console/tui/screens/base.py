@@ -29,7 +29,7 @@ from textual.widget import Widget
 from textual.widgets import Footer, Input, Select, TextArea
 from textual.worker import get_current_worker
 
-from spm_console.errors import SpmError
+from spm_console.errors import SolverError, SpmError
 from spm_console.tui.messages import Done, Failed, Outcome
 from spm_console.tui.widgets.estop import ESTOP_KEY, EstopBanner
 from spm_console.tui.widgets.footer import ConsoleFooter
@@ -250,7 +250,8 @@ class StepScreen(Screen[None]):
             result = fn()
         except BaseException as exc:  # every failure becomes a message, never a traceback
             if not get_current_worker().is_cancelled:
-                self.post_message(Failed(op, describe_error(exc)))
+                solver = isinstance(exc, SolverError) or not isinstance(exc, SpmError)
+                self.post_message(Failed(op, describe_error(exc), solver))
             return
         if not get_current_worker().is_cancelled:
             self.post_message(Done(op, result))

@@ -132,12 +132,13 @@ class ConnectScreen(StepScreen):
 
         def connect() -> Connected:
             self._health_error = ""
+            restarted = s.sim and s.bus is not None
             state = s.connect()
             try:  # the table full at once (the timer keeps it fresh)
                 s.servo_status()
             except SpmError as exc:
                 self._health_error = exc.message
-            return Connected(state)
+            return Connected(state, restarted)
 
         self.run_blocking("connect", connect, f"connecting to the {s.bus_label} …")
 
@@ -277,7 +278,12 @@ class ConnectScreen(StepScreen):
     def handle_done(self, outcome: Outcome) -> None:
         if isinstance(outcome, Connected):
             n = len(outcome.state.statuses)
-            self.status.ok(f"connected: {n} servos answer on the {self.session.bus_label}")
+            restart = ""
+            if outcome.restarted_emulator:
+                restart = (": the emulated servos started again at θ = "
+                           f"{fmt_deg(self.session.theta_deg)}, torque off, not homed "
+                           "(press h to home)")
+            self.status.ok(f"connected: {n} servos answer on the {self.session.bus_label}{restart}")
         elif isinstance(outcome, PositionRead):
             self.status.ok(f"θ = {fmt_deg(outcome.theta_deg)}")
         elif isinstance(outcome, ServoToolDone):

@@ -345,7 +345,7 @@ class ExecuteScreen(StepScreen):
         if result.ok:
             self._progress(100)
             self.query_one("#exec-clock", Static).update(
-                Content(f"done: {result.stats.duration_s:.2f} s"))
+                Content(f"done: servo loop {result.stats.duration_s:.2f} s"))
         elif result.stats.stop is not None:
             self.query_one("#exec-clock", Static).update(
                 Content(f"stopped at {result.stats.stop.detected_t:.2f} s"))

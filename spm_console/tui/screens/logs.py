@@ -32,7 +32,8 @@ FILTERS: tuple[str, ...] = ("all", "completed", "stopped", "refused", "killed", 
 
 #: The reason last: the only long column (at 80 columns it is the one cut; the line above
 #: the table names the highlighted run's whole reason).
-RUN_COLUMNS = ("run", "kind", "outcome", "exit", "duration", "plan", "reason")
+RUN_COLUMNS = ("run", "kind", "outcome", "exit", "loop", "plan", "reason")
+"""``loop``: how long the servo loop ran (the time Execute reports when a run ends), s."""
 
 
 def _secs(x: float | None) -> str:
@@ -69,7 +70,7 @@ def short_reason(reason: str, width: int = REASON_CHARS) -> str:
 def run_row(info: RunInfo) -> tuple[str, ...]:
     """The runs table's cells of one run (RUN_COLUMNS)."""
     return (info.name, info.kind, info.outcome,
-            "" if info.exit_code is None else str(info.exit_code), _secs(info.duration_s),
+            "" if info.exit_code is None else str(info.exit_code), _secs(info.loop_s),
             "" if info.plan is None else info.plan.kind, short_reason(info.reason))
 
 
@@ -78,7 +79,8 @@ def run_line(info: RunInfo) -> str:
     columns show only the first three): outcome, exit code, the whole stop reason (the line
     wraps), duration and plan kind."""
     parts = [info.outcome, "exit –" if info.exit_code is None else f"exit {info.exit_code}",
-             " ".join(info.reason.split()), _secs(info.duration_s),
+             " ".join(info.reason.split()),
+             "" if info.loop_s is None else f"servo loop {_secs(info.loop_s)}",
              "no plan recorded" if info.plan is None else f"plan {info.plan.kind}"]
     return "▸ " + " · ".join(p for p in parts if p)
 
@@ -88,8 +90,8 @@ def run_text(run: RunData) -> str:
     code = "none" if info.exit_code is None else str(info.exit_code)
     started = ("start not recorded" if info.started is None
                else f"started {info.started.astimezone():%Y-%m-%d %H:%M:%S}")
-    loop = ("" if info.loop_s is None
-            else f" (servo loop {info.loop_s:.2f} s, {info.samples or 0} cycles)")
+    loop = ("servo loop not recorded" if info.loop_s is None
+            else f"servo loop {info.loop_s:.2f} s ({info.samples or 0} cycles)")
     lines = [
         f"{info.name}: {info.kind} on {info.bus or '?'}",
         f"outcome {info.outcome} (exit code {code}): {info.message}",
@@ -97,7 +99,7 @@ def run_text(run: RunData) -> str:
     if info.stop_kind is not None:
         lines.append(f"stop reason: {info.stop_label}")
     lines += [
-        f"{started}, duration {_secs(info.duration_s)}{loop}",
+        f"{loop}; {started}, wall time {_secs(info.duration_s)} (set-up included)",
         plan_text(info),
         f"{run.rows} samples, {len(run.events)} events"
         + ("  (last line truncated)" if run.truncated else ""),

@@ -67,6 +67,8 @@ class PlanScreen(StepScreen):
         super().__init__()
         self.plot_kind = 0
         self.solving_method = "mvn"
+        self._solver_failed = False
+        """The last failed solve was a solver's failure (not a refusal with a reason)."""
         self._reading = False
         self._typed: dict[str, list[str]] = {}
         """What the operator typed into the start / goal fields while they show the pose
@@ -332,6 +334,7 @@ class PlanScreen(StepScreen):
         """The planner's words are the CLI's too: put the console's (fields, keys) in their
         place. Runs first; Textual then calls StepScreen.on_failed with the new words."""
         message.message = console_words(message.message)
+        self._solver_failed = message.solver_failed
 
     def handle_failed(self, op: str, message: str) -> None:
         if op == "open":  # the current plan stays: nothing replaced it
@@ -340,9 +343,14 @@ class PlanScreen(StepScreen):
         if op != "solve":
             return  # a failed save replaces nothing: the status line says why
         name = METHOD_NAMES.get(self.solving_method, self.solving_method)
-        self._drop_plan(f"No plan: the {name} solve failed.\n{message}\n"
-                        f"Next: {next_step(message)}")
-        self.status.error(f"{name} solve failed (no plan now): {message}")
+        # a solver that failed, or a request answered with its reason (an end not feasible,
+        # no plan within the bounds): only the first is "the solve failed"
+        if self._solver_failed:
+            head, line = f"No plan: the {name} solve failed.", f"{name} solve failed (no plan now)"
+        else:
+            head, line = f"No {name} plan:", f"no {name} plan"
+        self._drop_plan(f"{head}\n{message}\nNext: {next_step(message)}")
+        self.status.error(f"{line}: {message}")
 
     def _drop_plan(self, text: str) -> None:
         """The plan a refused or failed solve would have replaced is gone from the screen,
