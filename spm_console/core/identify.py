@@ -14,6 +14,7 @@ coarse logarithmic grid of p.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -67,7 +68,7 @@ class IdentifyResult:
         return d
 
 
-def _forward_jacobian(resid: Any, v: F, hi: list[float]) -> F:
+def _forward_jacobian(resid: Callable[[F], F], v: F, hi: list[float]) -> F:
     """Forward differences with absolute steps: p by 1e-6 of itself, the delay by 1 µs, each
     θ0 by 1e-6°. (least_squares' relative steps vanish for a delay at its bound of 0, which
     left the delay where the coarse grid put it.) A step that would cross the upper bound is
