@@ -1,5 +1,5 @@
-"""Step 6: browse the run logs — outcome, exit code, stop reason, duration and plan of each
-run, a filter by outcome, the log root in use — and plot one (reference, measured, model;
+"""Step 6: browse the run logs — outcome, exit code, stop reason, servo-loop time and plan
+of each run, a filter by outcome, the log root in use — and plot one (reference, measured, model;
 velocities)."""
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ def run_row(info: RunInfo) -> tuple[str, ...]:
 def run_line(info: RunInfo) -> str:
     """The highlighted run under the log root, for a table too narrow for its columns (80
     columns show only the first three): outcome, exit code, the whole stop reason (the line
-    wraps), duration and plan kind."""
+    wraps), the servo loop's time and the plan kind."""
     parts = [info.outcome, "exit –" if info.exit_code is None else f"exit {info.exit_code}",
              " ".join(info.reason.split()),
              "" if info.loop_s is None else f"servo loop {_secs(info.loop_s)}",
