@@ -24,8 +24,10 @@ B = NDArray[np.bool_]
 
 #: Tolerance (deg) for "a node lies in P".
 INSIDE_TOL_DEG = 1e-7
-#: Cubes whose closest points :func:`separating_planes` computes first (then twice as many).
+#: Cubes whose closest points :func:`separating_planes` computes at a time (in lower-bound order).
 SEPARATION_BATCH = 512
+#: Candidate minimizers per box in :func:`closest_on_boxes`: the centre, 6 faces, 12 edges.
+_CANDIDATES = 19
 
 
 def half_widths(half: float | F, n: int) -> F:
@@ -54,41 +56,45 @@ def closest_on_boxes(M: F, c: F, lo: F, hi: F) -> tuple[F, F]:
     Exact: the minimizer is the centre (if inside) or lies in the relative interior
     of a face, an edge or at a vertex; every face's unconstrained minimizer and every edge's clipped
     minimizer is a candidate, the best feasible one wins (vertices are covered by
-    the clipped edges).
+    the clipped edges; ties go to the first candidate in that order). The 19 candidates of
+    every box are evaluated together.
     """
     n = len(lo)
-    best = np.full(n, np.inf)
-    arg = np.zeros((n, 3))
     bounds = (lo, hi)
-
-    def consider(x: F) -> None:
-        inside = np.all((x >= lo - 1e-12) & (x <= hi + 1e-12), -1)
-        y = x - c
-        val = np.where(inside, np.einsum("ni,ij,nj->n", y, M, y), np.inf)
-        better = val < best
-        best[better] = val[better]
-        arg[better] = x[better]
-
-    consider(np.broadcast_to(c, (n, 3)).copy())  # centre inside the box
-    for k in range(3):  # faces x_k = const
-        f = [i for i in range(3) if i != k]
-        gain = np.linalg.solve(M[np.ix_(f, f)], M[f, k])
+    X = np.empty((_CANDIDATES, n, 3))
+    X[0] = c  # the centre
+    m = 1
+    for k in range(3):  # faces x_k = const: x_f = c_f − (x_k − c_k) M_ff⁻¹ M_fk
+        p, q = (i for i in range(3) if i != k)
+        det = M[p, p] * M[q, q] - M[p, q] * M[q, p]
+        gp = (M[q, q] * M[p, k] - M[p, q] * M[q, k]) / det
+        gq = (M[p, p] * M[q, k] - M[q, p] * M[p, k]) / det
         for s in (0, 1):
-            x = np.empty((n, 3))
-            x[:, k] = bounds[s][:, k]
-            x[:, f] = c[f] - np.outer(x[:, k] - c[k], gain)
-            consider(x)
+            xk = bounds[s][:, k]
+            dk = xk - c[k]
+            X[m, :, k] = xk
+            X[m, :, p] = c[p] - gp * dk
+            X[m, :, q] = c[q] - gq * dk
+            m += 1
     for i in range(3):  # edges along x_i
-        j, k = (m for m in range(3) if m != i)
+        j, k = (q for q in range(3) if q != i)
         for s1 in (0, 1):
             for s2 in (0, 1):
-                x = np.empty((n, 3))
-                x[:, j] = bounds[s1][:, j]
-                x[:, k] = bounds[s2][:, k]
-                xi = c[i] - (M[i, j] * (x[:, j] - c[j]) + M[i, k] * (x[:, k] - c[k])) / M[i, i]
-                x[:, i] = np.clip(xi, lo[:, i], hi[:, i])
-                consider(x)
-    return arg, best
+                xj, xk = bounds[s1][:, j], bounds[s2][:, k]
+                X[m, :, j] = xj
+                X[m, :, k] = xk
+                xi = c[i] - (M[i, j] * (xj - c[j]) + M[i, k] * (xk - c[k])) / M[i, i]
+                np.minimum(np.maximum(xi, lo[:, i]), hi[:, i], out=X[m, :, i])
+                m += 1
+    inside = np.all((lo - 1e-12 <= X) & (X <= hi + 1e-12), -1)  # (19, n)
+    Y = X - c
+    q = Y[..., 0] * (M[0, 0] * Y[..., 0] + 2.0 * (M[0, 1] * Y[..., 1] + M[0, 2] * Y[..., 2]))
+    q += Y[..., 1] * (M[1, 1] * Y[..., 1] + 2.0 * M[1, 2] * Y[..., 2])
+    q += M[2, 2] * Y[..., 2] * Y[..., 2]
+    val = np.where(inside, q, np.inf)
+    pick = np.argmin(val, axis=0)
+    rows = np.arange(n)
+    return X[pick, rows], val[pick, rows]
 
 
 def box_corners(lo: F, hi: F) -> F:
@@ -139,7 +145,6 @@ def separating_planes(E: Ellipsoid, Q: F, half: float | F, req: F) -> tuple[F, F
     M = E.metric()
     n = len(Q)
     hw = half_widths(half, n)
-    lo, hi = Q - hw[:, None], Q + hw[:, None]
     # Cubes are taken in order of their distance in E's metric (ties by index); the closest
     # points are computed batch by batch, nearest lower bound first, and only for cubes no
     # plane has excluded yet. Bound: a cube lies in the ball of radius √3·hw around its
@@ -149,34 +154,46 @@ def separating_planes(E: Ellipsoid, Q: F, half: float | F, req: F) -> tuple[F, F
     reach = np.sqrt(3.0 * float(np.linalg.eigvalsh(M)[-1])) * hw
     lb = np.maximum(centre - reach, 0.0) ** 2 * (1.0 - 1e-9)
     by_lb = np.argsort(lb, kind="stable")
+    # in that order from here on: cube j below is cube by_lb[j]
+    Qs, hws = Q[by_lb], hw[by_lb]
     X = np.zeros((n, 3))
     dist = np.full(n, np.inf)
-    known = np.zeros(n, bool)
-    alive = np.ones(n, bool)
+    alive = np.ones(n, bool)  # for cubes not yet computed: no plane up to `applied` excludes them
+    applied = 0
+    pending = np.zeros(0, np.int64)  # closest point known, no plane excludes it, not taken
     planes_a: list[F] = []
     planes_b: list[float] = []
-    start, batch = 0, SEPARATION_BATCH
-    while True:
-        nxt = by_lb[start:start + batch]
-        nxt = nxt[alive[nxt]]
+    for start in range(0, n, SEPARATION_BATCH):
+        end = min(start + SEPARATION_BATCH, n)
+        if len(planes_a) > applied:  # the planes found since, on every cube still to compute
+            A, bb = np.asarray(planes_a[applied:]), np.asarray(planes_b[applied:])
+            applied = len(planes_a)
+            gap = Qs[start:] @ A.T - np.outer(hws[start:], np.abs(A).sum(1))
+            alive[start:] &= (gap < bb - 1e-12).all(1)
+        if not len(pending) and not alive[start:].any():
+            break
+        nxt = start + np.flatnonzero(alive[start:end])
         if len(nxt):
-            X[nxt], dist[nxt] = closest_on_boxes(M, E.d, lo[nxt], hi[nxt])
-            known[nxt] = True
-        start += batch
-        batch *= 2
+            X[nxt], dist[nxt] = closest_on_boxes(M, E.d, Qs[nxt] - hws[nxt, None],
+                                                 Qs[nxt] + hws[nxt, None])
         # every cube closer than this bound has its closest point now
-        bound = float(lb[by_lb[start]]) if start < n else np.inf
-        ready = np.flatnonzero(known & alive & (dist < bound))
-        for k in ready[np.argsort(dist[ready], kind="stable")]:
-            if not alive[k]:
+        bound = float(lb[by_lb[end]]) if end < n else np.inf
+        pending = np.concatenate([pending, nxt])
+        now = dist[pending] < bound
+        ready, pending = pending[now], pending[~now]
+        order = ready[np.lexsort((by_lb[ready], dist[ready]))]  # ties by index
+        live = np.ones(len(order), bool)
+        for i in range(len(order)):
+            if not live[i]:
                 continue
+            k = int(order[i])
             a = M @ (X[k] - E.d)
             b = float(a @ X[k])
             if np.linalg.norm(a) < 1e-12:  # centre on the cube's boundary: push away from it
-                a = Q[k] - E.d
-                b = float((box_corners(lo[k], hi[k]) @ a).min())
+                a = Qs[k] - E.d
+                b = float((box_corners(Qs[k] - hws[k], Qs[k] + hws[k]) @ a).min())
             if len(req) and (req @ a > b - 1e-12).any():
-                alt = keeping_plane(req, lo[k], hi[k], a)
+                alt = keeping_plane(req, Qs[k] - hws[k], Qs[k] + hws[k], a)
                 if alt is None:
                     raise InfeasibleError(
                         "a required configuration lies inside an infeasible cell (the cube "
@@ -185,10 +202,10 @@ def separating_planes(E: Ellipsoid, Q: F, half: float | F, req: F) -> tuple[F, F
                 a, b = alt
             planes_a.append(a)
             planes_b.append(b)
-            alive &= (Q @ a - hw * np.abs(a).sum()) < b - 1e-12
-        known[ready] = False  # taken (or excluded)
-        if start >= n:
-            break
+            s_a = np.abs(a).sum()
+            rest = order[i + 1:]
+            live[i + 1:] &= (Qs[rest] @ a - hws[rest] * s_a) < b - 1e-12
+            pending = pending[(Qs[pending] @ a - hws[pending] * s_a) < b - 1e-12]
     if not planes_a:
         return np.zeros((0, 3)), np.zeros(0)
     return np.asarray(planes_a), np.asarray(planes_b)
