@@ -86,7 +86,8 @@ def closest_on_boxes(M: F, c: F, lo: F, hi: F) -> tuple[F, F]:
                 xi = c[i] - (M[i, j] * (xj - c[j]) + M[i, k] * (xk - c[k])) / M[i, i]
                 np.minimum(np.maximum(xi, lo[:, i]), hi[:, i], out=X[m, :, i])
                 m += 1
-    inside = np.all((lo - 1e-12 <= X) & (X <= hi + 1e-12), -1)  # (19, n)
+    lo_t, hi_t = lo - 1e-12, hi + 1e-12
+    inside = np.all((X >= lo_t) & (X <= hi_t), -1)  # (19, n)
     Y = X - c
     q = Y[..., 0] * (M[0, 0] * Y[..., 0] + 2.0 * (M[0, 1] * Y[..., 1] + M[0, 2] * Y[..., 2]))
     q += Y[..., 1] * (M[1, 1] * Y[..., 1] + 2.0 * M[1, 2] * Y[..., 2])
