@@ -61,8 +61,8 @@ def closest_on_boxes(M: F, c: F, lo: F, hi: F) -> tuple[F, F]:
     """
     n = len(lo)
     bounds = (lo, hi)
-    X = np.empty((_CANDIDATES, n, 3))
-    X[0] = c  # the centre
+    pts = np.empty((_CANDIDATES, n, 3))
+    pts[0] = c  # the centre
     m = 1
     for k in range(3):  # faces x_k = const: x_f = c_f − (x_k − c_k) M_ff⁻¹ M_fk
         p, q = (i for i in range(3) if i != k)
@@ -72,30 +72,30 @@ def closest_on_boxes(M: F, c: F, lo: F, hi: F) -> tuple[F, F]:
         for s in (0, 1):
             xk = bounds[s][:, k]
             dk = xk - c[k]
-            X[m, :, k] = xk
-            X[m, :, p] = c[p] - gp * dk
-            X[m, :, q] = c[q] - gq * dk
+            pts[m, :, k] = xk
+            pts[m, :, p] = c[p] - gp * dk
+            pts[m, :, q] = c[q] - gq * dk
             m += 1
     for i in range(3):  # edges along x_i
         j, k = (q for q in range(3) if q != i)
         for s1 in (0, 1):
             for s2 in (0, 1):
                 xj, xk = bounds[s1][:, j], bounds[s2][:, k]
-                X[m, :, j] = xj
-                X[m, :, k] = xk
+                pts[m, :, j] = xj
+                pts[m, :, k] = xk
                 xi = c[i] - (M[i, j] * (xj - c[j]) + M[i, k] * (xk - c[k])) / M[i, i]
-                np.minimum(np.maximum(xi, lo[:, i]), hi[:, i], out=X[m, :, i])
+                np.minimum(np.maximum(xi, lo[:, i]), hi[:, i], out=pts[m, :, i])
                 m += 1
     lo_t, hi_t = lo - 1e-12, hi + 1e-12
-    inside = np.all((X >= lo_t) & (X <= hi_t), -1)  # (19, n)
-    Y = X - c
+    inside = np.all((pts >= lo_t) & (pts <= hi_t), -1)  # (19, n)
+    Y = pts - c
     q = Y[..., 0] * (M[0, 0] * Y[..., 0] + 2.0 * (M[0, 1] * Y[..., 1] + M[0, 2] * Y[..., 2]))
     q += Y[..., 1] * (M[1, 1] * Y[..., 1] + 2.0 * M[1, 2] * Y[..., 2])
     q += M[2, 2] * Y[..., 2] * Y[..., 2]
     val = np.where(inside, q, np.inf)
     pick = np.argmin(val, axis=0)
     rows = np.arange(n)
-    return X[pick, rows], val[pick, rows]
+    return pts[pick, rows], val[pick, rows]
 
 
 def box_corners(lo: F, hi: F) -> F:
