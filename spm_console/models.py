@@ -84,5 +84,11 @@ def grid_spec(profile: Profile) -> GridSpec:
 def build_workspace(profile: Profile, progress: Progress | None = None,
                     refined_cover: bool = False) -> Workspace:
     """The profile's workspace (grid + region P + region cover, refined near the boundary with
-    ``refined_cover``), built by the core from :func:`grid_spec`."""
-    return _build_workspace(grid_spec(profile), progress, refined_cover=refined_cover)
+    ``refined_cover``), built by the core from :func:`grid_spec`. The row-wise parts (link
+    distances, the refinement's exact checks) are split with a forked helper process where
+    that is safe (:mod:`spm_console.forked`: not from a process running threads)."""
+    from spm_console.forked import ForkedRows
+
+    with ForkedRows() as rowmap:
+        return _build_workspace(grid_spec(profile), progress, refined_cover=refined_cover,
+                                rowmap=rowmap)

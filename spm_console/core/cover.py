@@ -85,6 +85,7 @@ from spm_console.core.cover_refine import (
 from spm_console.core.iris import Frame, half_widths
 from spm_console.core.refine import FineGrid
 from spm_console.core.region import Region
+from spm_console.core.rowmap import RowMap, serial
 from spm_console.errors import InfeasibleError, SolverError
 
 if TYPE_CHECKING:
@@ -235,7 +236,8 @@ def _image(region: Region) -> Region:
 
 
 def _obstacles(ws: Workspace, covered: B, fidx: I64, fine: FineGrid | None, refined: bool,
-               report: Callable[[float], None]) -> tuple[F, F, FineObstacles | None]:
+               report: Callable[[float], None],
+               rowmap: RowMap = serial) -> tuple[F, F, FineObstacles | None]:
     """(centres (n, 3) deg, half-widths (n,) deg, the refined set or None): with ``refined``
     and the workspace's models, refined near the nodes P leaves uncovered, else the grid's
     cubes."""
@@ -243,7 +245,7 @@ def _obstacles(ws: Workspace, covered: B, fidx: I64, fine: FineGrid | None, refi
         return rb.obstacle_nodes(ws.feasible, ws.theta_deg()), np.full(1, ws.step_deg), None
     want = np.zeros(ws.feasible.shape, bool)
     want[tuple(fidx[~covered].T)] = True
-    fg = FineGrid(ws) if fine is None else fine
+    fg = FineGrid(ws, rowmap=rowmap) if fine is None else fine
     report(0.0)
     obs = refine_cells(ws, fg, want, report)
     return obs.centres_deg, obs.half_deg, obs
@@ -253,7 +255,7 @@ def build_cover(
     ws: Workspace, target: float = COVER_TARGET, max_regions: int | None = None,
     max_halfspaces: int = COVER_HALFSPACES, iters: int = COVER_ITERS,
     min_overlap_deg: float | None = None, progress: Callable[[float], None] | None = None,
-    fine: FineGrid | None = None, refined: bool = False,
+    fine: FineGrid | None = None, refined: bool = False, rowmap: RowMap = serial,
 ) -> RegionCover:
     """Grow regions from the workspace's P (``ws.region``) until ``target`` of the feasible
     nodes are covered or ``max_regions`` regions exist (default :data:`COVER_MAX_REGIONS`,
@@ -264,7 +266,8 @@ def build_cover(
     deepest inside the uncovered set (fast; ~96.5 % on the 2° Agile Wrist grid). With
     ``refined`` (and the workspace's models) they avoid the refined obstacles instead
     (:mod:`spm_console.core.cover_refine`; ``fine`` memoizes the exact checks), seeds go by
-    local density, and every region is checked clear (≥ 99 %, several times slower)."""
+    local density, and every region is checked clear (≥ 99 %, several times slower). ``rowmap``
+    runs the exact checks of a ``fine`` grid made here (:mod:`spm_console.core.rowmap`)."""
     from scipy.spatial import QhullError  # here: the runtime only loads a cover
 
     if max_regions is None:
@@ -290,7 +293,7 @@ def build_cover(
     obs: FineObstacles | None = None
     if int(covered.sum()) < need:
         centres, half, obs = _obstacles(ws, covered, fidx, fine, refined,
-                                        lambda x: report(refine_share * x))
+                                        lambda x: report(refine_share * x), rowmap)
     else:
         centres, half = np.zeros((0, 3)), np.zeros(1)
     t_refine = time.perf_counter() - t0 if obs is not None else 0.0

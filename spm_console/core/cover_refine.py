@@ -55,7 +55,7 @@ B = NDArray[np.bool_]
 I64 = NDArray[np.int64]
 
 #: Fine nodes checked per call of the exact verdicts (bounds the gap between progress reports).
-VERDICT_CHUNK = 6000
+VERDICT_CHUNK = 24000
 #: Grid cells whose fine nodes are listed at once (bounds the gap between progress reports).
 CELL_CHUNK = 2000
 #: A box is clear of a region when one row's minimum over it is at least b − this (deg), or

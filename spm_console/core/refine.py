@@ -26,12 +26,14 @@ Angles in degrees at this interface.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.certify import CertifiedSet, nodes_near
+from spm_console.core.rowmap import RowMap, serial
 from spm_console.core.workspace_check import check_points, exact_ok, own_steps
 
 if TYPE_CHECKING:
@@ -53,7 +55,8 @@ _UNKNOWN, _INFEASIBLE, _FEASIBLE = -1, 0, 1
 class FineGrid:
     """Memoized exact verdicts of the fine lattice of a workspace (θ in degrees)."""
 
-    def __init__(self, ws: Workspace, refine: int = REFINE) -> None:
+    def __init__(self, ws: Workspace, refine: int = REFINE, rowmap: RowMap = serial) -> None:
+        """``rowmap`` runs the exact checks (:mod:`spm_console.core.rowmap`)."""
         if refine < 4:
             raise ValueError(f"refinement {refine} must be at least 4 (h ≤ Δ/4)")
         self.ws = ws
@@ -68,6 +71,8 @@ class FineGrid:
         self._verdict[::r, ::r, ::r] = np.where(ws.feasible, _FEASIBLE, _INFEASIBLE)
         self.evaluated = 0
         """Fine nodes checked exactly so far (grid nodes and repeats not counted)."""
+        self._rowmap = rowmap
+        self._exact = partial(exact_ok, ws, self.model, self.links)
 
     def theta_deg(self, idx: I64) -> F:
         """θ (deg) of fine nodes (…, 3)."""
@@ -85,7 +90,7 @@ class FineGrid:
         todo = np.unique(flat[table[flat] == _UNKNOWN])
         if len(todo):
             pts = self.theta_deg(np.column_stack(np.unravel_index(todo, self.shape)))
-            ok = exact_ok(self.ws, self.model, self.links, pts)
+            ok = self._rowmap(self._exact, pts)
             table[todo] = np.where(ok, _FEASIBLE, _INFEASIBLE)
             self.evaluated += len(todo)
         return np.asarray(table[flat] == _FEASIBLE).reshape(idx.shape[:-1])

@@ -19,6 +19,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import IntEnum
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,6 +30,7 @@ from spm_console.core.fk_grid import track_grid
 from spm_console.core.kinematics import PATH_ZETA_FLOOR, SpmModel, platform_axes
 from spm_console.core.links import LinkModel
 from spm_console.core.region import Region
+from spm_console.core.rowmap import RowMap, serial
 from spm_console.core.workspace_check import ThetaCheck, check_one
 
 F = NDArray[np.float64]
@@ -36,7 +38,7 @@ B = NDArray[np.bool_]
 
 #: Version of the workspace algorithm and its stored arrays (part of the cache key):
 #: bump it whenever the grid, classification or region construction changes.
-FORMAT_VERSION = 5
+FORMAT_VERSION = 6
 #: Nodes per chunk of the link-distance computation (bounds temporary memory).
 LINK_CHUNK = 1024
 #: Neighbourhood of the home-connectivity flood fill: 6 = face neighbours.
@@ -246,8 +248,10 @@ def _stage(progress: Progress | None, stage: str) -> Callable[[float], None] | N
     return lambda f: progress(stage, f)
 
 
-def build_grid(spec: GridSpec, progress: Progress | None = None) -> Workspace:
-    """Algorithm 2 over the grid, without the region (``region`` = the grid box)."""
+def build_grid(spec: GridSpec, progress: Progress | None = None,
+               rowmap: RowMap = serial) -> Workspace:
+    """Algorithm 2 over the grid, without the region (``region`` = the grid box). ``rowmap``
+    runs the link distances (:mod:`spm_console.core.rowmap`)."""
     t0 = time.perf_counter()
     model, links = spec.model, spec.links
     axes_deg = spec.axes_deg
@@ -264,7 +268,10 @@ def build_grid(spec: GridSpec, progress: Progress | None = None) -> Workspace:
     if links_progress is not None:
         links_progress(0.0)
     v = platform_axes(Rr, model.v_home)
-    d_r, k_r = link_distances(links, model.u, w, v, progress=links_progress)
+    if rowmap is serial:
+        d_r, k_r = link_distances(links, model.u, w, v, progress=links_progress)
+    else:  # reported as one piece: the other half may run in another process
+        d_r, k_r = rowmap(partial(link_distances, links, model.u), w, v)
     dmin = np.full(reached.size, np.nan)
     dmin[reached] = d_r
     pair = np.full(reached.size, -1, np.int16)
@@ -285,17 +292,19 @@ def build_grid(spec: GridSpec, progress: Progress | None = None) -> Workspace:
 
 
 def build_workspace(spec: GridSpec, progress: Progress | None = None,
-                    cover: bool = True, refined_cover: bool = False) -> Workspace:
+                    cover: bool = True, refined_cover: bool = False,
+                    rowmap: RowMap = serial) -> Workspace:
     """Grid (Algorithm 2) plus the convex region P and (``cover``) the region cover, refined
     near the boundary with ``refined_cover`` (:func:`~spm_console.core.cover.build_cover`);
-    ``progress(stage, fraction)`` if given."""
+    ``progress(stage, fraction)`` if given. ``rowmap`` runs the row-wise parts (link
+    distances, the refinement's exact checks); the result does not depend on it."""
     from dataclasses import replace
 
     from spm_console.core.cover import build_cover
     from spm_console.core.region_build import build_region
 
     t0 = time.perf_counter()
-    ws = build_grid(spec, progress)
+    ws = build_grid(spec, progress, rowmap)
     t1 = time.perf_counter()
     res = build_region(ws, max_halfspaces=spec.max_halfspaces,
                        progress=_stage(progress, "region"))
@@ -304,7 +313,8 @@ def build_workspace(spec: GridSpec, progress: Progress | None = None,
                   region_info={**res.info(),
                                "max_halfspaces": float(spec.max_halfspaces)})
     if cover:
-        rc = build_cover(out, progress=_stage(progress, "cover"), refined=refined_cover)
+        rc = build_cover(out, progress=_stage(progress, "cover"), refined=refined_cover,
+                         rowmap=rowmap)
         out = replace(out, cover=rc, seconds=time.perf_counter() - t0)
     if progress is not None:
         progress("done", 1.0)
