@@ -151,6 +151,30 @@ def test_region_helpers() -> None:
     assert extra.without_redundant(method="lp").halfspaces == 6
 
 
+def test_facet_rows_agree_with_one_lp_per_row_with_copies_and_touching_planes() -> None:
+    """The vertex-based facet test keeps exactly the rows the LP test cannot remove, one per
+    copy, on random polytopes with redundant rows, exact copies (scaled rows) and planes that
+    touch the polytope at a vertex only."""
+    rng = np.random.default_rng(11)
+    for _ in range(12):
+        N = rng.normal(size=(int(rng.integers(6, 30)), 3))
+        N /= np.linalg.norm(N, axis=1)[:, None]
+        base = Region(np.vstack([N, np.eye(3), -np.eye(3)]),
+                      np.r_[rng.uniform(0.5, 1.5, len(N)), np.full(6, 1.2)])
+        V = base.vertices()
+        far = rng.normal(size=(3, 3))
+        touch_a = far / np.linalg.norm(far, axis=1)[:, None]
+        touch_b = (V @ touch_a.T).max(0)  # supporting planes: they touch, cut nothing
+        k = int(rng.integers(0, base.halfspaces))
+        reg = Region(np.vstack([base.A, touch_a, 2.5 * base.A[k:k + 1], base.A[:2]]),
+                     np.r_[base.b, touch_b, 2.5 * base.b[k:k + 1], base.b[:2] + 0.3])
+        facets = reg.facet_rows()
+        lp_kept = sorted(set(range(reg.halfspaces)) - set(reg.redundant_rows()))
+        assert len(facets) == len(lp_kept)
+        assert np.allclose(Region(reg.A[facets], reg.b[facets]).normalized().vertices().max(0),
+                           reg.vertices().max(0))
+
+
 def test_mintime_pair_is_refined_on_the_2deg_grid(ws: Workspace) -> None:
     """[70, 90, 80]° → goal: on the 2° grid the segment passes within Δ of a singular
     node, though every point of it is feasible (the grid check says both); the region is

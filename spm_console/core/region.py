@@ -100,13 +100,20 @@ class Region:
         D = (V[None, :, :] - mean[:, None, :]) * tight.T[:, :, None]
         ev = np.linalg.eigvalsh(np.einsum("kvi,kvj->kij", D, D))  # ascending
         sv1 = np.sqrt(np.maximum(ev[:, 1], 0.0))
-        flat = (cnt >= 3) & (sv1 > 1e3 * tol * scale)
+        cand = np.flatnonzero((cnt >= 3) & (sv1 > 1e3 * tol * scale))
+        # copies: rows equal within 1e-9 (normal) and 1e-9·scale (offset); keep the first
+        same = ((np.abs(An[cand][:, None, :] - An[cand][None, :, :]).max(-1) < 1e-9)
+                & (np.abs(bn[cand][:, None] - bn[cand][None, :]) < 1e-9 * scale))
+        earlier = np.tril(same, -1).any(1)
+        if not earlier.any():
+            return [int(k) for k in cand]
         out: list[int] = []
-        for k in np.flatnonzero(flat):
-            if out and bool(((np.abs(An[out] - An[k]).max(1) < 1e-9)
-                             & (np.abs(bn[out] - bn[k]) < 1e-9 * scale)).any()):
+        kept: list[int] = []  # positions in cand
+        for p, k in enumerate(cand):
+            if earlier[p] and same[p, kept].any():
                 continue  # a copy of a row kept already
             out.append(int(k))
+            kept.append(p)
         return out
 
     def without_redundant(self, tol: float = 1e-7, method: str = "vertices",
