@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 R = TypeVar("R")
 
 #: Fewer rows than this run in this process (the pipe's round trip would cost more).
-MIN_ROWS = 2000
+MIN_ROWS = 200
 #: Seconds to wait for the child to exit when the map is closed, before killing it.
 EXIT_WAIT_S = 2.0
 

@@ -116,3 +116,19 @@ def test_exact_checks_and_link_distances_split_equal_the_serial_ones() -> None:
     assert 0.2 < serial.mean() < 0.95  # both verdicts occur
     assert np.array_equal(split, serial)
     assert np.array_equal(d1, d0) and np.array_equal(k1, k0)
+
+
+def test_the_overlap_graph_split_equals_the_serial_one() -> None:
+    from spm_console.core.cover import cyclic_symmetric
+    from spm_console.core.cover_graph import overlap_graph
+
+    ws = agile_workspace()
+    assert ws.cover is not None
+    regions, rmin = ws.cover.regions, ws.cover.min_overlap_deg
+    sym = cyclic_symmetric(ws)
+    e0, p0, r0 = overlap_graph(regions, rmin, sym)
+    with ForkedRows(min_rows=10) as fr:
+        e1, p1, r1 = overlap_graph(regions, rmin, sym, rowmap=fr)
+    assert len(e0) > 100
+    assert np.array_equal(e0, e1) and np.array_equal(p0, p1) and np.array_equal(r0, r1)
+    assert np.array_equal(e0, ws.cover.edges)  # and the graph the build stored

@@ -267,7 +267,8 @@ def build_cover(
     ``refined`` (and the workspace's models) they avoid the refined obstacles instead
     (:mod:`spm_console.core.cover_refine`; ``fine`` memoizes the exact checks), seeds go by
     local density, and every region is checked clear (≥ 99 %, several times slower). ``rowmap``
-    runs the exact checks of a ``fine`` grid made here (:mod:`spm_console.core.rowmap`)."""
+    runs the exact checks of a ``fine`` grid made here and the overlap graph's LPs
+    (:mod:`spm_console.core.rowmap`)."""
     from scipy.spatial import QhullError  # here: the runtime only loads a cover
 
     if max_regions is None:
@@ -344,7 +345,7 @@ def build_cover(
         frac[0] = refine_share + (0.9 - refine_share) * done
         report(frac[0], force=True)
     edges, pts, rad = overlap_graph(tuple(regions), rmin, orbits,
-                                    tick=lambda x: report(0.9 + 0.1 * x))
+                                    tick=lambda x: report(0.9 + 0.1 * x), rowmap=rowmap)
     report(1.0, force=True)
     return RegionCover(
         regions=tuple(regions), seeds_deg=np.array(seeds, float).reshape(-1, 3), edges=edges,
