@@ -132,3 +132,24 @@ def test_the_overlap_graph_split_equals_the_serial_one() -> None:
     assert len(e0) > 100
     assert np.array_equal(e0, e1) and np.array_equal(p0, p1) and np.array_equal(r0, r1)
     assert np.array_equal(e0, ws.cover.edges)  # and the graph the build stored
+
+
+def test_a_refined_build_with_the_helper_equals_the_serial_build() -> None:
+    """The whole build (FK grid, link distances, P, refined cover, graph) through the forked
+    row map gives the same arrays, regions and graph as in one process (5° grid: fast)."""
+    from spm_console.core.rowmap import serial
+    from spm_console.core.workspace import build_workspace
+    from spm_console.models import grid_spec
+    from tests.ws_helpers import agile_profile, with_step
+
+    spec = grid_spec(with_step(agile_profile(), 5.0))
+    a = build_workspace(spec, refined_cover=True, rowmap=serial)
+    with ForkedRows(min_rows=10) as fr:
+        b = build_workspace(spec, refined_cover=True, rowmap=fr)
+    assert np.array_equal(a.min_link_mm, b.min_link_mm, equal_nan=True)
+    assert np.array_equal(a.klass, b.klass)
+    assert a.cover is not None and b.cover is not None
+    assert a.cover.refined_cells > 0 and a.cover.size > 1
+    for ra, rb in zip(a.cover.regions, b.cover.regions, strict=True):
+        assert np.array_equal(ra.A, rb.A) and np.array_equal(ra.b, rb.b)
+    assert np.array_equal(a.cover.edges, b.cover.edges)

@@ -214,6 +214,12 @@ def link_distances(
     return dmin, arg
 
 
+def _link_rows(links: LinkModel, u: F, w: F, v: F,
+               rows: NDArray[np.int64]) -> tuple[F, NDArray[np.int16]]:
+    """:func:`link_distances` of the nodes ``rows`` (row-wise in ``rows``)."""
+    return link_distances(links, u, w[rows], v[rows])
+
+
 def home_connected(ok: B, home: tuple[int, int, int]) -> B:
     """Nodes of ``ok`` connected to ``home`` through ``ok`` nodes (6-connectivity)."""
     from scipy import ndimage  # here: ~0.4 s to import, and loading a cached workspace
@@ -270,8 +276,9 @@ def build_grid(spec: GridSpec, progress: Progress | None = None,
     v = platform_axes(Rr, model.v_home)
     if rowmap is serial:
         d_r, k_r = link_distances(links, model.u, w, v, progress=links_progress)
-    else:  # reported as one piece: the other half may run in another process
-        d_r, k_r = rowmap(partial(link_distances, links, model.u), w, v)
+    else:  # reported as one piece: the other half may run in another process (by index:
+        # a forked helper has w and v already)
+        d_r, k_r = rowmap(partial(_link_rows, links, model.u, w, v), np.arange(len(w)))
     dmin = np.full(reached.size, np.nan)
     dmin[reached] = d_r
     pair = np.full(reached.size, -1, np.int16)
