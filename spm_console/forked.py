@@ -6,8 +6,8 @@ refers to: no workspace is copied or pickled) and serves it until another functi
 the map is closed; only the rows and the results cross the pipe. It forks only where that is
 safe and useful: on a platform with ``fork``, from a process running one thread (a fork never
 copies a thread holding a lock the child would need: the console, which runs threads, builds
-in one process) and with at least two CPUs to run on; otherwise, and for small inputs, the
-map runs ``fn`` in this process. Anything that goes wrong in the child (an exception, its
+in one process), not under a real-time policy, and with at least two CPUs to run on;
+otherwise, and for small inputs, the map runs ``fn`` in this process. Anything that goes wrong in the child (an exception, its
 death) makes this process compute the child's half itself, so the result, or the exception,
 is the one ``fn(*rows)`` gives. Used by workspace builds (``models.build_workspace``).
 """
@@ -35,10 +35,19 @@ MIN_ROWS = 200
 EXIT_WAIT_S = 2.0
 
 
+def _realtime() -> bool:
+    """True when this thread runs under a real-time policy (SCHED_FIFO or SCHED_RR)."""
+    try:
+        return os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)
+    except (AttributeError, OSError):
+        return False
+
+
 def fork_useful() -> bool:
     """True when forking a helper is safe and can help: ``fork`` exists, this process runs one
-    thread, and it may run on at least two CPUs."""
-    if not hasattr(os, "fork") or threading.active_count() != 1:
+    thread, not at a real-time priority (the servo loop's process never forks: it runs threads
+    and its helper would inherit SCHED_FIFO), and it may run on at least two CPUs."""
+    if not hasattr(os, "fork") or threading.active_count() != 1 or _realtime():
         return False
     try:
         cpus = len(os.sched_getaffinity(0))

@@ -153,3 +153,23 @@ def test_a_refined_build_with_the_helper_equals_the_serial_build() -> None:
     for ra, rb in zip(a.cover.regions, b.cover.regions, strict=True):
         assert np.array_equal(ra.A, rb.A) and np.array_equal(ra.b, rb.b)
     assert np.array_equal(a.cover.edges, b.cover.edges)
+
+
+def test_no_fork_under_a_real_time_policy() -> None:
+    out = _run("""
+        import os, numpy as np
+        from spm_console.forked import ForkedRows
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+        except PermissionError:
+            print("not permitted")
+            raise SystemExit(0)
+        with ForkedRows(min_rows=1) as fr:
+            fr(np.sqrt, np.arange(1000.0))
+            print(fr.forks, fr.enabled)
+    """)
+    if out.strip() == "not permitted":
+        import pytest
+
+        pytest.skip("this user may not set SCHED_FIFO")
+    assert out.split() == ["0", "False"]
