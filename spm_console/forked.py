@@ -7,9 +7,9 @@ the map is closed; only the rows and the results cross the pipe. It forks only w
 safe and useful: on a platform with ``fork``, from a process running one thread (a fork never
 copies a thread holding a lock the child would need: the console, which runs threads, builds
 in one process), not under a real-time policy, and with at least two CPUs to run on;
-otherwise, and for small inputs, the map runs ``fn`` in this process. Anything that goes wrong in the child (an exception, its
-death) makes this process compute the child's half itself, so the result, or the exception,
-is the one ``fn(*rows)`` gives. Used by workspace builds (``models.build_workspace``).
+otherwise, and for small inputs, the map runs ``fn`` in this process. Anything that goes
+wrong in the child (an exception, its death) makes this process compute the child's half
+itself, so the result, or the exception, is the one ``fn(*rows)`` gives. Used by workspace builds (``models.build_workspace``).
 """
 
 from __future__ import annotations
