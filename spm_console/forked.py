@@ -9,7 +9,8 @@ copies a thread holding a lock the child would need: the console, which runs thr
 in one process), not under a real-time policy, and with at least two CPUs to run on;
 otherwise, and for small inputs, the map runs ``fn`` in this process. Anything that goes
 wrong in the child (an exception, its death) makes this process compute the child's half
-itself, so the result, or the exception, is the one ``fn(*rows)`` gives. Used by workspace builds (``models.build_workspace``).
+itself, so the result, or the exception, is the one ``fn(*rows)`` gives. Used by workspace
+builds (``models.build_workspace``).
 """
 
 from __future__ import annotations
