@@ -82,13 +82,16 @@ def grid_spec(profile: Profile) -> GridSpec:
 
 
 def build_workspace(profile: Profile, progress: Progress | None = None,
-                    refined_cover: bool = False) -> Workspace:
+                    refined_cover: bool | None = None) -> Workspace:
     """The profile's workspace (grid + region P + region cover, refined near the boundary with
-    ``refined_cover``), built by the core from :func:`grid_spec`. The row-wise parts (link
+    ``refined_cover``, by default the profile's ``workspace.refined_cover``), built by the core
+    from :func:`grid_spec`. The row-wise parts (link
     distances, the refinement's exact checks) are split with a forked helper process where
     that is safe (:mod:`spm_console.forked`: not from a process running threads)."""
     from spm_console.forked import ForkedRows
 
+    if refined_cover is None:
+        refined_cover = profile.workspace.refined_cover
     with ForkedRows() as rowmap:
         return _build_workspace(grid_spec(profile), progress, refined_cover=refined_cover,
                                 rowmap=rowmap)

@@ -25,7 +25,7 @@ def coarse(monkeypatch: pytest.MonkeyPatch):  # type: ignore[no-untyped-def]
     prof = with_step(agile_profile(), 5.0)
     calls = []
 
-    def fake_build(profile, progress=None):  # type: ignore[no-untyped-def]
+    def fake_build(profile, progress=None, refined_cover=None):  # type: ignore[no-untyped-def]
         calls.append(profile)
         return coarse_workspace()
 
@@ -262,7 +262,8 @@ def test_a_cover_of_p_alone_is_read_back(tmp_path: Path, monkeypatch: pytest.Mon
                         edges=np.zeros((0, 2), np.int64), edge_points_deg=np.zeros((0, 3)),
                         edge_radius_deg=np.zeros(0), min_overlap_deg=0.5, covered=0.995,
                         seconds=0.1)
-    monkeypatch.setattr(wc, "build_workspace", lambda profile, progress=None: replace(ws, cover=alone))
+    monkeypatch.setattr(wc, "build_workspace",
+                        lambda profile, progress=None, refined_cover=None: replace(ws, cover=alone))
     prof = with_step(agile_profile(), 5.0)
     load_or_build(prof, tmp_path)
     ws2, info = load_or_build(prof, tmp_path)

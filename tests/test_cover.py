@@ -276,7 +276,7 @@ def test_cache_rejects_an_edited_cover(tmp_path: Path, monkeypatch: pytest.Monke
         arrays = {k: z[k] for k in z.files}
     arrays["cover_b"] = arrays["cover_b"] + 1.0  # a looser region: must not be a hit
     np.savez(path, **arrays)  # type: ignore[arg-type]
-    monkeypatch.setattr(wc, "build_workspace", lambda profile, progress=None: ws5)
+    monkeypatch.setattr(wc, "build_workspace", lambda profile, progress=None, refined_cover=None: ws5)
     _, info = load_or_build(prof, tmp_path)
     assert not info.hit and "content digest" in info.rebuilt_because
 
@@ -290,7 +290,7 @@ def test_an_older_format_is_stale_not_corrupt(tmp_path: Path,
     with np.load(path) as z:  # and without the cover arrays, as format 3 wrote it
         arrays = {k: z[k] for k in z.files if not k.startswith("cover_")}
     np.savez(path, **arrays)  # type: ignore[arg-type]
-    monkeypatch.setattr(wc, "build_workspace", lambda profile, progress=None: ws5)
+    monkeypatch.setattr(wc, "build_workspace", lambda profile, progress=None, refined_cover=None: ws5)
     _, info = load_or_build(prof, tmp_path)
     assert not info.hit and info.rebuilt_because.startswith("stale key")
 

@@ -332,9 +332,7 @@ def load_or_build(
             why = exc.message
         load_s = time.perf_counter() - t0
     t1 = time.perf_counter()
-    # the option is passed only when set: the default call is the plain (profile, progress)
-    ws = (build_workspace(profile, progress, refined_cover=True) if refined_cover
-          else build_workspace(profile, progress))
+    ws = build_workspace(profile, progress, refined_cover=refined_cover)
     build_s = time.perf_counter() - t1
     write_error = ""
     try:
