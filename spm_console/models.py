@@ -88,10 +88,12 @@ def build_workspace(profile: Profile, progress: Progress | None = None,
     from :func:`grid_spec`. The row-wise parts (link
     distances, the refinement's exact checks) are split with a forked helper process where
     that is safe (:mod:`spm_console.forked`: not from a process running threads)."""
+    from spm_console.core.rowmap import serial
     from spm_console.forked import ForkedRows
 
     if refined_cover is None:
         refined_cover = profile.workspace.refined_cover
-    with ForkedRows() as rowmap:
+    with ForkedRows() as forked:
+        # without a helper the serial map keeps the link distances' own progress reports
         return _build_workspace(grid_spec(profile), progress, refined_cover=refined_cover,
-                                rowmap=rowmap)
+                                rowmap=forked if forked.enabled else serial)

@@ -206,8 +206,8 @@ def test_a_refined_cover_has_its_own_key_and_file(tmp_path: Path,
     assert cache_path(prof, tmp_path, refined_cover=True) != cache_path(prof, tmp_path)
     asked: list[bool] = []
 
-    def fake_build(profile, progress=None, refined_cover=False):  # type: ignore[no-untyped-def]
-        asked.append(refined_cover)
+    def fake_build(profile, progress=None, refined_cover=None):  # type: ignore[no-untyped-def]
+        asked.append(profile.workspace.refined_cover if refined_cover is None else refined_cover)
         return coarse_workspace()
 
     monkeypatch.setattr(wc, "build_workspace", fake_build)
@@ -238,8 +238,9 @@ def test_the_profile_chooses_the_refined_cover_for_every_loader(
     refined = parse_profile(data, "test")
     asked: list[bool] = []
 
-    def fake_build(profile, progress=None, refined_cover=False):  # type: ignore[no-untyped-def]
-        asked.append(refined_cover)
+    def fake_build(profile, progress=None, refined_cover=None):  # type: ignore[no-untyped-def]
+        # as models.build_workspace: by default what the profile asks for
+        asked.append(profile.workspace.refined_cover if refined_cover is None else refined_cover)
         return coarse_workspace()
 
     monkeypatch.setattr(wc, "build_workspace", fake_build)

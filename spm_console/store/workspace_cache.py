@@ -332,7 +332,9 @@ def load_or_build(
             why = exc.message
         load_s = time.perf_counter() - t0
     t1 = time.perf_counter()
-    ws = build_workspace(profile, progress, refined_cover=refined_cover)
+    # the plain (profile, progress) call builds what the profile asks for
+    ws = (build_workspace(profile, progress) if refined_cover == profile.workspace.refined_cover
+          else build_workspace(profile, progress, refined_cover=refined_cover))
     build_s = time.perf_counter() - t1
     write_error = ""
     try:
