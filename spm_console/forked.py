@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable
@@ -120,17 +121,23 @@ class ForkedRows:
             return fn(*rows)
         if self._fn is not fn:
             self._start(fn)
+        conn = self._conn
+        if conn is None:  # no helper after all (a thread started since)
+            return fn(*rows)
         m = n // 2
         first = tuple(r[:m] for r in rows)
         try:
-            assert self._conn is not None
-            self._conn.send(first)
+            conn.send(first)
         except (OSError, ValueError):
             self._lost()
             return fn(*rows)
-        second = fn(*(r[m:] for r in rows))
         try:
-            got: Any = self._conn.recv()
+            second = fn(*(r[m:] for r in rows))
+        except BaseException:  # the child's answer would be read by the next call: stop it
+            self._stop()
+            raise
+        try:
+            got: Any = conn.recv()
         except (EOFError, OSError):
             self._lost()
             got = _Failed("the helper process ended")
@@ -150,9 +157,11 @@ class ForkedRows:
         if pid == 0:  # the child: serve, then leave without running the parent's exit code
             code = 0
             try:
+                for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+                    signal.signal(sig, signal.SIG_DFL)  # not the parent's handlers
                 ours.close()
                 _serve(theirs, fn)
-            except BaseException:  # KeyboardInterrupt with the parent's Ctrl-C
+            except BaseException:  # a broken pipe when the parent is gone
                 code = 1
             finally:
                 os._exit(code)

@@ -173,3 +173,25 @@ def test_no_fork_under_a_real_time_policy() -> None:
 
         pytest.skip("this user may not set SCHED_FIFO")
     assert out.split() == ["0", "False"]
+
+
+def test_an_error_in_this_process_half_stops_the_child_so_the_next_call_reads_no_stale_answer(
+) -> None:
+    out = _run("""
+        import numpy as np
+        from spm_console.forked import ForkedRows
+        def picky(x):
+            if (x > 3000).any():
+                raise ValueError("large")
+            return x * 2.0
+        x = np.arange(4000.0)
+        with ForkedRows(min_rows=100) as fr:
+            try:
+                fr(picky, x)            # this process's half holds the large values
+            except ValueError as exc:
+                print("raised", exc, fr.child_pid)
+            y = np.arange(1000.0)
+            assert np.array_equal(fr(picky, y), 2.0 * y)   # a new child, a fresh answer
+            print(fr.forks)
+    """)
+    assert out.split() == ["raised", "large", "0", "2"]
