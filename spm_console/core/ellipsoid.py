@@ -177,7 +177,8 @@ def _cvxpy_mvie(A: F, b: F) -> Ellipsoid:
         if prob.status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) and C.value is not None:
             E = _fitted(A, b, np.asarray(C.value), np.asarray(d.value))
             if E is None:
-                last = SolverError("inscribed ellipsoid: centre outside the polytope")
+                last = SolverError("inscribed ellipsoid: degenerate, or its centre outside the "
+                                   "polytope")
                 continue
             return E
         last = SolverError(f"inscribed ellipsoid: solver status {prob.status}")
