@@ -85,9 +85,10 @@ def build_workspace(profile: Profile, progress: Progress | None = None,
                     refined_cover: bool | None = None) -> Workspace:
     """The profile's workspace (grid + region P + region cover, refined near the boundary with
     ``refined_cover``, by default the profile's ``workspace.refined_cover``), built by the core
-    from :func:`grid_spec`. The row-wise parts (link
-    distances, the refinement's exact checks) are split with a forked helper process where
-    that is safe (:mod:`spm_console.forked`: not from a process running threads)."""
+    from :func:`grid_spec`. The row-wise parts (link distances, the refinement's exact checks,
+    the overlap graph's LPs) are split with a forked helper process where that is safe
+    (:mod:`spm_console.forked`: not from a process running threads or under a real-time
+    policy)."""
     from spm_console.core.rowmap import serial
     from spm_console.forked import ForkedRows
 

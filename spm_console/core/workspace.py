@@ -304,7 +304,8 @@ def build_workspace(spec: GridSpec, progress: Progress | None = None,
     """Grid (Algorithm 2) plus the convex region P and (``cover``) the region cover, refined
     near the boundary with ``refined_cover`` (:func:`~spm_console.core.cover.build_cover`);
     ``progress(stage, fraction)`` if given. ``rowmap`` runs the row-wise parts (link
-    distances, the refinement's exact checks); the result does not depend on it."""
+    distances, the refinement's exact checks, the overlap graph's LPs); the result does not
+    depend on it."""
     from dataclasses import replace
 
     from spm_console.core.cover import build_cover
