@@ -50,11 +50,11 @@ def _apart(r1: Region, V2: F | None, radius: float) -> bool:
     return bool((low > Rn.b - 2.0 * radius + 1e-9 * max(1.0, float(np.abs(V2).max()))).any())
 
 
-def _pair_balls(regions: tuple[Region, ...], i: F, j: F) -> tuple[F, F]:
+def _pair_balls(regions: tuple[Region, ...], i: I64, j: I64) -> tuple[F, F]:
     """Chebyshev centres (n, 3) and radii (n,) of regions[i_k] ∩ regions[j_k] (row-wise)."""
     centres = np.zeros((len(i), 3))
     radii = np.zeros(len(i))
-    for k, (a, b) in enumerate(zip(i.astype(int), j.astype(int), strict=True)):
+    for k, (a, b) in enumerate(zip(i.tolist(), j.tolist(), strict=True)):
         both = Region(np.vstack([regions[a].A, regions[b].A]), np.r_[regions[a].b, regions[b].b])
         centres[k], radii[k] = both.chebyshev()
     return centres, radii
@@ -112,7 +112,7 @@ def overlap_graph(regions: tuple[Region, ...], min_radius_deg: float,
                     mine.append((s, key))
             todo.append((i, j))
             stands.append(mine)
-    pairs = np.array(todo, float).reshape(-1, 2)
+    pairs = np.array(todo, np.int64).reshape(-1, 2)
     centres, radii = rowmap(partial(_pair_balls, regions), pairs[:, 0], pairs[:, 1])
     if tick is not None:
         tick(1.0)
