@@ -11,6 +11,7 @@ from __future__ import annotations
 import atexit
 import json
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -29,6 +30,9 @@ class HelperProcessError(SpmError):
 
 class ChildProcess:
     """One helper child process announcing itself with a JSON line."""
+
+    stop_signal: signal.Signals = signal.SIGTERM
+    """What :meth:`stop` sends first (then SIGKILL if the child lingers)."""
 
     def __init__(self, module: str, args: Sequence[str] = (), what: str = "helper") -> None:
         self.module = module
@@ -92,7 +96,7 @@ class ChildProcess:
         if proc is None:
             return
         if proc.poll() is None:
-            proc.terminate()
+            proc.send_signal(self.stop_signal)
             try:
                 proc.wait(timeout_s)
             except subprocess.TimeoutExpired:

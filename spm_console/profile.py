@@ -26,6 +26,7 @@ from pydantic_core import PydanticCustomError
 
 from spm_console.errors import ProfileError
 from spm_console.profile_checks import ANGLE_LIMIT_DEG, check_home_mode, check_physics, validation_message
+from spm_console.safe_io import MB, FileRefusedError, read_capped
 
 #: The default profile, relative to the project root / working directory.
 DEFAULT_PROFILE = Path("profiles/agile_wrist.toml")
@@ -59,9 +60,11 @@ class _Section(BaseModel):
 class Meta(_Section):
     """Identification of the prototype."""
 
-    name: str = Field(min_length=1)
-    """Short name shown in the UI and logs."""
-    description: str = ""
+    name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9][A-Za-z0-9 ._+-]*$")
+    """Short name shown in the UI and logs, and part of the workspace cache's file name:
+    1..64 characters, ASCII letters, digits, space, ``.``, ``_``, ``+`` and ``-``, beginning
+    with a letter or digit."""
+    description: str = Field(default="", max_length=4000)
     """Free text: what the prototype is and where its numbers come from."""
 
 
@@ -240,7 +243,11 @@ class Safety(_Section):
     watchdog_ms: Count = Field(default=100, ge=0, le=2540)
     """Servo Bus Watchdog, ms (0 = off; unit 20 ms, at most 127 units); protocol 2.0 only.
     When on, the value written (rounded to 20 ms) must last at least 2·Ts, or the servos
-    stop between two cycles."""
+    stop between two cycles. Off (0) only with :attr:`watchdog_off_reason`: it is what stops
+    the servos when the motion process dies."""
+    watchdog_off_reason: str = Field(default="", max_length=200)
+    """Why the Bus Watchdog is off (``watchdog_ms = 0`` on protocol 2.0): required then, and
+    written to every run's log; empty otherwise. One printable line, at most 200 characters."""
     approach_tolerance_deg: Real = Field(default=0.5, gt=0.0, le=5.0)
     """Farther than this from a plan's start (any joint, deg), execution begins with a
     straight approach move at the homing speed; 0 < tolerance ≤ 5. The same rule for every
@@ -319,14 +326,19 @@ def parse_profile(data: dict[str, object], source: str) -> Profile:
     return prof
 
 
+#: Largest profile file read (the shipped ones are under 5 kB).
+MAX_PROFILE_BYTES = MB // 4
+
+
 def load_profile(path: str | Path = DEFAULT_PROFILE) -> Profile:
     """Read and validate a profile file, including its home assembly mode
     (:func:`~spm_console.profile_checks.check_home_mode`)."""
     p = Path(path)
     try:
-        raw = p.read_bytes()
-    except OSError as exc:
-        raise ProfileError(f"{p}: cannot read profile: {exc.strerror or exc}") from None
+        raw = read_capped(p, MAX_PROFILE_BYTES)
+    except FileRefusedError as exc:
+        reason = exc.reason.removeprefix("cannot read: ")
+        raise ProfileError(f"{p}: cannot read profile: {reason}") from None
     try:
         data = tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

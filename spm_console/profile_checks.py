@@ -288,6 +288,7 @@ def servo_problems(prof: Profile) -> list[Problem]:
             f"is shorter than 2 sampling intervals (2·servo.ts_s = {num(need_ms)} ms): the servos "
             f"would stop between two cycles (allowed: 0 = off, or {least} ≤ watchdog_ms ≤ "
             f"{WATCHDOG_MAX_UNITS * WATCHDOG_UNIT_MS})"))
+    out.extend(_watchdog_off_problems(prof))
     tick = 360.0 / prof.bus.ticks_per_turn
     err = prof.safety.tracking_error_deg
     if err < 2 * tick:
@@ -297,6 +298,24 @@ def servo_problems(prof: Profile) -> list[Problem]:
             f"quantization alone would stop every run (allowed: {2 * tick:.4g} ≤ "
             "tracking_error_deg ≤ 30)"))
     return out
+
+
+def _watchdog_off_problems(prof: Profile) -> list[Problem]:
+    """The Bus Watchdog off only with an explicit reason (logged with every run)."""
+    ms, why = prof.safety.watchdog_ms, prof.safety.watchdog_off_reason
+    if why and (" ".join(why.split()) != why or not why.isprintable()):
+        return [Problem("safety.watchdog_off_reason", why,
+                        "one printable line without leading, trailing or repeated spaces")]
+    if prof.bus.protocol == "2.0" and ms == 0 and not why:
+        return [Problem(
+            "safety.watchdog_ms", ms,
+            "switches the Bus Watchdog off: it is what stops the servos if the motion process "
+            "dies. Keep it on (allowed: 2·servo.ts_s ≤ watchdog_ms ≤ 2540), or say why in "
+            "safety.watchdog_off_reason (written to every run's log)")]
+    if why and ms > 0:
+        return [Problem("safety.watchdog_off_reason", why,
+                        f"is set, but the Bus Watchdog is on (watchdog_ms = {ms}): remove it")]
+    return []
 
 
 def link_problems(prof: Profile) -> list[Problem]:

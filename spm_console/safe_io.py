@@ -1,7 +1,9 @@
-"""Bounded reading of operator-supplied files (plan, region, CSV, script).
+"""Bounded reading of operator-supplied files (profile, plan, region, CSV, script).
 
-Every file an operator names is read with a size cap (a device such as ``/dev/zero``
-or a huge file is refused after ``max_bytes`` + 1 bytes, never read whole), decoded
+Every file an operator names must be a regular file, opened without blocking (a FIFO,
+a device such as ``/dev/zero``, a socket or a directory is refused at once, never waited
+on), and is read with a size cap (a larger file is refused after ``max_bytes`` + 1 bytes,
+never read whole), decoded
 as UTF-8 (a binary file is refused as such) and, for JSON, parsed with a nesting cap.
 Failures raise the caller's :class:`~spm_console.errors.SpmError` subclass with a
 message naming the file and what was wrong — never a traceback.
@@ -10,6 +12,8 @@ message naming the file and what was wrong — never a traceback.
 from __future__ import annotations
 
 import json
+import os
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -21,20 +25,68 @@ MAX_JSON_DEPTH = 32
 
 
 def _mb(n: int) -> str:
-    return f"{n / MB:g} MB" if n >= MB else f"{n} bytes"
+    if n >= MB:
+        return f"{n / MB:g} MB"
+    return f"{n / 1024:g} kB" if n >= 1024 else f"{n} bytes"
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+class FileRefusedError(Exception):
+    """A file that cannot be read as asked: ``reason`` says why (no path in it)."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+def _read_fd(fd: int, n: int) -> bytes:
+    """Up to ``n`` bytes of ``fd`` (fewer only at its end)."""
+    parts: list[bytes] = []
+    while n > 0 and (chunk := os.read(fd, min(n, MB))):
+        parts.append(chunk)
+        n -= len(chunk)
+    return b"".join(parts)
+
+
+def read_capped(path: str | Path, max_bytes: int) -> bytes:
+    """At most ``max_bytes`` of the regular file ``path``; anything else (FIFO, device,
+    directory, socket) is refused without waiting on it, a larger file without reading it
+    whole (:class:`FileRefusedError`)."""
+    try:  # O_NONBLOCK: opening a FIFO with no writer would otherwise wait for one for ever
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC)
+    except OSError as exc:
+        raise FileRefusedError(f"cannot read: {exc.strerror or exc}") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise FileRefusedError(f"{_kind(st.st_mode)}, not a regular file: refused")
+        data = b"" if st.st_size > max_bytes else _read_fd(fd, max_bytes + 1)
+    except OSError as exc:
+        raise FileRefusedError(f"cannot read: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if st.st_size > max_bytes or len(data) > max_bytes:
+        raise FileRefusedError(f"larger than the {_mb(max_bytes)} limit for this kind of file")
+    return data
 
 
 def read_bytes(path: str | Path, what: str, max_bytes: int, error: type[SpmError]) -> bytes:
-    """At most ``max_bytes`` of ``path``; larger files are refused without reading them whole."""
-    p = Path(path)
+    """:func:`read_capped`, its refusal raised as ``error`` naming ``what`` and the file."""
     try:
-        with p.open("rb") as fh:
-            data = fh.read(max_bytes + 1)
-    except OSError as exc:
-        raise error(f"{what} {p}: cannot read: {exc.strerror or exc}") from None
-    if len(data) > max_bytes:
-        raise error(f"{what} {p}: larger than the {_mb(max_bytes)} limit for this kind of file")
-    return data
+        return read_capped(path, max_bytes)
+    except FileRefusedError as exc:
+        raise error(f"{what} {path}: {exc.reason}") from None
 
 
 def read_text(path: str | Path, what: str, max_bytes: int, error: type[SpmError]) -> str:

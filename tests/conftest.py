@@ -97,7 +97,7 @@ def agile_model(agile):  # type: ignore[no-untyped-def]
 @pytest.fixture
 def sighup_default() -> Iterator[None]:
     """SIGHUP at its default for one test (and the processes it starts), even when the tests
-    run under ``nohup``: the console leaves an ignored SIGHUP ignored (run.signals)."""
+    run under ``nohup``: the console leaves an ignored SIGHUP ignored (spm_console.signals)."""
     import signal
 
     old = signal.signal(signal.SIGHUP, signal.SIG_DFL)

@@ -5,6 +5,7 @@ ends in anything else."""
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 import sys
 import tempfile
@@ -20,7 +21,7 @@ from hypothesis import strategies as st
 
 from spm_console.cli.main import main
 from spm_console.errors import ExitCode, ProfileError
-from spm_console.profile import load_profile, parse_profile
+from spm_console.profile import MAX_PROFILE_BYTES, load_profile, parse_profile
 from spm_console.profile_checks import MAX_GRID_NODES, PTS_MAX, PTS_MIN
 
 DATA = Path(__file__).parent / "data" / "profiles"
@@ -182,7 +183,7 @@ def test_servo_band_corners_give_a_stable_finite_model(method: Literal["zoh", "t
     assert PTS_MIN <= p * ts <= PTS_MAX
     doc = agile_doc()
     doc["servo"].update(p=p, ts_s=ts, discretization=method)
-    doc["safety"]["watchdog_ms"] = 0
+    doc["safety"].update(watchdog_ms=0, watchdog_off_reason="Ts outlasts any watchdog")
     prof = parse_profile(doc, "t.toml")
     model = discretize(prof.servo.p, prof.servo.ts_s, method)
     assert np.isfinite(model.A).all() and np.isfinite(model.B).all()
@@ -192,14 +193,14 @@ def test_servo_band_corners_give_a_stable_finite_model(method: Literal["zoh", "t
 
 def test_servo_band_edges_refused() -> None:
     doc = agile_doc()
-    doc["safety"]["watchdog_ms"] = 0
+    doc["safety"].update(watchdog_ms=0, watchdog_off_reason="Ts outlasts any watchdog")
     for p, ts in ((0.04, 0.02), (21.0, 1.0)):
         doc["servo"].update(p=p, ts_s=ts)
         with pytest.raises(ProfileError, match=r"key 'servo\.p' = .*outside \[0\.001, 20\]"):
             parse_profile(doc, "t.toml")
 
 
-@pytest.mark.parametrize(("ms", "ok"), [(0, True), (29, False), (30, True), (40, True), (2540, True)])
+@pytest.mark.parametrize(("ms", "ok"), [(29, False), (30, True), (40, True), (2540, True)])
 def test_watchdog_as_written_outlasts_two_periods(ms: int, ok: bool) -> None:
     doc = agile_doc()  # Ts = 20 ms: the written watchdog (20 ms units) must be ≥ 40 ms
     doc["safety"]["watchdog_ms"] = ms
@@ -208,6 +209,52 @@ def test_watchdog_as_written_outlasts_two_periods(ms: int, ok: bool) -> None:
     else:
         with pytest.raises(ProfileError, match=r"key 'safety\.watchdog_ms' = 29: .*\(20 ms, in 20 ms units\)"):
             parse_profile(doc, "t.toml")
+
+
+def test_the_watchdog_is_off_only_with_a_reason() -> None:
+    doc = agile_doc()
+    doc["safety"]["watchdog_ms"] = 0
+    with pytest.raises(ProfileError, match=r"key 'safety\.watchdog_ms' = 0: switches the Bus "
+                                           r"Watchdog off.*safety\.watchdog_off_reason"):
+        parse_profile(doc, "t.toml")
+    doc["safety"]["watchdog_off_reason"] = "bench test: servos on a stand, no load"
+    prof = parse_profile(doc, "t.toml")
+    assert prof.safety.watchdog_ms == 0
+    doc["safety"]["watchdog_off_reason"] = "two\nlines"
+    with pytest.raises(ProfileError, match=r"key 'safety\.watchdog_off_reason'.*one printable line"):
+        parse_profile(doc, "t.toml")
+    doc["safety"].update(watchdog_ms=100, watchdog_off_reason="left over")
+    with pytest.raises(ProfileError, match=r"watchdog_off_reason' = .*the Bus Watchdog is on"):
+        parse_profile(doc, "t.toml")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "directory", "huge"])
+def test_a_profile_that_is_not_a_small_regular_file_is_refused_at_once(
+        tmp_path: Path, kind: str) -> None:
+    path = tmp_path / "p.toml"
+    if kind == "fifo":
+        os.mkfifo(path)  # opening it to read would wait for a writer for ever
+    elif kind == "device":
+        path = Path("/dev/zero")
+    elif kind == "directory":
+        path = tmp_path
+    else:
+        path.write_bytes(b"#" * (MAX_PROFILE_BYTES + 1))
+    why = {"fifo": "a FIFO", "device": "a device", "directory": "a directory",
+           "huge": "larger than the 256 kB limit"}[kind]
+    with pytest.raises(ProfileError, match=f"cannot read profile: {why}") as exc:
+        load_profile(path)
+    assert exc.value.exit_code == ExitCode.PROFILE_ERROR
+
+
+@pytest.mark.parametrize("name", ["a" * 65, "a" * 300, "../../etc/x", "x/y", "", "-rf", "tab\there",
+                                  "é"])
+def test_a_profile_name_that_cannot_be_a_file_name_is_refused(name: str) -> None:
+    doc = agile_doc()
+    doc["profile"]["name"] = name
+    with pytest.raises(ProfileError, match=r"key 'profile\.name'") as exc:
+        parse_profile(doc, "t.toml")
+    assert exc.value.exit_code == ExitCode.PROFILE_ERROR
 
 
 def test_tracking_error_must_exceed_two_ticks() -> None:

@@ -27,7 +27,7 @@ from spm_console.profile import Profile
 from spm_console.run.oneshot import RunRequest, execute_once
 from spm_console.run.plans import synthetic_plan
 from spm_console.run.runlog import FLUSH_EVERY, list_runs, load_run
-from spm_console.run.signals import STOP_SIGNALS, stop_signals
+from spm_console.signals import STOP_SIGNALS, stop_signals
 from spm_console.store.plan_file import save_plan
 from tests.exec_helpers import PAPER_START
 

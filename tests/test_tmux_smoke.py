@@ -20,6 +20,7 @@ import pytest
 
 from spm_console.run.runlog import list_runs
 from tests.net_helpers import listening
+from tests.terminal_helpers import assert_estopped
 
 ROOT = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed")
@@ -103,8 +104,10 @@ def tmux_console(env: dict[str, str]) -> Iterator[callable]:  # type: ignore[val
 
 def _home_and_solve(t) -> None:  # type: ignore[no-untyped-def]
     """Home, load the workspace and solve the default MVN plan, key by key: each key waits
-    for the screen it needs (a key sent early would be lost)."""
+    for the screen it needs (a key sent early would be lost, or refused as busy: the hint is up
+    before the connection is done)."""
     t.wait_for(r"press h to home")
+    t.wait_for(r"connected: 3 servos answer")
     assert "Traceback" not in t.screen()
     t.keys("h")
     t.wait_for(r"Home the wrist\?")
@@ -173,27 +176,39 @@ def test_viewer_url_shown_loopback_only_and_stopped_on_quit(tmux_console) -> Non
     _wait_gone(port)
 
 
-def test_sigterm_mid_motion_stops_the_wrist_the_console_and_its_viewer(  # type: ignore[no-untyped-def]
-        tmux_console, tmp_path) -> None:
+@pytest.mark.parametrize("sig", [
+    signal.SIGTERM,
+    pytest.param(signal.SIGINT, marks=pytest.mark.slow),
+    pytest.param(signal.SIGHUP, marks=pytest.mark.slow),
+    pytest.param(signal.SIGQUIT, marks=pytest.mark.slow),
+], ids=lambda s: s.name)
+def test_a_signal_to_its_group_mid_motion_stops_the_wrist_the_console_and_its_viewer(  # type: ignore[no-untyped-def]
+        tmux_console, tmp_path, agile, sig) -> None:
+    """``kill -SIG -- -PGID`` of the console's process group (a service stop, a shell's hang-up
+    of its job): the console E-stops through the motion process, which the signal does not
+    reach (its own session), then leaves; the hold is written within two periods."""
     t = tmux_console("--sim")
     port = _viewer_port(t.wait_for(r"3D view: http://127\.0\.0\.1:\d+/static/", timeout_s=30))
     _home_and_solve(t)
     _start_execution(t)
     t.wait_for(r"E-STOP: press SPACE")
     time.sleep(0.5)
-    os.kill(t.pane_pid(), signal.SIGTERM)
+    runs = list_runs(tmp_path / "logs")
+    loop_pid = int(runs[-1].meta["process"]["pid"])
+    pid = t.pane_pid()
+    os.killpg(pid, sig)
     _wait_gone(port)
     t0 = time.monotonic()
-    while t.alive() and time.monotonic() - t0 < 10:
+    while _alive(pid) and time.monotonic() - t0 < 10:
         time.sleep(0.1)
-    assert not t.alive()
+    assert not _alive(pid)
     runs = list_runs(tmp_path / "logs")
     assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
-    assert runs[-1].meta["exit_code"] == 20 and "SIGTERM" in runs[-1].meta["message"]
+    assert_estopped(tmp_path / "logs", runs[-1].path, sig, agile.servo.ts_s, loop_pid)
 
 
 def test_closing_the_terminal_mid_motion_stops_the_wrist_and_closes_the_log(  # type: ignore[no-untyped-def]
-        tmux_console, tmp_path) -> None:
+        tmux_console, tmp_path, agile) -> None:
     """The terminal goes away (tmux closes the pty: SIGHUP, as a dropped SSH session)."""
     t = tmux_console("--sim", "--no-viewer")
     _home_and_solve(t)
@@ -209,6 +224,8 @@ def test_closing_the_terminal_mid_motion_stops_the_wrist_and_closes_the_log(  # 
     runs = list_runs(tmp_path / "logs")
     assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
     assert runs[-1].meta["exit_code"] == 20 and runs[-1].meta["message"] == "E-stop: signal SIGHUP"
+    assert_estopped(tmp_path / "logs", runs[-1].path, signal.SIGHUP, agile.servo.ts_s,
+                    int(runs[-1].meta["process"]["pid"]))
 
 
 def _alive(pid: int) -> bool:

@@ -24,7 +24,7 @@ from spm_console.devices.emulator import start_emulator
 from spm_console.devices.faults import parse_fault
 from spm_console.errors import BadInputError, BusError, ExitCode
 from spm_console.run.servo_query import BusQuery, BusReport, check_ids
-from spm_console.run.signals import install_stop_handler
+from spm_console.signals import install_stop_handler
 
 #: Longest ``emulate --duration`` (one day; without --duration it runs until stopped).
 MAX_EMULATE_S = 86_400.0

@@ -5,7 +5,12 @@ the console's interpreter (and its GIL) with the UI may miss the bus's 4 ms repl
 timeout. So the console runs :func:`~spm_console.devices.emulator.start_emulator`
 here, in its own process: ``python -m spm_console.devices.emulator_child --parent PID``
 reads the profile (JSON) and options on stdin, prints ``{"port": ...}`` and serves
-until it is terminated or its parent is gone.
+until its owner stops it (SIGUSR1) or is gone.
+
+The emulated servos stand in for hardware, which no signal switches off: the terminating
+signals (SIGINT, SIGTERM, SIGHUP, SIGQUIT: a service manager stopping every process of its
+unit, a stray ``kill``) are ignored, so the servo loop's stop action still reaches them; they
+end with their owner, at most :data:`PARENT_POLL_S` after it.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from typing import Any
 
 from spm_console.childproc import ChildProcess
 from spm_console.profile import Profile
+from spm_console.signals import STOP_SIGNALS
 
 #: How often the child checks that its parent is alive, s.
 PARENT_POLL_S = 0.5
@@ -28,6 +34,8 @@ PARENT_POLL_S = 0.5
 
 class EmulatorChild(ChildProcess):
     """Handle of the child: ``port`` to open, ``stop()`` when done."""
+
+    stop_signal = signal.SIGUSR1
 
     def __init__(self, profile: Profile, faults: Sequence[Any] = (),
                  initial_deg: Sequence[float] | None = None) -> None:
@@ -59,7 +67,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--parent", type=int, default=0, help="exit when this process is gone")
     args = parser.parse_args(argv)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
     from spm_console.cpus import place_on_loop_cpu
     from spm_console.realtime import HELPER_PRIORITY, quick_gil_handoff, request_realtime
 
@@ -67,7 +76,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     request_realtime(HELPER_PRIORITY)  # shares the emulator's GIL: see realtime.HELPER_PRIORITY
     quick_gil_handoff()  # the servo thread answers within ~0.5 ms of a request
     stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGUSR1, lambda *_: stop.set())
     try:
         req = json.loads(sys.stdin.read())
         profile = parse_profile(req["profile"], "profile")

@@ -297,6 +297,8 @@ class Executor:
             units = self._retry("set the Bus Watchdog", lambda: set_watchdog(watchdog_ms))
             self._watchdog_armed = bool(units)
             self._event("watchdog", ms=watchdog_ms, units=units)
+        elif watchdog_ms == 0 and self.profile.safety.watchdog_off_reason:
+            self._event("watchdog_off", reason=self.profile.safety.watchdog_off_reason)
         # reseed the goal before torque on: no lunge (a sync write has no reply to confirm)
         self._retry("write the goal", lambda: self.bus.write_goal_deg(theta0))
         self._torque_on = True  # from here on a failure must apply the stop action

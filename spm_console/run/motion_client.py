@@ -59,7 +59,11 @@ class MotionClient:
         mine, theirs = socket.socketpair()
         self.process = subprocess.Popen(
             [sys.executable, "-m", "spm_console.run.motion_process", "--fd", str(theirs.fileno())],
-            pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL)
+            pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
+            # its own session: a signal to the front end's process group (Ctrl-C, Ctrl-\, the
+            # terminal closing, ``kill -- -PGID``, ``timeout``) reaches the front end, which
+            # E-stops through this connection; the servo loop is never killed by it
+            start_new_session=True)
         theirs.close()
         self.conn = Connection(mine.detach())
         ctx = RunContext(port, sim, tuple(faults), None if logs_root is None else str(logs_root))

@@ -30,6 +30,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
+from types import FrameType
 from typing import Any
 
 from spm_console.cpus import place_on_loop_cpu
@@ -58,6 +59,7 @@ from spm_console.run.motion_protocol import (
 )
 from spm_console.run.operator_runs import RunContext, run_execute, run_home
 from spm_console.run.sample import Sample
+from spm_console.signals import STOP_SIGNALS
 
 #: Client heartbeat period during a motion, s.
 HEARTBEAT_S = 0.1
@@ -368,9 +370,33 @@ class Start:
     cache_dir: str | None
 
 
+def _estop_on_signals(server: _Server | None) -> None:
+    """What a terminating signal sent to this process itself does.
+
+    This process runs in a session of its own (:class:`MotionClient` starts it so): a signal to
+    the front end's process group or terminal (Ctrl-C, Ctrl-\\, the terminal closing,
+    ``kill -- -PGID``, ``timeout``) never reaches it; the front end E-stops through the
+    connection. A signal sent here directly (``kill PID``, a service manager stopping every
+    process of its unit) E-stops the motion under way (the profile's stop action, logged) and
+    ends nothing else: the process keeps serving until its client closes the connection, so the
+    stop is always written and the log closed. Before ``server`` exists the signals are ignored.
+    """
+    if server is None:
+        for sig in STOP_SIGNALS:
+            signal.signal(sig, signal.SIG_IGN)
+        return
+
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
+        if server.moving():
+            server.estop(f"signal {signal.Signals(signum).name} to the motion process")
+
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, on_signal)
+
+
 def serve(conn: Connection, start: Start) -> None:
     """The child's main loop (see module docstring)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the client decides; Ctrl-C reaches it first
+    _estop_on_signals(None)  # the client decides while this process starts
     request_realtime(HELPER_PRIORITY)  # this thread reads the pipe: see realtime.HELPER_PRIORITY
     quick_gil_handoff()  # the loop thread gets the GIL within ~0.5 ms of asking
     try:
@@ -379,6 +405,7 @@ def serve(conn: Connection, start: Start) -> None:
         conn.send(Failed(0, exc.message, int(exc.exit_code)))
         return
     conn.send(Reply(0, os.getpid()))
+    _estop_on_signals(server)
     signal.signal(signal.SIGUSR1, lambda *_: server.estop("E-stop signal to the motion process"))
     _warm_up()
     request_realtime(HELPER_PRIORITY)

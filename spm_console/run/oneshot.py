@@ -39,8 +39,8 @@ from spm_console.run.operator import Session
 from spm_console.run.operator_runs import RunContext, refused_run
 from spm_console.run.sample import Sample
 from spm_console.run.segments import ExecutionResult
-from spm_console.run.signals import stop_signals
 from spm_console.run.target_feed import TimedTargets
+from spm_console.signals import stop_signals
 
 F = NDArray[np.float64]
 T = TypeVar("T")

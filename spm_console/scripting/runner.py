@@ -72,7 +72,6 @@ import numpy as np
 from spm_console.errors import BadInputError, ExitCode, SpmError
 from spm_console.profile import DEFAULT_PROFILE, Profile, load_profile
 from spm_console.run.operator import PoseSpec, Session
-from spm_console.run.signals import stop_signals
 from spm_console.scripting.steps import (
     AssertStep,
     ExecuteStep,
@@ -88,6 +87,7 @@ from spm_console.scripting.steps import (
     WaitStep,
     WorkspaceStep,
 )
+from spm_console.signals import stop_signals
 
 
 def _pose(p: PoseIn) -> PoseSpec:
@@ -361,7 +361,7 @@ def session_for(script: Script, profile: Profile | None = None, port: str | None
 
 
 def run_script(script: Script, session: Session, progress: Callable[[str], None]) -> ScriptRunner:
-    """Run with every terminating signal (:mod:`spm_console.run.signals`) turned into an
+    """Run with every terminating signal (:mod:`spm_console.signals`) turned into an
     E-stop and a clean end; the session is closed after."""
     runner = ScriptRunner(script, session, progress)
     with stop_signals(runner.interrupt):  # (while closing, a signal has nothing left to stop)

@@ -25,7 +25,7 @@ from textual.screen import Screen
 from spm_console.errors import ExitCode
 from spm_console.profile import Profile
 from spm_console.run.operator import Session
-from spm_console.run.signals import install_stop_handler
+from spm_console.signals import install_stop_handler
 from spm_console.tui.messages import Telemetry
 from spm_console.tui.screens.base import COMPACT_BELOW_COLUMNS, COMPACT_BELOW_ROWS, StepScreen
 from spm_console.tui.screens.connect import ConnectScreen

@@ -12,7 +12,7 @@ import pytest
 
 from spm_console.errors import ExitCode
 from spm_console.run.runlog import list_runs
-from spm_console.run.signals import STOP_SIGNALS
+from spm_console.signals import STOP_SIGNALS
 from tests.tui.helpers import settle, status_of
 
 SIZE = (130, 42)

@@ -28,8 +28,9 @@ from textual.widgets import Button, Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 from spm_console.errors import BadInputError, SpmError
-from spm_console.profile import DEFAULT_PROFILE, load_profile, with_grid_step
+from spm_console.profile import DEFAULT_PROFILE, MAX_PROFILE_BYTES, load_profile, with_grid_step
 from spm_console.profile_checks import grid_step_problems
+from spm_console.safe_io import FileRefusedError, read_capped
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.footer import ConsoleFooter
 from spm_console.tui.widgets.number import NumberRow, NumberRule
@@ -97,11 +98,11 @@ def profile_dirs() -> list[Path]:
 def read_entry(path: Path) -> ProfileEntry:
     """Name and grid step of a profile file, from its TOML (quick; Apply validates it all)."""
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(read_capped(path, MAX_PROFILE_BYTES).decode("utf-8"))
         name = data["profile"]["name"]
         step = float(data["workspace"]["step_deg"])
-    except OSError as exc:
-        return ProfileEntry(path, error=f"cannot read: {exc.strerror or exc}")
+    except FileRefusedError as exc:
+        return ProfileEntry(path, error=exc.reason)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError):
         return ProfileEntry(path, error="not valid TOML")
     except (KeyError, TypeError, ValueError):

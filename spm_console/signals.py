@@ -1,4 +1,4 @@
-"""The terminating signals, and the one place that routes them to a stop (SPEC §8, §9).
+"""The terminating signals, and the one place that routes them to a stop.
 
 Every front end that moves the wrist (``execute`` / ``home``, ``script``, the TUI)
 installs one callback for all of :data:`STOP_SIGNALS` with :func:`install_stop_handler`
