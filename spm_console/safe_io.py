@@ -93,7 +93,7 @@ def read_text(path: str | Path, what: str, max_bytes: int, error: type[SpmError]
     """The UTF-8 text of ``path`` (size-capped); a binary file is refused as such."""
     data = read_bytes(path, what, max_bytes, error)
     try:
-        return data.decode("utf-8")
+        return data.decode("utf-8-sig")  # a byte-order mark is not part of the text
     except UnicodeDecodeError as exc:
         raise error(f"{what} {path}: not UTF-8 text (a binary file?): byte {exc.start} "
                     f"cannot be decoded") from None

@@ -7,7 +7,6 @@ home working mode, here in the front end: the runtime only ever receives θ. Deg
 from __future__ import annotations
 
 import contextlib
-import json
 import socket
 import threading
 from typing import Any
@@ -16,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.errors import BadInputError, SpmError
+from spm_console.numbers import NotANumberError, json_loads, json_number
 from spm_console.profile import Profile
 from spm_console.run.operator import Session
 from spm_console.store.target_file import theta_of_rpy
@@ -60,8 +60,10 @@ class UdpTargets:
         if len(data) > MAX_DATAGRAM:
             raise BadInputError(f"message longer than {MAX_DATAGRAM} bytes")
         try:
-            msg = json.loads(data.decode("utf-8"))
-        except (UnicodeDecodeError, ValueError):
+            msg = json_loads(data.decode("utf-8"))
+        except NotANumberError as exc:
+            raise BadInputError(f"not a valid message: {exc}") from None
+        except (UnicodeDecodeError, ValueError, RecursionError):
             raise BadInputError("not a JSON object") from None
         if not isinstance(msg, dict):
             raise BadInputError("not a JSON object")
@@ -70,12 +72,12 @@ class UdpTargets:
         for key in ("theta_deg", "rpy_deg"):
             if key in msg:
                 v = msg[key]
-                if (not isinstance(v, list) or len(v) != 3
-                        or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
+                if not isinstance(v, list) or len(v) != 3:
                     raise BadInputError(f"{key} must be three numbers")
-                arr = np.asarray(v, float)
-                if not np.all(np.isfinite(arr)):
-                    raise BadInputError(f"{key} must be finite")
+                try:
+                    arr = np.array([json_number(x) for x in v])
+                except NotANumberError as exc:
+                    raise BadInputError(f"{key} must be three finite numbers ({exc})") from None
                 return theta_of_rpy(self.profile, arr) if key == "rpy_deg" else arr
         raise BadInputError('expected {"theta_deg": [..]}, {"rpy_deg": [..]} or {"end": true}')
 
@@ -96,6 +98,10 @@ class UdpTargets:
                 except SpmError as exc:
                     self.dropped += 1
                     self.last_error = exc.message
+                    continue
+                except Exception as exc:  # a bug: this message is dropped, the source lives on
+                    self.dropped += 1
+                    self.last_error = f"internal error on a message: {exc!r}"
                     continue
                 self.received += 1
                 with contextlib.suppress(SpmError):

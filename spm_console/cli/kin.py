@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import csv
-import math
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -24,6 +22,7 @@ from spm_console.core.modes import assembly_modes
 from spm_console.errors import BadInputError, ExitCode, InfeasibleError, UnreachableError
 from spm_console.formatting import fmt_residual, fmt_vec
 from spm_console.models import link_model_of, model_of
+from spm_console.numbers import numeric_rows
 from spm_console.profile import Profile
 from spm_console.run.kin_record import FkGraphSource, fk_record, fk_route, path_line
 from spm_console.safe_io import MB, read_text
@@ -59,21 +58,10 @@ def register(sub: Any) -> None:
 def _read_theta_file(path: Path) -> np.ndarray:
     text = read_text(path, "--theta-file", MAX_THETA_FILE_BYTES, BadInputError)
     rows = []
-    for n, row in enumerate(csv.reader(text.splitlines()), start=1):
-        cells = [c.strip() for c in row if c.strip()]
-        if not cells or cells[0].startswith("#"):
-            continue
-        try:
-            vals = [float(c) for c in cells]
-        except ValueError:
-            if n == 1:
-                continue  # header
-            raise BadInputError(f"{path}:{n}: not three numbers: {row}") from None
-        if len(vals) != 3 or not all(math.isfinite(x) for x in vals):
-            raise BadInputError(f"{path}:{n}: expected three finite angles in degrees, got {row}")
+    for n, vals in numeric_rows(text, str(path), 3, "three angles in degrees"):
         if not all(abs(x) <= FK_THETA_LIMIT_DEG for x in vals):
-            raise BadInputError(f"{path}:{n}: angles must lie in {-FK_THETA_LIMIT_DEG:g}..{FK_THETA_LIMIT_DEG:g}° "
-                                f"(one turn either way), got {row}")
+            raise BadInputError(f"{path}:{n}: angles must lie in {-FK_THETA_LIMIT_DEG:g}.."
+                                f"{FK_THETA_LIMIT_DEG:g}° (one turn either way), got {vals}")
         rows.append(vals)
         if len(rows) > MAX_THETA_ROWS:
             raise BadInputError(f"{path}: more than {MAX_THETA_ROWS:,} θ rows; split the file")

@@ -13,6 +13,8 @@ F = NDArray[np.float64]
 
 #: Most timed targets one run accepts (a 10-minute file at 50 Hz has 30,000).
 MAX_TIMED_TARGETS = 100_000
+#: Latest target time, s: a following lasts at most as long as the longest plan (10 minutes).
+MAX_TARGET_TIME_S = 600.0
 
 
 @dataclass(frozen=True)
@@ -33,6 +35,9 @@ class TimedTargets:
             raise BadInputError("timed targets must be finite numbers")
         if t[0] < 0 or np.any(np.diff(t) <= 0):
             raise BadInputError("target times must start at t ≥ 0 and increase strictly")
+        if t[-1] > MAX_TARGET_TIME_S:
+            raise BadInputError(f"target times must end by t = {MAX_TARGET_TIME_S:g} s (10 "
+                                f"minutes, like the longest plan), got t = {t[-1]:g} s")
         object.__setattr__(self, "t_s", t)
         object.__setattr__(self, "theta_deg", th)
 

@@ -1,10 +1,12 @@
 """Target files of live following: rows ``t, theta1, theta2, theta3`` (s, deg), or
-``t, roll, pitch, yaw`` (deg from home, IK in the home working mode); a header line and ``#``
-comments are skipped. Read bounded (size, rows, finite values). Degrees, seconds."""
+``t, roll, pitch, yaw`` (deg from home, IK in the home working mode); ``#`` comments are
+skipped, and so is a first line of names only (a header: none of its cells is written as a
+number). Every other line is four plain decimal numbers (:mod:`spm_console.numbers`): a typo
+is an error at its line, never taken for a header. Read bounded (size, rows, finite values,
+times). Degrees, seconds."""
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +15,7 @@ from numpy.typing import NDArray
 from spm_console.core.targets import MAX_TIMED_TARGETS, TimedTargets
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
+from spm_console.numbers import numeric_rows
 from spm_console.profile import Profile
 from spm_console.safe_io import MB, read_text
 
@@ -44,24 +47,7 @@ def read_target_csv(profile: Profile, path: Path, rpy: bool) -> TimedTargets:
     pitch, yaw in degrees when ``rpy``."""
     text = read_text(path, "targets file", MAX_CSV_BYTES, BadInputError)
     rows: list[list[float]] = []
-    header_allowed = True
-    for n, line in enumerate(text.splitlines(), 1):
-        line = line.split("#", 1)[0].strip()
-        if not line:
-            continue
-        cells = [c.strip() for c in line.split(",")]
-        try:
-            vals = [float(c) for c in cells]
-        except ValueError:
-            if header_allowed and not rows:  # one header line before the first row
-                header_allowed = False
-                continue
-            raise BadInputError(f"{path}:{n}: four numbers expected (t and three angles)") from None
-        if len(vals) != 4:
-            raise BadInputError(f"{path}:{n}: four numbers expected (t and three angles), "
-                                f"got {len(vals)}")
-        if not all(math.isfinite(v) for v in vals):
-            raise BadInputError(f"{path}:{n}: t and the angles must be finite numbers")
+    for _n, vals in numeric_rows(text, str(path), 4, "t and three angles"):
         rows.append(vals)
         if len(rows) > MAX_TIMED_TARGETS:
             raise BadInputError(f"{path}: more than {MAX_TIMED_TARGETS} targets")
@@ -71,4 +57,7 @@ def read_target_csv(profile: Profile, path: Path, rpy: bool) -> TimedTargets:
     th = a[:, 1:]
     if rpy:
         th = np.vstack([theta_of_rpy(profile, r) for r in th])
-    return TimedTargets(a[:, 0], th)
+    try:
+        return TimedTargets(a[:, 0], th)
+    except BadInputError as exc:
+        raise BadInputError(f"{path}: {exc.message}") from None
