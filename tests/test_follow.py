@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from spm_console.core.planning import solve_mvn
-from spm_console.core.planning.follow import FollowResult, FollowSettings, FollowSolver, FollowWeights
+from spm_console.core.planning.follow import (
+    TARGET_REFUSED,
+    FollowResult,
+    FollowSettings,
+    FollowSolver,
+    FollowWeights,
+)
+from spm_console.core.planning.follow_target import ProjectionError
 from spm_console.core.region import Region
 from spm_console.errors import BadInputError
 from tests.planning_cases import MODEL
@@ -157,6 +164,38 @@ def test_outside_target_is_projected_and_reported() -> None:
     preview = np.tile(HOME, (50, 1))
     preview[10] = far
     assert s.solve(HOME, np.zeros(3), preview).clamped
+
+
+def test_a_target_without_a_projection_is_refused_never_replaced_by_the_centre() -> None:
+    """A target 1e12° away: OSQP finds no nearest point. The target is refused (the plan in
+    use goes on); it used to be replaced by the region's Chebyshev centre, ~25° away."""
+    absurd = np.array([1e12, -1e12, 3e11])
+    with pytest.raises(ProjectionError, match="is refused"):
+        _solver().project(absurd)
+    s = _solver()
+    r = s.solve(HOME, np.zeros(3), absurd)
+    assert not r.ok and r.status == "failed" and r.detail == TARGET_REFUSED
+    assert "is refused" in r.reason and not r.clamped
+    assert r.reference_deg.shape == (0, 3)  # nothing to send
+    assert np.array_equal(r.target_deg, HOME)  # no substitute target
+    assert s.solve(HOME, np.zeros(3), _at(1.0, 0.0, 0.0)).ok  # the solver serves on
+
+
+def test_only_the_nearest_point_passes_the_projection_certificate() -> None:
+    """An answer the QP calls solved is kept only with a certificate of optimality: the
+    nearest point (by an independent QP) passes it, the centre or a point beside it fails."""
+    s = _solver()
+    proj = s._projector
+    far = _at(200.0, -150.0, 90.0)
+    p = cp.Variable(3)
+    cp.Problem(cp.Minimize(cp.sum_squares(p - far)), [proj.A @ p <= proj.b, p >= proj.lo,
+                                                     p <= proj.hi]).solve(solver="CLARABEL")
+    nearest, _ = proj.project(far)
+    np.testing.assert_allclose(nearest, p.value, atol=1e-5)
+    assert proj._nearest(nearest, far)
+    assert not proj._nearest(proj.centre, far)
+    beside = proj._pull_inside(nearest + np.array([0.0, 0.0, -2.0]))
+    assert beside is not None and not proj._nearest(beside, far)
 
 
 def test_predicted_samples_stay_inside_along_a_run() -> None:

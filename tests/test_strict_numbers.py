@@ -20,6 +20,7 @@ from spm_console.core.targets import MAX_TARGET_TIME_S
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.numbers import NotANumberError, json_loads, json_number, parse_number
 from spm_console.profile import Profile
+from spm_console.run.target_feed import TargetFeed
 from spm_console.store.target_file import read_target_csv
 
 BIG = "9" * 400
@@ -94,6 +95,12 @@ def test_a_giant_integer_in_a_udp_target_is_dropped_and_the_source_lives_on(
     np.testing.assert_array_equal(session.targets[0], [130.0, 131.0, 132.0])
 
 
+def test_a_live_target_beyond_one_turn_is_refused() -> None:
+    feed = TargetFeed(None, [130.0, 130.0, 130.0], 0.5)
+    with pytest.raises(BadInputError, match="within ±360°"):
+        feed.set([1e12, 130.0, 130.0])
+
+
 def _csv(tmp_path: Path, data: bytes) -> Path:
     p = tmp_path / "targets.csv"
     p.write_bytes(data)
@@ -112,6 +119,7 @@ def test_a_byte_order_mark_does_not_hide_the_first_target(tmp_path: Path, agile:
     ("t,a,b,c\n0,1_30,130,130\n", ":2: four numbers expected"),
     ("t,a,b,c\n0,١٣٠,130,130\n", ":2: four numbers expected"),
     ("t,a,b,c\n0,130,130,130\n1e9,131,131,131\n", f"end by t = {MAX_TARGET_TIME_S:g} s"),
+    ("t,a,b,c\n0,1e12,130,130\n", "within ±360°"),  # its projection used to be the centre
 ])
 def test_target_rows_are_strict(tmp_path: Path, agile: Profile, text: str, why: str) -> None:
     with pytest.raises(BadInputError, match=why):

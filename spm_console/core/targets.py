@@ -13,8 +13,19 @@ F = NDArray[np.float64]
 
 #: Most timed targets one run accepts (a 10-minute file at 50 Hz has 30,000).
 MAX_TIMED_TARGETS = 100_000
+#: Largest |target angle|, deg: one turn either way (a servo's whole range lies inside).
+MAX_TARGET_ABS_DEG = 360.0
 #: Latest target time, s: a following lasts at most as long as the longest plan (10 minutes).
 MAX_TARGET_TIME_S = 600.0
+
+
+def check_target_angles(theta_deg: F) -> None:
+    """Target angles (deg) within ±:data:`MAX_TARGET_ABS_DEG`; BadInputError otherwise."""
+    th = np.asarray(theta_deg, float)
+    if not np.all(np.abs(th) <= MAX_TARGET_ABS_DEG):
+        worst = float(th.reshape(-1)[np.argmax(np.abs(th).reshape(-1))])
+        raise BadInputError(f"target angles must lie within ±{MAX_TARGET_ABS_DEG:g}° (one turn "
+                            f"either way), got {worst:.6g}°")
 
 
 @dataclass(frozen=True)
@@ -33,6 +44,7 @@ class TimedTargets:
             raise BadInputError(f"timed targets: 1..{MAX_TIMED_TARGETS} rows of t and three angles")
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(th))):
             raise BadInputError("timed targets must be finite numbers")
+        check_target_angles(th)
         if t[0] < 0 or np.any(np.diff(t) <= 0):
             raise BadInputError("target times must start at t ≥ 0 and increase strictly")
         if t[-1] > MAX_TARGET_TIME_S:

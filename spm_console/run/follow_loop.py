@@ -36,7 +36,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.planning.follow import FollowResult, FollowSettings, FollowSolver
+from spm_console.core.planning.follow import TARGET_REFUSED, FollowResult, FollowSettings, FollowSolver
 from spm_console.core.planning.follow_target import TargetProjector
 from spm_console.core.region import Region
 from spm_console.core.servo_model import exact_step, simulate_continuous
@@ -140,6 +140,7 @@ class Follower(Executor):
             raise BadInputError(f"live following cannot start from θ = "
                                 f"{fmt_deg(theta0)}: {first.reason or first.status}")
         self._times: list[float] = []
+        self._refused_target = ""
         self._counts = {"solves": 0, "adopted": 0, "misses": 0, "refused": 0, "clamped": 0,
                         "approach": 0}
         self._event("start", theta0_deg=theta0, mode="follow", live=feed.live,
@@ -261,6 +262,9 @@ class Follower(Executor):
             self._event("region", k=k, region=idx, switches=self.hopper.switches)
         res = self.solvers[idx].solve(th, om, _aimed(feed, targets, goal), elapsed=1)
         self._times.append(time.perf_counter() - t0)
+        if res.detail == TARGET_REFUSED and res.reason != self._refused_target:
+            self._refused_target = res.reason  # logged once per target: the plan in use goes on
+            self._event("target_refused", k=k, reason=res.reason, theta_deg=res.requested_deg)
         self._counts["solves"] += 1
         self._counts["clamped"] += int(res.clamped)
         j += 1

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.targets import MAX_TIMED_TARGETS as MAX_TIMED_TARGETS
 from spm_console.core.targets import TimedTargets as TimedTargets
+from spm_console.core.targets import check_target_angles
 from spm_console.errors import BadInputError
 
 F = NDArray[np.float64]
@@ -57,6 +58,7 @@ class TargetFeed:
         th = np.asarray(theta_deg, float).reshape(3)
         if not np.all(np.isfinite(th)):
             raise BadInputError("a target must be three finite angles in degrees")
+        check_target_angles(th)
         with self._lock:
             self._live = th
             self._last_update = self.clock()

@@ -56,7 +56,7 @@ import osqp
 from numpy.typing import NDArray
 
 from spm_console.core.planning.follow_qp import FollowLayout, build, fill_bounds, linear_cost, predict
-from spm_console.core.planning.follow_target import TargetProjector
+from spm_console.core.planning.follow_target import ProjectionError, TargetProjector
 from spm_console.core.region import Region
 from spm_console.core.servo_model import ServoModel
 from spm_console.errors import BadInputError
@@ -66,6 +66,8 @@ F = NDArray[np.float64]
 
 FollowStatus = Literal["reached", "tracking", "infeasible", "failed"]
 
+#: ``FollowResult.detail`` of a result refused because its target has no projection.
+TARGET_REFUSED = "target refused"
 #: θ(H) within this of the terminal target counts as reached, deg (a tenth of a servo tick).
 REACH_TOL_DEG = 1e-2
 #: Tolerance of the final check against the true region and speed bound (deg, deg/s).
@@ -268,7 +270,14 @@ class FollowSolver:
             raise BadInputError(f"follow: the target must be (3,) or ({H}, 3) finite angles in degrees")
         requested = tg if tg.ndim == 1 else tg[-1]
         rows = np.broadcast_to(tg, (H, 3))
-        targets, moved = self._project_rows(rows)
+        try:
+            targets, moved = self._project_rows(rows)
+        except ProjectionError as exc:  # refused: the plan in use goes on, no substitute
+            self._warm = None
+            empty = np.zeros((0, 3))
+            return FollowResult("failed", empty, empty, empty, requested.copy(), th0.copy(),
+                                False, float("inf"), float("inf"), float("inf"),
+                                time.perf_counter() - t0, 0, False, exc.message, TARGET_REFUSED)
         terminal = targets[-1]
         clamped = moved > 0.0 and self._outside(tg.reshape(-1, 3))
 
