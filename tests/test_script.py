@@ -144,6 +144,42 @@ def test_bad_scripts_name_file_step_and_key(text: str, needle: str) -> None:
     assert needle in exc.value.message, exc.value.message
 
 
+@pytest.mark.parametrize(("text", "needle"), [
+    ('[[step]]\ndo = "fk"\ntheta = [true, 110, 105]\n', "step 1 (fk) key 'theta': expected three finite numbers"),
+    ('[[step]]\ndo = "plan"\ngoal = "home"\nsteps = "150"\n', "step 1 (plan) key 'steps'"),
+    ('[[step]]\ndo = "plan"\ngoal = "home"\nsteps = 150.0\n', "step 1 (plan) key 'steps'"),
+    ('[[step]]\ndo = "execute"\nallow_stop = 1\n', "step 1 (execute) key 'allow_stop'"),
+])
+def test_values_are_never_coerced(text: str, needle: str) -> None:
+    """A boolean is not a number, a string not an integer, a number not a boolean."""
+    with pytest.raises(BadInputError) as exc:
+        parse_script(text, "bad.toml")
+    assert needle in exc.value.message, exc.value.message
+
+
+@pytest.mark.parametrize(("text", "needle"), [
+    ('[[step]]\ndo = "plan"\ngoal = "home"\nvmax = 200\n',
+     "step 1 (plan) key 'vmax' = 200 deg/s is above the profile's planning limit"),
+    ('[session]\ninitial_deg = [10, 135, 135]\n[[step]]\ndo = "home"\n',
+     "[session] key 'initial_deg': θ1 = 10° is outside joint 1's servo limits"),
+    ('[[step]]\ndo = "fk"\ntheta = [1e308, 110, 105]\n',
+     "step 1 (fk) key 'theta': θ1 = 1e+308° is outside the range"),
+    ('[[step]]\ndo = "plan"\nstart = {theta = [95, 110, 300]}\ngoal = "home"\n',
+     "step 1 (plan) key 'start.theta': θ3 = 300° is outside joint 3's servo limits"),
+    ('[[step]]\ndo = "follow"\ntargets = [[0, 130, 130, 130], [1e9, 131, 131, 131]]\n',
+     "step 1 (follow) key 'targets': target times must end by t = 600 s"),
+])
+def test_a_script_follows_the_command_lines_input_rules(
+        tmp_path, capsys, text: str, needle: str) -> None:  # type: ignore[no-untyped-def]
+    """The values the CLI refuses with 4 are refused in a script too, before the bus opens."""
+    f = tmp_path / "s.toml"
+    f.write_text(text)
+    assert main(["script", str(f), "--logs", str(tmp_path / "logs")]) == ExitCode.BAD_INPUT
+    err = capsys.readouterr().err
+    assert needle in err, err
+    assert not (tmp_path / "logs").exists()  # nothing ran
+
+
 def test_bad_script_exit_code_and_no_traceback(tmp_path) -> None:
     f = tmp_path / "bad.toml"
     f.write_text('[[step]]\ndo = "dance"\n')

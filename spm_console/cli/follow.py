@@ -19,10 +19,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import finite_number, profile_of
+from spm_console.cli.common import profile_of
 from spm_console.cli.follow_source import UdpTargets
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.errors import BadInputError
+from spm_console.input_rules import finite_number
 from spm_console.store.target_file import read_target_csv
 
 

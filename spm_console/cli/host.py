@@ -7,8 +7,9 @@ import argparse
 from dataclasses import asdict
 from typing import Any
 
-from spm_console.cli.common import add_common, emit, finite_number, info, profile_of
+from spm_console.cli.common import add_common, emit, info, profile_of
 from spm_console.host_latency import MAX_SECONDS, THRESHOLDS_MS, CpuLatency, measure
+from spm_console.input_rules import finite_number
 
 #: Verdicts, worst last.
 VERDICTS = {

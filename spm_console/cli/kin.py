@@ -9,18 +9,12 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import (
-    FK_THETA_LIMIT_DEG,
-    add_common,
-    emit,
-    finite_number,
-    profile_of,
-    theta_for_fk,
-)
+from spm_console.cli.common import add_common, emit, profile_of
 from spm_console.core.ik import ik, ik_rpy
 from spm_console.core.modes import assembly_modes
 from spm_console.errors import BadInputError, ExitCode, InfeasibleError, UnreachableError
 from spm_console.formatting import fmt_residual, fmt_vec
+from spm_console.input_rules import FK_THETA_LIMIT_DEG, finite_number, rpy_angles, theta_for_fk
 from spm_console.models import link_model_of, model_of
 from spm_console.numbers import numeric_rows
 from spm_console.profile import Profile
@@ -148,9 +142,7 @@ def cmd_ik(args: argparse.Namespace) -> int:
         vals = np.asarray([finite_number(x, "--v: every value") for x in args.v])
         res = ik(model, vals.reshape(3, 3))
     else:
-        rpy = [finite_number(x, f"--rpy {name}", -360.0, 360.0, unit="deg")
-               for x, name in zip(args.rpy, ("roll", "pitch", "yaw"), strict=True)]
-        res = ik_rpy(model, *np.radians(rpy))
+        res = ik_rpy(model, *np.radians(rpy_angles(args.rpy, "--rpy")))
     _within_servo_limits(profile, res.theta_deg)
     rec = {
         "theta_deg": res.theta_deg,

@@ -10,18 +10,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from spm_console.cli.common import (
-    PLOT_SUFFIXES,
-    add_common,
-    bounded_int,
-    emit,
-    info,
-    output_file,
-    profile_of,
-    theta_in_grid,
-    theta_in_servo_limits,
-    vmax_arg,
-)
+from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output_file, profile_of
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.identify import identify
 from spm_console.core.plan import Plan
@@ -29,6 +18,7 @@ from spm_console.core.region import Region
 from spm_console.core.workspace import Workspace
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError
 from spm_console.formatting import fmt_vec
+from spm_console.input_rules import bounded_int, theta_in_grid, theta_in_servo_limits, vmax_arg
 from spm_console.profile import Profile
 from spm_console.run.plan_request import PlanRequest
 from spm_console.safe_io import MB, load_json, read_text

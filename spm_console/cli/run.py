@@ -16,18 +16,11 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import (
-    add_common,
-    emit,
-    info,
-    output_folder,
-    output_may_be_gone,
-    profile_of,
-    theta_in_servo_limits,
-)
+from spm_console.cli.common import add_common, emit, info, output_folder, output_may_be_gone, profile_of
 from spm_console.devices.faults import parse_fault
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_vec
+from spm_console.input_rules import theta_in_servo_limits
 from spm_console.profile import Profile
 from spm_console.run.oneshot import RunRequest, execute_once, home_once
 from spm_console.run.segments import ExecutionResult

@@ -11,18 +11,11 @@ import time
 from dataclasses import asdict
 from typing import Any
 
-from spm_console.cli.common import (
-    add_common,
-    emit,
-    finite_number,
-    info,
-    profile_of,
-    theta_in_servo_limits,
-    to_jsonable,
-)
+from spm_console.cli.common import add_common, emit, info, profile_of, to_jsonable
 from spm_console.devices.emulator import start_emulator
 from spm_console.devices.faults import parse_fault
 from spm_console.errors import BadInputError, BusError, ExitCode
+from spm_console.input_rules import finite_number, theta_in_servo_limits
 from spm_console.run.servo_query import BusQuery, BusReport, check_ids
 from spm_console.signals import install_stop_handler
 

@@ -99,7 +99,7 @@ def run_consoles(profile_path: Path, grid_step_deg: float | None,
 
 
 def cmd_tui(args: argparse.Namespace) -> int:
-    from spm_console.cli.common import finite_number
+    from spm_console.input_rules import finite_number
 
     grid = args.grid_step
     if grid is not None:

@@ -8,21 +8,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import (
-    PLOT_SUFFIXES,
-    add_common,
-    bounded_int,
-    emit,
-    info,
-    output_file,
-    profile_of,
-    theta_in_grid,
-)
+from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output_file, profile_of
 from spm_console.core.region_build import region_containing
 from spm_console.core.workspace import Workspace, check_theta
 from spm_console.core.workspace_verify import verify_cover, verify_region
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.formatting import fmt_vec
+from spm_console.input_rules import bounded_int, theta_in_grid
 from spm_console.profile import Profile
 from spm_console.store.workspace_cache import CacheInfo, load_or_build
 

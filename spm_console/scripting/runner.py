@@ -72,6 +72,7 @@ import numpy as np
 from spm_console.errors import BadInputError, ExitCode, SpmError
 from spm_console.profile import DEFAULT_PROFILE, Profile, load_profile
 from spm_console.run.operator import PoseSpec, Session
+from spm_console.scripting.checks import check_script
 from spm_console.scripting.steps import (
     AssertStep,
     ExecuteStep,
@@ -351,6 +352,7 @@ def session_for(script: Script, profile: Profile | None = None, port: str | None
     spec = script.session
     if profile is None:
         profile = load_profile(spec.profile or DEFAULT_PROFILE)
+    check_script(script, profile)  # the CLI's input rules, before the bus is opened
     dev = None if sim else (port or spec.port or profile.bus.port or None)
     faults = [parse_fault(f) for f in spec.faults]
     if dev is not None and (faults or spec.initial_deg is not None):

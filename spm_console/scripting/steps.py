@@ -10,16 +10,19 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, field_validator
 
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
 from spm_console.errors import BadInputError, ExitCode, SpmError
+from spm_console.profile import Count, Real
 from spm_console.safe_io import MB, read_text
 
 #: Largest script file read.
 MAX_SCRIPT_BYTES = 1 * MB
 
-Vec3 = tuple[float, float, float]
+#: A boolean, never a number or a string.
+Flag = Annotated[bool, Strict()]
+Vec3 = tuple[Real, Real, Real]
 
 
 class ScriptAssertionError(SpmError):
@@ -69,12 +72,12 @@ class FkStep(_Model):
     do: Literal["fk"]
     theta: Vec3 | None = None
     rpy: Vec3 | None = None
-    all_modes: bool = False
+    all_modes: Flag = False
 
 
 class WorkspaceStep(_Model):
     do: Literal["workspace"]
-    rebuild: bool = False
+    rebuild: Flag = False
     check: Vec3 | None = None
 
 
@@ -83,13 +86,13 @@ class PlanStep(_Model):
     method: Literal["mvn", "mintime"] = "mvn"
     start: PoseIn = "current"
     goal: PoseIn
-    steps: int = Field(default=150, ge=2, le=N_MAX)
-    vmax: float | None = Field(default=None, gt=0.0, le=MX106_NO_LOAD_SPEED_DEGPS)
+    steps: Count = Field(default=150, ge=2, le=N_MAX)
+    vmax: Real | None = Field(default=None, gt=0.0, le=MX106_NO_LOAD_SPEED_DEGPS)
 
 
 class ExecuteStep(_Model):
     do: Literal["execute"]
-    allow_stop: bool = False
+    allow_stop: Flag = False
 
 
 class FollowStep(_Model):
@@ -97,27 +100,27 @@ class FollowStep(_Model):
     yaw in degrees from home with ``rpy``) or a CSV ``file`` of the same rows."""
 
     do: Literal["follow"]
-    targets: tuple[tuple[float, float, float, float], ...] | None = Field(
+    targets: tuple[tuple[Real, Real, Real, Real], ...] | None = Field(
         default=None, min_length=1, max_length=100_000)
     file: str | None = None
-    rpy: bool = False
-    allow_stop: bool = False
+    rpy: Flag = False
+    allow_stop: Flag = False
 
 
 class WaitStep(_Model):
     do: Literal["wait"]
-    seconds: float = Field(ge=0.0, le=3600.0)
+    seconds: Real = Field(ge=0.0, le=3600.0)
 
 
 class AssertStep(_Model):
     do: Literal["assert"]
     outcome: Literal["completed", "stopped"] | None = None
-    exit_code: int | None = None
+    exit_code: Count | None = None
     theta_near: Vec3 | None = None
-    tol_deg: float = Field(default=0.5, gt=0.0)
-    feasible: bool | None = None
-    zeta_min: float | None = None
-    max_duration_s: float | None = None
+    tol_deg: Real = Field(default=0.5, gt=0.0, le=360.0)
+    feasible: Flag | None = None
+    zeta_min: Real | None = Field(default=None, ge=0.0, le=1.0)
+    max_duration_s: Real | None = Field(default=None, gt=0.0, le=3600.0)
 
 
 Step = Annotated[

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import osqp
 import scipy.sparse as sp
-from scipy.optimize import nnls
 from numpy.typing import NDArray
+from scipy.optimize import nnls
 
 from spm_console.core.region import Region
 from spm_console.errors import InfeasibleError
