@@ -357,4 +357,6 @@ def with_grid_step(profile: Profile, step_deg: float, source: str = "--grid-step
     hashes — is that grid's."""
     data = profile.model_dump(mode="json")
     data["workspace"] = {**data["workspace"], "step_deg": float(step_deg)}
-    return parse_profile(data, source)
+    prof = parse_profile(data, source)
+    check_home_mode(prof, source)  # room for a region around home on this grid
+    return prof

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal, Union, get_args, get_
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
+from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS
 from spm_console.errors import ProfileError
 
 if TYPE_CHECKING:
@@ -39,9 +40,11 @@ MAX_GRID_NODES = 2_000_000
 #: and ≈ 600–700 B/node with the region construction; rounded up).
 BYTES_PER_NODE = 700
 #: Band of p·Ts (pole times sampling interval). Below, the homing plan's settle time
-#: ⌈10/(p·Ts)⌉ exceeds 10,000 samples; above, the step response is within e^−20 ≈ 2e-9
-#: of its goal after one sample: the sampled model (28) has no dynamics left to check.
-PTS_MIN, PTS_MAX = 1e-3, 20.0
+#: ⌈10/(p·Ts)⌉ exceeds 10,000 samples; above, the step response is within e^−10 ≈ 5e-5
+#: of its goal after one sample: the sampled model (28) has no dynamics left, and plans
+#: cannot keep the speed bound between samples (measured with Ts = 20 ms: MVN plans of
+#: p = 600 and 1000 are refused by the runtime's verification, p = 500 passes).
+PTS_MIN, PTS_MAX = 1e-3, 10.0
 #: Unit of the Dynamixel Bus Watchdog register, ms; the register holds 1..127 units.
 WATCHDOG_UNIT_MS = 20
 WATCHDOG_MAX_UNITS = 127
@@ -371,9 +374,30 @@ def wiring_problems(prof: Profile) -> list[Problem]:
     return out
 
 
+def use_problems(prof: Profile) -> list[Problem]:
+    """Values each valid alone that no run could use: every homing, or every plan, would be
+    refused."""
+    out = []
+    home_v, vmax = prof.safety.home_speed_degps, prof.limits.vmax_degps
+    if vmax > MX106_NO_LOAD_SPEED_DEGPS:
+        out.append(Problem(
+            "limits.vmax_degps", vmax,
+            f"is above the MX-106's rated no-load speed {num(MX106_NO_LOAD_SPEED_DEGPS)} deg/s: "
+            f"every plan would be refused (allowed: 0 < vmax_degps ≤ "
+            f"{num(MX106_NO_LOAD_SPEED_DEGPS)})"))
+    if home_v > vmax:
+        out.append(Problem(
+            "safety.home_speed_degps", home_v,
+            f"is above the planning limit limits.vmax_degps = {num(vmax)} deg/s: every homing "
+            "move would be refused by the runtime's plan verification (allowed: "
+            f"0.5 ≤ home_speed_degps ≤ {num(vmax)})"))
+    return out
+
+
 def physics_problems(prof: Profile) -> list[Problem]:
     """Every cross-field problem of a profile that passed the per-field validation."""
-    return [*grid_problems(prof), *servo_problems(prof), *link_problems(prof), *wiring_problems(prof)]
+    return [*grid_problems(prof), *servo_problems(prof), *link_problems(prof), *wiring_problems(prof),
+            *use_problems(prof)]
 
 
 def check_physics(prof: Profile, source: str) -> None:
@@ -441,3 +465,41 @@ def check_home_mode(prof: Profile, source: str) -> None:
             "(allowed: a home with ζ ≥ workspace.zeta_min, links of different legs at least "
             "2·links.delta_mm apart, inside [workspace.theta_min_deg, workspace.theta_max_deg])"
         ).line(source))
+    _check_room_at_home(prof, source, model)
+
+
+def _check_room_at_home(prof: Profile, source: str, model: Any) -> None:
+    """One grid step around home every way is feasible: the region P grows from home over
+    the grid's nodes, and with less room it has no interior (a 30° step or ζ_min = 0.999
+    used to fail only when the workspace was built, as a degenerate ellipsoid)."""
+    import itertools
+
+    import numpy as np
+
+    from spm_console.core.assess import assess
+    from spm_console.models import link_model_of
+
+    ws = prof.workspace
+    home = np.asarray(prof.home.theta_deg, float)
+    cube = np.array([d for d in itertools.product((-1.0, 0.0, 1.0), repeat=3) if any(d)])
+    nodes = home + ws.step_deg * cube
+    links = link_model_of(prof)
+    with np.errstate(all="ignore"):
+        results = model.track_batch(np.radians(nodes))
+    for th, r in zip(nodes, results, strict=True):
+        shown = show([float(x) for x in th])
+        if r.ok and r.pose is not None:
+            a = assess(model, links, r.pose, ws.zeta_min, (ws.theta_min_deg, ws.theta_max_deg))
+            if a.feasible:
+                continue
+            why, key = a.reason, ("workspace.zeta_min" if a.zeta < ws.zeta_min else
+                                  "workspace.step_deg")
+        else:
+            why, key = r.reason or "no forward-kinematic solution", "workspace.step_deg"
+        value = ws.zeta_min if key == "workspace.zeta_min" else ws.step_deg
+        raise ProfileError(Problem(
+            key, value,
+            f"leaves no room for a region around home: the grid node θ = {shown}° one step "
+            f"(workspace.step_deg = {num(ws.step_deg)}°) from home is not feasible ({why}) "
+            "(allowed: every node one grid step around home feasible: a smaller step, or a "
+            "lower workspace.zeta_min)").line(source))

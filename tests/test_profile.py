@@ -92,8 +92,8 @@ def agile_doc() -> dict[str, Any]:
         ("theta_range_reversed.toml", "workspace.theta_max_deg", "155.0", "155 < theta_max_deg"),
         ("step_not_dividing.toml", "workspace.step_deg", "7.0", "not a whole number of steps"),
         ("grid_too_fine.toml", "workspace.step_deg", "0.01", "9001³ = 729,243,027,001 nodes"),
-        ("servo_p_tiny.toml", "servo.p", "1e-12", "0.05 ≤ p ≤ 1000 rad/s"),
-        ("servo_pts_large.toml", "servo.p", "32.22", "p·Ts = 32.22·1 = 32.22 is outside [0.001, 20]"),
+        ("servo_p_tiny.toml", "servo.p", "1e-12", "0.05 ≤ p ≤ 500 rad/s"),
+        ("servo_pts_large.toml", "servo.p", "32.22", "p·Ts = 32.22·1 = 32.22 is outside [0.001, 10]"),
         ("servo_p_nan.toml", "servo.p", "nan", "must be a finite number"),
         ("servo_p_bool.toml", "servo.p", "true", "got a boolean"),
         ("vmax_string.toml", "limits.vmax_degps", '"1.5"', "got a string"),
@@ -175,7 +175,7 @@ def test_grid_cap_allows_the_1_degree_grid_and_states_node_count() -> None:
 
 
 @pytest.mark.parametrize("method", ["zoh", "tustin"])
-@pytest.mark.parametrize(("p", "ts"), [(1.0, 0.001), (1000.0, 0.02), (0.05, 0.02), (20.0, 1.0)])
+@pytest.mark.parametrize(("p", "ts"), [(1.0, 0.001), (500.0, 0.02), (0.05, 0.02), (10.0, 1.0)])
 def test_servo_band_corners_give_a_stable_finite_model(method: Literal["zoh", "tustin"], p: float,
                                                        ts: float) -> None:
     from spm_console.core.servo_model import discretize  # python-control: slow import, only here
@@ -194,9 +194,9 @@ def test_servo_band_corners_give_a_stable_finite_model(method: Literal["zoh", "t
 def test_servo_band_edges_refused() -> None:
     doc = agile_doc()
     doc["safety"].update(watchdog_ms=0, watchdog_off_reason="Ts outlasts any watchdog")
-    for p, ts in ((0.04, 0.02), (21.0, 1.0)):
+    for p, ts in ((0.04, 0.02), (11.0, 1.0)):
         doc["servo"].update(p=p, ts_s=ts)
-        with pytest.raises(ProfileError, match=r"key 'servo\.p' = .*outside \[0\.001, 20\]"):
+        with pytest.raises(ProfileError, match=r"key 'servo\.p' = .*outside \[0\.001, 10\]"):
             parse_profile(doc, "t.toml")
 
 
@@ -209,6 +209,26 @@ def test_watchdog_as_written_outlasts_two_periods(ms: int, ok: bool) -> None:
     else:
         with pytest.raises(ProfileError, match=r"key 'safety\.watchdog_ms' = 29: .*\(20 ms, in 20 ms units\)"):
             parse_profile(doc, "t.toml")
+
+
+@pytest.mark.parametrize(("section", "key", "value", "why"), [
+    ("safety", "home_speed_degps", 360.0, "every homing move would be refused"),
+    ("limits", "vmax_degps", 2000.0, "rated no-load speed 270 deg/s: every plan would be refused"),
+    ("servo", "p", 1000.0, "is outside [0.001, 10]"),
+    ("workspace", "step_deg", 30.0, "leaves no room for a region around home"),
+    ("workspace", "zeta_min", 0.999, "leaves no room for a region around home"),
+])
+def test_a_profile_no_run_could_use_is_refused_at_load_naming_the_key(
+        tmp_path: Path, section: str, key: str, value: float, why: str) -> None:
+    """Each value is valid alone, but every homing or plan would be refused, or the workspace
+    has no region (these used to fail only later, with exit 26 or 7)."""
+    doc = agile_doc()
+    doc[section][key] = value
+    path = tmp_path / "p.toml"
+    path.write_text(tomli_w.dumps(doc))
+    with pytest.raises(ProfileError, match=f"key '{section}\\.{key}' = .*") as exc:
+        load_profile(path)
+    assert why in exc.value.message and exc.value.exit_code == ExitCode.PROFILE_ERROR
 
 
 def test_the_watchdog_is_off_only_with_a_reason() -> None:
