@@ -226,5 +226,33 @@ def test_an_estop_before_the_motion_switches_nothing_on(agile: Profile, tmp_path
     ex = _executor(agile, bus, tmp_path)
     ex.request_estop("signal SIGTERM")
     res = ex.run([Segment("plan", synthetic_plan(agile, START, GOAL, 1.0))])
-    assert res.exit_code == ExitCode.STOP_ESTOP and "before any motion" in res.message
+    # nothing moved: an interruption (130), as a signal before any motion always is
+    assert res.exit_code == ExitCode.INTERRUPTED and "before any motion" in res.message
+    assert "nothing moved" in res.message and not res.ok
     assert bus.torque_calls == [] and bus.writes == [] and res.stats.samples == 0
+    assert load_run(res.log_dir).meta["outcome"] == "interrupted"
+
+
+def test_an_estop_between_torque_on_and_the_first_reference_holds_and_is_an_interruption(
+        agile: Profile, tmp_path: Path) -> None:
+    """The signal lands just after torque-on, before cycle 0: the wrist holds where it stood
+    (the stop action is applied and logged) and, with no reference sent, the run is an
+    interruption (130), not a stopped motion (20)."""
+    bus = _sim(START)
+    ex = _executor(agile, bus, tmp_path)
+    set_torque = bus.set_torque
+
+    def torque_then_signal(on: bool) -> None:
+        set_torque(on)
+        if on:
+            ex.request_estop("signal SIGQUIT")
+
+    bus.set_torque = torque_then_signal  # type: ignore[method-assign]
+    res = ex.run([Segment("plan", synthetic_plan(agile, START, GOAL, 1.0))])
+    assert res.exit_code == ExitCode.INTERRUPTED and res.stats.samples == 0
+    assert "signal SIGQUIT" in res.message and "nothing moved" in res.message
+    run = load_run(res.log_dir)  # type: ignore[arg-type]
+    assert run.meta["outcome"] == "interrupted" and run.meta["exit_code"] == 130
+    stop = next(e for e in run.events if e["event"] == "stop")
+    assert stop["action"] == "hold"
+    np.testing.assert_allclose(stop["hold_deg"], START, atol=0.1)  # held where it stood

@@ -255,6 +255,10 @@ class Executor:
             msg = done()
             self._event("done", message=msg)
             return self._finish("completed", ExitCode.OK, msg, None)
+        if stop.kind == "estop" and not self.samples:  # no reference went out: an interruption
+            msg = stop.message if "before any motion" in stop.message else \
+                f"{stop.message} (before any motion)"
+            return self._finish("interrupted", ExitCode.INTERRUPTED, f"{msg}; nothing moved", stop)
         return self._finish("stopped", stop.exit_code, stop.message, stop)
 
     def _release_watchdog(self) -> None:
