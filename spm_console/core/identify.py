@@ -118,7 +118,12 @@ def _forward_jacobian(resid: Callable[[F], F], v: F, hi: list[float]) -> F:
     return out
 
 
-def _as2d(a: F, n: int, what: str) -> F:
+def _sample(k: int) -> str:
+    """Default name of sample k (0-based) in messages."""
+    return f"sample {k + 1}"
+
+
+def _as2d(a: F, n: int, what: str, at: Callable[[int], str] = _sample) -> F:
     """(n, J) finite angles within ±ANGLE_MAX_DEG, deg (else BadInputError naming the sample)."""
     x = np.asarray(a, float)
     if x.ndim == 1:
@@ -127,30 +132,30 @@ def _as2d(a: F, n: int, what: str) -> F:
         raise BadInputError(f"{what}: expected {n} rows (one per sample), got shape {x.shape}")
     if not np.all(np.isfinite(x)):
         k = int(np.argwhere(~np.isfinite(x))[0, 0])
-        raise BadInputError(f"{what}: holds non-finite values (first at sample {k + 1})")
+        raise BadInputError(f"{what}: holds non-finite values (first at {at(k)})")
     far = np.argwhere(np.abs(x) > ANGLE_MAX_DEG)
     if far.size:
         k, j = (int(i) for i in far[0])
-        raise BadInputError(f"{what}: {x[k, j]:.4g}° (sample {k + 1}, joint {j + 1}) is outside "
+        raise BadInputError(f"{what}: {x[k, j]:.4g}° ({at(k)}, joint {j + 1}) is outside "
                             f"±{ANGLE_MAX_DEG:g}°: not an angle in degrees")
     return x
 
 
-def _check_times(t: F) -> None:
+def _check_times(t: F, at: Callable[[int], str] = _sample) -> None:
     """Finite, within ±CLOCK_MAX_S, strictly increasing by at least DT_MIN_S, spanning at
     most SPAN_MAX_S (each a BadInputError naming the first offending sample)."""
     if not np.all(np.isfinite(t)) or np.abs(t).max() > CLOCK_MAX_S:
         k = int(np.argwhere(~(np.abs(t) <= CLOCK_MAX_S))[0, 0])
         raise BadInputError(f"sample times must be finite and within ±{CLOCK_MAX_S:g} s "
-                            f"(sample {k + 1}: {t[k]:.4g} s)")
+                            f"({at(k)}: {t[k]:.4g} s)")
     dt = np.diff(t)
     if np.any(dt <= 0):
         k = int(np.argwhere(dt <= 0)[0, 0])
-        raise BadInputError(f"sample times must be finite and strictly increasing (sample "
-                            f"{k + 2}: {t[k + 1]:.9g} s after {t[k]:.9g} s)")
+        raise BadInputError(f"sample times must be finite and strictly increasing "
+                            f"({at(k + 1)}: {t[k + 1]:.9g} s after {t[k]:.9g} s)")
     if dt.min() < DT_MIN_S:
         k = int(np.argmin(dt))
-        raise BadInputError(f"sample interval {dt[k]:.3g} s (samples {k + 1}–{k + 2}) is below "
+        raise BadInputError(f"sample interval {dt[k]:.3g} s ({at(k)} to {at(k + 1)}) is below "
                             f"{DT_MIN_S:g} s: the times are not in seconds, or not sample times")
     span = float(t[-1] - t[0])
     if span > SPAN_MAX_S:
@@ -233,20 +238,22 @@ def _check_determined(p: float, delay_s: float, p_std: float, doubling_deg: floa
                           f"standard deviation above {100 * P_REL_STD_MAX:g} % of p)")
 
 
-def identify(t: F, reference: F, measured: F, fit_delay: bool = False) -> IdentifyResult:
+def identify(t: F, reference: F, measured: F, fit_delay: bool = False, *,
+             at: Callable[[int], str] = _sample) -> IdentifyResult:
     """Least-squares fit of p (and optionally a pure delay) to a logged response.
 
     t (n,) s, reference and measured (n,) or (n, J) deg. Raises BadInputError for malformed
     data or data without the motion p needs, SolverError for a fit that does not determine
-    p (see the module's docstring for the thresholds)."""
+    p (see the module's docstring for the thresholds). ``at(k)`` names sample k (0-based) in
+    those messages, e.g. by its line in a file."""
     t0 = time.perf_counter()
     tt = np.asarray(t, float).reshape(-1)
     n = tt.size
     if n < 5:
         raise BadInputError(f"identification needs at least 5 samples, got {n}")
-    _check_times(tt)
-    ref = _as2d(reference, n, "reference")
-    meas = _as2d(measured, n, "measured")
+    _check_times(tt, at)
+    ref = _as2d(reference, n, "reference", at)
+    meas = _as2d(measured, n, "measured", at)
     if ref.shape != meas.shape:
         raise BadInputError(f"reference {ref.shape} and measured {meas.shape} differ in shape")
     J = ref.shape[1]
