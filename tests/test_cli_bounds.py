@@ -11,14 +11,58 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from spm_console.cli.main import main
+from spm_console.core.identify import response
 from spm_console.core.region import Region
 from spm_console.errors import ExitCode
 from tests.planning_cases import polytope
 
 B, INF, UNR = ExitCode.BAD_INPUT, ExitCode.INFEASIBLE, ExitCode.UNREACHABLE
+SOL = ExitCode.SOLVER_FAILED
+TICK_DEG = 360.0 / 4096
+
+
+def _step_record(p: float = 30.0, n: int = 60) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A 3-joint step response of (27) sampled every 20 ms, quantized to encoder ticks."""
+    t = np.arange(n) * 0.02
+    ref = np.tile([100.0, 120.0, 90.0], (n, 1))
+    ref[5:] = [130.0, 100.0, 95.0]
+    return t, ref, np.round(response(p, 0.0, t, ref, ref[0]) / TICK_DEG) * TICK_DEG
+
+
+def _write_identify_csv(path: Path, t: np.ndarray, ref: np.ndarray, meas: np.ndarray) -> None:
+    rows = ["t,ref1,ref2,ref3,meas1,meas2,meas3"]  # line 1; sample k is on line k + 2
+    rows += [",".join(repr(float(v)) for v in (t[k], *ref[k], *meas[k])) for k in range(len(t))]
+    path.write_text("\n".join(rows) + "\n")
+
+
+def _identify_files(d: Path) -> dict[str, Path]:
+    """Hostile identify CSVs (named id_*): each edits a good step record."""
+    t, ref, meas = _step_record()
+    k = np.arange(len(t))[:, None]
+    edits = {
+        "id_huge": (t, np.where(k == 10, 1e308, ref), meas),
+        "id_nan": (t, ref, np.where(k == 7, np.nan, meas)),
+        "id_inf": (t, ref, np.where(k == 8, np.inf, meas)),
+        "id_still": (t, np.full_like(ref, 100.0), np.full_like(meas, 100.0)),
+        "id_ref_still": (t, np.full_like(ref, 100.0), meas),
+        "id_ref_tick": (t, ref[0] + 0.05 * (k >= 5), meas),
+        "id_meas_still": (t, ref, np.full_like(meas, 100.0)),
+        "id_t_huge": (t * 1e300, ref, meas),
+        "id_t_tiny": (t * 1e-300, ref, meas),
+        "id_t_day": (t * 1e5, ref, meas),
+        "id_t_repeat": (np.where(k[:, 0] == 20, t[19], t), ref, meas),
+        "id_t_back": (t[::-1], ref, meas),
+        "id_fast": (t, ref, np.round(response(5000.0, 0.0, t, ref, ref[0]) / TICK_DEG) * TICK_DEG),
+    }
+    out = {}
+    for name, (tt, rr, mm) in edits.items():
+        out[name] = d / f"{name}.csv"
+        _write_identify_csv(out[name], tt, rr, mm)
+    return out
 S = ["--start", "127.53", "83.23", "85.25"]
 G = ["--goal", "66.80", "155.00", "131.48"]
 
@@ -32,6 +76,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
         "dir": d / "folder", "deep_toml": d / "deep.toml", "far_csv": d / "far.csv",
         "box": d / "box.json",
     }
+    paths |= _identify_files(d)
     paths["bin"].write_bytes(bytes(range(256)) * 8)
     paths["deep"].write_text("[" * 100_000 + "]" * 100_000)
     paths["region"].write_text(json.dumps({"region": polytope().to_dict()}))
@@ -87,6 +132,21 @@ CASES: list[tuple[list[str], int, tuple[str, ...]]] = [
     (["plan", "show", "{region}", "--plot", "{xyz}"], B, ("--plot", ".png")),
     (["identify", "--csv", "{bin}"], B, ("--csv", "not UTF-8")),
     (["identify", "--csv", "/dev/zero"], B, ("--csv", "a device, not a regular file")),
+    # identify: what cannot be fitted is refused with its reason, never a made-up p
+    (["identify", "--csv", "{id_huge}"], B, ("id_huge.csv, line 12", "ref1 = 1e+308", "±3600°")),
+    (["identify", "--csv", "{id_nan}"], B, ("id_nan.csv, line 9", "meas1 = nan is not finite")),
+    (["identify", "--csv", "{id_inf}"], B, ("id_inf.csv, line 10", "meas1 = inf is not finite")),
+    (["identify", "--csv", "{id_still}"], B, ("id_still.csv", "reference never moves")),
+    (["identify", "--csv", "{id_ref_still}"], B, ("id_ref_still.csv", "reference never moves")),
+    (["identify", "--csv", "{id_ref_tick}"], B, ("reference moves by 0.05°", "0.5° needed")),
+    (["identify", "--csv", "{id_meas_still}"], B,
+     ("id_meas_still.csv", "measured position never moves", "did not follow")),
+    (["identify", "--csv", "{id_t_huge}"], B, ("id_t_huge.csv, line 3", "t = 2e+298", "±1e+10 s")),
+    (["identify", "--csv", "{id_t_tiny}"], B, ("id_t_tiny.csv", "sample interval", "below 0.0001 s")),
+    (["identify", "--csv", "{id_t_day}"], B, ("id_t_day.csv", "span", "more than 86400 s")),
+    (["identify", "--csv", "{id_t_repeat}"], B, ("id_t_repeat.csv", "strictly increasing", "line 22")),
+    (["identify", "--csv", "{id_t_back}"], B, ("id_t_back.csv", "strictly increasing", "line 3")),
+    (["identify", "--csv", "{id_fast}"], SOL, ("id_fast.csv", "cannot tell p", "from 2p")),
     # fk / ik
     (["fk", "--theta", "1e308", "100", "100"], B, ("--theta", "θ1", "one turn", "-360..360°")),
     (["fk", "--theta", "100", "inf", "100"], B, ("--theta", "must be a finite number")),
@@ -214,6 +274,53 @@ def test_row_counts_are_capped(tmp_path: Path, capsys: pytest.CaptureFixture[str
     assert main(["identify", "--csv", str(steps), "--json"]) == B
     assert "4 samples, more than the 3" in capsys.readouterr().err
 
+
+
+def test_identify_refuses_a_p_the_profile_cannot_hold(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """A fit of p = 300 rad/s is refused (exit 7) for a profile sampled at 0.2 s: p·Ts = 60
+    is outside the [0.001, 20] a profile accepts; the default profile (Ts = 20 ms) takes it."""
+    agile = (Path(__file__).parent.parent / "profiles" / "agile_wrist.toml").read_text()
+    slow = tmp_path / "slow.toml"
+    slow.write_text(agile.replace("ts_s = 0.02 ", "ts_s = 0.2 ")
+                    .replace("watchdog_ms = 100 ", "watchdog_ms = 500 "))
+    csv_file = tmp_path / "fast.csv"
+    _write_identify_csv(csv_file, *_step_record(p=300.0))
+    assert main(["identify", "--csv", str(csv_file), "--json"]) == ExitCode.OK
+    assert abs(json.loads(capsys.readouterr().out)["p"] / 300 - 1) < 0.02
+    assert main(["identify", "--csv", str(csv_file), "--profile", str(slow)]) == SOL
+    err = capsys.readouterr().err
+    assert "fast.csv" in err and "p·Ts = 59" in err and "[0.001, 20]" in err, err
+
+
+def test_identify_of_a_run_skips_lost_replies_and_refuses_corrupt_rows(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """In a run log an empty measurement is a lost reply: the row is skipped and the fit
+    goes on. Any other non-finite value (an edited log) is refused naming the data row."""
+    t, ref, meas = _step_record(p=32.22)
+    lost = {3, 17, 40}
+
+    def write_run(name: str, cell: tuple[int, int, str] | None = None) -> None:
+        run = tmp_path / "logs" / name
+        run.mkdir(parents=True)
+        rows = ["t,k,phase,ref1,ref2,ref3,meas1,meas2,meas3"]
+        for k in range(len(t)):
+            cells = [f"{t[k]:.6f}", str(k), "plan", *(f"{v:.6g}" for v in ref[k]),
+                     *("" if k in lost else f"{v:.6g}" for v in meas[k])]
+            if cell is not None and cell[0] == k:
+                cells[cell[1]] = cell[2]
+            rows.append(",".join(cells))
+        (run / "samples.csv").write_text("\n".join(rows) + "\n")
+
+    write_run("good")
+    write_run("edited", (25, 4, "inf"))
+    logs = ["--logs", str(tmp_path / "logs")]
+    assert main(["identify", "--run", "good", *logs, "--json"]) == ExitCode.OK
+    d = json.loads(capsys.readouterr().out)
+    assert d["samples"] == len(t) - len(lost) and abs(d["p"] / 32.22 - 1) < 0.02
+    assert main(["identify", "--run", "edited", *logs]) == B
+    err = capsys.readouterr().err
+    assert "samples.csv, data row 26: ref2 = inf is not finite" in err and "Traceback" not in err
 
 def test_output_folders_under_a_file_are_refused(files: dict[str, str], tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:

@@ -7,7 +7,7 @@ import pytest
 
 from spm_console.core.identify import identify, response
 from spm_console.core.servo_model import discretize, simulate
-from spm_console.errors import BadInputError
+from spm_console.errors import BadInputError, SolverError
 
 TICK_DEG = 360.0 / 4096
 TS = 0.02
@@ -91,6 +91,63 @@ def test_bad_input_is_refused() -> None:
     with pytest.raises(BadInputError, match="non-finite"):
         identify(t, ref, bad)
 
+
+
+def _step_data() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t, ref = _steps()
+    return t, ref, _quantize(response(32.22, 0.0, t, ref, ref[0]))
+
+
+@pytest.mark.parametrize(("edit", "words"), [
+    (lambda t, r, m: (t, np.where(np.arange(60)[:, None] == 10, 1e308, r), m),
+     ("reference", "1e+308", "±3600")),
+    (lambda t, r, m: (t, r, m - 4000.0), ("measured", "±3600")),
+    (lambda t, r, m: (t * 1e300, r, m), ("sample times", "±1e+10 s")),
+    (lambda t, r, m: (t + 1e308, r, m), ("sample times", "±1e+10 s")),
+    (lambda t, r, m: (t * 1e-300, r, m), ("sample interval", "below 0.0001 s")),
+    (lambda t, r, m: (t * 1e5, r, m), ("span", "more than 86400 s")),
+    (lambda t, r, m: (np.where(np.arange(60) == 20, t[19], t), r, m),
+     ("strictly increasing", "sample 21")),
+    (lambda t, r, m: (t, np.full_like(r, 100.0), np.full_like(m, 100.0)), ("never moves",)),
+    (lambda t, r, m: (t, r[0] + 0.01 * (np.arange(60) >= 5)[:, None], m),
+     ("reference moves by 0.01°", "0.5°")),
+    (lambda t, r, m: (t, r, np.full_like(m, 100.0)), ("measured position never moves",)),
+])
+def test_malformed_or_motionless_data_is_bad_input(edit, words) -> None:  # type: ignore[no-untyped-def]
+    """Values beyond ±3600°, times that are not seconds of one record (beyond ±1e10 s,
+    intervals under 0.1 ms, a span over a day, repeated), and data without a step of 0.5°
+    in θ* and an answer in θ: refused (exit 4), never a traceback or a made-up p."""
+    t, ref, meas = edit(*_step_data())
+    with pytest.raises(BadInputError) as exc:
+        identify(t, ref, meas)
+    assert all(w in exc.value.message for w in words), exc.value.message
+
+
+@pytest.mark.parametrize("fit_delay", [False, True])
+def test_a_fit_that_does_not_determine_p_is_refused(fit_delay: bool) -> None:
+    """A response faster than the samples (settled one sample after each step, p·Ts ≈ 100),
+    an instant copy of the reference, no answer related to the reference (p on its lower
+    bound), a delay beyond 0.25 s: SolverError (exit 7), not a made-up p."""
+    t, ref = _steps()
+    rng = np.random.default_rng(0)
+    for meas, words in [
+        (_quantize(response(5000.0, 0.0, t, ref, ref[0])), "cannot tell p"),
+        (np.vstack([ref[:1], ref[:-1]]), "cannot tell p"),
+        (ref[0] + rng.normal(0.0, 5.0, ref.shape), "search bound"),
+    ]:
+        with pytest.raises(SolverError, match=words):
+            identify(t, ref, meas, fit_delay=fit_delay)
+    if fit_delay:
+        late = _quantize(response(32.22, 0.4, t, ref, ref[0]))
+        with pytest.raises(SolverError, match="delay on its bound"):
+            identify(t, ref, late, fit_delay=True)
+
+
+def test_a_fast_servo_sampled_fast_enough_is_still_fitted() -> None:
+    """p·Ts = 6 still shows a step's last degree at the next sample: fitted, not refused."""
+    t, ref = _steps()
+    res = identify(t, ref, _quantize(response(300.0, 0.0, t, ref, ref[0])))
+    assert abs(res.p / 300.0 - 1) < 0.02
 
 def _bus_steps(agile) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:  # type: ignore[no-untyped-def]
     """One step-response record through the emulator: (t, refs, measured, the worst
