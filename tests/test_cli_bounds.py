@@ -279,7 +279,7 @@ def test_row_counts_are_capped(tmp_path: Path, capsys: pytest.CaptureFixture[str
 def test_identify_refuses_a_p_the_profile_cannot_hold(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
     """A fit of p = 300 rad/s is refused (exit 7) for a profile sampled at 0.2 s: p·Ts = 60
-    is outside the [0.001, 20] a profile accepts; the default profile (Ts = 20 ms) takes it."""
+    is outside the [0.001, 10] a profile accepts; the default profile (Ts = 20 ms) takes it."""
     agile = (Path(__file__).parent.parent / "profiles" / "agile_wrist.toml").read_text()
     slow = tmp_path / "slow.toml"
     slow.write_text(agile.replace("ts_s = 0.02 ", "ts_s = 0.2 ")
@@ -290,7 +290,7 @@ def test_identify_refuses_a_p_the_profile_cannot_hold(tmp_path: Path,
     assert abs(json.loads(capsys.readouterr().out)["p"] / 300 - 1) < 0.02
     assert main(["identify", "--csv", str(csv_file), "--profile", str(slow)]) == SOL
     err = capsys.readouterr().err
-    assert "fast.csv" in err and "p·Ts = 59" in err and "[0.001, 20]" in err, err
+    assert "fast.csv" in err and "p·Ts = 59" in err and "[0.001, 10]" in err, err
 
 
 def test_identify_of_a_run_skips_lost_replies_and_refuses_corrupt_rows(

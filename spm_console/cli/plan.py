@@ -234,6 +234,15 @@ Samples = tuple[np.ndarray, np.ndarray, np.ndarray, Callable[[int], str]]
 """t, reference and measured of identify, and the name of sample k in messages."""
 
 
+def _cell(text: str) -> float:
+    """A CSV cell: a plain decimal number (:func:`~spm_console.numbers.parse_number`), or a
+    written NaN/inf, which the column checks refuse naming the column (a column not used may
+    hold them)."""
+    if text.strip().lower().lstrip("+-") in ("nan", "inf", "infinity"):
+        return float(text)
+    return parse_number(text)
+
+
 def _read_csv(path: Path) -> Samples:
     """The samples of an identify CSV; a cell that is not a number, or a non-finite or
     out-of-range value in a column used, is refused naming its line."""
@@ -249,7 +258,7 @@ def _read_csv(path: Path) -> Samples:
         if len(row) != len(head):
             raise BadInputError(f"{path}, line {n}: {len(row)} cells, the header has {len(head)}")
         try:
-            values.append([parse_number(c) for c in row])
+            values.append([_cell(c) for c in row])
         except NotANumberError as exc:
             raise BadInputError(f"{path}, line {n}: every data cell must be a number ({exc})") from None
     data = np.array(values, float).reshape(len(values), len(head))
