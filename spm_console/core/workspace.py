@@ -25,9 +25,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.certify import CertifiedSet
+from spm_console.core.continuation import PATH_ZETA_FLOOR
 from spm_console.core.cover import RegionCover
 from spm_console.core.fk_grid import track_grid
-from spm_console.core.kinematics import PATH_ZETA_FLOOR, SpmModel, platform_axes
+from spm_console.core.kinematics import SpmModel, platform_axes
 from spm_console.core.links import LinkModel
 from spm_console.core.region import Region
 from spm_console.core.rowmap import RowMap, serial

@@ -24,7 +24,7 @@ from spm_console.store.workspace_cache import load_or_build
 
 if TYPE_CHECKING:
     from spm_console.core.plan import Plan
-    from spm_console.report.reproduce import ReproSettings
+    from spm_console.report.repro_types import ReproSettings
 
 
 def _execute(profile: Profile, plan: Plan, out: Path, fig: str, caption: str, sec: Section) -> None:

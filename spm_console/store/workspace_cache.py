@@ -32,8 +32,8 @@ import numpy as np
 from spm_console.core import cover as core_cover
 from spm_console.core import region_build
 from spm_console.core import workspace as core_ws
+from spm_console.core.continuation import NEWTON_TOL, PATH_ZETA_FLOOR
 from spm_console.core.cover import RegionCover
-from spm_console.core.kinematics import NEWTON_TOL, PATH_ZETA_FLOOR
 from spm_console.core.refine import REFINE, VERDICTS_VERSION
 from spm_console.core.region import Region
 from spm_console.core.workspace import Progress, Workspace
