@@ -26,7 +26,7 @@ import numpy as np
 from benchmarks.common import Row
 from spm_console.core.plan import Plan
 from spm_console.core.planning.mvn import solve_mvn
-from spm_console.core.region_build import region_containing
+from spm_console.core.region_choice import region_containing
 from spm_console.devices.bus import open_bus
 from spm_console.devices.emulator import start_emulator
 from spm_console.models import servo_model_of

@@ -37,7 +37,7 @@ START_MT = np.array([70.0, 90.0, 80.0])
 
 def _mvn_region(profile_path: str = "profiles/agile_wrist.toml") -> tuple[Region, str]:
     try:
-        from spm_console.core.region_build import region_containing
+        from spm_console.core.region_choice import region_containing
         from spm_console.store.workspace_cache import load_or_build
 
         ws, _ = load_or_build(load_profile(profile_path))

@@ -162,7 +162,7 @@ def test_an_edited_cache_is_no_hit(tmp_path: Path, coarse, edit: str) -> None:  
 
     import numpy as np
 
-    from spm_console.core.workspace import NodeClass
+    from spm_console.core.workspace_data import NodeClass
 
     prof, _calls = coarse
     _, info = load_or_build(prof, tmp_path)
@@ -256,7 +256,7 @@ def test_a_cover_of_p_alone_is_read_back(tmp_path: Path, monkeypatch: pytest.Mon
     stores no cover rows; loading it was refused as corrupt and rebuilt every time."""
     from dataclasses import replace
 
-    from spm_console.core.cover import RegionCover
+    from spm_console.core.cover_data import RegionCover
 
     ws = coarse_workspace()
     alone = RegionCover(regions=(ws.region,), seeds_deg=np.zeros((1, 3)),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 from spm_console.models import build_workspace
 from spm_console.profile import Profile, load_profile
 

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.continuation import PATH_ZETA_FLOOR
 from spm_console.core.kinematics import FkResult, SpmModel
-from spm_console.core.workspace import NodeClass, Workspace
+from spm_console.core.workspace_data import NodeClass, Workspace
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]

@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from spm_console.core.planning import solve_mintime, solve_mvn
-from spm_console.core.region_build import choose_region, region_containing
+from spm_console.core.region_choice import choose_region, region_containing
 from spm_console.core.servo_model import discretize
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 from spm_console.errors import InfeasibleError
 from spm_console.profile import Profile
 from spm_console.report import paper_values as pv
