@@ -28,7 +28,7 @@ from spm_console.core.planning.reference import solve_reference
 from spm_console.core.region import Region
 from spm_console.core.servo_model import discretize
 from spm_console.errors import SpmError
-from spm_console.profile import load_profile
+from spm_console.profile_load import load_profile
 
 START = np.array([127.53, 83.23, 85.25])
 GOAL = np.array([66.80, 155.00, 131.48])

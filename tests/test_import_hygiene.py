@@ -66,6 +66,6 @@ def test_the_console_shows_its_first_screen_before_loading_scipy_or_meshcat() ->
     optimize packages nor meshcat: together about 0.8 s of a 2 s budget."""
     code = ("from pathlib import Path\n"
             "import spm_console.cli.tui, spm_console.tui.app\n"
-            "from spm_console.profile import load_profile\n"
+            "from spm_console.profile_load import load_profile\n"
             "load_profile(Path('profiles/agile_wrist.toml'))")
     assert _loaded(code, (*HEAVY, "scipy.sparse", "scipy.spatial", "meshcat")) == []

@@ -28,8 +28,9 @@ from textual.widgets import Button, Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 from spm_console.errors import BadInputError, SpmError
-from spm_console.profile import DEFAULT_PROFILE, MAX_PROFILE_BYTES, load_profile, with_grid_step
+from spm_console.profile import DEFAULT_PROFILE
 from spm_console.profile_checks import grid_step_problems
+from spm_console.profile_load import MAX_PROFILE_BYTES, load_profile, with_grid_step
 from spm_console.safe_io import FileRefusedError, read_capped
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.footer import ConsoleFooter
