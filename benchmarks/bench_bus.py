@@ -20,7 +20,7 @@ from spm_console.devices import protocol2 as p2
 from spm_console.devices.base import CommError
 from spm_console.devices.bus import open_bus
 from spm_console.devices.emulator import start_emulator
-from spm_console.profile import load_profile
+from spm_console.profile_load import load_profile
 
 CYCLES = 400
 

@@ -26,11 +26,12 @@ import numpy as np
 from benchmarks.common import Row
 from spm_console.core.plan import Plan
 from spm_console.core.planning.mvn import solve_mvn
-from spm_console.core.region_build import region_containing
+from spm_console.core.region_choice import region_containing
 from spm_console.devices.bus import open_bus
 from spm_console.devices.emulator import start_emulator
 from spm_console.models import servo_model_of
-from spm_console.profile import Profile, load_profile
+from spm_console.profile import Profile
+from spm_console.profile_load import load_profile
 from spm_console.run.executor import Executor, Segment
 from spm_console.run.runlog import RunLog
 from spm_console.store.plan_file import plan_hash

@@ -38,7 +38,7 @@ from spm_console.core.region import Region
 from spm_console.core.servo_model import ServoModel, simulate_continuous
 from spm_console.errors import SpmError
 from spm_console.models import model_of, servo_limits_deg, servo_model_of
-from spm_console.profile import load_profile
+from spm_console.profile_load import load_profile
 
 PROFILE = "profiles/agile_wrist.toml"
 SECONDS = 6.0

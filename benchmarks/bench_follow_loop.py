@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import Row
-from spm_console.profile import load_profile
+from spm_console.profile_load import load_profile
 from spm_console.run.operator import PoseSpec, Session
 from spm_console.run.runlog import load_run
 from spm_console.run.target_feed import TimedTargets

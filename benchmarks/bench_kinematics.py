@@ -16,7 +16,7 @@ from benchmarks.common import Row, timeit
 from spm_console.core.fk_grid import track_grid
 from spm_console.core.modes import seeded_solve
 from spm_console.models import model_of
-from spm_console.profile import load_profile
+from spm_console.profile_load import load_profile
 
 SAMPLE = 400
 

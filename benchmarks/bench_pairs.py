@@ -27,11 +27,13 @@ from scipy import ndimage
 
 from benchmarks.common import Row
 from spm_console.core.planning import PlanProblem, solve_problem
-from spm_console.core.region_build import choose_region
-from spm_console.core.workspace import Workspace, check_theta
+from spm_console.core.region_choice import choose_region
+from spm_console.core.workspace import check_theta
+from spm_console.core.workspace_data import Workspace
 from spm_console.errors import SpmError
 from spm_console.models import servo_limits_deg, servo_model_of
-from spm_console.profile import Profile, load_profile
+from spm_console.profile import Profile
+from spm_console.profile_load import load_profile
 from spm_console.run.plan_check import verify_plan
 from spm_console.run.plan_request import PlanRequest, plan_motion
 from spm_console.store.workspace_cache import load_or_build

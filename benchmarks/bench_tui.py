@@ -120,7 +120,7 @@ def _key(key: str) -> Any:
 async def _latency_rows(cache: Path) -> list[Row]:
     from textual.widgets import Input
 
-    from spm_console.profile import load_profile
+    from spm_console.profile_load import load_profile
     from spm_console.run.operator import PoseSpec
     from spm_console.tui.app import make_app
 
@@ -455,7 +455,7 @@ def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult) ->
 def run() -> list[Row]:
     with tempfile.TemporaryDirectory(prefix="bench-tui-") as d:
         cache = Path(d)
-        from spm_console.profile import load_profile
+        from spm_console.profile_load import load_profile
         from spm_console.store.workspace_cache import load_or_build
 
         load_or_build(load_profile(PROFILE), cache_dir=cache)  # "with a cached workspace"

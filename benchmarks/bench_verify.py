@@ -14,11 +14,11 @@ import numpy as np
 
 from benchmarks.common import Row, timeit
 from spm_console.core.planning.mvn import solve_mvn
-from spm_console.core.region_build import region_containing
+from spm_console.core.region_choice import region_containing
 from spm_console.core.servo_model import simulate_continuous
 from spm_console.core.workspace_check import check_points
 from spm_console.models import link_model_of, model_of, servo_model_of
-from spm_console.profile import load_profile
+from spm_console.profile_load import load_profile
 from spm_console.run.plan_check import POINTS_PER_INTERVAL, PlanVerifier
 from spm_console.run.segments import Segment
 from spm_console.store.workspace_cache import load_or_build

@@ -18,8 +18,8 @@ from spm_console.core.kinematics import SpmModel
 from spm_console.core.links import LinkModel
 from spm_console.core.modes import home_model
 from spm_console.core.servo_model import ServoModel, discretize
-from spm_console.core.workspace import GridSpec, Progress, Workspace
 from spm_console.core.workspace import build_workspace as _build_workspace
+from spm_console.core.workspace_data import GridSpec, Progress, Workspace
 from spm_console.profile import Profile
 
 F = NDArray[np.float64]

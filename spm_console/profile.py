@@ -17,16 +17,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-import tomllib
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, model_validator
 from pydantic_core import PydanticCustomError
 
-from spm_console.errors import ProfileError
-from spm_console.profile_checks import ANGLE_LIMIT_DEG, check_home_mode, check_physics, validation_message
-from spm_console.safe_io import MB, FileRefusedError, read_capped
+#: Largest |angle| of any angle in a profile (θ, grid range, limits, η), deg: one turn
+#: either way covers every configuration; larger values only make grids and limits absurd.
+ANGLE_LIMIT_DEG = 360.0
 
 #: The default profile, relative to the project root / working directory.
 DEFAULT_PROFILE = Path("profiles/agile_wrist.toml")
@@ -312,51 +311,3 @@ class Profile(_Section):
 #: workspace cache key adds ``refined_cover`` itself, and the runtime verifies every plan
 #: against its own certified set whatever cover planned it).
 _NOT_DIGESTED: dict[str, set[str]] = {"workspace": {"refined_cover"}}
-
-
-def parse_profile(data: dict[str, object], source: str) -> Profile:
-    """Validate a decoded TOML document: types, per-field ranges, then the cross-field physics
-    (:func:`~spm_console.profile_checks.check_physics`). Errors name ``source``, the key, the
-    value and the allowed range."""
-    try:
-        prof = Profile.model_validate(data)
-    except ValidationError as exc:
-        raise ProfileError(validation_message(exc, source, Profile)) from None
-    check_physics(prof, source)
-    return prof
-
-
-#: Largest profile file read (the shipped ones are under 5 kB).
-MAX_PROFILE_BYTES = MB // 4
-
-
-def load_profile(path: str | Path = DEFAULT_PROFILE) -> Profile:
-    """Read and validate a profile file, including its home assembly mode
-    (:func:`~spm_console.profile_checks.check_home_mode`)."""
-    p = Path(path)
-    try:
-        raw = read_capped(p, MAX_PROFILE_BYTES)
-    except FileRefusedError as exc:
-        reason = exc.reason.removeprefix("cannot read: ")
-        raise ProfileError(f"{p}: cannot read profile: {reason}") from None
-    try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ProfileError(f"{p}: not valid TOML: {exc}") from None
-    except RecursionError:
-        raise ProfileError(f"{p}: not a profile: values nested too deeply") from None
-    prof = parse_profile(data, str(p))
-    check_home_mode(prof, str(p))
-    return prof
-
-
-def with_grid_step(profile: Profile, step_deg: float, source: str = "--grid-step") -> Profile:
-    """``profile`` with another workspace grid step Δ (deg), validated as a profile file would
-    be (the range must hold a whole number of steps; the node cap applies). Everything built
-    from it — the workspace cache, the certified set the runtime verifies plans against, plan
-    hashes — is that grid's."""
-    data = profile.model_dump(mode="json")
-    data["workspace"] = {**data["workspace"], "step_deg": float(step_deg)}
-    prof = parse_profile(data, source)
-    check_home_mode(prof, source)  # room for a region around home on this grid
-    return prof

@@ -18,20 +18,15 @@ import math
 import types
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Annotated, Any, Literal, Union, get_args, get_origin
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS
 from spm_console.errors import ProfileError
+from spm_console.profile import ANGLE_LIMIT_DEG, Profile
 
-if TYPE_CHECKING:
-    from spm_console.profile import Profile
-
-#: Largest |angle| of any angle in a profile (θ, grid range, limits, η), deg: one turn
-#: either way covers every configuration; larger values only make grids and limits absurd.
-ANGLE_LIMIT_DEG = 360.0
 #: Largest θ grid, nodes. The shipped 2° grid has 46³ = 97,336 nodes and the 1° grid
 #: (reproduction) 91³ = 753,571; 2,000,000 allows up to 125 values per axis.
 MAX_GRID_NODES = 2_000_000
@@ -48,8 +43,6 @@ PTS_MIN, PTS_MAX = 1e-3, 10.0
 #: Unit of the Dynamixel Bus Watchdog register, ms; the register holds 1..127 units.
 WATCHDOG_UNIT_MS = 20
 WATCHDOG_MAX_UNITS = 127
-#: A component of v at home this close to 0 matches any seed sign.
-SIGN_ZERO_TOL = 1e-6
 #: Segment name -> the link radii (keys of ``links``) of its two end points.
 SEGMENT_RADII = {"AB": ("oa_mm", "ob_mm"), "BC": ("ob_mm", "oc_mm"),
                  "DE": ("od_mm", "oe_mm"), "EF": ("oe_mm", "of_mm")}
@@ -408,98 +401,3 @@ def check_physics(prof: Profile, source: str) -> None:
 
 
 # ---------------------------------------------------------------- home assembly mode
-
-
-def home_signs(v_home: Sequence[Sequence[float]]) -> list[int]:
-    """Signs of [v1x v1y v1z v2x … v3z] at home, 0 where |v| ≤ SIGN_ZERO_TOL."""
-    return [0 if abs(x) <= SIGN_ZERO_TOL else (1 if x > 0 else -1) for row in v_home for x in row]
-
-
-def seed_mismatches(seed: Sequence[int], v_home: Sequence[Sequence[float]]) -> list[int]:
-    """Indices where the seed disagrees with v at home (a v ≈ 0 matches any seed entry)."""
-    signs = home_signs(v_home)
-    return [k for k, (s, h) in enumerate(zip(seed, signs, strict=True)) if h != 0 and s != h]
-
-
-def check_home_mode(prof: Profile, source: str) -> None:
-    """The home pose exists and is not singular, its signs are those of ``home.sign_seed``, and
-    it is feasible (ζ ≥ ζ_min, links apart, inside the grid range: the workspace grows from it)."""
-    import numpy as np
-
-    from spm_console.core.assess import assess
-    from spm_console.models import link_model_of, model_of  # they take a profile: import here
-
-    theta = list(prof.home.theta_deg)
-    allowed_home = "(allowed: a home θ with a non-singular forward-kinematic solution)"
-    try:
-        with np.errstate(all="ignore"):  # degenerate geometries overflow inside the solver
-            model = model_of(prof)
-    except ValueError as exc:  # home_model: no FK solution or a singular home; LinAlgError too
-        what = (f"the forward kinematics at home cannot be solved for this geometry ({exc})"
-                if isinstance(exc, np.linalg.LinAlgError) else f"{exc} for this geometry")
-        raise ProfileError(Problem("home.theta_deg", theta, f"{what} {allowed_home}").line(source)) from None
-    if not (np.isfinite(model.v_home).all() and np.isfinite(model.working_signs).all()
-            and np.isfinite(model.det_j1_sign)):
-        raise ProfileError(Problem(
-            "home.theta_deg", theta,
-            f"the forward kinematics at home gives no finite pose for this geometry {allowed_home}"
-        ).line(source))
-    rows = [[float(x) for x in r] for r in model.v_home]
-    bad = seed_mismatches(prof.home.sign_seed, rows)
-    if bad:
-        comp = [f"v{k // 3 + 1}{'xyz'[k % 3]}" for k in bad]
-        shown = "[" + ", ".join(f"{x:.4f}" for r in rows for x in r) + "]"
-        raise ProfileError(Problem(
-            "home.sign_seed", list(prof.home.sign_seed),
-            f"is not the home assembly mode: at home θ = {show(theta)}° the closest solution has "
-            f"signs {show(home_signs(rows))} (v = {shown}); {', '.join(comp)} "
-            f"{'differs' if len(comp) == 1 else 'differ'} "
-            "(allowed: the home signs; a 0 there matches any seed entry)").line(source))
-    ws = prof.workspace
-    home = assess(model, link_model_of(prof), model.pose(model.theta_home, np.eye(3)), ws.zeta_min,
-                  (ws.theta_min_deg, ws.theta_max_deg))
-    if not home.feasible:
-        raise ProfileError(Problem(
-            "home.theta_deg", theta,
-            f"the home configuration is not feasible ({home.reason}): the workspace grows from home "
-            "(allowed: a home with ζ ≥ workspace.zeta_min, links of different legs at least "
-            "2·links.delta_mm apart, inside [workspace.theta_min_deg, workspace.theta_max_deg])"
-        ).line(source))
-    _check_room_at_home(prof, source, model)
-
-
-def _check_room_at_home(prof: Profile, source: str, model: Any) -> None:
-    """One grid step around home every way is feasible: the region P grows from home over
-    the grid's nodes, and with less room it has no interior (a 30° step or ζ_min = 0.999
-    used to fail only when the workspace was built, as a degenerate ellipsoid)."""
-    import itertools
-
-    import numpy as np
-
-    from spm_console.core.assess import assess
-    from spm_console.models import link_model_of
-
-    ws = prof.workspace
-    home = np.asarray(prof.home.theta_deg, float)
-    cube = np.array([d for d in itertools.product((-1.0, 0.0, 1.0), repeat=3) if any(d)])
-    nodes = home + ws.step_deg * cube
-    links = link_model_of(prof)
-    with np.errstate(all="ignore"):
-        results = model.track_batch(np.radians(nodes))
-    for th, r in zip(nodes, results, strict=True):
-        shown = show([float(x) for x in th])
-        if r.ok and r.pose is not None:
-            a = assess(model, links, r.pose, ws.zeta_min, (ws.theta_min_deg, ws.theta_max_deg))
-            if a.feasible:
-                continue
-            why, key = a.reason, ("workspace.zeta_min" if a.zeta < ws.zeta_min else
-                                  "workspace.step_deg")
-        else:
-            why, key = r.reason or "no forward-kinematic solution", "workspace.step_deg"
-        value = ws.zeta_min if key == "workspace.zeta_min" else ws.step_deg
-        raise ProfileError(Problem(
-            key, value,
-            f"leaves no room for a region around home: the grid node θ = {shown}° one step "
-            f"(workspace.step_deg = {num(ws.step_deg)}°) from home is not feasible ({why}) "
-            "(allowed: every node one grid step around home feasible: a smaller step, or a "
-            "lower workspace.zeta_min)").line(source))

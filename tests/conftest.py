@@ -75,14 +75,14 @@ def root() -> Path:
 
 @pytest.fixture(scope="session")
 def agile():  # type: ignore[no-untyped-def]
-    from spm_console.profile import load_profile
+    from spm_console.profile_load import load_profile
 
     return load_profile(ROOT / "profiles" / "agile_wrist.toml")
 
 
 @pytest.fixture(scope="session")
 def coaxial():  # type: ignore[no-untyped-def]
-    from spm_console.profile import load_profile
+    from spm_console.profile_load import load_profile
 
     return load_profile(ROOT / "profiles" / "coaxial_spm.toml")
 

@@ -34,7 +34,7 @@ def test_follow_timed_rpy_targets_settles_on_the_last(tmp_path: Path,
                  str(tmp_path / "logs"), "--skip-homing", "test"])
     d = _json(capsys)
     assert code == 0 and d["outcome"] == "completed"
-    from spm_console.profile import load_profile
+    from spm_console.profile_load import load_profile
     from spm_console.store.target_file import theta_of_rpy
 
     last = theta_of_rpy(load_profile(ROOT / "profiles" / "agile_wrist.toml"), np.array([0, -4, 3.0]))

@@ -73,7 +73,7 @@ def test_ik_rpy_roundtrip(capsys: pytest.CaptureFixture[str]) -> None:
     v = np.array(json.loads(out)["v"])
     from spm_console.core.rotations import rpy_matrix
     from spm_console.models import model_of
-    from spm_console.profile import load_profile
+    from spm_console.profile_load import load_profile
 
     m = model_of(load_profile())
     R = rpy_matrix(*np.radians([10.0, 5.0, -20.0]))

@@ -48,7 +48,7 @@ def test_no_placement_says_why(monkeypatch: pytest.MonkeyPatch, allowed: str, ch
 
 _PROBE = textwrap.dedent("""
     import json, os, sys
-    from spm_console.profile import load_profile
+    from spm_console.profile_load import load_profile
     from spm_console.run.operator import Session
 
     def allowed(pid):

@@ -12,8 +12,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from spm_console.core.continuation import PATH_ZETA_FLOOR
 from spm_console.core.fk_path import FkGraph, fk_connected, fk_graph, graph_of, route_fk
-from spm_console.core.kinematics import PATH_ZETA_FLOOR, FkResult, SpmModel, full_residual, platform_axes
+from spm_console.core.kinematics import FkResult, SpmModel, full_residual, platform_axes
 from spm_console.core.modes import solve_all
 from tests.ws_helpers import agile_workspace
 

@@ -85,7 +85,7 @@ def test_drive_the_loop_process_and_estop_by_message(agile: Profile, tmp_path: P
 
 CLIENT = textwrap.dedent("""
     import sys, numpy as np
-    from spm_console.profile import load_profile
+    from spm_console.profile_load import load_profile
     from spm_console.run.motion_client import MotionClient
     from spm_console.store.plan_file import load_plan
     prof = load_profile("profiles/agile_wrist.toml")

@@ -14,8 +14,8 @@ from spm_console.core.certify import CertifiedSet
 from spm_console.core.plan import Plan
 from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.region import Region
-from spm_console.core.region_build import region_containing
-from spm_console.core.workspace import Workspace
+from spm_console.core.region_choice import region_containing
+from spm_console.core.workspace_data import Workspace
 from spm_console.errors import InfeasibleError, PlanRefusedError
 from spm_console.models import build_workspace, servo_model_of
 from spm_console.profile import Profile

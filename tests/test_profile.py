@@ -21,8 +21,8 @@ from hypothesis import strategies as st
 
 from spm_console.cli.main import main
 from spm_console.errors import ExitCode, ProfileError
-from spm_console.profile import MAX_PROFILE_BYTES, load_profile, parse_profile
 from spm_console.profile_checks import MAX_GRID_NODES, PTS_MAX, PTS_MIN
+from spm_console.profile_load import MAX_PROFILE_BYTES, load_profile, parse_profile
 
 DATA = Path(__file__).parent / "data" / "profiles"
 

@@ -13,8 +13,8 @@ import pytest
 
 from spm_console.core.planning import PlanProblem, solve_mintime_problem
 from spm_console.core.refine import RefinedCertifiedSet
-from spm_console.core.region_build import choose_region
-from spm_console.core.workspace import Workspace
+from spm_console.core.region_choice import choose_region
+from spm_console.core.workspace_data import Workspace
 from spm_console.errors import PlanRefusedError
 from spm_console.models import servo_limits_deg, servo_model_of
 from spm_console.run.plan_check import PlanVerifier, verify_plan

@@ -9,14 +9,10 @@ import numpy as np
 import pytest
 
 from spm_console.core.region import Region
-from spm_console.core.region_build import (
-    build_region,
-    choose_region,
-    closest_on_boxes,
-    region_containing,
-)
+from spm_console.core.region_build import build_region, closest_on_boxes
+from spm_console.core.region_choice import choose_region, region_containing
 from spm_console.core.segment_check import check_segment
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 from spm_console.errors import InfeasibleError
 from tests.ws_helpers import MINTIME_START, MVN_GOAL, MVN_START, agile_workspace
 

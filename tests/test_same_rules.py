@@ -23,7 +23,8 @@ import pytest
 
 from spm_console.cli.main import main
 from spm_console.errors import ExitCode
-from spm_console.profile import Profile, load_profile
+from spm_console.profile import Profile
+from spm_console.profile_load import load_profile
 from spm_console.run.plans import synthetic_plan
 from spm_console.run.runlog import list_runs, load_run
 from spm_console.store.plan_file import save_plan

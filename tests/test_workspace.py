@@ -7,13 +7,8 @@ from collections import deque
 import numpy as np
 import pytest
 
-from spm_console.core.workspace import (
-    NodeClass,
-    Workspace,
-    check_theta,
-    classify,
-    home_connected,
-)
+from spm_console.core.workspace import check_theta, classify, home_connected
+from spm_console.core.workspace_data import NodeClass, Workspace
 from spm_console.models import link_model_of, model_of
 from tests.ws_helpers import MVN_GOAL, MVN_START, agile_profile, agile_workspace
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from spm_console.core.region import Region
-from spm_console.core.workspace import Workspace
 from spm_console.core.workspace_check import check_points
+from spm_console.core.workspace_data import Workspace
 from spm_console.core.workspace_verify import sample_region, verify_region
 from spm_console.models import link_model_of, model_of
 from tests.ws_helpers import agile_profile, agile_workspace

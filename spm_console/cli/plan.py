@@ -16,7 +16,7 @@ from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, identify
 from spm_console.core.plan import Plan
 from spm_console.core.region import Region
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, SolverError, SpmError
 from spm_console.formatting import fmt_vec
 from spm_console.input_rules import bounded_int, theta_in_grid, theta_in_servo_limits, vmax_arg

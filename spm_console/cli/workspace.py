@@ -9,8 +9,9 @@ from pathlib import Path
 from typing import Any
 
 from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output_file, profile_of
-from spm_console.core.region_build import region_containing
-from spm_console.core.workspace import Workspace, check_theta
+from spm_console.core.region_choice import region_containing
+from spm_console.core.workspace import check_theta
+from spm_console.core.workspace_data import Workspace
 from spm_console.core.workspace_verify import verify_cover, verify_region
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.formatting import fmt_vec

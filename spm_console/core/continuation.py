@@ -13,13 +13,32 @@ rounding. Radians.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-if TYPE_CHECKING:
-    from spm_console.core.kinematics import SpmModel
+from spm_console.core.geometry import SpmGeometry
+
+
+class ModeledSpm(Protocol):
+    """What the step needs of a model (:class:`spm_console.core.kinematics.SpmModel`): the
+    geometry, the base axes u, v at home and the home assembly and working mode signs."""
+
+    @property
+    def geom(self) -> SpmGeometry: ...
+
+    @property
+    def u(self) -> F: ...
+
+    @property
+    def v_home(self) -> F: ...
+
+    @property
+    def det_j1_sign(self) -> float: ...
+
+    @property
+    def working_signs(self) -> F: ...
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
@@ -133,7 +152,7 @@ class Local:
 class Kernel:
     """The constant part of the model as Python floats, and the step on component arrays."""
 
-    def __init__(self, model: SpmModel) -> None:
+    def __init__(self, model: ModeledSpm) -> None:
         P, Q, S = model.geom.ik_coeffs()
         self.P, self.Q, self.S = P.tolist(), Q.tolist(), S.tolist()
         self.u = np.asarray(model.u, float).tolist()
@@ -260,7 +279,7 @@ def from_mat(M: Mat) -> F:
     return np.stack([np.stack(row, -1) for row in M], -2)
 
 
-def continuation_step(model: SpmModel, th_old: F, R_old: F, th_new: F) -> Step:
+def continuation_step(model: ModeledSpm, th_old: F, R_old: F, th_new: F) -> Step:
     """Predict with J1 ω = J2 dθ from (θ_old, R_old), correct by Newton at θ_new (rad);
     rows (n, 3) and rotations (n, 3, 3)."""
     th_old = np.asarray(th_old, float).reshape(-1, 3)

@@ -48,7 +48,7 @@ from spm_console.core.refine import FineGrid
 from spm_console.core.region import Region
 
 if TYPE_CHECKING:
-    from spm_console.core.workspace import Workspace
+    from spm_console.core.workspace_data import Workspace
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics import PATH_ZETA_FLOOR, SpmModel, continuation_step, platform_axes
+from spm_console.core.continuation import PATH_ZETA_FLOOR, continuation_step
+from spm_console.core.kinematics import SpmModel, platform_axes
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]

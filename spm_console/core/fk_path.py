@@ -33,8 +33,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics import PATH_ZETA_FLOOR, FkResult, SpmModel
-from spm_console.core.workspace import NodeClass, Workspace
+from spm_console.core.continuation import PATH_ZETA_FLOOR
+from spm_console.core.kinematics import FkResult, SpmModel
+from spm_console.core.workspace_data import NodeClass, Workspace
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]

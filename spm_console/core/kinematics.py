@@ -21,18 +21,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.continuation import NEWTON_TOL as NEWTON_TOL
-from spm_console.core.continuation import PATH_ZETA_FLOOR as PATH_ZETA_FLOOR
-from spm_console.core.continuation import Step as Step
-from spm_console.core.continuation import continuation_step as continuation_step
+from spm_console.core.continuation import NEWTON_TOL, PATH_ZETA_FLOOR, continuation_step
 from spm_console.core.geometry import SpmGeometry
 from spm_console.core.jacobian import conditioning_index, j1_matrix, j2_diag
 from spm_console.core.rotations import expm_so3
 
 F = NDArray[np.float64]
-
-# NEWTON_TOL (Newton's stop on max |w·v − cos α2|), PATH_ZETA_FLOOR (smallest ζ along a
-# path), Step and continuation_step live in spm_console.core.continuation.
 
 
 def platform_axes(R: F, v_home: F) -> F:

@@ -37,7 +37,7 @@ from spm_console.core.rowmap import RowMap, serial
 from spm_console.core.workspace_check import check_points, exact_ok, own_steps
 
 if TYPE_CHECKING:
-    from spm_console.core.workspace import Workspace
+    from spm_console.core.workspace_data import Workspace
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]

@@ -30,7 +30,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,11 +42,9 @@ from spm_console.core.iris import closest_on_boxes as closest_on_boxes
 from spm_console.core.iris import reduce_halfspaces as reduce_halfspaces
 from spm_console.core.iris import separating_planes as separating_planes
 from spm_console.core.region import Region
-from spm_console.errors import InfeasibleError
 
 if TYPE_CHECKING:
-    from spm_console.core.refine import FineGrid
-    from spm_console.core.workspace import Workspace
+    from spm_console.core.workspace_data import Workspace
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
@@ -96,7 +94,7 @@ def obstacle_nodes(feasible: B, theta_deg: F) -> F:
     return np.asarray(theta_deg[near & ~feasible])
 
 
-def _iris(
+def iris_region(
     feasible: B, theta_deg: F, step_deg: float, lo: float, hi: float, req_deg: F,
     E0_deg: tuple[F, F], max_halfspaces: int,
     progress: Callable[[float], None] | None = None,
@@ -162,82 +160,10 @@ def build_region(
     lo, hi = ws.range_deg()
     theta = ws.theta_deg()
     home = _home_node(ws)
-    return _iris(feasible, theta, ws.step_deg, lo, hi, home[None],
+    return iris_region(feasible, theta, ws.step_deg, lo, hi, home[None],
                  (np.eye(3) * ws.step_deg, home), max_halfspaces, progress)
 
 
 def _home_node(ws: Workspace) -> F:
     """θ (deg) of the grid node nearest home (feasible whenever anything is)."""
     return np.asarray(ws.theta_deg()[ws.home_index])
-
-
-@dataclass(frozen=True)
-class RegionChoice:
-    """The region a plan between two configurations uses, and where it came from."""
-
-    region: Region
-    kind: Literal["P", "grown", "refined", "given"]
-    """The workspace's cached P, a region grown around the straight segment on the grid, one
-    grown around it with the grid refined near the boundary (``resolution_deg``), or one
-    given by the operator (``source`` says which)."""
-    source: str = ""
-    resolution_deg: float | None = None
-    """The fine resolution h of a refined region, deg."""
-
-    def describe(self) -> str:
-        """One line naming the region and its size (half-spaces, inscribed ball radius)."""
-        _, radius = self.region.chebyshev()
-        h = self.resolution_deg
-        refined = ("a region grown around the segment, certified at the refined resolution "
-                   f"h = {h:g}° near the boundary" if h is not None
-                   else "a region grown around the segment, refined near the boundary")
-        what = {"P": "the workspace region P", "grown": "a region grown around the segment",
-                "refined": refined, "given": self.source or "the given region"}[self.kind]
-        return (f"{what} ({self.region.halfspaces} half-spaces, inscribed ball radius "
-                f"{radius:.1f}°)")
-
-
-def choose_region(ws: Workspace, theta_a_deg: F, theta_b_deg: F,
-                  fine: FineGrid | None = None) -> RegionChoice:
-    """A region (θ in degrees) containing both configurations: the cached P if it already
-    does, else an IRIS region grown around the straight segment between them on the grid,
-    else (the segment passes within Δ of an infeasible grid node, or the grid region cannot
-    hold both) one grown with the grid refined near the segment
-    (:func:`~spm_console.core.region_refine.refined_region`; ``fine`` memoizes its exact
-    checks across calls). Raises :class:`InfeasibleError` naming why when the segment
-    leaves the feasible set."""
-    from spm_console.core.region_refine import refined_region
-    from spm_console.core.segment_check import check_range, check_segment, exact_samples
-
-    a = np.asarray(theta_a_deg, float)
-    b = np.asarray(theta_b_deg, float)
-    if not bool(ws.feasible.any()):
-        raise InfeasibleError("the workspace has no feasible node (every grid node is singular, "
-                              "colliding or unreachable): nothing can be planned in it; check the "
-                              "profile's links, δ and ζ_min")
-    if bool(ws.region.contains(np.stack([a, b]), tol=1e-9).all()):
-        return RegionChoice(ws.region, "P")
-    check_range(ws, a, b)
-    ex = exact_samples(ws, a, b)
-    try:
-        check_segment(ws, a, b, samples=ex)
-    except InfeasibleError:
-        if not ex.feasible:
-            raise  # infeasible at an exact sample: refining cannot help
-    else:
-        lo, hi = ws.range_deg()
-        # seed: the inscribed ellipsoid of the default P (planes that would cut a or b
-        # are turned just enough to keep them)
-        E = inscribed_ellipsoid(ws.region.A, ws.region.b)
-        limit = max(ws.region.halfspaces, int(ws.region_info.get("max_halfspaces", 64)))
-        res = _iris(ws.feasible, ws.theta_deg(), ws.step_deg, lo, hi, np.stack([a, b]),
-                    (E.C, E.d), limit)
-        if bool(res.region.contains(np.stack([a, b]), tol=1e-7).all()):
-            return RegionChoice(res.region, "grown")
-    rr = refined_region(ws, a, b, fine, samples=ex)
-    return RegionChoice(rr.region, "refined", resolution_deg=rr.refinement.h_deg)
-
-
-def region_containing(ws: Workspace, theta_a_deg: F, theta_b_deg: F) -> Region:
-    """The region of :func:`choose_region`."""
-    return choose_region(ws, theta_a_deg, theta_b_deg).region

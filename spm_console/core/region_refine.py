@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.refine import FineGrid
 from spm_console.core.region import Region
+from spm_console.core.region_build import iris_region
 from spm_console.core.segment_check import (
     CubeSet,
     ExactSamples,
@@ -56,7 +57,7 @@ from spm_console.core.segment_check import (
 from spm_console.errors import InfeasibleError
 
 if TYPE_CHECKING:
-    from spm_console.core.workspace import Workspace
+    from spm_console.core.workspace_data import Workspace
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
@@ -162,7 +163,6 @@ def refined_region(ws: Workspace, a: F, b: F, fine: FineGrid | None = None,
     """Steps 1–5 of the module docstring: a region containing a and b (deg), or
     :class:`InfeasibleError` saying why not."""
     from spm_console.core.ellipsoid import inscribed_ellipsoid
-    from spm_console.core.region_build import _iris
 
     t0 = time.perf_counter()
     fg = FineGrid(ws) if fine is None else fine
@@ -174,7 +174,7 @@ def refined_region(ws: Workspace, a: F, b: F, fine: FineGrid | None = None,
     E = inscribed_ellipsoid(ws.region.A, ws.region.b)
     limit = max(ws.region.halfspaces, int(ws.region_info.get("max_halfspaces", 64)))
     ends = np.stack([a, b])
-    res = _iris(ws.feasible, ws.theta_deg(), ws.step_deg, lo, hi, ends, (E.C, E.d), limit,
+    res = iris_region(ws.feasible, ws.theta_deg(), ws.step_deg, lo, hi, ends, (E.C, E.d), limit,
                 obstacles=ref.obstacles(ws.step_deg))
     if not bool(res.region.contains(ends, tol=1e-7).all()):
         raise InfeasibleError("could not build a convex region containing both configurations "

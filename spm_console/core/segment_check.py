@@ -25,7 +25,7 @@ from spm_console.core.workspace_check import PointChecks, check_points, pair_nam
 from spm_console.errors import InfeasibleError
 
 if TYPE_CHECKING:
-    from spm_console.core.workspace import Workspace
+    from spm_console.core.workspace_data import Workspace
 
 F = NDArray[np.float64]
 
@@ -56,7 +56,7 @@ def segment_entry(a: F, b: F, centers: F, half: float) -> tuple[F, F]:
 
 def node_reason(ws: Workspace, flat: int) -> str:
     """Why a grid node is not feasible, in words."""
-    from spm_console.core.workspace import NodeClass
+    from spm_console.core.workspace_data import NodeClass
 
     _, links = ws.exact_models()
     idx = np.unravel_index(flat, ws.shape)

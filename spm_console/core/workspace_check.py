@@ -21,7 +21,7 @@ from spm_console.core.kinematics import SpmModel, platform_axes
 from spm_console.core.links import LinkModel
 
 if TYPE_CHECKING:
-    from spm_console.core.workspace import Workspace
+    from spm_console.core.workspace_data import Workspace
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]

@@ -18,8 +18,8 @@ from numpy.typing import NDArray
 from spm_console.core.kinematics import SpmModel
 from spm_console.core.links import LinkModel
 from spm_console.core.region import Region
-from spm_console.core.workspace import Workspace
 from spm_console.core.workspace_check import check_points, pair_name
+from spm_console.core.workspace_data import Workspace
 
 F = NDArray[np.float64]
 

@@ -62,7 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from spm_console.devices.emulator import start_emulator
     from spm_console.devices.faults import parse_fault
     from spm_console.errors import SpmError
-    from spm_console.profile import parse_profile
+    from spm_console.profile_load import parse_profile
 
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--parent", type=int, default=0, help="exit when this process is gone")

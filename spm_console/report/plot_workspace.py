@@ -20,7 +20,7 @@ from scipy import ndimage
 from scipy.spatial import ConvexHull
 
 from spm_console.core.region import Region
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 
 F = NDArray[np.float64]
 

@@ -9,9 +9,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from spm_console.core.planning import solve_mintime, solve_mvn
-from spm_console.core.region_build import choose_region, region_containing
+from spm_console.core.region_choice import choose_region, region_containing
 from spm_console.core.servo_model import discretize
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 from spm_console.errors import InfeasibleError
 from spm_console.profile import Profile
 from spm_console.report import paper_values as pv
@@ -24,7 +24,7 @@ from spm_console.store.workspace_cache import load_or_build
 
 if TYPE_CHECKING:
     from spm_console.core.plan import Plan
-    from spm_console.report.reproduce import ReproSettings
+    from spm_console.report.repro_types import ReproSettings
 
 
 def _execute(profile: Profile, plan: Plan, out: Path, fig: str, caption: str, sec: Section) -> None:

@@ -41,3 +41,18 @@ class Section:
     """(file name relative to the report, caption)."""
     text: str = ""
     seconds: float = 0.0
+
+
+@dataclass(frozen=True)
+class ReproSettings:
+    """Knobs for reduced runs (tests) vs the full reproduction."""
+
+    quick: bool = False
+    """Reduced settings: fewer verifier samples, shorter executions."""
+    execute: bool = True
+    """Execute the plans on the emulated bus (Figs. 7–10 equivalents)."""
+    verify_samples: int = 100_000
+    """Points sampled inside P by the verifier."""
+    fine_grid: bool = False
+    """Also plan the minimum-time pair on a 1° workspace grid (built, ~13 s and ~1 GB) and
+    compare its N* with the profile's grid refined near the boundary."""

@@ -16,7 +16,7 @@ from spm_console.report.repro_types import Check, Section
 from spm_console.store.workspace_cache import load_or_build
 
 if TYPE_CHECKING:
-    from spm_console.report.reproduce import ReproSettings
+    from spm_console.report.repro_types import ReproSettings
 
 
 def workspace_sections(profile: Profile, out: Path, settings: ReproSettings) -> list[Section]:

@@ -9,27 +9,12 @@ from __future__ import annotations
 import platform
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 from spm_console import __version__
-from spm_console.profile import Profile, load_profile
-from spm_console.report.repro_types import Check, Section
-
-
-@dataclass(frozen=True)
-class ReproSettings:
-    """Knobs for reduced runs (tests) vs the full reproduction."""
-
-    quick: bool = False
-    """Reduced settings: fewer verifier samples, shorter executions."""
-    execute: bool = True
-    """Execute the plans on the emulated bus (Figs. 7–10 equivalents)."""
-    verify_samples: int = 100_000
-    """Points sampled inside P by the verifier."""
-    fine_grid: bool = False
-    """Also plan the minimum-time pair on a 1° workspace grid (built, ~13 s and ~1 GB) and
-    compare its N* with the profile's grid refined near the boundary."""
+from spm_console.profile import Profile
+from spm_console.profile_load import load_profile
+from spm_console.report.repro_types import Check, ReproSettings, Section
 
 
 def _fmt(x: float | None) -> str:
@@ -81,13 +66,16 @@ def render(sections: list[Section], settings: ReproSettings, seconds: float) -> 
 
 def reproduce(
     out_dir: Path,
-    settings: ReproSettings = ReproSettings(),
+    settings: ReproSettings | None = None,
     agile_path: str = "profiles/agile_wrist.toml",
     coaxial_path: str = "profiles/coaxial_spm.toml",
     progress: Callable[[str], None] = lambda s: None,
 ) -> tuple[Path, list[Section]]:
-    """Run every section, write ``report.md`` and its figures into ``out_dir``."""
+    """Run every section, write ``report.md`` and its figures into ``out_dir`` (default
+    settings: the full reproduction)."""
     from spm_console.report.repro_kin import eq35_section, fk_section
+
+    settings = ReproSettings() if settings is None else settings
 
     out_dir.mkdir(parents=True, exist_ok=True)
     agile: Profile = load_profile(agile_path)

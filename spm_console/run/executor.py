@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 from spm_console.cpus import placement
 from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_checked
 from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError

@@ -30,7 +30,7 @@ from spm_console.errors import BadInputError, InfeasibleError
 from spm_console.formatting import fmt_deg
 
 if TYPE_CHECKING:
-    from spm_console.core.workspace import Workspace
+    from spm_console.core.workspace_data import Workspace
 
 F = NDArray[np.float64]
 I64 = NDArray[np.int64]

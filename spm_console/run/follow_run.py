@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 from spm_console.devices.base import ServoBus
 from spm_console.errors import BadInputError
 from spm_console.profile import Profile

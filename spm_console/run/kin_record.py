@@ -14,7 +14,7 @@ from spm_console.core.assess import assess
 from spm_console.core.fk_path import FkGraph, fk_connected, fk_graph
 from spm_console.core.kinematics import FkResult, SpmModel
 from spm_console.core.links import LinkModel
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 from spm_console.profile import Profile
 
 #: Waypoints shown in full in the human path line (longer paths are elided in the middle).

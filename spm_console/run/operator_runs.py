@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from spm_console.core.plan import Plan
-from spm_console.core.workspace import Workspace
+from spm_console.core.workspace_data import Workspace
 from spm_console.devices.base import ServoBus
 from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
 from spm_console.profile import Profile

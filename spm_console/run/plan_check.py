@@ -42,8 +42,8 @@ from spm_console.core.certify import CertifiedSet
 from spm_console.core.plan import Plan
 from spm_console.core.refine import RefinedCertifiedSet
 from spm_console.core.servo_model import simulate_continuous
-from spm_console.core.workspace import Workspace
 from spm_console.core.workspace_check import check_points
+from spm_console.core.workspace_data import Workspace
 from spm_console.errors import PlanRefusedError
 from spm_console.models import link_model_of, model_of, servo_limits_deg
 from spm_console.profile import Profile

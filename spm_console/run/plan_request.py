@@ -24,9 +24,10 @@ from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_
 from spm_console.core.planning.mintime import check_horizon
 from spm_console.core.planning.route_search import RouteChoice, find_route, solve_route_mvn
 from spm_console.core.region import Region
-from spm_console.core.region_build import RegionChoice, choose_region
-from spm_console.core.workspace import Workspace, check_theta
+from spm_console.core.region_choice import RegionChoice, choose_region
+from spm_console.core.workspace import check_theta
 from spm_console.core.workspace_check import ThetaCheck
+from spm_console.core.workspace_data import Workspace
 from spm_console.errors import BadInputError, InfeasibleError
 from spm_console.formatting import fmt_deg, fmt_vec
 from spm_console.models import servo_limits_deg, servo_model_of

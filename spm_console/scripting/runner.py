@@ -70,7 +70,8 @@ from typing import Any
 import numpy as np
 
 from spm_console.errors import BadInputError, ExitCode, SpmError
-from spm_console.profile import DEFAULT_PROFILE, Profile, load_profile
+from spm_console.profile import DEFAULT_PROFILE, Profile
+from spm_console.profile_load import load_profile
 from spm_console.run.operator import PoseSpec, Session
 from spm_console.scripting.checks import check_script
 from spm_console.scripting.steps import (

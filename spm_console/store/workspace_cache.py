@@ -32,12 +32,12 @@ import numpy as np
 from spm_console.core import cover as core_cover
 from spm_console.core import region_build
 from spm_console.core import workspace as core_ws
-from spm_console.core.cover import RegionCover
-from spm_console.core.kinematics import NEWTON_TOL, PATH_ZETA_FLOOR
+from spm_console.core.continuation import NEWTON_TOL, PATH_ZETA_FLOOR
+from spm_console.core.cover_data import RegionCover
 from spm_console.core.refine import REFINE, VERDICTS_VERSION
 from spm_console.core.region import Region
-from spm_console.core.workspace import Progress, Workspace
 from spm_console.core.workspace_check import STEP_RAD
+from spm_console.core.workspace_data import Progress, Workspace
 from spm_console.errors import CacheError
 from spm_console.models import build_workspace, grid_axes_deg, link_model_of, model_of
 from spm_console.profile import Profile

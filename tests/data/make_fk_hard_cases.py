@@ -21,7 +21,7 @@ from spm_console.core.kinematics import platform_axes  # noqa: E402
 from spm_console.core.modes import seeded_solve  # noqa: E402
 from spm_console.core.workspace import build_grid  # noqa: E402
 from spm_console.models import grid_spec, model_of  # noqa: E402
-from spm_console.profile import load_profile  # noqa: E402
+from spm_console.profile_load import load_profile  # noqa: E402
 
 MAX_ROWS = 200
 

@@ -30,6 +30,7 @@ from textual.widgets import Footer, Input, Select, TextArea
 from textual.worker import get_current_worker
 
 from spm_console.errors import SolverError, SpmError
+from spm_console.tui.host import ConsoleHost
 from spm_console.tui.messages import Done, Failed, Outcome
 from spm_console.tui.widgets.estop import ESTOP_KEY, EstopBanner
 from spm_console.tui.widgets.footer import ConsoleFooter
@@ -38,7 +39,6 @@ from spm_console.tui.widgets.steps import StepBar
 
 if TYPE_CHECKING:
     from spm_console.run.operator import Session
-    from spm_console.tui.app import SpmConsoleApp
 
 
 def describe_error(exc: BaseException) -> str:
@@ -115,8 +115,8 @@ class StepScreen(Screen[None]):
         self._made_compact: WeakSet[Widget] = WeakSet()
 
     @property
-    def console(self) -> SpmConsoleApp:
-        return cast("SpmConsoleApp", self.app)
+    def console(self) -> ConsoleHost:
+        return cast("ConsoleHost", self.app)
 
     @property
     def session(self) -> Session:

@@ -16,7 +16,7 @@ import tomllib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, ClassVar, cast
+from typing import ClassVar, cast
 
 from textual import events, work
 from textual.app import ComposeResult
@@ -28,15 +28,14 @@ from textual.widgets import Button, Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 from spm_console.errors import BadInputError, SpmError
-from spm_console.profile import DEFAULT_PROFILE, MAX_PROFILE_BYTES, load_profile, with_grid_step
+from spm_console.profile import DEFAULT_PROFILE
 from spm_console.profile_checks import grid_step_problems
+from spm_console.profile_load import MAX_PROFILE_BYTES, load_profile, with_grid_step
 from spm_console.safe_io import FileRefusedError, read_capped
+from spm_console.tui.host import ConsoleHost
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.footer import ConsoleFooter
 from spm_console.tui.widgets.number import NumberRow, NumberRule
-
-if TYPE_CHECKING:
-    from spm_console.tui.app import SpmConsoleApp
 
 #: Largest grid step accepted, deg (as ``spm-console tui --grid-step``).
 GRID_STEP_MAX_DEG = 30.0
@@ -161,8 +160,8 @@ class SettingsScreen(ModalScreen[SwitchRequest | None]):
         self.checking = False
 
     @property
-    def console(self) -> SpmConsoleApp:
-        return cast("SpmConsoleApp", self.app)
+    def console(self) -> ConsoleHost:
+        return cast("ConsoleHost", self.app)
 
     def compose(self) -> ComposeResult:
         where = "" if self.current is None else f" ({self.current})"
