@@ -16,11 +16,11 @@ import time
 import numpy as np
 
 from benchmarks.common import Row
-from spm_console.devices import protocol2 as p2
+from spm_console.config.load import load_profile
 from spm_console.devices.base import CommError
-from spm_console.devices.bus import open_bus
-from spm_console.devices.emulator import start_emulator
-from spm_console.profile_load import load_profile
+from spm_console.devices.dynamixel import protocol2 as p2
+from spm_console.devices.dynamixel.bus import open_bus
+from spm_console.devices.emulator.bus import start_emulator
 
 CYCLES = 400
 

@@ -24,16 +24,16 @@ from typing import Any
 import numpy as np
 
 from benchmarks.common import Row
+from spm_console.config.load import load_profile
+from spm_console.config.models import servo_model_of
+from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.planning.mvn import solve_mvn
-from spm_console.core.region_choice import region_containing
-from spm_console.devices.bus import open_bus
-from spm_console.devices.emulator import start_emulator
-from spm_console.models import servo_model_of
-from spm_console.profile import Profile
-from spm_console.profile_load import load_profile
-from spm_console.run.executor import Executor, Segment
-from spm_console.run.runlog import RunLog
+from spm_console.core.regions.choice import region_containing
+from spm_console.devices.dynamixel.bus import open_bus
+from spm_console.devices.emulator.bus import start_emulator
+from spm_console.motion.executor import Executor, Segment
+from spm_console.motion.logs.runlog import RunLog
 from spm_console.store.plan_file import plan_hash
 from spm_console.store.workspace_cache import load_or_build
 

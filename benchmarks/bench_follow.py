@@ -1,4 +1,4 @@
-"""Live following: receding-horizon re-plans (``core/planning/follow.py``) in a simulated loop.
+"""Live following: receding-horizon re-plans (``core/planning/follow/solver.py``) in a simulated loop.
 
 Scenario (issue 15): the Agile Wrist profile, its servo model (Ts = 20 ms), speed bound and
 servo limits, the workspace region P; the wrist starts at home at rest and follows a
@@ -32,13 +32,13 @@ import cvxpy as cp
 import numpy as np
 
 from benchmarks.common import Row
-from spm_console.core.ik import ik_rpy
-from spm_console.core.planning.follow import FollowResult, FollowSettings, FollowSolver
-from spm_console.core.region import Region
-from spm_console.core.servo_model import ServoModel, simulate_continuous
+from spm_console.config.load import load_profile
+from spm_console.config.models import model_of, servo_limits_deg, servo_model_of
+from spm_console.core.kinematics.ik import ik_rpy
+from spm_console.core.planning.follow.solver import FollowResult, FollowSettings, FollowSolver
+from spm_console.core.polytope.region import Region
+from spm_console.core.servo.model import ServoModel, simulate_continuous
 from spm_console.errors import SpmError
-from spm_console.models import model_of, servo_limits_deg, servo_model_of
-from spm_console.profile_load import load_profile
 
 PROFILE = "profiles/agile_wrist.toml"
 SECONDS = 6.0

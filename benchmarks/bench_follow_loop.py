@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import Row
-from spm_console.profile_load import load_profile
-from spm_console.run.operator import PoseSpec, Session
-from spm_console.run.runlog import load_run
-from spm_console.run.target_feed import TimedTargets
+from spm_console.config.load import load_profile
+from spm_console.motion.follow.target_feed import TimedTargets
+from spm_console.motion.logs.runlog import load_run
+from spm_console.services.session import PoseSpec, Session
 
 ROOT = Path(__file__).resolve().parent.parent
 PROFILE = ROOT / "profiles" / "agile_wrist.toml"

@@ -13,10 +13,10 @@ import time
 import numpy as np
 
 from benchmarks.common import Row, timeit
-from spm_console.core.fk_grid import track_grid
-from spm_console.core.modes import seeded_solve
-from spm_console.models import model_of
-from spm_console.profile_load import load_profile
+from spm_console.config.load import load_profile
+from spm_console.config.models import model_of
+from spm_console.core.kinematics.fk_grid import track_grid
+from spm_console.core.kinematics.modes import seeded_solve
 
 SAMPLE = 400
 

@@ -26,16 +26,16 @@ import numpy as np
 from scipy import ndimage
 
 from benchmarks.common import Row
+from spm_console.config.load import load_profile
+from spm_console.config.models import servo_limits_deg, servo_model_of
+from spm_console.config.schema import Profile
 from spm_console.core.planning import PlanProblem, solve_problem
-from spm_console.core.region_choice import choose_region
-from spm_console.core.workspace import check_theta
-from spm_console.core.workspace_data import Workspace
+from spm_console.core.regions.choice import choose_region
+from spm_console.core.workspace.build import check_theta
+from spm_console.core.workspace.data import Workspace
 from spm_console.errors import SpmError
-from spm_console.models import servo_limits_deg, servo_model_of
-from spm_console.profile import Profile
-from spm_console.profile_load import load_profile
-from spm_console.run.plan_check import verify_plan
-from spm_console.run.plan_request import PlanRequest, plan_motion
+from spm_console.motion.plan_check import verify_plan
+from spm_console.services.plan_request import PlanRequest, plan_motion
 from spm_console.store.workspace_cache import load_or_build
 
 PAIRS = 50

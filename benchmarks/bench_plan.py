@@ -21,14 +21,14 @@ import warnings
 import numpy as np
 
 from benchmarks.common import Row, timeit
+from spm_console.config.load import load_profile
 from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
 from spm_console.core.planning.osqp_solve import solve_osqp
 from spm_console.core.planning.qp_build import Pool, equalities
 from spm_console.core.planning.reference import solve_reference
-from spm_console.core.region import Region
-from spm_console.core.servo_model import discretize
+from spm_console.core.polytope.region import Region
+from spm_console.core.servo.model import discretize
 from spm_console.errors import SpmError
-from spm_console.profile_load import load_profile
 
 START = np.array([127.53, 83.23, 85.25])
 GOAL = np.array([66.80, 155.00, 131.48])
@@ -37,7 +37,7 @@ START_MT = np.array([70.0, 90.0, 80.0])
 
 def _mvn_region(profile_path: str = "profiles/agile_wrist.toml") -> tuple[Region, str]:
     try:
-        from spm_console.core.region_choice import region_containing
+        from spm_console.core.regions.choice import region_containing
         from spm_console.store.workspace_cache import load_or_build
 
         ws, _ = load_or_build(load_profile(profile_path))

@@ -15,8 +15,8 @@ import time
 import numpy as np
 
 from benchmarks.common import Row
-from spm_console.run.runlog import FLUSH_EVERY, RunLog
-from spm_console.run.sample import Sample
+from spm_console.motion.logs.runlog import FLUSH_EVERY, RunLog
+from spm_console.motion.sample import Sample
 
 #: Rows per measurement.
 ROWS = 3000

@@ -120,8 +120,8 @@ def _key(key: str) -> Any:
 async def _latency_rows(cache: Path) -> list[Row]:
     from textual.widgets import Input
 
-    from spm_console.profile_load import load_profile
-    from spm_console.run.operator import PoseSpec
+    from spm_console.config.load import load_profile
+    from spm_console.services.session import PoseSpec
     from spm_console.tui.app import make_app
 
     profile = load_profile(PROFILE)
@@ -316,9 +316,9 @@ class _Browser(threading.Thread):
 def _browser_cpus(where: str) -> None:
     """Put the calling thread (and the browser it starts) on the console's CPUs, or back on
     every CPU the console may use (the console placed this process beside the servo loop,
-    spm_console.cpus). An operator's browser is not ours to place: "all" is what it gets
+    spm_console.system.cpus). An operator's browser is not ours to place: "all" is what it gets
     unless started as the README advises (``taskset``)."""
-    from spm_console.cpus import cpu_plan
+    from spm_console.system.cpus import cpu_plan
 
     plan = cpu_plan()
     if plan.active and hasattr(os, "sched_setaffinity"):
@@ -329,7 +329,7 @@ def _browser_cpus(where: str) -> None:
 def _busy_loops() -> Iterator[int]:
     """One CPU-bound process on each core (the servo loop's CPU too) while the block
     runs; yields how many."""
-    from spm_console.cpus import ENV_SET
+    from spm_console.system.cpus import ENV_SET
 
     cpus = sorted(int(c) for c in os.environ.get(ENV_SET, "").split(",") if c) or list(
         range(os.cpu_count() or 1))
@@ -346,7 +346,7 @@ def _busy_loops() -> Iterator[int]:
 
 def _realtime(run: Any) -> str:
     """The scheduling the loop got in this run (its log's ``realtime`` event)."""
-    from spm_console.run.runlog import load_run
+    from spm_console.motion.logs.runlog import load_run
 
     if run.log_dir is None:
         return "unknown"
@@ -397,7 +397,7 @@ def _stops(runs: list[Any]) -> list[str]:
 
 
 def _placement_words() -> str:
-    from spm_console.cpus import cpu_plan
+    from spm_console.system.cpus import cpu_plan
 
     plan = cpu_plan()
     if plan.active:
@@ -455,7 +455,7 @@ def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult) ->
 def run() -> list[Row]:
     with tempfile.TemporaryDirectory(prefix="bench-tui-") as d:
         cache = Path(d)
-        from spm_console.profile_load import load_profile
+        from spm_console.config.load import load_profile
         from spm_console.store.workspace_cache import load_or_build
 
         load_or_build(load_profile(PROFILE), cache_dir=cache)  # "with a cached workspace"

@@ -1,4 +1,4 @@
-"""The runtime's plan verification before torque-on (``run/plan_check.py``), same run.
+"""The runtime's plan verification before torque-on (``motion/plan_check.py``), same run.
 
 Ours: :class:`PlanVerifier.verify` on the paper's MVN plan (N = 150): the exact ZOH motion
 at 10 instants per interval plus the settling tail (1,5xx points), each looked up in the
@@ -13,14 +13,14 @@ from __future__ import annotations
 import numpy as np
 
 from benchmarks.common import Row, timeit
+from spm_console.config.load import load_profile
+from spm_console.config.models import link_model_of, model_of, servo_model_of
 from spm_console.core.planning.mvn import solve_mvn
-from spm_console.core.region_choice import region_containing
-from spm_console.core.servo_model import simulate_continuous
-from spm_console.core.workspace_check import check_points
-from spm_console.models import link_model_of, model_of, servo_model_of
-from spm_console.profile_load import load_profile
-from spm_console.run.plan_check import POINTS_PER_INTERVAL, PlanVerifier
-from spm_console.run.segments import Segment
+from spm_console.core.regions.choice import region_containing
+from spm_console.core.servo.model import simulate_continuous
+from spm_console.core.workspace.check import check_points
+from spm_console.motion.plan_check import POINTS_PER_INTERVAL, PlanVerifier
+from spm_console.motion.segments import Segment
 from spm_console.store.workspace_cache import load_or_build
 
 START = np.array([127.53, 83.23, 85.25])

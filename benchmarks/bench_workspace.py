@@ -20,12 +20,12 @@ import cvxpy as cp
 import numpy as np
 
 from benchmarks.common import Row
-from spm_console.core.links import SEGMENT_ENDS
-from spm_console.core.modes import seeded_solve
-from spm_console.core.workspace_verify import verify_region
-from spm_console.models import build_workspace, link_model_of, model_of
-from spm_console.profile import Profile
-from spm_console.profile_load import load_profile
+from spm_console.config.load import load_profile
+from spm_console.config.models import build_workspace, link_model_of, model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.links import SEGMENT_ENDS
+from spm_console.core.kinematics.modes import seeded_solve
+from spm_console.core.workspace.verify import verify_region
 from spm_console.store.workspace_cache import load_or_build
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -34,9 +34,9 @@ PROFILE = ROOT / "profiles" / "agile_wrist.toml"
 _CHILD = """
 import json, resource, sys, time
 sys.path.insert(0, {root!r})
-from spm_console.profile import Profile
-from spm_console.profile_load import load_profile
-from spm_console.models import build_workspace
+from spm_console.config.schema import Profile
+from spm_console.config.load import load_profile
+from spm_console.config.models import build_workspace
 p = load_profile({profile!r})
 p = p.model_copy(update={{"workspace": p.workspace.model_copy(update={{"step_deg": 1.0}})}})
 t0 = time.perf_counter()

@@ -5,7 +5,7 @@ kernel and the host give any real-time thread (a CPU held in a non-preemptible s
 call, a virtual CPU descheduled by the host). :func:`wakeup_probe` runs, for the duration
 of a block, one process pinned to each CPU that does nothing but sleep a servo period under SCHED_FIFO
 just below the servo loop's priority (so it never delays the loop) and record how late each
-wake-up came, like ``cyclictest`` (``spm_console.host_latency``). Its worst case is the
+wake-up came, like ``cyclictest`` (``spm_console.system.host_latency``). Its worst case is the
 same run's baseline for the loop's worst lateness: the loop cannot be expected to do better
 than an idle thread of (almost) its priority. Also reported: the kernel's preemption model and the CPU time the
 host took from this virtual machine (steal) meanwhile.
@@ -18,8 +18,8 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from spm_console.host_latency import measured_meanwhile
-from spm_console.realtime import LOOP_PRIORITY, kernel_preemption
+from spm_console.system.host_latency import measured_meanwhile
+from spm_console.system.realtime import LOOP_PRIORITY, kernel_preemption
 
 #: The probe's SCHED_FIFO priority: above everything but the loop and the emulated servos.
 PROBE_PRIORITY = LOOP_PRIORITY - 1
@@ -51,7 +51,7 @@ class ProbeResult:
 @contextlib.contextmanager
 def wakeup_probe() -> Iterator[ProbeResult]:
     """Measure real-time wake-up latency on every CPU while the block runs
-    (``spm_console.host_latency``, as ``spm-console latency`` does)."""
+    (``spm_console.system.host_latency``, as ``spm-console latency`` does)."""
     out = ProbeResult(preemption=kernel_preemption())
     with measured_meanwhile(period_s=PROBE_PERIOD_S, priority=PROBE_PRIORITY) as cpus:
         yield out

@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 
+from spm_console.config.schema import Profile
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS
 from spm_console.errors import BadInputError
-from spm_console.profile import Profile
 
 #: Bound on θ for commands that only compute (fk): one turn either way, deg.
 FK_THETA_LIMIT_DEG = 360.0

@@ -75,21 +75,21 @@ def root() -> Path:
 
 @pytest.fixture(scope="session")
 def agile():  # type: ignore[no-untyped-def]
-    from spm_console.profile_load import load_profile
+    from spm_console.config.load import load_profile
 
     return load_profile(ROOT / "profiles" / "agile_wrist.toml")
 
 
 @pytest.fixture(scope="session")
 def coaxial():  # type: ignore[no-untyped-def]
-    from spm_console.profile_load import load_profile
+    from spm_console.config.load import load_profile
 
     return load_profile(ROOT / "profiles" / "coaxial_spm.toml")
 
 
 @pytest.fixture(scope="session")
 def agile_model(agile):  # type: ignore[no-untyped-def]
-    from spm_console.models import model_of
+    from spm_console.config.models import model_of
 
     return model_of(agile)
 
@@ -97,7 +97,7 @@ def agile_model(agile):  # type: ignore[no-untyped-def]
 @pytest.fixture
 def sighup_default() -> Iterator[None]:
     """SIGHUP at its default for one test (and the processes it starts), even when the tests
-    run under ``nohup``: the console leaves an ignored SIGHUP ignored (spm_console.signals)."""
+    run under ``nohup``: the console leaves an ignored SIGHUP ignored (spm_console.system.signals)."""
     import signal
 
     old = signal.signal(signal.SIGHUP, signal.SIG_DFL)

@@ -10,17 +10,17 @@ from pathlib import Path
 
 import numpy as np
 
+from spm_console.config.models import servo_model_of
+from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.planning.mvn import solve_mvn
-from spm_console.core.region import Region
-from spm_console.devices.bus import open_bus
-from spm_console.devices.emulator import EmulatorHandle, start_emulator
-from spm_console.devices.faults import FaultSpec
-from spm_console.models import servo_model_of
-from spm_console.profile import Profile
-from spm_console.run.executor import ExecutionResult, Executor, Segment
-from spm_console.run.runlog import RunLog
-from spm_console.run.sample import Sample
+from spm_console.core.polytope.region import Region
+from spm_console.devices.dynamixel.bus import open_bus
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.devices.emulator.faults import FaultSpec
+from spm_console.motion.executor import ExecutionResult, Executor, Segment
+from spm_console.motion.logs.runlog import RunLog
+from spm_console.motion.sample import Sample
 from spm_console.store.plan_file import plan_hash
 from tests.ws_helpers import agile_workspace
 

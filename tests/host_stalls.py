@@ -4,12 +4,12 @@ Many tests run the servo loop in real time against the emulated servos over a
 pseudo-terminal: a read that waits longer than the bus's reply timeout (4 ms in the
 shipped profiles) fails, a late wake-up stamps a read late, three failed cycles in a row
 stop a run. On a virtual machine the host decides when a virtual CPU runs. Measured on the
-2-core CI-like machine with ``spm_console.host_latency`` (SCHED_FIFO, 1 ms sleeps), *idle*:
+2-core CI-like machine with ``spm_console.system.host_latency`` (SCHED_FIFO, 1 ms sleeps), *idle*:
 about 90 wake-ups per minute and CPU more than 5 ms late, the longest 14-15 ms; under a
 loaded host the longest are longer (up to 60-160 ms seen during test runs). Nothing a test
 or the product does can prevent it.
 
-So the session runs one stall probe per CPU (``python -m spm_console.host_latency --stream``,
+So the session runs one stall probe per CPU (``python -m spm_console.system.host_latency --stream``,
 pinned, SCHED_FIFO :data:`PRIORITY`: above every thread of ours, so a late wake-up is the
 machine's doing, the hypervisor's or a kernel that does not preempt a system call, not our
 threads') and every test is marked ``flaky(reruns=2, condition=…)`` (pytest-rerunfailures)
@@ -114,7 +114,7 @@ class HostStalls:
         for c in self.cpus:
             with open(c.path, "wb") as out:
                 self.procs.append(subprocess.Popen(
-                    [sys.executable, "-u", "-m", "spm_console.host_latency", "--stream", "--cpu",
+                    [sys.executable, "-u", "-m", "spm_console.system.host_latency", "--stream", "--cpu",
                      str(c.cpu), "--priority", str(PRIORITY), "--period-ms", str(PERIOD_MS),
                      "--report-ms", str(REPORT_MS)],
                     stdout=out, stdin=subprocess.DEVNULL))

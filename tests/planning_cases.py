@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spm_console.core.region import Region
-from spm_console.core.servo_model import discretize
+from spm_console.core.polytope.region import Region
+from spm_console.core.servo.model import discretize
 
 MODEL = discretize(32.22, 0.02)
 START = np.array([127.53, 83.23, 85.25])  # paper MVN experiment

@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.run.runlog import RunLog
-from spm_console.run.sample import Sample
+from spm_console.motion.logs.runlog import RunLog
+from spm_console.motion.sample import Sample
 
 TS = 0.02
 """Period of the written samples, s."""

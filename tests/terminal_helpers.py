@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from spm_console.errors import ExitCode
-from spm_console.run.runlog import list_runs, load_run
+from spm_console.motion.logs.runlog import list_runs, load_run
 
 CTRL_C = b"\x03"
 CTRL_BACKSLASH = b"\x1c"

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from spm_console.core.servo_model import continuous
+from spm_console.config.schema import Profile
+from spm_console.core.servo.model import continuous
 from spm_console.devices.base import CommError, ServoBus
-from spm_console.devices.bus import DynamixelBus, LimitError, open_bus
-from spm_console.devices.emulator import EmulatorHandle, start_emulator
+from spm_console.devices.dynamixel.bus import DynamixelBus, LimitError, open_bus
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
 from spm_console.errors import BusError
-from spm_console.profile import Profile
 
 
 def relaxed(profile: Profile, timeout_s: float = 0.03) -> Profile:

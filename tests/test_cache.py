@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from spm_console.config.models import link_model_of, model_of
 from spm_console.errors import CacheError
-from spm_console.models import link_model_of, model_of
 from spm_console.store import workspace_cache as wc
 from spm_console.store.workspace_cache import cache_key, cache_path, load_or_build, save
 from tests.ws_helpers import ROOT, agile_profile, coarse_workspace, with_step
@@ -162,7 +162,7 @@ def test_an_edited_cache_is_no_hit(tmp_path: Path, coarse, edit: str) -> None:  
 
     import numpy as np
 
-    from spm_console.core.workspace_data import NodeClass
+    from spm_console.core.workspace.data import NodeClass
 
     prof, _calls = coarse
     _, info = load_or_build(prof, tmp_path)
@@ -187,8 +187,8 @@ def test_an_edited_cache_is_no_hit(tmp_path: Path, coarse, edit: str) -> None:  
 
 
 def test_another_grid_step_has_its_own_file(tmp_path: Path, coarse) -> None:  # type: ignore[no-untyped-def]
+    from spm_console.config.load import with_grid_step
     from spm_console.errors import ProfileError
-    from spm_console.profile_load import with_grid_step
 
     prof, _calls = coarse
     finer = with_grid_step(prof, prof.workspace.step_deg / 2)
@@ -229,7 +229,7 @@ def test_the_profile_chooses_the_refined_cover_for_every_loader(
     """``workspace.refined_cover = true`` in a profile: every caller of load_or_build (the
     runtime, plan, the console) gets the refined workspace without passing the option;
     plan hashes do not depend on it (the runtime verifies against its own certified set)."""
-    from spm_console.profile_load import parse_profile
+    from spm_console.config.load import parse_profile
     from spm_console.store.plan_file import plan_hash
 
     prof = with_step(agile_profile(), 5.0)
@@ -256,7 +256,7 @@ def test_a_cover_of_p_alone_is_read_back(tmp_path: Path, monkeypatch: pytest.Mon
     stores no cover rows; loading it was refused as corrupt and rebuilt every time."""
     from dataclasses import replace
 
-    from spm_console.core.cover_data import RegionCover
+    from spm_console.core.regions.cover_data import RegionCover
 
     ws = coarse_workspace()
     alone = RegionCover(regions=(ws.region,), seeds_deg=np.zeros((1, 3)),

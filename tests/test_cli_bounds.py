@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from spm_console.cli.main import main
-from spm_console.core.identify import response
-from spm_console.core.region import Region
+from spm_console.core.polytope.region import Region
+from spm_console.core.servo.identify import response
 from spm_console.errors import ExitCode
 from tests.planning_cases import polytope
 

@@ -14,7 +14,7 @@ import pytest
 
 from spm_console.cli.main import main
 from spm_console.errors import ExitCode
-from spm_console.run.runlog import load_run
+from spm_console.motion.logs.runlog import load_run
 
 ROOT = Path(__file__).resolve().parent.parent
 HOME = [135.0, 135.0, 135.0]
@@ -34,7 +34,7 @@ def test_follow_timed_rpy_targets_settles_on_the_last(tmp_path: Path,
                  str(tmp_path / "logs"), "--skip-homing", "test"])
     d = _json(capsys)
     assert code == 0 and d["outcome"] == "completed"
-    from spm_console.profile_load import load_profile
+    from spm_console.config.load import load_profile
     from spm_console.store.target_file import theta_of_rpy
 
     last = theta_of_rpy(load_profile(ROOT / "profiles" / "agile_wrist.toml"), np.array([0, -4, 3.0]))

@@ -71,9 +71,9 @@ def test_ik_rpy_roundtrip(capsys: pytest.CaptureFixture[str]) -> None:
     th = json.loads(out)["theta_deg"]
     code, out, _ = run(capsys, "fk", "--theta", *map(str, th), "--json")
     v = np.array(json.loads(out)["v"])
-    from spm_console.core.rotations import rpy_matrix
-    from spm_console.models import model_of
-    from spm_console.profile_load import load_profile
+    from spm_console.config.load import load_profile
+    from spm_console.config.models import model_of
+    from spm_console.core.kinematics.rotations import rpy_matrix
 
     m = model_of(load_profile())
     R = rpy_matrix(*np.radians([10.0, 5.0, -20.0]))

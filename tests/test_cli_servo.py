@@ -13,9 +13,9 @@ from pathlib import Path
 import pytest
 
 from spm_console.cli.main import main
-from spm_console.devices.emulator import start_emulator
+from spm_console.config.schema import Profile
+from spm_console.devices.emulator.bus import start_emulator
 from spm_console.errors import ExitCode
-from spm_console.profile import Profile
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from spm_console.cli.main import main
-from spm_console.core.region import Region
+from spm_console.core.polytope.region import Region
 from spm_console.errors import ExitCode
 from spm_console.store.workspace_cache import cache_key, cache_path, save
 from tests.ws_helpers import MINTIME_START, MVN_GOAL, MVN_START, agile_profile, agile_workspace

@@ -11,15 +11,15 @@ import pytest
 from scipy import ndimage
 
 from spm_console.cli.main import main
-from spm_console.core import cover as cv
-from spm_console.core.cover import build_cover, cyclic_symmetric, overlap_graph, uncertified_regions
-from spm_console.core.cover_data import RegionCover
-from spm_console.core.cover_refine import boxes_met
-from spm_console.core.refine import FineGrid
-from spm_console.core.region import Region
-from spm_console.core.region_build import obstacle_nodes
-from spm_console.core.workspace_data import Workspace
-from spm_console.core.workspace_verify import verify_cover
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions import cover as cv
+from spm_console.core.regions.cover import build_cover, cyclic_symmetric, overlap_graph, uncertified_regions
+from spm_console.core.regions.cover_data import RegionCover
+from spm_console.core.regions.cover_refine import boxes_met
+from spm_console.core.regions.p_build import obstacle_nodes
+from spm_console.core.workspace.data import Workspace
+from spm_console.core.workspace.refine import FineGrid
+from spm_console.core.workspace.verify import verify_cover
 from spm_console.errors import ExitCode
 from spm_console.store import workspace_cache as wc
 from spm_console.store.workspace_cache import cache_key, cache_path, load_or_build, save

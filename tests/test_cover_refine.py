@@ -7,13 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.core.cover_data import RegionCover
-from spm_console.core.cover_refine import bad_cells, refine_cells, region_clear
-from spm_console.core.refine import FineGrid, RefinedCertifiedSet
-from spm_console.core.region import Region
-from spm_console.core.workspace_check import check_points
-from spm_console.core.workspace_data import Workspace
-from spm_console.run.plan_request import PlanRequest, plan_motion
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions.cover_data import RegionCover
+from spm_console.core.regions.cover_refine import bad_cells, refine_cells, region_clear
+from spm_console.core.workspace.check import check_points
+from spm_console.core.workspace.data import Workspace
+from spm_console.core.workspace.refine import FineGrid, RefinedCertifiedSet
+from spm_console.services.plan_request import PlanRequest, plan_motion
 from tests.ws_helpers import agile_profile, agile_workspace_refined, coarse_workspace
 
 

@@ -1,5 +1,5 @@
 """CPU placement: the servo loop's and the emulated servos' processes on one CPU, the
-console's own process (and the 3D view's server) on the others (spm_console.cpus)."""
+console's own process (and the 3D view's server) on the others (spm_console.system.cpus)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from spm_console.cpus import ENV_CHOICE, ENV_SET, cpu_plan
+from spm_console.system.cpus import ENV_CHOICE, ENV_SET, cpu_plan
 
 
 @pytest.mark.parametrize(("allowed", "choice", "loop", "rest"), [
@@ -48,8 +48,8 @@ def test_no_placement_says_why(monkeypatch: pytest.MonkeyPatch, allowed: str, ch
 
 _PROBE = textwrap.dedent("""
     import json, os, sys
-    from spm_console.profile_load import load_profile
-    from spm_console.run.operator import Session
+    from spm_console.config.load import load_profile
+    from spm_console.services.session import Session
 
     def allowed(pid):
         with open(f"/proc/{pid}/status") as f:

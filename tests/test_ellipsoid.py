@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.core.ellipsoid import _conic_mvie, _cvxpy_mvie, inscribed_ellipsoid
+from spm_console.core.polytope.ellipsoid import _conic_mvie, _cvxpy_mvie, inscribed_ellipsoid
 
 
 def _polytope(rng: np.random.Generator, m: int) -> tuple[np.ndarray, np.ndarray]:

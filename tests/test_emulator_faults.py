@@ -9,12 +9,12 @@ from contextlib import contextmanager
 import numpy as np
 import pytest
 
+from spm_console.config.schema import Profile
 from spm_console.devices.base import CommError
-from spm_console.devices.bus import DynamixelBus, open_bus
-from spm_console.devices.emulator import EmulatorHandle, start_emulator
-from spm_console.devices.faults import FaultSpec, parse_fault
+from spm_console.devices.dynamixel.bus import DynamixelBus, open_bus
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.devices.emulator.faults import FaultSpec, parse_fault
 from spm_console.errors import BadInputError, BusError
-from spm_console.profile import Profile
 
 
 @contextmanager

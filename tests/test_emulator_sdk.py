@@ -14,9 +14,9 @@ import pytest
 
 dxl = pytest.importorskip("dynamixel_sdk")
 
-from spm_console.devices.emulator import EmulatorHandle, start_emulator  # noqa: E402
-from spm_console.devices.faults import FaultSpec  # noqa: E402
-from spm_console.profile import Profile  # noqa: E402
+from spm_console.config.schema import Profile  # noqa: E402
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator  # noqa: E402
+from spm_console.devices.emulator.faults import FaultSpec  # noqa: E402
 
 OK = dxl.COMM_SUCCESS
 

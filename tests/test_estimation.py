@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from spm_console.core.estimation import (
+from spm_console.core.servo.estimation import (
     FiniteDifference,
     KalmanVelocity,
     ModelPredictor,
     process_noise,
 )
-from spm_console.core.servo_model import discretize
+from spm_console.core.servo.model import discretize
 
 P, TS = 32.22, 0.02
 TICK = 360.0 / 4096

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from spm_console.profile import Profile
-from spm_console.run.executor import Executor, Segment
-from spm_console.run.homing import home
-from spm_console.run.runlog import RunLog, load_run
+from spm_console.config.schema import Profile
+from spm_console.motion.executor import Executor, Segment
+from spm_console.motion.homing import home
+from spm_console.motion.logs.runlog import RunLog, load_run
 from tests.exec_helpers import paper_mvn, run_on_emulator, true_velocity_at_reads
 from tests.ws_helpers import agile_workspace
 
@@ -55,8 +55,8 @@ def test_paper_mvn_tracks_model_and_kalman_beats_finite_differences(
 
 
 def test_homing_over_the_bus_is_speed_bounded_and_seeds_fk(agile: Profile, tmp_path: Path) -> None:
-    from spm_console.devices.bus import open_bus
-    from spm_console.devices.emulator import start_emulator
+    from spm_console.devices.dynamixel.bus import open_bus
+    from spm_console.devices.emulator.bus import start_emulator
 
     start = [110.0, 150.0, 125.0]
     ws = agile_workspace()

@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spm_console.core.region import Region
+from spm_console.config.schema import Profile
+from spm_console.core.polytope.region import Region
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, UnreachableError
-from spm_console.profile import Profile
-from spm_console.run.executor import Executor, Segment
-from spm_console.run.homing import check_assembly_mode, home
-from spm_console.run.plans import line_plan, synthetic_plan
-from spm_console.run.runlog import RunLog, load_run
+from spm_console.motion.executor import Executor, Segment
+from spm_console.motion.homing import check_assembly_mode, home
+from spm_console.motion.logs.runlog import RunLog, load_run
+from spm_console.motion.plans import line_plan, synthetic_plan
 from tests.fake_bus import FakeBus, SimClock
 from tests.ws_helpers import agile_workspace
 

@@ -11,16 +11,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spm_console.core.region import Region
-from spm_console.devices.emulator import EmulatorHandle
-from spm_console.devices.faults import FaultSpec, parse_fault
+from spm_console.config.schema import Profile
+from spm_console.core.polytope.region import Region
+from spm_console.devices.emulator.bus import EmulatorHandle
+from spm_console.devices.emulator.faults import FaultSpec, parse_fault
 from spm_console.errors import ExitCode, PlanRefusedError
-from spm_console.profile import Profile
-from spm_console.run.executor import Executor, Segment
-from spm_console.run.plans import synthetic_plan
-from spm_console.run.runlog import load_run
-from spm_console.run.safety import EXIT_CODES
-from spm_console.run.sample import Sample
+from spm_console.motion.executor import Executor, Segment
+from spm_console.motion.logs.runlog import load_run
+from spm_console.motion.plans import synthetic_plan
+from spm_console.motion.safety import EXIT_CODES
+from spm_console.motion.sample import Sample
 from tests.exec_helpers import PAPER_START, EmuRun, run_on_emulator
 
 GOAL = np.array([100.0, 120.0, 110.0])

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spm_console.core.kinematics import SpmModel
-from spm_console.core.modes import assembly_modes, seeded_solve
+from spm_console.core.kinematics.model import SpmModel
+from spm_console.core.kinematics.modes import assembly_modes, seeded_solve
 from tests.ws_helpers import agile_profile, agile_workspace
 
 DATA = Path(__file__).parent / "data" / "fk_hard_cases.csv"

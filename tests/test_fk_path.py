@@ -1,4 +1,4 @@
-"""FK around singularities along the workspace graph (core/fk_path.py), checked by second
+"""FK around singularities along the workspace graph (core/kinematics/fk_path.py), checked by second
 routes: the loop-closure residual, continuation back home along the reversed path, the
 straight path from home and the flood fill's own pose, and the home's assembly and working
 modes. Refusals are checked against every assembly mode at θ (multi-start solve)."""
@@ -12,10 +12,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from spm_console.core.continuation import PATH_ZETA_FLOOR
-from spm_console.core.fk_path import FkGraph, fk_connected, fk_graph, graph_of, route_fk
-from spm_console.core.kinematics import FkResult, SpmModel, full_residual, platform_axes
-from spm_console.core.modes import solve_all
+from spm_console.core.kinematics.continuation import PATH_ZETA_FLOOR
+from spm_console.core.kinematics.fk_path import FkGraph, fk_connected, fk_graph, graph_of, route_fk
+from spm_console.core.kinematics.model import FkResult, SpmModel, full_residual, platform_axes
+from spm_console.core.kinematics.modes import solve_all
 from tests.ws_helpers import agile_workspace
 
 BOX = (65.0, 155.0)
@@ -155,7 +155,7 @@ def test_cli_path_key_and_refusal(capsys: pytest.CaptureFixture[str]) -> None:
 
 def test_session_fk_reports_the_path() -> None:
     from spm_console.errors import UnreachableError
-    from spm_console.run.operator import Session
+    from spm_console.services.session import Session
     from tests.ws_helpers import agile_profile
 
     s = Session(agile_profile())
@@ -170,7 +170,7 @@ def test_failed_shortcut_falls_back_to_grid_steps(setup: tuple[SpmModel, FkGraph
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """A shortcut that fails (here: every segment longer than one grid step, refused on
     purpose) is replaced by its grid steps; the pose is the straight path's all the same."""
-    import spm_console.core.fk_path as fk_path
+    import spm_console.core.kinematics.fk_path as fk_path
 
     model, graph = setup
     real = fk_path._segment

@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 
 from spm_console.core.planning import solve_mvn
-from spm_console.core.planning.follow import (
+from spm_console.core.planning.follow.solver import (
     TARGET_REFUSED,
     FollowResult,
     FollowSettings,
     FollowSolver,
     FollowWeights,
 )
-from spm_console.core.planning.follow_target import ProjectionError
-from spm_console.core.region import Region
+from spm_console.core.planning.follow.target import ProjectionError
+from spm_console.core.polytope.region import Region
 from spm_console.errors import BadInputError
 from tests.planning_cases import MODEL
 

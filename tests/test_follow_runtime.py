@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spm_console.devices.bus import open_bus
-from spm_console.devices.emulator import start_emulator
-from spm_console.profile import Profile
-from spm_console.run.follow_loop import Follower
-from spm_console.run.follow_regions import follow_regions
-from spm_console.run.runlog import RunLog, load_run
-from spm_console.run.segments import ExecutionResult
-from spm_console.run.target_feed import TargetFeed, TimedTargets
+from spm_console.config.schema import Profile
+from spm_console.devices.dynamixel.bus import open_bus
+from spm_console.devices.emulator.bus import start_emulator
+from spm_console.motion.follow.loop import Follower
+from spm_console.motion.follow.regions import follow_regions
+from spm_console.motion.follow.target_feed import TargetFeed, TimedTargets
+from spm_console.motion.logs.runlog import RunLog, load_run
+from spm_console.motion.segments import ExecutionResult
 from tests.ws_helpers import agile_workspace
 
 
@@ -80,7 +80,7 @@ def test_solves_that_miss_their_deadline_continue_the_previous_plan(
     ws = agile_workspace()
     start = np.asarray(ws.theta_deg()[ws.home_index], float)
     feed = TargetFeed(TimedTargets(np.array([0.0, 0.1]), np.vstack([start, start + np.array([5.0, 5.0, -5.0])])))
-    from spm_console.core.planning import follow as follow_mod
+    from spm_console.core.planning.follow import solver as follow_mod
 
     real = follow_mod.FollowSolver.solve
     calls = [0]
@@ -104,7 +104,7 @@ def test_solves_that_miss_their_deadline_continue_the_previous_plan(
 
 
 def _session(agile: Profile, tmp_path: Path):  # type: ignore[no-untyped-def]
-    from spm_console.run.operator import Session
+    from spm_console.services.session import Session
 
     s = Session(agile, sim=True, logs_root=tmp_path, emulator_process=True)
     s.connect()
@@ -225,7 +225,7 @@ def test_a_start_a_servo_tick_beyond_the_grid_says_where_and_what_to_do() -> Non
     """The paper's goal θ2 = 155° is the grid's edge; a wrist settled 0.04° beyond it has no
     certified region to follow in. The refusal says by how much and how to get back in."""
     from spm_console.errors import BadInputError
-    from spm_console.run.follow_regions import MOVE_IN
+    from spm_console.motion.follow.regions import MOVE_IN
 
     ws = agile_workspace()
     hi = float(ws.axes_deg[1][-1])
@@ -239,10 +239,10 @@ def test_a_communication_loss_while_following_the_emulated_bus_names_its_causes(
         agile: Profile, tmp_path: Path) -> None:
     """Through the runtime's follow run (RunContext sim): the same reason as an execution on
     the emulated bus, not 'check the cable'."""
-    from spm_console.devices.faults import FaultSpec
+    from spm_console.devices.emulator.faults import FaultSpec
     from spm_console.errors import ExitCode
-    from spm_console.run.follow_run import run_follow
-    from spm_console.run.operator_runs import RunContext
+    from spm_console.motion.follow.run import run_follow
+    from spm_console.motion.runs import RunContext
 
     ws = agile_workspace()
     start = np.asarray(ws.theta_deg()[ws.home_index], float)
@@ -264,7 +264,7 @@ def test_a_communication_loss_while_following_the_emulated_bus_names_its_causes(
 
 
 def test_follow_start_moves_a_start_just_beyond_the_grid_one_tick_inside() -> None:
-    from spm_console.run.follow_regions import follow_start
+    from spm_console.motion.follow.regions import follow_start
 
     ws = agile_workspace()
     hi = float(ws.axes_deg[1][-1])

@@ -12,8 +12,8 @@ import threading
 
 import numpy as np
 
-from spm_console.core.workspace_check import exact_ok
-from spm_console.forked import ForkedRows
+from spm_console.core.workspace.check import exact_ok
+from spm_console.system.forked import ForkedRows
 from tests.ws_helpers import agile_workspace
 
 
@@ -27,7 +27,7 @@ def _run(code: str) -> str:
 def test_rows_split_with_one_child_per_function_and_joined_in_order() -> None:
     out = _run("""
         import os, numpy as np
-        from spm_console.forked import ForkedRows
+        from spm_console.system.forked import ForkedRows
         def twice(x):
             return np.column_stack([x * 2.0, np.full(len(x), os.getpid())])
         def pair(x, y):
@@ -55,7 +55,7 @@ def test_an_error_in_the_child_half_is_raised_here_and_a_dead_child_is_replaced_
 ) -> None:
     out = _run("""
         import os, signal, numpy as np
-        from spm_console.forked import ForkedRows
+        from spm_console.system.forked import ForkedRows
         def picky(x):
             if (x < 10).any():
                 raise ValueError("small")
@@ -96,8 +96,8 @@ def test_exact_checks_and_link_distances_split_equal_the_serial_ones() -> None:
     """Row-wise for real: the verdicts and the distances do not depend on the split."""
     from functools import partial
 
-    from spm_console.core.kinematics import platform_axes
-    from spm_console.core.workspace import link_distances
+    from spm_console.core.kinematics.model import platform_axes
+    from spm_console.core.workspace.build import link_distances
 
     ws = agile_workspace()
     model, links = ws.exact_models()
@@ -119,8 +119,8 @@ def test_exact_checks_and_link_distances_split_equal_the_serial_ones() -> None:
 
 
 def test_the_overlap_graph_split_equals_the_serial_one() -> None:
-    from spm_console.core.cover import cyclic_symmetric
-    from spm_console.core.cover_graph import overlap_graph
+    from spm_console.core.regions.cover import cyclic_symmetric
+    from spm_console.core.regions.cover_graph import overlap_graph
 
     ws = agile_workspace()
     assert ws.cover is not None
@@ -137,9 +137,9 @@ def test_the_overlap_graph_split_equals_the_serial_one() -> None:
 def test_a_refined_build_with_the_helper_equals_the_serial_build() -> None:
     """The whole build (FK grid, link distances, P, refined cover, graph) through the forked
     row map gives the same arrays, regions and graph as in one process (5° grid: fast)."""
-    from spm_console.core.rowmap import serial
-    from spm_console.core.workspace import build_workspace
-    from spm_console.models import grid_spec
+    from spm_console.config.models import grid_spec
+    from spm_console.core.workspace.build import build_workspace
+    from spm_console.core.workspace.rowmap import serial
     from tests.ws_helpers import agile_profile, with_step
 
     spec = grid_spec(with_step(agile_profile(), 5.0))
@@ -158,7 +158,7 @@ def test_a_refined_build_with_the_helper_equals_the_serial_build() -> None:
 def test_no_fork_under_a_real_time_policy() -> None:
     out = _run("""
         import os, numpy as np
-        from spm_console.forked import ForkedRows
+        from spm_console.system.forked import ForkedRows
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
         except PermissionError:
@@ -179,7 +179,7 @@ def test_an_error_in_this_process_half_stops_the_child_so_the_next_call_reads_no
 ) -> None:
     out = _run("""
         import numpy as np
-        from spm_console.forked import ForkedRows
+        from spm_console.system.forked import ForkedRows
         def picky(x):
             if (x > 3000).any():
                 raise ValueError("large")

@@ -1,4 +1,4 @@
-"""``latency`` and :mod:`spm_console.host_latency`: statistics, verdict, bounds, and a stall
+"""``latency`` and :mod:`spm_console.system.host_latency`: statistics, verdict, bounds, and a stall
 made on purpose (SIGSTOP) that the measurement must see."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import pytest
 from spm_console.cli.host import VERDICTS, verdict
 from spm_console.cli.main import main
 from spm_console.errors import ExitCode
-from spm_console.host_latency import THRESHOLDS_MS, measured_meanwhile, summarize
+from spm_console.system.host_latency import THRESHOLDS_MS, measured_meanwhile, summarize
 
 
 def test_summary_counts_each_threshold_and_the_percentiles() -> None:
@@ -65,7 +65,7 @@ def test_latency_refuses_an_unbounded_duration(capsys: pytest.CaptureFixture[str
 def test_a_probe_stopped_for_150_ms_reports_a_stall_of_at_least_that() -> None:
     """The stream mode (the test suite's stall probes) against a stall made on purpose."""
     cpu = min(os.sched_getaffinity(0))
-    p = subprocess.Popen([sys.executable, "-m", "spm_console.host_latency", "--stream", "--cpu", str(cpu),
+    p = subprocess.Popen([sys.executable, "-m", "spm_console.system.host_latency", "--stream", "--cpu", str(cpu),
                           "--report-ms", "50"], stdout=subprocess.PIPE, text=True)
     assert p.stdout is not None
     guard = threading.Timer(60.0, p.kill)  # a probe that never reports: EOF, and the test fails

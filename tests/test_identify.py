@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.core.identify import identify, response
-from spm_console.core.servo_model import discretize, simulate
+from spm_console.core.servo.identify import identify, response
+from spm_console.core.servo.model import discretize, simulate
 from spm_console.errors import BadInputError, SolverError
 
 TICK_DEG = 360.0 / 4096
@@ -155,8 +155,8 @@ def _bus_steps(agile) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:  # ty
     import time
 
     from spm_console.devices.base import CommError
-    from spm_console.devices.bus import open_bus
-    from spm_console.devices.emulator import start_emulator
+    from spm_console.devices.dynamixel.bus import open_bus
+    from spm_console.devices.emulator.bus import start_emulator
 
     with start_emulator(agile) as emu, open_bus(agile, emu.port) as bus:
         bus.set_torque(True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.models import model_of
+from spm_console.config.models import model_of
 
 
 def _fk(model, theta_deg):  # type: ignore[no-untyped-def]

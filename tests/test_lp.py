@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from spm_console.core.lp import INFEASIBLE, OPTIMAL, UNBOUNDED, solve_lp
-from spm_console.core.region import Region
+from spm_console.core.polytope.lp import INFEASIBLE, OPTIMAL, UNBOUNDED, solve_lp
+from spm_console.core.polytope.region import Region
 
 
 def _random_lp(rng: np.random.Generator, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

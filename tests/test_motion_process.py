@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spm_console.devices.emulator import start_emulator
+from spm_console.config.schema import Profile
+from spm_console.devices.emulator.bus import start_emulator
 from spm_console.errors import BadInputError, ExitCode, MotionProcessLostError
-from spm_console.profile import Profile
-from spm_console.run.motion_client import MotionClient
-from spm_console.run.motion_process import DEADMAN_S
-from spm_console.run.plans import synthetic_plan
-from spm_console.run.runlog import list_runs, load_run
+from spm_console.motion.logs.runlog import list_runs, load_run
+from spm_console.motion.plans import synthetic_plan
+from spm_console.motion.server import DEADMAN_S
+from spm_console.services.client import MotionClient
 from spm_console.store.plan_file import save_plan
 from tests.exec_helpers import PAPER_START
 
@@ -85,8 +85,8 @@ def test_drive_the_loop_process_and_estop_by_message(agile: Profile, tmp_path: P
 
 CLIENT = textwrap.dedent("""
     import sys, numpy as np
-    from spm_console.profile_load import load_profile
-    from spm_console.run.motion_client import MotionClient
+    from spm_console.config.load import load_profile
+    from spm_console.services.client import MotionClient
     from spm_console.store.plan_file import load_plan
     prof = load_profile("profiles/agile_wrist.toml")
     c = MotionClient(prof, sys.argv[1], cache_dir=sys.argv[3], logs_root=sys.argv[4])
@@ -175,14 +175,14 @@ def test_a_killed_loop_process_leaves_the_servos_to_their_watchdog(
 
 
 def test_deadman_is_several_heartbeats() -> None:
-    from spm_console.run.motion_process import HEARTBEAT_S
+    from spm_console.motion.server import HEARTBEAT_S
 
     assert DEADMAN_S >= 3 * HEARTBEAT_S
 
 
 def test_one_run_log_schema_for_every_front_end(agile: Profile, tmp_path: Path, cache: Path) -> None:
     """The CLI's one-shot run and a client of the motion process write the same metadata."""
-    from spm_console.run.oneshot import RunRequest, execute_once
+    from spm_console.services.oneshot import RunRequest, execute_once
 
     plan = synthetic_plan(agile, PAPER_START, GOAL, 1.5)
     execute_once(agile, plan, RunRequest(sim=True, log_root=tmp_path / "cli", cache_dir=cache,
@@ -205,9 +205,9 @@ def test_one_run_log_schema_for_every_front_end(agile: Profile, tmp_path: Path, 
 
 def test_telemetry_never_blocks_the_loop_and_counts_what_a_slow_client_missed() -> None:
     """The loop's side only appends; a client that does not read blocks the sender thread."""
-    from spm_console.run.motion_process import MAX_PENDING, TELEMETRY_CHUNK, TelemetryOut
-    from spm_console.run.motion_protocol import Telemetry
-    from spm_console.run.sample import Sample
+    from spm_console.motion.protocol import Telemetry
+    from spm_console.motion.sample import Sample
+    from spm_console.motion.server import MAX_PENDING, TELEMETRY_CHUNK, TelemetryOut
 
     release = threading.Event()
     sent: list[Telemetry] = []

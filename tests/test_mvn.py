@@ -8,8 +8,8 @@ import pytest
 from spm_console.core.planning import PlanProblem, solve_mvn, solve_problem
 from spm_console.core.planning.qp_build import Pool
 from spm_console.core.planning.reference import solve_reference
-from spm_console.core.region import Region
-from spm_console.core.servo_model import discretize
+from spm_console.core.polytope.region import Region
+from spm_console.core.servo.model import discretize
 from spm_console.errors import BadInputError, InfeasibleError
 from tests.planning_cases import GOAL, HARD_CASES, MODEL, START, Case, polytope, slab
 

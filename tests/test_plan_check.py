@@ -10,22 +10,22 @@ import re
 import numpy as np
 import pytest
 
-from spm_console.core.certify import CertifiedSet
+from spm_console.config.models import build_workspace, servo_model_of
+from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.planning.mvn import solve_mvn
-from spm_console.core.region import Region
-from spm_console.core.region_choice import region_containing
-from spm_console.core.workspace_data import Workspace
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions.choice import region_containing
+from spm_console.core.workspace.certify import CertifiedSet
+from spm_console.core.workspace.data import Workspace
 from spm_console.errors import InfeasibleError, PlanRefusedError
-from spm_console.models import build_workspace, servo_model_of
-from spm_console.profile import Profile
-from spm_console.run.plan_check import (
+from spm_console.motion.plan_check import (
     MAX_REFERENCE_STEP_DEG,
     PlanVerifier,
     verify_plan,
 )
-from spm_console.run.plans import plan_from_references, synthetic_plan
-from spm_console.run.segments import Segment
+from spm_console.motion.plans import plan_from_references, synthetic_plan
+from spm_console.motion.segments import Segment
 from tests.ws_helpers import MVN_GOAL, MVN_START, agile_profile, agile_workspace, with_step
 
 
@@ -167,7 +167,7 @@ def test_a_workspace_without_feasible_nodes_certifies_nothing(
 
 def test_a_homing_line_through_a_collision_is_refused() -> None:
     prof, ws = agile_profile(), agile_workspace()
-    from spm_console.run.plans import line_plan
+    from spm_console.motion.plans import line_plan
 
     line = line_plan(prof, np.array([73.0, 65.5, 113.0]), np.array(prof.home.theta_deg), 20.0)
     with pytest.raises(PlanRefusedError, match="links collide"):

@@ -9,11 +9,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from spm_console.config.schema import Profile
 from spm_console.core.planning import solve_mintime, solve_mvn
-from spm_console.core.servo_model import discretize
+from spm_console.core.servo.model import discretize
 from spm_console.errors import ExitCode, PlanMismatchError
-from spm_console.profile import Profile
-from spm_console.run.plans import synthetic_plan
+from spm_console.motion.plans import synthetic_plan
 from spm_console.store.plan_file import load_plan, plan_hash, plan_to_dict, save_plan
 from tests.planning_cases import GOAL, START, polytope
 

@@ -12,11 +12,11 @@ import pytest
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.planning import PlanProblem, solve_mintime
 from spm_console.core.planning.mvn import ROUND_OFF_DEG, clamp_round_off
-from spm_console.core.region import Region
+from spm_console.core.polytope.region import Region
 from spm_console.errors import BadInputError, InfeasibleError, PlanRefusedError
-from spm_console.run.plan_check import LIMIT_TOL_DEG
-from spm_console.run.plans import plan_from_references
-from spm_console.run.segments import Segment
+from spm_console.motion.plan_check import LIMIT_TOL_DEG
+from spm_console.motion.plans import plan_from_references
+from spm_console.motion.segments import Segment
 from tests.planning_cases import GOAL, MODEL, START, START_MT, polytope
 
 LO, HI = np.full(3, 60.0), np.full(3, 160.0)
@@ -72,7 +72,7 @@ def _with_joint2_max(agile, max_deg: float):  # type: ignore[no-untyped-def]
 def test_executor_accepts_the_limit_within_1e_9(agile, tmp_path) -> None:  # type: ignore[no-untyped-def]
     """A reference 5e-10° past a servo limit runs to the end with the goal written exactly on
     the limit (the bus refuses any goal past it); 1e-7° past it is refused before torque-on."""
-    from spm_console.run.executor import Executor
+    from spm_console.motion.executor import Executor
     from tests.fake_bus import FakeBus, SimClock
     from tests.ws_helpers import agile_workspace
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from spm_console.cli.main import main
-from spm_console.core.certify import CertifiedSet
+from spm_console.core.workspace.certify import CertifiedSet
 from spm_console.errors import ExitCode
 
 START = ["127.53", "83.23", "85.25"]
@@ -65,7 +65,7 @@ def test_plan_show_says_what_the_runtime_decides(tmp_path: Path,
     assert _run(capsys, "plan", "mvn", "--start", *START, "--goal", *GOAL, "--out", str(plan))[0] == 0
     code, out, _ = _run(capsys, "plan", "show", str(plan), "--json")
     assert code == 0 and json.loads(out)["verified"] is True
-    from spm_console.run.plans import plan_from_references
+    from spm_console.motion.plans import plan_from_references
     from spm_console.store.plan_file import load_plan, save_plan
     from tests.ws_helpers import agile_profile
 

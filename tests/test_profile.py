@@ -20,9 +20,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from spm_console.cli.main import main
+from spm_console.config.checks import MAX_GRID_NODES, PTS_MAX, PTS_MIN
+from spm_console.config.load import MAX_PROFILE_BYTES, load_profile, parse_profile
 from spm_console.errors import ExitCode, ProfileError
-from spm_console.profile_checks import MAX_GRID_NODES, PTS_MAX, PTS_MIN
-from spm_console.profile_load import MAX_PROFILE_BYTES, load_profile, parse_profile
 
 DATA = Path(__file__).parent / "data" / "profiles"
 
@@ -178,7 +178,7 @@ def test_grid_cap_allows_the_1_degree_grid_and_states_node_count() -> None:
 @pytest.mark.parametrize(("p", "ts"), [(1.0, 0.001), (500.0, 0.02), (0.05, 0.02), (10.0, 1.0)])
 def test_servo_band_corners_give_a_stable_finite_model(method: Literal["zoh", "tustin"], p: float,
                                                        ts: float) -> None:
-    from spm_console.core.servo_model import discretize  # python-control: slow import, only here
+    from spm_console.core.servo.model import discretize  # python-control: slow import, only here
 
     assert PTS_MIN <= p * ts <= PTS_MAX
     doc = agile_doc()

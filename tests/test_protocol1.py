@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from spm_console.devices import protocol1 as p1
+from spm_console.devices.dynamixel import protocol1 as p1
 
 
 def h(text: str) -> bytes:

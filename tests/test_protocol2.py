@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from spm_console.devices import protocol2 as p2
+from spm_console.devices.dynamixel import protocol2 as p2
 
 
 def h(text: str) -> bytes:

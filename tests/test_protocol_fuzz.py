@@ -14,8 +14,8 @@ from __future__ import annotations
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from spm_console.devices import protocol1 as p1
-from spm_console.devices import protocol2 as p2
+from spm_console.devices.dynamixel import protocol1 as p1
+from spm_console.devices.dynamixel import protocol2 as p2
 
 ids2 = st.integers(0, 252) | st.just(p2.BROADCAST_ID)
 params = st.binary(max_size=40)
@@ -150,9 +150,9 @@ def test_decoder1_rejects_any_single_byte_corruption(pair: tuple[bytes, int],
                           params | ff_heavy), min_size=1, max_size=8))
 @example([(1, 3, b"\x03\x00")])  # found by the search: protocol 1.0 writes servo 1's ID to 0
 def test_emulated_servos_survive_any_instruction(cmds: list[tuple[int, int, bytes]]) -> None:
-    from spm_console.devices.control_table import MX106_P1, MX106_P2
-    from spm_console.devices.emulated_dispatch import dispatch1, dispatch2
-    from spm_console.devices.emulated_servo import EmulatedServo
+    from spm_console.devices.dynamixel.control_table import MX106_P1, MX106_P2
+    from spm_console.devices.emulator.dispatch import dispatch1, dispatch2
+    from spm_console.devices.emulator.servo import EmulatedServo
 
     for table, dispatch, codec, dec in ((MX106_P2, dispatch2, p2, p2.Decoder2()),
                                         (MX106_P1, dispatch1, p1, p1.Decoder1())):

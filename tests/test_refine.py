@@ -7,16 +7,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.core.ellipsoid import Ellipsoid
-from spm_console.core.iris import separating_planes
-from spm_console.core.refine import REFINE, FineGrid, RefinedCertifiedSet
-from spm_console.core.region import Region
-from spm_console.core.region_choice import choose_region
-from spm_console.core.region_refine import refined_region
-from spm_console.core.segment_check import check_segment
-from spm_console.core.workspace_check import check_points
-from spm_console.core.workspace_data import Workspace
-from spm_console.core.workspace_verify import sample_region
+from spm_console.core.polytope.ellipsoid import Ellipsoid
+from spm_console.core.polytope.iris import separating_planes
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions.choice import choose_region
+from spm_console.core.regions.refined import refined_region
+from spm_console.core.workspace.check import check_points
+from spm_console.core.workspace.data import Workspace
+from spm_console.core.workspace.refine import REFINE, FineGrid, RefinedCertifiedSet
+from spm_console.core.workspace.segment_check import check_segment
+from spm_console.core.workspace.verify import sample_region
 from spm_console.errors import InfeasibleError
 from tests.ws_helpers import MINTIME_START, MVN_GOAL, agile_workspace
 

@@ -11,16 +11,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from spm_console.config.models import servo_limits_deg, servo_model_of
 from spm_console.core.planning import PlanProblem, solve_mintime_problem
-from spm_console.core.refine import RefinedCertifiedSet
-from spm_console.core.region_choice import choose_region
-from spm_console.core.workspace_data import Workspace
+from spm_console.core.regions.choice import choose_region
+from spm_console.core.workspace.data import Workspace
+from spm_console.core.workspace.refine import RefinedCertifiedSet
 from spm_console.errors import PlanRefusedError
-from spm_console.models import servo_limits_deg, servo_model_of
-from spm_console.run.plan_check import PlanVerifier, verify_plan
-from spm_console.run.plans import synthetic_plan
-from spm_console.run.safety import SafetyMonitor
-from spm_console.run.segments import Segment
+from spm_console.motion.plan_check import PlanVerifier, verify_plan
+from spm_console.motion.plans import synthetic_plan
+from spm_console.motion.safety import SafetyMonitor
+from spm_console.motion.segments import Segment
 from spm_console.store.plan_file import plan_hash
 from tests.ws_helpers import MINTIME_START, MVN_GOAL, agile_profile, agile_workspace
 

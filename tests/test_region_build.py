@@ -8,11 +8,11 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from spm_console.core.region import Region
-from spm_console.core.region_build import build_region, closest_on_boxes
-from spm_console.core.region_choice import choose_region, region_containing
-from spm_console.core.segment_check import check_segment
-from spm_console.core.workspace_data import Workspace
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions.choice import choose_region, region_containing
+from spm_console.core.regions.p_build import build_region, closest_on_boxes
+from spm_console.core.workspace.data import Workspace
+from spm_console.core.workspace.segment_check import check_segment
 from spm_console.errors import InfeasibleError
 from tests.ws_helpers import MINTIME_START, MVN_GOAL, MVN_START, agile_workspace
 
@@ -188,7 +188,7 @@ def test_mintime_pair_is_refined_on_the_2deg_grid(ws: Workspace) -> None:
 
 @pytest.mark.slow
 def test_mintime_pair_on_the_1deg_grid() -> None:
-    from spm_console.models import build_workspace
+    from spm_console.config.models import build_workspace
     from tests.ws_helpers import agile_profile, with_step
 
     ws1 = build_workspace(with_step(agile_profile(), 1.0))

@@ -12,21 +12,21 @@ from collections.abc import Callable
 
 import pytest
 
-from spm_console.devices import protocol1 as p1
-from spm_console.devices import protocol2 as p2
 from spm_console.devices.base import CommError
-from spm_console.devices.control_table import MX106_P1, MX106_P2, table_for
-from spm_console.devices.emulated_dispatch import dispatch1, dispatch2
-from spm_console.devices.emulated_servo import EmulatedServo
-from spm_console.devices.link import Link1, Link2
-from spm_console.devices.reply_ledger import (
+from spm_console.devices.dynamixel import protocol1 as p1
+from spm_console.devices.dynamixel import protocol2 as p2
+from spm_console.devices.dynamixel.control_table import MX106_P1, MX106_P2, table_for
+from spm_console.devices.dynamixel.link import Link1, Link2
+from spm_console.devices.dynamixel.reply_ledger import (
     MAX_READ_EXTRA,
     REPLY_HORIZON_S,
     ReplyLedger,
     Verdict,
     read_variants,
 )
-from spm_console.devices.transport import StreamDecoder
+from spm_console.devices.dynamixel.transport import StreamDecoder
+from spm_console.devices.emulator.dispatch import dispatch1, dispatch2
+from spm_console.devices.emulator.servo import EmulatedServo
 
 NEVER = 10**9
 POS = 132  # Present Position (2.0)

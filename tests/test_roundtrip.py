@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.core.ik import ik, ik_rpy
-from spm_console.core.jacobian import conditioning_index, jacobian
-from spm_console.core.modes import assembly_modes, seeded_solve
+from spm_console.core.kinematics.ik import ik, ik_rpy
+from spm_console.core.kinematics.jacobian import conditioning_index, jacobian
+from spm_console.core.kinematics.modes import assembly_modes, seeded_solve
 from spm_console.errors import BadInputError
 
 
@@ -92,7 +92,7 @@ def test_mode_search_finds_the_same_poses_from_scipys_random_rotations(  # type:
     scipy's ``Rotation.random`` (an independent sampler) finds the same set of poses."""
     from scipy.spatial.transform import Rotation
 
-    import spm_console.core.modes as modes
+    import spm_console.core.kinematics.modes as modes
 
     rng = np.random.default_rng(4)
     thetas = np.radians(np.vstack([[95.0, 110.0, 105.0], rng.uniform(70.0, 150.0, (5, 3))]))

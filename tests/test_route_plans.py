@@ -10,9 +10,9 @@ from spm_console.core.planning.mintime import solve_mintime_problem
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.reference import solve_reference
 from spm_console.core.planning.route_search import find_route, solve_route_mvn
-from spm_console.core.region import Region
-from spm_console.core.region_route import RegionRoute, spread
-from spm_console.core.servo_model import simulate_continuous
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions.route import RegionRoute, spread
+from spm_console.core.servo.model import simulate_continuous
 from spm_console.errors import InfeasibleError
 from tests.planning_cases import MODEL
 
@@ -102,7 +102,7 @@ def test_mintime_along_a_route_certifies_its_scope() -> None:
 def test_a_route_plan_file_round_trips_and_edits_are_refused(tmp_path, agile) -> None:  # type: ignore[no-untyped-def]
     import json
 
-    from spm_console.core.servo_model import discretize
+    from spm_console.core.servo.model import discretize
     from spm_console.errors import PlanMismatchError
     from spm_console.store.plan_file import load_plan, plan_hash, save_plan
 
@@ -138,10 +138,10 @@ def test_a_route_plan_file_round_trips_and_edits_are_refused(tmp_path, agile) ->
 ])
 def test_pairs_one_region_refuses_plan_through_the_cover_and_every_point_is_feasible(
         agile, start, goal) -> None:  # type: ignore[no-untyped-def]
-    from spm_console.core.segment_check import check_segment
-    from spm_console.core.workspace_check import check_points
-    from spm_console.models import link_model_of, model_of
-    from spm_console.run.plan_request import PlanRequest, plan_motion
+    from spm_console.config.models import link_model_of, model_of
+    from spm_console.core.workspace.check import check_points
+    from spm_console.core.workspace.segment_check import check_segment
+    from spm_console.services.plan_request import PlanRequest, plan_motion
     from spm_console.store.workspace_cache import load_or_build
 
     ws, _ = load_or_build(agile)
@@ -169,7 +169,7 @@ def test_a_plan_across_regions_is_planned_by_the_cli_and_executes_on_the_emulate
     import json
 
     from spm_console.cli.main import main
-    from spm_console.run.runlog import load_run
+    from spm_console.motion.logs.runlog import load_run
 
     start, goal = ["121", "65", "87"], ["139", "67", "107"]
     out = tmp_path / "route.json"

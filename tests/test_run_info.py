@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from spm_console.errors import ExitCode
-from spm_console.run.run_info import STOP_KIND_BY_EXIT, STOP_LABELS, run_info
-from spm_console.run.runlog import list_runs, load_run
-from spm_console.run.safety import EXIT_CODES, StopKind
+from spm_console.motion.logs.run_info import STOP_KIND_BY_EXIT, STOP_LABELS, run_info
+from spm_console.motion.logs.runlog import list_runs, load_run
+from spm_console.motion.safety import EXIT_CODES, StopKind
 from tests.runlog_helpers import GOAL, START, write_run
 
 

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from spm_console.errors import BadInputError
-from spm_console.run.procid import current_process, writer_alive
-from spm_console.run.runlog import (
+from spm_console.motion.logs.procid import current_process, writer_alive
+from spm_console.motion.logs.runlog import (
     COLUMNS,
     FLUSH_EVERY,
     LOGS_ENV,
@@ -24,7 +24,7 @@ from spm_console.run.runlog import (
     load_run,
     logs_root,
 )
-from spm_console.run.sample import Sample
+from spm_console.motion.sample import Sample
 
 
 def _sample(k: int, ok: bool = True) -> Sample:
@@ -90,8 +90,8 @@ def test_unique_folders_and_env_root(tmp_path: Path, monkeypatch: pytest.MonkeyP
 
 WRITER = """
 import sys, time, numpy as np
-from spm_console.run.runlog import RunLog
-from spm_console.run.sample import Sample
+from spm_console.motion.logs.runlog import RunLog
+from spm_console.motion.sample import Sample
 log = RunLog.create("execute", "p", "h", [], root=sys.argv[1])
 print(log.path, flush=True)
 k = 0

@@ -22,11 +22,11 @@ import numpy as np
 import pytest
 
 from spm_console.cli.main import main
+from spm_console.config.load import load_profile
+from spm_console.config.schema import Profile
 from spm_console.errors import ExitCode
-from spm_console.profile import Profile
-from spm_console.profile_load import load_profile
-from spm_console.run.plans import synthetic_plan
-from spm_console.run.runlog import list_runs, load_run
+from spm_console.motion.logs.runlog import list_runs, load_run
+from spm_console.motion.plans import synthetic_plan
 from spm_console.store.plan_file import save_plan
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -16,7 +16,7 @@ import pytest
 
 from spm_console.cli.main import main
 from spm_console.errors import BadInputError, ExitCode
-from spm_console.run.runlog import list_runs
+from spm_console.motion.logs.runlog import list_runs
 from spm_console.scripting.steps import load_script, parse_script
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -78,8 +78,8 @@ def test_short_session_runs_every_step_and_reports_json(tmp_path, capsys, agile)
     # progress on stderr, one line per step
     assert all(f"[{i}/6]" in err for i in range(1, 7))
     # fk from an orientation: the IK solution, and its FK gives that orientation back
-    from spm_console.core.ik import ik_rpy
-    from spm_console.models import model_of
+    from spm_console.config.models import model_of
+    from spm_console.core.kinematics.ik import ik_rpy
 
     fk = steps[1]["result"]
     expect = ik_rpy(model_of(agile), *np.radians([10.0, 5.0, -15.0])).theta_deg

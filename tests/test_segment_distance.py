@@ -8,7 +8,7 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from spm_console.core.links import segment_distance
+from spm_console.core.kinematics.links import segment_distance
 
 KINDS = ("general", "parallel", "collinear", "touching", "zero_one", "zero_both", "shared_end",
          "tiny")

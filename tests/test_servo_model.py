@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from spm_console.core.servo_model import (
+from spm_console.core.servo.model import (
     continuous,
     discretize,
     exact_step,

@@ -13,22 +13,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spm_console.devices.bus import DynamixelBus, open_bus
-from spm_console.devices.emulator import EmulatorHandle, start_emulator
-from spm_console.devices.faults import parse_fault
+from spm_console.config.models import servo_limits_deg
+from spm_console.config.schema import Profile
+from spm_console.devices.dynamixel.bus import DynamixelBus, open_bus
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError, BusError
-from spm_console.models import servo_limits_deg
-from spm_console.profile import Profile
-from spm_console.run.operator import Session
-from spm_console.run.plans import line_plan
-from spm_console.run.runlog import list_runs
-from spm_console.run.servo_tools import (
+from spm_console.motion.logs.runlog import list_runs
+from spm_console.motion.plans import line_plan
+from spm_console.motion.servo_tools import (
     JOG_MAX_STEP_DEG,
     jog_target,
     read_health,
     reboot_joint,
     set_joint_torque,
 )
+from spm_console.services.session import Session
 from tests.test_bus_emulator import protocol1, relaxed
 
 START = (128.0, 141.0, 133.0)

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from spm_console.config.schema import Profile
 from spm_console.errors import ExitCode, PlanMismatchError, SpmError
-from spm_console.profile import Profile
-from spm_console.run.operator import PoseSpec, Session
+from spm_console.services.session import PoseSpec, Session
 from spm_console.store.plan_file import save_plan
 
 

@@ -21,14 +21,14 @@ import numpy as np
 import pytest
 
 from spm_console.cli.main import main
-from spm_console.devices.emulator import start_emulator
+from spm_console.config.schema import Profile
+from spm_console.devices.emulator.bus import start_emulator
 from spm_console.errors import ExitCode
-from spm_console.profile import Profile
-from spm_console.run.oneshot import RunRequest, execute_once
-from spm_console.run.plans import synthetic_plan
-from spm_console.run.runlog import FLUSH_EVERY, list_runs, load_run
-from spm_console.signals import STOP_SIGNALS, stop_signals
+from spm_console.motion.logs.runlog import FLUSH_EVERY, list_runs, load_run
+from spm_console.motion.plans import synthetic_plan
+from spm_console.services.oneshot import RunRequest, execute_once
 from spm_console.store.plan_file import save_plan
+from spm_console.system.signals import STOP_SIGNALS, stop_signals
 from tests.exec_helpers import PAPER_START
 from tests.terminal_helpers import last_measured
 

@@ -19,15 +19,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from spm_console.config.schema import Profile
 from spm_console.devices.base import CommError
-from spm_console.devices.bus import DynamixelBus, open_bus
-from spm_console.devices.emulator import EmulatorHandle, start_emulator
-from spm_console.devices.faults import FaultSpec
-from spm_console.devices.reply_ledger import read_variants
+from spm_console.devices.dynamixel.bus import DynamixelBus, open_bus
+from spm_console.devices.dynamixel.reply_ledger import read_variants
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.devices.emulator.faults import FaultSpec
 from spm_console.errors import ExitCode
-from spm_console.profile import Profile
-from spm_console.run.executor import Segment
-from spm_console.run.plans import synthetic_plan
+from spm_console.motion.executor import Segment
+from spm_console.motion.plans import synthetic_plan
 from tests.exec_helpers import PAPER_START, run_on_emulator
 
 TS = 0.02

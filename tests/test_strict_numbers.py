@@ -16,11 +16,11 @@ import pytest
 
 from spm_console.cli.follow_source import UdpTargets
 from spm_console.cli.main import main
-from spm_console.core.targets import MAX_TARGET_TIME_S
+from spm_console.config.schema import Profile
+from spm_console.core.planning.follow.timed import MAX_TARGET_TIME_S
 from spm_console.errors import BadInputError, ExitCode
+from spm_console.motion.follow.target_feed import TargetFeed
 from spm_console.numbers import NotANumberError, json_loads, json_number, parse_number
-from spm_console.profile import Profile
-from spm_console.run.target_feed import TargetFeed
 from spm_console.store.target_file import read_target_csv
 
 BIG = "9" * 400

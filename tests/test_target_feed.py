@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from spm_console.run.target_feed import TargetFeed
+from spm_console.motion.follow.target_feed import TargetFeed
 
 
 class Clock:

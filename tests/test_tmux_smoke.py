@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from spm_console.run.runlog import list_runs
+from spm_console.motion.logs.runlog import list_runs
 from tests.net_helpers import listening
 from tests.terminal_helpers import assert_estopped
 

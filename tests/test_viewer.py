@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from spm_console.models import link_model_of, model_of
+from spm_console.config.models import link_model_of, model_of
 from spm_console.viewer import scene
 from tests.net_helpers import listening
 
@@ -152,7 +152,7 @@ def test_null_view_answers_every_request_of_the_protocol() -> None:
 
 PARENT = """
 import json, sys, time
-from spm_console.profile_load import load_profile
+from spm_console.config.load import load_profile
 from spm_console.viewer.view import MeshcatView
 v = MeshcatView(load_profile("profiles/agile_wrist.toml"))
 url = v.start()

@@ -7,9 +7,9 @@ from collections import deque
 import numpy as np
 import pytest
 
-from spm_console.core.workspace import check_theta, classify, home_connected
-from spm_console.core.workspace_data import NodeClass, Workspace
-from spm_console.models import link_model_of, model_of
+from spm_console.config.models import link_model_of, model_of
+from spm_console.core.workspace.build import check_theta, classify, home_connected
+from spm_console.core.workspace.data import NodeClass, Workspace
 from tests.ws_helpers import MVN_GOAL, MVN_START, agile_profile, agile_workspace
 
 

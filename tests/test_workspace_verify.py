@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.core.region import Region
-from spm_console.core.workspace_check import check_points
-from spm_console.core.workspace_data import Workspace
-from spm_console.core.workspace_verify import sample_region, verify_region
-from spm_console.models import link_model_of, model_of
+from spm_console.config.models import link_model_of, model_of
+from spm_console.core.polytope.region import Region
+from spm_console.core.workspace.check import check_points
+from spm_console.core.workspace.data import Workspace
+from spm_console.core.workspace.verify import sample_region, verify_region
 from tests.ws_helpers import agile_profile, agile_workspace
 
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-from spm_console.core.workspace_data import Workspace
-from spm_console.models import build_workspace
-from spm_console.profile import Profile
-from spm_console.profile_load import load_profile
+from spm_console.config.load import load_profile
+from spm_console.config.models import build_workspace
+from spm_console.config.schema import Profile
+from spm_console.core.workspace.data import Workspace
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -13,10 +13,10 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from spm_console.config.load import load_profile
+from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError
 from spm_console.jsonutil import to_jsonable
-from spm_console.profile import DEFAULT_PROFILE, Profile
-from spm_console.profile_load import load_profile
 
 #: File names a figure may be written to.
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")

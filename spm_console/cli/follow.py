@@ -47,7 +47,7 @@ def register(sub: Any) -> None:
 
 
 def cmd_follow(args: argparse.Namespace) -> int:
-    from spm_console.run.oneshot import follow_once
+    from spm_console.services.oneshot import follow_once
 
     profile = profile_of(args)
     req = _request(args, profile)

@@ -14,10 +14,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.config.schema import Profile
 from spm_console.errors import BadInputError, SpmError
 from spm_console.numbers import NotANumberError, json_loads, json_number
-from spm_console.profile import Profile
-from spm_console.run.operator import Session
+from spm_console.services.session import Session
 from spm_console.store.target_file import theta_of_rpy
 
 F = NDArray[np.float64]

@@ -1,5 +1,5 @@
 """``latency``: how late this machine wakes the servo loop, per CPU, against the profile's
-reply timeout and communication-loss window (see :mod:`spm_console.host_latency`)."""
+reply timeout and communication-loss window (see :mod:`spm_console.system.host_latency`)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from dataclasses import asdict
 from typing import Any
 
 from spm_console.cli.common import add_common, emit, info, profile_of
-from spm_console.host_latency import MAX_SECONDS, THRESHOLDS_MS, CpuLatency, measure
 from spm_console.input_rules import finite_number
+from spm_console.system.host_latency import MAX_SECONDS, THRESHOLDS_MS, CpuLatency, measure
 
 #: Verdicts, worst last.
 VERDICTS = {

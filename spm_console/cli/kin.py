@@ -10,16 +10,16 @@ from typing import Any
 import numpy as np
 
 from spm_console.cli.common import add_common, emit, profile_of
-from spm_console.core.ik import ik, ik_rpy
-from spm_console.core.modes import assembly_modes
+from spm_console.config.models import link_model_of, model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.ik import ik, ik_rpy
+from spm_console.core.kinematics.modes import assembly_modes
 from spm_console.errors import BadInputError, ExitCode, InfeasibleError, UnreachableError
 from spm_console.formatting import fmt_residual, fmt_vec
 from spm_console.input_rules import FK_THETA_LIMIT_DEG, finite_number, rpy_angles, theta_for_fk
-from spm_console.models import link_model_of, model_of
 from spm_console.numbers import numeric_rows
-from spm_console.profile import Profile
-from spm_console.run.kin_record import FkGraphSource, fk_record, fk_route, path_line
 from spm_console.safe_io import MB, read_text
+from spm_console.services.kin_record import FkGraphSource, fk_record, fk_route, path_line
 
 #: Largest ``fk --theta-file`` read, and most θ rows in it.
 MAX_THETA_FILE_BYTES = 10 * MB

@@ -11,7 +11,7 @@ import numpy as np
 
 from spm_console.cli.common import add_common, emit
 from spm_console.errors import BadInputError, ExitCode
-from spm_console.run.runlog import list_runs, load_run
+from spm_console.motion.logs.runlog import list_runs, load_run
 
 
 def register(sub: Any) -> None:

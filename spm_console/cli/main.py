@@ -81,7 +81,7 @@ def _interrupt(signum: int, _frame: FrameType | None) -> None:
 
 
 def _interrupt_on_signals() -> None:
-    """Until a command installs its own stop handling (a run E-stops; see signals.py),
+    """Until a command installs its own stop handling (a run E-stops; see system/signals.py),
     SIGTERM, SIGHUP and SIGQUIT end the process like Ctrl-C: exit 130 with a message. A
     SIGHUP already ignored (``nohup``) stays ignored."""
     if threading.current_thread() is not threading.main_thread():

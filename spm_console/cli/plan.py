@@ -12,19 +12,19 @@ from typing import Any, Literal
 import numpy as np
 
 from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output_file, profile_of
+from spm_console.config.checks import PTS_MAX, PTS_MIN
+from spm_console.config.schema import Profile
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
-from spm_console.core.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, identify
 from spm_console.core.plan import Plan
-from spm_console.core.region import Region
-from spm_console.core.workspace_data import Workspace
+from spm_console.core.polytope.region import Region
+from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, identify
+from spm_console.core.workspace.data import Workspace
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, SolverError, SpmError
 from spm_console.formatting import fmt_vec
 from spm_console.input_rules import bounded_int, theta_in_grid, theta_in_servo_limits, vmax_arg
 from spm_console.numbers import NotANumberError, parse_number
-from spm_console.profile import Profile
-from spm_console.profile_checks import PTS_MAX, PTS_MIN
-from spm_console.run.plan_request import PlanRequest
 from spm_console.safe_io import MB, load_json, read_text
+from spm_console.services.plan_request import PlanRequest
 from spm_console.store.plan_file import MAX_PLAN_BYTES, load_plan, plan_to_dict, save_plan
 from spm_console.store.plan_schema import record_to_dict, region_of
 
@@ -160,7 +160,7 @@ def _human(plan: Plan, out: Path | None, source: str) -> str:
 
 
 def _finish(args: argparse.Namespace, profile: Profile, req: PlanRequest) -> int:
-    from spm_console.run.plan_request import plan_motion, precheck
+    from spm_console.services.plan_request import plan_motion, precheck
 
     precheck(profile, req)  # a refusal never pays for the workspace
     planned = plan_motion(profile, _workspace(args, profile), req)
@@ -209,7 +209,7 @@ def cmd_show(args: argparse.Namespace) -> int:
     plan = load_plan(args.file, profile)
     if args.plot is not None:
         _plot(plan, args.plot)
-    from spm_console.run.plan_check import verify_plan
+    from spm_console.motion.plan_check import verify_plan
 
     # what the runtime will decide (the figures above the verdict are the file's own claims)
     try:
@@ -308,7 +308,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         t, ref, meas, at = _read_csv(args.csv)
         src = named = str(args.csv)
     else:
-        from spm_console.run.runlog import load_run
+        from spm_console.motion.logs.runlog import load_run
 
         run = load_run(args.run, args.logs)
         src, named = str(run.path), str(run.path / "samples.csv")

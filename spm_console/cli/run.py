@@ -1,6 +1,6 @@
 """``home`` and ``execute``: move the wrist (real bus or ``--sim``), log the run.
 
-Both go through the operator runtime (:mod:`spm_console.run.oneshot`): the servo loop in
+Both go through the operator runtime (:mod:`spm_console.services.oneshot`): the servo loop in
 the motion process, the emulated bus in its own. ``execute`` homes first unless
 ``--skip-homing REASON`` overrides it (the reason is logged).
 
@@ -17,13 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from spm_console.cli.common import add_common, emit, info, output_folder, output_may_be_gone, profile_of
-from spm_console.devices.faults import parse_fault
+from spm_console.config.schema import Profile
+from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_vec
 from spm_console.input_rules import theta_in_servo_limits
-from spm_console.profile import Profile
-from spm_console.run.oneshot import RunRequest, execute_once, home_once
-from spm_console.run.segments import ExecutionResult
+from spm_console.motion.segments import ExecutionResult
+from spm_console.services.oneshot import RunRequest, execute_once, home_once
 from spm_console.store.plan_file import load_plan
 
 

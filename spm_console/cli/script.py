@@ -32,7 +32,7 @@ def register(sub: Any) -> None:
 
 
 def cmd_script(args: argparse.Namespace) -> int:
-    from spm_console.profile_load import load_profile
+    from spm_console.config.load import load_profile
     from spm_console.scripting.runner import run_script, session_for
     from spm_console.scripting.steps import load_script
 

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
-from spm_console.profile import DEFAULT_PROFILE
+from spm_console.config.schema import DEFAULT_PROFILE
 
 
 def register(sub: Any) -> None:
@@ -106,7 +106,7 @@ def cmd_tui(args: argparse.Namespace) -> int:
         grid = finite_number(grid, "--grid-step", 0.0, 30.0, lo_open=True)
 
     def factory(path: Path, step_deg: float | None, note: str) -> ConsoleApp:
-        from spm_console.profile_load import load_profile, with_grid_step
+        from spm_console.config.load import load_profile, with_grid_step
         from spm_console.tui.app import make_app
 
         profile = load_profile(path)

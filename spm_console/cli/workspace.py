@@ -9,14 +9,14 @@ from pathlib import Path
 from typing import Any
 
 from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output_file, profile_of
-from spm_console.core.region_choice import region_containing
-from spm_console.core.workspace import check_theta
-from spm_console.core.workspace_data import Workspace
-from spm_console.core.workspace_verify import verify_cover, verify_region
+from spm_console.config.schema import Profile
+from spm_console.core.regions.choice import region_containing
+from spm_console.core.workspace.build import check_theta
+from spm_console.core.workspace.data import Workspace
+from spm_console.core.workspace.verify import verify_cover, verify_region
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.formatting import fmt_vec
 from spm_console.input_rules import bounded_int, theta_in_grid
-from spm_console.profile import Profile
 from spm_console.store.workspace_cache import CacheInfo, load_or_build
 
 #: Most samples ``workspace verify`` checks (about 5 minutes; memory stays bounded).

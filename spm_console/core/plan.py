@@ -9,9 +9,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.plan_report import ConstraintReport, InfeasibilityRecord
-from spm_console.core.region import Region
-from spm_console.core.region_route import RegionRoute
-from spm_console.core.servo_model import ServoModel
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions.route import RegionRoute
+from spm_console.core.servo.model import ServoModel
 
 F = NDArray[np.float64]
 Vec3 = tuple[float, float, float]

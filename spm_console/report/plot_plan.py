@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.plan import Plan
-from spm_console.core.servo_model import simulate_continuous
+from spm_console.core.servo.model import simulate_continuous
 
 F = NDArray[np.float64]
 

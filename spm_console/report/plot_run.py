@@ -14,7 +14,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from spm_console.run.runlog import RunData
+from spm_console.motion.logs.runlog import RunData
 
 
 def plot_run(run: RunData, out: str | Path, title: str | None = None) -> Path:

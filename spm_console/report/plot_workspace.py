@@ -19,8 +19,8 @@ from numpy.typing import NDArray
 from scipy import ndimage
 from scipy.spatial import ConvexHull
 
-from spm_console.core.region import Region
-from spm_console.core.workspace_data import Workspace
+from spm_console.core.polytope.region import Region
+from spm_console.core.workspace.data import Workspace
 
 F = NDArray[np.float64]
 

@@ -6,9 +6,9 @@ import time
 
 import numpy as np
 
-from spm_console.core.servo_model import continuous, discretize
-from spm_console.models import model_of
-from spm_console.profile import Profile
+from spm_console.config.models import model_of
+from spm_console.config.schema import Profile
+from spm_console.core.servo.model import continuous, discretize
 from spm_console.report import paper_values as pv
 from spm_console.report.repro_types import Check, Section
 

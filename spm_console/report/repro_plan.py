@@ -8,18 +8,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from spm_console.config.schema import Profile
 from spm_console.core.planning import solve_mintime, solve_mvn
-from spm_console.core.region_choice import choose_region, region_containing
-from spm_console.core.servo_model import discretize
-from spm_console.core.workspace_data import Workspace
+from spm_console.core.regions.choice import choose_region, region_containing
+from spm_console.core.servo.model import discretize
+from spm_console.core.workspace.data import Workspace
 from spm_console.errors import InfeasibleError
-from spm_console.profile import Profile
+from spm_console.motion.logs.runlog import load_run
+from spm_console.motion.plan_check import verify_plan
 from spm_console.report import paper_values as pv
 from spm_console.report.plot_run import plot_run
 from spm_console.report.repro_types import Check, Section
-from spm_console.run.oneshot import RunRequest, execute_once
-from spm_console.run.plan_check import verify_plan
-from spm_console.run.runlog import load_run
+from spm_console.services.oneshot import RunRequest, execute_once
 from spm_console.store.workspace_cache import load_or_build
 
 if TYPE_CHECKING:

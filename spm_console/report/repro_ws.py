@@ -7,9 +7,9 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from spm_console.core.workspace_verify import verify_region
-from spm_console.models import link_model_of, model_of
-from spm_console.profile import Profile
+from spm_console.config.models import link_model_of, model_of
+from spm_console.config.schema import Profile
+from spm_console.core.workspace.verify import verify_region
 from spm_console.report import paper_values as pv
 from spm_console.report.plot_workspace import plot_workspace
 from spm_console.report.repro_types import Check, Section

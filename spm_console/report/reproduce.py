@@ -12,8 +12,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from spm_console import __version__
-from spm_console.profile import Profile
-from spm_console.profile_load import load_profile
+from spm_console.config.load import load_profile
+from spm_console.config.schema import Profile
 from spm_console.report.repro_types import Check, ReproSettings, Section
 
 

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from spm_console.core.targets import TimedTargets
+from spm_console.config.schema import Profile
+from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.errors import BadInputError
 from spm_console.input_rules import (
     rpy_angles,
@@ -19,7 +20,6 @@ from spm_console.input_rules import (
     theta_in_servo_limits,
     vmax_arg,
 )
-from spm_console.profile import Profile
 from spm_console.scripting.steps import (
     AssertStep,
     FkStep,

@@ -1,7 +1,7 @@
 """Headless scripted sessions: ``spm-console script FILE.toml``.
 
 A script is a TOML file with an optional ``[session]`` table and a list of
-``[[step]]`` tables run in order on one :class:`~spm_console.run.operator.Session`
+``[[step]]`` tables run in order on one :class:`~spm_console.services.session.Session`
 — the same core, bus, executor and safety checks as the console. Angles in
 degrees, time in seconds. Format (see ``examples/session.toml``)::
 
@@ -69,10 +69,9 @@ from typing import Any
 
 import numpy as np
 
+from spm_console.config.load import load_profile
+from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError, ExitCode, SpmError
-from spm_console.profile import DEFAULT_PROFILE, Profile
-from spm_console.profile_load import load_profile
-from spm_console.run.operator import PoseSpec, Session
 from spm_console.scripting.checks import check_script
 from spm_console.scripting.steps import (
     AssertStep,
@@ -89,7 +88,8 @@ from spm_console.scripting.steps import (
     WaitStep,
     WorkspaceStep,
 )
-from spm_console.signals import stop_signals
+from spm_console.services.session import PoseSpec, Session
+from spm_console.system.signals import stop_signals
 
 
 def _pose(p: PoseIn) -> PoseSpec:
@@ -267,7 +267,7 @@ class ScriptRunner:
         return self._motion(self.session.execute(), step.allow_stop, "execution")
 
     def _step_follow(self, step: FollowStep) -> tuple[dict[str, Any], str]:
-        from spm_console.core.targets import TimedTargets
+        from spm_console.core.planning.follow.timed import TimedTargets
         from spm_console.store.target_file import read_target_csv, theta_of_rpy
 
         if (step.targets is None) == (step.file is None):
@@ -348,7 +348,7 @@ class ScriptRunner:
 def session_for(script: Script, profile: Profile | None = None, port: str | None = None,
                 sim: bool = False, logs: Path | None = None) -> Session:
     """The session a script runs on: command-line choices win over the ``[session]`` table."""
-    from spm_console.devices.faults import parse_fault
+    from spm_console.devices.emulator.faults import parse_fault
 
     spec = script.session
     if profile is None:
@@ -364,7 +364,7 @@ def session_for(script: Script, profile: Profile | None = None, port: str | None
 
 
 def run_script(script: Script, session: Session, progress: Callable[[str], None]) -> ScriptRunner:
-    """Run with every terminating signal (:mod:`spm_console.signals`) turned into an
+    """Run with every terminating signal (:mod:`spm_console.system.signals`) turned into an
     E-stop and a clean end; the session is closed after."""
     runner = ScriptRunner(script, session, progress)
     with stop_signals(runner.interrupt):  # (while closing, a signal has nothing left to stop)

@@ -12,9 +12,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, field_validator
 
+from spm_console.config.schema import Count, Real
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
 from spm_console.errors import BadInputError, ExitCode, SpmError
-from spm_console.profile import Count, Real
 from spm_console.safe_io import MB, read_text
 
 #: Largest script file read.

@@ -19,12 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from spm_console.config.models import servo_model_of
+from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
-from spm_console.core.servo_model import simulate
+from spm_console.core.servo.model import simulate
 from spm_console.errors import BadInputError, PlanMismatchError
 from spm_console.jsonutil import to_jsonable
-from spm_console.models import servo_model_of
-from spm_console.profile import Profile
 from spm_console.safe_io import MB, load_json
 from spm_console.store.plan_schema import (
     FORMAT,

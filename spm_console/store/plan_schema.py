@@ -5,7 +5,7 @@ or raises :class:`~spm_console.errors.PlanMismatchError` naming the field and wh
 wrong with it. Whether the plan belongs to a profile is checked afterwards
 (:func:`spm_console.store.plan_file.check_plan`).
 
-The document's "model" becomes a :class:`~spm_console.core.servo_model.ServoModel`; its
+The document's "model" becomes a :class:`~spm_console.core.servo.model.ServoModel`; its
 "extra" object and the top-level "n_minus_1_infeasible" become the plan's typed
 records (:func:`extra_of`: planner options, constraint report, minimum time's N − 1
 record, solver details, free-form notes) and are written back under the same keys
@@ -30,9 +30,9 @@ from spm_console.core.plan_report import (
     InfeasibilityRecord,
     SearchStep,
 )
-from spm_console.core.region import Region
-from spm_console.core.region_route import RegionRoute
-from spm_console.core.servo_model import Discretization, ServoModel
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions.route import RegionRoute
+from spm_console.core.servo.model import Discretization, ServoModel
 from spm_console.errors import PlanMismatchError, SpmError
 
 F = NDArray[np.float64]

@@ -5,7 +5,7 @@ home, links, workspace grid and thresholds, algorithm constants, format version)
 A different key means stale: rebuild and overwrite. A corrupt or truncated file
 (zip CRC, missing arrays, wrong shapes) gives a clear message and is rebuilt; a file
 of an older format is stale by its key (read before anything else). The region cover
-(:mod:`spm_console.core.cover`) is stored with the grid, P excluded (it is
+(:mod:`spm_console.core.regions.cover`) is stored with the grid, P excluded (it is
 ``region_A``/``region_b``), under the same content digest: only its regions and graph (the
 fine verdicts of its refinement are not stored; the runtime checks fine nodes itself).
 Writes are atomic: a temporary file in the same directory, fsync, ``os.replace``.
@@ -29,18 +29,18 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.core import cover as core_cover
-from spm_console.core import region_build
-from spm_console.core import workspace as core_ws
-from spm_console.core.continuation import NEWTON_TOL, PATH_ZETA_FLOOR
-from spm_console.core.cover_data import RegionCover
-from spm_console.core.refine import REFINE, VERDICTS_VERSION
-from spm_console.core.region import Region
-from spm_console.core.workspace_check import STEP_RAD
-from spm_console.core.workspace_data import Progress, Workspace
+from spm_console.config.models import build_workspace, grid_axes_deg, link_model_of, model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.continuation import NEWTON_TOL, PATH_ZETA_FLOOR
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions import cover as core_cover
+from spm_console.core.regions import p_build as region_build
+from spm_console.core.regions.cover_data import RegionCover
+from spm_console.core.workspace import build as core_ws
+from spm_console.core.workspace.check import STEP_RAD
+from spm_console.core.workspace.data import Progress, Workspace
+from spm_console.core.workspace.refine import REFINE, VERDICTS_VERSION
 from spm_console.errors import CacheError
-from spm_console.models import build_workspace, grid_axes_deg, link_model_of, model_of
-from spm_console.profile import Profile
 
 ENV_VAR = "SPM_CONSOLE_CACHE"
 _ARRAYS = ("axis0", "axis1", "axis2", "zeta", "min_link_mm", "closest_pair", "R", "klass",

@@ -22,10 +22,10 @@ from textual.dom import DOMNode
 from textual.reactive import reactive
 from textual.screen import Screen
 
+from spm_console.config.schema import Profile
 from spm_console.errors import ExitCode
-from spm_console.profile import Profile
-from spm_console.run.operator import Session
-from spm_console.signals import install_stop_handler
+from spm_console.services.session import Session
+from spm_console.system.signals import install_stop_handler
 from spm_console.tui.messages import Telemetry
 from spm_console.tui.screens.base import COMPACT_BELOW_COLUMNS, COMPACT_BELOW_ROWS, StepScreen
 from spm_console.tui.screens.connect import ConnectScreen

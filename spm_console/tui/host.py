@@ -10,7 +10,7 @@ from typing import Any, Protocol
 
 from textual.screen import Screen
 
-from spm_console.run.operator import Session
+from spm_console.services.session import Session
 from spm_console.store.form_memory import FormMemory
 from spm_console.viewer.view import WristView
 

@@ -10,12 +10,12 @@ from textual.message import Message
 
 if TYPE_CHECKING:
     from spm_console.core.plan import Plan
-    from spm_console.core.workspace_check import ThetaCheck
-    from spm_console.run.follow_run import FollowOutcome
-    from spm_console.run.operator import BusState
-    from spm_console.run.runlog import RunData
-    from spm_console.run.segments import ExecutionResult
-    from spm_console.run.servo_tools import ServoHealth
+    from spm_console.core.workspace.check import ThetaCheck
+    from spm_console.motion.follow.run import FollowOutcome
+    from spm_console.motion.logs.runlog import RunData
+    from spm_console.motion.segments import ExecutionResult
+    from spm_console.motion.servo_tools import ServoHealth
+    from spm_console.services.session import BusState
 
 
 # --- what a blocking operation produced: one dataclass per outcome --------------------------

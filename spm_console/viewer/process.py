@@ -1,4 +1,4 @@
-"""The 3D viewer's server as a helper child (:mod:`spm_console.childproc`):
+"""The 3D viewer's server as a helper child (:mod:`spm_console.system.childproc`):
 :class:`ViewerServer` is the loopback meshcat server (:mod:`spm_console.viewer.server`).
 """
 
@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from spm_console.childproc import START_TIMEOUT_S, ChildProcess
-from spm_console.childproc import HelperProcessError as ViewerError
+from spm_console.system.childproc import START_TIMEOUT_S, ChildProcess
+from spm_console.system.childproc import HelperProcessError as ViewerError
 
 __all__ = ["ChildProcess", "ViewerError", "ViewerServer", "ViewerUrls"]
 

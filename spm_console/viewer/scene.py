@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics import SpmModel
-from spm_console.core.links import SEGMENT_ENDS, LinkModel
+from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
+from spm_console.core.kinematics.model import SpmModel
 
 F = NDArray[np.float64]
 

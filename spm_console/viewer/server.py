@@ -139,9 +139,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--parent", type=int, default=0, help="exit when this process is gone")
     args = parser.parse_args(argv)
-    from spm_console.cpus import place_beside_loop
+    from spm_console.system.cpus import place_beside_loop
 
-    place_beside_loop()  # never on the servo loop's CPU: see spm_console.cpus
+    place_beside_loop()  # never on the servo loop's CPU: see spm_console.system.cpus
     import tornado.ioloop
 
     bridge = _bridge_class()(host=LOOPBACK)

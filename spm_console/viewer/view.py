@@ -30,11 +30,11 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics import Pose, SpmModel
-from spm_console.core.links import LinkModel
+from spm_console.config.models import link_model_of, model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.links import LinkModel
+from spm_console.core.kinematics.model import Pose, SpmModel
 from spm_console.formatting import fmt_deg
-from spm_console.models import link_model_of, model_of
-from spm_console.profile import Profile
 from spm_console.viewer import draw, scene
 from spm_console.viewer.process import ViewerError, ViewerServer
 

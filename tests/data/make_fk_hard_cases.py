@@ -17,11 +17,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
-from spm_console.core.kinematics import platform_axes  # noqa: E402
-from spm_console.core.modes import seeded_solve  # noqa: E402
-from spm_console.core.workspace import build_grid  # noqa: E402
-from spm_console.models import grid_spec, model_of  # noqa: E402
-from spm_console.profile_load import load_profile  # noqa: E402
+from spm_console.config.load import load_profile  # noqa: E402
+from spm_console.config.models import grid_spec, model_of  # noqa: E402
+from spm_console.core.kinematics.model import platform_axes  # noqa: E402
+from spm_console.core.kinematics.modes import seeded_solve  # noqa: E402
+from spm_console.core.workspace.build import build_grid  # noqa: E402
 
 MAX_ROWS = 200
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from spm_console.profile import Profile
+from spm_console.config.schema import Profile
 from spm_console.tui.app import SpmConsoleApp, make_app
 
 

@@ -8,7 +8,7 @@ import numpy as np
 from textual.widgets import DataTable
 
 from spm_console.errors import ExitCode
-from spm_console.run.runlog import list_runs
+from spm_console.motion.logs.runlog import list_runs
 from tests.tui.helpers import MotionSpy, settle, status_of, text_of
 
 SIZE = (120, 36)

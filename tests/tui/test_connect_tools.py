@@ -11,8 +11,8 @@ import numpy as np
 from textual.pilot import Pilot
 from textual.widgets import DataTable, Input
 
-from spm_console.devices.faults import parse_fault
-from spm_console.run.runlog import list_runs
+from spm_console.devices.emulator.faults import parse_fault
+from spm_console.motion.logs.runlog import list_runs
 from spm_console.tui.app import SpmConsoleApp
 from spm_console.tui.screens.connect import HealthPolled
 from tests.tui.helpers import settle, status_of, text_of

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from textual.widgets import DataTable
 
-from spm_console.run.stats import run_stats
+from spm_console.motion.stats import run_stats
 from spm_console.tui.messages import Telemetry
 from spm_console.tui.screens.execute import NO_REPLY, LiveTiming, LoopTiming
 from tests.runlog_helpers import TS, sample
@@ -84,7 +84,7 @@ async def test_the_timing_line_follows_the_telemetry_and_no_reply_shows(console)
 
 
 async def test_during_a_real_execution_the_timing_line_updates(console) -> None:
-    from spm_console.run.operator import PoseSpec
+    from spm_console.services.session import PoseSpec
 
     app = console()
     seen: list[str] = []

@@ -7,9 +7,9 @@ import asyncio
 import numpy as np
 from textual.widgets import DataTable
 
-from spm_console.devices.faults import parse_fault
+from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import ExitCode
-from spm_console.run.runlog import list_runs, load_run
+from spm_console.motion.logs.runlog import list_runs, load_run
 from tests.tui.helpers import MotionSpy, settle, status_of, text_of
 
 SIZE = (130, 42)
@@ -18,7 +18,7 @@ SIZE = (130, 42)
 async def _homed_with_plan(pilot, steps: int) -> None:  # type: ignore[no-untyped-def]
     """Homed, workspace loaded and an MVN plan solved — through the session the screens use
     (those steps' screens have their own tests); then the execute screen."""
-    from spm_console.run.operator import PoseSpec
+    from spm_console.services.session import PoseSpec
 
     app = pilot.app
     s = app.session
@@ -122,7 +122,7 @@ async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
         console, tmp_path, capsys) -> None:
     """The runtime's rules through the console: homed first; the run log's metadata has the
     keys a CLI ``execute`` writes (tests/test_same_rules.py runs the CLI and scripts)."""
-    from spm_console.run.operator import PoseSpec
+    from spm_console.services.session import PoseSpec
 
     app = console()
     async with app.run_test(size=SIZE) as pilot:

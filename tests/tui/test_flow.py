@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from textual.widgets import DataTable, Input
 
-from spm_console.run.runlog import list_runs
+from spm_console.motion.logs.runlog import list_runs
 from tests.tui.helpers import settle, status_of, text_of
 
 SIZE = (130, 42)

@@ -13,7 +13,7 @@ import pytest
 from textual.pilot import Pilot
 from textual.widgets import DataTable
 
-from spm_console.run.runlog import load_run
+from spm_console.motion.logs.runlog import load_run
 from spm_console.tui.app import SpmConsoleApp
 from spm_console.tui.screens.execute import ExecuteScreen
 from spm_console.tui.screens.help import HelpScreen
@@ -340,7 +340,7 @@ def _settled_deg(session: Any, timeout_s: float = 2.0) -> Any:
 async def _jog_after_a_plan_to(app: Any, pilot: Any, goal: Any) -> tuple[Any, Any]:
     """Home, plan (MVN) to ``goal`` (deg), execute it, wait for the wrist to settle, then start
     a jog on step 5: (the jog screen, the settled joint angles, deg)."""
-    from spm_console.run.operator import PoseSpec
+    from spm_console.services.session import PoseSpec
 
     await settle(pilot)
     s = app.session

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from spm_console.run.runlog import list_runs
+from spm_console.motion.logs.runlog import list_runs
 from tests.test_tmux_smoke import env, pytestmark, tmux_console, ws_cache_dir  # noqa: F401
 
 

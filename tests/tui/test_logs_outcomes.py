@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from textual.widgets import DataTable
 
-from spm_console.profile import Profile
-from spm_console.run.runlog import LOGS_ENV
+from spm_console.config.schema import Profile
+from spm_console.motion.logs.runlog import LOGS_ENV
 from spm_console.tui.app import make_app
 from tests.runlog_helpers import write_run
 from tests.tui.helpers import settle, status_of, text_of
@@ -138,7 +138,7 @@ async def test_a_refused_run_shows_its_reason(console, tmp_path) -> None:
     """A refusal logged by the runtime (homing from a pose home cannot be reached from):
     its reason in the table's reason column (cut to the column, at a word) and in full
     when the run is opened."""
-    from spm_console.run.runlog import list_runs
+    from spm_console.motion.logs.runlog import list_runs
     from spm_console.tui.screens.logs import REASON_CHARS
 
     app = console(initial_deg=(62.0, 158.0, 62.0))

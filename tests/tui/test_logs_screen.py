@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from textual.widgets import DataTable
 
-from spm_console.run.runlog import RunLog
-from spm_console.run.sample import Sample
+from spm_console.motion.logs.runlog import RunLog
+from spm_console.motion.sample import Sample
 from tests.tui.helpers import settle, status_of, text_of
 
 SIZE = (130, 40)

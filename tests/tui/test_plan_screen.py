@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from textual.widgets import Input, Select
 
+from spm_console.config.models import servo_model_of
 from spm_console.core.planning import solve_mvn
-from spm_console.core.region_choice import region_containing
-from spm_console.models import servo_model_of
+from spm_console.core.regions.choice import region_containing
 from spm_console.tui.widgets.angles import AnglesInput
 from tests.tui.helpers import settle, status_of, text_of
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from textual.widgets import Checkbox, Input
 
-from spm_console.run.operator import PoseSpec
+from spm_console.services.session import PoseSpec
 from spm_console.store.plan_file import save_plan
 from tests.tui.helpers import settle, status_of, text_of
 

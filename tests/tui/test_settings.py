@@ -195,7 +195,7 @@ async def test_apply_closes_the_session_and_exits_with_the_switch_request(consol
 
 async def test_form_values_follow_the_profile_across_a_restart(console, agile) -> None:
     """Remembered per profile name: a restart at another grid step recalls them."""
-    from spm_console.profile_load import with_grid_step
+    from spm_console.config.load import with_grid_step
     from spm_console.tui.app import make_app
 
     first = console(profile_path=AGILE)
@@ -223,7 +223,7 @@ async def test_form_values_follow_the_profile_across_a_restart(console, agile) -
 
 
 def test_form_defaults_lie_inside_every_profiles_servo_limits(agile, coaxial) -> None:  # type: ignore[no-untyped-def]
-    from spm_console.models import servo_limits_deg
+    from spm_console.config.models import servo_limits_deg
     from spm_console.tui.widgets.rules import AGILE_GOAL_DEG, default_theta_deg
 
     assert default_theta_deg(agile) == AGILE_GOAL_DEG

@@ -11,8 +11,8 @@ import signal
 import pytest
 
 from spm_console.errors import ExitCode
-from spm_console.run.runlog import list_runs
-from spm_console.signals import STOP_SIGNALS
+from spm_console.motion.logs.runlog import list_runs
+from spm_console.system.signals import STOP_SIGNALS
 from tests.tui.helpers import settle, status_of
 
 SIZE = (130, 42)
@@ -35,7 +35,7 @@ async def _wait_exit(app, timeout_s: float = 10.0) -> None:  # type: ignore[no-u
 
 @pytest.mark.parametrize("sig", STOP_SIGNALS, ids=lambda s: s.name)
 async def test_a_signal_mid_motion_stops_the_wrist_and_the_console(console, tmp_path, sig) -> None:
-    from spm_console.run.operator import PoseSpec
+    from spm_console.services.session import PoseSpec
 
     app = console()
     async with app.run_test(size=SIZE) as pilot:

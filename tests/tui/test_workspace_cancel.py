@@ -13,8 +13,8 @@ from typing import Any
 import pytest
 
 import spm_console.store.workspace_cache as workspace_cache
-from spm_console.profile import Profile
-from spm_console.profile_load import with_grid_step
+from spm_console.config.load import with_grid_step
+from spm_console.config.schema import Profile
 from spm_console.tui.app import make_app
 from tests.tui.helpers import settle, status_of, text_of
 

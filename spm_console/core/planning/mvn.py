@@ -12,8 +12,8 @@ from spm_console.core.planning.qp_build import Equalities, Pool, equalities
 from spm_console.core.planning.result import PlanResult
 from spm_console.core.planning.screening import Backend, QpOutcome, solve_qp
 from spm_console.core.planning.verify import check
-from spm_console.core.region import Region
-from spm_console.core.servo_model import ServoModel
+from spm_console.core.polytope.region import Region
+from spm_console.core.servo.model import ServoModel
 from spm_console.errors import InfeasibleError, SolverError
 
 F = NDArray[np.float64]

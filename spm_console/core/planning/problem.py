@@ -14,9 +14,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
-from spm_console.core.region import Region
-from spm_console.core.region_route import RegionRoute
-from spm_console.core.servo_model import ServoModel, substeps
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions.route import RegionRoute
+from spm_console.core.servo.model import ServoModel, substeps
 from spm_console.errors import BadInputError, InfeasibleError
 from spm_console.formatting import fmt_deg
 
@@ -51,7 +51,7 @@ class PlanProblem:
     ref_hi_deg: F | None = None
     """(3,) optional upper bounds on every reference θ*(k), deg."""
     route: RegionRoute | None = None
-    """Several regions in sequence (:mod:`spm_console.core.region_route`) instead of
+    """Several regions in sequence (:mod:`spm_console.core.regions.route`) instead of
     ``region`` alone; ``region`` is then the route's first region."""
 
     def __post_init__(self) -> None:

@@ -11,7 +11,7 @@ region.
 
 The plan then assigns every interval to one region of the sequence: the switch samples
 are placed in proportion to the route's length at its waypoints
-(:func:`~spm_console.core.region_route.spread`), and the QP (30) — each sample inside the
+(:func:`~spm_console.core.regions.route.spread`), and the QP (30) — each sample inside the
 regions of its intervals — finds the optimal references for that assignment. For the
 minimum-velocity-norm plan, the switch samples are then improved by a local search (each
 moved while the cost falls). Angles in degrees.
@@ -31,8 +31,8 @@ from scipy.sparse.csgraph import dijkstra
 from spm_console.core.planning.mvn import solve_problem
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.result import PlanResult
-from spm_console.core.region import Region
-from spm_console.core.region_route import RegionRoute, spread
+from spm_console.core.polytope.region import Region
+from spm_console.core.regions.route import RegionRoute, spread
 from spm_console.errors import InfeasibleError
 
 F = NDArray[np.float64]

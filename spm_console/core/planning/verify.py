@@ -13,8 +13,8 @@ from numpy.typing import NDArray
 
 from spm_console.core.plan_report import ConstraintReport
 from spm_console.core.planning.problem import PlanProblem
-from spm_console.core.region import Region
-from spm_console.core.servo_model import simulate, simulate_continuous
+from spm_console.core.polytope.region import Region
+from spm_console.core.servo.model import simulate, simulate_continuous
 
 F = NDArray[np.float64]
 

@@ -38,7 +38,7 @@ from spm_console.tui.widgets.status import StatusLine
 from spm_console.tui.widgets.steps import StepBar
 
 if TYPE_CHECKING:
-    from spm_console.run.operator import Session
+    from spm_console.services.session import Session
 
 
 def describe_error(exc: BaseException) -> str:

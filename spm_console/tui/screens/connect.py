@@ -19,10 +19,10 @@ from textual.content import Content
 from textual.message import Message
 from textual.widgets import Input, Static
 
+from spm_console.config.models import servo_limits_deg
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
-from spm_console.models import servo_limits_deg
-from spm_console.run.servo_tools import ServoHealth, jog_target
+from spm_console.motion.servo_tools import ServoHealth, jog_target
 from spm_console.tui.messages import (
     Connected,
     MotionDone,
@@ -36,8 +36,8 @@ from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.servo_health import JogStepField, ServoTable
 
 if TYPE_CHECKING:
-    from spm_console.run.operator import SampleCallback
-    from spm_console.run.segments import ExecutionResult
+    from spm_console.motion.segments import ExecutionResult
+    from spm_console.services.session import SampleCallback
 
 #: Period of the live status read while idle, s (2.5 reads a second).
 HEALTH_EVERY_S = 0.4

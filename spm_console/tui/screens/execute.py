@@ -26,8 +26,8 @@ from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
 if TYPE_CHECKING:
-    from spm_console.run.sample import Sample
-    from spm_console.run.stats import RunStats
+    from spm_console.motion.sample import Sample
+    from spm_console.motion.stats import RunStats
 
 #: Live plot redraw interval, s (telemetry itself arrives every Ts, coalesced).
 PLOT_EVERY_S = 0.5

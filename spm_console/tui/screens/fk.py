@@ -13,7 +13,7 @@ from textual.widgets import Input, Static
 
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg, fmt_residual, fmt_vec
-from spm_console.run.kin_record import path_line
+from spm_console.services.kin_record import path_line
 from spm_console.tui.messages import FkSolved, Outcome
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.angles import AnglesInput

@@ -1,6 +1,6 @@
 """Live jog (from step 5): the wrist follows a target the arrow keys move, live.
 
-The runtime's live following (:meth:`Session.follow <spm_console.run.operator_follow.FollowTools.follow>`)
+The runtime's live following (:meth:`Session.follow <spm_console.services.session_follow.FollowTools.follow>`)
 runs in a worker thread: it re-plans every servo period inside one region of the workspace
 (P, a region of its cover, or a region the runtime grows around a start on the boundary)
 toward the latest target and streams only references it verified; a target outside every
@@ -29,20 +29,20 @@ from textual.containers import Vertical
 from textual.content import Content
 from textual.widgets import Static
 
-from spm_console.core.region import Region
-from spm_console.core.rotations import matrix_rpy
+from spm_console.config.models import servo_limits_deg, servo_tick_deg
+from spm_console.core.kinematics.rotations import matrix_rpy
+from spm_console.core.polytope.region import Region
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
-from spm_console.models import servo_limits_deg, servo_tick_deg
-from spm_console.run.follow_regions import follow_regions, follow_start
+from spm_console.motion.follow.regions import follow_regions, follow_start
 from spm_console.tui.messages import FollowDone, Outcome, Telemetry, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.jog_target import OUTSIDE_TOL_DEG, JogTarget, TargetSender
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
 if TYPE_CHECKING:
-    from spm_console.run.operator import Session
-    from spm_console.run.sample import Sample
+    from spm_console.motion.sample import Sample
+    from spm_console.services.session import Session
 
 F = NDArray[np.float64]
 
@@ -158,7 +158,7 @@ class JogScreen(StepScreen):
         self.theta0_deg = np.asarray(theta0_deg, float).copy()
         self.start_deg = self.theta0_deg
         """Where the target starts: θ0, or just inside the grid when the wrist stands a servo
-        tick beyond it (:func:`~spm_console.run.follow_regions.follow_start`)."""
+        tick beyond it (:func:`~spm_console.motion.follow.regions.follow_start`)."""
         """Where the jog starts: the target before any key (deg)."""
         self.target: JogTarget | None = None
         """The live target (None until the first cycle of the following ran)."""

@@ -16,7 +16,7 @@ from textual.message import Message
 from textual.widgets import Checkbox, Input, Label, Select, Static
 
 from spm_console.errors import BadInputError, SpmError
-from spm_console.run.operator import PoseSpec
+from spm_console.services.session import PoseSpec
 from spm_console.tui.messages import Failed, Outcome, PlanLoaded, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.plan_words import console_words, next_step, plan_text

@@ -27,10 +27,10 @@ from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
+from spm_console.config.checks import grid_step_problems
+from spm_console.config.load import MAX_PROFILE_BYTES, load_profile, with_grid_step
+from spm_console.config.schema import DEFAULT_PROFILE
 from spm_console.errors import BadInputError, SpmError
-from spm_console.profile import DEFAULT_PROFILE
-from spm_console.profile_checks import grid_step_problems
-from spm_console.profile_load import MAX_PROFILE_BYTES, load_profile, with_grid_step
 from spm_console.safe_io import FileRefusedError, read_capped
 from spm_console.tui.host import ConsoleHost
 from spm_console.tui.widgets.confirm import ConfirmScreen

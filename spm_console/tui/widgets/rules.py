@@ -9,14 +9,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from spm_console.config.models import servo_limits_deg
+from spm_console.config.schema import Profile
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
 from spm_console.errors import SpmError
-from spm_console.models import servo_limits_deg
-from spm_console.profile import Profile
 from spm_console.tui.widgets.number import NumberRule
 
 if TYPE_CHECKING:
-    from spm_console.run.operator import Session
+    from spm_console.services.session import Session
 
 #: A check of three accepted values as a whole: the reason they are refused, or "".
 TripleCheck = Callable[[Sequence[float]], str]

@@ -16,7 +16,7 @@ from textual.content import Content
 from textual.widgets import Static
 
 if TYPE_CHECKING:
-    from spm_console.run.operator import Session
+    from spm_console.services.session import Session
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,313 @@
+"""Typed, validated prototype profiles (``profiles/*.toml``).
+
+A profile holds everything that is specific to one built wrist: geometry, home
+pose, link model, workspace grid, servo model, bus wiring and safety limits.
+Angles are in degrees, lengths in mm, times in seconds. A broken file raises
+:class:`~spm_console.errors.ProfileError` naming the file, the key, the value and
+the allowed range.
+
+Profiles are validated as physics, not only as types: every number is finite and
+strict (a bool or a string is never a number; an int is accepted for a float),
+every range below keeps the check that uses it meaningful, and the cross-field
+checks of :mod:`spm_console.config.checks` (grid size, p·Ts, watchdog, δ, wiring,
+home assembly mode) run on load.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, model_validator
+from pydantic_core import PydanticCustomError
+
+#: Largest |angle| of any angle in a profile (θ, grid range, limits, η), deg: one turn
+#: either way covers every configuration; larger values only make grids and limits absurd.
+ANGLE_LIMIT_DEG = 360.0
+
+#: The default profile, relative to the project root / working directory.
+DEFAULT_PROFILE = Path("profiles/agile_wrist.toml")
+
+#: A real number: float or int, never bool or str; finite (``allow_inf_nan=False`` below).
+Real = Annotated[float, Strict()]
+#: An integer: never bool, float or str.
+Count = Annotated[int, Strict()]
+#: An angle within one turn either way, deg.
+Angle = Annotated[float, Strict(), Field(ge=-ANGLE_LIMIT_DEG, le=ANGLE_LIMIT_DEG)]
+#: One entry of the sign seed.
+Sign = Annotated[int, Strict(), Field(ge=-1, le=1)]
+Vec3 = tuple[Angle, Angle, Angle]
+
+
+def _whole(value: object) -> object:
+    """Refuse a bool, float or str before a ``Literal`` of ints (which would accept them)."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise PydanticCustomError("int_type", "Input should be a valid integer")
+    return value
+
+
+#: +1 or −1, strictly an int.
+Direction = Annotated[Literal[1, -1], BeforeValidator(_whole)]
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class Meta(_Section):
+    """Identification of the prototype."""
+
+    name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9][A-Za-z0-9 ._+-]*$")
+    """Short name shown in the UI and logs, and part of the workspace cache's file name:
+    1..64 characters, ASCII letters, digits, space, ``.``, ``_``, ``+`` and ``-``, beginning
+    with a letter or digit."""
+    description: str = Field(default="", max_length=4000)
+    """Free text: what the prototype is and where its numbers come from."""
+
+
+class Geometry(_Section):
+    """SPM geometry (paper Sec. II): link arcs and pyramid angles, degrees."""
+
+    alpha1_deg: Real = Field(gt=0.0, lt=180.0)
+    """Proximal link arc α1 (angle between u_i and w_i), 0 < α1 < 180."""
+    alpha2_deg: Real = Field(gt=0.0, lt=180.0)
+    """Distal link arc α2 (angle between w_i and v_i), 0 < α2 < 180."""
+    beta_deg: Real = Field(gt=0.0, lt=90.0)
+    """Top pyramid angle β (angle between v_i and the platform normal), 0 < β < 90."""
+    gamma_deg: Real = Field(ge=0.0, lt=90.0)
+    """Base pyramid angle γ (angle between −u_i and the z axis), 0 ≤ γ < 90; 0 = coaxial shafts."""
+    eta_deg: Vec3 = (0.0, 120.0, 240.0)
+    """Azimuth η_i of each leg's base axis, eq. (1); each finite, within ±360."""
+
+
+class Home(_Section):
+    """The known home configuration and assembly mode (paper Sec. III, VI-A)."""
+
+    theta_deg: Vec3
+    """Motor angles θ at home, each within ±360 and inside its servo limits; the home pose
+    there must exist and be non-singular."""
+    sign_seed: tuple[Sign, Sign, Sign, Sign, Sign, Sign, Sign, Sign, Sign]
+    """Signs (−1, 0, 1) of [v1x v1y v1z v2x ... v3z] at home, eq. (33); selects the home
+    assembly mode. Checked on load against v at home: each nonzero component of v must have
+    the seed's sign (a component with |v| ≤ 1e-6 matches any entry)."""
+
+
+#: Largest link radius, mm (10 m: far beyond any wrist, small enough for exact squares).
+MAX_RADIUS_MM = 10_000.0
+
+
+class Links(_Section):
+    """Segment model of the links for interference checks (paper Sec. IV-B), mm."""
+
+    oa_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OA_i|: start of the proximal link along u_i, eq. (18); 0 < oa_mm ≤ 10,000 (10 m)."""
+    ob_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OB_i|: middle of the proximal link, eq. (19); 0 < ob_mm ≤ 10,000 (10 m)."""
+    oc_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OC_i|: end of the proximal link along w_i, eq. (20); 0 < oc_mm ≤ 10,000 (10 m)."""
+    od_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OD_i|: start of the distal link along w_i, eq. (21); 0 < od_mm ≤ 10,000 (10 m)."""
+    oe_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OE_i|: middle of the distal link, eq. (22); 0 < oe_mm ≤ 10,000 (10 m)."""
+    of_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """|OF_i|: end of the distal link along v_i, eq. (23); 0 < of_mm ≤ 10,000 (10 m)."""
+    delta_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
+    """δ: radius of the capsule around each segment; links collide below 2δ. Must be smaller
+    than every radius (OA…OF) of the segments taking part, else the capsules swallow the
+    centre and every configuration collides."""
+    segments: tuple[Literal["AB", "BC", "DE", "EF"], ...] = ("BC", "DE", "EF")
+    """Segments taking part in the interference check (Agile Wrist: AB never collides)."""
+
+    @model_validator(mode="after")
+    def _nonempty(self) -> Links:
+        if not self.segments or len(set(self.segments)) != len(self.segments):
+            raise ValueError("segments must be a non-empty list without repeats")
+        return self
+
+
+class WorkspaceGrid(_Section):
+    """Grid of motor configurations (paper eq. 25, Sec. VI-D), degrees."""
+
+    theta_min_deg: Angle
+    """Lowest grid value of each θ_i, within ±360."""
+    theta_max_deg: Angle
+    """Highest grid value of each θ_i, within ±360 and above theta_min_deg."""
+    step_deg: Real = Field(gt=0.0, le=30.0)
+    """Grid spacing Δ, 0 < Δ ≤ 30; the range must be a whole number of steps and the grid
+    (range/Δ + 1)³ at most 2,000,000 nodes (≈ 1.4 GB to build, see
+    :data:`~spm_console.config.checks.MAX_GRID_NODES`)."""
+    zeta_min: Real = Field(gt=0.0, lt=1.0)
+    """Conditioning index threshold ζ_min below which a node is singular, 0 < ζ_min < 1."""
+    max_halfspaces: Count = Field(default=64, ge=4, le=512)
+    """Upper bound on the number of half-spaces of the convex region P, 4..512."""
+    refined_cover: bool = False
+    """Refine the region cover near the workspace boundary (grid cells next to infeasible
+    nodes checked exactly at Δ/4): ≥ 99 % of the feasible nodes covered instead of ~96 %,
+    at the price of a slower build (about 2.5 times the default build's time on the Agile
+    Wrist's 2° grid: 2.5–3 s against 1–1.5 s). Every front end and the runtime load that same
+    workspace."""
+
+    @property
+    def axis_deg(self) -> list[float]:
+        """Grid values of one θ_i, degrees."""
+        n = round((self.theta_max_deg - self.theta_min_deg) / self.step_deg)
+        return [self.theta_min_deg + k * self.step_deg for k in range(n + 1)]
+
+
+class Servo(_Section):
+    """Closed-loop servo model, eq. (27)-(28)."""
+
+    p: Real = Field(gt=0.0, le=1000.0)
+    """Double real closed-loop pole at −p, rad/s, 0 < p ≤ 1000, with 1e-3 ≤ p·Ts ≤ 20: below,
+    settling takes over 10,000 samples (homing plans hold ⌈10/(p·Ts)⌉ samples); above, the
+    sampled model (28) settles within e^−20 in one sample and has no dynamics left."""
+    ts_s: Real = Field(ge=0.001, le=1.0)
+    """Sampling (reference update) interval Ts, s, 1 ms ≤ Ts ≤ 1 s (one bus cycle of three
+    servos needs about a millisecond)."""
+    discretization: Literal["zoh", "tustin"] = "zoh"
+    """Discretization of (27): exact sampling (zoh) or Tustin."""
+
+
+class Limits(_Section):
+    """Motion limits."""
+
+    vmax_degps: Real = Field(gt=0.0, le=2000.0)
+    """Default joint speed bound θ̇_max, deg/s, eq. (30d), 0 < θ̇_max ≤ 2000."""
+
+
+class JointWiring(_Section):
+    """Mapping of one joint angle to its servo's ticks."""
+
+    id: Count = Field(ge=0, le=252)
+    """Dynamixel ID of the servo driving this joint, 0..252."""
+    tick_offset: Count = Field(ge=0, le=4095)
+    """Tick value at θ = 0°, modulo one turn: 0..4095 and below ``bus.ticks_per_turn``."""
+    direction: Direction = 1
+    """+1 when ticks grow with θ, −1 otherwise."""
+    min_deg: Angle
+    """Lowest θ the servo may be commanded to (software limit), within ±360; its tick
+    (tick_offset + direction·θ·ticks_per_turn/360) must lie in 0..ticks_per_turn−1."""
+    max_deg: Angle
+    """Highest θ the servo may be commanded to (software limit), above min_deg, within ±360;
+    its tick must lie in 0..ticks_per_turn−1."""
+
+
+class Bus(_Section):
+    """Dynamixel servo bus."""
+
+    protocol: Literal["1.0", "2.0"] = "2.0"
+    """Dynamixel protocol version spoken by the servos."""
+    port: str = ""
+    """Serial device (e.g. /dev/ttyUSB0); empty = use the emulated bus."""
+    baud: Count = Field(default=1_000_000, ge=7_800, le=10_500_000)
+    """Baud rate, bit/s: 7,800..10,500,000 (Dynamixel rates span 7,843 bit/s on protocol 1.0
+    to 10.5 Mbit/s on the X series)."""
+    timeout_s: Real = Field(default=0.004, gt=0.0, le=1.0)
+    """Reply timeout for one status packet, s, 0 < timeout ≤ 1."""
+    model_number: Count = Field(default=321, ge=0, le=65535)
+    """Expected model number (MX-106: 321 on protocol 2.0, 320 on 1.0); a 2-byte register."""
+    ticks_per_turn: Count = Field(default=4096, ge=256, le=1 << 20)
+    """Encoder ticks per revolution, 256..1,048,576 (MX-106: 4096; coarser than 1.4°/tick
+    makes quantization swamp the tracking check)."""
+    joints: tuple[JointWiring, JointWiring, JointWiring]
+    """Wiring of joints 1..3."""
+
+    @model_validator(mode="after")
+    def _ids(self) -> Bus:
+        ids = [j.id for j in self.joints]
+        if len(set(ids)) != 3:
+            raise ValueError("the three joints need distinct servo ids")
+        return self
+
+
+class Safety(_Section):
+    """Thresholds of the executor's safety checks."""
+
+    tracking_error_deg: Real = Field(gt=0.0, le=30.0)
+    """Largest |measured − model prediction| before a stop, deg: at least 2 encoder ticks
+    (2·360/ticks_per_turn, else quantization alone stops a run) and at most 30° (a larger
+    gap is a blocked joint or a wrong model, never normal tracking)."""
+    comm_failures: Count = Field(ge=1, le=50)
+    """Consecutive failed bus cycles before a stop, 1..50 (50 cycles of 20 ms = 1 s blind)."""
+    region_margin_deg: Real = Field(ge=0.0, le=10.0)
+    """Allowed excursion outside the region P before a stop, deg, 0..10 (five of the paper's
+    2° grid steps; a wider margin would in effect switch the region check off)."""
+    stop_action: Literal["hold", "torque_off"] = "hold"
+    """What a stop does: hold the measured position, or switch torque off."""
+    home_speed_degps: Real = Field(ge=0.5, le=360.0)
+    """Speed bound of the homing move, deg/s, 0.5 ≤ speed ≤ 360 (slower would take over 6
+    minutes for a 180° move)."""
+    watchdog_ms: Count = Field(default=100, ge=0, le=2540)
+    """Servo Bus Watchdog, ms (0 = off; unit 20 ms, at most 127 units); protocol 2.0 only.
+    When on, the value written (rounded to 20 ms) must last at least 2·Ts, or the servos
+    stop between two cycles. Off (0) only with :attr:`watchdog_off_reason`: it is what stops
+    the servos when the motion process dies."""
+    watchdog_off_reason: str = Field(default="", max_length=200)
+    """Why the Bus Watchdog is off (``watchdog_ms = 0`` on protocol 2.0): required then, and
+    written to every run's log; empty otherwise. One printable line, at most 200 characters."""
+    approach_tolerance_deg: Real = Field(default=0.5, gt=0.0, le=5.0)
+    """Farther than this from a plan's start (any joint, deg), execution begins with a
+    straight approach move at the homing speed; 0 < tolerance ≤ 5. The same rule for every
+    front end."""
+
+
+class Estimation(_Section):
+    """Kalman filter noise levels (per joint, model (28))."""
+
+    measurement_noise_deg: Real = Field(ge=1e-6, le=10.0)
+    """Standard deviation of a position measurement, deg (quantization ≈ 0.088/√12),
+    1e-6..10: the filter squares it (below, the covariance underflows; above, no
+    measurement is believed)."""
+    process_noise_deg: Real = Field(ge=1e-6, le=10.0)
+    """Standard deviation of the unmodelled position disturbance per step, deg, 1e-6..10
+    (the filter squares it and divides by Ts)."""
+
+
+class Emulator(_Section):
+    """Defaults of the emulated servo bus."""
+
+    noise_deg: Real = Field(default=0.0, ge=0.0, le=10.0)
+    """Standard deviation of position noise added before quantization, deg, 0..10."""
+    seed: Count = Field(default=0, ge=0, le=(1 << 63) - 1)
+    """Random seed of the emulator's noise and faults, 0..2^63−1 (numpy refuses negatives)."""
+
+
+class Profile(_Section):
+    """One prototype. Load with :func:`load_profile`."""
+
+    profile: Meta
+    geometry: Geometry
+    home: Home
+    links: Links
+    workspace: WorkspaceGrid
+    servo: Servo
+    limits: Limits
+    bus: Bus
+    safety: Safety
+    estimation: Estimation
+    emulator: Emulator = Emulator()
+
+    @property
+    def name(self) -> str:
+        return self.profile.name
+
+    def digest(self) -> str:
+        """SHA-256 of the canonical JSON of every field (the profile's hash)."""
+        blob = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(blob.encode()).hexdigest()
+
+    def section_digest(self, *sections: str) -> str:
+        """SHA-256 over the named sections only (for cache keys)."""
+        data = {s: getattr(self, s).model_dump(mode="json", exclude=_NOT_DIGESTED.get(s))
+                for s in sections}
+        blob = json.dumps(data, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(blob.encode()).hexdigest()
+
+
+#: Build options that change how a result is computed, not what it means: not part of the
+#: section digests (plans and caches made before such an option existed keep their hash; the
+#: workspace cache key adds ``refined_cover`` itself, and the runtime verifies every plan
+#: against its own certified set whatever cover planned it).
+_NOT_DIGESTED: dict[str, set[str]] = {"workspace": {"refined_cover"}}

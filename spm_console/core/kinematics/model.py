@@ -1,0 +1,268 @@
+"""Unique forward kinematics by continuation, and the model that carries the home pose.
+
+The platform orientation is a rotation R with v_i = R v_i⁰ (v⁰ = the home triad),
+so (3) and (5) hold by construction and FK reduces to the three equations (4):
+f_i(θ, R) = w_i(θ)·v_i − cos α2 = 0. Their derivative with respect to a small
+rotation ω (R ← exp([ω]×) R) is exactly J1 (11); with respect to θ it is −J2 (12).
+
+"Unique" FK (SPEC §3): the solution in the home assembly mode reached by
+continuous motion from home (or from a given known pose) without crossing a
+singularity. Newton steps use J1, so they are well defined away from type-2
+singularities; a path is refused when det J1 changes sign (type-2 singularity:
+another assembly mode) or a diagonal entry of J2 changes sign (type-1: a leg
+folds and changes working mode), or when ζ along the path drops below a floor.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.kinematics.continuation import NEWTON_TOL, PATH_ZETA_FLOOR, continuation_step
+from spm_console.core.kinematics.geometry import SpmGeometry
+from spm_console.core.kinematics.jacobian import conditioning_index, j1_matrix, j2_diag
+from spm_console.core.kinematics.rotations import expm_so3
+
+F = NDArray[np.float64]
+
+
+def platform_axes(R: F, v_home: F) -> F:
+    """v_i = R v_i⁰: (..., 3, 3) rotations -> (..., 3, 3) rows v1..v3."""
+    return np.einsum("...ab,ib->...ia", R, v_home)
+
+
+def normal(v: F) -> F:
+    """Platform normal n = N/‖N‖, N = v1 + v2 + v3, eq. (7)."""
+    N = v.sum(axis=-2)
+    return np.asarray(N / np.linalg.norm(N, axis=-1, keepdims=True))
+
+
+def residual(geom: SpmGeometry, w: F, v: F) -> F:
+    """f_i = w_i·v_i − cos α2 (4). -> (..., 3)."""
+    return np.asarray(np.einsum("...ij,...ij->...i", w, v) - geom.cos_alpha2)
+
+
+def full_residual(geom: SpmGeometry, w: F, v: F) -> F:
+    """Max violation of (3)-(5) for each pose: (...,)."""
+    r4 = np.abs(residual(geom, w, v)).max(-1)
+    r3 = np.abs(np.linalg.norm(v, axis=-1) - 1.0).max(-1)
+    G = np.einsum("...ik,...jk->...ij", v, v)
+    off = np.abs(np.stack([G[..., 0, 1], G[..., 0, 2], G[..., 1, 2]], -1) - geom.cos_alpha3)
+    return np.asarray(np.maximum(np.maximum(r4, r3), off.max(-1)))
+
+
+def newton(
+    geom: SpmGeometry, w: F, R: F, v_home: F, iters: int = 12, tol: float = NEWTON_TOL
+) -> tuple[F, F]:
+    """Newton on (4) over rotations, vectorized. Returns (R, max |f|)."""
+    R = R.copy()
+    res = np.full(R.shape[:-2], np.inf)
+    for _ in range(iters):
+        v = platform_axes(R, v_home)
+        f = residual(geom, w, v)
+        res = np.abs(f).max(-1)
+        todo = res > tol
+        if not todo.any():
+            break
+        J1 = j1_matrix(v, w)
+        with np.errstate(all="ignore"):
+            om = -np.linalg.solve(J1[todo], f[todo][..., None])[..., 0]
+        om = np.where(np.isfinite(om), om, 0.0)
+        R[todo] = expm_so3(om) @ R[todo]
+    v = platform_axes(R, v_home)
+    res = np.abs(residual(geom, w, v)).max(-1)
+    return R, res
+
+
+@dataclass(frozen=True)
+class Pose:
+    """One solved configuration. Angles in radians internally; see ``*_deg`` helpers."""
+
+    theta: F
+    """Motor angles θ (3,), rad."""
+    R: F
+    """Platform rotation from home (3, 3)."""
+    v: F
+    """Top axes v1..v3 as rows (3, 3)."""
+    n: F
+    """Platform normal (3,)."""
+    zeta: float
+    """Conditioning index ζ."""
+    residual: float
+    """Max violation of (3)-(5)."""
+
+    @property
+    def theta_deg(self) -> F:
+        return np.degrees(self.theta)
+
+
+@dataclass(frozen=True)
+class FkResult:
+    """Result of a continuation FK solve (object, not tuple: STYLE §8)."""
+
+    ok: bool
+    """True when the target was reached in the home assembly and working modes."""
+    pose: Pose | None
+    """The solved pose when ok (or the last good pose on the path otherwise)."""
+    reason: str = ""
+    """Why the solve was refused (empty when ok)."""
+    path_min_zeta: float = 1.0
+    """Smallest ζ met along the path."""
+    steps: int = 0
+    """Continuation steps taken."""
+    path_theta_deg: list[list[float]] = field(default_factory=list)
+    """θ samples along the path, deg (for display)."""
+    waypoints_deg: tuple[tuple[float, ...], ...] = ()
+    """Corners of the polyline followed from home to θ, deg, both ends included (filled by
+    :func:`~spm_console.core.kinematics.fk_path.fk_connected`; empty from :meth:`SpmModel.track`)."""
+    route: str = "straight"
+    """"straight" (one segment from home) or "graph" (around a singularity through the
+    workspace grid, :mod:`spm_console.core.kinematics.fk_path`)."""
+
+
+@dataclass(frozen=True)
+class SpmModel:
+    """Geometry plus the home pose and its modes: everything FK/IK needs (constant)."""
+
+    geom: SpmGeometry
+    theta_home: F
+    """Home θ (3,), rad."""
+    v_home: F
+    """Home top axes (3, 3); R = I at home."""
+    working_signs: F
+    """Sign of each J2 diagonal entry at home (the legs' working modes)."""
+    det_j1_sign: float
+    """Sign of det J1 at home (the assembly mode's side of type-2 singularities)."""
+
+    @property
+    def u(self) -> F:
+        return self.geom.u
+
+    def pose(self, theta: F, R: F) -> Pose:
+        """Assemble a :class:`Pose` (no solving) for one θ (rad) and rotation."""
+        w = self.geom.w(theta)
+        v = platform_axes(R, self.v_home)
+        z = float(conditioning_index(self.u, v, w))
+        return Pose(
+            theta=np.asarray(theta, float), R=R, v=v, n=normal(v), zeta=z,
+            residual=float(full_residual(self.geom, w, v)),
+        )
+
+    def mode_check(self, theta: F, R: F) -> tuple[F, F, F]:
+        """(ζ, det J1 · home sign, J2 diag · home signs) for batches: positive = same mode."""
+        w = self.geom.w(theta)
+        v = platform_axes(R, self.v_home)
+        d1 = np.linalg.det(j1_matrix(v, w)) * self.det_j1_sign
+        d2 = j2_diag(self.u, v, w) * self.working_signs
+        return conditioning_index(self.u, v, w), d1, d2
+
+    def track(
+        self,
+        theta_target: F,
+        theta_from: F | None = None,
+        R_from: F | None = None,
+        max_step: float = math.radians(1.0),
+    ) -> FkResult:
+        """Unique FK of one θ (rad) by predictor-corrector continuation along a straight path."""
+        res = self.track_batch(
+            np.asarray(theta_target, float)[None], theta_from, R_from, max_step
+        )
+        return res[0]
+
+    def track_batch(
+        self,
+        theta_targets: F,
+        theta_from: F | None = None,
+        R_from: F | None = None,
+        max_step: float = math.radians(1.0),
+        keep_path: bool = False,
+    ) -> list[FkResult]:
+        """Continuation from a known pose (default: home) to each row of ``theta_targets``.
+
+        All rows advance together with the same number of steps (each row's step is
+        its own distance over that count, ≤ ``max_step`` rad in every joint). Rows
+        whose corrector struggles are retried with 8× finer steps.
+        """
+        T = np.atleast_2d(np.asarray(theta_targets, float))
+        t0 = self.theta_home if theta_from is None else np.asarray(theta_from, float)
+        R0 = np.eye(3) if R_from is None else np.asarray(R_from, float)
+        out: list[FkResult | None] = [None] * len(T)
+        idx = np.arange(len(T))
+        for refine in (1, 8):
+            if len(idx) == 0:
+                break
+            results = self._march(T[idx], t0, R0, max_step / refine, keep_path)
+            retry = []
+            for k, r in zip(idx, results, strict=True):
+                if r.ok or refine == 8 or r.reason.startswith("crosses"):
+                    out[k] = r
+                else:
+                    retry.append(k)
+            idx = np.asarray(retry, int)
+        return [r for r in out if r is not None]
+
+    def _march(
+        self, T: F, t0: F, R0: F, max_step: float, keep_path: bool
+    ) -> list[FkResult]:
+        B = len(T)
+        d = T - t0
+        n = max(1, math.ceil(float(np.abs(d).max()) / max_step)) if B else 1
+        R = np.broadcast_to(R0, (B, 3, 3)).copy()
+        th = np.broadcast_to(t0, (B, 3)).copy()
+        alive = np.ones(B, bool)
+        reason = [""] * B
+        minz = np.ones(B)
+        start = [list(np.degrees(t0))] if keep_path else []
+        paths: list[list[list[float]]] = [list(start) for _ in range(B)]
+        for k in range(1, n + 1):
+            a = np.flatnonzero(alive)
+            if len(a) == 0:
+                break
+            th_new = t0 + d[a] * (k / n)
+            st = continuation_step(self, th[a], R[a], th_new)
+            res, z, s1, s2 = st.residual, st.zeta, st.det_side, st.leg_sides
+            conv = st.converged
+            minz[a] = np.minimum(minz[a], z)
+            for j, b in enumerate(a):
+                if not conv[j]:
+                    alive[b] = False
+                    reason[b] = (
+                        f"corrector did not converge near θ = {_fmt(th_new[j])}° "
+                        f"(residual {res[j]:.1e}); try a smaller step"
+                    )
+                elif s1[j] <= 0.0 or z[j] < PATH_ZETA_FLOOR:
+                    alive[b] = False
+                    reason[b] = (
+                        f"crosses a type-2 singularity (assembly-mode change) near θ = "
+                        f"{_fmt(th_new[j])}° (ζ = {z[j]:.2e}); approach it from another known pose"
+                    )
+                elif (s2[j] <= 0.0).any():
+                    leg = int(np.argmin(s2[j])) + 1
+                    alive[b] = False
+                    reason[b] = (
+                        f"crosses a type-1 singularity (leg {leg} folds, working-mode change) near "
+                        f"θ = {_fmt(th_new[j])}° (ζ = {z[j]:.2e})"
+                    )
+            ok = alive[a]
+            R[a[ok]] = st.R[ok]
+            th[a[ok]] = th_new[ok]
+            if keep_path:
+                for jj in a[ok]:
+                    paths[int(jj)].append(list(np.degrees(th[jj])))
+        results = []
+        for row in range(B):
+            pose = self.pose(th[row], R[row])
+            results.append(
+                FkResult(
+                    ok=bool(alive[row]), pose=pose, reason=reason[row],
+                    path_min_zeta=float(minz[row]), steps=n, path_theta_deg=paths[row],
+                )
+            )
+        return results
+
+
+def _fmt(theta_rad: F) -> str:
+    return "[" + ", ".join(f"{x:.2f}" for x in np.degrees(theta_rad)) + "]"

@@ -1,0 +1,407 @@
+"""Live following: a receding-horizon version of the MVN problem (30), solved every servo period.
+
+Units: θ, θ*, targets in degrees; θ̇ in deg/s; time in seconds; horizon H in samples of Ts.
+
+Problem solved by :meth:`FollowSolver.solve` from the current state θ(0), θ̇(0) (e.g. the
+Kalman estimate) toward the target t (one (3,) point, or a preview t(1..H))::
+
+    min  Σ_{k=1..H} ‖θ̇(k)‖²  +  w Σ_{k=1..H} ‖θ(k) − t(k)‖²  +  ρ ‖θ(H) − t(H)‖₁
+    s.t. servo dynamics (28) from θ(0), θ̇(0);  |θ̇(k)| ≤ v_max (k = 1..H);  θ̇(H) = 0;
+         A θ(k) ≤ b (k = 1..H);  lo ≤ θ*(k) ≤ hi (k = 0..H−1);  lo ≤ θ(H) ≤ hi.
+
+* The first term is the MVN cost of (30). The L1 terminal term is an *exact penalty*: when
+  the target can be reached and held at rest within the horizon (and ρ exceeds the terminal
+  constraint's multiplier) the solution has θ(H) = t exactly — status ``"reached"``, the
+  target as terminal state; otherwise it is a terminal cost pulling θ(H) as close as the
+  speed bound and the region allow — status ``"tracking"``. One QP covers both cases, so
+  there is no infeasible first attempt to pay for in the loop.
+* The stage term (weight w, 1/s²; √w is roughly the tracking bandwidth in rad/s) makes the
+  wrist get there early rather than "in one horizon": with w = 0 and a fixed target the
+  receding plan would re-spread the remaining motion over H samples every period and close
+  the gap only like e^(−t/(H·Ts)). w = 0 gives the pure MVN terminal problem (tests).
+* θ̇(H) = 0 (rest at the horizon) makes the previous plan, shifted by a sample and held at
+  θ(H), feasible again for the next solve (recursive feasibility) — that shifted plan is
+  also the warm start. The region and speed rows are tightened by ``margin_deg`` /
+  ``speed_margin_degps`` so that the solver's tolerance never puts a sample outside the true
+  region; every result is then re-simulated through the exact model and checked against the
+  true (untightened) constraints before it is returned as ok.
+* Only the samples are constrained (as in (30) with K = 1), not the motion between them
+  (benchmarks/bench_follow.py counts the exact continuous response outside P).
+* OSQP runs at tolerance 1e-3 with polishing (exact when it finds the active set); only
+  when that answer is unpolished or fails the check does it go on, from the same iterate,
+  at 1e-4 and then 1e-6 (``FollowSettings.tolerances``), within ``time_limit_s`` if set.
+* Targets are *projected* onto the nearest point (L2) of the region tightened by twice
+  ``margin_deg`` ∩ the servo limits box (a 3-variable QP, only for targets outside it), so
+  a terminal target never sits on a constraint the QP can only meet to its tolerance. The
+  result says ``clamped`` when a given target was outside the true region or the limits
+  (``clamp_deg``: how far it moved; a target inside but within 2·margin_deg of a face is
+  moved by at most that and not reported as clamped).
+* An initial state outside the region is refused (status ``"infeasible"``, with the reason)
+  without calling the solver; so is a state from which the constraints cannot be met.
+
+For a 50 Hz loop: build the solver once, call :meth:`solve` every period with the newest
+state and target (warm start is automatic; pass ``elapsed`` when periods were skipped), stream
+``result.first_reference_deg``; when a result is not ok (or late), keep streaming the last
+good result's :meth:`FollowResult.reference_at` and count the miss.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import osqp
+from numpy.typing import NDArray
+
+from spm_console.core.planning.follow.qp import FollowLayout, build, fill_bounds, linear_cost, predict
+from spm_console.core.planning.follow.target import ProjectionError, TargetProjector
+from spm_console.core.polytope.region import Region
+from spm_console.core.servo.model import ServoModel
+from spm_console.errors import BadInputError
+from spm_console.formatting import fmt_deg
+
+F = NDArray[np.float64]
+
+FollowStatus = Literal["reached", "tracking", "infeasible", "failed"]
+
+#: ``FollowResult.detail`` of a result refused because its target has no projection.
+TARGET_REFUSED = "target refused"
+#: θ(H) within this of the terminal target counts as reached, deg (a tenth of a servo tick).
+REACH_TOL_DEG = 1e-2
+#: Tolerance of the final check against the true region and speed bound (deg, deg/s).
+CHECK_TOL = 1e-6
+#: OSQP's own "no time limit" (its default), s.
+NO_TIME_LIMIT_S = 1e10
+
+
+@dataclass(frozen=True)
+class FollowWeights:
+    """Weights of the follow cost (the MVN term Σ‖θ̇‖² has weight 1, in (deg/s)²)."""
+
+    track: float = 400.0
+    """w, 1/s²: stage tracking Σ‖θ(k) − t(k)‖²; √w ≈ tracking bandwidth in rad/s."""
+    terminal: float = 1e4
+    """ρ, deg/s²: exact L1 penalty on θ(H) − t; above the terminal multiplier, θ(H) = t
+    whenever reachable."""
+
+
+@dataclass(frozen=True)
+class FollowSettings:
+    """OSQP settings of the follow solver."""
+
+    tolerances: tuple[float, ...] = (1e-3, 1e-4, 1e-6)
+    """OSQP eps_abs = eps_rel of the passes: the first (loose: polishing makes its answer
+    exact when it finds the active set), then each next one only when the answer so far
+    fails the check, continuing from the same iterate."""
+    polish: bool = True
+    """Polish the ADMM point on its active set (exact answers, a factorization more)."""
+    max_iter: int = 4000
+    time_limit_s: float | None = None
+    """Wall-time budget of one :meth:`FollowSolver.solve` call's OSQP passes together, s
+    (None: none); a solve that runs out of it fails (status 'failed', the previous plan goes on)."""
+    check_every: int = 5
+    """Iterations between OSQP termination checks."""
+    rho: float = 0.1
+    """OSQP's initial ADMM step."""
+    adapt_every: int = 25
+    """Iterations between OSQP's step (ρ) adaptations."""
+
+
+@dataclass(frozen=True)
+class FollowResult:
+    """One receding-horizon solve (angles deg, speeds deg/s, time s)."""
+
+    status: FollowStatus
+    """'reached' (θ(H) = target, at rest), 'tracking' (terminal cost active: target not
+    reachable within the horizon), 'infeasible' (refused: state outside the region or no
+    admissible reference), 'failed' (solver did not converge or the check failed)."""
+    reference_deg: F
+    """(H, 3) θ*(0..H−1); row 0 is what the loop streams now. (0, 3) when not ok."""
+    position_deg: F
+    """(H+1, 3) predicted θ(0..H) (row 0 = the given state). (0, 3) when not ok."""
+    velocity_degps: F
+    """(H+1, 3) predicted θ̇(0..H). (0, 3) when not ok."""
+    requested_deg: F
+    """(3,) terminal target as given."""
+    target_deg: F
+    """(3,) terminal target used (projected when the given one was outside)."""
+    clamped: bool
+    """A given target (terminal or preview sample) was outside the region or the limits."""
+    clamp_deg: float
+    """Largest distance a target was moved by the projection, deg (≤ 2·margin_deg when
+    not clamped)."""
+    cost: float
+    """Objective value on the predicted trajectory."""
+    terminal_error_deg: float
+    """‖θ(H) − target‖∞, deg (inf when not ok)."""
+    seconds: float
+    """Wall time of the whole solve call, s."""
+    iterations: int
+    warm: bool
+    """Warm-started from the previous solution."""
+    reason: str = ""
+    """Why a result is not ok; empty otherwise."""
+    detail: str = ""
+    """Solver status text."""
+
+    @property
+    def ok(self) -> bool:
+        return self.status in ("reached", "tracking")
+
+    @property
+    def horizon(self) -> int:
+        return int(self.reference_deg.shape[0])
+
+    @property
+    def first_reference_deg(self) -> F:
+        """θ*(0): the reference to send this period."""
+        if not self.ok:
+            raise ValueError(f"no reference: the follow solve is {self.status} ({self.reason})")
+        return np.asarray(self.reference_deg[0])
+
+    def reference_at(self, periods: int) -> F:
+        """The reference ``periods`` periods after this solve (0 = the first), held at θ(H)
+        past the horizon: what to stream when later solves miss their deadline."""
+        if not self.ok:
+            raise ValueError(f"no reference: the follow solve is {self.status} ({self.reason})")
+        if periods < self.horizon:
+            return np.asarray(self.reference_deg[max(periods, 0)])
+        return np.asarray(self.position_deg[-1])
+
+
+@dataclass
+class _Warm:
+    x: F
+    y: F
+
+
+@dataclass
+class FollowSolver:
+    """Receding-horizon follow QP built once for a servo model, a region and a horizon.
+
+    ``region``: A θ ≤ b, θ in degrees; ``vmax_degps``: speed bound; ``horizon``: H samples
+    (default 50 = 1 s at Ts = 0.02 s); ``ref_lo_deg`` / ``ref_hi_deg``: servo limits on the
+    references (and on the held terminal state); ``margin_deg`` / ``speed_margin_degps``:
+    tightening of the region / speed rows inside the QP.
+    """
+
+    model: ServoModel
+    region: Region
+    vmax_degps: float
+    horizon: int = 50
+    ref_lo_deg: F | None = None
+    ref_hi_deg: F | None = None
+    weights: FollowWeights = field(default_factory=FollowWeights)
+    settings: FollowSettings = field(default_factory=FollowSettings)
+    margin_deg: float = 0.05
+    speed_margin_degps: float = 0.25
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.vmax_degps) and self.vmax_degps > self.speed_margin_degps):
+            raise BadInputError(f"vmax must be a positive speed in deg/s, got {self.vmax_degps}")
+        if int(self.horizon) != self.horizon or not 2 <= self.horizon <= 1000:
+            raise BadInputError(f"horizon must be an integer in 2..1000 samples, got {self.horizon}")
+        if not self.settings.tolerances:
+            raise BadInputError("follow settings: give at least one tolerance")
+        if self.weights.track < 0 or self.weights.terminal <= 0:
+            raise BadInputError("follow weights: track must be ≥ 0 and terminal > 0")
+        lo = np.full(3, -np.inf) if self.ref_lo_deg is None else np.broadcast_to(
+            np.asarray(self.ref_lo_deg, float), (3,)).copy()
+        hi = np.full(3, np.inf) if self.ref_hi_deg is None else np.broadcast_to(
+            np.asarray(self.ref_hi_deg, float), (3,)).copy()
+        if np.any(lo >= hi):
+            raise BadInputError(f"reference limits must satisfy lo < hi, got {lo} and {hi}")
+        self._lo, self._hi = lo, hi
+        self._mats = build(self.model, self.region, self.vmax_degps, self.horizon, lo, hi,
+                           self.weights.track, self.margin_deg, self.speed_margin_degps)
+        self._projector = TargetProjector(self.region, lo, hi, 2.0 * self.margin_deg)
+        self._osqp = osqp.OSQP()
+        m = self._mats
+        st = self.settings
+        opts: dict[str, Any] = {
+            "verbose": False, "eps_abs": st.tolerances[0], "eps_rel": st.tolerances[0],
+            "eps_prim_inf": 1e-7, "eps_dual_inf": 1e-7, "polishing": st.polish,
+            "polish_refine_iter": 3, "max_iter": st.max_iter, "warm_starting": True,
+            "check_termination": st.check_every, "adaptive_rho_interval": st.adapt_every, "rho": st.rho,
+            "scaled_termination": False,
+        }
+        if st.time_limit_s is not None:
+            opts["time_limit"] = float(st.time_limit_s)
+        q0 = linear_cost(m.layout, np.zeros((self.horizon, 3)), self.weights.track,
+                         self.weights.terminal)
+        lo0, hi0 = fill_bounds(m, self.model, np.zeros(3), np.zeros(3), np.zeros(3))
+        self._osqp.setup(m.P, q0, m.A, lo0, hi0, **opts)
+        self._warm: _Warm | None = None
+
+    @property
+    def layout(self) -> FollowLayout:
+        return self._mats.layout
+
+    @property
+    def ts(self) -> float:
+        return self.model.ts
+
+    def reset(self) -> None:
+        """Forget the previous solution (the next solve starts cold)."""
+        self._warm = None
+
+    def project(self, target_deg: F) -> tuple[F, float]:
+        """(nearest admissible point, distance moved in deg) for a (3,) target."""
+        return self._projector.project(np.asarray(target_deg, float))
+
+    def solve(self, theta_deg: F, omega_degps: F, target_deg: F, elapsed: int = 1,
+              warm: bool = True, timed: bool = True) -> FollowResult:
+        """Re-plan from the state θ(0) = ``theta_deg``, θ̇(0) = ``omega_degps`` (3,) toward
+        ``target_deg``: (3,) held over the horizon, or (H, 3) a preview t(1..H).
+
+        ``elapsed``: periods since the previous solve (the warm start is shifted by that);
+        ``warm=False``: solve cold (from OSQP's zero start); ``timed=False``: without the
+        settings' ``time_limit_s`` (a solve before the motion starts, where nothing waits)."""
+        t0 = time.perf_counter()
+        H = self.horizon
+        th0 = np.asarray(theta_deg, float).reshape(-1)
+        om0 = np.asarray(omega_degps, float).reshape(-1)
+        tg = np.asarray(target_deg, float)
+        if th0.shape != (3,) or om0.shape != (3,) or not (np.isfinite(th0).all() and np.isfinite(om0).all()):
+            raise BadInputError("follow: the state must be three finite angles (deg) and speeds (deg/s)")
+        if tg.shape not in ((3,), (H, 3)) or not np.isfinite(tg).all():
+            raise BadInputError(f"follow: the target must be (3,) or ({H}, 3) finite angles in degrees")
+        requested = tg if tg.ndim == 1 else tg[-1]
+        rows = np.broadcast_to(tg, (H, 3))
+        try:
+            targets, moved = self._project_rows(rows)
+        except ProjectionError as exc:  # refused: the plan in use goes on, no substitute
+            self._warm = None
+            empty = np.zeros((0, 3))
+            return FollowResult("failed", empty, empty, empty, requested.copy(), th0.copy(),
+                                False, float("inf"), float("inf"), float("inf"),
+                                time.perf_counter() - t0, 0, False, exc.message, TARGET_REFUSED)
+        terminal = targets[-1]
+        clamped = moved > 0.0 and self._outside(tg.reshape(-1, 3))
+
+        def refuse(status: FollowStatus, reason: str, detail: str = "", it: int = 0,
+                   used_warm: bool = False) -> FollowResult:
+            empty = np.zeros((0, 3))
+            return FollowResult(status, empty, empty, empty, requested.copy(), terminal, clamped,
+                                moved, float("inf"), float("inf"), time.perf_counter() - t0, it,
+                                used_warm, reason, detail)
+
+        viol = float(self.region.violation_deg(th0))
+        if viol > CHECK_TOL:
+            self._warm = None
+            return refuse("infeasible", f"the state θ = {fmt_deg(th0, 3)} is outside the "
+                          f"region by {viol:.3g}°: following starts only inside it")
+        q = linear_cost(self.layout, targets, self.weights.track, self.weights.terminal)
+        lo, hi = fill_bounds(self._mats, self.model, th0, om0, terminal)
+        self._osqp.update(q=q, l=lo, u=hi)
+        used_warm = warm and self._warm is not None
+        if used_warm:
+            assert self._warm is not None
+            self._osqp.warm_start(x=self.layout.shift_primal(self._warm.x, elapsed),
+                                  y=self.layout.shift_dual(self._warm.y, elapsed))
+        else:
+            self._osqp.warm_start(x=np.zeros(self.layout.n), y=np.zeros(self.layout.m))
+        st, it, x, y, th, om, ref, reason = self._run(th0, om0, t0, timed)
+        if reason == "infeasible":
+            self._warm = None
+            return refuse("infeasible", "no reference keeps the wrist inside the region under the "
+                          f"speed bound from θ = {fmt_deg(th0, 3)}, θ̇ = "
+                          f"{fmt_deg(om0)}/s", st, it, used_warm)
+        if reason:
+            self._warm = None
+            return refuse("failed", reason, st, it, used_warm)
+        self._warm = _Warm(x, y)
+        w = self.weights
+        err = np.abs(th[-1] - terminal)
+        cost = float((om[1:] ** 2).sum() + w.track * ((th[1:] - targets) ** 2).sum()
+                     + w.terminal * err.sum())
+        status: FollowStatus = "reached" if err.max() <= REACH_TOL_DEG else "tracking"
+        return FollowResult(status, ref, th, om, requested.copy(), terminal, clamped, moved, cost,
+                            float(err.max()), time.perf_counter() - t0, it, used_warm, "", st)
+
+    def _run(self, th0: F, om0: F, t0: float, timed: bool = True
+             ) -> tuple[str, int, F, F, F, F, F, str]:
+        """OSQP at the loose tolerance, then — only while its answer does not pass the check
+        (polishing failed) — on from the same iterate at the tighter ones (within the time
+        limit when ``timed``).
+
+        Returns (OSQP status, iterations, x, y, θ (H+1, 3), θ̇ (H+1, 3), θ* (H, 3), reason)."""
+        tols = self.settings.tolerances
+        it = 0
+        status = ""
+        reason = ""
+        x = y = th = om = ref = np.zeros(0)
+        best: tuple[str, F, F, F, F, F] | None = None  # a checked but unpolished answer
+        limit = self.settings.time_limit_s if timed else None
+        if not timed and self.settings.time_limit_s is not None:
+            self._osqp.update_settings(time_limit=NO_TIME_LIMIT_S)
+        for n, tol in enumerate(tols):
+            if n:
+                self._osqp.update_settings(eps_abs=tol, eps_rel=tol)
+            if limit is not None:
+                left = limit - (time.perf_counter() - t0)
+                if left <= 0:
+                    reason = f"out of time ({limit * 1e3:g} ms) after {it} iterations"
+                    break
+                self._osqp.update_settings(time_limit=left)
+            res = self._osqp.solve(raise_error=False)
+            status = str(res.info.status)
+            it += int(res.info.iter)
+            if status.startswith("primal infeasible"):
+                reason = "infeasible"
+                break
+            if status not in ("solved", "solved inaccurate"):
+                reason = f"the follow QP did not converge ({status})"
+                continue
+            x = np.asarray(res.x, float)
+            y = np.asarray(res.y, float)
+            ref, _, _ = self.layout.unpack(x)
+            ref = np.clip(ref, self._lo, self._hi)  # round-off beyond a servo limit
+            th, om = predict(self.model, th0, om0, ref)
+            reason = self._check(th, om)
+            if reason:
+                continue
+            # the loosest pass's raw point is rough: prefer a polished or a tighter answer
+            if int(res.info.status_polish) == 1 or n > 0 or not self.settings.polish:
+                break
+            best = (status, x, y, th, om, ref)
+        if len(tols) > 1:
+            self._osqp.update_settings(eps_abs=tols[0], eps_rel=tols[0])
+        if reason and reason != "infeasible" and best is not None:
+            status, x, y, th, om, ref = best
+            reason = ""
+        return status, it, x, y, th, om, ref, reason
+
+    def _project_rows(self, targets: F) -> tuple[F, float]:
+        """Targets projected row by row where outside; (targets, largest move in deg)."""
+        inside = self._projector.admissible(targets)
+        if bool(inside.all()):
+            return np.array(targets, float), 0.0
+        out = np.array(targets, float)
+        moved = 0.0
+        cache: dict[bytes, tuple[F, float]] = {}
+        for k in np.flatnonzero(~inside):
+            key = out[k].tobytes()
+            if key not in cache:
+                cache[key] = self._projector.project(out[k])
+            out[k], d = cache[key]
+            moved = max(moved, d)
+        return out, moved
+
+    def _outside(self, targets: F) -> bool:
+        """Whether any target is outside the true region or beyond the servo limits."""
+        far = float(self.region.violation_deg(targets).max()) > CHECK_TOL
+        return bool(far or np.any(targets < self._lo - CHECK_TOL) or np.any(targets > self._hi + CHECK_TOL))
+
+    def _check(self, th: F, om: F) -> str:
+        """Empty when the predicted samples 1..H satisfy the true region and speed bound."""
+        viol = float(self.region.violation_deg(th[1:]).max())
+        if viol > CHECK_TOL:
+            k = int(np.argmax(self.region.violation_deg(th[1:]))) + 1
+            return f"the solution leaves the region by {viol:.3g}° at sample {k}"
+        over = float(np.abs(om[1:]).max() - self.vmax_degps)
+        if over > CHECK_TOL:
+            return f"the solution exceeds the speed bound by {over:.3g}°/s"
+        return ""

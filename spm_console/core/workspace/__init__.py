@@ -1,0 +1,1 @@
+"""The workspace grid: its data at the leaf, exact checks, refinement, the build on top."""

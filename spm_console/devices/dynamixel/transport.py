@@ -1,0 +1,186 @@
+"""Serial transport: a pyserial port, short reply timeouts, one transaction at a time.
+
+``transact(packet, decoder, count, check=…)`` discards the input already waiting
+(counted in ``bytes_flushed``; ``on_late`` may look at it first), writes one instruction packet and collects
+``count`` decoded packets, each within ``timeout_s`` of the previous one (so a sync
+read of three servos waits at most 3 × timeout); when the time is up the
+transaction has failed, whatever arrives afterwards. ``check`` sees every decoded
+packet as it arrives and says how many of the expected replies it settles: a
+packet that answers nothing of this request is set aside and does not extend the
+wait. The wait sleeps in ``select`` on the port's file descriptor (no busy loop).
+A re-entrant lock makes transactions atomic when a UI thread and the executor
+share the bus (the link holds it around its bookkeeping too). Low-latency mode
+(FTDI/U2D2) is requested best-effort; it raises on a pty and is skipped.
+
+Limits, stated plainly: Dynamixel status packets carry no sequence number, and
+flushing removes only the replies that arrived before the request went out, so the
+transport alone cannot tell a late reply from a current one. The link decides
+(``devices/dynamixel/link.py`` with ``devices/dynamixel/reply_ledger.py``): requests that may still be
+answered get distinct reply lengths, and a packet is accepted only as the answer
+to the request it matches. Guaranteed: a status packet taken as the answer to a
+request is never the reply to another request sent within ``REPLY_HORIZON_S``
+(1.5 s) before it; a late reply fails the transaction it lands in and is counted
+(``stale_replies``) — provided each servo answers its requests in order and with
+the length asked for, as the protocol specifies. Not guaranteed: a reply more than
+1.5 s late can be taken for a request of the same length to the same servo that
+is then in flight; and "late" is judged by this process's clock, so a reply landing
+just after the timeout, while the process was not scheduled, may still be read in
+time (it is then the current request's own reply, never another's).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import select
+import threading
+import time
+from collections.abc import Callable
+from typing import Protocol, TypeVar
+
+import serial
+
+from spm_console.devices.base import CommError
+from spm_console.errors import BusError
+
+P = TypeVar("P")
+
+
+class StreamDecoder(Protocol[P]):
+    """What transact() needs from Decoder1 / Decoder2."""
+
+    rejected: int
+
+    def feed(self, data: bytes) -> list[P]: ...
+
+    def reset(self) -> None: ...
+
+
+class SerialTransport:
+    """One open serial port (real adapter or the emulator's pty)."""
+
+    def __init__(self, port: str, baud: int = 1_000_000, timeout_s: float = 0.004) -> None:
+        if not port:
+            raise BusError("no serial port given (profile bus.port is empty): pass --port DEV "
+                           "or use the emulated bus (--sim)")
+        try:
+            self._ser = serial.Serial(port=port, baudrate=baud, timeout=0, write_timeout=1.0)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise BusError(f"cannot open serial port {port}: {exc}. Check the device path, "
+                           "that the adapter is plugged in and that you are in the 'dialout' "
+                           "group") from None
+        self.port = port
+        self.timeout_s = timeout_s
+        self.low_latency = False
+        try:
+            self._ser.set_low_latency_mode(True)
+            self.low_latency = True
+        except (AttributeError, NotImplementedError, ValueError, OSError, serial.SerialException):
+            pass  # a pty or an adapter without ASYNC_LOW_LATENCY: best effort only
+        self._lock = threading.RLock()
+        self.bytes_out = 0
+        self.bytes_in = 0
+        self.bytes_flushed = 0
+        """Input discarded unread before a request (replies that came too late)."""
+
+    @property
+    def lock(self) -> threading.RLock:
+        """Held during a transaction; re-entrant, so a caller can hold it across its own
+        bookkeeping and the transaction."""
+        return self._lock
+
+    def close(self) -> None:
+        with contextlib.suppress(serial.SerialException, OSError):
+            self._ser.close()
+
+    def _send(self, packet: bytes, on_late: Callable[[bytes], object] | None = None) -> None:
+        try:
+            waiting = self._ser.in_waiting
+            if waiting and on_late is not None:  # came after the last transaction: late
+                late = self._ser.read(waiting)
+                self.bytes_flushed += len(late)
+                on_late(late)
+            elif waiting:
+                self.bytes_flushed += waiting
+            self._ser.reset_input_buffer()
+            self._ser.write(packet)
+        except (serial.SerialException, OSError) as exc:
+            raise CommError(f"write to {self.port} failed: {exc}") from None
+        self.bytes_out += len(packet)
+
+    def transact(self, packet: bytes, decoder: StreamDecoder[P], count: int,
+                 timeout_s: float | None = None,
+                 check: Callable[[P], int] | None = None,
+                 on_late: Callable[[bytes], object] | None = None) -> list[P]:
+        """Send ``packet`` and return the next ``count`` packets (CommError on timeout).
+
+        ``check(packet)`` is called for each packet as it is decoded and says how many of
+        the ``count`` expected replies it settles: 0 for a packet that does not answer
+        this request (it is left out and does not extend the wait), more than 1 when it
+        shows that earlier expected replies will not come. Without ``check`` every
+        packet settles one. ``on_late(bytes)`` receives the input found waiting before
+        the request is sent (it is discarded either way)."""
+        with self._lock:
+            decoder.reset()
+            self._send(packet, on_late)
+            if not count:
+                return []
+            return self._collect(decoder, count, timeout_s or self.timeout_s, check)
+
+    def send(self, packet: bytes, on_late: Callable[[bytes], object] | None = None) -> None:
+        """Send a packet that gets no reply (broadcast sync write); ``on_late`` as in
+        :meth:`transact`."""
+        with self._lock:
+            self._send(packet, on_late)
+
+    def drain(self, quiet_s: float, max_s: float = 0.25,
+              on_late: Callable[[bytes], object] | None = None) -> int:
+        """Discard input until the line has been quiet for ``quiet_s`` (at most ``max_s``).
+
+        For set-up retries after a lost reply: the late replies to the failed request
+        are let in and thrown away before the next one (``on_late`` sees them first).
+        Returns the number of bytes discarded. Not for the real-time loop (it waits).
+        """
+        chunks: list[bytes] = []
+        with self._lock:
+            fd = self._ser.fileno()
+            end = time.perf_counter() + max_s
+            while (left := end - time.perf_counter()) > 0:
+                try:
+                    ready, _, _ = select.select([fd], [], [], min(quiet_s, left))
+                    if not ready:
+                        break
+                    chunks.append(self._ser.read(self._ser.in_waiting or 1))
+                except (serial.SerialException, OSError) as exc:
+                    raise CommError(f"read from {self.port} failed: {exc}") from None
+            data = b"".join(chunks)
+            if data and on_late is not None:
+                on_late(data)
+        self.bytes_in += len(data)
+        return len(data)
+
+    def _collect(self, decoder: StreamDecoder[P], count: int, timeout_s: float,
+                 check: Callable[[P], int] | None) -> list[P]:
+        got: list[P] = []
+        settled = 0
+        fd = self._ser.fileno()
+        deadline = time.perf_counter() + timeout_s
+        while settled < count:
+            remaining = deadline - time.perf_counter()
+            if remaining <= 0:  # what arrives from now on is late, even if it is there
+                raise CommError(f"no status packet within {timeout_s * 1e3:.1f} ms "
+                                f"({len(got)} of {count} received, {decoder.rejected} corrupt)")
+            try:
+                ready, _, _ = select.select([fd], [], [], remaining)
+                if not ready:
+                    continue
+                data = self._ser.read(self._ser.in_waiting or 1)
+            except (serial.SerialException, OSError) as exc:
+                raise CommError(f"read from {self.port} failed: {exc}") from None
+            self.bytes_in += len(data)
+            for pkt in decoder.feed(data):
+                n = 1 if check is None else check(pkt)
+                if n > 0:
+                    got.append(pkt)
+                    settled += n
+                    deadline = time.perf_counter() + timeout_s
+        return got

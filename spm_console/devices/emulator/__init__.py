@@ -1,0 +1,1 @@
+"""The emulated MX-106 bus on a pseudo-terminal, in-process or as a child."""

@@ -1,0 +1,321 @@
+"""Emulated servo bus: three MX-106 behind a pseudo-terminal, faults on demand.
+
+:func:`start_emulator` opens a pty pair (slave set raw), builds one
+:class:`EmulatedServo` per joint of the profile (its protocol, ids, model number,
+tick mapping, pole p) and serves the master side from a background thread:
+it decodes instruction packets, lets the servos answer with the same bytes a real
+servo sends, and applies the injected faults to the replies. The thread sleeps in
+``select`` on the master fd (no busy wait), so it answers as soon as a packet is
+complete. Time is ``time.perf_counter()``; ``true_state()`` reports it relative
+to the clock start together with the true joint angles and velocities (deg, deg/s).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import random
+import select
+import threading
+import time
+import tty
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.schema import Profile
+from spm_console.devices.dynamixel import protocol1 as p1
+from spm_console.devices.dynamixel import protocol2 as p2
+from spm_console.devices.dynamixel.control_table import table_for
+from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
+from spm_console.devices.emulator.dispatch import dispatch1, dispatch2
+from spm_console.devices.emulator.faults import FaultSpec
+from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
+from spm_console.errors import BusError
+from spm_console.system.realtime import EMULATOR_PRIORITY, RtGrant, request_realtime
+
+F = NDArray[np.float64]
+
+#: Longest sleep of the serving thread when idle (also the idle recording interval), s.
+IDLE_S = 0.005
+#: A partial packet older than this when new bytes arrive is dropped (like the firmware's
+#: byte-to-byte timeout), so a garbage header with a huge length cannot hold the line.
+GAP_S = 0.01
+#: Instructions that read a servo's state (READ and BULK_READ in both protocols, 2.0's SYNC_READ).
+_READS = frozenset((p2.Inst.READ, p2.Inst.SYNC_READ, p2.Inst.BULK_READ, p1.Inst.READ, p1.Inst.BULK_READ))
+
+
+@dataclass
+class EmulatorStats:
+    """What the emulator did (for tests and the ``emulate`` summary)."""
+
+    instructions: int = 0
+    replies: int = 0
+    dropped: int = 0
+    corrupted: int = 0
+    delayed: int = 0
+    silenced: int = 0
+    """Instructions ignored while the bus is unplugged."""
+    rejected_bytes: int = 0
+    faults_fired: list[str] = field(default_factory=list)
+
+
+class EmulatorHandle:
+    """A running emulated bus. Use :func:`start_emulator`; ``stop()`` when done."""
+
+    def __init__(self, profile: Profile, faults: Sequence[FaultSpec] = (), record: bool = True,
+                 initial_deg: Sequence[float] | None = None) -> None:
+        self.profile = profile
+        self.protocol = profile.bus.protocol
+        self.maps: list[JointMap] = joint_maps(profile)
+        table = table_for(self.protocol)
+        if profile.bus.model_number != table.model_number:
+            raise BusError(
+                f"the emulator serves MX-106 (model {table.model_number} on protocol "
+                f"{self.protocol}); the profile expects model {profile.bus.model_number}"
+            )
+        theta0 = list(initial_deg) if initial_deg is not None else list(profile.home.theta_deg)
+        if len(theta0) != 3:
+            raise BusError("initial_deg: expected three joint angles")
+        now = time.perf_counter()
+        rng = np.random.default_rng(profile.emulator.seed)
+        tpd = profile.bus.ticks_per_turn / 360.0
+        self.servos = [
+            EmulatedServo(table, m.id, profile.servo.p, m.to_ticks(theta0[i]), now,
+                          profile.emulator.noise_deg * tpd, rng, profile.bus.ticks_per_turn)
+            for i, m in enumerate(self.maps)
+        ]
+        self._by_id = {s.id: s for s in self.servos}
+        self._record = record
+        self._t: list[float] = []
+        self._pos: list[list[float]] = []
+        self._vel: list[list[float]] = []
+        self._reads: list[int] = []
+        """Indices of the records whose state answered a read (READ, SYNC_READ, BULK_READ)."""
+        self._faults: list[FaultSpec] = []
+        self._fired: set[int] = set()
+        self._frng = random.Random(profile.emulator.seed + 1)
+        self._pending: list[tuple[float, bytes]] = []
+        self._last_rx = 0.0
+        self.stats = EmulatorStats()
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self.t0 = now
+        self.clock_started = False
+        """Set by the first torque-on or :meth:`start_clock`: until then only faults at
+        t = 0 act (a fault at t > 0 waits for the motion, wherever it was started from)."""
+        self._decoder: p2.Decoder2 | p1.Decoder1 = (
+            p2.Decoder2() if self.protocol == "2.0" else p1.Decoder1()
+        )
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        os.set_blocking(self._master, False)
+        self.port: str = os.ttyname(self._slave)
+        for f in faults:
+            self.inject(f)
+        self.realtime = RtGrant("normal", "not serving yet")
+        """The scheduling the serving thread got."""
+        self._thread = threading.Thread(target=self._serve, name="spm-emulator", daemon=True)
+        self._thread.start()
+
+    # --- public interface -------------------------------------------------------------
+
+    def start_clock(self) -> None:
+        """t = 0 now: fault times (and true_state times) are relative to this instant."""
+        with self._lock:
+            now = time.perf_counter()
+            self._advance(now)
+            self.t0 = now
+            self.clock_started = True
+
+    def inject(self, fault: FaultSpec) -> None:
+        """Add a fault; it fires when the clock reaches ``fault.at_s``."""
+        with self._lock:
+            self._faults.append(fault)
+
+    def true_state(self) -> dict[str, F]:
+        """Recorded truth: 't' (n,) s from clock start, 'position_deg' and 'velocity_degps' (n, 3),
+        'read' (n,): the records whose state answered a read instruction."""
+        with self._lock:
+            self._advance(time.perf_counter())
+            t = np.asarray(self._t, float) - self.t0
+            pos = np.asarray(self._pos, float).reshape(-1, 3)
+            vel = np.asarray(self._vel, float).reshape(-1, 3)
+            read = np.zeros(len(t), bool)
+            read[self._reads] = True
+        return {"t": t, "position_deg": pos, "velocity_degps": vel, "read": read}
+
+    def joint_deg(self) -> F:
+        """True joint angles now, deg."""
+        with self._lock:
+            self._advance(time.perf_counter())
+            return np.array([m.to_deg(s.pos) for m, s in zip(self.maps, self.servos, strict=True)])
+
+    def set_joint_deg(self, theta_deg: Sequence[float] | F) -> None:
+        """Place the servos at rest at these joint angles (deg)."""
+        theta = [float(x) for x in theta_deg]
+        if len(theta) != 3:
+            raise BusError("set_joint_deg: expected three joint angles")
+        with self._lock:
+            self._advance(time.perf_counter())
+            for m, s, th in zip(self.maps, self.servos, theta, strict=True):
+                s.place(m.to_ticks(th))
+            self._sample()
+
+    def stop(self) -> None:
+        """Stop serving and close the pty."""
+        self._stop.set()
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout=2.0)
+        for fd in (self._master, self._slave):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+    def __enter__(self) -> EmulatorHandle:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    # --- state ------------------------------------------------------------------------
+
+    def _sample(self) -> None:
+        if not self._record:
+            return
+        self._t.append(self.servos[0].t)
+        self._pos.append([m.to_deg(s.pos) for m, s in zip(self.maps, self.servos, strict=True)])
+        self._vel.append([m.direction * s.vel * 360.0 / m.ticks_per_turn
+                          for m, s in zip(self.maps, self.servos, strict=True)])
+
+    def _advance(self, now: float) -> None:
+        """Fire due one-shot faults at their exact time, then integrate up to ``now``."""
+        for k, f in enumerate(self._faults):
+            due = self.t0 + f.at_s
+            if k in self._fired or due > now or (f.at_s > 0 and not self.clock_started):
+                continue
+            self._fired.add(k)
+            self.stats.faults_fired.append(str(f))
+            if f.kind in ("stall", "hwerror") and f.joint is not None:
+                for s in self.servos:
+                    s.advance(max(due, s.t))
+                s = self.servos[f.joint - 1]
+                if f.kind == "stall":
+                    s.stall()
+                else:
+                    s.raise_hardware_error(OVERLOAD)
+        for s in self.servos:
+            s.advance(now)
+        self._sample()
+
+    def _active(self, kind: str, now: float) -> list[FaultSpec]:
+        return [f for f in self._faults if f.kind == kind and now >= self.t0 + f.at_s
+                and (self.clock_started or f.at_s == 0)]
+
+    # --- serving thread ---------------------------------------------------------------
+
+    def _serve(self) -> None:
+        self.realtime = request_realtime(EMULATOR_PRIORITY)
+        try:
+            while not self._stop.is_set():
+                timeout = IDLE_S
+                if self._pending:
+                    timeout = max(0.0, min(timeout, self._pending[0][0] - time.perf_counter()))
+                try:
+                    ready, _, _ = select.select([self._master], [], [], timeout)
+                except (OSError, ValueError):
+                    return
+                data = b""
+                if ready:
+                    try:
+                        data = os.read(self._master, 4096)
+                    except BlockingIOError:
+                        data = b""
+                    except OSError:
+                        return
+                with self._lock:
+                    now = time.perf_counter()
+                    self._advance(now)
+                    if data:
+                        self._handle(data, now)
+                        if not self.clock_started and any(sv.torque for sv in self.servos):
+                            self.start_clock()  # the first torque-on: the motion starts
+                    self._flush(now)
+        finally:
+            self._stop.set()
+
+    def _handle(self, data: bytes, now: float) -> None:
+        if self._decoder.pending and now - self._last_rx > GAP_S:
+            self.stats.rejected_bytes += self._decoder.pending
+            self._decoder.reset()
+        self._last_rx = now
+        before = self._decoder.skipped
+        packets = self._decoder.feed(data)
+        self.stats.rejected_bytes += self._decoder.skipped - before
+        for pkt in packets:
+            self.stats.instructions += 1
+            if self._active("unplug", now):
+                self.stats.silenced += 1
+                continue
+            replies = (dispatch2(self._by_id, pkt) if isinstance(pkt, p2.Packet)
+                       else dispatch1(self._by_id, pkt))
+            if replies and self._record and self._t and pkt.instruction in _READS:
+                self._reads.append(len(self._t) - 1)  # the record _advance(now) just took
+            for _ident, raw in replies:
+                self._emit(raw, now)
+
+    def _emit(self, raw: bytes, now: float) -> None:
+        for f in self._active("drop", now):
+            if self._frng.random() < (f.rate or 0.0):
+                self.stats.dropped += 1
+                return
+        for f in self._active("corrupt", now):
+            if self._frng.random() < (f.rate or 0.0):
+                self.stats.corrupted += 1
+                raw = raw[:-1] + bytes(((raw[-1] ^ 0x5A) & 0xFF,))
+                break
+        delay = sum(f.delay_s or 0.0 for f in self._active("delay", now))
+        if delay > 0:
+            self.stats.delayed += 1
+        due = now + delay
+        if self._pending:
+            due = max(due, self._pending[-1][0])
+        self._pending.append((due, raw))
+        self.stats.replies += 1
+
+    def _flush(self, now: float) -> None:
+        while self._pending and self._pending[0][0] <= now:
+            _, raw = self._pending.pop(0)
+            self._write(raw)
+
+    def _write(self, raw: bytes) -> None:
+        view = memoryview(raw)
+        deadline = time.perf_counter() + 0.5
+        while view:
+            try:
+                n = os.write(self._master, view)
+                view = view[n:]
+            except BlockingIOError:
+                if time.perf_counter() > deadline:
+                    return
+                select.select([], [self._master], [], 0.01)
+            except OSError:
+                return
+
+
+def start_emulator(profile: Profile, faults: Sequence[FaultSpec] = (), record: bool = True,
+                   initial_deg: Sequence[float] | None = None) -> EmulatorHandle:
+    """Start an emulated bus for ``profile`` in a background thread; open ``handle.port``.
+
+    The servos start at the profile's home θ (or ``initial_deg``), torque off, goal
+    equal to their position. Fault times count from the clock start: the first torque-on
+    (the first motion, whichever process drives it) or an earlier
+    :meth:`EmulatorHandle.start_clock`; until then only faults at t = 0 act.
+    """
+    return EmulatorHandle(profile, faults, record, initial_deg)

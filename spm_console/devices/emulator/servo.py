@@ -1,0 +1,217 @@
+"""One emulated MX-106: control-table memory and the closed-loop model (27).
+
+Position in ticks follows θ̈ = p²(θ* − θ) − 2p θ̇ (double pole at −p) with the Goal
+Position θ* held constant between writes (zero-order hold), integrated exactly
+in closed form. Present Position is the true position (plus optional noise)
+rounded to a whole tick. Torque off, a stall or a hardware-error shutdown freeze
+the shaft. Protocol-independent: the dispatch modules turn packets into
+:meth:`read` / :meth:`write` calls and error numbers into status bits.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from spm_console.devices.dynamixel.control_table import ControlTable
+from spm_console.devices.dynamixel.protocol2 import ErrorNumber
+
+#: Hardware Error Status bit 5 (overload) — what a stalled, overloaded servo reports.
+OVERLOAD = 0x20
+
+
+class EmulatedServo:
+    """State and memory of one servo. Not thread-safe: the emulator holds a lock."""
+
+    def __init__(self, table: ControlTable, ident: int, p: float, position_ticks: float,
+                 t: float, noise_ticks: float = 0.0, rng: np.random.Generator | None = None,
+                 ticks_per_turn: int = 4096) -> None:
+        self.table = table
+        self.p = p
+        self.noise_ticks = noise_ticks
+        self.rng = rng or np.random.default_rng(0)
+        self.ticks_per_turn = ticks_per_turn
+        self.mem = bytearray(table.size)
+        for name, reg in table.registers.items():
+            if reg.initial is not None:
+                self._set(name, reg.initial)
+        self._set("id", ident)
+        self._set("return_delay_time", 0)  # [lab setting] the project sets Return Delay Time 0
+        self.pos = float(position_ticks)
+        self.vel = 0.0
+        self.t = t
+        self.stalled = False
+        self.hw_error = 0
+        self.last_rx = t
+        self._set("goal_position", round(self.pos))
+
+    # --- memory -----------------------------------------------------------------------
+
+    def _set(self, name: str, value: int) -> None:
+        reg = self.table[name]
+        self.mem[reg.address : reg.address + reg.size] = reg.encode(value)
+
+    def get(self, name: str) -> int:
+        reg = self.table[name]
+        return reg.decode(bytes(self.mem[reg.address : reg.address + reg.size]))
+
+    @property
+    def id(self) -> int:
+        return self.get("id")
+
+    @property
+    def torque(self) -> bool:
+        return self.get("torque_enable") != 0
+
+    @property
+    def moving_freely(self) -> bool:
+        return self.torque and not self.stalled and not self.hw_error
+
+    # --- dynamics ---------------------------------------------------------------------
+
+    def advance(self, t: float) -> None:
+        """Integrate exactly from self.t to t with the goal held (ZOH)."""
+        if t <= self.t:
+            return
+        self._watchdog(t)
+        dt = t - self.t
+        self.t = t
+        if not self.moving_freely:
+            self.vel = 0.0
+            return
+        u = float(self.get("goal_position"))
+        p = self.p
+        z0, v0 = self.pos - u, self.vel
+        c2 = v0 + p * z0
+        e = math.exp(-p * dt)
+        self.pos = u + (z0 + c2 * dt) * e
+        self.vel = (v0 - p * c2 * dt) * e
+
+    def _watchdog(self, t: float) -> None:
+        if "bus_watchdog" not in self.table.registers:
+            return
+        w = self.get("bus_watchdog")
+        if w <= 0 or not self.torque:
+            return
+        trip = self.last_rx + 0.02 * w
+        if t > trip:
+            self.advance(trip)  # move with the old goal up to the trip time
+            self._set("bus_watchdog", -1)
+            self._set("goal_position", round(self.pos))
+
+    def stall(self) -> None:
+        """The shaft is blocked from now on (call advance() to the stall time first)."""
+        self.stalled = True
+        self.vel = 0.0
+
+    def raise_hardware_error(self, bits: int = OVERLOAD) -> None:
+        """Hardware error shutdown: latch the bits, torque off."""
+        self.hw_error |= bits
+        if "hardware_error_status" in self.table.registers:
+            self._set("hardware_error_status", self.hw_error)
+        self._set("torque_enable", 0)
+        self.vel = 0.0
+
+    def reboot(self) -> None:
+        """REBOOT: clears the hardware error, torque off, goal = present position."""
+        self.hw_error = 0
+        if "hardware_error_status" in self.table.registers:
+            self._set("hardware_error_status", 0)
+        self._set("torque_enable", 0)
+        if "bus_watchdog" in self.table.registers:
+            self._set("bus_watchdog", 0)
+        self._set("goal_position", round(self.pos))
+        self.vel = 0.0
+
+    def place(self, position_ticks: float) -> None:
+        """Put the shaft somewhere (at rest); the goal follows so torque-on does not lunge."""
+        self.pos = float(position_ticks)
+        self.vel = 0.0
+        self._set("goal_position", round(self.pos))
+
+    def present_ticks(self) -> int:
+        noise = self.rng.normal(0.0, self.noise_ticks) if self.noise_ticks > 0 else 0.0
+        return round(self.pos + noise)
+
+    def _refresh(self) -> None:
+        """Live registers from the state (before a read)."""
+        rpm = self.vel / self.ticks_per_turn * 60.0
+        moving = abs(rpm) > 10 * 0.229
+        if self.table.protocol == "2.0":
+            self._set("present_position", self.present_ticks())
+            self._set("present_velocity", round(rpm / 0.229))
+            # profile velocity/acceleration 0: the trajectory is the goal itself, at rest
+            self._set("position_trajectory", self.get("goal_position"))
+            self._set("velocity_trajectory", 0)
+            self._set("moving", int(moving))
+            self._set("present_input_voltage", 120)
+            self._set("present_temperature", 35)
+            self._set("realtime_tick", int(self.t * 1000) % 32768)
+            self._set("present_current", 0)
+        else:
+            self._set("present_position", min(max(self.present_ticks(), 0), 4095))
+            speed = min(round(abs(rpm) / 0.114), 1023) | (1024 if rpm < 0 else 0)
+            self._set("present_speed", speed)
+            self._set("moving", int(moving))
+            self._set("present_voltage", 120)
+            self._set("present_temperature", 35)
+            self._set("present_load", 0)
+
+    # --- register access --------------------------------------------------------------
+
+    def read(self, address: int, length: int) -> tuple[ErrorNumber, bytes]:
+        if length <= 0 or address < 0 or address + length > self.table.size:
+            return ErrorNumber.ACCESS, b""
+        self._refresh()
+        return ErrorNumber.NONE, bytes(self.mem[address : address + length])
+
+    def write(self, address: int, data: bytes) -> ErrorNumber:
+        """Write like the firmware: whole registers only, RW only, EEPROM with torque off."""
+        end = address + len(data)
+        if not data or address < 0 or end > self.table.size:
+            return ErrorNumber.ACCESS
+        touched = []
+        for name, reg in self.table.registers.items():
+            r0, r1 = reg.address, reg.address + reg.size
+            if r1 <= address or r0 >= end:
+                continue
+            if r0 < address or r1 > end:
+                return ErrorNumber.DATA_LENGTH
+            if reg.access != "RW":
+                return ErrorNumber.ACCESS
+            if r0 < self.table.eeprom_end and self.torque:
+                return ErrorNumber.ACCESS
+            touched.append((name, reg, reg.decode(bytes(data[r0 - address : r1 - address]))))
+        for name, _reg, value in touched:
+            err = self._check(name, value)
+            if err:
+                return err
+        for name, _reg, value in touched:
+            self._apply(name, value)
+        return ErrorNumber.NONE
+
+    def _check(self, name: str, value: int) -> ErrorNumber:
+        if name == "goal_position":
+            if self.table.protocol == "2.0":
+                if "bus_watchdog" in self.table.registers and self.get("bus_watchdog") < 0:
+                    return ErrorNumber.DATA_RANGE
+                lo, hi = self.get("min_position_limit"), self.get("max_position_limit")
+            else:
+                lo, hi = self.get("cw_angle_limit"), self.get("ccw_angle_limit")
+            if not lo <= value <= hi:
+                return ErrorNumber.DATA_LIMIT
+        if name == "torque_enable" and value not in (0, 1):
+            return ErrorNumber.DATA_RANGE
+        if name == "torque_enable" and value == 1 and self.hw_error:
+            return ErrorNumber.RESULT_FAIL
+        if name == "bus_watchdog" and not (value == 0 or 1 <= value <= 127):
+            return ErrorNumber.DATA_RANGE
+        if name == "id" and not 0 <= value <= 252:
+            return ErrorNumber.DATA_RANGE
+        return ErrorNumber.NONE
+
+    def _apply(self, name: str, value: int) -> None:
+        if name == "torque_enable" and bool(value) != self.torque:
+            self.vel = 0.0
+        self._set(name, value)

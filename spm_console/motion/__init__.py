@@ -1,0 +1,1 @@
+"""The process that owns the port: protocol, server, executor, safety, homing, runs."""

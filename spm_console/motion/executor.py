@@ -1,0 +1,489 @@
+"""The real-time execution loop: references out, positions in, every Ts.
+
+Cycle k starts at the absolute deadline t0 + k·Ts (no cumulative drift; a late
+cycle does not shift the next ones). In each cycle:
+
+1. sync-write θ*(k);
+2. sync-read θ(k) (one immediate retry on a failed read; a cycle whose reads all
+   fail counts as a communication failure);
+3. Kalman update with the references as input and θ(k) as measurement
+   (:class:`~spm_console.core.servo.estimation.KalmanVelocity`), propagated over the
+   actual write and read instants (θ*(k−1) until θ*(k) is written, θ*(k) until the
+   read), so a late cycle or a retried read does not bias the estimate;
+4. the model's open-loop prediction: on the ideal grid (the plan's 'simulated'
+   curve, logged) and at the actual instants (what the tracking check compares);
+5. safety checks (:mod:`spm_console.motion.safety`), telemetry to ``on_sample`` and
+   the run log.
+
+Any stop — E-stop request, tracking error, n consecutive communication failures,
+servo hardware error, position outside the region + margin or outside the servo
+limits — applies the profile's ``safety.stop_action`` at once (hold: the measured
+position becomes the goal, written again at the next deadline; torque_off) and
+ends the run with that stop's exit code. Degrees and seconds throughout.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.models import servo_limits_deg, servo_model_of
+from spm_console.config.schema import Profile
+from spm_console.core.servo.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
+from spm_console.core.workspace.data import Workspace
+from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_checked
+from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
+from spm_console.formatting import fmt_deg
+from spm_console.motion.logs.runlog import RunLog
+from spm_console.motion.plan_check import LINE_PHASES, PlanCheck, PlanVerifier
+from spm_console.motion.safety import SafetyMonitor, StopReason
+from spm_console.motion.sample import Sample
+from spm_console.motion.segments import ExecutionResult, Segment
+from spm_console.motion.stats import StopTiming, run_stats, stale_replies
+from spm_console.motion.stop_action import apply_stop_action
+from spm_console.system.cpus import placement
+from spm_console.system.realtime import (
+    LOOP_PRIORITY,
+    RtGrant,
+    kernel_preemption,
+    release_realtime,
+    request_realtime,
+)
+
+F = NDArray[np.float64]
+#: A cycle still busy after this fraction of the period is logged (``slow_cycle``: late start,
+#: bus, filter, hardware poll and checks, in ms).
+SLOW_CYCLE = 0.75
+BusFailure = (CommError, OSError, BusError)
+"""What counts as one failed bus transaction (a serial exception is an OSError; a status
+packet carrying an error number raises BusError)."""
+
+
+@dataclass
+class _LoopState:
+    """What the cycles of one run share: filters, predictors, the safety monitor, the last
+    good position and the reference held since the last write."""
+
+    safety: SafetyMonitor
+    kf: KalmanVelocity
+    fd: FiniteDifference
+    pred: ModelPredictor
+    pred_t: ModelPredictor
+    last_good: F
+    t_state: float
+    u_prev: F
+
+
+class Executor:
+    """Streams plans to a :class:`ServoBus` under the profile's safety rules.
+
+    ``on_sample`` is called from the loop thread after every cycle (keep it quick);
+    :meth:`request_estop` may be called from any thread.
+    """
+
+    def __init__(
+        self,
+        profile: Profile,
+        bus: ServoBus,
+        *,
+        workspace: Workspace,
+        log: RunLog | None = None,
+        on_sample: Callable[[Sample], None] | None = None,
+        on_start: Callable[[], None] | None = None,
+        read_retries: int = 1,
+        hw_poll_every: int = 25,
+        start_tolerance_deg: float | None = None,
+        spin_s: float = 0.0015,
+        clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], None] | None = None,
+        emulated: bool = False,
+    ) -> None:
+        self.profile = profile
+        self.emulated = emulated
+        """Driving the emulated bus (said in a communication-loss stop's reason)."""
+        self.bus = bus
+        self.verifier = PlanVerifier(profile, workspace)
+        """Checks every plan against this profile's workspace before torque-on."""
+        self.log = log
+        self.on_sample = on_sample
+        self.on_start = on_start
+        self.read_retries = read_retries
+        self.hw_poll_every = max(1, hw_poll_every)
+        self.start_tolerance_deg = (profile.safety.approach_tolerance_deg
+                                    if start_tolerance_deg is None else start_tolerance_deg)
+        """How far the wrist may be from the first segment's start (default: the profile's
+        approach tolerance, the rule every front end uses to add an approach move), deg."""
+        self.spin_s = spin_s
+        self.clock = clock
+        self.sleep = sleep
+        """Replaces the real waiting when given (tests drive a simulated clock with it)."""
+        self.ts = profile.servo.ts_s
+        self.model = servo_model_of(profile)
+        self.lo, self.hi = servo_limits_deg(profile)
+        self._estop = threading.Event()
+        self._estop_reason = ""
+        self._estop_clock: float | None = None
+        """Clock time of the first E-stop request (logged with the stop as ``requested_t``)."""
+        self.t0 = 0.0
+        """perf_counter time of the first deadline (t = 0 of the samples)."""
+        self.samples: list[Sample] = []
+        self._last_good = np.zeros(3)
+        self._torque_on = False
+        self._watchdog_armed = False
+        self.realtime = RtGrant("normal", "not running")
+        """The scheduling the loop thread got (logged as the "realtime" event)."""
+
+    # ------------------------------------------------------------------ control
+    def request_estop(self, reason: str = "operator request", at_clock: float | None = None) -> None:
+        """Thread-safe: stop at once (wakes the loop if it is waiting for a deadline).
+        ``at_clock``: when the request was made (this executor's clock), if earlier than now."""
+        if not self._estop.is_set():
+            self._estop_clock = self.clock() if at_clock is None else at_clock
+        self._estop_reason = reason
+        self._estop.set()
+
+    def _now(self) -> float:
+        return self.clock() - self.t0
+
+    def _event(self, name: str, /, **data: Any) -> None:
+        if self.log is not None:
+            self.log.event(name, self._now(), **data)
+
+    def _wait_until(self, deadline: float) -> None:
+        """Sleep (interruptible by E-stop), then spin the last ``spin_s`` for precision."""
+        while True:
+            rem = deadline - self.clock()
+            if rem <= 0.0 or self._estop.is_set():
+                return
+            if self.sleep is not None:
+                self.sleep(rem)
+            elif rem > self.spin_s:
+                self._estop.wait(rem - self.spin_s)
+            else:
+                time.sleep(0)
+
+    # ------------------------------------------------------------------ checks
+    def check_plan(self, segments: Sequence[Segment]) -> PlanCheck:
+        """The runtime's own verification (:mod:`spm_console.motion.plan_check`): refuses
+        with :class:`PlanRefusedError` (exit 26) before anything moves; logged."""
+        try:
+            check = self.verifier.verify(segments)
+        except PlanRefusedError as exc:
+            self._event("plan_refused", message=exc.message)
+            raise PlanRefusedError(f"{exc.message}; nothing moved") from None
+        self._event("plan_verified", points=check.points, segments=check.segments,
+                    max_speed_degps=check.max_speed_degps,
+                    max_reference_step_deg=check.max_reference_step_deg,
+                    ms=round(check.seconds * 1e3, 3))
+        return check
+
+    def read_initial(self, attempts: int = 5) -> F:
+        """Measured position before any motion; BusError if the servos stay silent."""
+        return read_position_checked(self.bus, attempts)
+
+    # ------------------------------------------------------------------ the loop
+    def run(self, segments: Sequence[Segment], theta0_deg: F | None = None) -> ExecutionResult:
+        """Execute the segments back to back; returns when done or stopped."""
+        self.t0 = self.clock()  # set-up events: time since run() began (the loop resets t0)
+        self._stale0 = stale_replies(self.bus)
+        self.check_plan(segments)
+        theta0 = self.read_initial() if theta0_deg is None else np.asarray(theta0_deg, float)
+        start = segments[0].plan.reference_deg[0]
+        gap = float(np.abs(theta0 - start).max())
+        if gap > self.start_tolerance_deg:
+            raise BadInputError(
+                f"the wrist is at θ = {fmt_deg(theta0)} but the plan starts at "
+                f"{fmt_deg(start)} ({gap:.2f}° away, tolerance "
+                f"{self.start_tolerance_deg}°); move there first (execute adds an approach move)"
+            )
+        # verified within 1e-9° of the servo limits: on them exactly (the bus refuses any goal past)
+        refs = np.clip(np.vstack([s.plan.reference_deg for s in segments]), self.lo, self.hi)
+        phases = [s.phase for s in segments for _ in range(s.plan.N + 1)]
+        # planned segments stay in the certified set; runtime-built straight moves were
+        # checked exactly along their path instead (plan_check.LINE_PHASES)
+        regions = [s.phase not in LINE_PHASES for s in segments for _ in range(s.plan.N + 1)]
+        self._event("start", theta0_deg=theta0, cycles=len(refs),
+                    segments=[(s.phase, s.plan.kind, s.plan.N) for s in segments])
+        return self._guarded(theta0, lambda: self._loop(refs, phases, regions, theta0),
+                             lambda: f"executed {len(refs)} cycles ({len(refs) * self.ts:.2f} s)")
+
+    def _guarded(self, theta0: F, loop: Callable[[], StopReason | None],
+                 done: Callable[[], str]) -> ExecutionResult:
+        """Real-time priority, preflight (hardware, watchdog, torque on), ``loop``; whatever
+        happens the wrist is left holding (or as the stop action says) and the log closed."""
+        self._last_good = theta0.copy()
+        self._torque_on = False
+        stop: StopReason | None = None
+        self.realtime = request_realtime(LOOP_PRIORITY)
+        self._event("realtime", policy=self.realtime.policy, detail=self.realtime.detail,
+                    kernel_preemption=kernel_preemption(), cpus=placement())
+        try:
+            if self._estop.is_set():  # E-stop before torque-on: nothing is switched on or moved
+                stop = SafetyMonitor.estop(f"{self._estop_reason or 'E-stop'} (before any motion)",
+                                           self._now(), 0)
+                self._event("stop", kind=stop.kind, action="none", detected_t=stop.t,
+                            exit_code=int(stop.exit_code), notes=["torque was never switched on"])
+            else:
+                stop = self._preflight(theta0)
+            if stop is None:
+                stop = loop()
+        except KeyboardInterrupt:
+            stop = SafetyMonitor.estop("interrupted (Ctrl-C)", self._now(), len(self.samples))
+            self._apply_stop(stop, self._hold_target(self._last_good), deadline=None)
+        except BaseException as exc:
+            # Leave the robot safe and the log complete, then re-raise.
+            spm = isinstance(exc, SpmError)
+            msg = exc.message if isinstance(exc, SpmError) else f"internal error: {exc!r}"
+            if self._torque_on:
+                with contextlib.suppress(Exception):
+                    self._apply_stop(SafetyMonitor.estop(msg, self._now(), len(self.samples)),
+                                     self._hold_target(self._last_good), deadline=None)
+            code = exc.exit_code if isinstance(exc, SpmError) else ExitCode.INTERNAL
+            self._finish("refused" if spm and not self.samples else "error", code, msg, None)
+            raise
+        finally:
+            release_realtime(self.realtime)
+        self._release_watchdog()
+        if stop is None:
+            msg = done()
+            self._event("done", message=msg)
+            return self._finish("completed", ExitCode.OK, msg, None)
+        if stop.kind == "estop" and not self.samples:  # no reference went out: an interruption
+            msg = stop.message if "before any motion" in stop.message else \
+                f"{stop.message} (before any motion)"
+            return self._finish("interrupted", ExitCode.INTERRUPTED, f"{msg}; nothing moved", stop)
+        return self._finish("stopped", stop.exit_code, stop.message, stop)
+
+    def _release_watchdog(self) -> None:
+        """After the run: Bus Watchdog off, so the servos keep their last goal (done or hold).
+
+        If the bus does not answer, the watchdog stays armed and stops the servos itself.
+        """
+        set_watchdog = getattr(self.bus, "set_watchdog", None)
+        if set_watchdog is None or not self._watchdog_armed:
+            return
+        try:
+            set_watchdog(0)
+            self._event("watchdog", ms=0, units=0)
+        except BusFailure as exc:
+            self._event("watchdog_left_armed", error=str(exc))
+
+    def _retry(self, what: str, fn: Callable[[], Any], attempts: int = 10) -> Any:
+        """A set-up transaction, retried on isolated losses; BusError when all fail."""
+        last: Exception | None = None
+        for _ in range(attempts):
+            try:
+                return fn()
+            except BusFailure as exc:
+                last = exc
+                self._event("comm_retry", op=what, error=str(exc))
+                self.bus.drain_input(SETUP_QUIET_S)
+        raise BusError(f"cannot {what} after {attempts} tries: {last}; nothing moved")
+
+    def _preflight(self, theta0: F) -> StopReason | None:
+        """Hardware errors before motion; watchdog; seed the goal at θ0 and torque on."""
+        hw = self._retry("read the hardware error status", self.bus.hardware_errors)
+        reason = SafetyMonitor(self.profile).hardware(hw, 0.0, 0)
+        if reason is not None:
+            self._event("fault", kind=reason.kind, message=reason.message, errors=hw)
+            return reason
+        watchdog_ms = self.profile.safety.watchdog_ms
+        set_watchdog = getattr(self.bus, "set_watchdog", None)
+        if set_watchdog is not None and watchdog_ms > 0:
+            # also clears a watchdog tripped after an earlier run (2.0; no-op on 1.0)
+            units = self._retry("set the Bus Watchdog", lambda: set_watchdog(watchdog_ms))
+            self._watchdog_armed = bool(units)
+            self._event("watchdog", ms=watchdog_ms, units=units)
+        elif watchdog_ms == 0 and self.profile.safety.watchdog_off_reason:
+            self._event("watchdog_off", reason=self.profile.safety.watchdog_off_reason)
+        # reseed the goal before torque on: no lunge (a sync write has no reply to confirm)
+        self._retry("write the goal", lambda: self.bus.write_goal_deg(theta0))
+        self._torque_on = True  # from here on a failure must apply the stop action
+        self._retry("enable torque", lambda: self.bus.set_torque(True))
+        self._event("torque_on", goal_deg=theta0)
+        return None
+
+    def _loop(self, refs: F, phases: list[str], regions: list[bool], theta0: F) -> StopReason | None:
+        st = self._loop_state(theta0)
+        for k in range(len(refs)):
+            stop = self._cycle(st, k, refs[k], phases[k], regions[k])
+            if stop is not None:
+                return stop
+        return None
+
+    def _loop_state(self, theta0: F) -> _LoopState:
+        """Filters, predictors and the safety monitor of a run starting at rest at θ0; sets the
+        first deadline (t0) and tells ``on_start``."""
+        safety = SafetyMonitor(self.profile, self.verifier.certified, emulated=self.emulated)
+        self.safety = safety
+        st = _LoopState(
+            safety=safety,
+            kf=KalmanVelocity(self.model, theta0, self.profile.estimation.measurement_noise_deg,
+                              self.profile.estimation.process_noise_deg),
+            fd=FiniteDifference(self.ts),
+            pred=ModelPredictor(self.model, theta0),  # ideal grid: the plan's 'simulated' curve
+            pred_t=ModelPredictor(self.model, theta0),  # actual write/read times: safety's model
+            last_good=theta0.copy(), t_state=self.clock(), u_prev=theta0)
+        self.t0 = self.clock() + 0.002
+        st.t_state = self.clock()  # at rest at θ0, goal θ0: any start time works
+        if self.on_start is not None:
+            self.on_start()
+        return st
+
+    def _cycle(self, st: _LoopState, k: int, ref: F, phase: str, region: bool,
+               target: F | None = None) -> StopReason | None:
+        """Cycle k: wait for its deadline, write ``ref``, read, filter, check, publish; the
+        stop (already applied) or None."""
+        deadline = self.t0 + k * self.ts
+        self._wait_until(deadline)
+        t_start = self.clock()
+        t = t_start - self.t0
+        if self._estop.is_set():
+            estop = SafetyMonitor.estop(self._estop_reason, t, k)
+            # woken before this cycle's deadline: the repeat goes out at that deadline
+            repeat_at = deadline if t_start < deadline else deadline + self.ts
+            self._apply_stop(estop, self._hold_target(st.last_good), repeat_at)
+            return estop
+        t_write = self.clock()
+        z, retries, detail, t_read = self._cycle_io(ref)
+        t_end = self.clock()
+        bus_s = t_end - t_start
+        t_meas = t_read if z is not None else t_end
+        # θ*(k−1) held until the write, θ*(k) from then to the measurement
+        spans = [(t_write - st.t_state, st.u_prev), (t_meas - t_write, ref)]
+        st.t_state, st.u_prev = t_meas, ref
+        if z is not None:
+            st.last_good = self._last_good = z
+        filt, vel = st.kf.step_timed(spans, z)
+        fdv = st.fd.step(z, t_read if z is not None else None)
+        st.pred_t.propagate(spans)
+        p_pos, p_vel = st.pred.position_deg, st.pred.velocity_degps
+        p_read = st.pred_t.position_deg  # the model when the position was read
+        safety = st.safety
+        stop: StopReason | None = safety.comm(z is not None, retries, t, k, detail)
+        t_hw = self.clock()
+        if stop is None and (self._alerted() or k % self.hw_poll_every == 0):
+            stop = self._poll_hw(safety, t, k)
+        t_pos = self.clock()
+        if stop is None and z is not None:
+            stop = safety.position(z, p_read, region, t, k)
+        meas = z if z is not None else np.full(3, np.nan)
+        err = float(np.abs(meas - p_read).max()) if z is not None else float("nan")
+        sample = Sample(t=t, k=k, phase=phase, reference_deg=ref, measured_deg=meas,
+                        predicted_deg=p_pos, predicted_velocity_degps=p_vel,
+                        filtered_deg=filt, velocity_degps=vel, fd_velocity_degps=fdv.copy(),
+                        tracking_error_deg=err, bus_s=bus_s, late_s=t_start - deadline,
+                        read_offset_s=(t_read - deadline) if z is not None else float("nan"),
+                        retries=retries,
+                        stale_replies=stale_replies(self.bus) - self._stale0, target_deg=target)
+        self._publish(sample)
+        t_done = self.clock()
+        if t_done - deadline > SLOW_CYCLE * self.ts:  # where the period went (diagnostics)
+            self._event("slow_cycle", k=k, late_ms=round((t_start - deadline) * 1e3, 3),
+                        bus_ms=round(bus_s * 1e3, 3), filter_ms=round((t_hw - t_end) * 1e3, 3),
+                        hw_poll_ms=round((t_pos - t_hw) * 1e3, 3),
+                        checks_ms=round((t_done - t_pos) * 1e3, 3))
+        if stop is not None:
+            self._apply_stop(stop, self._hold_target(st.last_good), deadline + self.ts)
+            return stop
+        st.pred.advance(ref)
+        return None
+
+    def _cycle_io(self, ref: F) -> tuple[F | None, int, str, float]:
+        """Write θ*(k), read θ(k) with retries.
+
+        Returns (θ or None, failed attempts, last error, clock time the good read was sent).
+        """
+        detail = ""
+        try:
+            self.bus.write_goal_deg(ref)
+        except BusFailure as exc:
+            detail = f"write failed: {exc}"
+            self._event("comm_retry", op="write", error=str(exc))
+        failed = 0
+        for _ in range(1 + self.read_retries):
+            try:
+                t_read = self.clock()
+                return np.asarray(self.bus.read_position_deg(), float), failed, "", t_read
+            except BusFailure as exc:
+                failed += 1
+                detail = str(exc) or type(exc).__name__
+                self._event("comm_retry", op="read", error=detail)
+        self._event("comm_fail", error=detail, attempts=failed)
+        return None, failed, detail, float("nan")
+
+    def _alerted(self) -> bool:
+        """The alert flag of the last status packets, when the bus exposes it (``alerts``)."""
+        alerts = getattr(self.bus, "alerts", None)
+        return isinstance(alerts, dict) and any(alerts.values())
+
+    def _poll_hw(self, safety: SafetyMonitor, t: float, k: int) -> StopReason | None:
+        try:
+            errors = self.bus.hardware_errors()
+        except BusFailure as exc:
+            self._event("comm_retry", op="hardware_errors", error=str(exc))
+            return None
+        return safety.hardware(errors, t, k)
+
+    def _publish(self, sample: Sample) -> None:
+        self.samples.append(sample)
+        if self.log is not None:
+            self.log.sample(sample)
+        if self.on_sample is not None:
+            try:
+                self.on_sample(sample)
+            except Exception as exc:  # a UI bug must not stop the servo loop
+                self._event("callback_error", error=repr(exc))
+                self.on_sample = None
+
+    # ------------------------------------------------------------------ stopping
+    def _hold_target(self, measured: F) -> F:
+        return np.clip(measured, self.lo, self.hi)
+
+    def _apply_stop(self, stop: StopReason, hold: F, deadline: float | None) -> None:
+        """The profile's stop action, issued now (and the hold goal again at ``deadline``)."""
+        self._event("fault", kind=stop.kind, message=stop.message, detected_t=stop.t, k=stop.k)
+        action = self.profile.safety.stop_action
+        repeat = None if deadline is None else (lambda: self._wait_until_plain(deadline))
+        done = apply_stop_action(self.bus, action, hold, self._now, repeat, stop.kind == "comm")
+        t_issue, t_done, notes = done.issued_t, done.done_t, done.notes
+        requested = None if self._estop_clock is None else self._estop_clock - self.t0
+        self._event("stop", kind=stop.kind, requested_t=requested if stop.kind == "estop" else None,
+                    action=action, hold_deg=hold if action == "hold"
+                    else None, detected_t=stop.t, issued_t=t_issue, done_t=t_done, notes=notes,
+                    exit_code=int(stop.exit_code))
+        self.stop_timing = (t_issue, t_done)
+
+    def _wait_until_plain(self, deadline: float) -> None:
+        while (rem := deadline - self.clock()) > 0:
+            (self.sleep or time.sleep)(min(rem, 0.002))
+
+    def _finish(self, outcome: str, code: ExitCode, message: str,
+                stop: StopReason | None) -> ExecutionResult:
+        safety = getattr(self, "safety", None)
+        timing = getattr(self, "stop_timing", None)
+        stats = replace(
+            run_stats(self.samples, self.ts),
+            stale_replies=stale_replies(self.bus) - getattr(self, "_stale0", 0),
+            comm_retries=0 if safety is None else safety.comm_retries,
+            comm_failed_cycles=0 if safety is None else safety.comm_failed_cycles,
+            stop=None if stop is None else StopTiming(stop.kind, stop.t, stop.k, *(timing or ())))
+        if self.log is not None:
+            self.log.finish(outcome, int(code), message, stats.to_dict())
+        final = next((s.measured_deg for s in reversed(self.samples) if s.read_ok), None)
+        return ExecutionResult(
+            outcome="completed" if outcome == "completed" else "stopped",
+            exit_code=code, message=message,
+            log_dir=self.log.path if self.log is not None else None,
+            stop=stop, final_deg=final, stats=stats,
+            realtime="" if self.realtime.policy == "normal" and not self.samples
+            else self.realtime.detail,
+            realtime_granted=self.realtime.policy == "SCHED_FIFO",
+        )

@@ -1,0 +1,1 @@
+"""Live following in the servo loop: targets, region hopping, the loop."""

@@ -1,0 +1,1 @@
+"""Run logs: writing, reading, listing, the process identity of a run."""

@@ -1,0 +1,340 @@
+"""Run logs: one folder per run under ``logs/`` (or ``$SPM_CONSOLE_LOGS``).
+
+A run folder holds
+
+* ``meta.json`` — profile name and hash, plan summary, package versions, start
+  time, the writing process (:mod:`spm_console.motion.logs.procid`), outcome; written at
+  the start (outcome ``"running"``) and rewritten atomically at the end;
+* ``samples.csv`` — one row per executor cycle, appended as the run goes and
+  flushed to the OS every :data:`FLUSH_EVERY` rows, so a killed process (even by
+  SIGKILL) leaves every row up to the last flush;
+* ``events.jsonl`` — faults, retries, stops: one JSON object per line, flushed
+  at once.
+
+Readers (:func:`load_run`, :func:`list_runs`) tolerate a truncated last line, and
+report a run still marked ``running`` whose process is gone as ``killed``.
+Angles in degrees, velocities in deg/s, times in seconds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import datetime as dt
+import json
+import math
+import os
+import platform
+import sys
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.errors import BadInputError
+from spm_console.jsonutil import to_jsonable
+from spm_console.motion.logs.procid import current_process, writer_alive
+from spm_console.motion.logs.run_info import RunInfo, run_info
+from spm_console.motion.sample import Sample
+
+F = NDArray[np.float64]
+
+LOGS_ENV = "SPM_CONSOLE_LOGS"
+"""Environment variable overriding the log root."""
+
+FLUSH_EVERY = 3
+"""Rows between two flushes of samples.csv to the OS: a SIGKILL loses at most the
+FLUSH_EVERY − 1 rows written since the last flush (a flush costs a few µs, one
+``write`` system call; no fsync — the OS keeps what it was given when the process dies)."""
+
+PACKAGES = ("spm_console", "numpy", "scipy", "filterpy", "control", "pyserial", "osqp")
+
+_VEC = ("ref", "meas", "pred", "pred_vel", "filt", "vel", "fd_vel")
+COLUMNS: tuple[str, ...] = (
+    "t", "k", "phase",
+    *(f"{name}{i}" for name in _VEC for i in (1, 2, 3)),
+    "track_err", "bus_ms", "late_ms", "retries", "read_ms",
+    "target1", "target2", "target3",
+)
+"""samples.csv header: ref = θ*, meas = θ, pred = model at k·Ts, filt / vel = Kalman θ̂ / θ̇̂
+at the read instant, fd_vel = finite differences, track_err = max |θ − model at the read
+instant|, read_ms = read instant after k·Ts, target = live following's target (empty for
+planned motions)."""
+
+
+def logs_root(root: str | Path | None = None) -> Path:
+    """The log root: ``root`` if given, else ``$SPM_CONSOLE_LOGS``, else ``logs/``."""
+    if root is not None:
+        return Path(root)
+    return Path(os.environ.get(LOGS_ENV) or "logs")
+
+
+def package_versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "absent"
+    return out
+
+
+def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    tmp = path.with_suffix(".json.tmp")
+    with tmp.open("w") as fh:
+        json.dump(to_jsonable(data), fh, indent=2)
+        fh.write("\n")
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def _fmt(x: float) -> str:
+    return "" if not math.isfinite(x) else f"{x:.6g}"
+
+
+class RunLog:
+    """Writer of one run folder. Create with :meth:`create`; call :meth:`finish` at the end."""
+
+    def __init__(self, path: Path, meta: dict[str, Any], flush_every: int) -> None:
+        self.path = path
+        self.meta = meta
+        self.flush_every = max(1, flush_every)
+        self._samples: IO[str] = (path / "samples.csv").open("w", newline="")
+        self._events: IO[str] = (path / "events.jsonl").open("w")
+        self._csv = csv.writer(self._samples)
+        self._csv.writerow(COLUMNS)
+        self._samples.flush()
+        self._pending = 0
+        self.finished = False
+        self.sample_count = 0
+        self.event_count = 0
+
+    @classmethod
+    def create(
+        cls,
+        kind: str,
+        profile_name: str,
+        profile_hash: str,
+        plans: list[dict[str, Any]],
+        root: str | Path | None = None,
+        flush_every: int = FLUSH_EVERY,
+        extra: dict[str, Any] | None = None,
+    ) -> RunLog:
+        """Make ``<root>/<YYYYmmdd-HHMMSS>-<kind>[-n]/`` and write the initial meta.json."""
+        base = logs_root(root)
+        try:
+            base.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise BadInputError(f"run log folder {base}: cannot create it ({exc.strerror or exc})") from None
+        now = dt.datetime.now(dt.UTC)
+        stem = f"{now.astimezone():%Y%m%d-%H%M%S}-{kind}"
+        for n in range(1000):
+            path = base / (stem if n == 0 else f"{stem}-{n}")
+            try:
+                path.mkdir()
+                break
+            except FileExistsError:
+                continue
+        else:  # pragma: no cover - a thousand runs in one second
+            raise BadInputError(f"{base}: cannot create a new run folder for {stem}")
+        meta: dict[str, Any] = {
+            "run": path.name,
+            "kind": kind,
+            "profile": {"name": profile_name, "hash": profile_hash},
+            "plans": plans,
+            "versions": package_versions(),
+            "argv": sys.argv,
+            "pid": os.getpid(),
+            "process": current_process(),
+            "start_time": now.isoformat(),
+            "end_time": None,
+            "outcome": "running",
+            "exit_code": None,
+            "message": "",
+            "stats": {},
+            **(extra or {}),
+        }
+        log = cls(path, meta, flush_every)
+        _write_json_atomic(path / "meta.json", meta)
+        return log
+
+    def sample(self, s: Sample) -> None:
+        """Append one row; flushed to the OS every ``flush_every`` rows."""
+        row: list[str] = [f"{s.t:.6f}", str(s.k), s.phase]
+        for vec in (s.reference_deg, s.measured_deg, s.predicted_deg, s.predicted_velocity_degps,
+                    s.filtered_deg, s.velocity_degps, s.fd_velocity_degps):
+            row.extend(_fmt(float(x)) for x in vec)
+        row += [_fmt(s.tracking_error_deg), _fmt(s.bus_s * 1e3), _fmt(s.late_s * 1e3),
+                str(s.retries), _fmt(s.read_offset_s * 1e3)]
+        row += (["", "", ""] if s.target_deg is None else [_fmt(float(x)) for x in s.target_deg])
+        self._csv.writerow(row)
+        self.sample_count += 1
+        self._pending += 1
+        if self._pending >= self.flush_every:
+            self.flush()
+
+    def event(self, name: str, t: float, /, **data: Any) -> None:
+        """Append one event line ``{"t", "event": name, **data}`` and flush it at once."""
+        rec = {"t": round(t, 6), "event": name, **data}
+        self._events.write(json.dumps(to_jsonable(rec)) + "\n")
+        self._events.flush()
+        self.event_count += 1
+
+    def flush(self) -> None:
+        self._samples.flush()
+        self._pending = 0
+
+    def finish(self, outcome: str, exit_code: int, message: str, stats: dict[str, Any]) -> None:
+        """Flush everything and rewrite meta.json with the outcome."""
+        self.flush()
+        self.meta.update(
+            end_time=dt.datetime.now(dt.UTC).isoformat(),
+            outcome=outcome,
+            exit_code=int(exit_code),
+            message=message,
+            stats=stats,
+            samples=self.sample_count,
+            events=self.event_count,
+        )
+        _write_json_atomic(self.path / "meta.json", self.meta)
+        self.finished = True
+        self.close()
+
+    def close(self) -> None:
+        for fh in (self._samples, self._events):
+            with contextlib.suppress(OSError, ValueError):
+                fh.flush()
+                fh.close()
+
+
+@dataclass(frozen=True)
+class RunData:
+    """A run read back from disk."""
+
+    path: Path
+    meta: dict[str, Any]
+    columns: dict[str, F]
+    """Numeric columns by name (NaN for empty cells)."""
+    phase: list[str]
+    events: list[dict[str, Any]]
+    truncated: bool
+    """True when a partial last line was dropped (the writer was killed mid-row)."""
+
+    def vec(self, name: str) -> F:
+        """(M, 3) array of a per-joint column family, e.g. ``vec('meas')``."""
+        return np.stack([self.columns[f"{name}{i}"] for i in (1, 2, 3)], axis=1)
+
+    @property
+    def rows(self) -> int:
+        return len(self.phase)
+
+    @property
+    def info(self) -> RunInfo:
+        """Outcome, exit code, stop kind (also from the stop event), duration, plan."""
+        return run_info(self.path.name, self.meta, self.events)
+
+
+def resolve_run(run: str | Path, root: str | Path | None = None) -> Path:
+    """A run folder from a path, a folder name under the log root, or 'last'."""
+    base = logs_root(root)
+    p = Path(run)
+    if str(run) == "last":
+        runs = list_runs(root)
+        if not runs:
+            raise BadInputError(f"{base}: no runs logged yet")
+        return runs[-1].path
+    for cand in (p, base / p):
+        if (cand / "meta.json").is_file() or (cand / "samples.csv").is_file():
+            return cand
+    raise BadInputError(f"no run '{run}' (looked for {p} and {base / p}); see `spm-console logs`")
+
+
+def _read_meta(path: Path) -> dict[str, Any]:
+    try:
+        meta = json.loads((path / "meta.json").read_text())
+    except (OSError, ValueError):
+        return {"run": path.name, "outcome": "unreadable meta.json"}
+    return with_liveness(meta) if isinstance(meta, dict) else {}
+
+
+def with_liveness(meta: dict[str, Any]) -> dict[str, Any]:
+    """``meta`` with outcome ``killed`` when it says ``running`` but its writer is gone
+    (SIGKILL, power loss, crash); the file itself is left as it is."""
+    if meta.get("outcome") != "running" or writer_alive(meta.get("process")) is not False:
+        return meta
+    proc = meta["process"]
+    msg = f"process {proc['pid']} ended without closing its log (rows up to its last flush kept)"
+    return {**meta, "outcome": "killed", "message": meta.get("message") or msg}
+
+
+def load_run(run: str | Path, root: str | Path | None = None) -> RunData:
+    """Read meta, samples and events of a run; a partial last CSV/JSONL line is dropped."""
+    path = resolve_run(run, root)
+    meta = _read_meta(path)
+    truncated = False
+    try:
+        text = (path / "samples.csv").read_text()
+    except OSError as exc:
+        raise BadInputError(f"{path}: cannot read samples.csv: {exc.strerror or exc}") from None
+    if text and not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]
+        truncated = True
+    rows = list(csv.reader(text.splitlines()))
+    header = rows[0] if rows else list(COLUMNS)
+    body = [r for r in rows[1:] if len(r) == len(header)]
+    if rows and len(body) != len(rows) - 1:
+        truncated = True
+    cols: dict[str, F] = {}
+    phase: list[str] = []
+    for j, name in enumerate(header):
+        if name == "phase":
+            phase = [r[j] for r in body]
+            continue
+        cols[name] = np.array([float(r[j]) if r[j] else math.nan for r in body], float)
+    if not phase:
+        phase = [""] * len(body)
+    events: list[dict[str, Any]] = []
+    with contextlib.suppress(OSError):
+        for line in (path / "events.jsonl").read_text().splitlines():
+            try:
+                events.append(json.loads(line))
+            except ValueError:
+                truncated = True
+    return RunData(path=path, meta=meta, columns=cols, phase=phase, events=events,
+                   truncated=truncated)
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    path: Path
+    meta: dict[str, Any]
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    @property
+    def info(self) -> RunInfo:
+        """Outcome, exit code, stop kind, duration, plan (from meta.json alone)."""
+        return run_info(self.path.name, self.meta)
+
+
+def list_runs(root: str | Path | None = None) -> list[RunSummary]:
+    """Every run folder under the log root, oldest first: by folder name (the start time to
+    the second), then by the start time in meta.json (runs started within one second, such as
+    the homing and the execution of one ``execute``)."""
+    base = logs_root(root)
+    if base.exists() and not base.is_dir():
+        raise BadInputError(f"run log folder {base} is not a folder")
+    if not base.is_dir():
+        return []
+    out = []
+    for p in sorted(base.iterdir()):
+        if p.is_dir() and ((p / "meta.json").is_file() or (p / "samples.csv").is_file()):
+            out.append(RunSummary(p, _read_meta(p)))
+    out.sort(key=lambda r: (r.path.name[:15], str(r.meta.get("start_time") or ""), r.path.name))
+    return out

@@ -1,0 +1,166 @@
+"""Typed messages between a front end and the motion process (:mod:`.motion_process`).
+
+Requests carry an ``id`` that the reply repeats; telemetry carries a sample. Everything
+here pickles (plans and results are dataclasses of numpy arrays). Degrees and seconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from spm_console.core.plan import Plan
+from spm_console.motion.follow.target_feed import TimedTargets
+from spm_console.motion.sample import Sample
+from spm_console.motion.servo_query import BusQuery
+
+
+@dataclass(frozen=True)
+class Ping:
+    """Ping every servo; reply: list of ServoStatus (with temperature and voltage)."""
+
+    id: int
+
+
+@dataclass(frozen=True)
+class ReadPosition:
+    """Measured θ (deg), read with set-up retries."""
+
+    id: int
+
+
+@dataclass(frozen=True)
+class Status:
+    """Every joint's health (position, current/load, temperature, voltage, torque, hardware
+    error); reply: :class:`~spm_console.motion.servo_tools.ServoHealth`. Refused while moving."""
+
+    id: int
+
+
+@dataclass(frozen=True)
+class Torque:
+    """Torque Enable of one joint ("on": goal := present position first, so nothing
+    lunges); reply: ServoHealth read after it. Refused while moving. Off: the wrist is no
+    longer homed (the joint can be moved by hand)."""
+
+    id: int
+    joint: int
+    """1-based."""
+    on: bool
+
+
+@dataclass(frozen=True)
+class Reboot:
+    """REBOOT one joint's servo (clears a latched hardware error; Protocol 2.0), wait until it
+    answers; reply: ServoHealth read after it. Refused while moving. The servo comes back
+    with torque off: the wrist is no longer homed."""
+
+    id: int
+    joint: int
+    """1-based."""
+
+
+@dataclass(frozen=True)
+class Query:
+    """A bus diagnostic by servo id (:mod:`~spm_console.motion.servo_query`); reply: BusReport.
+    Refused while moving."""
+
+    id: int
+    query: BusQuery
+
+
+@dataclass(frozen=True)
+class Home:
+    """Home the wrist; reply: HomingResult."""
+
+    id: int
+
+
+@dataclass(frozen=True)
+class Execute:
+    """Execute a plan (after the runtime's verification; an approach move first when the
+    wrist is farther than ``approach_tolerance_deg`` from its start); reply: ExecutionResult."""
+
+    id: int
+    plan: Plan
+    approach_tolerance_deg: float | None = None
+    skip_homing: str = ""
+    """Empty: refused unless this process homed the wrist. Otherwise the operator's explicit
+    override (why), written to the run log."""
+    source: str | None = None
+    """Where the plan came from (a file), for the run log."""
+
+
+@dataclass(frozen=True)
+class Follow:
+    """Follow targets live (:mod:`~spm_console.motion.follow.loop`): a timed list, or live
+    targets sent with :class:`SetTarget` from ``initial_deg`` on; reply: FollowOutcome."""
+
+    id: int
+    timed: TimedTargets | None = None
+    initial_deg: tuple[float, float, float] | None = None
+    deadman_s: float | None = None
+    """Live targets: hold when none arrives for this long (None: never)."""
+    skip_homing: str = ""
+    source: str | None = None
+
+
+@dataclass(frozen=True)
+class SetTarget:
+    """A new live target for the following under way (deg); ignored when none runs."""
+
+    theta_deg: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class EndFollow:
+    """The live source is done: settle on the current target and end the run."""
+
+
+@dataclass(frozen=True)
+class EStop:
+    """Stop the motion under way at once (the profile's stop action)."""
+
+    reason: str
+    sent_clock: float | None = None
+    """``time.perf_counter()`` when the client sent it (CLOCK_MONOTONIC: the same clock in
+    every process on Linux), so the log measures the E-stop from the client's request."""
+
+
+@dataclass(frozen=True)
+class Heartbeat:
+    """The client is alive (sent every HEARTBEAT_S during a motion)."""
+
+
+@dataclass(frozen=True)
+class Close:
+    """Close the bus and end the process."""
+
+
+Request = (Ping | ReadPosition | Status | Torque | Reboot | Query | Home | Execute | Follow | SetTarget
+           | EndFollow | EStop | Heartbeat | Close)
+
+
+@dataclass(frozen=True)
+class Reply:
+    id: int
+    value: Any
+
+
+@dataclass(frozen=True)
+class Failed:
+    """An operator-facing error: its message and exit code (an SpmError on the client)."""
+
+    id: int
+    message: str
+    exit_code: int
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """The loop's samples since the last message (one message per TELEMETRY_S at most)."""
+
+    samples: tuple[Sample, ...]
+    dropped: int = 0
+    """Samples left out since the last message because the client read too slowly (the run
+    log has them all)."""

@@ -1,0 +1,121 @@
+"""Homing and execution on an open bus: the one orchestration every front end reaches
+(through the motion process for the console and scripts, directly for the CLI).
+
+Each run creates its log, builds the executor (which verifies every segment against this
+profile's workspace before torque-on) and hands it to ``attach`` so that an E-stop reaches
+it from then on. Degrees, seconds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from spm_console.config.schema import Profile
+from spm_console.core.plan import Plan
+from spm_console.core.workspace.data import Workspace
+from spm_console.devices.base import ServoBus
+from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
+from spm_console.motion.executor import Executor
+from spm_console.motion.homing import HomingResult, home, plan_segments
+from spm_console.motion.logs.runlog import RunLog
+from spm_console.motion.plans import plan_summary
+from spm_console.motion.sample import Sample
+from spm_console.motion.segments import ExecutionResult
+
+SampleCallback = Callable[[Sample], None]
+Attach = Callable[[Executor], None]
+
+
+@dataclass(frozen=True)
+class RunContext:
+    """Where a run happens: the one run-log metadata schema of every front end."""
+
+    port: str
+    """The serial port (the emulator's pty for the emulated bus)."""
+    sim: bool
+    """Emulated bus."""
+    faults: tuple[str, ...] = ()
+    """Faults injected into the emulated bus."""
+    logs_root: str | None = None
+
+    @property
+    def bus_label(self) -> str:
+        return "emulated bus" if self.sim else f"serial port {self.port}"
+
+    def meta(self) -> dict[str, Any]:
+        return {"bus": self.bus_label, "port": self.port, "sim": self.sim,
+                "faults": list(self.faults)}
+
+
+def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,
+              plans: list[dict[str, Any]], ctx: RunContext,
+              on_sample: SampleCallback | None) -> Executor:
+    log = RunLog.create(kind, profile.name, profile.digest(), plans, root=ctx.logs_root,
+                        extra=ctx.meta())
+    return Executor(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim)
+
+
+@contextlib.contextmanager
+def refusals_logged(log: RunLog | None) -> Iterator[None]:
+    """A refusal (any operator error before or instead of motion) closes ``log`` with its
+    reason and exit code: outcome ``interrupted`` for a signal, ``refused`` otherwise."""
+    try:
+        yield
+    except SpmError as exc:
+        if log is not None and not log.finished:
+            outcome = "interrupted" if isinstance(exc, InterruptedBySignalError) else "refused"
+            log.event(outcome, 0.0, message=exc.message, exit_code=int(exc.exit_code))
+            log.finish(outcome, int(exc.exit_code), exc.message, {})
+        raise
+    finally:
+        if log is not None and not log.finished:  # an internal error escaped: keep what we have
+            log.finish("error", 1, "internal error (see the motion process's stderr)", {})
+
+
+def refused_run(profile: Profile, kind: str, ctx: RunContext, exc: SpmError) -> None:
+    """The run folder of a run refused before the runtime could start it (no bus, a signal
+    while connecting): the same schema, outcome ``refused`` or ``interrupted``."""
+    log = RunLog.create(kind, profile.name, profile.digest(), [], root=ctx.logs_root,
+                        extra=ctx.meta())
+    with contextlib.suppress(SpmError), refusals_logged(log):
+        raise exc
+
+
+def run_home(profile: Profile, bus: ServoBus, ws: Workspace, ctx: RunContext,
+             on_sample: SampleCallback | None, attach: Attach) -> HomingResult:
+    """Home the wrist (``home`` reads the pose and checks the assembly mode before anything
+    moves); a refusal is logged too."""
+    ex = _executor(profile, bus, ws, "home", [{"kind": "homing"}], ctx, on_sample)
+    with refusals_logged(ex.log):
+        attach(ex)
+        return home(ex)
+
+
+def run_execute(profile: Profile, bus: ServoBus, ws: Workspace, plan: Plan, ctx: RunContext,
+                on_sample: SampleCallback | None, attach: Attach,
+                approach_tolerance_deg: float | None = None, *, homed: bool,
+                skip_homing: str = "", source: str | None = None) -> ExecutionResult:
+    """Execute ``plan``, with a straight approach move to its start when the wrist is farther
+    than the tolerance (default: the profile's ``safety.approach_tolerance_deg``).
+
+    The rule of every front end: the wrist was homed first (``homed``), or the operator
+    overrode it explicitly (``skip_homing``: why; written to the run log)."""
+    ex = _executor(profile, bus, ws, "execute", [plan_summary(plan, source)], ctx, on_sample)
+    log = ex.log
+    with refusals_logged(log):
+        if log is not None:
+            log.meta["homing"] = "done" if homed else f"skipped by the operator: {skip_homing}"
+        if not homed and not skip_homing:
+            raise BadInputError("the wrist is not homed: home it first (or override explicitly)")
+        theta0 = ex.read_initial()
+        tol = (profile.safety.approach_tolerance_deg if approach_tolerance_deg is None
+               else approach_tolerance_deg)
+        segments = plan_segments(profile, theta0, plan, tol)
+        if log is not None:
+            log.meta["plans"] = [plan_summary(s.plan, source if s.phase == "plan" else None)
+                                 | {"phase": s.phase} for s in segments]
+        attach(ex)
+        return ex.run(segments, theta0_deg=theta0)

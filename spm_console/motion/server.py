@@ -1,0 +1,450 @@
+"""The servo loop in its own OS process, owning the serial port; front ends are its clients.
+
+:class:`~spm_console.services.client.MotionClient` starts this module as a child
+(``python -m spm_console.motion.server``: a fresh interpreter, no UI thread, no GC
+pressure from the front end) and talks to it over one socket pair with the typed messages of
+:mod:`spm_console.motion.protocol`: requests (ping, read, servo status, torque per
+joint, reboot, home, execute, E-stop, heartbeat, close) in; replies, throttled telemetry and results out.
+
+In the child, :func:`serve` opens the bus, loads this profile's workspace (the runtime
+verifies every motion against it; loaded on the first motion) and answers requests; a motion runs in a worker thread
+(real-time scheduling, see :mod:`spm_console.system.realtime`) while the main thread keeps
+reading the pipe, so an E-stop reaches the executor within one period. **Deadman:** during
+a motion the client sends a heartbeat every :data:`HEARTBEAT_S`; when none arrives for
+:data:`DEADMAN_S` (or the pipe closes because the client died) the loop E-stops — the
+profile's stop action, "client lost" in the log. If the child itself dies, the servos'
+Bus Watchdog (armed during every run) stops them and the client raises
+:class:`MotionProcessLostError` (exit 27). Degrees and seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import gc
+import os
+import signal
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from types import FrameType
+from typing import Any
+
+from spm_console.config.schema import Profile
+from spm_console.errors import ExitCode, SpmError
+from spm_console.motion.protocol import (
+    Close,
+    EndFollow,
+    EStop,
+    Execute,
+    Failed,
+    Follow,
+    Heartbeat,
+    Home,
+    Ping,
+    Query,
+    ReadPosition,
+    Reboot,
+    Reply,
+    Request,
+    SetTarget,
+    Status,
+    Telemetry,
+    Torque,
+)
+from spm_console.motion.runs import RunContext, run_execute, run_home
+from spm_console.motion.sample import Sample
+from spm_console.system.cpus import place_on_loop_cpu
+from spm_console.system.realtime import HELPER_PRIORITY, normal_priority, quick_gil_handoff, request_realtime
+from spm_console.system.signals import STOP_SIGNALS
+
+#: Client heartbeat period during a motion, s.
+HEARTBEAT_S = 0.1
+#: No heartbeat for this long during a motion: the loop holds ("client lost"), s (50 periods
+#: of 20 ms; 10 missed heartbeats). A client that dies closes the pipe and is caught at once;
+#: this bounds a client that hangs, with room for a front end starved by a loaded machine
+#: (every motion it lets continue was verified before torque-on).
+DEADMAN_S = 1.0
+#: Telemetry to the client at most this often, s (the loop itself runs every Ts).
+TELEMETRY_S = 0.05
+#: Most samples in one telemetry message (a pickle of this many takes well under 1 ms).
+TELEMETRY_CHUNK = 10
+#: Most samples kept for a client that does not read (10 s at Ts = 20 ms).
+MAX_PENDING = 500
+#: How long a request other than a motion may take before the child counts as hung, s.
+REQUEST_TIMEOUT_S = 30.0
+
+
+# ---------------------------------------------------------------------------------- child
+class TelemetryOut:
+    """Samples from the servo loop to the client without ever blocking the loop.
+
+    The loop only appends (:meth:`put`, O(1)); a sender thread ships what accumulated every
+    :data:`TELEMETRY_S`. A client that reads too slowly (a busy UI) makes the socket block
+    the *sender*, never the loop; beyond :data:`MAX_PENDING` samples the oldest are dropped
+    from the telemetry (never from the run log) and counted in the next message.
+    """
+
+    def __init__(self, send: Callable[[object], None]) -> None:
+        self._send = send
+        self._q: deque[Sample] = deque()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self.dropped = 0
+        self._thread = threading.Thread(target=self._run, daemon=True, name="spm-telemetry")
+        self._thread.start()
+
+    def put(self, sample: Sample) -> None:
+        with self._lock:
+            if len(self._q) >= MAX_PENDING:
+                self._q.popleft()
+                self.dropped += 1
+            self._q.append(sample)
+
+    def _flush(self) -> None:
+        """Ship what accumulated in messages of at most :data:`TELEMETRY_CHUNK` samples:
+        pickling holds the GIL, and a backlog pickled at once kept the loop waiting for it
+        (late cycles of 5-13 ms behind a slow client)."""
+        while True:
+            with self._lock:
+                n = min(len(self._q), TELEMETRY_CHUNK)
+                batch = tuple(self._q.popleft() for _ in range(n))
+                dropped, self.dropped = self.dropped, 0
+            if not (batch or dropped):
+                return
+            self._send(Telemetry(batch, dropped))
+
+    def _run(self) -> None:
+        request_realtime(HELPER_PRIORITY)
+        while not self._stop.wait(TELEMETRY_S):
+            self._flush()
+
+    def close(self) -> None:
+        """Stop the sender and ship the rest (before the motion's result)."""
+        self._stop.set()
+        self._thread.join(timeout=5.0)
+        self._flush()
+
+
+class _QuietGc:
+    """No cyclic garbage collection in this process while the wrist moves.
+
+    A full collection holds the GIL for as long as it takes to walk every tracked object
+    (with a workspace loaded: tens of ms), stalling the loop or a bus transaction mid-way. Before
+    a motion everything alive is collected once and frozen (never walked again); during it the
+    collector is off (the loop allocates little, and reference counting frees it); after it,
+    back to normal. This process serves no UI, so this costs nothing elsewhere.
+    """
+
+    def __init__(self) -> None:
+        self.active = False
+
+    def start(self) -> None:
+        gc.collect()
+        gc.freeze()
+        gc.disable()
+        self.active = True
+
+    def stop(self) -> None:
+        if self.active:
+            gc.enable()
+            gc.unfreeze()
+            self.active = False
+
+
+class _Server:
+    """State of the child: bus, workspace, the motion under way."""
+
+    def __init__(self, conn: Connection, profile: Profile, ctx: RunContext,
+                 cache_dir: str | None) -> None:
+        from spm_console.devices.dynamixel.bus import open_bus
+
+        self.conn = conn
+        self.profile = profile
+        self.ctx = ctx
+        self.cache_dir = cache_dir
+        self._workspace: Any = None
+        self.bus = open_bus(profile, ctx.port)
+        self.send_lock = threading.Lock()
+        self.executor: Any = None
+        self.motion: threading.Thread | None = None
+        self.busy = threading.Event()
+        """A motion runs: set when it is accepted, cleared before its result is sent (so the
+        client's next request never finds the motion still winding down)."""
+        self.homed = False
+        """A homing run completed in this process (the rule: homed before any other motion)."""
+        self.pending_estop = ""
+        self.pending_clock: float | None = None
+        self.last_heartbeat = time.monotonic()
+        self.feed: Any = None
+        """The target feed of the following under way (None otherwise)."""
+
+    def send(self, msg: object) -> None:
+        with self.send_lock, contextlib.suppress(OSError, EOFError, BrokenPipeError):
+            self.conn.send(msg)
+
+    # --- requests ---------------------------------------------------------------------
+    def handle(self, req: Request) -> None:
+        if isinstance(req, Heartbeat):
+            self.last_heartbeat = time.monotonic()
+        elif isinstance(req, EStop):
+            self.estop(req.reason, req.sent_clock)
+        elif isinstance(req, SetTarget):
+            feed = self.feed
+            if feed is not None:
+                with contextlib.suppress(SpmError):  # a malformed target changes nothing
+                    feed.set(req.theta_deg)
+        elif isinstance(req, EndFollow):
+            if self.feed is not None:
+                self.feed.end()
+        elif isinstance(req, (Home, Execute, Follow)):
+            if self.moving():
+                self.send(Failed(req.id, "a motion is already running", int(ExitCode.BAD_INPUT)))
+                return
+            if isinstance(req, Follow):  # the feed exists before any SetTarget can arrive
+                from spm_console.motion.follow.target_feed import TargetFeed
+
+                try:
+                    self.feed = TargetFeed(req.timed, req.initial_deg, req.deadman_s)
+                except SpmError as exc:
+                    self.send(Failed(req.id, exc.message, int(exc.exit_code)))
+                    return
+            self.last_heartbeat = time.monotonic()
+            self.busy.set()
+            self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
+                                           name="spm-motion")
+            self.motion.start()
+        elif isinstance(req, (Ping, ReadPosition, Status, Torque, Reboot, Query)):
+            if self.moving():  # the loop owns every bus cycle while the wrist moves
+                self.send(Failed(req.id, "the wrist is moving: the servo loop owns the bus; "
+                                 "ask again when it has stopped", int(ExitCode.BAD_INPUT)))
+                return
+            self._answer(req)
+
+    def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot | Query) -> None:
+        try:
+            if isinstance(req, ReadPosition):
+                from spm_console.devices.base import read_position_checked
+
+                value: object = read_position_checked(self.bus, 3)
+            elif isinstance(req, Ping):
+                value = self.ping()
+            elif isinstance(req, Query):
+                from spm_console.motion.servo_query import answer
+
+                value = answer(self.bus, req.query)
+            else:
+                value = self.servo_tool(req)
+            self.send(Reply(req.id, value))
+        except SpmError as exc:
+            self.send(Failed(req.id, exc.message, int(exc.exit_code)))
+        except Exception as exc:  # a bug: say so, keep serving (no motion runs)
+            self.send(Failed(req.id, f"internal error in the motion process: {exc!r}", 1))
+
+    def servo_tool(self, req: Status | Torque | Reboot) -> Any:
+        """Torque per joint or a reboot (if asked), then every joint's health (ServoHealth).
+        Torque off or a reboot (torque comes back off) un-homes the wrist: the joint can be
+        moved by hand from then on."""
+        from spm_console.motion import servo_tools
+
+        if isinstance(req, (Torque, Reboot)):
+            servo_tools.joint_index(self.bus, req.joint)  # a bad number changes nothing
+            if isinstance(req, Reboot) or not req.on:
+                self.homed = False
+            if isinstance(req, Torque):
+                servo_tools.set_joint_torque(self.bus, req.joint, req.on)
+            else:
+                servo_tools.reboot_joint(self.bus, req.joint)
+        return servo_tools.read_health(self.bus)
+
+    def ping(self) -> list[Any]:
+        from dataclasses import replace
+
+        from spm_console.devices.base import CommError
+
+        volt = "present_input_voltage" if self.profile.bus.protocol == "2.0" else "present_voltage"
+        out = []
+        for st in self.bus.ping_all():
+            with contextlib.suppress(CommError, OSError, KeyError, SpmError):  # informative only
+                st = replace(st, temperature_c=float(self.bus.read(st.id, "present_temperature")),
+                             voltage_v=0.1 * float(self.bus.read(st.id, volt)))
+            out.append(st)
+        return out
+
+    # --- motion -----------------------------------------------------------------------
+    @property
+    def workspace(self) -> Any:
+        """This profile's workspace (cache, or built on first use): every motion is verified
+        against it."""
+        if self._workspace is None:
+            from spm_console.store.workspace_cache import load_or_build
+
+            self._workspace, _ = load_or_build(self.profile, cache_dir=self.cache_dir)
+        return self._workspace
+
+    def estop(self, reason: str, sent_clock: float | None = None) -> None:
+        if not self.pending_estop:
+            self.pending_estop, self.pending_clock = reason, sent_clock
+        if self.executor is not None:
+            self.executor.request_estop(self.pending_estop, self.pending_clock)
+
+    def _attach(self, ex: Any) -> None:
+        self.executor = ex
+        if self.pending_estop:
+            ex.request_estop(self.pending_estop, self.pending_clock)
+
+    def _motion(self, req: Home | Execute | Follow) -> None:
+        normal_priority()  # set-up may load the workspace; the executor raises the loop itself
+        out = TelemetryOut(self.send)
+        on_sample = out.put
+
+        result: Reply | Failed
+        quiet_gc = _QuietGc()
+        try:
+            _ = self.workspace  # loaded (or built) before the loop, at normal priority
+            quiet_gc.start()
+            if isinstance(req, Home):
+                homing = run_home(self.profile, self.bus, self.workspace, self.ctx,
+                                  on_sample, self._attach)
+                self.homed = homing.execution.ok
+                result = Reply(req.id, homing)
+            elif isinstance(req, Follow):
+                result = Reply(req.id, self._follow(req, on_sample))
+            else:
+                result = Reply(req.id, run_execute(
+                    self.profile, self.bus, self.workspace, req.plan, self.ctx, on_sample,
+                    self._attach, req.approach_tolerance_deg, homed=self.homed,
+                    skip_homing=req.skip_homing, source=req.source))
+        except SpmError as exc:
+            result = Failed(req.id, exc.message, int(exc.exit_code))
+        except Exception as exc:  # a bug: the executor already left the wrist holding
+            result = Failed(req.id, f"internal error in the motion process: {exc!r}", 1)
+        finally:
+            quiet_gc.stop()
+            out.close()
+            self.executor = None
+            self.feed = None
+            self.pending_estop, self.pending_clock = "", None
+            self.busy.clear()
+        self.send(result)
+
+    def _follow(self, req: Follow, on_sample: Any) -> Any:
+        from spm_console.motion.follow.run import run_follow
+
+        return run_follow(self.profile, self.bus, self.workspace, self.feed, self.ctx, on_sample,
+                          self._attach, homed=self.homed, skip_homing=req.skip_homing,
+                          source=req.source)
+
+    def moving(self) -> bool:
+        return self.busy.is_set()
+
+    def deadman(self, stop: threading.Event) -> None:
+        """E-stop when the client's heartbeat stops during a motion."""
+        request_realtime(HELPER_PRIORITY)
+        while not stop.wait(HEARTBEAT_S / 2):
+            if self.moving() and time.monotonic() - self.last_heartbeat > DEADMAN_S:
+                self.estop(f"client lost: no heartbeat for more than {DEADMAN_S * 1e3:.0f} ms")
+
+
+def _warm_up() -> None:
+    """Import what only a motion needs (the Kalman filters load scipy.stats: ~1 s), after
+    the process has announced itself (its client goes on starting meanwhile) and before the
+    first request is read: no import ever runs beside a bus transaction or the servo loop
+    (an import can hold the interpreter's lock for longer than a reply timeout). At normal
+    priority: the serving thread's real-time priority is taken again afterwards."""
+    normal_priority()
+    import filterpy.kalman  # noqa: F401
+
+    import spm_console.motion.follow.run  # noqa: F401
+
+
+@dataclass(frozen=True)
+class Start:
+    """The first message to the child: what to serve."""
+
+    profile: Profile
+    ctx: RunContext
+    cache_dir: str | None
+
+
+def _estop_on_signals(server: _Server | None) -> None:
+    """What a terminating signal sent to this process itself does.
+
+    This process runs in a session of its own (:class:`MotionClient` starts it so): a signal to
+    the front end's process group or terminal (Ctrl-C, Ctrl-\\, the terminal closing,
+    ``kill -- -PGID``, ``timeout``) never reaches it; the front end E-stops through the
+    connection. A signal sent here directly (``kill PID``, a service manager stopping every
+    process of its unit) E-stops the motion under way (the profile's stop action, logged) and
+    ends nothing else: the process keeps serving until its client closes the connection, so the
+    stop is always written and the log closed. Before ``server`` exists the signals are ignored.
+    """
+    if server is None:
+        for sig in STOP_SIGNALS:
+            signal.signal(sig, signal.SIG_IGN)
+        return
+
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
+        if server.moving():
+            server.estop(f"signal {signal.Signals(signum).name} to the motion process")
+
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, on_signal)
+
+
+def serve(conn: Connection, start: Start) -> None:
+    """The child's main loop (see module docstring)."""
+    _estop_on_signals(None)  # the client decides while this process starts
+    request_realtime(HELPER_PRIORITY)  # this thread reads the pipe: see realtime.HELPER_PRIORITY
+    quick_gil_handoff()  # the loop thread gets the GIL within ~0.5 ms of asking
+    try:
+        server = _Server(conn, start.profile, start.ctx, start.cache_dir)
+    except SpmError as exc:
+        conn.send(Failed(0, exc.message, int(exc.exit_code)))
+        return
+    conn.send(Reply(0, os.getpid()))
+    _estop_on_signals(server)
+    signal.signal(signal.SIGUSR1, lambda *_: server.estop("E-stop signal to the motion process"))
+    _warm_up()
+    request_realtime(HELPER_PRIORITY)
+    stop = threading.Event()
+    threading.Thread(target=server.deadman, args=(stop,), daemon=True, name="spm-deadman").start()
+    try:
+        while True:
+            try:
+                req = conn.recv()
+            except (EOFError, OSError):
+                if server.moving():
+                    server.estop("client lost: its connection closed")
+                break
+            if isinstance(req, Close):
+                break
+            server.handle(req)
+    finally:
+        stop.set()
+        if server.motion is not None:
+            server.estop("motion process closing")
+            server.motion.join(timeout=5.0)
+        with contextlib.suppress(OSError, SpmError):
+            server.bus.close()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m spm_console.motion.server --fd N``: serve the client on fd N."""
+    parser = argparse.ArgumentParser(description="spm_console motion process (started by a client)")
+    parser.add_argument("--fd", type=int, required=True)
+    args = parser.parse_args(argv)
+    place_on_loop_cpu()  # before any thread starts: see spm_console.system.cpus
+    conn = Connection(args.fd)
+    try:
+        start = conn.recv()
+    except (EOFError, OSError):
+        return 0
+    serve(conn, start)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,112 @@
+"""Bus diagnostics by servo id (``servo ping|read|torque``), run in the motion process that
+owns the port, like every other bus access (refused while the wrist moves).
+
+Unlike the console's servo tools (the profile's three joints), these address any id 0..252
+and any control-table register by name — what a lab checks before the wrist is assembled or
+when a servo does not answer. Degrees.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from spm_console.devices.base import CommError
+from spm_console.errors import BadInputError, BusError
+
+Action = Literal["ping", "joints", "register", "torque"]
+
+
+@dataclass(frozen=True)
+class BusQuery:
+    """What to ask (``ids`` empty: the profile's joints)."""
+
+    action: Action
+    ids: tuple[int, ...] = ()
+    register: str = ""
+    on: bool = False
+
+
+@dataclass(frozen=True)
+class PingedServo:
+    id: int
+    model_number: int
+    firmware: int | None
+
+
+@dataclass(frozen=True)
+class JointRead:
+    joint: int
+    id: int
+    ticks: int
+    theta_deg: float
+    torque: bool
+    hardware_error: int
+    hardware_error_text: str
+
+
+@dataclass(frozen=True)
+class BusReport:
+    """The answer; the fields of the query's action are filled."""
+
+    port: str
+    protocol: str
+    ids: tuple[int, ...]
+    found: tuple[PingedServo, ...] = ()
+    missing: tuple[str, ...] = ()
+    """ping: why each silent id failed."""
+    values: tuple[tuple[int, int], ...] = ()
+    """register: (id, value) pairs."""
+    joints: tuple[JointRead, ...] = ()
+    torque_on: bool | None = None
+
+
+def check_ids(ids: list[int]) -> list[int]:
+    bad = [i for i in ids if not 0 <= i <= 252]
+    if bad:
+        raise BadInputError(f"--ids: servo ids are 0..252, got {bad[:10]}")
+    if len(set(ids)) != len(ids):
+        raise BadInputError("--ids: give each servo id at most once")
+    return ids
+
+
+def answer(bus: object, q: BusQuery) -> BusReport:
+    """Run ``q`` on ``bus`` (a DynamixelBus)."""
+    from spm_console.devices.dynamixel.bus import DynamixelBus
+
+    assert isinstance(bus, DynamixelBus)
+    ids = tuple(check_ids(list(q.ids) if q.ids else list(bus.ids)))
+    try:
+        if q.action == "ping":
+            found, missing = [], []
+            for ident in ids:
+                try:
+                    st = bus.ping(ident)
+                    found.append(PingedServo(st.id, st.model_number, st.firmware))
+                except BusError as exc:
+                    missing.append(exc.message)
+            return BusReport(bus.port, bus.protocol, ids, found=tuple(found), missing=tuple(missing))
+        if q.action == "register":
+            if q.register not in bus.table.registers:
+                names = ", ".join(sorted(bus.table.registers))
+                raise BadInputError(f"unknown register {q.register!r} on the {bus.table.model}; "
+                                    f"known: {names}")
+            vals = tuple((i, int(bus.read(i, q.register))) for i in ids)
+            return BusReport(bus.port, bus.protocol, ids, values=vals)
+        if q.action == "joints":
+            if q.ids:
+                raise BadInputError("--ids needs --register (positions are per joint)")
+            ticks = bus.read_ticks()
+            torque = bus.torque()
+            hw = bus.hardware_errors()
+            joints = tuple(
+                JointRead(m.joint, m.id, int(t), float(m.to_deg(t)), bool(tq), int(h),
+                          bus.describe_hardware_error(h))
+                for m, t, tq, h in zip(bus.maps, ticks, torque, hw, strict=True))
+            return BusReport(bus.port, bus.protocol, ids, joints=joints)
+        if q.on:
+            bus.hold()  # goal := present position first, so torque-on does not lunge
+        bus.set_torque(q.on, list(ids))
+        return BusReport(bus.port, bus.protocol, ids, torque_on=q.on)
+    except CommError as exc:
+        raise BusError(f"{q.action} on {bus.port} failed: {exc}") from None

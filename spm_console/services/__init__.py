@@ -1,0 +1,1 @@
+"""What front ends call: the session, the motion client, one-shot runs, plan requests."""

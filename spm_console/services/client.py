@@ -1,0 +1,283 @@
+"""The front end's side of the motion process (:mod:`spm_console.motion.server`).
+
+:class:`MotionClient` starts ``python -m spm_console.motion.server`` with one end of a
+socket pair, sends it what to serve, and then talks to it with the typed messages of
+:mod:`spm_console.motion.protocol`: requests and E-stops out, replies and telemetry in,
+a heartbeat every :data:`~spm_console.motion.server.HEARTBEAT_S` during a motion. When
+the process dies, every waiting call raises :class:`MotionProcessLostError` (exit 27).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from multiprocessing.connection import Connection
+from pathlib import Path
+from typing import Any
+
+from spm_console.config.schema import Profile
+from spm_console.errors import MotionProcessLostError, SpmError, error_for
+from spm_console.motion.protocol import (
+    Close,
+    EndFollow,
+    EStop,
+    Execute,
+    Failed,
+    Follow,
+    Heartbeat,
+    Home,
+    Ping,
+    Query,
+    ReadPosition,
+    Reboot,
+    Reply,
+    Request,
+    SetTarget,
+    Status,
+    Telemetry,
+    Torque,
+)
+from spm_console.motion.runs import RunContext
+from spm_console.motion.sample import Sample
+from spm_console.motion.server import HEARTBEAT_S, REQUEST_TIMEOUT_S, Start
+
+
+class MotionClient:
+    """The front end's handle on the motion process (thread-safe; one motion at a time)."""
+
+    def __init__(self, profile: Profile, port: str, *, cache_dir: str | Path | None = None,
+                 logs_root: str | Path | None = None, sim: bool = False,
+                 faults: Sequence[str] = (), start_timeout_s: float = 60.0) -> None:
+        mine, theirs = socket.socketpair()
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "spm_console.motion.server", "--fd", str(theirs.fileno())],
+            pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
+            # its own session: a signal to the front end's process group (Ctrl-C, Ctrl-\, the
+            # terminal closing, ``kill -- -PGID``, ``timeout``) reaches the front end, which
+            # E-stops through this connection; the servo loop is never killed by it
+            start_new_session=True)
+        theirs.close()
+        self.conn = Connection(mine.detach())
+        ctx = RunContext(port, sim, tuple(faults), None if logs_root is None else str(logs_root))
+        self.conn.send(Start(profile, ctx, None if cache_dir is None else str(cache_dir)))
+        self._lock = threading.Lock()
+        self._replies: dict[int, Reply | Failed] = {}
+        self._cond = threading.Condition()
+        self._next_id = 1
+        self._closed = False
+        self._lost = ""
+        self.on_sample: Callable[[Sample], None] | None = None
+        self.telemetry_dropped = 0
+        """Samples the motion process left out of the telemetry because this client read
+        too slowly (the run logs have them all)."""
+        self._telemetry: queue.SimpleQueue[Telemetry | threading.Event | None] = queue.SimpleQueue()
+        if not self.conn.poll(start_timeout_s):
+            self.close()
+            raise MotionProcessLostError("the motion process did not start")
+        first = self.conn.recv()
+        if isinstance(first, Failed):
+            self.close()
+            raise _error(first)
+        self.pid = int(first.value)
+        threading.Thread(target=self._dispatch, daemon=True, name="spm-telemetry-in").start()
+        self._reader = threading.Thread(target=self._read, daemon=True, name="spm-motion-client")
+        self._reader.start()
+        self._moving = threading.Event()
+        self._beat = threading.Thread(target=self._heartbeat, daemon=True, name="spm-heartbeat")
+        self._beat.start()
+
+    # --- plumbing ---------------------------------------------------------------------
+    def _send(self, msg: object) -> None:
+        with self._lock:
+            if self._lost:
+                raise MotionProcessLostError(self._lost)
+            try:
+                self.conn.send(msg)
+            except (OSError, EOFError, BrokenPipeError):
+                self._mark_lost()
+                raise MotionProcessLostError(self._lost) from None
+
+    def _mark_lost(self) -> None:
+        code = self.process.poll()
+        self._lost = self._lost or (
+            "the motion process is gone" + (f" (exit code {code})" if code is not None else "")
+            + "; the servos' Bus Watchdog stops them if a motion was running")
+        with self._cond:
+            self._cond.notify_all()
+
+    def _read(self) -> None:
+        while True:
+            try:
+                msg = self.conn.recv()
+            except (EOFError, OSError):
+                if not self._closed:
+                    self._mark_lost()
+                return
+            if isinstance(msg, Telemetry):  # handed on: a slow callback never stops the reading
+                self.telemetry_dropped += msg.dropped
+                self._telemetry.put(msg)
+                continue
+            with self._cond:
+                self._replies[msg.id] = msg
+                self._cond.notify_all()
+
+    def _dispatch(self) -> None:
+        """Call ``on_sample`` for each sample received (its own thread: a callback that
+        waits, e.g. on the 3D view, only delays the callbacks)."""
+        while (msg := self._telemetry.get()) is not None:
+            if isinstance(msg, threading.Event):  # everything before it was delivered
+                msg.set()
+                continue
+            cb = self.on_sample
+            if cb is None:
+                continue
+            with contextlib.suppress(Exception):
+                for sample in msg.samples:
+                    cb(sample)
+
+    def _heartbeat(self) -> None:
+        while not self._closed and not self._lost:
+            if self._moving.wait(0.5) and not self._closed:
+                with contextlib.suppress(MotionProcessLostError):
+                    self._send(Heartbeat())
+                time.sleep(HEARTBEAT_S)
+
+    def _call(self, make: Callable[[int], Request], timeout_s: float | None) -> Any:
+        with self._lock:
+            rid = self._next_id
+            self._next_id += 1
+        self._send(make(rid))
+        t_end = None if timeout_s is None else time.monotonic() + timeout_s
+        with self._cond:
+            while rid not in self._replies:
+                if self._lost:
+                    raise MotionProcessLostError(self._lost)
+                left = None if t_end is None else t_end - time.monotonic()
+                if left is not None and left <= 0:
+                    raise MotionProcessLostError(f"the motion process did not answer within {timeout_s:g} s")
+                self._cond.wait(0.1 if left is None else min(0.1, left))
+            msg = self._replies.pop(rid)
+        if isinstance(msg, Failed):
+            raise _error(msg)
+        return msg.value
+
+    # --- operations ---------------------------------------------------------------------
+    def ping_all(self) -> list[Any]:
+        return list(self._call(lambda i: Ping(i), REQUEST_TIMEOUT_S))
+
+    def read_position(self) -> Any:
+        return self._call(lambda i: ReadPosition(i), REQUEST_TIMEOUT_S)
+
+    def status(self) -> Any:
+        """Every joint's health (:class:`~spm_console.motion.servo_tools.ServoHealth`);
+        refused (BadInputError) while a motion runs."""
+        return self._call(lambda i: Status(i), REQUEST_TIMEOUT_S)
+
+    def set_torque(self, joint: int, on: bool) -> Any:
+        """Torque Enable of one joint (1-based; "on" holds it where it is), then the health
+        read after it; refused while a motion runs."""
+        return self._call(lambda i: Torque(i, joint, on), REQUEST_TIMEOUT_S)
+
+    def reboot(self, joint: int) -> Any:
+        """REBOOT one joint's servo (clears a hardware error; torque comes back off), then
+        the health read after it; refused while a motion runs."""
+        return self._call(lambda i: Reboot(i, joint), REQUEST_TIMEOUT_S)
+
+    def _motion(self, make: Callable[[int], Request], on_sample: Callable[[Sample], None] | None) -> Any:
+        self.on_sample = on_sample
+        self._moving.set()
+        try:
+            return self._call(make, None)
+        finally:
+            self._moving.clear()
+            delivered = threading.Event()  # the motion's last samples reach on_sample first
+            self._telemetry.put(delivered)
+            delivered.wait(5.0)
+            self.on_sample = None
+
+    def home(self, on_sample: Callable[[Sample], None] | None = None) -> Any:
+        return self._motion(lambda i: Home(i), on_sample)
+
+    def execute(self, plan: Any, on_sample: Callable[[Sample], None] | None = None,
+                approach_tolerance_deg: float | None = None, skip_homing: str = "",
+                source: str | None = None) -> Any:
+        """Execute ``plan`` (refused unless this motion process homed the wrist, or
+        ``skip_homing`` says why the operator overrides that)."""
+        return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg, skip_homing, source),
+                            on_sample)
+
+    def query(self, q: Any) -> Any:
+        """A bus diagnostic by servo id (BusQuery -> BusReport); refused while moving."""
+        return self._call(lambda i: Query(i, q), REQUEST_TIMEOUT_S)
+
+    def follow(self, timed: Any = None, initial_deg: Any = None, deadman_s: float | None = None,
+               on_sample: Callable[[Sample], None] | None = None, skip_homing: str = "",
+               source: str | None = None) -> Any:
+        """Follow timed targets, or live ones sent with :meth:`set_target` (see
+        :class:`~spm_console.motion.protocol.Follow`); blocks until the run ends."""
+        init: tuple[float, float, float] | None = None
+        if initial_deg is not None:
+            a, b, c = (float(x) for x in initial_deg)
+            init = (a, b, c)
+        return self._motion(lambda i: Follow(i, timed, init, deadman_s, skip_homing, source),
+                            on_sample)
+
+    def set_target(self, theta_deg: Any) -> None:
+        """A new live target (deg) for the following under way (any thread)."""
+        a, b, c = (float(x) for x in theta_deg)
+        self._send(SetTarget((a, b, c)))
+
+    def end_follow(self) -> None:
+        """The live source is done: the follower settles on the current target and ends."""
+        self._send(EndFollow())
+
+    def estop(self, reason: str) -> None:
+        """The message; a signal to the process is the second path when the pipe is gone.
+
+        Safe in a signal handler: when the handler interrupted this thread in the middle of
+        a send, the E-stop goes out from a helper thread as soon as that send is done."""
+        msg = EStop(reason, time.perf_counter())
+        if self._lock.acquire(blocking=False):
+            self._lock.release()
+            self._send_estop(msg)
+        else:
+            threading.Thread(target=self._send_estop, args=(msg,), daemon=True,
+                             name="spm-estop").start()
+
+    def _send_estop(self, msg: EStop) -> None:
+        try:
+            self._send(msg)
+            return
+        except MotionProcessLostError:
+            pass
+        if self.process.poll() is None:
+            with contextlib.suppress(OSError):
+                os.kill(self.process.pid, signal.SIGUSR1)
+
+    def close(self, timeout_s: float = 5.0) -> None:
+        if self._closed:
+            return
+        with contextlib.suppress(MotionProcessLostError, OSError):
+            self._send(Close())
+        self._closed = True
+        self._telemetry.put(None)
+        try:
+            self.process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            self.process.terminate()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self.process.wait(2.0)
+        with contextlib.suppress(OSError):
+            self.conn.close()
+
+
+def _error(msg: Failed) -> SpmError:
+    return error_for(msg.exit_code, msg.message)

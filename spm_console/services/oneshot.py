@@ -1,0 +1,222 @@
+"""One-shot runs for the CLI (``home``, ``execute``) and ``reproduce``: connect, home, execute,
+disconnect — through the operator runtime (:class:`~spm_console.services.session.Session`), so the
+servo loop runs in the motion process and the emulated bus in its own process, under the same
+rules as the console and scripts.
+
+* **Homed first.** ``execute`` homes the wrist in the same session before the plan (its own
+  run folder, kind ``home``), unless the operator overrides it with a reason
+  (``skip_homing``, written to the execute run's log).
+* **One signal path.** SIGINT/SIGTERM/SIGHUP/SIGQUIT E-stop the motion under way (exit 20);
+  before any motion they refuse the run (exit 130, nothing moved).
+* **Refusals leave a run folder.** A run refused before the runtime could start it (bus
+  unreachable, a signal while connecting, ``--no-approach`` with the wrist elsewhere) gets a
+  run folder with outcome ``refused``/``interrupted``, like the runtime's own refusals.
+
+The emulated servos power on at the profile's home, or at ``sim_start_deg``. Degrees, seconds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.schema import Profile
+from spm_console.core.plan import Plan
+from spm_console.devices.emulator.faults import FaultSpec
+from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
+from spm_console.formatting import fmt_deg
+from spm_console.motion.follow.run import FollowOutcome
+from spm_console.motion.follow.target_feed import TimedTargets
+from spm_console.motion.homing import HomingResult
+from spm_console.motion.runs import RunContext, refused_run
+from spm_console.motion.sample import Sample
+from spm_console.motion.segments import ExecutionResult
+from spm_console.services.session import Session
+from spm_console.system.signals import stop_signals
+
+F = NDArray[np.float64]
+T = TypeVar("T")
+
+
+@dataclass
+class RunRequest:
+    """Where and how to run (the CLI's options)."""
+
+    port: str | None = None
+    sim: bool = False
+    faults: Sequence[FaultSpec] = ()
+    sim_start_deg: F | None = None
+    """Power-on pose of the emulated servos, deg (default: the profile's home)."""
+    approach: bool = True
+    """Move to the plan's start first when the wrist is elsewhere."""
+    skip_homing: str = ""
+    """Empty: home first. Otherwise the operator's reason to execute without homing (logged)."""
+    log_root: str | Path | None = None
+    cache_dir: str | Path | None = None
+    """Workspace cache folder (default: ``$SPM_CONSOLE_CACHE`` or ``~/.cache/spm_console``)."""
+    on_sample: Callable[[Sample], None] | None = None
+    on_connected: Callable[[Session], None] | None = None
+    """Called once the motion process serves the bus (before any motion)."""
+    handle_signals: bool = True
+    """Turn SIGINT/SIGTERM/SIGHUP/SIGQUIT into an E-stop (main thread only)."""
+
+
+@dataclass(frozen=True)
+class OneShotResult:
+    """An ``execute``: the homing run (None when skipped) and the execution (the homing's
+    own result when homing stopped, in which case nothing else moved)."""
+
+    execution: ExecutionResult
+    homing: HomingResult | None
+
+
+class _SignalStop:
+    """A terminating signal: an E-stop of the motion under way, or (none yet) a refusal of the
+    next one at :meth:`check` — nothing is raised inside the handler."""
+
+    def __init__(self, session: Session) -> None:
+        self.session = session
+        self.pending: signal.Signals | None = None
+
+    def __call__(self, sig: signal.Signals) -> None:
+        self.pending = self.pending or sig
+        self.session.estop(f"signal {sig.name}")
+
+    def check(self) -> None:
+        if self.pending is not None:
+            raise InterruptedBySignalError(
+                f"interrupted by {self.pending.name} before any motion; nothing moved")
+
+
+def _context(profile: Profile, req: RunRequest) -> RunContext:
+    sim = req.sim or not (req.port or profile.bus.port)
+    return RunContext(req.port or profile.bus.port or "", sim, tuple(str(f) for f in req.faults),
+                      None if req.log_root is None else str(req.log_root))
+
+
+def _one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Session], T]) -> T:
+    dev = req.port or profile.bus.port
+    sim = req.sim or not dev
+    if not sim and (req.faults or req.sim_start_deg is not None):
+        raise BadInputError("--fault and --sim-start act on the emulated bus: add --sim")
+    session = Session(profile, port=req.port, sim=sim,
+                      logs_root=None if req.log_root is None else Path(req.log_root),
+                      cache_dir=None if req.cache_dir is None else Path(req.cache_dir),
+                      faults=req.faults, emulator_process=True,
+                      initial_deg=None if req.sim_start_deg is None else list(req.sim_start_deg))
+    on_signal = _SignalStop(session)
+    session.before_motion = on_signal.check
+    with stop_signals(on_signal) if req.handle_signals else contextlib.nullcontext():
+        try:
+            try:
+                on_signal.check()
+                session.connect()
+                on_signal.check()
+                if req.on_connected is not None:
+                    req.on_connected(session)
+            except SpmError as exc:
+                refused_run(profile, kind, _context(profile, req), exc)
+                raise
+            try:
+                return body(session)
+            except InterruptedBySignalError as exc:  # refused before the runtime saw a request
+                refused_run(profile, kind, _context(profile, req), exc)
+                raise
+        finally:
+            session.close()
+
+
+def _home_first(session: Session, req: RunRequest) -> HomingResult | None:
+    """Home the wrist unless the operator overrode it (``req.skip_homing``); the result."""
+    if req.skip_homing:
+        return None
+    session.home(req.on_sample)
+    assert session.homing is not None
+    return session.homing
+
+
+def execute_once(profile: Profile, plan: Plan, req: RunRequest,
+                 source: str | None = None) -> OneShotResult:
+    """Home (unless overridden), then execute ``plan`` with an approach move when needed."""
+
+    def body(session: Session) -> OneShotResult:
+        homing = _home_first(session, req)
+        if homing is not None and not homing.execution.ok:
+            return OneShotResult(homing.execution, homing)
+        if not req.approach:  # the wrist must already be at the plan's start
+            theta0, start = session.read_position(), plan.reference_deg[0]
+            if float(np.abs(theta0 - start).max()) > profile.safety.approach_tolerance_deg:
+                exc = BadInputError(
+                    f"the wrist is at θ = {fmt_deg(theta0)}, not at the plan's "
+                    f"start {fmt_deg(start)} (approach move disabled)")
+                refused_run(profile, "execute", _context(profile, req), exc)
+                raise exc
+        session.plan = plan
+        result = session.execute(req.on_sample, skip_homing=req.skip_homing, source=source)
+        return OneShotResult(result, homing)
+
+    return _one_shot(profile, "execute", req, body)
+
+
+def home_once(profile: Profile, req: RunRequest) -> HomingResult:
+    """Home the wrist (see :mod:`spm_console.motion.homing`); the run log is written."""
+
+    def body(session: Session) -> HomingResult:
+        session.home(req.on_sample)
+        assert session.homing is not None
+        return session.homing
+
+    return _one_shot(profile, "home", req, body)
+
+
+def follow_once(profile: Profile, req: RunRequest, timed: TimedTargets | None = None,
+                deadman_s: float | None = None,
+                live_source: Callable[[Session], None] | None = None,
+                source: str | None = None) -> FollowOneShot:
+    """Home (unless overridden), then follow ``timed`` targets, or live targets that
+    ``live_source(session)`` sends (from its own thread, once the following runs) with
+    ``session.set_target`` until ``session.end_follow``; the live run starts holding the
+    wrist's position."""
+
+    def body(session: Session) -> FollowOneShot:
+        homing = _home_first(session, req)
+        if homing is not None and not homing.execution.ok:
+            return FollowOneShot(None, homing)
+        initial = None if timed is not None else session.read_position()
+        feeder = None
+        if live_source is not None:
+            def feed() -> None:
+                while not session.moving.is_set():  # the following has begun
+                    if done.wait(0.01):
+                        return
+                live_source(session)
+
+            done = threading.Event()
+            feeder = threading.Thread(target=feed, daemon=True, name="spm-follow-source")
+            feeder.start()
+        try:
+            out = session.follow(timed, initial, deadman_s, req.on_sample,
+                                 skip_homing=req.skip_homing, source=source)
+        finally:
+            if feeder is not None:
+                done.set()
+        return FollowOneShot(out, homing)
+
+    return _one_shot(profile, "follow", req, body)
+
+
+@dataclass(frozen=True)
+class FollowOneShot:
+    """A ``follow``: the homing run (None when skipped) and the following (None when homing
+    stopped, in which case nothing else moved)."""
+
+    follow: FollowOutcome | None
+    homing: HomingResult | None

@@ -1,0 +1,429 @@
+"""One operator session: the state behind the console and its blocking operations.
+
+No Textual here: the TUI calls these methods from worker threads and the
+headless script runner (:mod:`spm_console.scripting.runner`) calls them directly, so both
+drive the same core, bus, executor and safety checks. Every method raises
+:class:`~spm_console.errors.SpmError` subclasses for operator errors. Angles in
+degrees, time in seconds, lengths in mm.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.models import link_model_of, model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.ik import ik_rpy
+from spm_console.core.kinematics.modes import assembly_modes
+from spm_console.core.plan import Plan
+from spm_console.devices.base import ServoStatus
+from spm_console.errors import (
+    BadInputError,
+    BusError,
+    SpmError,
+    UnreachableError,
+)
+from spm_console.formatting import fmt_deg
+from spm_console.motion.servo_tools import ServoHealth
+from spm_console.services.kin_record import FkGraphSource
+from spm_console.services.session_follow import FollowTools
+from spm_console.services.session_tools import ServoTools
+from spm_console.system.cpus import cpu_plan, place_beside_loop
+
+if TYPE_CHECKING:
+    from spm_console.devices.emulator.bus import EmulatorHandle
+    from spm_console.devices.emulator.child import EmulatorChild
+    from spm_console.devices.emulator.faults import FaultSpec
+    from spm_console.motion.homing import HomingResult
+    from spm_console.motion.sample import Sample
+    from spm_console.motion.segments import ExecutionResult
+    from spm_console.services.client import MotionClient
+
+F = NDArray[np.float64]
+
+SampleCallback = Callable[["Sample"], None]
+ProgressCallback = Callable[[str, float], None]
+
+
+def theta3(values: Sequence[float] | F, what: str) -> F:
+    """Three finite angles (deg) or BadInputError naming ``what``."""
+    try:
+        a = np.asarray(values, float).reshape(-1)
+    except (TypeError, ValueError):
+        raise BadInputError(f"{what}: expected three angles in degrees, got {values!r}") from None
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise BadInputError(f"{what}: expected three finite angles in degrees, got {values!r}")
+    return a
+
+
+@dataclass(frozen=True)
+class PoseSpec:
+    """How the operator gave a configuration: motor angles, an orientation, or 'current'."""
+
+    kind: Literal["theta", "rpy", "current", "home"]
+    values: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """θ1..θ3 (deg) for 'theta'; roll, pitch, yaw from home (deg) for 'rpy'."""
+
+    def describe(self) -> str:
+        v = fmt_deg(self.values)  # the format of every other message
+        return {"theta": f"θ = {v}", "rpy": f"roll/pitch/yaw = {v}",
+                "current": "current pose", "home": "home"}[self.kind]
+
+
+@dataclass
+class BusState:
+    """What the connect step found."""
+
+    port: str
+    emulated: bool
+    statuses: list[ServoStatus] = field(default_factory=list)
+    emulator_realtime: str = ""
+    """The emulated servos' scheduling ("" on a real bus)."""
+    emulator_realtime_granted: bool = True
+    cpu_placement: str = ""
+    """Where the servo loop and the console run (see :mod:`spm_console.system.cpus`)."""
+
+
+class Session(ServoTools, FollowTools):
+    """Profile, bus, workspace, plan and runs of one operator session (thread-safe enough:
+    one motion at a time, E-stop from any thread). Servo health and tools (status, torque
+    per joint, reboot, jog): :class:`~spm_console.services.session_tools.ServoTools`."""
+
+    def __init__(
+        self,
+        profile: Profile,
+        port: str | None = None,
+        sim: bool = True,
+        logs_root: Path | None = None,
+        cache_dir: Path | None = None,
+        faults: Sequence[FaultSpec] = (),
+        initial_deg: Sequence[float] | None = None,
+        emulator_process: bool = False,
+    ) -> None:
+        self.profile = profile
+        self.model = model_of(profile)
+        self.links = link_model_of(profile)
+        self.port = port or (None if sim else (profile.bus.port or None))
+        if not sim and not self.port:
+            raise BadInputError("no serial port: give --port DEV, set bus.port in the profile, "
+                                "or use --sim for the emulated bus")
+        self.sim = self.port is None
+        self.logs_root = logs_root
+        self.cache_dir = cache_dir
+        self.faults = tuple(faults)
+        self.initial_deg = initial_deg
+        self.emulator_process = emulator_process
+        """Run the emulated bus in a child process (the console: its UI thread must not
+        delay the emulator's replies) rather than in a thread of this process."""
+        self.bus: MotionClient | None = None
+        """The motion process (it owns the port); None when not connected."""
+        self.bus_state: BusState | None = None
+        self.health: ServoHealth | None = None
+        self.emulator: EmulatorHandle | EmulatorChild | None = None
+        self.theta_deg: F | None = None
+        """Last measured motor angles, deg (None before connecting)."""
+        self.homed = False
+        self.homing: HomingResult | None = None
+        """The last homing run (start pose, FK seed at the end)."""
+        self.before_motion: Callable[[], None] | None = None
+        """Called once a motion is marked as running, before it is sent (a signal that came
+        earlier refuses it here; one that comes later finds the motion and stops it)."""
+        self.workspace: Any = None
+        self.cache_info: Any = None
+        self._fk_graph = FkGraphSource(profile, self.model, cache_dir, lambda: self.workspace)
+        self.plan: Plan | None = None
+        self.plan_info: dict[str, Any] = {}
+        self.plan_source: str | None = None
+        """The file the current plan was loaded from (None: solved in this session)."""
+        self.last_run: ExecutionResult | None = None
+        self.motion_total_s = 0.0
+        """Planned duration of the running (or last) motion, s."""
+        self._estop_sent = False
+        self._motion = threading.Lock()
+        self.moving = threading.Event()
+        """Set while a motion (homing or execution) runs."""
+
+    # ------------------------------------------------------------------ bus
+    @property
+    def bus_label(self) -> str:
+        return "emulated bus" if self.sim else f"serial port {self.port}"
+
+    def connect(self, check: bool = True) -> BusState:
+        """Start the motion process on the bus (the emulator first in sim mode): it owns the
+        port and runs every motion; then ping the servos (with their health) and read θ —
+        unless ``check`` is False (bus diagnostics: a silent servo is what they report)."""
+        self.disconnect()
+        port = self.port
+        cpu_plan()  # the CPU set is fixed before any child starts (see spm_console.system.cpus)
+        if self.sim and self.emulator_process:
+            from spm_console.devices.emulator.child import EmulatorChild
+
+            child = EmulatorChild(self.profile, self.faults, self.initial_deg)
+            self.emulator = child
+            try:
+                port = child.launch()
+            except SpmError as exc:
+                self.disconnect()
+                raise BusError(exc.message) from None
+        elif self.sim:
+            from spm_console.devices.emulator.bus import start_emulator
+
+            self.emulator = start_emulator(self.profile, self.faults, record=False,
+                                           initial_deg=self.initial_deg)
+            port = self.emulator.port
+        assert port is not None
+        try:
+            from spm_console.services.client import MotionClient
+
+            client = MotionClient(self.profile, port, cache_dir=self.cache_dir,
+                                  logs_root=None if self.logs_root is None else str(self.logs_root),
+                                  sim=self.sim, faults=[str(f) for f in self.faults])
+            self.bus = client
+            placed = place_beside_loop()  # the loop's children started: off their CPU
+            rt, granted = self._emulator_realtime()
+            self.bus_state = BusState(port=port, emulated=self.sim,
+                                      statuses=client.ping_all() if check else [],
+                                      emulator_realtime=rt, emulator_realtime_granted=granted,
+                                      cpu_placement=placed)
+            if check:
+                self.read_position()
+        except SpmError:
+            self.disconnect()
+            raise
+        except OSError as exc:
+            self.disconnect()
+            raise BusError(f"{port}: {exc.strerror or exc}") from None
+        return self.bus_state
+
+    def _emulator_realtime(self) -> tuple[str, bool]:
+        """The emulated servos' scheduling: (detail, SCHED_FIFO granted); ("", True) on a
+        real bus."""
+        from spm_console.devices.emulator.bus import EmulatorHandle
+
+        emu = self.emulator
+        if emu is None:
+            return "", True
+        if isinstance(emu, EmulatorHandle):
+            return emu.realtime.detail, emu.realtime.policy == "SCHED_FIFO"
+        return emu.realtime, emu.realtime_granted
+
+    def require_bus(self) -> MotionClient:
+        if self.bus is None:
+            raise BusError("not connected to the servos: connect first (step 1)")
+        return self.bus
+
+    def read_position(self) -> F:
+        self.theta_deg = np.asarray(self.require_bus().read_position(), float)
+        return self.theta_deg
+
+    def disconnect(self) -> None:
+        bus, self.bus = self.bus, None
+        if bus is not None:
+            with contextlib.suppress(OSError, SpmError):
+                bus.close()
+        emu, self.emulator = self.emulator, None
+        if emu is not None:
+            emu.stop()
+        self.bus_state = None
+        self.health = None
+        self.homed = False
+
+    # ------------------------------------------------------------------ motion
+    def _run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
+        if not self._motion.acquire(blocking=False):
+            raise BadInputError("a motion is already running")
+        self._estop_sent = False
+        self.moving.set()
+        try:
+            if self.before_motion is not None:
+                self.before_motion()
+            result = fn()
+        finally:
+            self.moving.clear()
+            self._motion.release()
+        if result.final_deg is not None and np.all(np.isfinite(result.final_deg)):
+            self.theta_deg = np.asarray(result.final_deg, float)
+        else:  # the last cycle had no reply: ask again rather than show a stale or NaN pose
+            with contextlib.suppress(SpmError):
+                self.read_position()
+        self.last_run = result
+        return result
+
+    def home(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
+        """Move home at the profile's homing speed, in the motion process (which checks the
+        assembly mode first and logs a refusal); ``self.homing`` keeps the whole result."""
+        from spm_console.motion.plans import line_plan
+
+        client = self.require_bus()
+        theta0 = self.read_position()
+        self.motion_total_s = line_plan(self.profile, theta0, np.asarray(self.profile.home.theta_deg),
+                                        self.profile.safety.home_speed_degps).duration_s
+
+        def run() -> ExecutionResult:
+            self.homing = client.home(on_sample)
+            return self.homing.execution
+
+        result = self._run_motion(run)
+        self.homed = result.ok
+        return result
+
+    def execute(self, on_sample: SampleCallback | None = None,
+                skip_homing: str = "", source: str | None = None) -> ExecutionResult:
+        """Execute the current plan (with a straight approach move to its start if needed), in
+        the motion process, which verifies it against this profile's workspace first.
+
+        Refused unless the wrist was homed in this session, or ``skip_homing`` gives the
+        operator's reason to override that (written to the run log)."""
+        from spm_console.motion.homing import plan_segments
+
+        if self.plan is None:
+            raise BadInputError("no plan to execute: solve one first (step 4)")
+        if not self.homed and not skip_homing:
+            raise BadInputError("the wrist is not homed: home it first (step 1)")
+        client, plan = self.require_bus(), self.plan
+        theta0 = self.read_position()
+        tol = self.profile.safety.approach_tolerance_deg
+        segments = plan_segments(self.profile, theta0, plan, tol)
+        self.motion_total_s = sum((s.plan.N + 1) * s.plan.Ts for s in segments)
+        src = source if source is not None else self.plan_source
+        result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, src))
+        self.plan_info["executed"] = True
+        self.plan_info["executed_ok"] = result.ok
+        return result
+
+    def estop(self, reason: str = "operator E-stop") -> bool:
+        """Stop the running motion at once (any thread, a signal handler); False when nothing
+        moves. Asked before the motion process started it, it is kept for it there."""
+        if not self.moving.is_set() or self.bus is None:
+            return False
+        if not self._estop_sent:  # the first reason is the one logged
+            self._estop_sent = True
+            self.bus.estop(reason)
+        return True
+
+    # ------------------------------------------------------------------ kinematics
+    def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> dict[str, Any]:
+        """Unique FK record (``fk --json`` keys, ``path``) of θ (deg), around singularities if need be."""
+        from spm_console.services.kin_record import fk_record, fk_route
+
+        th = theta3(theta_deg, "θ")
+        r = fk_route(self.profile, self.model, th, self._fk_graph)
+        if not r.ok or r.pose is None:
+            raise UnreachableError(f"θ = {fmt_deg(th)}: {r.reason}")
+        rec = fk_record(self.profile, self.model, self.links, r)
+        if all_modes:
+            rec["modes"] = [
+                {"n": m.n, "zeta": m.zeta, "home_connected": m.home_connected}
+                for m in assembly_modes(self.model, r.pose.theta, r.pose.R)
+            ]
+        return rec
+
+    def ik(self, rpy_deg: Sequence[float] | F) -> F:
+        """θ (deg) for roll, pitch, yaw (deg) from the home orientation."""
+        r, p, y = np.radians(theta3(rpy_deg, "roll/pitch/yaw"))
+        return np.asarray(ik_rpy(self.model, r, p, y).theta_deg, float)
+
+    def resolve(self, spec: PoseSpec) -> F:
+        """Motor angles (deg) of a pose given as θ, as an orientation, as home or 'current'."""
+        if spec.kind == "theta":
+            return theta3(spec.values, "θ")
+        if spec.kind == "rpy":
+            return self.ik(spec.values)
+        if spec.kind == "home":
+            return np.asarray(self.profile.home.theta_deg, float)
+        if self.theta_deg is None:
+            raise BadInputError("current pose unknown: connect to the servos first (step 1)")
+        return self.theta_deg.copy()
+
+    # ------------------------------------------------------------------ workspace
+    def load_workspace(self, progress: ProgressCallback | None = None,
+                       force: bool = False) -> Any:
+        """Load the cached workspace of the profile, or build (and cache) it."""
+        from spm_console.store.workspace_cache import load_or_build
+
+        self.workspace, self.cache_info = load_or_build(
+            self.profile, cache_dir=self.cache_dir, force=force, progress=progress)
+        return self.workspace
+
+    def ensure_workspace(self) -> Any:
+        """The loaded workspace, loaded (or built) now when none is: planning and opening a
+        plan do not need the workspace step first."""
+        return self.workspace if self.workspace is not None else self.load_workspace()
+
+    def require_workspace(self) -> Any:
+        if self.workspace is None:
+            raise BadInputError("no workspace loaded: load or build it first (step 3)")
+        return self.workspace
+
+    def check_theta(self, theta_deg: Sequence[float] | F) -> Any:
+        """Is θ (deg) feasible and inside P (``core.workspace.check_theta`` -> ThetaCheck)."""
+        from spm_console.core.workspace.build import check_theta
+
+        return check_theta(self.require_workspace(), theta3(theta_deg, "θ"))
+
+    # ------------------------------------------------------------------ planning
+    def solve_plan(
+        self,
+        method: Literal["mvn", "mintime"],
+        start: PoseSpec,
+        goal: PoseSpec,
+        steps: int = 150,
+        vmax_degps: float | None = None,
+        intersample: int = 1,
+        hold_first: bool = True,
+    ) -> Plan:
+        """MVN (30) in ``steps`` intervals or minimum time (31) under ``vmax_degps``, in P or
+        a region grown around the segment, inside the servo limits
+        (:func:`~spm_console.services.plan_request.plan_motion`). Stores and returns the plan."""
+        from spm_console.services.plan_request import PlanRequest, plan_motion
+
+        ws = self.ensure_workspace()
+        s, g = self.resolve(start), self.resolve(goal)
+        vmax = self.profile.limits.vmax_degps if vmax_degps is None else vmax_degps
+        planned = plan_motion(self.profile, ws, PlanRequest(
+            method, s, g, int(steps), vmax, intersample=int(intersample), hold_first=hold_first))
+        plan = planned.plan
+        self.plan = plan
+        self.plan_source = None
+        self.plan_info = {"method": method, "start": start.describe(), "goal": goal.describe(),
+                          "start_deg": s, "goal_deg": g, "vmax_degps": vmax,
+                          "region": planned.describe_region()}
+        return plan
+
+    def load_plan_file(self, path: str | Path) -> Plan:
+        """A saved plan as the current plan: read and checked against this profile
+        (``store.plan_file.load_plan``: format, profile hash, model), then verified exactly as
+        the executor will (``run.plan_check.verify_plan``). Refused with the reason."""
+        from spm_console.motion.plan_check import verify_plan
+        from spm_console.store.plan_file import load_plan
+
+        plan = load_plan(path, self.profile)
+        verify_plan(self.profile, self.ensure_workspace(), plan)
+        self.plan = plan
+        ends = (f"θ = {fmt_deg(plan.position_deg[0])}", f"θ = {fmt_deg(plan.position_deg[-1])}")
+        self.plan_info = {"method": plan.kind, "start": ends[0], "goal": ends[1],
+                          "start_deg": plan.position_deg[0], "goal_deg": plan.position_deg[-1],
+                          "vmax_degps": None if plan.options is None else plan.options.vmax_degps,
+                          "region": (f"stored in the plan ({plan.region.halfspaces} half-spaces)"
+                                     if plan.route is None else
+                                     f"stored in the plan: {plan.route.describe()}"),
+                          "source": str(path)}
+        self.plan_source = str(path)
+        return plan
+
+    def close(self, wait_s: float = 3.0) -> None:
+        """E-stop any motion, let the executor finish its stop and log, then disconnect."""
+        if self.estop("console closing"):
+            t_end = time.monotonic() + wait_s
+            while self.moving.is_set() and time.monotonic() < t_end:
+                time.sleep(0.01)
+        self.disconnect()

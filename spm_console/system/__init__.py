@@ -1,0 +1,1 @@
+"""The host: real-time scheduling, CPU placement, signals, child processes."""
