@@ -171,3 +171,11 @@ def test_no_import_circle_anywhere_in_the_package() -> None:
 def test_the_circle_check_finds_a_circle() -> None:
     assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert _circles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_folder_of_the_package_holds_more_than_15_modules() -> None:
+    """A flat heap hides the architecture: each folder is one part of it."""
+    crowded = {str(d.relative_to(ROOT)): n for d in (ROOT / "spm_console").rglob("*")
+               if d.is_dir() and d.name != "__pycache__"
+               and (n := sum(1 for f in d.glob("*.py") if f.name != "__init__.py")) > 15}
+    assert crowded == {}
