@@ -1,4 +1,4 @@
-"""``spm-console workspace …``: JSON keys (SPEC §5), exit codes, messages."""
+"""``spm-console workspace …``: JSON keys, exit codes, messages."""
 
 from __future__ import annotations
 

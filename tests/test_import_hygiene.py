@@ -1,4 +1,4 @@
-"""The pure core never imports UI, viewer or serial packages (SPEC §2, STYLE §1)."""
+"""The pure core never imports UI, viewer or serial packages."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""FK against the paper's printed numbers (SPEC §4): eq. (32), (34), Table I, home, Table II."""
+"""FK against the paper's printed numbers: eq. (32), (34), Table I, home, Table II."""
 
 from __future__ import annotations
 

@@ -215,7 +215,7 @@ def test_cli_exit_code_9_for_corrupt_plans(valid: dict[str, Any], tmp_path: Path
         assert main(argv) == ExitCode.PLAN_MISMATCH
         out, err = capsys.readouterr()
         assert "'extra' must be an object" in err and "Traceback" not in err
-        if "--json" in argv:  # SPEC §5: the failure as one JSON object
+        if "--json" in argv:  # the failure as one JSON object
             assert json.loads(out)["exit_code"] == ExitCode.PLAN_MISMATCH
         else:
             assert out == ""

@@ -92,7 +92,7 @@ def _interrupt_on_signals() -> None:
 
 
 def _fail(as_json: bool, code: int, message: str) -> int:
-    """The error on stderr; with --json also ``{"ok": false, ...}`` on stdout (SPEC §5)."""
+    """The error on stderr; with --json also ``{"ok": false, ...}`` on stdout."""
     sys.stderr.write(f"error: {message}\n")
     common = sys.modules.get("spm_console.cli.common")
     if as_json and not (common is not None and common.EMITTED.is_set()):

@@ -1,4 +1,4 @@
-"""``workspace build | show | check | region | verify`` (SPEC §5)."""
+"""``workspace build | show | check | region | verify``."""
 
 from __future__ import annotations
 
@@ -105,7 +105,7 @@ def cover_record(ws: Workspace) -> dict[str, Any] | None:
 
 
 def summary(ws: Workspace, ci: CacheInfo) -> dict[str, Any]:
-    """The SPEC §5 record of a workspace."""
+    """The JSON record of a workspace."""
     return {
         "cover": cover_record(ws),
         **ws.counts(),

@@ -1,4 +1,4 @@
-"""A planned servo reference trajectory (the content of a plan file, SPEC §5)."""
+"""A planned servo reference trajectory (the content of a plan file)."""
 
 from __future__ import annotations
 

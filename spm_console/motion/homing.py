@@ -3,7 +3,7 @@
 1. Read the measured motor angles θ0.
 2. Unique FK by continuation from home to θ0 (``SpmModel.track``) must succeed:
    the straight path between home and θ0 then crosses no singularity, so a wrist
-   in the home assembly mode stays in it (SPEC §3). Otherwise refuse with the
+   in the home assembly mode stays in it. Otherwise refuse with the
    reason (:class:`~spm_console.errors.UnreachableError`): nothing moves.
 3. Move home along that straight line in θ, the farthest joint at
    ``safety.home_speed_degps`` (:func:`~spm_console.motion.plans.line_plan`),

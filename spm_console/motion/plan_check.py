@@ -1,4 +1,4 @@
-"""The runtime's own verification of every plan before torque-on (SPEC §9).
+"""The runtime's own verification of every plan before torque-on.
 
 Nothing a plan file (or any front end) claims is believed: its region, model, positions
 and velocities are ignored. From the references alone and **this profile's** servo model

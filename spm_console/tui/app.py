@@ -1,7 +1,7 @@
 """The operator console app and its one startup factory, :func:`make_app`.
 
 The CLI (``spm-console tui``), the tests and the benchmark all build the app here,
-so they exercise what operators run (STYLE §3).
+so they exercise what operators run.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ plus the planned path (:meth:`WristView.show_path`, the platform normal's tip) a
 Callers (the TUI, the executor's telemetry) call these as often as they like from any
 thread; :class:`MeshcatView` keeps only the latest request of each kind and sends at
 most one frame per ``min_interval_s`` from its own thread, so nobody ever waits for the
-browser. Orientations are found by continuation FK (the unique solution, SPEC §3): the
+browser. Orientations are found by continuation FK (the unique solution): the
 measured pose from the last measured one, a target from the measured pose, a plan's
 path and goal along the path.
 """

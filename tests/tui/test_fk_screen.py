@@ -1,4 +1,4 @@
-"""Step 2: FK check against the paper's printed vectors (SPEC §4), IK, modes, bad input."""
+"""Step 2: FK check against the paper's printed vectors, IK, modes, bad input."""
 
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ so (3) and (5) hold by construction and FK reduces to the three equations (4):
 f_i(θ, R) = w_i(θ)·v_i − cos α2 = 0. Their derivative with respect to a small
 rotation ω (R ← exp([ω]×) R) is exactly J1 (11); with respect to θ it is −J2 (12).
 
-"Unique" FK (SPEC §3): the solution in the home assembly mode reached by
+"Unique" FK: the solution in the home assembly mode reached by
 continuous motion from home (or from a given known pose) without crossing a
 singularity. Newton steps use J1, so they are well defined away from type-2
 singularities; a path is refused when det J1 changes sign (type-2 singularity:
@@ -101,7 +101,7 @@ class Pose:
 
 @dataclass(frozen=True)
 class FkResult:
-    """Result of a continuation FK solve (object, not tuple: STYLE §8)."""
+    """Result of a continuation FK solve (an object, not a tuple)."""
 
     ok: bool
     """True when the target was reached in the home assembly and working modes."""

@@ -4,7 +4,7 @@ Assembly modes are found by damped Newton (Levenberg-Marquardt) on (4) over
 rotations from many fixed starting rotations, then deduplicated; a rigid platform
 has at most 8 (paper Sec. II-B). The paper's Algorithm 1 (fsolve on the nine
 unknowns from the sign seed x0, eq. 33) is provided as :func:`seeded_solve` — one
-tool among others, not the definition of the unique solution (SPEC §3).
+tool among others, not the definition of the unique solution.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Result objects of the planners (STYLE §8: results are objects, not tuples)."""
+"""Result objects of the planners (objects, not tuples)."""
 
 from __future__ import annotations
 

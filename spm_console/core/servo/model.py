@@ -4,7 +4,7 @@ Continuous model per joint, state x = [θ, θ̇] (deg, deg/s), input θ* (deg):
     ẋ = [[0, 1], [−p², −2p]] x + [0, p²] θ*,   double pole at −p (rad/s).
 Discretized with Ts in closed form: exact sampling (zero-order hold, the paper's
 Sec. V and our default) or Tustin (bilinear). python-control's ``c2d`` is the
-independent cross-check in the tests; the core does not import it. Note (SPEC §3): the paper's printed
+independent cross-check in the tests; the core does not import it. Note: the paper's printed
 eq. (35) is the Tustin discretization with the poles at +p — unstable; never used.
 """
 
