@@ -23,7 +23,7 @@ import numpy as np
 
 from benchmarks.common import Row
 from spm_console.config.load import load_profile
-from spm_console.motion.follow.target_feed import TimedTargets
+from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.motion.logs.runlog import load_run
 from spm_console.services.session import PoseSpec, Session
 

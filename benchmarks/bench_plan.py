@@ -1,6 +1,6 @@
 """Planning benchmarks: MVN (30) and minimum time (31) against cvxpy, same run.
 
-Baselines are the same problems written in cvxpy (``core/planning/reference.py``) and
+Baselines are the same problems written in cvxpy (``tests/reference_qp.py``) and
 solved by cvxpy's default solver choice, timed from definition to solution like the
 paper's CVX figures (25 s and 85 s). The minimum-time baseline is the paper's search:
 bisection started at N = 100, one cvxpy solve per N. Timings are wall times (best of a
@@ -25,10 +25,10 @@ from spm_console.config.load import load_profile
 from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
 from spm_console.core.planning.osqp_solve import solve_osqp
 from spm_console.core.planning.qp_build import Pool, equalities
-from spm_console.core.planning.reference import solve_reference
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import discretize
 from spm_console.errors import SpmError
+from tests.reference_qp import solve_reference
 
 START = np.array([127.53, 83.23, 85.25])
 GOAL = np.array([66.80, 155.00, 131.48])

@@ -10,13 +10,13 @@ import pytest
 
 from spm_console.cli.main import main
 from spm_console.core.planning import PlanProblem
-from spm_console.core.planning.reference import solve_reference
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.identify import response
 from spm_console.core.servo.model import discretize
 from spm_console.errors import ExitCode
 from spm_console.store.plan_schema import plan_from_dict
 from tests.planning_cases import polytope
+from tests.reference_qp import solve_reference
 
 START = ["127.53", "83.23", "85.25"]
 GOAL = ["66.80", "155.00", "131.48"]

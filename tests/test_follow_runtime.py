@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 
 from spm_console.config.schema import Profile
+from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.devices.dynamixel.bus import open_bus
 from spm_console.devices.emulator.bus import start_emulator
 from spm_console.motion.follow.loop import Follower
 from spm_console.motion.follow.regions import follow_regions
-from spm_console.motion.follow.target_feed import TargetFeed, TimedTargets
+from spm_console.motion.follow.target_feed import TargetFeed
 from spm_console.motion.logs.runlog import RunLog, load_run
 from spm_console.motion.segments import ExecutionResult
 from tests.ws_helpers import agile_workspace

@@ -8,10 +8,10 @@ import scipy.sparse as sp
 
 from spm_console.core.planning import PlanProblem, solve_mintime, solve_mintime_problem
 from spm_console.core.planning.clarabel_solve import check_certificate
-from spm_console.core.planning.reference import solve_reference
 from spm_console.core.polytope.region import Region
 from spm_console.errors import BadInputError, InfeasibleError
 from tests.planning_cases import GOAL, MODEL, START, START_MT, slab
+from tests.reference_qp import solve_reference
 
 BOX = Region.box(65.0, 155.0)
 

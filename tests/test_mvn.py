@@ -7,11 +7,11 @@ import pytest
 
 from spm_console.core.planning import PlanProblem, solve_mvn, solve_problem
 from spm_console.core.planning.qp_build import Pool
-from spm_console.core.planning.reference import solve_reference
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import discretize
 from spm_console.errors import BadInputError, InfeasibleError
 from tests.planning_cases import GOAL, HARD_CASES, MODEL, START, Case, polytope, slab
+from tests.reference_qp import solve_reference
 
 TOL = 1e-6
 

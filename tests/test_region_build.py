@@ -8,9 +8,10 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
+from spm_console.core.polytope.iris import closest_on_boxes
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.choice import choose_region, region_containing
-from spm_console.core.regions.p_build import build_region, closest_on_boxes
+from spm_console.core.regions.p_build import build_region
 from spm_console.core.workspace.data import Workspace
 from spm_console.core.workspace.segment_check import check_segment
 from spm_console.errors import InfeasibleError

@@ -8,13 +8,13 @@ import pytest
 
 from spm_console.core.planning.mintime import solve_mintime_problem
 from spm_console.core.planning.problem import PlanProblem
-from spm_console.core.planning.reference import solve_reference
 from spm_console.core.planning.route_search import find_route, solve_route_mvn
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.route import RegionRoute, spread
 from spm_console.core.servo.model import simulate_continuous
 from spm_console.errors import InfeasibleError
 from tests.planning_cases import MODEL
+from tests.reference_qp import solve_reference
 
 # An L: region 0 spans θ1 in 60..110 with θ2 in 60..80; region 1 spans θ1 in 90..110 with
 # θ2 in 60..140 (θ3 in 60..100 for both). Their overlap is θ1 90..110, θ2 60..80.

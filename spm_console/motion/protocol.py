@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from spm_console.core.plan import Plan
-from spm_console.motion.follow.target_feed import TimedTargets
+from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.motion.sample import Sample
 from spm_console.motion.servo_query import BusQuery
 

@@ -30,11 +30,11 @@ from numpy.typing import NDArray
 
 from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
+from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.devices.emulator.faults import FaultSpec
 from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.follow.run import FollowOutcome
-from spm_console.motion.follow.target_feed import TimedTargets
 from spm_console.motion.homing import HomingResult
 from spm_console.motion.runs import RunContext, refused_run
 from spm_console.motion.sample import Sample

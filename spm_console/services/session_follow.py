@@ -19,8 +19,8 @@ from numpy.typing import NDArray
 from spm_console.errors import BadInputError
 
 if TYPE_CHECKING:
+    from spm_console.core.planning.follow.timed import TimedTargets
     from spm_console.motion.follow.run import FollowOutcome
-    from spm_console.motion.follow.target_feed import TimedTargets
     from spm_console.motion.sample import Sample
     from spm_console.motion.segments import ExecutionResult
     from spm_console.services.client import MotionClient

@@ -36,6 +36,7 @@ from spm_console.core.polytope.region import Region
 from spm_console.core.regions import cover as core_cover
 from spm_console.core.regions import p_build as region_build
 from spm_console.core.regions.cover_data import RegionCover
+from spm_console.core.regions.cover_grow import SEED_WINDOW
 from spm_console.core.workspace import build as core_ws
 from spm_console.core.workspace.check import STEP_RAD
 from spm_console.core.workspace.data import Progress, Workspace
@@ -118,7 +119,7 @@ def cache_key(profile: Profile, refined_cover: bool = False) -> str:
                       core_cover.MIN_OVERLAP_STEPS],
         },
         # the refined cover's own constants only in its key (the default key is unchanged)
-        **({"refined_cover": [core_cover.REFINED_MAX_REGIONS, core_cover.SEED_WINDOW, REFINE,
+        **({"refined_cover": [core_cover.REFINED_MAX_REGIONS, SEED_WINDOW, REFINE,
                               STEP_RAD, VERDICTS_VERSION]} if refined_cover else {}),
     }, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()

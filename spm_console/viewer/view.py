@@ -338,6 +338,3 @@ class MeshcatView:
         self.path_rows = len(normals)
 
 
-def make_view(profile: Profile, enabled: bool = True) -> MeshcatView | NullView:
-    """The meshcat view when ``enabled`` (not started yet: call ``start()``), else a NullView."""
-    return MeshcatView(profile) if enabled else NullView()

@@ -82,12 +82,6 @@ class SpmGeometry:
         t = np.asarray(theta, float)[..., :, None]
         return P + Q * np.cos(t) + S * np.sin(t)
 
-    def dw(self, theta: F) -> F:
-        """∂w_i/∂θ_i (= u_i × w_i). θ (..., 3) rad -> (..., 3, 3)."""
-        _, Q, S = self._coeffs()
-        t = np.asarray(theta, float)[..., :, None]
-        return -Q * np.sin(t) + S * np.cos(t)
-
     def ik_coeffs(self) -> tuple[F, F, F]:
         """Coefficients P, Q, S of w_i(θ) (see :meth:`_coeffs`)."""
         return self._coeffs()

@@ -13,26 +13,17 @@ from numpy.typing import NDArray
 
 from spm_console.core.plan_report import ConstraintReport
 from spm_console.core.planning.problem import PlanProblem
-from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import simulate, simulate_continuous
 
 F = NDArray[np.float64]
 
-__all__ = ["BETWEEN_POINTS", "SAMPLE_TOL", "ConstraintReport", "check", "region_violation",
+__all__ = ["BETWEEN_POINTS", "SAMPLE_TOL", "ConstraintReport", "check",
            "simulate_plan"]
 
 #: Every constraint must hold at the samples to this tolerance (deg, deg/s).
 SAMPLE_TOL = 1e-6
 #: Points per interval of the between-sample simulation (at least 10).
 BETWEEN_POINTS = 20
-
-
-def region_violation(region: Region, theta_deg: F) -> F:
-    """Distance outside P (0 inside), deg, for every point of (..., 3); BLAS-friendly."""
-    At = np.ascontiguousarray((region.A / np.linalg.norm(region.A, axis=1)[:, None]).T)
-    bn = region.b / np.linalg.norm(region.A, axis=1)
-    t = np.ascontiguousarray(theta_deg, float)
-    return np.asarray(np.maximum(0.0, (t @ At - bn).max(-1)))
 
 
 def simulate_plan(problem: PlanProblem, reference: F) -> tuple[F, F]:

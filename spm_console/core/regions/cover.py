@@ -74,9 +74,7 @@ from spm_console.core.polytope.iris import Frame, half_widths
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions import p_build as rb
 from spm_console.core.regions.cover_data import INSIDE_TOL_DEG, RegionCover
-from spm_console.core.regions.cover_graph import S_CYCLIC
-from spm_console.core.regions.cover_graph import overlap_graph as overlap_graph
-from spm_console.core.regions.cover_grow import SEED_WINDOW as SEED_WINDOW
+from spm_console.core.regions.cover_graph import S_CYCLIC, overlap_graph
 from spm_console.core.regions.cover_grow import Grower, Reporter, deepest_seed, dense_seed
 from spm_console.core.regions.cover_refine import (
     FineObstacles,

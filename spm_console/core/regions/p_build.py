@@ -36,11 +36,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.polytope.ellipsoid import Ellipsoid, inscribed_ellipsoid
-from spm_console.core.polytope.iris import INSIDE_TOL_DEG as INSIDE_TOL_DEG
-from spm_console.core.polytope.iris import Frame, half_widths, inside
-from spm_console.core.polytope.iris import closest_on_boxes as closest_on_boxes
-from spm_console.core.polytope.iris import reduce_halfspaces as reduce_halfspaces
-from spm_console.core.polytope.iris import separating_planes as separating_planes
+from spm_console.core.polytope.iris import (
+    Frame,
+    half_widths,
+    inside,
+    reduce_halfspaces,
+    separating_planes,
+)
 from spm_console.core.polytope.region import Region
 
 if TYPE_CHECKING:

@@ -120,12 +120,6 @@ class KalmanVelocity:
         """Filtered velocities θ̇̂ at the last estimate's instant (3,), deg/s."""
         return np.array([kf.x[1, 0] for kf in self.filters])
 
-    @property
-    def velocity_std_degps(self) -> F:
-        """Posterior standard deviation of each velocity estimate, deg/s."""
-        return np.array([float(np.sqrt(kf.P[1, 1])) for kf in self.filters])
-
-
 @dataclass
 class FiniteDifference:
     """Backward difference (θ(k) − θ(k−1)) / Ts of the measured positions, deg/s.

@@ -17,9 +17,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.planning.follow.timed import MAX_TIMED_TARGETS as MAX_TIMED_TARGETS
-from spm_console.core.planning.follow.timed import TimedTargets as TimedTargets
-from spm_console.core.planning.follow.timed import check_target_angles
+from spm_console.core.planning.follow.timed import TimedTargets, check_target_angles
 from spm_console.errors import BadInputError
 
 F = NDArray[np.float64]

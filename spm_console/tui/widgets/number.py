@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
@@ -54,9 +54,6 @@ class NumberRule:
     hi_reason: str = ""
     """If set, a value above ``hi`` reads "{name}: {text} is above {hi_reason}"."""
     max_chars: int = FIELD_CHARS
-
-    def renamed(self, name: str) -> NumberRule:
-        return replace(self, name=name)
 
     def _range(self) -> str:
         lo = "−∞" if math.isinf(self.lo) else f"{self.lo:g}"

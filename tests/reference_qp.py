@@ -1,4 +1,5 @@
-"""Independent reference formulation of (30) in cvxpy (for tests and the benchmark baseline).
+"""Independent reference formulation of (30) in cvxpy: the tests check the planners against
+it and the benchmarks use it as their baseline (not shipped in the package).
 
 Written from the paper's equations, not from the OSQP matrices: one (N+1)×3 variable
 per quantity, constraints stated as in (30b)–(30f), the sub-sample constraints through
