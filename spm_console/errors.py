@@ -10,7 +10,7 @@ from enum import IntEnum
 
 
 class ExitCode(IntEnum):
-    """Process exit codes of ``spm-console`` (documented in README)."""
+    """Process exit codes of ``spm-console`` (documented in docs/cli-reference.md, "Exit codes")."""
 
     OK = 0
     INTERNAL = 1

@@ -1,7 +1,7 @@
 """Committed snapshots carry no digits below their meaning (they differ between machines).
 
 A residual of 5.5e-16 on one CPU is 7.4e-16 on another; a timing or a port changes every
-run. Such values must be shown as a bound or kept out of snapshots (README, Development).
+run. Such values must be shown as a bound or kept out of snapshots (docs/development.md).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Documented bounds of what the console plans (plain constants, no imports: cheap to load).
 
-Listed in the README's "Input bounds"; the CLI, scripts and the planners share them.
+Listed in docs/cli-reference.md, "Input bounds"; the CLI, scripts and the planners share them.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ process run on one CPU (the highest-numbered allowed one, :func:`place_on_loop_c
 the console's other processes on the rest (:func:`place_beside_loop`). A kernel worker woken
 on the loop's CPU then waits behind none of our normal-priority work (other programs may still
 run there).
-Other programs (a browser showing the 3D view) are not ours to place; see the README.
+Other programs (a browser showing the 3D view) are not ours to place; see docs/cli-reference.md.
 
 ``SPM_CONSOLE_LOOP_CPU`` in the environment: ``off`` (default: no placement), ``auto`` (the
 highest-numbered allowed CPU) or a CPU number. It is not the default because it halves what
@@ -21,7 +21,7 @@ the console itself gets: on 2 cores with the browser kept off the loop's CPU it 
 communication-loss stops (0 of 20 console-driven runs against 5 of 10 with the browser on
 every CPU), but with one busy process per core beside it 2 of 5 runs ended in a hold with
 exit 20 (in one trial under heavier load: the motion process's heartbeat deadman, the console
-having one CPU only). See the README. The first process that decides writes the CPU set it saw into
+having one CPU only). See docs/cli-reference.md. The first process that decides writes the CPU set it saw into
 ``SPM_CONSOLE_CPUS`` so that the children it starts, whose own affinity may already be
 narrowed, decide alike.
 """

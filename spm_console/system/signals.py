@@ -8,7 +8,7 @@ the stop (an E-stop is one ``threading.Event.set``) and leave the rest — the s
 action, closing the run log, leaving — to the code it interrupted. SIGKILL cannot be
 caught: a run left ``running`` by it is listed as ``killed`` (:mod:`spm_console.motion.logs.procid`).
 
-Exit codes stay those of the README: a signal that stops a motion ends it as an E-stop
+Exit codes stay those of docs/cli-reference.md: a signal that stops a motion ends it as an E-stop
 (20); a signal while nothing moves is an interruption (130).
 
 One exception: a SIGHUP already *ignored* when the handler is installed stays ignored.
