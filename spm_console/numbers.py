@@ -80,6 +80,12 @@ def json_loads(text: str | bytes) -> object:
     return json.loads(text, parse_constant=_refuse_constant, parse_int=_bounded_int)
 
 
+def _is_name(cell: str) -> bool:
+    """A header cell: a name that begins with a letter (``t``, ``theta1``, ``θ1``) and is not
+    a numeral (``nan``, ``inf``); an empty cell, a digit of any script or a quote is not."""
+    return bool(cell) and cell[0].isalpha() and not looks_numeric(cell)
+
+
 _WORDS = {1: "one", 2: "two", 3: "three", 4: "four", 5: "five", 6: "six", 7: "seven"}
 
 
@@ -87,8 +93,9 @@ def numeric_rows(text: str, where: str, width: int, expect: str) -> Iterator[tup
     """The rows of a CSV text of numbers: ``(line number, values)``.
 
     ``#`` starts a comment; blank lines are skipped; the first other line is a header, and
-    skipped, only when none of its cells is written as a number (so a typo in the first row
-    is an error at line 1, never a header). Every row has ``width`` plain decimal numbers
+    skipped, only when every cell is a name that begins with a letter (so a typo in the first
+    row, ``1_0``, digits of another script or quoted numbers are an error at line 1, never a
+    header). Every row has ``width`` plain decimal numbers
     (:func:`parse_number`); otherwise :class:`~spm_console.errors.BadInputError` names
     ``where``, the line and ``expect`` (e.g. "t and three angles").
     """
@@ -99,7 +106,7 @@ def numeric_rows(text: str, where: str, width: int, expect: str) -> Iterator[tup
         if not line:
             continue
         cells = [c.strip() for c in line.split(",")]
-        if first and not any(looks_numeric(c) for c in cells):
+        if first and all(_is_name(c) for c in cells):
             first = False
             continue
         first = False

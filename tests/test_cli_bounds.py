@@ -330,3 +330,25 @@ def test_output_folders_under_a_file_are_refused(files: dict[str, str], tmp_path
         assert main(argv) == B
         err = capsys.readouterr().err
         assert "binary.dat is a file, not a folder" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("which", ["samples.csv", "events.jsonl", "meta.json"])
+def test_a_run_log_file_that_is_a_fifo_is_refused_never_waited_on(tmp_path: Path, which: str) -> None:
+    """`logs show` and `identify --run` read run folders an operator names: a FIFO in one
+    (no writer) used to block them for ever."""
+    from tests.runlog_helpers import write_run
+
+    run = write_run(tmp_path / "logs", "completed", rows=40).path
+    (run / which).unlink()
+    os.mkfifo(run / which)
+    env = {**os.environ, "SPM_CONSOLE_LOGS": str(tmp_path / "logs")}
+    for argv in (["logs", "show", str(run)], ["identify", "--run", str(run)]):
+        r = subprocess.run([sys.executable, "-m", "spm_console", *argv], capture_output=True,
+                           text=True, timeout=60, env=env)
+        assert "Traceback" not in r.stderr, r.stderr
+        if which == "samples.csv":  # the data: refused, exit 4
+            assert r.returncode == ExitCode.BAD_INPUT and "a FIFO" in r.stderr, r.stderr
+        elif argv[0] == "logs":  # meta or events unreadable: the run is shown without them
+            assert r.returncode == ExitCode.OK, r.stderr
+        else:  # the samples are read: the fit answers for itself (never a bug, never a hang)
+            assert r.returncode != ExitCode.INTERNAL, r.stderr

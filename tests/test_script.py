@@ -62,8 +62,11 @@ def _cache(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFac
 
 def _run(tmp_path: Path, text: str, capsys: pytest.CaptureFixture[str], *extra: str
          ) -> tuple[int, dict, str]:  # type: ignore[type-arg]
+    typo, fifo = tmp_path / "typo.csv", tmp_path / "fifo"
+    typo.write_text("13x,130,130,130\n1,131,131,131\n")
+    os.mkfifo(fifo)
     f = tmp_path / "s.toml"
-    f.write_text(text)
+    f.write_text(text.replace("{typo}", str(typo)).replace("{fifo}", str(fifo)))
     code = main(["script", str(f), "--logs", str(tmp_path / "logs"), *extra])
     out, err = capsys.readouterr()
     return code, json.loads(out), err
@@ -168,12 +171,20 @@ def test_values_are_never_coerced(text: str, needle: str) -> None:
      "step 1 (plan) key 'start.theta': θ3 = 300° is outside joint 3's servo limits"),
     ('[[step]]\ndo = "follow"\ntargets = [[0, 130, 130, 130], [1e9, 131, 131, 131]]\n',
      "step 1 (follow) key 'targets': target times must end by t = 600 s"),
+    ('[[step]]\ndo = "home"\n[[step]]\ndo = "follow"\n', "step 2 (follow): give exactly one of"),
+    ('[[step]]\ndo = "home"\n[[step]]\ndo = "follow"\nfile = "{typo}"\n',
+     "four numbers expected"),  # the file is read before the homing moves anything
+    ('[[step]]\ndo = "home"\n[[step]]\ndo = "follow"\nfile = "{fifo}"\n', "a FIFO"),
+    ('[[step]]\ndo = "fk"\n', "step 1 (fk): give exactly one of theta or rpy"),
 ])
 def test_a_script_follows_the_command_lines_input_rules(
         tmp_path, capsys, text: str, needle: str) -> None:  # type: ignore[no-untyped-def]
     """The values the CLI refuses with 4 are refused in a script too, before the bus opens."""
+    typo, fifo = tmp_path / "typo.csv", tmp_path / "fifo"
+    typo.write_text("13x,130,130,130\n1,131,131,131\n")
+    os.mkfifo(fifo)
     f = tmp_path / "s.toml"
-    f.write_text(text)
+    f.write_text(text.replace("{typo}", str(typo)).replace("{fifo}", str(fifo)))
     assert main(["script", str(f), "--logs", str(tmp_path / "logs")]) == ExitCode.BAD_INPUT
     err = capsys.readouterr().err
     assert needle in err, err
@@ -204,8 +215,11 @@ def test_the_example_runs(tmp_path) -> None:
 
 
 def _spawn_script(tmp_path: Path, text: str) -> subprocess.Popen[str]:
+    typo, fifo = tmp_path / "typo.csv", tmp_path / "fifo"
+    typo.write_text("13x,130,130,130\n1,131,131,131\n")
+    os.mkfifo(fifo)
     f = tmp_path / "s.toml"
-    f.write_text(text)
+    f.write_text(text.replace("{typo}", str(typo)).replace("{fifo}", str(fifo)))
     env = {**os.environ, "SPM_CONSOLE_CACHE": os.environ["SPM_CONSOLE_CACHE"]}
     return subprocess.Popen([sys.executable, "-m", "spm_console", "script", str(f), "--logs",
                              str(tmp_path / "logs")], cwd=ROOT, stdout=subprocess.PIPE,

@@ -207,3 +207,29 @@ def test_sigkill_of_the_cli_makes_the_loop_hold_and_log_client_lost(
         assert np.abs(em.joint_deg() - a).max() < 0.01  # holding
     finally:
         em.stop()
+
+
+def test_a_signal_after_the_motion_ended_is_told_and_the_result_stands(
+        tmp_path: Path, agile: Profile, monkeypatch: pytest.MonkeyPatch) -> None:
+    """SIGTERM once the execution has returned, before the session closes: nothing moves, so
+    nothing is stopped; the run stays completed and the front end is told (the probe saw such
+    a signal swallowed without a word)."""
+    from spm_console.services.session import Session
+
+    real = Session.execute
+
+    def execute_then_signal(self: Session, *a: object, **kw: object):  # type: ignore[no-untyped-def]
+        res = real(self, *a, **kw)  # type: ignore[arg-type]
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)  # the handler runs in this (main) thread at its next bytecode
+        return res
+
+    monkeypatch.setattr(Session, "execute", execute_then_signal)
+    told: list[str] = []
+    plan = synthetic_plan(agile, PAPER_START, GOAL, 2.0)
+    req = RunRequest(sim=True, log_root=tmp_path, sim_start_deg=PAPER_START,
+                     skip_homing="signal test", on_late_signal=told.append)
+    out = execute_once(agile, plan, req)
+    assert out.execution.ok and out.execution.exit_code == ExitCode.OK
+    assert told == ["SIGTERM"]
+    assert load_run("last", tmp_path).meta["outcome"] == "completed"

@@ -116,6 +116,10 @@ def test_a_byte_order_mark_does_not_hide_the_first_target(tmp_path: Path, agile:
 
 @pytest.mark.parametrize(("text", "why"), [
     ("13x,130,130,130\n1,131,131,131\n", ":1: four numbers expected"),  # a typo, not a header
+    ("1_0,1_00,1_20,1_10\n3,100,120,110\n", ":1: four numbers expected"),  # all odd: no header
+    ("٠,١٠٠,١٢٠,١١٠\n3,100,120,110\n", ":1: four numbers expected"),
+    ('"0","100","120","110"\n5,127,83,85\n', ":1: four numbers expected"),
+    (",,,\n5,127,83,85\n", ":1: four numbers expected"),
     ("t,a,b,c\n0,1_30,130,130\n", ":2: four numbers expected"),
     ("t,a,b,c\n0,١٣٠,130,130\n", ":2: four numbers expected"),
     ("t,a,b,c\n0,130,130,130\n1e9,131,131,131\n", f"end by t = {MAX_TARGET_TIME_S:g} s"),

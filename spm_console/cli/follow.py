@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import profile_of
+from spm_console.cli.common import output_may_be_gone, profile_of
 from spm_console.cli.follow_source import UdpTargets
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.errors import BadInputError
@@ -78,9 +78,11 @@ def cmd_follow(args: argparse.Namespace) -> int:
     st = out.follow.stats
     if st is not None:
         extra["follow"] = st.to_dict()
-        if not args.json:
-            sys.stdout.write(f"re-planned {st.solves} times: solve p99 {st.solve_ms_p99:.2f} ms, "
-                           f"max {st.solve_ms_max:.2f} ms; {st.misses} missed, {st.refused} "
-                           f"refused by the check, {st.clamped} periods with the target "
-                           f"projected into P, {st.deadman_trips} deadman holds\n")
+        if not args.json:  # the terminal may have closed (SIGHUP) or the pipe: the code stands
+            with output_may_be_gone():
+                sys.stdout.write(f"re-planned {st.solves} times: solve p99 {st.solve_ms_p99:.2f} "
+                                 f"ms, max {st.solve_ms_max:.2f} ms; {st.misses} missed, "
+                                 f"{st.refused} refused by the check, {st.clamped} periods with "
+                                 f"the target projected into P, {st.deadman_trips} deadman "
+                                 "holds\n")
     return _report(args, out.follow.execution, extra)

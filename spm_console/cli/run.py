@@ -84,7 +84,12 @@ def _request(args: argparse.Namespace, profile: Profile) -> RunRequest:
     skip = _skip_reason(getattr(args, "skip_homing", ""))
     return RunRequest(port=args.port, sim=args.sim, faults=faults, sim_start_deg=start,
                       approach=not getattr(args, "no_approach", False), skip_homing=skip,
-                      log_root=args.logs)
+                      log_root=args.logs, on_late_signal=_late_signal)
+
+
+def _late_signal(name: str) -> None:
+    with output_may_be_gone():
+        info(f"note: {name} arrived after the motion had ended: nothing to stop")
 
 
 def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any]) -> int:

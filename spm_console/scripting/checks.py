@@ -8,6 +8,8 @@ A refusal names the step and key (exit 4), before the bus is opened.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from spm_console.config.schema import Profile
@@ -31,6 +33,7 @@ from spm_console.scripting.steps import (
     ThetaPose,
     WorkspaceStep,
 )
+from spm_console.store.target_file import read_target_csv
 
 
 def _pose(pose: PoseIn, where: str, key: str, profile: Profile) -> None:
@@ -61,6 +64,8 @@ def check_script(script: Script, profile: Profile) -> None:
     for i, step in enumerate(script.step, 1):
         where = f"step {i} ({step.do}) key"
         if isinstance(step, FkStep):
+            if (step.theta is None) == (step.rpy is None):
+                raise BadInputError(f"step {i} (fk): give exactly one of theta or rpy")
             if step.theta is not None:
                 theta_for_fk(list(step.theta), f"{where} 'theta'")
             if step.rpy is not None:
@@ -71,7 +76,13 @@ def check_script(script: Script, profile: Profile) -> None:
             vmax_arg(step.vmax, profile, what=f"{where} 'vmax' =")
             _pose(step.start, where, "start", profile)
             _pose(step.goal, where, "goal", profile)
-        elif isinstance(step, FollowStep) and step.targets is not None:
-            _targets(step, where)
+        elif isinstance(step, FollowStep):
+            if (step.targets is None) == (step.file is None):
+                raise BadInputError(f"step {i} (follow): give exactly one of targets or file")
+            if step.targets is not None:
+                _targets(step, where)
+            else:  # read and checked now (as the step will read it): nothing moves first
+                assert step.file is not None
+                read_target_csv(profile, Path(step.file), step.rpy)
         elif isinstance(step, AssertStep) and step.theta_near is not None:
             theta_for_fk(list(step.theta_near), f"{where} 'theta_near'")

@@ -168,7 +168,7 @@ def parse_script(text: str, source: str) -> Script:
                 err = {**err, "type": "triple", "msg": "expected three finite numbers (degrees)"}
             reason = {"extra_forbidden": "unknown key", "missing": "missing key",
                       "union_tag_invalid": "unknown step kind (do = home, fk, workspace, "
-                      "plan, execute, wait or assert)"}.get(err["type"], err["msg"])
+                      "plan, execute, follow, wait or assert)"}.get(err["type"], err["msg"])
             if loc == ("step",):
                 if data.get("step"):
                     continue  # a consequence of the failing steps reported above

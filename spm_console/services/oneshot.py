@@ -67,6 +67,9 @@ class RunRequest:
     """Called once the motion process serves the bus (before any motion)."""
     handle_signals: bool = True
     """Turn SIGINT/SIGTERM/SIGHUP/SIGQUIT into an E-stop (main thread only)."""
+    on_late_signal: Callable[[str], None] | None = None
+    """Told the signal's name when one arrived after the motion had ended (nothing to stop;
+    the run's result stands)."""
 
 
 @dataclass(frozen=True)
@@ -85,10 +88,13 @@ class _SignalStop:
     def __init__(self, session: Session) -> None:
         self.session = session
         self.pending: signal.Signals | None = None
+        self.stopped_motion = False
+        """A signal E-stopped a motion (else one that came after the last motion is late)."""
 
     def __call__(self, sig: signal.Signals) -> None:
         self.pending = self.pending or sig
-        self.session.estop(f"signal {sig.name}")
+        if self.session.estop(f"signal {sig.name}"):
+            self.stopped_motion = True
 
     def check(self) -> None:
         if self.pending is not None:
@@ -126,10 +132,14 @@ def _one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Sess
                 refused_run(profile, kind, _context(profile, req), exc)
                 raise
             try:
-                return body(session)
+                result = body(session)
             except InterruptedBySignalError as exc:  # refused before the runtime saw a request
                 refused_run(profile, kind, _context(profile, req), exc)
                 raise
+            late = on_signal.pending is not None and not on_signal.stopped_motion
+            if late and on_signal.pending is not None and req.on_late_signal is not None:
+                req.on_late_signal(on_signal.pending.name)
+            return result
         finally:
             session.close()
 

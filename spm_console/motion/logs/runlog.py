@@ -39,6 +39,7 @@ from spm_console.jsonutil import to_jsonable
 from spm_console.motion.logs.procid import current_process, writer_alive
 from spm_console.motion.logs.run_info import RunInfo, run_info
 from spm_console.motion.sample import Sample
+from spm_console.safe_io import MB, FileRefusedError, read_capped
 
 F = NDArray[np.float64]
 
@@ -64,6 +65,11 @@ at the read instant, fd_vel = finite differences, track_err = max |θ − model 
 instant|, read_ms = read instant after k·Ts, target = live following's target (empty for
 planned motions)."""
 
+
+#: Largest run-log files read, bytes (a 10-minute run at 50 Hz writes about 20 MB of samples).
+MAX_META_BYTES = 64 * MB
+MAX_SAMPLES_BYTES = 512 * MB
+MAX_EVENTS_BYTES = 256 * MB
 
 def logs_root(root: str | Path | None = None) -> Path:
     """The log root: ``root`` if given, else ``$SPM_CONSOLE_LOGS``, else ``logs/``."""
@@ -253,10 +259,16 @@ def resolve_run(run: str | Path, root: str | Path | None = None) -> Path:
     raise BadInputError(f"no run '{run}' (looked for {p} and {base / p}); see `spm-console logs`")
 
 
+def _read(path: Path, max_bytes: int) -> str:
+    """A run-log file: a regular file (a FIFO or device is refused, never waited on) of at most
+    ``max_bytes``, as text (FileRefusedError, UnicodeDecodeError)."""
+    return read_capped(path, max_bytes).decode("utf-8")
+
+
 def _read_meta(path: Path) -> dict[str, Any]:
     try:
-        meta = json.loads((path / "meta.json").read_text())
-    except (OSError, ValueError):
+        meta = json.loads(_read(path / "meta.json", MAX_META_BYTES))
+    except (FileRefusedError, ValueError):
         return {"run": path.name, "outcome": "unreadable meta.json"}
     return with_liveness(meta) if isinstance(meta, dict) else {}
 
@@ -277,9 +289,11 @@ def load_run(run: str | Path, root: str | Path | None = None) -> RunData:
     meta = _read_meta(path)
     truncated = False
     try:
-        text = (path / "samples.csv").read_text()
-    except OSError as exc:
-        raise BadInputError(f"{path}: cannot read samples.csv: {exc.strerror or exc}") from None
+        text = _read(path / "samples.csv", MAX_SAMPLES_BYTES)
+    except FileRefusedError as exc:
+        raise BadInputError(f"{path}: samples.csv: {exc.reason}") from None
+    except UnicodeDecodeError:
+        raise BadInputError(f"{path}: samples.csv is not UTF-8 text") from None
     if text and not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]
         truncated = True
@@ -294,12 +308,16 @@ def load_run(run: str | Path, root: str | Path | None = None) -> RunData:
         if name == "phase":
             phase = [r[j] for r in body]
             continue
-        cols[name] = np.array([float(r[j]) if r[j] else math.nan for r in body], float)
+        try:
+            cols[name] = np.array([float(r[j]) if r[j] else math.nan for r in body], float)
+        except ValueError:
+            raise BadInputError(f"{path}: samples.csv: column '{name}' holds a value that is not "
+                                "a number") from None
     if not phase:
         phase = [""] * len(body)
     events: list[dict[str, Any]] = []
-    with contextlib.suppress(OSError):
-        for line in (path / "events.jsonl").read_text().splitlines():
+    with contextlib.suppress(FileRefusedError, UnicodeDecodeError):
+        for line in _read(path / "events.jsonl", MAX_EVENTS_BYTES).splitlines():
             try:
                 events.append(json.loads(line))
             except ValueError:

@@ -49,7 +49,7 @@ class TimedTargets:
             raise BadInputError("target times must start at t ≥ 0 and increase strictly")
         if t[-1] > MAX_TARGET_TIME_S:
             raise BadInputError(f"target times must end by t = {MAX_TARGET_TIME_S:g} s (10 "
-                                f"minutes, like the longest plan), got t = {t[-1]:g} s")
+                                f"minutes, like the longest plan), got t = {t[-1]:.10g} s")
         object.__setattr__(self, "t_s", t)
         object.__setattr__(self, "theta_deg", th)
 
