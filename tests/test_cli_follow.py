@@ -91,3 +91,21 @@ def test_live_udp_targets_from_the_example_client(tmp_path: Path) -> None:
     assert d["outcome"] == "completed" and d["udp"]["dropped"] == 2 and d["udp"]["received"] > 50
     np.testing.assert_allclose(d["final_deg"], HOME, atol=0.3)  # the client ends at roll 0
     assert d["follow"]["solve_ms_p99"] < 20.0 and d["follow"]["refused"] == 0
+
+
+def test_a_stopped_following_keeps_its_exit_code_when_stdout_is_a_closed_pipe(
+        tmp_path: Path) -> None:
+    """`follow … | true`: the summary lines meet a closed pipe; the command still exits with
+    the run's stop code (it used to exit 0 for a run stopped by a stalled joint)."""
+    csv = tmp_path / "t.csv"
+    csv.write_text("t,a,b,c\n0,127.53,83.23,85.25\n3,100,120,110\n")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "spm_console", "follow", "--sim", "--sim-start", "127.53",
+         "83.23", "85.25", "--targets", str(csv), "--skip-homing", "test", "--fault",
+         "stall:2@1.0", "--logs", str(tmp_path / "logs")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # the reader is gone before anything is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == ExitCode.STOP_TRACKING, err
+    assert "Traceback" not in err
