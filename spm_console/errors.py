@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from enum import IntEnum
 
+from spm_console.refusals import Refusal, worded
+
 
 class ExitCode(IntEnum):
     """Process exit codes of ``spm-console`` (documented in docs/cli-reference.md, "Exit codes")."""
@@ -100,6 +102,15 @@ class PlanRefusedError(SpmError):
     exit_code = ExitCode.PLAN_REFUSED
 
 
+class RefusedError(BadInputError):
+    """A request refused for the state of the wrist: :attr:`reason` says which precondition
+    failed (the message is the runtime's own wording, which names no front end's keys)."""
+
+    def __init__(self, reason: Refusal | str, message: str = "") -> None:
+        self.reason = Refusal(reason)
+        super().__init__(message or worded(self.reason, "runtime"))
+
+
 class InterruptedBySignalError(SpmError):
     """A terminating signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT) arrived while nothing moved."""
 
@@ -121,8 +132,11 @@ class MotionProcessLostError(SpmError):
     exit_code = ExitCode.MOTION_PROCESS_LOST
 
 
-def error_for(exit_code: int, message: str) -> SpmError:
-    """The error of this exit code (the most specific class), e.g. one that crossed a process."""
+def error_for(exit_code: int, message: str, reason: str = "") -> SpmError:
+    """The error of this exit code (the most specific class), e.g. one that crossed a process;
+    a refusal's reason (:class:`Refusal`) makes it a :class:`RefusedError`."""
+    if reason:
+        return RefusedError(reason, message)
     for cls in _by_code():
         if int(cls.exit_code) == int(exit_code):
             return cls(message)

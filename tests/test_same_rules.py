@@ -113,4 +113,4 @@ def test_a_script_that_does_not_home_is_refused(tmp_path: Path,
     assert code == int(ExitCode.BAD_INPUT)
     assert "not homed" in summary["message"]
     assert not (tmp_path / "logs").exists() or not any(
-        r.meta["kind"] == "execute" and r.rows for r in list_runs(tmp_path / "logs"))
+        r.meta["kind"] == "execute" and load_run(r.path).rows for r in list_runs(tmp_path / "logs"))

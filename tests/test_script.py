@@ -62,11 +62,8 @@ def _cache(monkeypatch: pytest.MonkeyPatch, tmp_path_factory: pytest.TempPathFac
 
 def _run(tmp_path: Path, text: str, capsys: pytest.CaptureFixture[str], *extra: str
          ) -> tuple[int, dict, str]:  # type: ignore[type-arg]
-    typo, fifo = tmp_path / "typo.csv", tmp_path / "fifo"
-    typo.write_text("13x,130,130,130\n1,131,131,131\n")
-    os.mkfifo(fifo)
     f = tmp_path / "s.toml"
-    f.write_text(text.replace("{typo}", str(typo)).replace("{fifo}", str(fifo)))
+    f.write_text(text)
     code = main(["script", str(f), "--logs", str(tmp_path / "logs"), *extra])
     out, err = capsys.readouterr()
     return code, json.loads(out), err
@@ -293,5 +290,8 @@ def test_a_follow_step_tracks_timed_targets(tmp_path: Path, capsys: pytest.Captu
     assert step["result"]["follow"]["solves"] > 0
     assert sorted(r.meta["kind"] for r in list_runs(tmp_path / "logs")) == ["follow", "home"]
     bad = FOLLOW.replace('targets = [[0.0, 0.0, 0.0, 0.0]', 'file = "t.csv"\ntargets = [[0.0, 0.0, 0.0, 0.0]')
-    code, d, _ = _run(tmp_path, bad, capsys)
-    assert code == int(ExitCode.BAD_INPUT) and "exactly one of targets or file" in d["message"]
+    f = tmp_path / "bad.toml"
+    f.write_text(bad)  # refused before the bus opens (nothing moves first)
+    assert main(["script", str(f), "--logs", str(tmp_path / "logs2")]) == ExitCode.BAD_INPUT
+    assert "exactly one of targets or file" in capsys.readouterr().err
+    assert not (tmp_path / "logs2").exists()

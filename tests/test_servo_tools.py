@@ -18,7 +18,7 @@ from spm_console.config.schema import Profile
 from spm_console.devices.dynamixel.bus import DynamixelBus, open_bus
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
 from spm_console.devices.emulator.faults import parse_fault
-from spm_console.errors import BadInputError, BusError
+from spm_console.errors import BadInputError, BusError, RefusedError
 from spm_console.motion.logs.runlog import list_runs
 from spm_console.motion.plans import line_plan
 from spm_console.motion.servo_tools import (
@@ -28,6 +28,7 @@ from spm_console.motion.servo_tools import (
     reboot_joint,
     set_joint_torque,
 )
+from spm_console.refusals import Refusal
 from spm_console.services.session import Session
 from tests.test_bus_emulator import protocol1, relaxed
 
@@ -215,12 +216,18 @@ def test_jog_refused_unless_homed_and_within_the_limits(agile: Profile, tmp_path
     try:
         with pytest.raises(BadInputError, match="not homed"):
             s.jog(1, -1.0)
-        s.homed = True  # the session's own checks come first …
+        assert s.bus is not None
+        s.bus.homed = True  # a client that believes it is homed: its own checks come first …
         with pytest.raises(BadInputError, match="outside its servo limits"):
             s.jog(1, 3.0)
         assert list_runs(tmp_path / "logs") == []  # nothing sent, nothing moved
-        with pytest.raises(BadInputError, match="not homed"):  # … the runtime's rule still holds
-            s.jog(1, -1.0)
+        assert not s.homed  # … and the motion process's next answer corrected its belief
+        theta0 = s.read_position()
+        jog = line_plan(agile, theta0, theta0 + np.array([-1.0, 0.0, 0.0]),
+                        agile.safety.home_speed_degps, kind="jog")
+        with pytest.raises(RefusedError, match="not homed") as refused:  # the runtime decides
+            s.bus.execute(jog)
+        assert refused.value.reason == Refusal.NOT_HOMED
         runs = list_runs(tmp_path / "logs")
         assert [r.meta["outcome"] for r in runs] == ["refused"]
         np.testing.assert_allclose(s.read_position(), [hi - 2.0, 135, 135], atol=0.1)
@@ -237,7 +244,8 @@ def test_reboot_clears_an_injected_hwerror_and_unhomes(agile: Profile, tmp_path:
         assert h.faulted == [1] and "overload" in h.joints[0].hardware_text
         with pytest.raises(BusError, match="reboot"):
             s.set_torque(1, True)
-        s.homed = True
+        assert s.bus is not None
+        s.bus.homed = True  # forged: the motion process's answer to the reboot says otherwise
         h = s.reboot_servo(1)
         assert h.faulted == [] and h.joints[0].hardware_text == "none"
         assert not s.homed and s.health is h

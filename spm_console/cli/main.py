@@ -13,7 +13,8 @@ from types import FrameType
 from typing import NoReturn
 
 from spm_console import __version__
-from spm_console.errors import ExitCode, SpmError
+from spm_console.errors import ExitCode, RefusedError, SpmError
+from spm_console.refusals import worded
 
 #: Command name -> the module that registers it (``register(subparsers)`` setting ``func``).
 #: Only the module of the command being run is imported, so start-up stays fast (the TUI,
@@ -128,7 +129,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         as_json = bool(getattr(args, "json", False))
         return int(args.func(args))
     except SpmError as exc:
-        return _fail(as_json, int(exc.exit_code), exc.message)
+        message = worded(exc.reason, "cli") if isinstance(exc, RefusedError) else exc.message
+        return _fail(as_json, int(exc.exit_code), message)
     except KeyboardInterrupt as exc:
         why = f" by {exc.args[0]}" if exc.args else ""
         return _fail(as_json, int(ExitCode.INTERRUPTED), f"interrupted{why}")

@@ -145,6 +145,9 @@ Request = (Ping | ReadPosition | Status | Torque | Reboot | Query | Home | Execu
 class Reply:
     id: int
     value: Any
+    homed: bool = False
+    """Whether this motion process has the wrist homed, as of this answer (the one flag the
+    front ends read)."""
 
 
 @dataclass(frozen=True)
@@ -154,6 +157,10 @@ class Failed:
     id: int
     message: str
     exit_code: int
+    reason: str = ""
+    """A :class:`~spm_console.refusals.Refusal` code when a precondition refused the request."""
+    homed: bool = False
+    """As :attr:`Reply.homed`."""
 
 
 @dataclass(frozen=True)

@@ -17,13 +17,14 @@ from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoBus
-from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
+from spm_console.errors import InterruptedBySignalError, RefusedError, SpmError
 from spm_console.motion.executor import Executor
 from spm_console.motion.homing import HomingResult, home, plan_segments
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.plans import plan_summary
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult
+from spm_console.refusals import Refusal
 
 SampleCallback = Callable[[Sample], None]
 Attach = Callable[[Executor], None]
@@ -109,7 +110,7 @@ def run_execute(profile: Profile, bus: ServoBus, ws: Workspace, plan: Plan, ctx:
         if log is not None:
             log.meta["homing"] = "done" if homed else f"skipped by the operator: {skip_homing}"
         if not homed and not skip_homing:
-            raise BadInputError("the wrist is not homed: home it first (or override explicitly)")
+            raise RefusedError(Refusal.NOT_HOMED)
         theta0 = ex.read_initial()
         tol = (profile.safety.approach_tolerance_deg if approach_tolerance_deg is None
                else approach_tolerance_deg)

@@ -28,13 +28,13 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection
 from types import FrameType
 from typing import Any
 
 from spm_console.config.schema import Profile
-from spm_console.errors import ExitCode, SpmError
+from spm_console.errors import RefusedError, SpmError
 from spm_console.motion.protocol import (
     Close,
     EndFollow,
@@ -57,6 +57,7 @@ from spm_console.motion.protocol import (
 )
 from spm_console.motion.runs import RunContext, run_execute, run_home
 from spm_console.motion.sample import Sample
+from spm_console.refusals import Refusal
 from spm_console.system.cpus import place_on_loop_cpu
 from spm_console.system.realtime import HELPER_PRIORITY, normal_priority, quick_gil_handoff, request_realtime
 from spm_console.system.signals import STOP_SIGNALS
@@ -183,8 +184,16 @@ class _Server:
         """The target feed of the following under way (None otherwise)."""
 
     def send(self, msg: object) -> None:
+        if isinstance(msg, (Reply, Failed)):  # every answer says whether the wrist is homed
+            msg = replace(msg, homed=self.homed)
         with self.send_lock, contextlib.suppress(OSError, EOFError, BrokenPipeError):
             self.conn.send(msg)
+
+    @staticmethod
+    def refused(req_id: int, exc: SpmError) -> Failed:
+        """The answer for an operator-facing error; a refusal keeps its reason code."""
+        return Failed(req_id, exc.message, int(exc.exit_code),
+                      str(exc.reason) if isinstance(exc, RefusedError) else "")
 
     # --- requests ---------------------------------------------------------------------
     def handle(self, req: Request) -> None:
@@ -202,7 +211,7 @@ class _Server:
                 self.feed.end()
         elif isinstance(req, (Home, Execute, Follow)):
             if self.moving():
-                self.send(Failed(req.id, "a motion is already running", int(ExitCode.BAD_INPUT)))
+                self.send(self.refused(req.id, RefusedError(Refusal.MOVING)))
                 return
             if isinstance(req, Follow):  # the feed exists before any SetTarget can arrive
                 from spm_console.motion.follow.target_feed import TargetFeed
@@ -210,7 +219,7 @@ class _Server:
                 try:
                     self.feed = TargetFeed(req.timed, req.initial_deg, req.deadman_s)
                 except SpmError as exc:
-                    self.send(Failed(req.id, exc.message, int(exc.exit_code)))
+                    self.send(self.refused(req.id, exc))
                     return
             self.last_heartbeat = time.monotonic()
             self.busy.set()
@@ -219,8 +228,7 @@ class _Server:
             self.motion.start()
         elif isinstance(req, (Ping, ReadPosition, Status, Torque, Reboot, Query)):
             if self.moving():  # the loop owns every bus cycle while the wrist moves
-                self.send(Failed(req.id, "the wrist is moving: the servo loop owns the bus; "
-                                 "ask again when it has stopped", int(ExitCode.BAD_INPUT)))
+                self.send(self.refused(req.id, RefusedError(Refusal.MOVING)))
                 return
             self._answer(req)
 
@@ -240,7 +248,7 @@ class _Server:
                 value = self.servo_tool(req)
             self.send(Reply(req.id, value))
         except SpmError as exc:
-            self.send(Failed(req.id, exc.message, int(exc.exit_code)))
+            self.send(self.refused(req.id, exc))
         except Exception as exc:  # a bug: say so, keep serving (no motion runs)
             self.send(Failed(req.id, f"internal error in the motion process: {exc!r}", 1))
 
@@ -319,7 +327,7 @@ class _Server:
                     self._attach, req.approach_tolerance_deg, homed=self.homed,
                     skip_homing=req.skip_homing, source=req.source))
         except SpmError as exc:
-            result = Failed(req.id, exc.message, int(exc.exit_code))
+            result = self.refused(req.id, exc)
         except Exception as exc:  # a bug: the executor already left the wrist holding
             result = Failed(req.id, f"internal error in the motion process: {exc!r}", 1)
         finally:

@@ -71,7 +71,8 @@ import numpy as np
 
 from spm_console.config.load import load_profile
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
-from spm_console.errors import BadInputError, ExitCode, SpmError
+from spm_console.errors import BadInputError, ExitCode, RefusedError, SpmError
+from spm_console.refusals import worded
 from spm_console.scripting.checks import check_script
 from spm_console.scripting.steps import (
     AssertStep,
@@ -164,6 +165,8 @@ class ScriptRunner:
                 finally:
                     self._in_step = False
             except SpmError as exc:
+                if isinstance(exc, RefusedError):  # the motion process's refusal, in our words
+                    exc.message = worded(exc.reason, "script")
                 self.reports.append(StepReport(i, step.do, False, time.perf_counter() - t0,
                                                getattr(exc, "result", {}), exc.message))
                 self.progress(f"[{i}/{n}] {step.do}: FAILED: {exc.message}")
@@ -262,8 +265,6 @@ class ScriptRunner:
 
     def _step_execute(self, step: ExecuteStep) -> tuple[dict[str, Any], str]:
         self._ensure_bus()
-        if not self.session.homed:
-            raise BadInputError("execute step: the wrist is not homed (add a home step first)")
         return self._motion(self.session.execute(), step.allow_stop, "execution")
 
     def _step_follow(self, step: FollowStep) -> tuple[dict[str, Any], str]:
@@ -281,8 +282,6 @@ class ScriptRunner:
                 th = np.vstack([theta_of_rpy(self.session.profile, r) for r in th])
             timed = TimedTargets(rows[:, 0], th)
         self._ensure_bus()
-        if not self.session.homed:
-            raise BadInputError("follow step: the wrist is not homed (add a home step first)")
         out = self.session.follow(timed, source="script")
         rec, text = self._motion(out.execution, step.allow_stop, "following")
         if out.stats is not None:

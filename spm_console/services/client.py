@@ -74,6 +74,9 @@ class MotionClient:
         self._next_id = 1
         self._closed = False
         self._lost = ""
+        self.homed = False
+        """Whether the motion process has the wrist homed (from its latest answer): the one
+        flag; the front ends read it, never keep their own."""
         self.on_sample: Callable[[Sample], None] | None = None
         self.telemetry_dropped = 0
         """Samples the motion process left out of the telemetry because this client read
@@ -126,6 +129,8 @@ class MotionClient:
                 self._telemetry.put(msg)
                 continue
             with self._cond:
+                if isinstance(msg, (Reply, Failed)):
+                    self.homed = msg.homed  # the motion process's own flag, as of this answer
                 self._replies[msg.id] = msg
                 self._cond.notify_all()
 
@@ -280,4 +285,4 @@ class MotionClient:
 
 
 def _error(msg: Failed) -> SpmError:
-    return error_for(msg.exit_code, msg.message)
+    return error_for(msg.exit_code, msg.message, msg.reason)

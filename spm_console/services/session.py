@@ -131,7 +131,6 @@ class Session(ServoTools, FollowTools):
         self.emulator: EmulatorHandle | EmulatorChild | None = None
         self.theta_deg: F | None = None
         """Last measured motor angles, deg (None before connecting)."""
-        self.homed = False
         self.homing: HomingResult | None = None
         """The last homing run (start pose, FK seed at the end)."""
         self.before_motion: Callable[[], None] | None = None
@@ -153,6 +152,12 @@ class Session(ServoTools, FollowTools):
         """Set while a motion (homing or execution) runs."""
 
     # ------------------------------------------------------------------ bus
+    @property
+    def homed(self) -> bool:
+        """Whether the motion process has the wrist homed (its own flag, from its latest
+        answer); False when not connected."""
+        return self.bus is not None and self.bus.homed
+
     @property
     def bus_label(self) -> str:
         return "emulated bus" if self.sim else f"serial port {self.port}"
@@ -235,7 +240,6 @@ class Session(ServoTools, FollowTools):
             emu.stop()
         self.bus_state = None
         self.health = None
-        self.homed = False
 
     # ------------------------------------------------------------------ motion
     def _run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
@@ -272,23 +276,20 @@ class Session(ServoTools, FollowTools):
             self.homing = client.home(on_sample)
             return self.homing.execution
 
-        result = self._run_motion(run)
-        self.homed = result.ok
-        return result
+        return self._run_motion(run)
 
     def execute(self, on_sample: SampleCallback | None = None,
                 skip_homing: str = "", source: str | None = None) -> ExecutionResult:
         """Execute the current plan (with a straight approach move to its start if needed), in
         the motion process, which verifies it against this profile's workspace first.
 
-        Refused unless the wrist was homed in this session, or ``skip_homing`` gives the
-        operator's reason to override that (written to the run log)."""
+        The motion process refuses it (:class:`~spm_console.errors.RefusedError`) unless it
+        homed the wrist, or ``skip_homing`` gives the operator's reason to override that
+        (written to the run log)."""
         from spm_console.motion.homing import plan_segments
 
         if self.plan is None:
             raise BadInputError("no plan to execute: solve one first (step 4)")
-        if not self.homed and not skip_homing:
-            raise BadInputError("the wrist is not homed: home it first (step 1)")
         client, plan = self.require_bus(), self.plan
         theta0 = self.read_position()
         tol = self.profile.safety.approach_tolerance_deg

@@ -31,7 +31,11 @@ F = NDArray[np.float64]
 class FollowTools:
     """Mixin of Session (its attributes and motion plumbing are declared here for typing)."""
 
-    homed: bool
+    @property
+    def homed(self) -> bool:
+        """The motion process's flag (:attr:`Session.homed`)."""
+        raise NotImplementedError
+
     moving: threading.Event
     motion_total_s: float
 
@@ -48,8 +52,6 @@ class FollowTools:
         """Follow ``timed`` targets, or live targets from ``initial_deg`` on (sent with
         :meth:`set_target`), until finished and settled; refused unless homed (or overridden
         with a reason)."""
-        if not self.homed and not skip_homing:
-            raise BadInputError("the wrist is not homed: home it first (step 1)")
         if timed is None and initial_deg is None:
             raise BadInputError("live following needs an initial target")
         client = self.require_bus()

@@ -18,8 +18,9 @@ from numpy.typing import NDArray
 
 from spm_console.config.models import servo_limits_deg
 from spm_console.config.schema import Profile
-from spm_console.errors import BadInputError
+from spm_console.errors import BadInputError, RefusedError
 from spm_console.motion.servo_tools import ServoHealth, jog_target
+from spm_console.refusals import Refusal
 
 if TYPE_CHECKING:
     from spm_console.motion.sample import Sample
@@ -33,7 +34,11 @@ class ServoTools:
     """Mixin of Session (its attributes and motion plumbing are declared here for typing)."""
 
     profile: Profile
-    homed: bool
+    @property
+    def homed(self) -> bool:
+        """The motion process's flag (:attr:`Session.homed`)."""
+        raise NotImplementedError
+
     theta_deg: F | None
     moving: threading.Event
     motion_total_s: float
@@ -81,9 +86,7 @@ class ServoTools:
         moving. Returns the health read after it."""
         client = self._idle(f"torque {'on' if on else 'off'}")
         self._joint(joint)
-        if not on:
-            self.homed = False
-        return self._took(client.set_torque(joint, on))
+        return self._took(client.set_torque(joint, on))  # off: the motion process un-homes
 
     def reboot_servo(self, joint: int) -> ServoHealth:
         """REBOOT one joint's servo to clear a latched hardware error (Protocol 2.0), then
@@ -91,7 +94,6 @@ class ServoTools:
         longer homed. Refused while moving."""
         client = self._idle("reboot")
         self._joint(joint)
-        self.homed = False
         return self._took(client.reboot(joint))
 
     def jog_plan_target(self, joint: int, step_deg: float) -> tuple[F, F]:
@@ -100,8 +102,8 @@ class ServoTools:
         servo limits). Nothing moves."""
         self._idle("jog")
         self._joint(joint)
-        if not self.homed:
-            raise BadInputError("jog: the wrist is not homed: home it first (step 1)")
+        if not self.homed:  # the motion process's flag: nothing is planned for a refused jog
+            raise RefusedError(Refusal.NOT_HOMED)
         theta0 = self.read_position()
         return theta0, jog_target(theta0, joint, step_deg, servo_limits_deg(self.profile))
 

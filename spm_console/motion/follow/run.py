@@ -8,12 +8,13 @@ from dataclasses import dataclass
 from spm_console.config.schema import Profile
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoBus
-from spm_console.errors import BadInputError
+from spm_console.errors import RefusedError
 from spm_console.motion.follow.loop import Follower, FollowStats
 from spm_console.motion.follow.target_feed import TargetFeed
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.runs import Attach, RunContext, SampleCallback, refusals_logged
 from spm_console.motion.segments import ExecutionResult
+from spm_console.refusals import Refusal
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,7 @@ def run_follow(profile: Profile, bus: ServoBus, ws: Workspace, feed: TargetFeed,
     with refusals_logged(log):
         log.meta["homing"] = "done" if homed else f"skipped by the operator: {skip_homing}"
         if not homed and not skip_homing:
-            raise BadInputError("the wrist is not homed: home it first (or override explicitly)")
+            raise RefusedError(Refusal.NOT_HOMED)
         attach(ex)
         result = ex.follow(feed)
         return FollowOutcome(result, ex.stats(feed))

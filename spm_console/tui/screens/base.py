@@ -29,7 +29,8 @@ from textual.widget import Widget
 from textual.widgets import Footer, Input, Select, TextArea
 from textual.worker import get_current_worker
 
-from spm_console.errors import SolverError, SpmError
+from spm_console.errors import RefusedError, SolverError, SpmError
+from spm_console.refusals import worded
 from spm_console.tui.host import ConsoleHost
 from spm_console.tui.messages import Done, Failed, Outcome
 from spm_console.tui.widgets.estop import ESTOP_KEY, EstopBanner
@@ -43,6 +44,8 @@ if TYPE_CHECKING:
 
 def describe_error(exc: BaseException) -> str:
     """One readable line for the operator (never a traceback)."""
+    if isinstance(exc, RefusedError):  # the motion process's refusal, in the console's words
+        return worded(exc.reason, "console")
     if isinstance(exc, SpmError):
         return exc.message
     text = str(exc) or type(exc).__name__

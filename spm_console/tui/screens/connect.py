@@ -23,6 +23,7 @@ from spm_console.config.models import servo_limits_deg
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.servo_tools import ServoHealth, jog_target
+from spm_console.refusals import Refusal, worded
 from spm_console.tui.messages import (
     Connected,
     MotionDone,
@@ -248,7 +249,7 @@ class ConnectScreen(StepScreen):
             self.status.error("jog refused: the jog step is invalid (see beside it)")
             return
         if not s.homed:
-            self.status.error("jog refused: the wrist is not homed; press h to home it first")
+            self.status.error(f"jog refused: {worded(Refusal.NOT_HOMED, 'console')}")
             return
         j, delta = self.table.joint, direction * step
         if s.theta_deg is None:
