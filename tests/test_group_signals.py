@@ -116,20 +116,33 @@ def terminal() -> Iterator[Callable[..., Terminal]]:
         t.kill()
 
 
-def _run_and_signal(terminal: Callable[..., Terminal], tmp_path: Path,
-                    plan: Path, kind: str, delivery: str, ts_s: float) -> None:
+def _start_moving(terminal: Callable[..., Terminal], tmp_path: Path, plan: Path,
+                  kind: str = "execute") -> tuple[Terminal, Path, int]:
+    """``kind`` started in a terminal of its own, once its motion has logged 25 samples:
+    (the terminal, the motion's run folder, the motion process's pid)."""
     logs = tmp_path / "logs"
-    sig, deliver = DELIVERIES[delivery]
     t = terminal(_front_end(kind, tmp_path, plan), _env(logs))
     found: list[Path] = []
-    wait_until(lambda: bool(found.append(d) or True) if (d := _moving_run(logs, 25)) else False,
-               f"{kind}: the motion logs 25 samples", 60.0, t.proc)
-    loop_pid = int(load_run(found[0]).meta["process"]["pid"])
+
+    def moving() -> bool:
+        run = _moving_run(logs, 25)
+        if run is not None:
+            found.append(run)
+        return run is not None
+
+    wait_until(moving, f"{kind}: the motion logs 25 samples", 60.0, t.proc)
+    return t, found[0], int(load_run(found[0]).meta["process"]["pid"])
+
+
+def _run_and_signal(terminal: Callable[..., Terminal], tmp_path: Path,
+                    plan: Path, kind: str, delivery: str, ts_s: float) -> None:
+    sig, deliver = DELIVERIES[delivery]
+    t, run_dir, loop_pid = _start_moving(terminal, tmp_path, plan, kind)
     deliver(t)
     code = t.wait(30.0)
     assert code == int(ExitCode.STOP_ESTOP), (code, t.output[-2000:])
     assert "Traceback" not in t.output
-    assert_estopped(logs, found[0], sig, ts_s, loop_pid)
+    assert_estopped(tmp_path / "logs", run_dir, sig, ts_s, loop_pid)
 
 
 @pytest.mark.parametrize(("kind", "delivery"), [
@@ -178,38 +191,29 @@ def test_a_service_stop_signals_every_process_and_the_wrist_holds(
     front end, the motion process and the emulated servos. The motion process E-stops its
     motion itself; the emulated servos keep their power until their owner is gone."""
     logs = tmp_path / "logs"
-    t = terminal(_front_end("execute", tmp_path, long_plan), _env(logs))
-    found: list[Path] = []
-    wait_until(lambda: bool(found.append(d) or True) if (d := _moving_run(logs, 25)) else False,
-               "the motion logs 25 samples", 60.0, t.proc)
-    loop_pid = int(load_run(found[0]).meta["process"]["pid"])
+    t, run_dir, loop_pid = _start_moving(terminal, tmp_path, long_plan)
     unit = _descendants(t.proc.pid) | {t.proc.pid}
     assert loop_pid in unit and len(unit) >= 3  # front end, motion process, emulated servos
     for pid in unit:
         os.kill(pid, signal.SIGTERM)
     code = t.wait(30.0)
     assert code == int(ExitCode.STOP_ESTOP), t.output[-2000:]
-    run = load_run(found[0])
+    run = load_run(run_dir)
     # whichever SIGTERM was handled first is the reason logged: both E-stop the motion
     where = "" if run.meta["message"] == "E-stop: signal SIGTERM" else " to the motion process"
-    assert_estopped(logs, found[0], signal.SIGTERM, agile.servo.ts_s, loop_pid, where=where)
+    assert_estopped(logs, run_dir, signal.SIGTERM, agile.servo.ts_s, loop_pid, where=where)
     wait_until(lambda: not any(alive(p) for p in unit), "every process of the unit ends", 10.0)
 
 
 def test_a_signal_to_the_motion_process_alone_stops_the_motion_and_it_serves_on(
         terminal: Callable[..., Terminal], tmp_path: Path,
         long_plan: Path, agile: Profile) -> None:
-    logs = tmp_path / "logs"
-    t = terminal(_front_end("execute", tmp_path, long_plan), _env(logs))
-    found: list[Path] = []
-    wait_until(lambda: bool(found.append(d) or True) if (d := _moving_run(logs, 25)) else False,
-               "the motion logs 25 samples", 60.0, t.proc)
-    loop_pid = int(load_run(found[0]).meta["process"]["pid"])
+    t, run_dir, loop_pid = _start_moving(terminal, tmp_path, long_plan)
     os.kill(loop_pid, signal.SIGHUP)
     code = t.wait(30.0)
     assert code == int(ExitCode.STOP_ESTOP), t.output[-2000:]
     assert "motion process is gone" not in t.output  # it lived to send the result
-    assert_estopped(logs, found[0], signal.SIGHUP, agile.servo.ts_s, loop_pid,
+    assert_estopped(tmp_path / "logs", run_dir, signal.SIGHUP, agile.servo.ts_s, loop_pid,
                     where=" to the motion process")
 
 
