@@ -224,7 +224,7 @@ def test_homing_refuses_outside_the_known_assembly_mode(agile: Profile) -> None:
 def test_an_estop_before_the_motion_switches_nothing_on(agile: Profile, tmp_path: Path) -> None:
     bus = _sim(START)
     ex = _executor(agile, bus, tmp_path)
-    ex.request_estop("signal SIGTERM")
+    ex.request_estop("signal SIGTERM", by_signal=True)
     res = ex.run([Segment("plan", synthetic_plan(agile, START, GOAL, 1.0))])
     # nothing moved: an interruption (130), as a signal before any motion always is
     assert res.exit_code == ExitCode.INTERRUPTED and "before any motion" in res.message
@@ -245,7 +245,7 @@ def test_an_estop_between_torque_on_and_the_first_reference_holds_and_is_an_inte
     def torque_then_signal(on: bool) -> None:
         set_torque(on)
         if on:
-            ex.request_estop("signal SIGQUIT")
+            ex.request_estop("signal SIGQUIT", by_signal=True)
 
     bus.set_torque = torque_then_signal  # type: ignore[method-assign]
     res = ex.run([Segment("plan", synthetic_plan(agile, START, GOAL, 1.0))])
@@ -256,3 +256,15 @@ def test_an_estop_between_torque_on_and_the_first_reference_holds_and_is_an_inte
     stop = next(e for e in run.events if e["event"] == "stop")
     assert stop["action"] == "hold"
     np.testing.assert_allclose(stop["hold_deg"], START, atol=0.1)  # held where it stood
+
+
+def test_an_operator_estop_before_the_first_reference_is_a_stop_not_an_interruption(
+        agile: Profile, tmp_path: Path) -> None:
+    """The E-stop button (not a signal) pressed before the first cycle: a stop (20), the log
+    ``stopped``: only a terminating signal makes a run with nothing moved an interruption."""
+    bus = _sim(START)
+    ex = _executor(agile, bus, tmp_path)
+    ex.request_estop("operator E-stop (SPACE)")
+    res = ex.run([Segment("plan", synthetic_plan(agile, START, GOAL, 1.0))])
+    assert res.exit_code == ExitCode.STOP_ESTOP and "before any motion" in res.message
+    assert load_run(res.log_dir).meta["outcome"] == "stopped"  # type: ignore[arg-type]

@@ -129,6 +129,7 @@ class Executor:
         self.lo, self.hi = servo_limits_deg(profile)
         self._estop = threading.Event()
         self._estop_reason = ""
+        self._estop_by_signal = False
         self._estop_clock: float | None = None
         """Clock time of the first E-stop request (logged with the stop as ``requested_t``)."""
         self.t0 = 0.0
@@ -141,11 +142,15 @@ class Executor:
         """The scheduling the loop thread got (logged as the "realtime" event)."""
 
     # ------------------------------------------------------------------ control
-    def request_estop(self, reason: str = "operator request", at_clock: float | None = None) -> None:
+    def request_estop(self, reason: str = "operator request", at_clock: float | None = None,
+                      by_signal: bool = False) -> None:
         """Thread-safe: stop at once (wakes the loop if it is waiting for a deadline).
-        ``at_clock``: when the request was made (this executor's clock), if earlier than now."""
+        ``at_clock``: when the request was made (this executor's clock), if earlier than now;
+        ``by_signal``: a terminating signal asked (before the first reference, the run is then
+        an interruption, exit 130, as a signal before any motion always is)."""
         if not self._estop.is_set():
             self._estop_clock = self.clock() if at_clock is None else at_clock
+            self._estop_by_signal = by_signal
         self._estop_reason = reason
         self._estop.set()
 
@@ -255,7 +260,7 @@ class Executor:
             msg = done()
             self._event("done", message=msg)
             return self._finish("completed", ExitCode.OK, msg, None)
-        if stop.kind == "estop" and not self.samples:  # no reference went out: an interruption
+        if stop.kind == "estop" and self._estop_by_signal and not self.samples:  # nothing moved
             msg = stop.message if "before any motion" in stop.message else \
                 f"{stop.message} (before any motion)"
             return self._finish("interrupted", ExitCode.INTERRUPTED, f"{msg}; nothing moved", stop)

@@ -179,6 +179,7 @@ class _Server:
         """A homing run completed in this process (the rule: homed before any other motion)."""
         self.pending_estop = ""
         self.pending_clock: float | None = None
+        self.pending_by_signal = False
         self.last_heartbeat = time.monotonic()
         self.feed: Any = None
         """The target feed of the following under way (None otherwise)."""
@@ -200,7 +201,7 @@ class _Server:
         if isinstance(req, Heartbeat):
             self.last_heartbeat = time.monotonic()
         elif isinstance(req, EStop):
-            self.estop(req.reason, req.sent_clock)
+            self.estop(req.reason, req.sent_clock, req.by_signal)
         elif isinstance(req, SetTarget):
             feed = self.feed
             if feed is not None:
@@ -293,16 +294,18 @@ class _Server:
             self._workspace, _ = load_or_build(self.profile, cache_dir=self.cache_dir)
         return self._workspace
 
-    def estop(self, reason: str, sent_clock: float | None = None) -> None:
+    def estop(self, reason: str, sent_clock: float | None = None, by_signal: bool = False) -> None:
         if not self.pending_estop:
             self.pending_estop, self.pending_clock = reason, sent_clock
+            self.pending_by_signal = by_signal
         if self.executor is not None:
-            self.executor.request_estop(self.pending_estop, self.pending_clock)
+            self.executor.request_estop(self.pending_estop, self.pending_clock,
+                                        self.pending_by_signal)
 
     def _attach(self, ex: Any) -> None:
         self.executor = ex
         if self.pending_estop:
-            ex.request_estop(self.pending_estop, self.pending_clock)
+            ex.request_estop(self.pending_estop, self.pending_clock, self.pending_by_signal)
 
     def _motion(self, req: Home | Execute | Follow) -> None:
         normal_priority()  # set-up may load the workspace; the executor raises the loop itself
@@ -335,7 +338,7 @@ class _Server:
             out.close()
             self.executor = None
             self.feed = None
-            self.pending_estop, self.pending_clock = "", None
+            self.pending_estop, self.pending_clock, self.pending_by_signal = "", None, False
             self.busy.clear()
         self.send(result)
 
@@ -396,7 +399,8 @@ def _estop_on_signals(server: _Server | None) -> None:
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:
         if server.moving():
-            server.estop(f"signal {signal.Signals(signum).name} to the motion process")
+            server.estop(f"signal {signal.Signals(signum).name} to the motion process",
+                         by_signal=True)
 
     for sig in STOP_SIGNALS:
         signal.signal(sig, on_signal)

@@ -147,7 +147,7 @@ class ScriptRunner:
         the step under way is abandoned like on Ctrl-C (exit 130).
         """
         self._interrupted = True
-        if not self.session.estop(f"signal {sig.name}") and self._in_step:
+        if not self.session.estop(f"signal {sig.name}", by_signal=True) and self._in_step:
             raise KeyboardInterrupt
 
     def run(self) -> int:

@@ -244,12 +244,12 @@ class MotionClient:
         """The live source is done: the follower settles on the current target and ends."""
         self._send(EndFollow())
 
-    def estop(self, reason: str) -> None:
+    def estop(self, reason: str, by_signal: bool = False) -> None:
         """The message; a signal to the process is the second path when the pipe is gone.
 
         Safe in a signal handler: when the handler interrupted this thread in the middle of
         a send, the E-stop goes out from a helper thread as soon as that send is done."""
-        msg = EStop(reason, time.perf_counter())
+        msg = EStop(reason, time.perf_counter(), by_signal)
         if self._lock.acquire(blocking=False):
             self._lock.release()
             self._send_estop(msg)

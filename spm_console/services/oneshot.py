@@ -93,7 +93,7 @@ class _SignalStop:
 
     def __call__(self, sig: signal.Signals) -> None:
         self.pending = self.pending or sig
-        if self.session.estop(f"signal {sig.name}"):
+        if self.session.estop(f"signal {sig.name}", by_signal=True):
             self.stopped_motion = True
 
     def check(self) -> None:

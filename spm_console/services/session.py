@@ -301,14 +301,16 @@ class Session(ServoTools, FollowTools):
         self.plan_info["executed_ok"] = result.ok
         return result
 
-    def estop(self, reason: str = "operator E-stop") -> bool:
+    def estop(self, reason: str = "operator E-stop", by_signal: bool = False) -> bool:
         """Stop the running motion at once (any thread, a signal handler); False when nothing
-        moves. Asked before the motion process started it, it is kept for it there."""
+        moves. Asked before the motion process started it, it is kept for it there.
+        ``by_signal``: a terminating signal asked (before the first reference, the run is an
+        interruption, exit 130)."""
         if not self.moving.is_set() or self.bus is None:
             return False
         if not self._estop_sent:  # the first reason is the one logged
             self._estop_sent = True
-            self.bus.estop(reason)
+            self.bus.estop(reason, by_signal)
         return True
 
     # ------------------------------------------------------------------ kinematics

@@ -147,7 +147,7 @@ class SpmConsoleApp(App[int | SwitchRequest]):
         at once, then leave through the app's own message loop (exiting straight from the
         signal handler leaves Textual hanging in its shutdown). Exit 20 when a motion was
         stopped, 130 otherwise (docs/cli-reference.md, "Exit codes")."""
-        moving = self.session.estop(f"signal {sig.name}")
+        moving = self.session.estop(f"signal {sig.name}", by_signal=True)
         code = int(ExitCode.STOP_ESTOP if moving else ExitCode.INTERRUPTED)
         if self._exit_code_on_signal is None and self._loop is not None:
             self._exit_code_on_signal = code
