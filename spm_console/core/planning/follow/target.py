@@ -57,6 +57,11 @@ class TargetProjector:
         if not radius > 0:
             raise InfeasibleError("the region and the servo limits leave no room to follow a target in")
         self.centre = centre
+        # every constraint as G θ ≤ h, and the level above which one counts as active (for
+        # the optimality certificate of :meth:`_nearest`; built once, used per projection)
+        self._G = np.vstack([self.A, np.eye(3), -np.eye(3)])
+        self._h_active = (np.concatenate([self.b, self.hi, -self.lo])
+                          - ACTIVE_TOL_DEG * np.linalg.norm(self._G, axis=1))
         G = sp.vstack([sp.csc_matrix(self.A), sp.eye(3, format="csc")], format="csc")
         self._qp = osqp.OSQP()
         self._qp.setup(sp.eye(3, format="csc") * 2.0, np.zeros(3), G,
@@ -96,9 +101,8 @@ class TargetProjector:
         """Certificate that the admissible ``y`` is the nearest point to ``t``: t − y lies in the
         normal cone of the constraints active at y (non-negative multipliers, by NNLS). A
         solver's "solved" is relative to the size of the target; this is not."""
-        G = np.vstack([self.A, np.eye(3), -np.eye(3)])
-        h = np.concatenate([self.b, self.hi, -self.lo])
-        active = G @ y >= h - ACTIVE_TOL_DEG * np.linalg.norm(G, axis=1)
+        G, h_active = self._G, self._h_active
+        active = G @ y >= h_active
         r = t - y
         if not active.any():
             return False  # t is outside but y touches nothing: not the projection
