@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from spm_console.core.kinematics.continuation import PATH_ZETA_FLOOR
-from spm_console.core.kinematics.fk_path import FkGraph, fk_connected, fk_graph, graph_of, route_fk
 from spm_console.core.kinematics.model import FkResult, SpmModel, full_residual, platform_axes
 from spm_console.core.kinematics.modes import solve_all
+from spm_console.core.workspace.fk_path import FkGraph, fk_connected, fk_graph, graph_of, route_fk
 from tests.ws_helpers import agile_workspace
 
 BOX = (65.0, 155.0)
@@ -170,7 +170,7 @@ def test_failed_shortcut_falls_back_to_grid_steps(setup: tuple[SpmModel, FkGraph
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """A shortcut that fails (here: every segment longer than one grid step, refused on
     purpose) is replaced by its grid steps; the pose is the straight path's all the same."""
-    import spm_console.core.kinematics.fk_path as fk_path
+    import spm_console.core.workspace.fk_path as fk_path
 
     model, graph = setup
     real = fk_path._segment

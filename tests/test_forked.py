@@ -138,8 +138,8 @@ def test_a_refined_build_with_the_helper_equals_the_serial_build() -> None:
     """The whole build (FK grid, link distances, P, refined cover, graph) through the forked
     row map gives the same arrays, regions and graph as in one process (5° grid: fast)."""
     from spm_console.config.models import grid_spec
-    from spm_console.core.workspace.build import build_workspace
     from spm_console.core.workspace.rowmap import serial
+    from spm_console.core.workspace_build import build_workspace
     from tests.ws_helpers import agile_profile, with_step
 
     spec = grid_spec(with_step(agile_profile(), 5.0))

@@ -19,8 +19,8 @@ from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.modes import home_model
 from spm_console.core.servo.model import ServoModel, discretize
-from spm_console.core.workspace.build import build_workspace as _build_workspace
 from spm_console.core.workspace.data import GridSpec, Progress, Workspace
+from spm_console.core.workspace_build import build_workspace as _build_workspace
 
 F = NDArray[np.float64]
 

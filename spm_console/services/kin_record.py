@@ -12,10 +12,10 @@ import numpy as np
 
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.assess import assess
-from spm_console.core.kinematics.fk_path import FkGraph, fk_connected, fk_graph
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import FkResult, SpmModel
 from spm_console.core.workspace.data import Workspace
+from spm_console.core.workspace.fk_path import FkGraph, fk_connected, fk_graph
 
 #: Waypoints shown in full in the human path line (longer paths are elided in the middle).
 SHOWN_WAYPOINTS = 6

@@ -41,6 +41,7 @@ from spm_console.core.workspace import build as core_ws
 from spm_console.core.workspace.check import STEP_RAD
 from spm_console.core.workspace.data import Progress, Workspace
 from spm_console.core.workspace.refine import REFINE, VERDICTS_VERSION
+from spm_console.core.workspace_build import FORMAT_VERSION
 from spm_console.errors import CacheError
 
 ENV_VAR = "SPM_CONSOLE_CACHE"
@@ -108,7 +109,7 @@ def cache_key(profile: Profile, refined_cover: bool = False) -> str:
     """SHA-256 over the profile sections and constants the workspace depends on, and the build
     option ``refined_cover`` (a refined and a default cover never share a key)."""
     blob = json.dumps({
-        "format": core_ws.FORMAT_VERSION,
+        "format": FORMAT_VERSION,
         "sections": profile.section_digest("geometry", "home", "links", "workspace"),
         "constants": {
             "path_zeta_floor": PATH_ZETA_FLOOR, "newton_tol": NEWTON_TOL,
@@ -140,7 +141,7 @@ def cache_path(profile: Profile, cache_dir: Path | None = None,
 def save(ws: Workspace, path: Path, key: str) -> None:
     """Write atomically (temp file + fsync + rename); raises CacheError on failure."""
     meta = {
-        "key": key, "format": core_ws.FORMAT_VERSION, "step_deg": ws.step_deg,
+        "key": key, "format": FORMAT_VERSION, "step_deg": ws.step_deg,
         "zeta_min": ws.zeta_min, "min_distance_mm": ws.min_distance_mm,
         "home_index": list(ws.home_index), "seconds": ws.seconds,
         "region_seconds": ws.region_seconds, "region_info": ws.region_info,

@@ -117,10 +117,10 @@ class FkResult:
     """θ samples along the path, deg (for display)."""
     waypoints_deg: tuple[tuple[float, ...], ...] = ()
     """Corners of the polyline followed from home to θ, deg, both ends included (filled by
-    :func:`~spm_console.core.kinematics.fk_path.fk_connected`; empty from :meth:`SpmModel.track`)."""
+    :func:`~spm_console.core.workspace.fk_path.fk_connected`; empty from :meth:`SpmModel.track`)."""
     route: str = "straight"
     """"straight" (one segment from home) or "graph" (around a singularity through the
-    workspace grid, :mod:`spm_console.core.kinematics.fk_path`)."""
+    workspace grid, :mod:`spm_console.core.workspace.fk_path`)."""
 
 
 @dataclass(frozen=True)

@@ -6,9 +6,8 @@ index ζ and its closest inter-leg link distance (closed-form segment distances,
 chunked to bound memory) are computed. A node is *feasible* when ζ ≥ ζ_min, no
 two links of different legs are closer than 2δ, and it is connected to the home
 node through feasible nodes (6-connectivity: face neighbours only, the same
-neighbourhood the FK flood fill uses). The convex region P is then built from the
-grid (:mod:`spm_console.core.regions.p_build`), and a cover of the feasible set by
-several convex regions with their overlap graph (:mod:`spm_console.core.regions.cover`).
+neighbourhood the FK flood fill uses). The convex region P and the cover are built on
+top of this grid (:mod:`spm_console.core.workspace_build`).
 
 Units: the dataclass exposes degrees and mm; radians stay inside.
 """
@@ -27,8 +26,6 @@ from spm_console.core.kinematics.fk_grid import track_grid
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import platform_axes
 from spm_console.core.polytope.region import Region
-from spm_console.core.regions.cover import build_cover
-from spm_console.core.regions.p_build import build_region
 from spm_console.core.workspace.check import ThetaCheck, check_one
 from spm_console.core.workspace.data import GridSpec, NodeClass, Progress, Workspace
 from spm_console.core.workspace.rowmap import RowMap, serial
@@ -36,9 +33,6 @@ from spm_console.core.workspace.rowmap import RowMap, serial
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
 
-#: Version of the workspace algorithm and its stored arrays (part of the cache key):
-#: bump it whenever the grid, classification or region construction changes.
-FORMAT_VERSION = 6
 #: Nodes per chunk of the link-distance computation (bounds temporary memory).
 LINK_CHUNK = 1024
 #: Neighbourhood of the home-connectivity flood fill: 6 = face neighbours.
@@ -95,7 +89,7 @@ def classify(zeta: F, dmin: F, reached: B, zeta_min: float, dist_min: float,
     return k
 
 
-def _stage(progress: Progress | None, stage: str) -> Callable[[float], None] | None:
+def stage_progress(progress: Progress | None, stage: str) -> Callable[[float], None] | None:
     if progress is None:
         return None
     return lambda f: progress(stage, f)
@@ -109,12 +103,12 @@ def build_grid(spec: GridSpec, progress: Progress | None = None,
     model, links = spec.model, spec.links
     axes_deg = spec.axes_deg
     axes = (np.radians(axes_deg[0]), np.radians(axes_deg[1]), np.radians(axes_deg[2]))
-    g = track_grid(model, axes, zeta_floor=PATH_ZETA_FLOOR, progress=_stage(progress, "fk"))
+    g = track_grid(model, axes, zeta_floor=PATH_ZETA_FLOOR, progress=stage_progress(progress, "fk"))
     shape = g.shape
     reached = g.reached.ravel()
     th = g.theta().reshape(-1, 3)[reached]
     Rr = g.R.reshape(-1, 3, 3)[reached]
-    links_progress = _stage(progress, "links")
+    links_progress = stage_progress(progress, "links")
     if links_progress is not None:
         links_progress(0.0)
     w = model.geom.w(th)
@@ -143,35 +137,6 @@ def build_grid(spec: GridSpec, progress: Progress | None = None,
         home_index=(home[0], home[1], home[2]), seconds=time.perf_counter() - t0,
         model=model, links=links,
     )
-
-
-def build_workspace(spec: GridSpec, progress: Progress | None = None,
-                    cover: bool = True, refined_cover: bool = False,
-                    rowmap: RowMap = serial) -> Workspace:
-    """Grid (Algorithm 2) plus the convex region P and (``cover``) the region cover, refined
-    near the boundary with ``refined_cover`` (:func:`~spm_console.core.regions.cover.build_cover`);
-    ``progress(stage, fraction)`` if given. ``rowmap`` runs the row-wise parts (link
-    distances, the refinement's exact checks, the overlap graph's LPs); the result does not
-    depend on it."""
-    from dataclasses import replace
-
-
-    t0 = time.perf_counter()
-    ws = build_grid(spec, progress, rowmap)
-    t1 = time.perf_counter()
-    res = build_region(ws, max_halfspaces=spec.max_halfspaces,
-                       progress=_stage(progress, "region"))
-    t2 = time.perf_counter()
-    out = replace(ws, region=res.region, seconds=t2 - t0, region_seconds=t2 - t1,
-                  region_info={**res.info(),
-                               "max_halfspaces": float(spec.max_halfspaces)})
-    if cover:
-        rc = build_cover(out, progress=_stage(progress, "cover"), refined=refined_cover,
-                         rowmap=rowmap)
-        out = replace(out, cover=rc, seconds=time.perf_counter() - t0)
-    if progress is not None:
-        progress("done", 1.0)
-    return out
 
 
 def check_theta(ws: Workspace, theta_deg: F) -> ThetaCheck:
