@@ -78,7 +78,8 @@ class Membership(Protocol):
 
 @dataclass(frozen=True)
 class Rules:
-    """Which of the rules a check applies beyond those every check applies (1–3, 6, 7)."""
+    """Which of the rules 4–5 a check applies (1–3 and 6 always; 7 when it is given the
+    certified set)."""
 
     position_limits: bool = True
     """Hold the simulated positions to the servo limits (rule 4)."""
