@@ -15,11 +15,12 @@ import numpy as np
 from benchmarks.common import Row, timeit
 from spm_console.config.load import load_profile
 from spm_console.config.models import link_model_of, model_of, servo_model_of
+from spm_console.core.plan_rules import POINTS_PER_INTERVAL
 from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.regions.choice import region_containing
 from spm_console.core.servo.model import simulate_continuous
 from spm_console.core.workspace.check import check_points
-from spm_console.motion.plan_check import POINTS_PER_INTERVAL, PlanVerifier
+from spm_console.motion.plan_check import PlanVerifier
 from spm_console.motion.segments import Segment
 from spm_console.store.workspace_cache import load_or_build
 

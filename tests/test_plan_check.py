@@ -13,17 +13,14 @@ import pytest
 from spm_console.config.models import build_workspace, servo_model_of
 from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
+from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG, Rule, Violation, check_motion
 from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.choice import region_containing
 from spm_console.core.workspace.certify import CertifiedSet
 from spm_console.core.workspace.data import Workspace
 from spm_console.errors import InfeasibleError, PlanRefusedError
-from spm_console.motion.plan_check import (
-    MAX_REFERENCE_STEP_DEG,
-    PlanVerifier,
-    verify_plan,
-)
+from spm_console.motion.plan_check import PlanVerifier, verify_plan
 from spm_console.motion.plans import plan_from_references, synthetic_plan
 from spm_console.motion.segments import Segment
 from tests.ws_helpers import MVN_GOAL, MVN_START, agile_profile, agile_workspace, with_step
@@ -129,9 +126,16 @@ def test_servo_limit_tolerance_is_1e_9_degrees() -> None:
     v = PlanVerifier(prof, ws)
     hi = v.hi[1]
     ok = np.array([[100.0, hi + 5e-12, 100.0]])
-    v._limits(Segment("plan", _paper_mvn(prof, ws)), ok, "reference θ*")  # no exception
+
+    def limits(ref: np.ndarray) -> Violation | None:  # the verifier's rules, no certification
+        x0 = np.column_stack([ref[0], np.zeros(3)])
+        return check_motion(prof.servo.p, prof.servo.ts_s, x0, ref, v.lo, v.hi, v.vmax, None).violation
+
+    assert limits(ok) is None
+    bad = limits(ok + np.array([0.0, 1e-6, 0.0]))
+    assert bad is not None and bad.rule is Rule.REFERENCE_LIMIT and bad.bound == hi
     with pytest.raises(PlanRefusedError, match="outside the servo limits"):
-        v._limits(Segment("plan", _paper_mvn(prof, ws)), ok + np.array([0.0, 1e-6, 0.0]), "reference θ*")
+        verify_plan(prof, ws, plan_from_references(prof, ok + np.array([0.0, 1e-6, 0.0]), "synthetic"))
 
 
 def test_wrong_ts_and_non_finite_references_are_refused() -> None:

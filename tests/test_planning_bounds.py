@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
+from spm_console.core.plan_rules import LIMIT_TOL_DEG
 from spm_console.core.planning import PlanProblem, solve_mintime
 from spm_console.core.planning.mvn import ROUND_OFF_DEG, clamp_round_off
 from spm_console.core.polytope.region import Region
 from spm_console.errors import BadInputError, InfeasibleError, PlanRefusedError
-from spm_console.motion.plan_check import LIMIT_TOL_DEG
 from spm_console.motion.plans import plan_from_references
 from spm_console.motion.segments import Segment
 from tests.planning_cases import GOAL, MODEL, START, START_MT, polytope

@@ -3,17 +3,22 @@
 Nothing a plan file (or any front end) claims is believed: its region, model, positions
 and velocities are ignored. From the references alone and **this profile's** servo model
 (27) and workspace, the motion is simulated exactly (zero-order hold) at every sample and
-at :data:`POINTS_PER_INTERVAL` instants in every interval, plus a settling tail holding the
-last reference, and refused (:class:`PlanRefusedError`, exit 26) unless
+at :data:`~spm_console.core.plan_rules.POINTS_PER_INTERVAL` instants in every interval, plus
+a settling tail holding the last reference, and refused (:class:`PlanRefusedError`, exit 26)
+unless it meets the runtime's rules (:func:`spm_console.core.plan_rules.check_motion`, the
+same the live follower applies to each re-planned horizon; worded here):
 
-* the references are finite, sampled at the profile's Ts, no longer than :data:`MAX_SAMPLES`;
+* the references are finite, sampled at the profile's Ts, no longer than
+  :data:`~spm_console.core.plan_rules.MAX_SAMPLES`;
 * every reference and every simulated position lies inside the servo limits (1e-9° of
   tolerance on the boundary);
-* no reference changes by more than :data:`MAX_REFERENCE_STEP_DEG` between samples;
+* no reference changes by more than
+  :data:`~spm_console.core.plan_rules.MAX_REFERENCE_STEP_DEG` between samples;
 * the model speed stays within the profile's ``limits.vmax_degps`` at the samples, and
-  within it plus :data:`BETWEEN_SPEED_ALLOWANCE` between samples (piecewise-constant
-  references make the continuous speed overshoot the sampled one: 5 % for the paper's
-  minimum-time plan; plans solved with ``--intersample`` meet the bound exactly);
+  within it plus :data:`~spm_console.core.plan_rules.BETWEEN_SPEED_ALLOWANCE` between
+  samples (piecewise-constant references make the continuous speed overshoot the sampled
+  one: 5 % for the paper's minimum-time plan; plans solved with ``--intersample`` meet the
+  bound exactly);
 * every simulated position of a planned segment is certified by the workspace: by the grid
   (:class:`~spm_console.core.workspace.certify.CertifiedSet`, the grid's P′) or, near the boundary, by
   the same criterion at the fine resolution Δ/4
@@ -41,7 +46,15 @@ from numpy.typing import NDArray
 from spm_console.config.models import link_model_of, model_of, servo_limits_deg
 from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
-from spm_console.core.servo.model import simulate_continuous
+from spm_console.core.plan_rules import (
+    BETWEEN_SPEED_ALLOWANCE,
+    MAX_REFERENCE_STEP_DEG,
+    MAX_SAMPLES,
+    POINTS_PER_INTERVAL,
+    Rule,
+    Violation,
+    check_motion,
+)
 from spm_console.core.workspace.certify import CertifiedSet
 from spm_console.core.workspace.check import check_points
 from spm_console.core.workspace.data import Workspace
@@ -52,18 +65,6 @@ from spm_console.motion.segments import Segment
 
 F = NDArray[np.float64]
 
-#: Instants simulated per sampling interval (the samples included).
-POINTS_PER_INTERVAL = 10
-#: Largest change of a reference between two samples, deg (a 10° step is 500°/s of command).
-MAX_REFERENCE_STEP_DEG = 10.0
-#: Relative allowance on the speed bound between samples (not at the samples).
-BETWEEN_SPEED_ALLOWANCE = 0.10
-#: Tolerance on the servo-limit boundary, deg.
-LIMIT_TOL_DEG = 1e-9
-#: Tolerance on the speed bound at the samples, deg/s (solver round-off).
-SPEED_TOL_DEGPS = 1e-6
-#: Longest plan accepted, samples (10 minutes at 20 ms).
-MAX_SAMPLES = 30_000
 #: Phases built by the runtime as straight lines from a measured position.
 LINE_PHASES = ("homing", "approach")
 
@@ -125,61 +126,45 @@ class PlanVerifier:
             raise self._refuse(seg, "references must be finite angles")
         if not math.isfinite(plan.Ts) or abs(plan.Ts - ts) > 1e-9:
             raise self._refuse(seg, f"sampled at Ts = {plan.Ts} s but the servos run at Ts = {ts} s")
-        self._limits(seg, ref, "reference θ*")
-        steps = np.abs(np.diff(ref, axis=0))
-        step = float(steps.max()) if steps.size else 0.0
-        if step > MAX_REFERENCE_STEP_DEG:
-            k, i = (int(x) for x in np.unravel_index(int(np.argmax(steps)), steps.shape))
-            raise self._refuse(seg, f"reference θ{i + 1} jumps {steps[k, i]:.2f}° between samples "
-                                    f"{k} and {k + 1} (at most {MAX_REFERENCE_STEP_DEG:g}° per sample)")
-        tail = np.repeat(ref[-1:], settle_samples(self.profile), axis=0)
-        full = np.concatenate([ref, tail])
+        line = seg.phase in LINE_PHASES
         x0 = np.column_stack([ref[0], np.zeros(3)])
-        _, xs = simulate_continuous(self.profile.servo.p, ts, x0, full, POINTS_PER_INTERVAL)
-        pos, vel = xs[..., 0], xs[..., 1]
-        self._limits(seg, pos, "the model position θ")
-        self._speed(seg, vel)
-        if seg.phase in LINE_PHASES:
-            self._exact(seg, pos)
-        else:
-            self._certified(seg, pos)
-        return len(pos), float(np.abs(vel).max()), step
+        check = check_motion(self.profile.servo.p, ts, x0, ref, self.lo, self.hi, self.vmax,
+                             None if line else self.certified,
+                             hold_samples=settle_samples(self.profile))
+        if check.violation is not None:
+            raise self._refuse(seg, self._words(check.violation, check.positions_deg))
+        if line:
+            self._exact(seg, check.positions_deg)
+        return check.points, check.max_speed_degps, check.max_step_deg
 
-    def _limits(self, seg: Segment, th: F, what: str) -> None:
-        bad = (th < self.lo - LIMIT_TOL_DEG) | (th > self.hi + LIMIT_TOL_DEG)
-        if bad.any():
-            k, i = (int(x) for x in np.argwhere(bad)[0])
-            raise self._refuse(seg, f"{what}{i + 1} = {th[k, i]:.6g}° at point {k} is outside the "
-                                    f"servo limits [{self.lo[i]:g}, {self.hi[i]:g}]°")
-
-    def _speed(self, seg: Segment, vel: F) -> None:
-        at_samples = np.abs(vel[::POINTS_PER_INTERVAL])
-        between = np.abs(vel)
-        cap = self.vmax * (1.0 + BETWEEN_SPEED_ALLOWANCE)
-        if float(at_samples.max()) > self.vmax + SPEED_TOL_DEGPS:
-            k, i = (int(x) for x in np.unravel_index(int(np.argmax(at_samples)), at_samples.shape))
-            raise self._refuse(seg, f"the model speed of joint {i + 1} reaches {at_samples[k, i]:.1f}°/s "
-                                    f"at sample {k}, above the profile's limits.vmax_degps = {self.vmax:g}°/s")
-        if float(between.max()) > cap:
-            m, i = (int(x) for x in np.unravel_index(int(np.argmax(between)), between.shape))
-            raise self._refuse(seg, f"between samples {m // POINTS_PER_INTERVAL} and "
-                                    f"{m // POINTS_PER_INTERVAL + 1} the model speed of joint {i + 1} "
-                                    f"reaches {between[m, i]:.1f}°/s, above {cap:.1f}°/s "
-                                    f"(limits.vmax_degps + {BETWEEN_SPEED_ALLOWANCE:.0%})")
-
-    def _certified(self, seg: Segment, pos: F) -> None:
-        if self.certified.empty:
-            raise self._refuse(seg, "the workspace of this profile has no feasible node, so it "
-                                    "certifies no motion (check the profile's links, δ and ζ_min)")
-        ok = self.certified.contains(pos)
-        if not ok.all():
-            m = int(np.argmin(ok))
-            raise self._refuse(seg, f"the motion reaches θ = {_fmt(pos[m])}° (between samples "
-                                    f"{m // POINTS_PER_INTERVAL} and {m // POINTS_PER_INTERVAL + 1}), "
-                                    "which this profile's workspace does not certify feasible "
-                                    f"(within Δ = {self.certified.step_deg:g}° of an infeasible grid "
-                                    f"node{self._fine_note()} or outside the grid); whatever region "
-                                    "the plan names")
+    def _words(self, v: Violation, pos: F) -> str:
+        """What the operator reads about a violation of the runtime's rules."""
+        k, i = v.index, v.joint
+        between = f"{k // POINTS_PER_INTERVAL} and {k // POINTS_PER_INTERVAL + 1}"
+        if v.rule in (Rule.REFERENCE_LIMIT, Rule.POSITION_LIMIT):
+            what = "reference θ*" if v.rule is Rule.REFERENCE_LIMIT else "the model position θ"
+            return (f"{what}{i + 1} = {v.value:.6g}° at point {k} is outside the "
+                    f"servo limits [{self.lo[i]:g}, {self.hi[i]:g}]°")
+        if v.rule is Rule.STEP:
+            return (f"reference θ{i + 1} jumps {v.value:.2f}° between samples "
+                    f"{k} and {k + 1} (at most {MAX_REFERENCE_STEP_DEG:g}° per sample)")
+        if v.rule is Rule.SPEED_AT_SAMPLE:
+            return (f"the model speed of joint {i + 1} reaches {v.value:.1f}°/s "
+                    f"at sample {k}, above the profile's limits.vmax_degps = {self.vmax:g}°/s")
+        if v.rule is Rule.SPEED_BETWEEN:
+            return (f"between samples {between} the model speed of joint {i + 1} "
+                    f"reaches {v.value:.1f}°/s, above {v.bound:.1f}°/s "
+                    f"(limits.vmax_degps + {BETWEEN_SPEED_ALLOWANCE:.0%})")
+        if v.rule is Rule.NOTHING_CERTIFIED:
+            return ("the workspace of this profile has no feasible node, so it "
+                    "certifies no motion (check the profile's links, δ and ζ_min)")
+        if v.rule is Rule.NOT_CERTIFIED:
+            return (f"the motion reaches θ = {_fmt(pos[k])}° (between samples {between}), "
+                    "which this profile's workspace does not certify feasible "
+                    f"(within Δ = {self.certified.step_deg:g}° of an infeasible grid "
+                    f"node{self._fine_note()} or outside the grid); whatever region "
+                    "the plan names")
+        return "references must be finite angles"  # Rule.NOT_FINITE
 
     def _fine_note(self) -> str:
         c = self.certified

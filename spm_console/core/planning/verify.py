@@ -12,17 +12,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.plan_report import ConstraintReport
+from spm_console.core.plan_rules import SAMPLE_TOL
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.servo.model import simulate, simulate_continuous
 
 F = NDArray[np.float64]
 
-__all__ = ["BETWEEN_POINTS", "SAMPLE_TOL", "ConstraintReport", "check",
-           "simulate_plan"]
-
-#: Every constraint must hold at the samples to this tolerance (deg, deg/s).
-SAMPLE_TOL = 1e-6
-#: Points per interval of the between-sample simulation (at least 10).
+#: Points per interval of the between-sample simulation of the report: at least as many as
+#: the runtime's check (:data:`~spm_console.core.plan_rules.POINTS_PER_INTERVAL`).
 BETWEEN_POINTS = 20
 
 

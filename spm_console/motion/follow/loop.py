@@ -37,10 +37,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.config.models import servo_tick_deg
+from spm_console.core.plan_rules import FOLLOW_RULES, MotionCheck, check_motion
 from spm_console.core.planning.follow.solver import TARGET_REFUSED, FollowResult, FollowSettings, FollowSolver
 from spm_console.core.planning.follow.target import TargetProjector
 from spm_console.core.polytope.region import Region
-from spm_console.core.servo.model import exact_step, simulate_continuous
+from spm_console.core.servo.model import exact_step
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.executor import Executor, _LoopState
@@ -52,7 +53,6 @@ from spm_console.motion.follow.regions import (
     follow_start,
 )
 from spm_console.motion.follow.target_feed import TargetFeed
-from spm_console.motion.plan_check import BETWEEN_SPEED_ALLOWANCE, MAX_REFERENCE_STEP_DEG
 from spm_console.motion.safety import SafetyMonitor, StopReason
 from spm_console.motion.segments import ExecutionResult
 from spm_console.motion.stats import stale_replies
@@ -71,8 +71,6 @@ SETTLE_SPEED_DEGPS = 2.0
 SETTLE_S = 0.3
 #: A finished feed ends the run at the latest this long after it finished, s.
 SETTLE_TIMEOUT_S = 10.0
-#: Points per period of the verification of each adopted plan.
-CHECK_POINTS = 10
 #: A wrist just beyond the grid first moves this many servo ticks inside the region.
 APPROACH_DEPTH_TICKS = 2.0
 
@@ -288,19 +286,18 @@ class Follower(Executor):
         return np.asarray(th, float), np.asarray(om, float)
 
     def _plan_ok(self, res: FollowResult, theta: F, omega: F, prev_ref: F) -> bool:
-        """The runtime's own check of a re-planned horizon (see the module docstring)."""
+        """The runtime's own check of a re-planned horizon (see the module docstring): its
+        motion from the predicted state (θ deg, θ̇ deg/s), held at θ(H) one more sample."""
+        return self._plan_check(res, theta, omega, prev_ref).ok
+
+    def _plan_check(self, res: FollowResult, theta: F, omega: F, prev_ref: F) -> MotionCheck:
+        """:meth:`_plan_ok` with the first violation and what was checked: the executor's
+        rules (:func:`~spm_console.core.plan_rules.check_motion`) as
+        :data:`~spm_console.core.plan_rules.FOLLOW_RULES` apply them."""
         refs = np.vstack([res.reference_deg, res.reference_at(res.horizon)[None]])
-        if np.any(refs < self.lo - 1e-9) or np.any(refs > self.hi + 1e-9):
-            return False
-        steps = np.abs(np.diff(np.vstack([prev_ref[None], refs]), axis=0))
-        if float(steps.max()) > MAX_REFERENCE_STEP_DEG:
-            return False
-        x0 = np.column_stack([theta, omega])
-        _, xs = simulate_continuous(self.model.p, self.ts, x0, refs, CHECK_POINTS)
         # a joint already faster than the bound (an estimate disturbed by a late read) only
         # needs a plan that does not make it faster: refusing every plan would keep the old one
-        cap = np.maximum(self.profile.limits.vmax_degps * (1.0 + BETWEEN_SPEED_ALLOWANCE),
-                         np.abs(omega))
-        if np.any(np.abs(xs[..., 1]) > cap):
-            return False
-        return bool(self.verifier.certified.contains(xs[..., 0]).all())
+        return check_motion(self.model.p, self.ts, np.column_stack([theta, omega]), refs,
+                            self.lo, self.hi, self.profile.limits.vmax_degps,
+                            self.verifier.certified, rules=FOLLOW_RULES,
+                            previous_reference_deg=prev_ref, speed_floor_degps=np.abs(omega))

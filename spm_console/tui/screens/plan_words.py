@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from spm_console.core.plan import Plan
+from spm_console.core.plan_rules import BETWEEN_SPEED_ALLOWANCE
 from spm_console.formatting import fmt_deg
-from spm_console.motion.plan_check import BETWEEN_SPEED_ALLOWANCE
 from spm_console.tui.widgets.steps import keys_of
 
 #: CLI wording in planner messages → what it means on the plan step.
