@@ -15,6 +15,7 @@ if TYPE_CHECKING:
     from spm_console.motion.logs.runlog import RunData
     from spm_console.motion.segments import ExecutionResult
     from spm_console.motion.servo_tools import ServoHealth
+    from spm_console.services.kin_record import FkRecord
     from spm_console.services.session import BusState
 
 
@@ -57,8 +58,8 @@ class ServoToolDone:
 
 @dataclass(frozen=True)
 class FkSolved:
-    record: dict[str, Any]
-    """The ``fk --json`` record (``run.kin_record.fk_record``)."""
+    record: FkRecord
+    """The solved FK (:meth:`~spm_console.services.session.Session.fk`)."""
     from_ik: bool = False
     rpy_deg: Any = None
     """Roll, pitch, yaw from home (deg) of an FK result, when θ is that orientation's IK."""

@@ -3,6 +3,7 @@ minimum time, solved in a worker; result table and plots."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import ClassVar
 
@@ -230,7 +231,8 @@ class PlanScreen(StepScreen):
                 s.read_position()
             plan = s.solve_plan(method, start, goal, steps, vmax,  # type: ignore[arg-type]
                                 intersample=k, hold_first=hold_first)
-            s.plan_info["start_read"] = read and start.kind == "current"
+            if s.plan_info is not None:
+                s.plan_info = replace(s.plan_info, start_read=read and start.kind == "current")
             return PlanSolved(plan)
 
         self.run_blocking("solve", solve,
@@ -357,18 +359,17 @@ class PlanScreen(StepScreen):
         the 3D view and the session: "execute" never runs a plan the operator tried to
         replace."""
         self.session.plan = None
-        self.session.plan_info = {}
+        self.session.plan_info = None
         self.console.view.clear_path()
         self.query_one("#plan-text", Static).update(Content(text))
         self.query_one("#plan-plot", PlotView).plot("no plan", np.zeros(0), [])
         self.refresh_view()  # the step bar's tick and "Next:" line no longer name a plan
 
     def show_plan(self) -> None:
-        plan = self.session.plan
-        if plan is None:
+        plan, info = self.session.plan, self.session.plan_info
+        if plan is None or info is None:  # the session sets both together
             return
-        self.query_one("#plan-text", Static).update(
-            Content(plan_text(plan, self.session.plan_info)))
+        self.query_one("#plan-text", Static).update(Content(plan_text(plan, info)))
         self.show_plot()
 
     def show_plot(self) -> None:

@@ -11,13 +11,13 @@ wrong.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from spm_console.core.plan import Plan
 from spm_console.formatting import fmt_deg
 from spm_console.motion.plan_check import BETWEEN_SPEED_ALLOWANCE
+from spm_console.services.plan_info import PlanInfo
 from spm_console.tui.widgets.steps import keys_of
 
 #: CLI wording in planner messages → what it means on the plan step.
@@ -76,25 +76,25 @@ def next_step(message: str) -> str:
 KIND_WORDS = {"mvn": "MVN", "mintime": "Minimum time"}
 
 
-def plan_text(plan: Plan, info: dict[str, Any]) -> str:
+def plan_text(plan: Plan, info: PlanInfo) -> str:
     chk = plan.check
-    vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
-    start = info.get("start_deg", plan.position_deg[0])
-    read = " (read from the servos just before solving)" if info.get("start_read") else ""
+    vmax = plan.options.vmax_degps if plan.options is not None else info.vmax_degps
+    start = info.start_deg
+    read = " (read from the servos just before solving)" if info.start_read else ""
     lines = [
-        f"{KIND_WORDS.get(plan.kind, plan.kind)}: {info.get('start', '?')} → "
-        f"{info.get('goal', '?')}",
+        f"{KIND_WORDS.get(plan.kind, plan.kind)}: {info.start} → "
+        f"{info.goal}",
         f"start θ = {fmt_deg(start)}{read}",
-        f"goal θ = {fmt_deg(info.get('goal_deg', plan.position_deg[-1]))}",
+        f"goal θ = {fmt_deg(info.goal_deg)}",
         f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
         f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
         f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
         + (f" (v_max {vmax:g})" if vmax else ""),
     ]
-    if info.get("region"):
-        lines.append(f"region: {info['region']}")
-    if info.get("source"):
-        lines.append(f"opened from {info['source']}")
+    if info.region:
+        lines.append(f"region: {info.region}")
+    if info.source:
+        lines.append(f"opened from {info.source}")
     if chk is not None:
         if not math.isnan(chk.max_speed_between_degps):
             allowed = (f" (allowed: v_max + {BETWEEN_SPEED_ALLOWANCE:.0%} between samples)"
