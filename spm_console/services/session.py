@@ -31,6 +31,7 @@ from spm_console.devices.base import ServoStatus
 from spm_console.errors import (
     BadInputError,
     BusError,
+    Issue,
     SpmError,
     UnreachableError,
 )
@@ -229,7 +230,7 @@ class Session(ServoTools, FollowTools):
 
     def require_bus(self) -> MotionClient:
         if self.bus is None:
-            raise BusError("not connected to the servos: connect first (step 1)")
+            raise BusError("not connected to the servos: connect first", Issue.NOT_CONNECTED)
         return self.bus
 
     def read_position(self) -> F:
@@ -295,7 +296,7 @@ class Session(ServoTools, FollowTools):
         from spm_console.motion.homing import plan_segments
 
         if self.plan is None:
-            raise BadInputError("no plan to execute: solve one first (step 4)")
+            raise BadInputError("no plan to execute: solve one first", Issue.NO_PLAN)
         client, plan = self.require_bus(), self.plan
         theta0 = self.read_position()
         tol = self.profile.safety.approach_tolerance_deg
@@ -346,7 +347,8 @@ class Session(ServoTools, FollowTools):
         if spec.kind == "home":
             return np.asarray(self.profile.home.theta_deg, float)
         if self.theta_deg is None:
-            raise BadInputError("current pose unknown: connect to the servos first (step 1)")
+            raise BadInputError("current pose unknown: connect to the servos first",
+                                Issue.POSE_UNKNOWN)
         return self.theta_deg.copy()
 
     # ------------------------------------------------------------------ workspace
@@ -365,7 +367,7 @@ class Session(ServoTools, FollowTools):
 
     def require_workspace(self) -> Workspace:
         if self.workspace is None:
-            raise BadInputError("no workspace loaded: load or build it first (step 3)")
+            raise BadInputError("no workspace loaded: load or build it first", Issue.NO_WORKSPACE)
         return self.workspace
 
     def check_theta(self, theta_deg: Sequence[float] | F) -> ThetaCheck:

@@ -11,6 +11,7 @@ from textual.message import Message
 if TYPE_CHECKING:
     from spm_console.core.plan import Plan
     from spm_console.core.workspace.check import ThetaCheck
+    from spm_console.errors import Issue
     from spm_console.motion.follow.run import FollowOutcome
     from spm_console.motion.logs.runlog import RunData
     from spm_console.motion.segments import ExecutionResult
@@ -122,13 +123,17 @@ class Done(Message):
 class Failed(Message):
     """A blocking operation failed with a message for the operator (no traceback)."""
 
-    def __init__(self, op: str, message: str, solver_failed: bool = False) -> None:
+    def __init__(self, op: str, message: str, solver_failed: bool = False,
+                 issue: Issue | None = None) -> None:
         super().__init__()
         self.op = op
         self.message = message
         self.solver_failed = solver_failed
         """A solver (or the code) failed; False when the request was refused with a reason
         (bad input, an end not feasible, no feasible plan)."""
+        self.issue = issue
+        """What went wrong (:attr:`SpmError.issue <spm_console.errors.SpmError.issue>`), for
+        the screen's advice."""
 
 
 class Telemetry(Message):

@@ -16,7 +16,7 @@ from textual.content import Content
 from textual.message import Message
 from textual.widgets import Checkbox, Input, Label, Select, Static
 
-from spm_console.errors import BadInputError, SpmError
+from spm_console.errors import BadInputError, Issue, SpmError
 from spm_console.services.session import PoseSpec
 from spm_console.tui.messages import Failed, Outcome, PlanLoaded, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
@@ -69,6 +69,7 @@ class PlanScreen(StepScreen):
         self.plot_kind = 0
         self.solving_method = "mvn"
         self._solver_failed = False
+        self._issue: Issue | None = None
         """The last failed solve was a solver's failure (not a refusal with a reason)."""
         self._reading = False
         self._typed: dict[str, list[str]] = {}
@@ -337,6 +338,7 @@ class PlanScreen(StepScreen):
         place. Runs first; Textual then calls StepScreen.on_failed with the new words."""
         message.message = console_words(message.message)
         self._solver_failed = message.solver_failed
+        self._issue = message.issue
 
     def handle_failed(self, op: str, message: str) -> None:
         if op == "open":  # the current plan stays: nothing replaced it
@@ -351,7 +353,7 @@ class PlanScreen(StepScreen):
             head, line = f"No plan: the {name} solve failed.", f"{name} solve failed (no plan now)"
         else:
             head, line = f"No {name} plan:", f"no {name} plan"
-        self._drop_plan(f"{head}\n{message}\nNext: {next_step(message)}")
+        self._drop_plan(f"{head}\n{message}\nNext: {next_step(self._issue)}")
         self.status.error(f"{line}: {message}")
 
     def _drop_plan(self, text: str) -> None:

@@ -4,8 +4,8 @@ to press, never a shell command.
 
 The planner's messages are shared with the CLI and may name its commands or options
 ("use more steps or 'plan mintime'"); :func:`console_words` puts the console's words in
-their place, and :func:`next_step` picks the "Next:" line from what the message says went
-wrong.
+their place, and :func:`next_step` picks the "Next:" line by what went wrong (the error's
+:class:`~spm_console.errors.Issue`), never by the message's words.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from spm_console.core.plan import Plan
+from spm_console.errors import Issue
 from spm_console.formatting import fmt_deg
 from spm_console.motion.plan_check import BETWEEN_SPEED_ALLOWANCE
 from spm_console.services.plan_info import PlanInfo
@@ -32,26 +33,25 @@ _CLI_WORDS: tuple[tuple[str, str], ...] = (
 
 _FIELDS = "tab moves from field to field"
 
-#: (words in the failure's message, what to do next), first match wins.
-_NEXT: tuple[tuple[tuple[str, ...], str], ...] = (
-    (("current pose unknown",),
-     f"connect first (press {keys_of('connect')}, then c), or choose 'home' or motor "
-     "angles θ as the start; then press s."),
-    (("no reference reaches the goal in N =", "too few for a route", "no room for the route"),
-     "raise steps N (the 'steps N' field; " + _FIELDS + "), or choose 'minimum time' in the "
-     "Method dropdown (it finds the shortest N itself); then press s."),
-    (("use a speed bound of at least",),
-     "raise v_max in the 'v_max °/s' field (" + _FIELDS + ") to at least the speed named "
-     "above, or choose a goal nearer the start; then press s."),
-    (("no feasible plan with N ≤",),
-     "raise v_max in the 'v_max °/s' field, or choose a goal nearer the start; then press s."),
-    (("constrained instants", "intersample"),
-     "lower steps N or the intersample K field (" + _FIELDS + "); then press s."),
-    (("outside the servo limits", "NOT feasible", "not feasible", "singular", "collid",
-      "below the reference limits", "above the reference limits"),
-     "change the start or goal fields (the θ or r/p/y you typed, " + _FIELDS + "); the "
-     f"workspace step checks a θ first ({keys_of('workspace')}, then k); then press s."),
-)
+#: What to do next after a failed solve, by what went wrong.
+_NEXT: dict[Issue, str] = {
+    Issue.POSE_UNKNOWN:
+        f"connect first (press {keys_of('connect')}, then c), or choose 'home' or motor "
+        "angles θ as the start; then press s.",
+    Issue.TOO_FEW_STEPS:
+        "raise steps N (the 'steps N' field; " + _FIELDS + "), or choose 'minimum time' in the "
+        "Method dropdown (it finds the shortest N itself); then press s.",
+    Issue.SPEED_TOO_LOW:
+        "raise v_max in the 'v_max °/s' field (" + _FIELDS + ") to at least the speed named "
+        "above, or choose a goal nearer the start; then press s.",
+    Issue.NO_PLAN_WITHIN_N_MAX:
+        "raise v_max in the 'v_max °/s' field, or choose a goal nearer the start; then press s.",
+    Issue.TOO_MANY_INSTANTS:
+        "lower steps N or the intersample K field (" + _FIELDS + "); then press s.",
+    Issue.END_NOT_FEASIBLE:
+        "change the start or goal fields (the θ or r/p/y you typed, " + _FIELDS + "); the "
+        f"workspace step checks a θ first ({keys_of('workspace')}, then k); then press s.",
+}
 
 _GENERIC = ("change the start, the goal, the method, steps N or v_max (" + _FIELDS + "), "
             "then press s.")
@@ -64,12 +64,9 @@ def console_words(message: str) -> str:
     return message
 
 
-def next_step(message: str) -> str:
-    """The "Next:" advice for a solve that failed with ``message`` (keys and fields)."""
-    for words, advice in _NEXT:
-        if any(w in message for w in words):
-            return advice
-    return _GENERIC
+def next_step(issue: Issue | None) -> str:
+    """The "Next:" advice for a solve that failed with ``issue`` (keys and fields)."""
+    return _GENERIC if issue is None else _NEXT.get(issue, _GENERIC)
 
 
 #: How the console names a plan's kind (the CLI's ``mvn`` / ``mintime``).
