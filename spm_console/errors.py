@@ -6,7 +6,7 @@ subclass carrying a distinct :class:`ExitCode`. Nothing here imports UI or I/O.
 
 from __future__ import annotations
 
-from enum import IntEnum
+from enum import IntEnum, StrEnum
 
 from spm_console.refusals import Refusal, worded
 
@@ -37,14 +37,44 @@ class ExitCode(IntEnum):
     INTERRUPTED = 130
 
 
+class Issue(StrEnum):
+    """What went wrong, for a front end to pick its advice (the key, field or step to use)
+    by, never by the message's words; the message itself names no front end's keys."""
+
+    NOT_CONNECTED = "not_connected"
+    """The servos are not connected."""
+    MOVING = "moving"
+    """The wrist is moving: the request waits until it stops."""
+    NO_WORKSPACE = "no_workspace"
+    """No workspace is loaded."""
+    NO_PLAN = "no_plan"
+    """No plan to execute."""
+    POSE_UNKNOWN = "pose_unknown"
+    """The current pose was asked for before the servos were read."""
+    TOO_FEW_STEPS = "too_few_steps"
+    """The plan's N steps are too few for the move or its route of regions."""
+    SPEED_TOO_LOW = "speed_too_low"
+    """The speed bound is below what any allowed horizon needs (the message names the
+    speed needed)."""
+    NO_PLAN_WITHIN_N_MAX = "no_plan_within_n_max"
+    """No plan within the largest horizon."""
+    TOO_MANY_INSTANTS = "too_many_instants"
+    """N times the intersample count K is above the bound of constrained instants."""
+    END_NOT_FEASIBLE = "end_not_feasible"
+    """A start or goal is outside the servo or reference limits, or not feasible."""
+
+
 class SpmError(Exception):
-    """Base class of every error shown to an operator (message, no traceback)."""
+    """Base class of every error shown to an operator (message, no traceback);
+    :attr:`issue` says what went wrong when a front end gives advice for it."""
 
     exit_code: ExitCode = ExitCode.INTERNAL
+    issue: Issue | None = None
 
-    def __init__(self, message: str) -> None:
+    def __init__(self, message: str, issue: Issue | None = None) -> None:
         super().__init__(message)
         self.message = message
+        self.issue = issue
 
 
 class ProfileError(SpmError):

@@ -160,7 +160,7 @@ def test_session_fk_reports_the_path() -> None:
 
     s = Session(agile_profile())
     rec = s.fk([100.0, 120.0, 110.0])
-    assert rec["path"]["route"] == "straight" and rec["path"]["waypoints"] == 2
+    assert rec.path is not None and rec.path.route == "straight" and rec.path.waypoints == 2
     assert s.workspace is None and s._fk_graph._graph is None  # the fast path loads nothing
     with pytest.raises(UnreachableError, match="not connected to home"):
         s.fk([70.55, 76.08, 152.62])

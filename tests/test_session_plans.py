@@ -18,7 +18,7 @@ def test_a_saved_plan_loads_verified_and_a_foreign_one_is_refused(
     s = Session(agile, sim=True, logs_root=tmp_path / "logs")
     s.load_workspace()
     plan = s.solve_plan("mvn", PoseSpec("home"), PoseSpec("theta", (125.0, 130.0, 128.0)), 40)
-    assert s.plan_info["region"].startswith("the workspace region P (")
+    assert s.plan_info is not None and s.plan_info.region.startswith("the workspace region P (")
     path = tmp_path / "p.json"
     save_plan(plan, path)
     s.plan = None

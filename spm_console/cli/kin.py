@@ -19,7 +19,7 @@ from spm_console.formatting import fmt_residual, fmt_vec
 from spm_console.input_rules import FK_THETA_LIMIT_DEG, finite_number, rpy_angles, theta_for_fk
 from spm_console.numbers import numeric_rows
 from spm_console.safe_io import MB, read_text
-from spm_console.services.kin_record import FkGraphSource, fk_record, fk_route, path_line
+from spm_console.services.kin_record import FkGraphSource, fk_record, fk_result, fk_route
 
 #: Largest ``fk --theta-file`` read, and most θ rows in it.
 MAX_THETA_FILE_BYTES = 10 * MB
@@ -97,29 +97,24 @@ def cmd_fk(args: argparse.Namespace) -> int:
     r = fk_route(profile, model, theta, graph, start)
     if not r.ok or r.pose is None:
         raise UnreachableError(f"θ = {fmt_vec(theta, 2)}°: {r.reason}")
-    rec = fk_record(profile, model, links, r)
+    modes = tuple(assembly_modes(model, r.pose.theta, r.pose.R)) if args.all_modes else None
+    rec = fk_result(profile, model, links, r, modes)
     lines = [
         f"θ        = {fmt_vec(theta, 2)} deg",
         *(f"v{i + 1}       = {fmt_vec(r.pose.v[i])}" for i in range(3)),
         f"n        = {fmt_vec(r.pose.n)}",
         f"ζ        = {r.pose.zeta:.4f}",
         f"residual {fmt_residual(r.pose.residual)}",
-        f"closest links = {rec['min_link_distance_mm']:.1f} mm ({rec['closest_pair']})",
-        "feasible" if rec["feasible"] else f"NOT feasible: {rec['reason']}",
-        path_line(rec),
+        f"closest links = {rec.min_link_distance_mm:.1f} mm ({rec.closest_pair})",
+        "feasible" if rec.feasible else f"NOT feasible: {rec.reason}",
+        "" if rec.path is None else rec.path.line(),
     ]
-    if args.all_modes:
-        modes = assembly_modes(model, r.pose.theta, r.pose.R)
-        rec["modes"] = [
-            {"v": m.v, "n": m.n, "zeta": m.zeta, "residual": m.residual,
-             "home_connected": m.home_connected, "same_sides": m.same_sides}
-            for m in modes
-        ]
+    if modes is not None:
         lines.append(f"{len(modes)} assembly modes:")
         for k, m in enumerate(modes, 1):
             tag = "  <- home-connected" if m.home_connected else ""
             lines.append(f"  {k}: n={fmt_vec(m.n)} ζ={m.zeta:.3f}{tag}")
-    emit(args, rec, "\n".join(lines))
+    emit(args, rec.as_json(), "\n".join(lines))
     return int(ExitCode.OK)
 
 

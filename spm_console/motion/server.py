@@ -31,10 +31,15 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from multiprocessing.connection import Connection
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING
 
 from spm_console.config.schema import Profile
+from spm_console.core.workspace.data import Workspace
+from spm_console.devices.base import ServoStatus
 from spm_console.errors import RefusedError, SpmError
+from spm_console.motion import servo_tools
+from spm_console.motion.executor import Executor
+from spm_console.motion.follow.target_feed import TargetFeed
 from spm_console.motion.protocol import (
     Close,
     EndFollow,
@@ -55,12 +60,15 @@ from spm_console.motion.protocol import (
     Telemetry,
     Torque,
 )
-from spm_console.motion.runs import RunContext, run_execute, run_home
+from spm_console.motion.runs import RunContext, SampleCallback, run_execute, run_home
 from spm_console.motion.sample import Sample
 from spm_console.refusals import Refusal
 from spm_console.system.cpus import place_on_loop_cpu
 from spm_console.system.realtime import HELPER_PRIORITY, normal_priority, quick_gil_handoff, request_realtime
 from spm_console.system.signals import STOP_SIGNALS
+
+if TYPE_CHECKING:  # the following run loads scipy (~1 s): imported after the first answer
+    from spm_console.motion.follow.run import FollowOutcome
 
 #: Client heartbeat period during a motion, s.
 HEARTBEAT_S = 0.1
@@ -167,10 +175,10 @@ class _Server:
         self.profile = profile
         self.ctx = ctx
         self.cache_dir = cache_dir
-        self._workspace: Any = None
+        self._workspace: Workspace | None = None
         self.bus = open_bus(profile, ctx.port)
         self.send_lock = threading.Lock()
-        self.executor: Any = None
+        self.executor: Executor | None = None
         self.motion: threading.Thread | None = None
         self.busy = threading.Event()
         """A motion runs: set when it is accepted, cleared before its result is sent (so the
@@ -181,7 +189,7 @@ class _Server:
         self.pending_clock: float | None = None
         self.pending_by_signal = False
         self.last_heartbeat = time.monotonic()
-        self.feed: Any = None
+        self.feed: TargetFeed | None = None
         """The target feed of the following under way (None otherwise)."""
 
     def send(self, msg: object) -> None:
@@ -215,8 +223,6 @@ class _Server:
                 self.send(self.refused(req.id, RefusedError(Refusal.MOVING)))
                 return
             if isinstance(req, Follow):  # the feed exists before any SetTarget can arrive
-                from spm_console.motion.follow.target_feed import TargetFeed
-
                 try:
                     self.feed = TargetFeed(req.timed, req.initial_deg, req.deadman_s)
                 except SpmError as exc:
@@ -253,12 +259,10 @@ class _Server:
         except Exception as exc:  # a bug: say so, keep serving (no motion runs)
             self.send(Failed(req.id, f"internal error in the motion process: {exc!r}", 1))
 
-    def servo_tool(self, req: Status | Torque | Reboot) -> Any:
+    def servo_tool(self, req: Status | Torque | Reboot) -> servo_tools.ServoHealth:
         """Torque per joint or a reboot (if asked), then every joint's health (ServoHealth).
         Torque off or a reboot (torque comes back off) un-homes the wrist: the joint can be
         moved by hand from then on."""
-        from spm_console.motion import servo_tools
-
         if isinstance(req, (Torque, Reboot)):
             servo_tools.joint_index(self.bus, req.joint)  # a bad number changes nothing
             if isinstance(req, Reboot) or not req.on:
@@ -269,7 +273,7 @@ class _Server:
                 servo_tools.reboot_joint(self.bus, req.joint)
         return servo_tools.read_health(self.bus)
 
-    def ping(self) -> list[Any]:
+    def ping(self) -> list[ServoStatus]:
         from dataclasses import replace
 
         from spm_console.devices.base import CommError
@@ -285,7 +289,7 @@ class _Server:
 
     # --- motion -----------------------------------------------------------------------
     @property
-    def workspace(self) -> Any:
+    def workspace(self) -> Workspace:
         """This profile's workspace (cache, or built on first use): every motion is verified
         against it."""
         if self._workspace is None:
@@ -302,7 +306,7 @@ class _Server:
             self.executor.request_estop(self.pending_estop, self.pending_clock,
                                         self.pending_by_signal)
 
-    def _attach(self, ex: Any) -> None:
+    def _attach(self, ex: Executor) -> None:
         self.executor = ex
         if self.pending_estop:
             ex.request_estop(self.pending_estop, self.pending_clock, self.pending_by_signal)
@@ -342,9 +346,10 @@ class _Server:
             self.busy.clear()
         self.send(result)
 
-    def _follow(self, req: Follow, on_sample: Any) -> Any:
+    def _follow(self, req: Follow, on_sample: SampleCallback) -> FollowOutcome:
         from spm_console.motion.follow.run import run_follow
 
+        assert self.feed is not None  # made by handle() before the motion thread starts
         return run_follow(self.profile, self.bus, self.workspace, self.feed, self.ctx, on_sample,
                           self._attach, homed=self.homed, skip_homing=req.skip_homing,
                           source=req.source)

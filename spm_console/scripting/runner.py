@@ -89,6 +89,7 @@ from spm_console.scripting.steps import (
     WaitStep,
     WorkspaceStep,
 )
+from spm_console.services.kin_record import FkRecord
 from spm_console.services.session import PoseSpec, Session
 from spm_console.system.signals import stop_signals
 
@@ -133,7 +134,7 @@ class ScriptRunner:
         self.session = session
         self.progress = progress or (lambda line: None)
         self.reports: list[StepReport] = []
-        self.last_fk: dict[str, Any] | None = None
+        self.last_fk: FkRecord | None = None
         self.exit_code = ExitCode.OK
         self.message = ""
         self._interrupted = False
@@ -223,18 +224,19 @@ class ScriptRunner:
         theta = step.theta if step.theta is not None else self.session.ik(step.rpy)  # type: ignore[arg-type]
         rec = self.session.fk(theta, all_modes=step.all_modes)
         self.last_fk = rec
-        out = {"theta_deg": _vec(rec["theta_deg"]), "v": [_vec(r) for r in rec["v"]],
-               "n": _vec(rec["n"]), "zeta": float(rec["zeta"]), "residual": float(rec["residual"]),
-               "min_link_distance_mm": float(rec["min_link_distance_mm"]),
-               "feasible": bool(rec["feasible"]), "reason": rec["reason"]}
-        if "modes" in rec:
-            out["modes"] = len(rec["modes"])
-        verdict = "feasible" if rec["feasible"] else f"NOT feasible ({rec['reason']})"
+        out = {"theta_deg": _vec(rec.theta_deg), "v": [_vec(r) for r in rec.v],
+               "n": _vec(rec.n), "zeta": float(rec.zeta), "residual": float(rec.residual),
+               "min_link_distance_mm": float(rec.min_link_distance_mm),
+               "feasible": bool(rec.feasible), "reason": rec.reason}
+        if rec.modes is not None:
+            out["modes"] = len(rec.modes)
+        verdict = "feasible" if rec.feasible else f"NOT feasible ({rec.reason})"
         return out, f"θ = {out['theta_deg']}° -> n = {out['n']}, ζ = {out['zeta']:.3f}, {verdict}"
 
     def _step_workspace(self, step: WorkspaceStep) -> tuple[dict[str, Any], str]:
         ws = self.session.load_workspace(force=step.rebuild)
         info = self.session.cache_info
+        assert info is not None  # set with the workspace
         out: dict[str, Any] = {**ws.counts(), "halfspaces": ws.region.halfspaces,
                                "cache": str(info.path), "cache_hit": bool(info.hit),
                                "seconds": info.load_seconds + info.build_seconds}
@@ -322,12 +324,12 @@ class ScriptRunner:
             if fk is None:
                 raise ScriptAssertionError("assert: no fk step has run yet")
             if step.feasible is not None:
-                checks.append(("feasible", bool(fk["feasible"]) == step.feasible,
-                               f"feasible is {bool(fk['feasible'])}" +
-                               (f" ({fk['reason']})" if fk["reason"] else "")))
+                checks.append(("feasible", bool(fk.feasible) == step.feasible,
+                               f"feasible is {bool(fk.feasible)}" +
+                               (f" ({fk.reason})" if fk.reason else "")))
             if step.zeta_min is not None:
-                checks.append(("zeta_min", float(fk["zeta"]) >= step.zeta_min,
-                               f"ζ = {float(fk['zeta']):.4f}, expected ≥ {step.zeta_min}"))
+                checks.append(("zeta_min", float(fk.zeta) >= step.zeta_min,
+                               f"ζ = {float(fk.zeta):.4f}, expected ≥ {step.zeta_min}"))
         if step.max_duration_s is not None:
             if s.plan is None:
                 raise ScriptAssertionError("assert max_duration_s: no plan step has run yet")

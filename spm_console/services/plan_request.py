@@ -30,12 +30,32 @@ from spm_console.core.regions.cover import connector_regions
 from spm_console.core.workspace.build import check_theta
 from spm_console.core.workspace.check import ThetaCheck
 from spm_console.core.workspace.data import Workspace
-from spm_console.errors import BadInputError, InfeasibleError
+from spm_console.errors import BadInputError, InfeasibleError, Issue, SpmError
 from spm_console.formatting import fmt_deg, fmt_vec
 from spm_console.motion.plan_check import verify_plan
 from spm_console.store.plan_file import plan_hash
 
 F = NDArray[np.float64]
+
+#: What went wrong in a refusal of the planner (:mod:`spm_console.core.planning`) and the region
+#: choice, by its words, first match wins: their errors do not carry an Issue yet (it is set
+#: here, in one place, until they do).
+_PLANNER_WORDS: tuple[tuple[Issue, tuple[str, ...]], ...] = (
+    (Issue.TOO_FEW_STEPS,
+     ("no reference reaches the goal in N =", "too few for a route", "no room for the route")),
+    (Issue.SPEED_TOO_LOW, ("use a speed bound of at least",)),
+    (Issue.NO_PLAN_WITHIN_N_MAX, ("no feasible plan with N ≤",)),
+    (Issue.TOO_MANY_INSTANTS, ("constrained instants", "intersample")),
+    (Issue.END_NOT_FEASIBLE,
+     ("outside the servo limits", "NOT feasible", "not feasible", "singular", "collid",
+      "below the reference limits", "above the reference limits")),
+)
+
+
+def planner_issue(message: str) -> Issue | None:
+    """The Issue of a planner refusal without one, from its words (None: none known)."""
+    return next((issue for issue, words in _PLANNER_WORDS if any(w in message for w in words)),
+                None)
 
 
 @dataclass(frozen=True)
@@ -104,16 +124,28 @@ def precheck(profile: Profile, req: PlanRequest) -> None:
             if np.any(th < lo) or np.any(th > hi):
                 raise BadInputError(
                     f"{name} θ = {fmt_deg(th)} is outside the servo limits "
-                    f"{fmt_vec(lo, 2)}…{fmt_deg(hi)}")
+                    f"{fmt_vec(lo, 2)}…{fmt_deg(hi)}", Issue.END_NOT_FEASIBLE)
     if req.method == "mintime":
         vmax = profile.limits.vmax_degps if req.vmax_degps is None else float(req.vmax_degps)
-        check_horizon(servo_model_of(profile), s, g, vmax,
-                      min(N_MAX, MAX_INSTANTS // max(1, int(req.intersample))))
+        try:
+            check_horizon(servo_model_of(profile), s, g, vmax,
+                          min(N_MAX, MAX_INSTANTS // max(1, int(req.intersample))))
+        except SpmError as exc:
+            exc.issue = exc.issue or planner_issue(exc.message)
+            raise
 
 
 def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMotion:
     """Assemble, solve and verify (see the module docstring); raises the SpmError that says
-    why not (bad input 4, infeasible 6, plan refused 26)."""
+    why not (bad input 4, infeasible 6, plan refused 26), with its Issue when known."""
+    try:
+        return _plan_motion(profile, ws, req)
+    except SpmError as exc:
+        exc.issue = exc.issue or planner_issue(exc.message)
+        raise
+
+
+def _plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMotion:
     precheck(profile, req)
     s = np.asarray(req.start_deg, float).reshape(3)
     g = np.asarray(req.goal_deg, float).reshape(3)
@@ -122,7 +154,8 @@ def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMot
     for name, th in (("start", s), ("goal", g)):
         chk = check_theta(ws, th)
         if not chk.feasible:
-            raise InfeasibleError(f"{name} θ = {fmt_deg(th)} is {chk.verdict}")
+            raise InfeasibleError(f"{name} θ = {fmt_deg(th)} is {chk.verdict}",
+                                  Issue.END_NOT_FEASIBLE)
         checks.append(chk)
     vmax = profile.limits.vmax_degps if req.vmax_degps is None else float(req.vmax_degps)
     pb = PlanProblem(servo_model_of(profile), s, g, int(req.steps), ws.region, vmax,

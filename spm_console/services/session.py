@@ -13,9 +13,9 @@ import contextlib
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,18 +25,23 @@ from spm_console.config.schema import Profile
 from spm_console.core.kinematics.ik import ik_rpy
 from spm_console.core.kinematics.modes import assembly_modes
 from spm_console.core.plan import Plan
+from spm_console.core.workspace.check import ThetaCheck
+from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoStatus
 from spm_console.errors import (
     BadInputError,
     BusError,
+    Issue,
     SpmError,
     UnreachableError,
 )
 from spm_console.formatting import fmt_deg
 from spm_console.motion.servo_tools import ServoHealth
-from spm_console.services.kin_record import FkGraphSource
+from spm_console.services.kin_record import FkGraphSource, FkRecord
+from spm_console.services.plan_info import PlanInfo
 from spm_console.services.session_follow import FollowTools
 from spm_console.services.session_tools import ServoTools
+from spm_console.store.workspace_cache import CacheInfo, load_or_build
 from spm_console.system.cpus import cpu_plan, place_beside_loop
 
 if TYPE_CHECKING:
@@ -136,11 +141,13 @@ class Session(ServoTools, FollowTools):
         self.before_motion: Callable[[], None] | None = None
         """Called once a motion is marked as running, before it is sent (a signal that came
         earlier refuses it here; one that comes later finds the motion and stops it)."""
-        self.workspace: Any = None
-        self.cache_info: Any = None
+        self.workspace: Workspace | None = None
+        self.cache_info: CacheInfo | None = None
+        """How the loaded workspace was obtained (cache hit or build)."""
         self._fk_graph = FkGraphSource(profile, self.model, cache_dir, lambda: self.workspace)
         self.plan: Plan | None = None
-        self.plan_info: dict[str, Any] = {}
+        self.plan_info: PlanInfo | None = None
+        """How the current plan was asked for and whether it ran (None without a plan)."""
         self.plan_source: str | None = None
         """The file the current plan was loaded from (None: solved in this session)."""
         self.last_run: ExecutionResult | None = None
@@ -223,7 +230,7 @@ class Session(ServoTools, FollowTools):
 
     def require_bus(self) -> MotionClient:
         if self.bus is None:
-            raise BusError("not connected to the servos: connect first (step 1)")
+            raise BusError("not connected to the servos: connect first", Issue.NOT_CONNECTED)
         return self.bus
 
     def read_position(self) -> F:
@@ -289,7 +296,7 @@ class Session(ServoTools, FollowTools):
         from spm_console.motion.homing import plan_segments
 
         if self.plan is None:
-            raise BadInputError("no plan to execute: solve one first (step 4)")
+            raise BadInputError("no plan to execute: solve one first", Issue.NO_PLAN)
         client, plan = self.require_bus(), self.plan
         theta0 = self.read_position()
         tol = self.profile.safety.approach_tolerance_deg
@@ -297,8 +304,8 @@ class Session(ServoTools, FollowTools):
         self.motion_total_s = sum((s.plan.N + 1) * s.plan.Ts for s in segments)
         src = source if source is not None else self.plan_source
         result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, src))
-        self.plan_info["executed"] = True
-        self.plan_info["executed_ok"] = result.ok
+        if self.plan_info is not None:
+            self.plan_info = replace(self.plan_info, executed=True, executed_ok=result.ok)
         return result
 
     def estop(self, reason: str = "operator E-stop", by_signal: bool = False) -> bool:
@@ -314,21 +321,17 @@ class Session(ServoTools, FollowTools):
         return True
 
     # ------------------------------------------------------------------ kinematics
-    def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> dict[str, Any]:
-        """Unique FK record (``fk --json`` keys, ``path``) of θ (deg), around singularities if need be."""
-        from spm_console.services.kin_record import fk_record, fk_route
+    def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> FkRecord:
+        """Unique FK of θ (deg) with its path and quality, around singularities if need be;
+        ``all_modes``: with every assembly mode at θ."""
+        from spm_console.services.kin_record import fk_result, fk_route
 
         th = theta3(theta_deg, "θ")
         r = fk_route(self.profile, self.model, th, self._fk_graph)
         if not r.ok or r.pose is None:
             raise UnreachableError(f"θ = {fmt_deg(th)}: {r.reason}")
-        rec = fk_record(self.profile, self.model, self.links, r)
-        if all_modes:
-            rec["modes"] = [
-                {"n": m.n, "zeta": m.zeta, "home_connected": m.home_connected}
-                for m in assembly_modes(self.model, r.pose.theta, r.pose.R)
-            ]
-        return rec
+        modes = tuple(assembly_modes(self.model, r.pose.theta, r.pose.R)) if all_modes else None
+        return fk_result(self.profile, self.model, self.links, r, modes)
 
     def ik(self, rpy_deg: Sequence[float] | F) -> F:
         """θ (deg) for roll, pitch, yaw (deg) from the home orientation."""
@@ -344,30 +347,30 @@ class Session(ServoTools, FollowTools):
         if spec.kind == "home":
             return np.asarray(self.profile.home.theta_deg, float)
         if self.theta_deg is None:
-            raise BadInputError("current pose unknown: connect to the servos first (step 1)")
+            raise BadInputError("current pose unknown: connect to the servos first",
+                                Issue.POSE_UNKNOWN)
         return self.theta_deg.copy()
 
     # ------------------------------------------------------------------ workspace
     def load_workspace(self, progress: ProgressCallback | None = None,
-                       force: bool = False) -> Any:
+                       force: bool = False) -> Workspace:
         """Load the cached workspace of the profile, or build (and cache) it."""
-        from spm_console.store.workspace_cache import load_or_build
-
-        self.workspace, self.cache_info = load_or_build(
+        ws, self.cache_info = load_or_build(
             self.profile, cache_dir=self.cache_dir, force=force, progress=progress)
-        return self.workspace
+        self.workspace = ws
+        return ws
 
-    def ensure_workspace(self) -> Any:
+    def ensure_workspace(self) -> Workspace:
         """The loaded workspace, loaded (or built) now when none is: planning and opening a
         plan do not need the workspace step first."""
         return self.workspace if self.workspace is not None else self.load_workspace()
 
-    def require_workspace(self) -> Any:
+    def require_workspace(self) -> Workspace:
         if self.workspace is None:
-            raise BadInputError("no workspace loaded: load or build it first (step 3)")
+            raise BadInputError("no workspace loaded: load or build it first", Issue.NO_WORKSPACE)
         return self.workspace
 
-    def check_theta(self, theta_deg: Sequence[float] | F) -> Any:
+    def check_theta(self, theta_deg: Sequence[float] | F) -> ThetaCheck:
         """Is θ (deg) feasible and inside P (``core.workspace.check_theta`` -> ThetaCheck)."""
         from spm_console.core.workspace.build import check_theta
 
@@ -397,9 +400,9 @@ class Session(ServoTools, FollowTools):
         plan = planned.plan
         self.plan = plan
         self.plan_source = None
-        self.plan_info = {"method": method, "start": start.describe(), "goal": goal.describe(),
-                          "start_deg": s, "goal_deg": g, "vmax_degps": vmax,
-                          "region": planned.describe_region()}
+        self.plan_info = PlanInfo(method=method, start=start.describe(), goal=goal.describe(),
+                                  start_deg=s, goal_deg=g, vmax_degps=vmax,
+                                  region=planned.describe_region())
         return plan
 
     def load_plan_file(self, path: str | Path) -> Plan:
@@ -412,14 +415,7 @@ class Session(ServoTools, FollowTools):
         plan = load_plan(path, self.profile)
         verify_plan(self.profile, self.ensure_workspace(), plan)
         self.plan = plan
-        ends = (f"θ = {fmt_deg(plan.position_deg[0])}", f"θ = {fmt_deg(plan.position_deg[-1])}")
-        self.plan_info = {"method": plan.kind, "start": ends[0], "goal": ends[1],
-                          "start_deg": plan.position_deg[0], "goal_deg": plan.position_deg[-1],
-                          "vmax_degps": None if plan.options is None else plan.options.vmax_degps,
-                          "region": (f"stored in the plan ({plan.region.halfspaces} half-spaces)"
-                                     if plan.route is None else
-                                     f"stored in the plan: {plan.route.describe()}"),
-                          "source": str(path)}
+        self.plan_info = PlanInfo.of_file(plan, path)
         self.plan_source = str(path)
         return plan
 

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from spm_console.config.models import servo_limits_deg
 from spm_console.config.schema import Profile
-from spm_console.errors import BadInputError, RefusedError
+from spm_console.errors import BadInputError, Issue, RefusedError
 from spm_console.motion.servo_tools import ServoHealth, jog_target
 from spm_console.refusals import Refusal
 
@@ -58,7 +58,7 @@ class ServoTools:
     def _idle(self, what: str) -> MotionClient:
         client = self.require_bus()
         if self.moving.is_set():
-            raise BadInputError(f"{what}: refused, the wrist is moving (press SPACE to stop it)")
+            raise BadInputError(f"{what}: refused, the wrist is moving", Issue.MOVING)
         return client
 
     @staticmethod

@@ -11,10 +11,12 @@ from textual.message import Message
 if TYPE_CHECKING:
     from spm_console.core.plan import Plan
     from spm_console.core.workspace.check import ThetaCheck
+    from spm_console.errors import Issue
     from spm_console.motion.follow.run import FollowOutcome
     from spm_console.motion.logs.runlog import RunData
     from spm_console.motion.segments import ExecutionResult
     from spm_console.motion.servo_tools import ServoHealth
+    from spm_console.services.kin_record import FkRecord
     from spm_console.services.session import BusState
 
 
@@ -57,8 +59,8 @@ class ServoToolDone:
 
 @dataclass(frozen=True)
 class FkSolved:
-    record: dict[str, Any]
-    """The ``fk --json`` record (``run.kin_record.fk_record``)."""
+    record: FkRecord
+    """The solved FK (:meth:`~spm_console.services.session.Session.fk`)."""
     from_ik: bool = False
     rpy_deg: Any = None
     """Roll, pitch, yaw from home (deg) of an FK result, when θ is that orientation's IK."""
@@ -121,13 +123,17 @@ class Done(Message):
 class Failed(Message):
     """A blocking operation failed with a message for the operator (no traceback)."""
 
-    def __init__(self, op: str, message: str, solver_failed: bool = False) -> None:
+    def __init__(self, op: str, message: str, solver_failed: bool = False,
+                 issue: Issue | None = None) -> None:
         super().__init__()
         self.op = op
         self.message = message
         self.solver_failed = solver_failed
         """A solver (or the code) failed; False when the request was refused with a reason
         (bad input, an end not feasible, no feasible plan)."""
+        self.issue = issue
+        """What went wrong (:attr:`SpmError.issue <spm_console.errors.SpmError.issue>`), for
+        the screen's advice."""
 
 
 class Telemetry(Message):

@@ -82,7 +82,7 @@ def test_the_hint_on_the_step_it_names_says_what_to_do_there() -> None:
     from spm_console.tui.widgets.steps import next_hint
 
     homed = SimpleNamespace(moving=threading.Event(), bus=object(), homed=True, workspace=None,
-                            plan=None, last_run=None, plan_info={})
+                            plan=None, last_run=None, plan_info=None)
     elsewhere = next_hint(homed, current="connect")  # type: ignore[arg-type]
     assert elsewhere == "Next: press 2 (F2) for an FK check, or 3 (F3) for the workspace."
     here = next_hint(homed, current="fk")  # type: ignore[arg-type]

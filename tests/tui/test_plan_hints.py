@@ -6,9 +6,14 @@ from __future__ import annotations
 import re
 from typing import Any
 
+import numpy as np
 import pytest
 from textual.widgets import Input, Select
 
+from spm_console.config.schema import Profile
+from spm_console.errors import BadInputError, Issue, SpmError
+from spm_console.services.plan_request import PlanRequest, planner_issue, precheck
+from spm_console.tui.screens.base import describe_error
 from spm_console.tui.screens.plan_words import next_step
 from spm_console.tui.widgets.angles import AnglesInput
 from tests.tui.helpers import settle, status_of, text_of
@@ -53,11 +58,34 @@ async def test_a_failed_solve_says_which_field_to_change(
 
 
 def test_each_kind_of_failure_gets_its_own_advice() -> None:
-    assert "connect first (press 1 (F1), then c)" in next_step(
-        "current pose unknown: connect to the servos first (step 1)")
-    assert "'v_max °/s' field" in next_step(
+    assert "connect first (press 1 (F1), then c)" in next_step(Issue.POSE_UNKNOWN)
+    assert "'v_max °/s' field" in next_step(planner_issue(
         "no plan within N ≤ 5000 steps (100 s): at v_max = 0.01 deg/s the largest joint "
-        "move (40°) needs about 4e+03 s; use a speed bound of at least about 0.4 deg/s")
-    assert "start or goal fields" in next_step(
-        "goal θ = [62.00, 135.00, 135.00]° is NOT feasible (singular)")
-    assert "then press s" in next_step("something else went wrong")
+        "move (40°) needs about 4e+03 s; use a speed bound of at least about 0.4 deg/s"))
+    assert "start or goal fields" in next_step(planner_issue(
+        "goal θ = [62.00, 135.00, 135.00]° is NOT feasible (singular)"))
+    assert "then press s" in next_step(planner_issue("something else went wrong"))
+    assert "then press s" in next_step(None)
+
+
+def test_the_advice_follows_the_issue_not_the_words(agile: Profile) -> None:
+    """The runtime's errors carry their Issue (the message names no console step); the
+    console adds its words and picks its advice by the Issue."""
+    from spm_console.services.session import PoseSpec, Session
+
+    with pytest.raises(BadInputError) as exc:
+        Session(agile).resolve(PoseSpec("current"))
+    assert exc.value.issue is Issue.POSE_UNKNOWN
+    assert exc.value.message == "current pose unknown: connect to the servos first"
+    assert describe_error(exc.value) == exc.value.message + " (step 1)"
+    assert "connect first" in next_step(exc.value.issue)
+    # the same words with another issue get that issue's advice
+    other = BadInputError(exc.value.message, Issue.TOO_MANY_INSTANTS)
+    assert "intersample K field" in next_step(other.issue)
+    with pytest.raises(SpmError) as refused:  # tagged where it is raised: below the servo limits
+        precheck(agile, PlanRequest("mvn", np.zeros(3), np.full(3, 135.0)))
+    assert refused.value.issue is Issue.END_NOT_FEASIBLE
+    with pytest.raises(SpmError) as slow:  # a planner refusal: tagged by the services
+        precheck(agile, PlanRequest("mintime", np.full(3, 135.0), np.full(3, 95.0),
+                                    vmax_degps=0.01))
+    assert slow.value.issue is Issue.SPEED_TOO_LOW

@@ -149,6 +149,35 @@ class Local:
                      self.det[idx], [x[idx] for x in self.j2])
 
 
+@dataclass(frozen=True, slots=True)
+class KernelStep:
+    """One step of :meth:`Kernel.step` as component arrays (the form of :class:`Step` the
+    vectorized checks use without stacking)."""
+
+    R: Mat
+    """Corrected rotations, orthonormalized (identity where not finite)."""
+    residual: F
+    """Max |f| after Newton (n,)."""
+    correction: F
+    """‖R_corrected − R_predicted‖_F (n,)."""
+    zeta: F
+    """ζ at the new pose (n,)."""
+    det_side: F
+    """det J1 times its home sign (n,): positive = same assembly mode."""
+    leg_sides: Vec
+    """J2 diagonal times the home signs (three (n,) arrays): positive = same working modes."""
+    at: Local
+    """The Jacobians at the new pose (the next step's ``at_old``)."""
+
+    def good(self, zeta_floor: float = PATH_ZETA_FLOOR) -> B:
+        """:meth:`Step.good` on component arrays: converged, in the home modes, ζ ≥
+        ``zeta_floor``."""
+        res, d2 = self.residual, self.leg_sides
+        return np.asarray(np.isfinite(res) & (res <= 1e-10) & (self.correction <= 0.05)
+                          & (self.det_side > 0) & (d2[0] > 0) & (d2[1] > 0) & (d2[2] > 0)
+                          & (self.zeta >= zeta_floor))
+
+
 class Kernel:
     """The constant part of the model as Python floats, and the step on component arrays."""
 
@@ -235,10 +264,10 @@ class Kernel:
         return z, det * self.det_sign, [d[i] * self.signs[i] for i in range(3)], Local(w, cols, det, d)
 
     def step(self, th_old: Vec, R_old: Mat, th_new: Vec, at_old: Local | None = None
-             ) -> tuple[Mat, F, F, F, F, Vec, Local]:
-        """Predict from (θ_old, R_old), correct at θ_new. Returns (R, residual, correction,
-        ζ, det side, leg sides, the Jacobians at the new pose) as component arrays.
-        ``at_old``: the Jacobians at (θ_old, R_old) when the previous step returned them."""
+             ) -> KernelStep:
+        """Predict from (θ_old, R_old), correct at θ_new, as component arrays.
+        ``at_old``: the Jacobians at (θ_old, R_old) when the previous step returned them
+        (:attr:`KernelStep.at`)."""
         if at_old is None:
             w_old = self.w(th_old)
             v_old = self.axes(R_old)
@@ -261,7 +290,7 @@ class Kernel:
         H = [[(3.0 * float(a == b) - G[a][b]) * 0.5 for b in range(3)] for a in range(3)]
         Rc = _matmul(X, H)
         z, d1, d2, at_new = self.modes(w_new, Rc)
-        return Rc, res, corr, z, d1, d2, at_new
+        return KernelStep(Rc, res, corr, z, d1, d2, at_new)
 
 
 def to_vec(x: F) -> Vec:
@@ -285,6 +314,6 @@ def continuation_step(model: ModeledSpm, th_old: F, R_old: F, th_new: F) -> Step
     th_old = np.asarray(th_old, float).reshape(-1, 3)
     th_new = np.asarray(th_new, float).reshape(-1, 3)
     R_old = np.asarray(R_old, float).reshape(-1, 3, 3)
-    Rc, res, corr, z, d1, d2, _ = Kernel(model).step(to_vec(th_old), to_mat(R_old),
-                                                     to_vec(th_new))
-    return Step(from_mat(Rc), res, corr, z, d1, np.stack(d2, -1))
+    st = Kernel(model).step(to_vec(th_old), to_mat(R_old), to_vec(th_new))
+    return Step(from_mat(st.R), st.residual, st.correction, st.zeta, st.det_side,
+                np.stack(st.leg_sides, -1))

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics.continuation import PATH_ZETA_FLOOR, Kernel, Local, from_mat, to_mat, to_vec
+from spm_console.core.kinematics.continuation import Kernel, Local, from_mat, to_mat, to_vec
 from spm_console.core.kinematics.jacobian import conditioning_index
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel, platform_axes
@@ -46,16 +46,11 @@ def track_from(model: SpmModel, th0: F, R0: F, th1: F, steps: int) -> tuple[F, B
     at: Local | None = None
     for k in range(1, steps + 1):
         th_new = [a[i] + (b[i] - a[i]) * (k / steps) for i in range(3)]
-        R, res, corr, z, d1, d2, at = kern.step(th, R, th_new, at)
-        ok &= _good(res, corr, z, d1, d2)
+        st = kern.step(th, R, th_new, at)
+        R, at = st.R, st.at
+        ok &= st.good()
         th = th_new
     return from_mat(R), np.asarray(ok, bool)
-
-
-def _good(res: F, corr: F, z: F, d1: F, d2: list[F]) -> B:
-    """:meth:`~spm_console.core.kinematics.continuation.Step.good` on component arrays."""
-    return np.asarray(np.isfinite(res) & (res <= 1e-10) & (corr <= 0.05) & (d1 > 0)
-                      & (d2[0] > 0) & (d2[1] > 0) & (d2[2] > 0) & (z >= PATH_ZETA_FLOOR))
 
 
 def own_steps(ws: Workspace, theta_deg: F) -> NDArray[np.int64]:
@@ -110,12 +105,12 @@ def _track_and_check(ws: Workspace, kern: Kernel, links: LinkModel, th0: F, R0: 
     at: Local | None = None
     for k in range(1, steps + 1):
         th_new = [a[i] + (b[i] - a[i]) * (k / steps) for i in range(3)]
-        R, res, corr, z, d1, d2, at = kern.step(th, R, th_new, at)
-        keep = np.flatnonzero(_good(res, corr, z, d1, d2))
-        rows, z, at = rows[keep], z[keep], at.take(keep)
+        st = kern.step(th, R, th_new, at)
+        keep = np.flatnonzero(st.good())
+        rows, z, at = rows[keep], st.zeta[keep], st.at.take(keep)
         a, b = [x[keep] for x in a], [x[keep] for x in b]
         th = [x[keep] for x in th_new]
-        R = [[x[keep] for x in row] for row in R]
+        R = [[x[keep] for x in row] for row in st.R]
     sing = np.flatnonzero(z >= ws.zeta_min)
     R = [[x[sing] for x in row] for row in R]
     w = [[x[sing] for x in wi] for wi in at.w] if at is not None else []

@@ -29,7 +29,7 @@ from textual.widget import Widget
 from textual.widgets import Footer, Input, Select, TextArea
 from textual.worker import get_current_worker
 
-from spm_console.errors import RefusedError, SolverError, SpmError
+from spm_console.errors import Issue, RefusedError, SolverError, SpmError
 from spm_console.refusals import worded
 from spm_console.tui.host import ConsoleHost
 from spm_console.tui.messages import Done, Failed, Outcome
@@ -42,12 +42,23 @@ if TYPE_CHECKING:
     from spm_console.services.session import Session
 
 
+#: The console's words after a runtime message (which names no console step or key), by
+#: what went wrong.
+CONSOLE_WORDS: dict[Issue, str] = {
+    Issue.NOT_CONNECTED: " (step 1)",
+    Issue.POSE_UNKNOWN: " (step 1)",
+    Issue.NO_WORKSPACE: " (step 3)",
+    Issue.NO_PLAN: " (step 4)",
+    Issue.MOVING: " (press SPACE to stop it)",
+}
+
+
 def describe_error(exc: BaseException) -> str:
     """One readable line for the operator (never a traceback)."""
     if isinstance(exc, RefusedError):  # the motion process's refusal, in the console's words
         return worded(exc.reason, "console")
     if isinstance(exc, SpmError):
-        return exc.message
+        return exc.message + (CONSOLE_WORDS.get(exc.issue, "") if exc.issue is not None else "")
     text = str(exc) or type(exc).__name__
     return f"internal error ({type(exc).__name__}): {text} — please report it"
 
@@ -254,7 +265,8 @@ class StepScreen(Screen[None]):
         except BaseException as exc:  # every failure becomes a message, never a traceback
             if not get_current_worker().is_cancelled:
                 solver = isinstance(exc, SolverError) or not isinstance(exc, SpmError)
-                self.post_message(Failed(op, describe_error(exc), solver))
+                issue = exc.issue if isinstance(exc, SpmError) else None
+                self.post_message(Failed(op, describe_error(exc), solver, issue))
             return
         if not get_current_worker().is_cancelled:
             self.post_message(Done(op, result))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from textual.app import ComposeResult
@@ -13,32 +13,31 @@ from textual.widgets import Input, Static
 
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg, fmt_residual, fmt_vec
-from spm_console.services.kin_record import path_line
+from spm_console.services.kin_record import FkRecord
 from spm_console.tui.messages import FkSolved, Outcome
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.rules import RPY_NAMES, THETA_NAMES, ik_check, rpy_rules, theta_rules
 
 
-def fk_text(rec: dict[str, Any]) -> str:
+def fk_text(rec: FkRecord) -> str:
     """The FK record as aligned lines (the numbers of ``spm-console fk``)."""
-    lines = [f"θ        = {fmt_deg(rec['theta_deg'])}"]
-    lines += [f"v{i + 1}       = {fmt_vec(rec['v'][i], signed=True)}" for i in range(3)]
+    lines = [f"θ        = {fmt_deg(rec.theta_deg)}"]
+    lines += [f"v{i + 1}       = {fmt_vec(rec.v[i], signed=True)}" for i in range(3)]
     lines += [
-        f"n        = {fmt_vec(rec['n'], signed=True)}",
-        f"ζ        = {rec['zeta']:.4f}",
-        f"residual {fmt_residual(rec['residual'])}",
-        f"closest links = {rec['min_link_distance_mm']:.1f} mm ({rec['closest_pair']})",
-        "FEASIBLE" if rec["feasible"] else f"NOT FEASIBLE: {rec['reason']}",
+        f"n        = {fmt_vec(rec.n, signed=True)}",
+        f"ζ        = {rec.zeta:.4f}",
+        f"residual {fmt_residual(rec.residual)}",
+        f"closest links = {rec.min_link_distance_mm:.1f} mm ({rec.closest_pair})",
+        "FEASIBLE" if rec.feasible else f"NOT FEASIBLE: {rec.reason}",
     ]
-    if rec.get("path", {}).get("route") == "graph":  # around a singularity: say which way
-        lines.append(path_line(rec))
-    modes = rec.get("modes")
-    if modes is not None:
-        lines.append(f"{len(modes)} assembly modes at this θ:")
-        for k, m in enumerate(modes, 1):
-            tag = "  ← home-connected (the unique solution)" if m["home_connected"] else ""
-            lines.append(f"  {k}: n = {fmt_vec(m['n'], 3, signed=True)}  ζ = {m['zeta']:.3f}{tag}")
+    if rec.path is not None and rec.path.route == "graph":  # around a singularity: say which way
+        lines.append(rec.path.line())
+    if rec.modes is not None:
+        lines.append(f"{len(rec.modes)} assembly modes at this θ:")
+        for k, m in enumerate(rec.modes, 1):
+            tag = "  ← home-connected (the unique solution)" if m.home_connected else ""
+            lines.append(f"  {k}: n = {fmt_vec(m.n, 3, signed=True)}  ζ = {m.zeta:.3f}{tag}")
     return "\n".join(lines)
 
 
@@ -115,9 +114,7 @@ class FkScreen(StepScreen):
 
         def go() -> FkSolved:
             theta = self.session.ik(rpy)
-            rec = self.session.fk(theta)
-            rec["from_rpy"] = rpy
-            return FkSolved(rec, from_ik=True)
+            return FkSolved(self.session.fk(theta), from_ik=True, rpy_deg=np.asarray(rpy, float))
 
         self.run_blocking("ik", go, f"solving IK of roll/pitch/yaw = {fmt_deg(rpy)} …")
 
@@ -133,16 +130,16 @@ class FkScreen(StepScreen):
             return
         rec = outcome.record
         if outcome.from_ik:
-            self.query_one("#theta", AnglesInput).set_values(rec["theta_deg"], digits=3)
+            self.query_one("#theta", AnglesInput).set_values(rec.theta_deg, digits=3)
         elif outcome.rpy_deg is not None:  # the orientation fields show this pose's, not older ones
             self.query_one("#rpy", AnglesInput).set_values(outcome.rpy_deg)
         self.query_one("#fk-result", Static).update(Content(fk_text(rec)))
         self.console.fk_done = True
-        self.console.view.show_target(np.asarray(rec["theta_deg"], float))
-        verdict = "feasible" if rec["feasible"] else "not feasible"
+        self.console.view.show_target(np.asarray(rec.theta_deg, float))
+        verdict = "feasible" if rec.feasible else "not feasible"
         where = " (shown as the target ghost in the 3D view)" if self.console.viewer_url else ""
         what = "IK and FK solved" if outcome.from_ik else "FK solved"
-        self.status.ok(f"{what}: ζ = {rec['zeta']:.3f}, {verdict}{where}")
+        self.status.ok(f"{what}: ζ = {rec.zeta:.3f}, {verdict}{where}")
 
     def handle_failed(self, op: str, message: str) -> None:
         # the result this would have replaced is cleared; the 3D view goes back to the wrist

@@ -74,7 +74,7 @@ def rpy_of(session: Session, theta_deg: F) -> F | None:
     """Roll, pitch, yaw from home (deg) of the pose at θ (deg), when θ is that orientation's
     IK in the home working mode; None otherwise (or when FK fails)."""
     try:
-        v = np.asarray(session.fk(theta_deg)["v"], float)
+        v = np.asarray(session.fk(theta_deg).v, float)
         R = np.linalg.solve(np.asarray(session.model.v_home, float), v).T  # v = v_home Rᵀ
         rpy = np.degrees(matrix_rpy(R))
         back = session.ik(rpy)

@@ -3,6 +3,7 @@ minimum time, solved in a worker; result table and plots."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import ClassVar
 
@@ -15,7 +16,7 @@ from textual.content import Content
 from textual.message import Message
 from textual.widgets import Checkbox, Input, Label, Select, Static
 
-from spm_console.errors import BadInputError, SpmError
+from spm_console.errors import BadInputError, Issue, SpmError
 from spm_console.services.session import PoseSpec
 from spm_console.tui.messages import Failed, Outcome, PlanLoaded, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
@@ -68,6 +69,7 @@ class PlanScreen(StepScreen):
         self.plot_kind = 0
         self.solving_method = "mvn"
         self._solver_failed = False
+        self._issue: Issue | None = None
         """The last failed solve was a solver's failure (not a refusal with a reason)."""
         self._reading = False
         self._typed: dict[str, list[str]] = {}
@@ -230,7 +232,8 @@ class PlanScreen(StepScreen):
                 s.read_position()
             plan = s.solve_plan(method, start, goal, steps, vmax,  # type: ignore[arg-type]
                                 intersample=k, hold_first=hold_first)
-            s.plan_info["start_read"] = read and start.kind == "current"
+            if s.plan_info is not None:
+                s.plan_info = replace(s.plan_info, start_read=read and start.kind == "current")
             return PlanSolved(plan)
 
         self.run_blocking("solve", solve,
@@ -335,6 +338,7 @@ class PlanScreen(StepScreen):
         place. Runs first; Textual then calls StepScreen.on_failed with the new words."""
         message.message = console_words(message.message)
         self._solver_failed = message.solver_failed
+        self._issue = message.issue
 
     def handle_failed(self, op: str, message: str) -> None:
         if op == "open":  # the current plan stays: nothing replaced it
@@ -349,7 +353,7 @@ class PlanScreen(StepScreen):
             head, line = f"No plan: the {name} solve failed.", f"{name} solve failed (no plan now)"
         else:
             head, line = f"No {name} plan:", f"no {name} plan"
-        self._drop_plan(f"{head}\n{message}\nNext: {next_step(message)}")
+        self._drop_plan(f"{head}\n{message}\nNext: {next_step(self._issue)}")
         self.status.error(f"{line}: {message}")
 
     def _drop_plan(self, text: str) -> None:
@@ -357,18 +361,17 @@ class PlanScreen(StepScreen):
         the 3D view and the session: "execute" never runs a plan the operator tried to
         replace."""
         self.session.plan = None
-        self.session.plan_info = {}
+        self.session.plan_info = None
         self.console.view.clear_path()
         self.query_one("#plan-text", Static).update(Content(text))
         self.query_one("#plan-plot", PlotView).plot("no plan", np.zeros(0), [])
         self.refresh_view()  # the step bar's tick and "Next:" line no longer name a plan
 
     def show_plan(self) -> None:
-        plan = self.session.plan
-        if plan is None:
+        plan, info = self.session.plan, self.session.plan_info
+        if plan is None or info is None:  # the session sets both together
             return
-        self.query_one("#plan-text", Static).update(
-            Content(plan_text(plan, self.session.plan_info)))
+        self.query_one("#plan-text", Static).update(Content(plan_text(plan, info)))
         self.show_plot()
 
     def show_plot(self) -> None:

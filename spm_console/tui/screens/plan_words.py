@@ -4,20 +4,21 @@ to press, never a shell command.
 
 The planner's messages are shared with the CLI and may name its commands or options
 ("use more steps or 'plan mintime'"); :func:`console_words` puts the console's words in
-their place, and :func:`next_step` picks the "Next:" line from what the message says went
-wrong.
+their place, and :func:`next_step` picks the "Next:" line by what went wrong (the error's
+:class:`~spm_console.errors.Issue`), never by the message's words.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from spm_console.core.plan import Plan
 from spm_console.core.plan_rules import BETWEEN_SPEED_ALLOWANCE
+from spm_console.errors import Issue
 from spm_console.formatting import fmt_deg
+from spm_console.services.plan_info import PlanInfo
 from spm_console.tui.widgets.steps import keys_of
 
 #: CLI wording in planner messages → what it means on the plan step.
@@ -32,26 +33,25 @@ _CLI_WORDS: tuple[tuple[str, str], ...] = (
 
 _FIELDS = "tab moves from field to field"
 
-#: (words in the failure's message, what to do next), first match wins.
-_NEXT: tuple[tuple[tuple[str, ...], str], ...] = (
-    (("current pose unknown",),
-     f"connect first (press {keys_of('connect')}, then c), or choose 'home' or motor "
-     "angles θ as the start; then press s."),
-    (("no reference reaches the goal in N =", "too few for a route", "no room for the route"),
-     "raise steps N (the 'steps N' field; " + _FIELDS + "), or choose 'minimum time' in the "
-     "Method dropdown (it finds the shortest N itself); then press s."),
-    (("use a speed bound of at least",),
-     "raise v_max in the 'v_max °/s' field (" + _FIELDS + ") to at least the speed named "
-     "above, or choose a goal nearer the start; then press s."),
-    (("no feasible plan with N ≤",),
-     "raise v_max in the 'v_max °/s' field, or choose a goal nearer the start; then press s."),
-    (("constrained instants", "intersample"),
-     "lower steps N or the intersample K field (" + _FIELDS + "); then press s."),
-    (("outside the servo limits", "NOT feasible", "not feasible", "singular", "collid",
-      "below the reference limits", "above the reference limits"),
-     "change the start or goal fields (the θ or r/p/y you typed, " + _FIELDS + "); the "
-     f"workspace step checks a θ first ({keys_of('workspace')}, then k); then press s."),
-)
+#: What to do next after a failed solve, by what went wrong.
+_NEXT: dict[Issue, str] = {
+    Issue.POSE_UNKNOWN:
+        f"connect first (press {keys_of('connect')}, then c), or choose 'home' or motor "
+        "angles θ as the start; then press s.",
+    Issue.TOO_FEW_STEPS:
+        "raise steps N (the 'steps N' field; " + _FIELDS + "), or choose 'minimum time' in the "
+        "Method dropdown (it finds the shortest N itself); then press s.",
+    Issue.SPEED_TOO_LOW:
+        "raise v_max in the 'v_max °/s' field (" + _FIELDS + ") to at least the speed named "
+        "above, or choose a goal nearer the start; then press s.",
+    Issue.NO_PLAN_WITHIN_N_MAX:
+        "raise v_max in the 'v_max °/s' field, or choose a goal nearer the start; then press s.",
+    Issue.TOO_MANY_INSTANTS:
+        "lower steps N or the intersample K field (" + _FIELDS + "); then press s.",
+    Issue.END_NOT_FEASIBLE:
+        "change the start or goal fields (the θ or r/p/y you typed, " + _FIELDS + "); the "
+        f"workspace step checks a θ first ({keys_of('workspace')}, then k); then press s.",
+}
 
 _GENERIC = ("change the start, the goal, the method, steps N or v_max (" + _FIELDS + "), "
             "then press s.")
@@ -64,37 +64,34 @@ def console_words(message: str) -> str:
     return message
 
 
-def next_step(message: str) -> str:
-    """The "Next:" advice for a solve that failed with ``message`` (keys and fields)."""
-    for words, advice in _NEXT:
-        if any(w in message for w in words):
-            return advice
-    return _GENERIC
+def next_step(issue: Issue | None) -> str:
+    """The "Next:" advice for a solve that failed with ``issue`` (keys and fields)."""
+    return _GENERIC if issue is None else _NEXT.get(issue, _GENERIC)
 
 
 #: How the console names a plan's kind (the CLI's ``mvn`` / ``mintime``).
 KIND_WORDS = {"mvn": "MVN", "mintime": "Minimum time"}
 
 
-def plan_text(plan: Plan, info: dict[str, Any]) -> str:
+def plan_text(plan: Plan, info: PlanInfo) -> str:
     chk = plan.check
-    vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
-    start = info.get("start_deg", plan.position_deg[0])
-    read = " (read from the servos just before solving)" if info.get("start_read") else ""
+    vmax = plan.options.vmax_degps if plan.options is not None else info.vmax_degps
+    start = info.start_deg
+    read = " (read from the servos just before solving)" if info.start_read else ""
     lines = [
-        f"{KIND_WORDS.get(plan.kind, plan.kind)}: {info.get('start', '?')} → "
-        f"{info.get('goal', '?')}",
+        f"{KIND_WORDS.get(plan.kind, plan.kind)}: {info.start} → "
+        f"{info.goal}",
         f"start θ = {fmt_deg(start)}{read}",
-        f"goal θ = {fmt_deg(info.get('goal_deg', plan.position_deg[-1]))}",
+        f"goal θ = {fmt_deg(info.goal_deg)}",
         f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
         f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
         f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
         + (f" (v_max {vmax:g})" if vmax else ""),
     ]
-    if info.get("region"):
-        lines.append(f"region: {info['region']}")
-    if info.get("source"):
-        lines.append(f"opened from {info['source']}")
+    if info.region:
+        lines.append(f"region: {info.region}")
+    if info.source:
+        lines.append(f"opened from {info.source}")
     if chk is not None:
         if not math.isnan(chk.max_speed_between_degps):
             allowed = (f" (allowed: v_max + {BETWEEN_SPEED_ALLOWANCE:.0%} between samples)"

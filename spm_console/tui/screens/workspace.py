@@ -134,7 +134,7 @@ class WorkspaceScreen(StepScreen):
     def _ready(self) -> None:
         self.show_workspace()
         info = self.session.cache_info
-        self.status.ok("workspace ready (" + ("from the cache" if info.hit else "built")
+        self.status.ok("workspace ready (" + ("from the cache" if info is not None and info.hit else "built")
                        + "): press 4 to plan a motion")
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:

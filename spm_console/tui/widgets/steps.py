@@ -68,7 +68,7 @@ def done_steps(session: Session) -> set[str]:
         done.add("workspace")
     if session.plan is not None:
         done.add("plan")
-    if session.plan is not None and session.plan_info.get("executed_ok"):
+    if session.plan is not None and session.plan_info is not None and session.plan_info.executed_ok:
         done.add("execute")  # a stopped run of the plan is no tick
     return done
 
@@ -109,7 +109,7 @@ def next_hint(session: Session, fk_done: bool = False, current: str = "") -> str
     if session.plan is None:
         return f"Next: {act('plan', ' to plan a motion (s solves)')}."
     run = session.last_run
-    if run is None or session.plan_info.get("executed") is not True:
+    if run is None or session.plan_info is None or not session.plan_info.executed:
         return f"Next: {act('execute', ', then x to execute the plan')}."
     return f"Next: {act('logs', ' to look at the run log')}, or {alt('plan', ' to plan another')}."
 
