@@ -24,7 +24,7 @@ from spm_console.core.plan import Plan
 from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
 from spm_console.core.planning.mintime import check_horizon
 from spm_console.core.planning.route_search import RouteChoice, find_route, solve_route_mvn
-from spm_console.core.polytope.region import Region
+from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions.choice import RegionChoice, choose_region
 from spm_console.core.regions.cover import connected_graph
 from spm_console.core.workspace.build import check_theta
@@ -128,7 +128,7 @@ def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMot
     pb = PlanProblem(servo_model_of(profile), s, g, int(req.steps), ws.region, vmax,
                      int(req.intersample), req.hold_first,
                      lo if req.reference_limits else None, hi if req.reference_limits else None)
-    in_p = bool(ws.region.contains(np.stack([s, g]), tol=1e-9).all())
+    in_p = bool(ws.region.contains(np.stack([s, g]), tol=INSIDE_TOL_DEG).all())  # as choose_region
     route_error = ""
     if req.region is None and not in_p:
         try:
