@@ -34,7 +34,6 @@ if TYPE_CHECKING:
     from spm_console.core.workspace.data import Workspace
 
 F = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 #: A state or target lies in a region when it violates no half-space by more than this, deg:
 #: not the membership tolerance (:data:`~spm_console.core.polytope.region.INSIDE_TOL_DEG`) but
