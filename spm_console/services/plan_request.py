@@ -24,9 +24,9 @@ from spm_console.core.plan import Plan
 from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
 from spm_console.core.planning.mintime import check_horizon
 from spm_console.core.planning.route_search import RouteChoice, find_route, solve_route_mvn
-from spm_console.core.polytope.region import Region
+from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions.choice import RegionChoice, choose_region
-from spm_console.core.regions.cover import connector_regions
+from spm_console.core.regions.cover import connected_graph
 from spm_console.core.workspace.build import check_theta
 from spm_console.core.workspace.check import ThetaCheck
 from spm_console.core.workspace.data import Workspace
@@ -161,7 +161,7 @@ def _plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMo
     pb = PlanProblem(servo_model_of(profile), s, g, int(req.steps), ws.region, vmax,
                      int(req.intersample), req.hold_first,
                      lo if req.reference_limits else None, hi if req.reference_limits else None)
-    in_p = bool(ws.region.contains(np.stack([s, g]), tol=1e-9).all())
+    in_p = bool(ws.region.contains(np.stack([s, g]), tol=INSIDE_TOL_DEG).all())  # as choose_region
     route_error = ""
     if req.region is None and not in_p:
         try:
@@ -200,12 +200,11 @@ def _plan_along_cover(profile: Profile, ws: Workspace, pb: PlanProblem,
         return None
     # an end on the boundary of the certified set may lie in no cover region: a small
     # region grown around it (same obstacles, certified alike) connects it to the cover
-    extra, extra_pts = connector_regions(ws, cover, np.stack([pb.start_deg, pb.goal_deg]))
-    regions = (*cover.regions, *extra)
+    graph = connected_graph(ws, cover, np.stack([pb.start_deg, pb.goal_deg]))
+    regions = graph.regions
     labels = (["P"] + [f"cover region {i}" for i in range(1, len(cover.regions))]
-              + [f"region grown around an end ({i + 1})" for i in range(len(extra))])
-    choice = find_route(regions, np.vstack([cover.edge_points_deg, extra_pts]), pb.start_deg,
-                        pb.goal_deg)
+              + [f"region grown around an end ({i + 1})" for i in range(graph.grown)])
+    choice = find_route(regions, graph.points_deg, pb.start_deg, pb.goal_deg)
     if choice is None:
         raise InfeasibleError("no sequence of overlapping certified regions joins start and goal")
     if req.method == "mvn":

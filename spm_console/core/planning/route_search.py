@@ -5,7 +5,8 @@ a graph. A route from start to goal is a shortest path through *waypoints*: the 
 the goal and one point deep inside every overlap (its Chebyshev centre). Two waypoints
 are joined when one region holds both (the straight move between them then stays in
 that region, which is convex); a hop costs its largest joint move (the time a
-speed-bounded move needs) plus a small Euclidean tie-break. Consecutive hops in one
+speed-bounded move needs) plus a small Euclidean tie-break (the region graph's search,
+:func:`~spm_console.core.regions.graph.waypoint_paths`, with :func:`hop_cost`). Consecutive hops in one
 region merge, so the route is a sequence of regions and the waypoints where it changes
 region.
 
@@ -25,20 +26,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from spm_console.core.planning.mvn import solve_problem
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.result import PlanResult
 from spm_console.core.polytope.region import Region
+from spm_console.core.regions.graph import waypoint_paths
 from spm_console.core.regions.route import RegionRoute, spread
 from spm_console.errors import InfeasibleError
 
 F = NDArray[np.float64]
 
-#: A point lies in a region when no half-space is violated by more than this, deg.
-MEMBER_TOL_DEG = 1e-7
 #: Weight of the Euclidean length beside the largest joint move in a hop's cost.
 EUCLID_WEIGHT = 1e-3
 #: Most QPs the switch-sample search may add to the first one.
@@ -72,11 +70,11 @@ class RouteChoice:
         return RegionRoute(regs, spread(self.fractions(), N) if len(regs) > 1 else (), names)
 
 
-def _members(regions: Sequence[Region], pts: F) -> NDArray[np.bool_]:
-    out = np.zeros((len(pts), len(regions)), bool)
-    for j, r in enumerate(regions):
-        out[:, j] = r.normalized().contains(pts, tol=MEMBER_TOL_DEG)
-    return out
+def hop_cost(p_deg: F, q_deg: F) -> F:
+    """Cost of the straight hops between the points (m, 3) and (m, 3), deg: the largest
+    joint move, a small Euclidean tie-break and 1e-9 (every hop costs something)."""
+    d = np.asarray(p_deg, float) - np.asarray(q_deg, float)
+    return np.asarray(np.abs(d).max(-1) + EUCLID_WEIGHT * np.linalg.norm(d, axis=-1) + 1e-9)
 
 
 def find_route(regions: Sequence[Region], overlap_points_deg: F, start_deg: F,
@@ -87,21 +85,12 @@ def find_route(regions: Sequence[Region], overlap_points_deg: F, start_deg: F,
     s = np.asarray(start_deg, float).reshape(3)
     g = np.asarray(goal_deg, float).reshape(3)
     pts = np.vstack([s[None], g[None], np.asarray(overlap_points_deg, float).reshape(-1, 3)])
-    member = _members(regions, pts)
+    paths, member = waypoint_paths(regions, pts, hop_cost, 0)
     if not member[0].any() or not member[1].any():
         return None
-    share = (member.astype(np.int32) @ member.T.astype(np.int32)) > 0
-    np.fill_diagonal(share, False)
-    diff = pts[:, None, :] - pts[None, :, :]
-    cost = np.abs(diff).max(-1) + EUCLID_WEIGHT * np.linalg.norm(diff, axis=-1)
-    w = np.where(share, cost + 1e-9, 0.0)  # strictly positive weights on real edges
-    dist, pred = dijkstra(csr_matrix(w), directed=False, indices=0, return_predecessors=True)
-    if not np.isfinite(dist[1]):
+    path = paths.path(0, 1)
+    if path is None:
         return None
-    path = [1]
-    while path[-1] != 0:
-        path.append(int(pred[path[-1]]))
-    path.reverse()
     # one region per stretch of hops: keep the current one while it holds the next hop,
     # else switch (at the hop's first waypoint) to the region holding the most hops ahead
     seq: list[int] = []

@@ -16,14 +16,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.polytope.ellipsoid import Ellipsoid
-from spm_console.core.polytope.region import Region
+from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.errors import InfeasibleError
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
 
-#: Tolerance (deg) for "a node lies in P".
-INSIDE_TOL_DEG = 1e-7
 #: Cubes whose closest points :func:`separating_planes` computes at a time (in lower-bound order).
 SEPARATION_BATCH = 512
 #: Candidate minimizers per box in :func:`closest_on_boxes`: the centre, 6 faces, 12 edges.

@@ -11,6 +11,13 @@ F = NDArray[np.float64]
 
 #: Smallest slack (relative to the point's size) of a hint used as qhull's interior point.
 INTERIOR_MARGIN = 1e-4
+#: A point lies in a region when it violates no half-space by more than this, deg (rows of
+#: unit norm: the slack is a distance). Points computed to lie *on* a face — an IRIS plane
+#: turned to pass through a required end, a vertex, a grid node on a cube's face — miss it by
+#: rounding (about 1e-12° at θ ≈ 300°), so the test needs a margin far above that; 1e-7° is
+#: also far below anything the wrist can tell apart (a servo tick is 0.088°), so no point
+#: counted inside is measurably outside.
+INSIDE_TOL_DEG = 1e-7
 
 
 @dataclass(frozen=True)
@@ -31,8 +38,9 @@ class Region:
         t = np.asarray(theta_deg, float)
         return np.asarray(self.b - t @ self.A.T)
 
-    def contains(self, theta_deg: F, tol: float = 1e-9) -> NDArray[np.bool_]:
-        """True where A θ ≤ b + tol (each point of (..., 3))."""
+    def contains(self, theta_deg: F, tol: float = INSIDE_TOL_DEG) -> NDArray[np.bool_]:
+        """True where A θ ≤ b + tol (each point of (..., 3)); ``tol``: :data:`INSIDE_TOL_DEG`
+        (a negative one asks for a point that far inside)."""
         return np.asarray((self.slack(theta_deg) >= -tol).all(-1))
 
     def violation_deg(self, theta_deg: F) -> F:

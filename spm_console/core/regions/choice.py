@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.polytope.ellipsoid import inscribed_ellipsoid
-from spm_console.core.polytope.region import Region
+from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions.p_build import iris_region
 from spm_console.core.regions.refined import refined_region
 from spm_console.core.workspace.data import Workspace
@@ -63,7 +63,7 @@ def choose_region(ws: Workspace, theta_a_deg: F, theta_b_deg: F,
         raise InfeasibleError("the workspace has no feasible node (every grid node is singular, "
                               "colliding or unreachable): nothing can be planned in it; check the "
                               "profile's links, δ and ζ_min")
-    if bool(ws.region.contains(np.stack([a, b]), tol=1e-9).all()):
+    if bool(ws.region.contains(np.stack([a, b]), tol=INSIDE_TOL_DEG).all()):
         return RegionChoice(ws.region, "P")
     check_range(ws, a, b)
     ex = exact_samples(ws, a, b)
@@ -80,7 +80,7 @@ def choose_region(ws: Workspace, theta_a_deg: F, theta_b_deg: F,
         limit = max(ws.region.halfspaces, int(ws.region_info.get("max_halfspaces", 64)))
         res = iris_region(ws.feasible, ws.theta_deg(), ws.step_deg, lo, hi, np.stack([a, b]),
                     (E.C, E.d), limit)
-        if bool(res.region.contains(np.stack([a, b]), tol=1e-7).all()):
+        if bool(res.region.contains(np.stack([a, b]), tol=INSIDE_TOL_DEG).all()):
             return RegionChoice(res.region, "grown")
     rr = refined_region(ws, a, b, fine, samples=ex)
     return RegionChoice(rr.region, "refined", resolution_deg=rr.refinement.h_deg)

@@ -71,17 +71,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.polytope.iris import Frame, half_widths
-from spm_console.core.polytope.region import Region
+from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions import p_build as rb
-from spm_console.core.regions.cover_data import INSIDE_TOL_DEG, RegionCover
+from spm_console.core.regions.cover_data import RegionCover
 from spm_console.core.regions.cover_graph import S_CYCLIC, overlap_graph
 from spm_console.core.regions.cover_grow import Grower, Reporter, deepest_seed, dense_seed
 from spm_console.core.regions.cover_refine import (
+    CLEAR_TOL_DEG,
     FineObstacles,
     refine_cells,
     region_clear,
     uncertified_cells,
 )
+from spm_console.core.regions.graph import RegionGraph, containing
 from spm_console.core.workspace.refine import FineGrid
 from spm_console.core.workspace.rowmap import RowMap, serial
 from spm_console.errors import InfeasibleError, SolverError
@@ -254,7 +256,7 @@ def build_cover(
 
 
 def uncertified_regions(ws: Workspace, cover: RegionCover, fine: FineGrid | None = None,
-                        tol_deg: float = 1e-7) -> list[int]:
+                        tol_deg: float = CLEAR_TOL_DEG) -> list[int]:
     """Regions not inside the certified set (grid or fine criterion of
     :class:`~spm_console.core.workspace.refine.RefinedCertifiedSet`): empty for a certified cover.
     Exact and independent of the build's obstacle list
@@ -266,14 +268,15 @@ def uncertified_regions(ws: Workspace, cover: RegionCover, fine: FineGrid | None
             if len(uncertified_cells(ws, r, fg, tol_deg))]
 
 
-def connector_regions(ws: Workspace, cover: RegionCover, points_deg: F,
-                      iters: int = COVER_ITERS) -> tuple[list[Region], F]:
-    """Regions grown (like cover regions, same obstacles, so certified alike) around each of
-    ``points_deg`` (k, 3) that no cover region holds — a configuration on the boundary of
-    the certified set — and the Chebyshev centres (m, 3) of their overlaps (radius ≥ the
-    cover's ``min_overlap_deg``) with the cover's regions and with each other. Grown on
-    demand for a plan's ends; never stored. InfeasibleError when a point sits inside an
-    obstacle cube (it is not certified)."""
+def connected_graph(ws: Workspace, cover: RegionCover, points_deg: F,
+                    iters: int = COVER_ITERS) -> RegionGraph:
+    """The cover's region graph with a region grown (like cover regions, same obstacles, so
+    certified alike) around each of ``points_deg`` (k, 3) that no cover region (nor one grown
+    before it) holds — a configuration on the boundary of the certified set — joined to the
+    others by its overlaps (radius ≥ the cover's ``min_overlap_deg``). The grown regions
+    (``grown`` of them) come after the cover's. Grown on demand for a plan's ends or a
+    follower's start; never stored. InfeasibleError when a point sits inside an obstacle cube
+    (it is not certified)."""
     lo, hi = ws.range_deg()
     frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
     theta = ws.theta_deg()
@@ -282,16 +285,18 @@ def connector_regions(ws: Workspace, cover: RegionCover, points_deg: F,
     feasible = theta[ws.feasible]
     new: list[Region] = []
     for p in np.asarray(points_deg, float).reshape(-1, 3):
-        if cover.containing(p) or any(r.contains(p, tol=INSIDE_TOL_DEG) for r in new):
+        if cover.containing(p) or containing(new, p):
             continue
         # the heuristics' objective: the feasible nodes around the point (a connector only
         # has to reach into the cover, and the whole grid makes each step 10× slower)
         near = feasible[np.abs(feasible - p).max(axis=1) <= CONNECTOR_REACH_STEPS * ws.step_deg]
         new.append(grower.grow(p, near))
-    return new, connector_overlaps(cover, new)[1]
+    pairs, pts = _connector_overlaps(cover, new)
+    return RegionGraph((*cover.regions, *new), np.vstack([cover.edges, pairs]),
+                       np.vstack([cover.edge_points_deg, pts]), grown=len(new))
 
 
-def connector_overlaps(cover: RegionCover, new: list[Region]) -> tuple[I64, F]:
+def _connector_overlaps(cover: RegionCover, new: list[Region]) -> tuple[I64, F]:
     """The overlaps (inscribed radius ≥ the cover's ``min_overlap_deg``) of each region of
     ``new`` with the cover's regions and the regions of ``new`` before it: (m, 2) pairs
     (i, j), i < j, indexing ``(*cover.regions, *new)``, and their Chebyshev centres (m, 3)."""

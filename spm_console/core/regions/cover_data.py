@@ -8,14 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.polytope.region import Region
+from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
+from spm_console.core.regions.graph import RegionGraph, containing
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
 I64 = NDArray[np.int64]
-
-#: Tolerance (deg) for "a node lies in a region".
-INSIDE_TOL_DEG = 1e-7
 
 
 @dataclass(frozen=True)
@@ -55,8 +53,11 @@ class RegionCover:
 
     def containing(self, theta_deg: F, tol: float = INSIDE_TOL_DEG) -> list[int]:
         """Indices of the regions holding θ (deg, one point), ascending."""
-        t = np.asarray(theta_deg, float).reshape(3)
-        return [i for i, r in enumerate(self.regions) if bool(r.contains(t, tol=tol))]
+        return containing(self.regions, theta_deg, tol)
+
+    def graph(self) -> RegionGraph:
+        """The regions and their overlaps as a :class:`RegionGraph`."""
+        return RegionGraph(self.regions, self.edges, self.edge_points_deg)
 
     def neighbours(self, i: int) -> list[int]:
         """Regions sharing an edge with region ``i``, ascending."""

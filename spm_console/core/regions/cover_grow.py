@@ -12,15 +12,13 @@ from numpy.typing import NDArray
 
 from spm_console.core.polytope.ellipsoid import Ellipsoid, inscribed_ellipsoid
 from spm_console.core.polytope.iris import Frame, reduce_halfspaces, separating_planes
-from spm_console.core.polytope.region import Region
+from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.errors import SolverError
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
 I64 = NDArray[np.int64]
 
-#: Tolerance (deg) for "a node lies in a region".
-INSIDE_TOL_DEG = 1e-7
 #: Seeds are chosen by the uncovered nodes within this many grid steps (L∞) of them.
 SEED_WINDOW = 2
 #: Longest pause between two progress reports of a cover build, s (a cancel waits for one).

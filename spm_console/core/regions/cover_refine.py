@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.polytope.region import Region
+from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.workspace.refine import FineGrid
 
 if TYPE_CHECKING:
@@ -59,8 +59,10 @@ VERDICT_CHUNK = 24000
 #: Grid cells whose fine nodes are listed at once (bounds the gap between progress reports).
 CELL_CHUNK = 2000
 #: A box is clear of a region when one row's minimum over it is at least b − this (deg), or
-#: when region ∩ closed box holds no ball of radius above it.
-CLEAR_TOL_DEG = 1e-7
+#: when region ∩ closed box holds no ball of radius above it: the membership tolerance (a
+#: region may reach into an obstacle box by no more than a point counted inside it may lie
+#: outside it).
+CLEAR_TOL_DEG = INSIDE_TOL_DEG
 #: 6-connectivity (faces): ``scipy.ndimage.generate_binary_structure(3, 1)``.
 _S6 = np.zeros((3, 3, 3), bool)
 _S6[1, 1, :] = _S6[1, :, 1] = _S6[:, 1, 1] = True

@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.polytope.region import Region
+from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions.p_build import iris_region
 from spm_console.core.workspace.refine import FineGrid
 from spm_console.core.workspace.segment_check import (
@@ -176,7 +176,7 @@ def refined_region(ws: Workspace, a: F, b: F, fine: FineGrid | None = None,
     ends = np.stack([a, b])
     res = iris_region(ws.feasible, ws.theta_deg(), ws.step_deg, lo, hi, ends, (E.C, E.d), limit,
                 obstacles=ref.obstacles(ws.step_deg))
-    if not bool(res.region.contains(ends, tol=1e-7).all()):
+    if not bool(res.region.contains(ends, tol=INSIDE_TOL_DEG).all()):
         raise InfeasibleError("could not build a convex region containing both configurations "
                               f"(refined to h = {fg.step_deg:g}° near the segment)")
     return RefinedRegion(res.region, ref, time.perf_counter() - t0)

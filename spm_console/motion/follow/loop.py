@@ -46,7 +46,7 @@ from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.executor import Executor, _LoopState
 from spm_console.motion.follow.regions import (
-    INSIDE_TOL_DEG,
+    FOLLOW_TOL_DEG,
     MOVE_IN,
     RegionHopper,
     follow_regions,
@@ -193,7 +193,7 @@ class Follower(Executor):
     def _inside(self, theta: F) -> bool:
         """θ (deg) is in the current region and certified: plans may start from it."""
         region = self.hopper.regions[self.hopper.current]
-        return bool(region.contains(theta, tol=INSIDE_TOL_DEG)) and bool(
+        return bool(region.contains(theta, tol=FOLLOW_TOL_DEG)) and bool(
             self.verifier.certified.contains(theta))
 
     # ------------------------------------------------------------------ the loop

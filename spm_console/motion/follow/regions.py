@@ -12,20 +12,21 @@ into the current region (the solver reports it as clamped).
 A wrist that stands where no cover region reaches — a plan through a region grown around its
 end left it on the boundary of the certified set — starts in a region grown around its own
 position, as the planner grows one around a plan's end (:func:`~spm_console.core.regions.cover.
-connector_regions`: the cover's obstacles, so certified alike), computed by the runtime from
-its own workspace and joined to the cover through its overlaps. Degrees.
+connected_graph`: the cover's obstacles, so certified alike), computed by the runtime from
+its own workspace and joined to the cover through its overlaps. The path is the region graph's
+search (:meth:`~spm_console.core.regions.graph.RegionGraph.region_paths`) with :func:`hop_costs`.
+Degrees.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.polytope.region import Region
-from spm_console.core.regions.cover import connector_overlaps, connector_regions
+from spm_console.core.regions.cover import connected_graph
+from spm_console.core.regions.graph import RegionGraph
 from spm_console.errors import BadInputError, InfeasibleError
 from spm_console.formatting import fmt_deg
 
@@ -33,25 +34,16 @@ if TYPE_CHECKING:
     from spm_console.core.workspace.data import Workspace
 
 F = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
-#: A point lies in a region when it violates no half-space by more than this, deg.
-INSIDE_TOL_DEG = 1e-6
+#: A state or target lies in a region when it violates no half-space by more than this, deg:
+#: not the membership tolerance (:data:`~spm_console.core.polytope.region.INSIDE_TOL_DEG`) but
+#: the follow solver's final check (``CHECK_TOL`` of :mod:`spm_console.core.planning.follow.solver`,
+#: not imported here: it loads osqp). The solver keeps plans whose samples lie up to that far
+#: outside the region (OSQP meets its rows only to its tolerance), so the state a plan leads to
+#: counts as inside, and the follower plans from, and heads for, exactly what the solver accepts.
+FOLLOW_TOL_DEG = 1e-6
 #: Weight of one region change against the way between overlap centres (deg) in the path.
 HOP_COST_DEG = 1000.0
-
-
-@dataclass(frozen=True)
-class FollowRegions:
-    """The regions live following plans in and the graph of their overlaps."""
-
-    regions: tuple[Region, ...]
-    edges: I64
-    """(m, 2) pairs of regions whose overlap holds a switch point."""
-    points_deg: F
-    """(m, 3) the switch point of each pair (its overlap's Chebyshev centre), deg."""
-    grown: int = 0
-    """Regions grown around the start (the last ones of ``regions``): 0 or 1."""
 
 
 def _where(theta_deg: F) -> str:
@@ -91,59 +83,58 @@ def follow_start(ws: Workspace, theta0_deg: F, tolerance_deg: float, inset_deg: 
     return inner if float(np.abs(inner - th).max()) <= tolerance_deg else th
 
 
-def follow_regions(ws: Workspace, theta0_deg: F) -> FollowRegions:
+def follow_regions(ws: Workspace, theta0_deg: F) -> RegionGraph:
     """The workspace's cover (P alone without one) and, when none of its regions holds
-    ``theta0_deg``, a region grown around it and joined to the cover. BadInputError, with the
-    reason, when the start cannot be held by a certified region."""
+    ``theta0_deg``, a region grown around it and joined to the cover (``grown``: 0 or 1).
+    BadInputError, with the reason, when the start cannot be held by a certified region."""
     th = np.asarray(theta0_deg, float).reshape(3)
     cover = ws.cover
     if cover is None:
-        if not bool(ws.region.contains(th, tol=INSIDE_TOL_DEG)):
+        if not bool(ws.region.contains(th, tol=FOLLOW_TOL_DEG)):
             raise BadInputError(f"the wrist is at {_where(th)}{_beyond_grid(ws, th)}, outside the "
                                 f"workspace's region P (this workspace has no region cover): "
                                 f"{MOVE_IN}")
-        return FollowRegions((ws.region,), np.zeros((0, 2), np.int64), np.zeros((0, 3)))
-    if any(r.contains(th, tol=INSIDE_TOL_DEG) for r in cover.regions):
-        return FollowRegions(cover.regions, cover.edges, cover.edge_points_deg)
+        return RegionGraph((ws.region,), np.zeros((0, 2), np.int64), np.zeros((0, 3)))
+    if cover.containing(th, tol=FOLLOW_TOL_DEG):
+        return cover.graph()
     try:
-        grown, _ = connector_regions(ws, cover, th[None])
+        graph = connected_graph(ws, cover, th[None])
     except InfeasibleError as exc:
         raise BadInputError(f"the wrist is at {_where(th)}{_beyond_grid(ws, th)}, outside the "
                             f"workspace's certified set ({exc.message}): no region to follow "
                             f"in; {MOVE_IN}") from None
-    if not grown or not bool(grown[0].contains(th, tol=INSIDE_TOL_DEG)):
+    if not graph.grown or not bool(graph.regions[-1].contains(th, tol=FOLLOW_TOL_DEG)):
         raise BadInputError(f"the wrist is at {_where(th)}{_beyond_grid(ws, th)}: no certified "
                             f"region grown around it holds it; {MOVE_IN}")
-    pairs, pts = connector_overlaps(cover, grown)
-    if not len(pairs):
+    if len(graph.edges) == len(cover.edges):
         raise BadInputError(f"the wrist is at {_where(th)}: the region grown around it overlaps "
                             f"no region of the cover, so following could not leave it; {MOVE_IN}")
-    return FollowRegions((*cover.regions, *grown), np.vstack([cover.edges, pairs]),
-                         np.vstack([cover.edge_points_deg, pts]), grown=len(grown))
+    return graph
+
+
+def hop_costs(graph: RegionGraph) -> F:
+    """The follower's cost (m,) of the overlaps (rows of ``graph.edges``): :data:`HOP_COST_DEG`
+    per region change plus the largest joint move from each of the two regions' Chebyshev
+    centres to the overlap's switch point, deg (fewest regions, then the shortest way between
+    centres)."""
+    if not len(graph.edges):
+        return np.zeros(0)
+    centres = np.array([np.asarray(r.chebyshev()[0], float) for r in graph.regions])
+    i, j = graph.edges[:, 0], graph.edges[:, 1]
+    p = np.asarray(graph.points_deg, float)
+    return np.asarray(HOP_COST_DEG + (np.abs(centres[i] - p).max(1) + np.abs(centres[j] - p).max(1)))
 
 
 class RegionHopper:
     """The follower's current region in ``graph.regions`` (see :func:`follow_regions`)."""
 
-    def __init__(self, graph: FollowRegions, theta0_deg: F) -> None:
-        self.regions = regions = graph.regions
-        n = len(regions)
+    def __init__(self, graph: RegionGraph, theta0_deg: F) -> None:
+        self.graph = graph
+        self.regions = graph.regions
         self.points: dict[tuple[int, int], F] = {}
-        rows: list[int] = []
-        cols: list[int] = []
-        w: list[float] = []
-        if len(graph.edges):
-            centres = np.array([self._centre(i) for i in range(n)])
-            for (i, j), p in zip(graph.edges, graph.points_deg, strict=True):
-                self.points[(int(i), int(j))] = self.points[(int(j), int(i))] = np.asarray(p)
-                rows.append(int(i))
-                cols.append(int(j))
-                w.append(HOP_COST_DEG + float(np.abs(centres[i] - p).max() + np.abs(centres[j] - p).max()))
-        from scipy.sparse import csr_matrix  # here: ~0.3 s to import, not before the first screen
-        from scipy.sparse.csgraph import shortest_path
-
-        graph = csr_matrix((w, (rows, cols)), shape=(n, n))
-        self.dist, self.pred = shortest_path(graph, directed=False, return_predecessors=True)
+        for (i, j), p in zip(graph.edges, graph.points_deg, strict=True):
+            self.points[(int(i), int(j))] = self.points[(int(j), int(i))] = np.asarray(p)
+        self.paths = graph.region_paths(hop_costs(graph))
         inside = self.containing(theta0_deg)
         if not inside:
             raise ValueError("the start lies in no region")
@@ -151,20 +142,14 @@ class RegionHopper:
         """Index of the region the follower plans in."""
         self.switches = 0
 
-    def _centre(self, i: int) -> F:
-        c, _ = self.regions[i].chebyshev()
-        return np.asarray(c, float)
-
     def containing(self, theta_deg: F) -> list[int]:
-        t = np.asarray(theta_deg, float).reshape(3)
-        return [i for i, r in enumerate(self.regions) if bool(r.contains(t, tol=INSIDE_TOL_DEG))]
+        return self.graph.containing(theta_deg, tol=FOLLOW_TOL_DEG)
 
     def _next_hop(self, goal: int) -> int:
         """The region after the current one on the shortest path to ``goal``."""
-        k = goal
-        while int(self.pred[self.current, k]) != self.current:
-            k = int(self.pred[self.current, k])
-        return k
+        path = self.paths.path(self.current, goal)
+        assert path is not None and len(path) > 1
+        return path[1]
 
     def aim(self, state_deg: F, target_deg: F) -> tuple[int, F | None]:
         """(region to plan in, intermediate target — None: head for the target itself),
@@ -173,12 +158,14 @@ class RegionHopper:
         for _ in range(len(self.regions)):
             if not goals or self.current in goals:
                 return self.current, None
-            reachable = [g for g in goals if np.isfinite(self.dist[self.current, g])]
+            reachable = [g for g in goals if np.isfinite(self.paths.cost(self.current, g))]
             if not reachable:
                 return self.current, None  # no way there through the cover: projected here
-            goal = min(reachable, key=lambda g: self.dist[self.current, g])
+            goal = min(reachable, key=lambda g: self.paths.cost(self.current, g))
             nxt = self._next_hop(goal)
-            if bool(self.regions[nxt].contains(np.asarray(state_deg, float), tol=-INSIDE_TOL_DEG)):
+            # inside the next region by the solver's tolerance (not on it): the next region's
+            # solver accepts the state for sure
+            if bool(self.regions[nxt].contains(np.asarray(state_deg, float), tol=-FOLLOW_TOL_DEG)):
                 self.current = nxt  # inside the overlap: plan in the next region from now on
                 self.switches += 1
                 continue
