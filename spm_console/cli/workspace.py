@@ -199,7 +199,7 @@ def cmd_region(args: argparse.Namespace) -> int:
         cached = region is ws.region
         rec = {"theta_a_deg": a, "theta_b_deg": b}
     feas = ws.theta_deg()[ws.feasible]
-    cov = float(region.contains(feas, tol=1e-7).mean()) if len(feas) else 0.0
+    cov = float(region.contains(feas).mean()) if len(feas) else 0.0
     rec.update({"region": region.to_dict(), "halfspaces": region.halfspaces,
                 "cached_region": cached, "coverage": cov})
     if args.out is not None:

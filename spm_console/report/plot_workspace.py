@@ -57,7 +57,7 @@ def plot_workspace(ws: Workspace, path: Path | str, title: str = "") -> None:
 
     ax = fig.add_subplot(1, 3, 1, projection="3d")
     pts = th[shell]
-    inP = ws.region.contains(pts, tol=1e-7)
+    inP = ws.region.contains(pts)
     ax.scatter(*pts[~inP].T, s=2, c="tab:orange", alpha=0.6, label="feasible, outside P")
     ax.scatter(*pts[inP].T, s=1, c="tab:green", alpha=0.15, label="feasible, inside P")
     faces = region_faces(ws.region)

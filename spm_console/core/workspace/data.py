@@ -126,7 +126,7 @@ class Workspace:
         th = self.theta_deg()[self.feasible]
         if len(th) == 0:
             return 0.0
-        return float(self.region.contains(th, tol=1e-7).mean())
+        return float(self.region.contains(th).mean())
 
     def counts(self) -> dict[str, int]:
         """Node counts; ``singular`` and ``colliding`` may overlap (a node can be both)."""
