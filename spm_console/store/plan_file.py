@@ -28,17 +28,12 @@ from spm_console.jsonutil import to_jsonable
 from spm_console.safe_io import MB, load_json
 from spm_console.store.plan_schema import (
     FORMAT,
-    KINDS,
-    MAX_PLAN_STEPS,
     VERSION,
     extra_to_dict,
     plan_from_dict,
     record_to_dict,
     route_to_dict,
 )
-
-__all__ = ["FORMAT", "KINDS", "MAX_PLAN_BYTES", "MAX_PLAN_STEPS", "VERSION", "check_plan",
-           "load_plan", "plan_from_dict", "plan_hash", "plan_to_dict", "save_plan"]
 
 #: Largest plan file read (a plan at the 100 000-step limit takes about 20 MB).
 MAX_PLAN_BYTES = 50 * MB
