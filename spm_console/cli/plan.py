@@ -15,7 +15,7 @@ from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.schema import Profile
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
-from spm_console.core.plan import Plan
+from spm_console.core.plan import Plan, PlanSummary
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, identify
 from spm_console.core.workspace.data import Workspace
@@ -123,37 +123,36 @@ def _request(args: argparse.Namespace, profile: Profile, method: Literal["mvn", 
                        region_source=f"the region of file {args.region}")
 
 
-def summary(plan: Plan, out: Path | None, source: str,
+def summary(s: PlanSummary, out: Path | None, source: str,
             region_kind: str | None = None) -> dict[str, Any]:
-    d = plan_to_dict(plan)
-    rec = {k: d[k] for k in ("kind", "Ts", "N", "duration_s", "cost", "solve_seconds", "qp_count")}
+    """The JSON record of a solved plan."""
+    rec = s.figures()
     rec.update({"out": str(out) if out else None, "region": source, "region_kind": region_kind,
-                "halfspaces": plan.region.halfspaces,
-                "route": None if plan.route is None else {
-                    "regions": list(plan.route.labels), "switch_samples": list(plan.route.switch),
-                    "halfspaces": [r.halfspaces for r in plan.route.regions]},
-                "check": None if plan.check is None else plan.check.to_dict(),
-                "solver": plan.solver, "start_deg": plan.position_deg[0],
-                "goal_deg": plan.position_deg[-1]})
-    if plan.certificate is not None:
-        rec["n_minus_1_infeasible"] = record_to_dict(plan.certificate)
+                "halfspaces": s.halfspaces,
+                "route": None if s.route is None else {
+                    "regions": list(s.route.labels), "switch_samples": list(s.route.switch),
+                    "halfspaces": [r.halfspaces for r in s.route.regions]},
+                "check": None if s.check is None else s.check.to_dict(),
+                "solver": s.solver, "start_deg": s.start_deg, "goal_deg": s.goal_deg})
+    if s.certificate is not None:
+        rec["n_minus_1_infeasible"] = record_to_dict(s.certificate)
     return rec
 
 
-def _human(plan: Plan, out: Path | None, source: str) -> str:
-    c = plan.check
+def _human(s: PlanSummary, out: Path | None, source: str) -> str:
+    c = s.check
     nan = float("nan")
     lines = [
-        f"{plan.kind}: N = {plan.N} ({plan.duration_s:.2f} s), cost {plan.cost:.6g} (deg/s)², "
-        f"{plan.qp_count} QP(s), {1e3 * plan.solve_seconds:.1f} ms",
+        f"{s.kind}: N = {s.N} ({s.duration_s:.2f} s), cost {s.cost:.6g} (deg/s)², "
+        f"{s.qp_count} QP(s), {1e3 * s.solve_seconds:.1f} ms",
         f"region: {source}",
         f"at the samples: max |θ̇| {c.max_speed_samples_degps if c else nan:.3f} deg/s, "
         f"region violation {c.region_violation_deg if c else nan:.2e} deg",
         f"between samples: max |θ̇| {c.max_speed_between_degps if c else nan:.3f} deg/s, "
         f"region violation {c.region_violation_between_deg if c else nan:.3g} deg",
     ]
-    if plan.certificate is not None:
-        lines.append(plan.certificate.describe())
+    if s.certificate is not None:
+        lines.append(s.certificate.describe())
     if out:
         lines.append(f"written to {out}")
     return "\n".join(lines)
@@ -172,8 +171,8 @@ def _finish(args: argparse.Namespace, profile: Profile, req: PlanRequest) -> int
             raise BadInputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
     if args.plot is not None:
         _plot(plan, args.plot)
-    emit(args, summary(plan, args.out, source, planned.region_kind),
-         _human(plan, args.out, source))
+    s = plan.summary()
+    emit(args, summary(s, args.out, source, planned.region_kind), _human(s, args.out, source))
     return int(ExitCode.OK)
 
 
@@ -221,11 +220,9 @@ def cmd_show(args: argparse.Namespace) -> int:
         verdict, refused = f"runtime verification: REFUSED — {exc.message}", exc
     d = plan_to_dict(plan) | {"verified": refused is None,
                               "refused": None if refused is None else refused.message}
-    stored = (f"stored in the plan ({plan.region.halfspaces} half-spaces)" if plan.route is None
-              else f"stored in the plan: {plan.route.describe()}")
-    human = _human(plan, None, stored) + (
-        f"\nstart {fmt_vec(plan.position_deg[0], 2)} deg → goal {fmt_vec(plan.position_deg[-1], 2)} deg"
-        f"\n{verdict}")
+    s = plan.summary()
+    human = _human(s, None, s.stored_region()) + (
+        f"\nstart {fmt_vec(s.start_deg, 2)} deg → goal {fmt_vec(s.goal_deg, 2)} deg\n{verdict}")
     emit(args, d, human)
     return int(ExitCode.OK if refused is None else refused.exit_code)
 

@@ -13,8 +13,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
-
 from spm_console.core.plan import Plan
 from spm_console.formatting import fmt_deg
 from spm_console.motion.plan_check import BETWEEN_SPEED_ALLOWANCE
@@ -77,19 +75,20 @@ KIND_WORDS = {"mvn": "MVN", "mintime": "Minimum time"}
 
 
 def plan_text(plan: Plan, info: dict[str, Any]) -> str:
-    chk = plan.check
-    vmax = plan.options.vmax_degps if plan.options is not None else info.get("vmax_degps")
-    start = info.get("start_deg", plan.position_deg[0])
+    """The plan step's summary of ``plan`` (:meth:`Plan.summary`); ``info`` is the session's
+    words for it (how start and goal were given, the region, the file it came from)."""
+    s = plan.summary()
+    chk = s.check
+    vmax = s.vmax_degps if s.vmax_degps is not None else info.get("vmax_degps")
+    start = info.get("start_deg", s.start_deg)
     read = " (read from the servos just before solving)" if info.get("start_read") else ""
     lines = [
-        f"{KIND_WORDS.get(plan.kind, plan.kind)}: {info.get('start', '?')} → "
-        f"{info.get('goal', '?')}",
+        f"{KIND_WORDS.get(s.kind, s.kind)}: {info.get('start', '?')} → {info.get('goal', '?')}",
         f"start θ = {fmt_deg(start)}{read}",
-        f"goal θ = {fmt_deg(info.get('goal_deg', plan.position_deg[-1]))}",
-        f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
-        f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
-        f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
-        + (f" (v_max {vmax:g})" if vmax else ""),
+        f"goal θ = {fmt_deg(info.get('goal_deg', s.goal_deg))}",
+        f"N = {s.N} × {s.Ts:g} s = {s.duration_s:.2f} s, cost {s.cost:.1f} (deg/s)²",
+        f"solved in {s.solve_seconds:.2f} s ({s.qp_count} QP)",
+        f"max |dθ/dt| {s.max_speed_degps:.1f}°/s at samples" + (f" (v_max {vmax:g})" if vmax else ""),
     ]
     if info.get("region"):
         lines.append(f"region: {info['region']}")
@@ -101,8 +100,8 @@ def plan_text(plan: Plan, info: dict[str, Any]) -> str:
                        if vmax else "")
             lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s{allowed}, "
                          f"outside the plan's region by {chk.region_violation_between_deg:.2g}°")
-        lines.append("constraints verified" if chk.ok else "constraints NOT verified")
-    if plan.certificate is not None:  # minimum time: N is the smallest feasible horizon
+        lines.append("constraints verified" if s.verified else "constraints NOT verified")
+    if s.certificate is not None:  # minimum time: N is the smallest feasible horizon
         lines.append(proof_text(plan))
     return "\n".join(lines)
 
