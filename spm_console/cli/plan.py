@@ -21,7 +21,16 @@ from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, identify
 from spm_console.core.workspace.data import Workspace
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, SolverError, SpmError
 from spm_console.formatting import fmt_vec
-from spm_console.input_rules import bounded_int, theta_in_grid, theta_in_servo_limits, vmax_arg
+from spm_console.input_rules import (
+    INTERSAMPLE,
+    INTERSAMPLE_MAX,
+    STEPS,
+    STEPS_MIN,
+    count_in,
+    theta_in_grid,
+    theta_in_servo_limits,
+    vmax_arg,
+)
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.safe_io import MB, load_json, read_text
 from spm_console.services.plan_request import PlanRequest
@@ -40,7 +49,7 @@ def register(sub: Any) -> None:
     m = psub.add_parser("mvn", help="minimum-velocity-norm references in N steps")
     _problem_args(m)
     m.add_argument("--steps", type=int, default=150, metavar="N",
-                   help=f"intervals N, 2..{N_MAX} (default 150)")
+                   help=f"intervals N, {STEPS_MIN}..{N_MAX} (default 150)")
     m.add_argument("--vmax", type=float, default=None, metavar="V",
                    help="speed bound at the samples, deg/s, at most the profile's "
                    "limits.vmax_degps (default: that limit, which the executor enforces)")
@@ -78,7 +87,7 @@ def _problem_args(p: argparse.ArgumentParser) -> None:
                    help="goal motor angles, deg")
     p.add_argument("--intersample", type=int, default=1, metavar="K",
                    help="also enforce speed and region at K−1 instants inside each interval "
-                   f"(1..100, N·K ≤ {MAX_INSTANTS:,})")
+                   f"(1..{INTERSAMPLE_MAX}, N·K ≤ {MAX_INSTANTS:,})")
     p.add_argument("--region", type=Path, default=None, metavar="FILE.json",
                    help="region {A, b} (θ in deg) instead of the workspace's P")
     p.add_argument("--cache-dir", type=Path, default=None, help="workspace cache directory")
@@ -109,7 +118,7 @@ def _workspace(args: argparse.Namespace, profile: Profile) -> Workspace:
 def _request(args: argparse.Namespace, profile: Profile, method: Literal["mvn", "mintime"],
              n: int, vmax: float | None) -> PlanRequest:
     """The options as the runtime's plan request (input bounds checked here, in O(1))."""
-    k = bounded_int(args.intersample, "--intersample", 1, 100)
+    k = count_in(args.intersample, "--intersample", INTERSAMPLE)
     output_file(args.out, "--out")
     output_file(args.plot, "--plot", PLOT_SUFFIXES)
     if not args.no_ref_limits:
@@ -187,9 +196,9 @@ def _plot(plan: Plan, path: Path) -> None:
 
 def cmd_mvn(args: argparse.Namespace) -> int:
     profile = profile_of(args)
-    n = bounded_int(args.steps, "--steps", 2, N_MAX)
+    n = count_in(args.steps, "--steps", STEPS)
     vmax = vmax_arg(args.vmax, profile, default_to_profile=True)
-    k = bounded_int(args.intersample, "--intersample", 1, 100)
+    k = count_in(args.intersample, "--intersample", INTERSAMPLE)
     if n * k > MAX_INSTANTS:
         raise BadInputError(f"--steps × --intersample = {n} × {k} is above {MAX_INSTANTS:,} "
                             "constrained instants; use fewer steps or a smaller K")
