@@ -310,4 +310,4 @@ def test_mutated_plans_load_or_are_refused(valid: dict[str, Any], agile: Profile
         xs = simulate(model, x0, plan.reference_deg)
     assert np.abs(xs[..., 0] - plan.position_deg).max() <= 1e-6
     json.dumps(plan_to_dict(plan), allow_nan=False)
-    assert _human(plan, None, "stored in the plan")
+    assert _human(plan.summary(), None, "stored in the plan")

@@ -244,8 +244,9 @@ def test_a_batch_goes_out_in_one_burst_and_bad_batches_are_refused() -> None:
     from meshcat.geometry import Box
     from meshcat.path import Path as MPath
 
+    from spm_console.system.childproc import HelperProcessError
     from spm_console.viewer.client import MeshcatClient, path_of
-    from spm_console.viewer.process import ViewerError, ViewerServer
+    from spm_console.viewer.process import ViewerServer
 
     srv = ViewerServer()
     urls = srv.start_server()
@@ -271,9 +272,9 @@ def test_a_batch_goes_out_in_one_burst_and_bad_batches_are_refused() -> None:
         assert base64.b64encode(last) in s.recv()  # meshcat embeds each command in base64
         s.close(0)
         bad = SetObject(Box([0.1, 0.1, 0.1]), None, MPath(("meshcat", "x"))).lower()
-        with pytest.raises(ViewerError, match="set_transform/set_property only"):
+        with pytest.raises(HelperProcessError, match="set_transform/set_property only"):
             c._exchange([b"batch", b"set_object", b"/meshcat/x", umsgpack.packb(bad)])
-        with pytest.raises(ViewerError, match="batch frames"):
+        with pytest.raises(HelperProcessError, match="batch frames"):
             c._exchange([b"batch", b"set_transform"])
     finally:
         c.close()

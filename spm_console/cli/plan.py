@@ -15,13 +15,22 @@ from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.schema import Profile
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
-from spm_console.core.plan import Plan
+from spm_console.core.plan import Plan, PlanSummary
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, identify
 from spm_console.core.workspace.data import Workspace
 from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, SolverError, SpmError
 from spm_console.formatting import fmt_vec
-from spm_console.input_rules import bounded_int, theta_in_grid, theta_in_servo_limits, vmax_arg
+from spm_console.input_rules import (
+    INTERSAMPLE,
+    INTERSAMPLE_MAX,
+    STEPS,
+    STEPS_MIN,
+    count_in,
+    theta_in_grid,
+    theta_in_servo_limits,
+    vmax_arg,
+)
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.safe_io import MB, load_json, read_text
 from spm_console.services.plan_request import PlanRequest
@@ -40,7 +49,7 @@ def register(sub: Any) -> None:
     m = psub.add_parser("mvn", help="minimum-velocity-norm references in N steps")
     _problem_args(m)
     m.add_argument("--steps", type=int, default=150, metavar="N",
-                   help=f"intervals N, 2..{N_MAX} (default 150)")
+                   help=f"intervals N, {STEPS_MIN}..{N_MAX} (default 150)")
     m.add_argument("--vmax", type=float, default=None, metavar="V",
                    help="speed bound at the samples, deg/s, at most the profile's "
                    "limits.vmax_degps (default: that limit, which the executor enforces)")
@@ -78,7 +87,7 @@ def _problem_args(p: argparse.ArgumentParser) -> None:
                    help="goal motor angles, deg")
     p.add_argument("--intersample", type=int, default=1, metavar="K",
                    help="also enforce speed and region at K−1 instants inside each interval "
-                   f"(1..100, N·K ≤ {MAX_INSTANTS:,})")
+                   f"(1..{INTERSAMPLE_MAX}, N·K ≤ {MAX_INSTANTS:,})")
     p.add_argument("--region", type=Path, default=None, metavar="FILE.json",
                    help="region {A, b} (θ in deg) instead of the workspace's P")
     p.add_argument("--cache-dir", type=Path, default=None, help="workspace cache directory")
@@ -109,7 +118,7 @@ def _workspace(args: argparse.Namespace, profile: Profile) -> Workspace:
 def _request(args: argparse.Namespace, profile: Profile, method: Literal["mvn", "mintime"],
              n: int, vmax: float | None) -> PlanRequest:
     """The options as the runtime's plan request (input bounds checked here, in O(1))."""
-    k = bounded_int(args.intersample, "--intersample", 1, 100)
+    k = count_in(args.intersample, "--intersample", INTERSAMPLE)
     output_file(args.out, "--out")
     output_file(args.plot, "--plot", PLOT_SUFFIXES)
     if not args.no_ref_limits:
@@ -123,37 +132,36 @@ def _request(args: argparse.Namespace, profile: Profile, method: Literal["mvn", 
                        region_source=f"the region of file {args.region}")
 
 
-def summary(plan: Plan, out: Path | None, source: str,
+def summary(s: PlanSummary, out: Path | None, source: str,
             region_kind: str | None = None) -> dict[str, Any]:
-    d = plan_to_dict(plan)
-    rec = {k: d[k] for k in ("kind", "Ts", "N", "duration_s", "cost", "solve_seconds", "qp_count")}
+    """The JSON record of a solved plan."""
+    rec = s.figures()
     rec.update({"out": str(out) if out else None, "region": source, "region_kind": region_kind,
-                "halfspaces": plan.region.halfspaces,
-                "route": None if plan.route is None else {
-                    "regions": list(plan.route.labels), "switch_samples": list(plan.route.switch),
-                    "halfspaces": [r.halfspaces for r in plan.route.regions]},
-                "check": None if plan.check is None else plan.check.to_dict(),
-                "solver": plan.solver, "start_deg": plan.position_deg[0],
-                "goal_deg": plan.position_deg[-1]})
-    if plan.certificate is not None:
-        rec["n_minus_1_infeasible"] = record_to_dict(plan.certificate)
+                "halfspaces": s.halfspaces,
+                "route": None if s.route is None else {
+                    "regions": list(s.route.labels), "switch_samples": list(s.route.switch),
+                    "halfspaces": [r.halfspaces for r in s.route.regions]},
+                "check": None if s.check is None else s.check.to_dict(),
+                "solver": s.solver, "start_deg": s.start_deg, "goal_deg": s.goal_deg})
+    if s.certificate is not None:
+        rec["n_minus_1_infeasible"] = record_to_dict(s.certificate)
     return rec
 
 
-def _human(plan: Plan, out: Path | None, source: str) -> str:
-    c = plan.check
+def _human(s: PlanSummary, out: Path | None, source: str) -> str:
+    c = s.check
     nan = float("nan")
     lines = [
-        f"{plan.kind}: N = {plan.N} ({plan.duration_s:.2f} s), cost {plan.cost:.6g} (deg/s)², "
-        f"{plan.qp_count} QP(s), {1e3 * plan.solve_seconds:.1f} ms",
+        f"{s.kind}: N = {s.N} ({s.duration_s:.2f} s), cost {s.cost:.6g} (deg/s)², "
+        f"{s.qp_count} QP(s), {1e3 * s.solve_seconds:.1f} ms",
         f"region: {source}",
         f"at the samples: max |θ̇| {c.max_speed_samples_degps if c else nan:.3f} deg/s, "
         f"region violation {c.region_violation_deg if c else nan:.2e} deg",
         f"between samples: max |θ̇| {c.max_speed_between_degps if c else nan:.3f} deg/s, "
         f"region violation {c.region_violation_between_deg if c else nan:.3g} deg",
     ]
-    if plan.certificate is not None:
-        lines.append(plan.certificate.describe())
+    if s.certificate is not None:
+        lines.append(s.certificate.describe())
     if out:
         lines.append(f"written to {out}")
     return "\n".join(lines)
@@ -172,8 +180,8 @@ def _finish(args: argparse.Namespace, profile: Profile, req: PlanRequest) -> int
             raise BadInputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
     if args.plot is not None:
         _plot(plan, args.plot)
-    emit(args, summary(plan, args.out, source, planned.region_kind),
-         _human(plan, args.out, source))
+    s = plan.summary()
+    emit(args, summary(s, args.out, source, planned.region_kind), _human(s, args.out, source))
     return int(ExitCode.OK)
 
 
@@ -188,9 +196,9 @@ def _plot(plan: Plan, path: Path) -> None:
 
 def cmd_mvn(args: argparse.Namespace) -> int:
     profile = profile_of(args)
-    n = bounded_int(args.steps, "--steps", 2, N_MAX)
+    n = count_in(args.steps, "--steps", STEPS)
     vmax = vmax_arg(args.vmax, profile, default_to_profile=True)
-    k = bounded_int(args.intersample, "--intersample", 1, 100)
+    k = count_in(args.intersample, "--intersample", INTERSAMPLE)
     if n * k > MAX_INSTANTS:
         raise BadInputError(f"--steps × --intersample = {n} × {k} is above {MAX_INSTANTS:,} "
                             "constrained instants; use fewer steps or a smaller K")
@@ -221,11 +229,9 @@ def cmd_show(args: argparse.Namespace) -> int:
         verdict, refused = f"runtime verification: REFUSED — {exc.message}", exc
     d = plan_to_dict(plan) | {"verified": refused is None,
                               "refused": None if refused is None else refused.message}
-    stored = (f"stored in the plan ({plan.region.halfspaces} half-spaces)" if plan.route is None
-              else f"stored in the plan: {plan.route.describe()}")
-    human = _human(plan, None, stored) + (
-        f"\nstart {fmt_vec(plan.position_deg[0], 2)} deg → goal {fmt_vec(plan.position_deg[-1], 2)} deg"
-        f"\n{verdict}")
+    s = plan.summary()
+    human = _human(s, None, s.stored_region()) + (
+        f"\nstart {fmt_vec(s.start_deg, 2)} deg → goal {fmt_vec(s.goal_deg, 2)} deg\n{verdict}")
     emit(args, d, human)
     return int(ExitCode.OK if refused is None else refused.exit_code)
 

@@ -1,4 +1,4 @@
-"""A planned servo reference trajectory (the content of a plan file)."""
+"""A planned servo reference trajectory (the content of a plan file), and its summary."""
 
 from __future__ import annotations
 
@@ -85,3 +85,89 @@ class Plan:
     @property
     def duration_s(self) -> float:
         return self.N * self.Ts
+
+    def summary(self) -> PlanSummary:
+        """What the front ends, run logs and plan files show of this plan."""
+        return PlanSummary.of(self)
+
+
+def _vec3(v: F) -> Vec3:
+    a, b, c = (float(x) for x in v)
+    return (a, b, c)
+
+
+@dataclass(frozen=True)
+class PlanSummary:
+    """What is shown of a plan, built once from it: the CLI's ``plan`` output, a script's
+    plan step, the console's plan text, a run log's record of its plans and a plan file's
+    header all render this object. Degrees, deg/s, seconds."""
+
+    kind: str
+    """What problem produced it (:attr:`Plan.kind`)."""
+    N: int
+    """Intervals; the plan has N + 1 samples."""
+    Ts: float
+    """Sampling interval, s."""
+    duration_s: float
+    """N·Ts, s."""
+    cost: float
+    """The planner's cost, (deg/s)² (NaN for line and synthetic plans)."""
+    solve_seconds: float
+    """Wall time of the solve, s (NaN when not solved)."""
+    qp_count: int
+    """QPs solved."""
+    start_deg: Vec3
+    """Model position θ(0), deg."""
+    goal_deg: Vec3
+    """Model position θ(N), deg."""
+    first_reference_deg: Vec3
+    """First reference θ*(0), deg (θ(0) unless the first reference was left free)."""
+    last_reference_deg: Vec3
+    """Last reference θ*(N), deg (where the servos are told to stop)."""
+    max_speed_degps: float
+    """max |θ̇(k)| of the model at the samples, over the joints, deg/s."""
+    vmax_degps: float | None
+    """The speed bound the planner was given, deg/s (None: none recorded)."""
+    halfspaces: int
+    """Half-spaces of the (first) region."""
+    profile_hash: str
+    route: RegionRoute | None
+    """The regions in order and the switch samples (None: one region)."""
+    check: ConstraintReport | None
+    """The planner's constraint report (None for line and synthetic plans)."""
+    certificate: InfeasibilityRecord | None
+    """Minimum time: the record that N − 1 steps are infeasible."""
+    solver: dict[str, Any] | None
+    """Free-form solver diagnostics."""
+
+    @classmethod
+    def of(cls, plan: Plan) -> PlanSummary:
+        return cls(
+            kind=plan.kind, N=plan.N, Ts=plan.Ts, duration_s=plan.duration_s, cost=plan.cost,
+            solve_seconds=plan.solve_seconds, qp_count=plan.qp_count,
+            start_deg=_vec3(plan.position_deg[0]), goal_deg=_vec3(plan.position_deg[-1]),
+            first_reference_deg=_vec3(plan.reference_deg[0]),
+            last_reference_deg=_vec3(plan.reference_deg[-1]),
+            max_speed_degps=float(np.abs(plan.velocity_degps).max()),
+            vmax_degps=None if plan.options is None else plan.options.vmax_degps,
+            halfspaces=plan.region.halfspaces, profile_hash=plan.profile_hash,
+            route=plan.route, check=plan.check, certificate=plan.certificate,
+            solver=plan.solver)
+
+    def figures(self) -> dict[str, Any]:
+        """The figures every record of a plan names alike: kind, Ts, N, duration_s, cost,
+        solve_seconds, qp_count (in that order)."""
+        return {"kind": self.kind, "Ts": self.Ts, "N": self.N, "duration_s": self.duration_s,
+                "cost": self.cost, "solve_seconds": self.solve_seconds,
+                "qp_count": self.qp_count}
+
+    @property
+    def verified(self) -> bool | None:
+        """The constraint report's verdict (None: the plan has no report)."""
+        return None if self.check is None else self.check.ok
+
+    def stored_region(self) -> str:
+        """The region of a plan read from a file, in words."""
+        if self.route is None:
+            return f"stored in the plan ({self.halfspaces} half-spaces)"
+        return f"stored in the plan: {self.route.describe()}"

@@ -109,10 +109,11 @@ def synthetic_plan(profile: Profile, start_deg: F, goal_deg: F, duration_s: floa
 
 
 def plan_summary(plan: Plan, source: str | None = None) -> dict[str, Any]:
-    """What a run's meta.json records about a plan (angles in degrees)."""
+    """What a run's meta.json records about a plan (angles in degrees): the summary's
+    figures, and the ends of the references the servos were sent."""
+    s = plan.summary()
     return {
-        "source": source, "kind": plan.kind, "N": plan.N, "Ts": plan.Ts,
-        "duration_s": plan.duration_s, "start_deg": plan.reference_deg[0].tolist(),
-        "goal_deg": plan.reference_deg[-1].tolist(), "cost": plan.cost,
-        "halfspaces": plan.region.halfspaces, "profile_hash": plan.profile_hash,
+        "source": source, **s.figures(), "start_deg": list(s.first_reference_deg),
+        "goal_deg": list(s.last_reference_deg), "halfspaces": s.halfspaces,
+        "profile_hash": s.profile_hash,
     }

@@ -256,14 +256,11 @@ class ScriptRunner:
         if "current" in (step.start, step.goal):
             self._ensure_bus()
             self.session.read_position()
-        plan = self.session.solve_plan(step.method, _pose(step.start), _pose(step.goal),
-                                       step.steps, step.vmax)
-        out = {"kind": plan.kind, "N": plan.N, "Ts": plan.Ts, "duration_s": plan.duration_s,
-               "cost": plan.cost, "solve_seconds": plan.solve_seconds, "qp_count": plan.qp_count,
-               "start_deg": _vec(plan.reference_deg[0]), "goal_deg": _vec(plan.reference_deg[-1]),
-               "max_speed_degps": float(np.abs(plan.velocity_degps).max())}
-        return out, (f"{plan.kind} N = {plan.N} ({plan.duration_s:.2f} s), solved in "
-                     f"{plan.solve_seconds:.2f} s")
+        s = self.session.solve_plan(step.method, _pose(step.start), _pose(step.goal),
+                                    step.steps, step.vmax).summary()
+        out = {**s.figures(), "start_deg": _vec(s.start_deg), "goal_deg": _vec(s.goal_deg),
+               "max_speed_degps": s.max_speed_degps}
+        return out, f"{s.kind} N = {s.N} ({s.duration_s:.2f} s), solved in {s.solve_seconds:.2f} s"
 
     def _step_execute(self, step: ExecuteStep) -> tuple[dict[str, Any], str]:
         self._ensure_bus()

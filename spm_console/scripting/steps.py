@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, fiel
 from spm_console.config.schema import Count, Real
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
 from spm_console.errors import BadInputError, ExitCode, SpmError
+from spm_console.input_rules import STEPS_MIN
 from spm_console.safe_io import MB, read_text
 
 #: Largest script file read.
@@ -86,7 +87,7 @@ class PlanStep(_Model):
     method: Literal["mvn", "mintime"] = "mvn"
     start: PoseIn = "current"
     goal: PoseIn
-    steps: Count = Field(default=150, ge=2, le=N_MAX)
+    steps: Count = Field(default=150, ge=STEPS_MIN, le=N_MAX)
     vmax: Real | None = Field(default=None, gt=0.0, le=MX106_NO_LOAD_SPEED_DEGPS)
 
 

@@ -49,7 +49,5 @@ class PlanInfo:
         return cls(method=plan.kind, start=f"θ = {fmt_deg(start)}", goal=f"θ = {fmt_deg(goal)}",
                    start_deg=start, goal_deg=goal,
                    vmax_degps=None if plan.options is None else plan.options.vmax_degps,
-                   region=(f"stored in the plan ({plan.region.halfspaces} half-spaces)"
-                           if plan.route is None else
-                           f"stored in the plan: {plan.route.describe()}"),
+                   region=plan.summary().stored_region(),
                    source=str(path))

@@ -28,17 +28,12 @@ from spm_console.jsonutil import to_jsonable
 from spm_console.safe_io import MB, load_json
 from spm_console.store.plan_schema import (
     FORMAT,
-    KINDS,
-    MAX_PLAN_STEPS,
     VERSION,
     extra_to_dict,
     plan_from_dict,
     record_to_dict,
     route_to_dict,
 )
-
-__all__ = ["FORMAT", "KINDS", "MAX_PLAN_BYTES", "MAX_PLAN_STEPS", "VERSION", "check_plan",
-           "load_plan", "plan_from_dict", "plan_hash", "plan_to_dict", "save_plan"]
 
 #: Largest plan file read (a plan at the 100 000-step limit takes about 20 MB).
 MAX_PLAN_BYTES = 50 * MB
@@ -54,24 +49,20 @@ def plan_hash(profile: Profile) -> str:
 
 
 def plan_to_dict(plan: Plan) -> dict[str, Any]:
-    """The JSON document of a plan (the documented keys first)."""
+    """The JSON document of a plan (the documented keys first: the summary's figures, then
+    the arrays)."""
+    s = plan.summary()
     d: dict[str, Any] = {
         "format": FORMAT,
         "version": VERSION,
-        "kind": plan.kind,
-        "Ts": plan.Ts,
-        "N": plan.N,
-        "duration_s": plan.duration_s,
+        **s.figures(),
         "reference_deg": plan.reference_deg,
         "position_deg": plan.position_deg,
         "velocity_degps": plan.velocity_degps,
-        "cost": plan.cost,
-        "solve_seconds": plan.solve_seconds,
-        "qp_count": plan.qp_count,
         "region": plan.region.to_dict(),
         **({"route": route_to_dict(plan.route)} if plan.route is not None else {}),
         "model": plan.model.to_dict(),
-        "profile_hash": plan.profile_hash,
+        "profile_hash": s.profile_hash,
     }
     if plan.certificate is not None:
         d["n_minus_1_infeasible"] = record_to_dict(plan.certificate)

@@ -17,7 +17,7 @@ import zmq
 from meshcat.commands import Delete, SetObject, SetProperty, SetTransform
 from meshcat.path import Path
 
-from spm_console.viewer.process import ViewerError
+from spm_console.system.childproc import HelperProcessError
 
 #: Reply timeout of one command, ms.
 REPLY_TIMEOUT_MS = 2000
@@ -78,9 +78,9 @@ class MeshcatClient:
             # a REQ socket is unusable after a missed reply: start a fresh one
             self._sock.close(0)
             self._sock = self._connect()
-            raise ViewerError(f"3D viewer did not answer ({exc})") from None
+            raise HelperProcessError(f"3D viewer did not answer ({exc})") from None
         if reply != b"ok" and frames[0] == b"batch":
-            raise ViewerError(f"3D viewer refused a batch: {reply.decode('utf-8', 'replace')}")
+            raise HelperProcessError(f"3D viewer refused a batch: {reply.decode('utf-8', 'replace')}")
         self.sent += count
 
     def set_object(self, name: str, geometry: Any, material: Any = None) -> None:

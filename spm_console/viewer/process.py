@@ -1,15 +1,13 @@
 """The 3D viewer's server as a helper child (:mod:`spm_console.system.childproc`):
-:class:`ViewerServer` is the loopback meshcat server (:mod:`spm_console.viewer.server`).
+:class:`ViewerServer` is the loopback meshcat server (:mod:`spm_console.viewer.server`); it
+fails with :class:`~spm_console.system.childproc.HelperProcessError`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from spm_console.system.childproc import START_TIMEOUT_S, ChildProcess
-from spm_console.system.childproc import HelperProcessError as ViewerError
-
-__all__ = ["ChildProcess", "ViewerError", "ViewerServer", "ViewerUrls"]
+from spm_console.system.childproc import START_TIMEOUT_S, ChildProcess, HelperProcessError
 
 
 @dataclass(frozen=True)
@@ -35,5 +33,5 @@ class ViewerServer(ChildProcess):
             self.urls = ViewerUrls(str(data["zmq_url"]), str(data["web_url"]))
         except KeyError:
             self.stop()
-            raise ViewerError(f"3D viewer said {data!r}, not its URLs") from None
+            raise HelperProcessError(f"3D viewer said {data!r}, not its URLs") from None
         return self.urls

@@ -35,8 +35,9 @@ from spm_console.config.schema import Profile
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import Pose, SpmModel
 from spm_console.formatting import fmt_deg
+from spm_console.system.childproc import HelperProcessError
 from spm_console.viewer import draw, scene
-from spm_console.viewer.process import ViewerError, ViewerServer
+from spm_console.viewer.process import ViewerServer
 
 if TYPE_CHECKING:
     from spm_console.viewer.client import MeshcatClient
@@ -170,7 +171,7 @@ class MeshcatView:
         self._client = client
         try:
             draw.build_scene(client, self.parts)
-        except ViewerError:
+        except HelperProcessError:
             self.close()
             raise
         self._thread = threading.Thread(target=self._run, name="meshcat-view", daemon=True)
@@ -253,7 +254,7 @@ class MeshcatView:
                         self._draw_path(client, path.value)
                     if target is not None:
                         self._draw_target(client, target)
-            except ViewerError as exc:
+            except HelperProcessError as exc:
                 self.last_error = exc.message
             except Exception as exc:  # the view must outlive one bad request
                 self.last_error = f"3D view: {type(exc).__name__}: {exc}"

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from spm_console.core.plan import Plan
 from spm_console.core.plan_rules import BETWEEN_SPEED_ALLOWANCE
 from spm_console.errors import Issue
@@ -74,19 +72,19 @@ KIND_WORDS = {"mvn": "MVN", "mintime": "Minimum time"}
 
 
 def plan_text(plan: Plan, info: PlanInfo) -> str:
-    chk = plan.check
-    vmax = plan.options.vmax_degps if plan.options is not None else info.vmax_degps
-    start = info.start_deg
+    """The plan step's summary of ``plan`` (:meth:`Plan.summary`); ``info`` is the session's
+    words for it (how start and goal were given, the region, the file it came from)."""
+    s = plan.summary()
+    chk = s.check
+    vmax = s.vmax_degps if s.vmax_degps is not None else info.vmax_degps
     read = " (read from the servos just before solving)" if info.start_read else ""
     lines = [
-        f"{KIND_WORDS.get(plan.kind, plan.kind)}: {info.start} → "
-        f"{info.goal}",
-        f"start θ = {fmt_deg(start)}{read}",
+        f"{KIND_WORDS.get(s.kind, s.kind)}: {info.start} → {info.goal}",
+        f"start θ = {fmt_deg(info.start_deg)}{read}",
         f"goal θ = {fmt_deg(info.goal_deg)}",
-        f"N = {plan.N} × {plan.Ts:g} s = {plan.duration_s:.2f} s, cost {plan.cost:.1f} (deg/s)²",
-        f"solved in {plan.solve_seconds:.2f} s ({plan.qp_count} QP)",
-        f"max |dθ/dt| {float(np.abs(plan.velocity_degps).max()):.1f}°/s at samples"
-        + (f" (v_max {vmax:g})" if vmax else ""),
+        f"N = {s.N} × {s.Ts:g} s = {s.duration_s:.2f} s, cost {s.cost:.1f} (deg/s)²",
+        f"solved in {s.solve_seconds:.2f} s ({s.qp_count} QP)",
+        f"max |dθ/dt| {s.max_speed_degps:.1f}°/s at samples" + (f" (v_max {vmax:g})" if vmax else ""),
     ]
     if info.region:
         lines.append(f"region: {info.region}")
@@ -98,8 +96,8 @@ def plan_text(plan: Plan, info: PlanInfo) -> str:
                        if vmax else "")
             lines.append(f"between samples: {chk.max_speed_between_degps:.1f}°/s{allowed}, "
                          f"outside the plan's region by {chk.region_violation_between_deg:.2g}°")
-        lines.append("constraints verified" if chk.ok else "constraints NOT verified")
-    if plan.certificate is not None:  # minimum time: N is the smallest feasible horizon
+        lines.append("constraints verified" if s.verified else "constraints NOT verified")
+    if s.certificate is not None:  # minimum time: N is the smallest feasible horizon
         lines.append(proof_text(plan))
     return "\n".join(lines)
 

@@ -20,6 +20,7 @@ from textual.content import Content
 from textual.widgets import Input, Label, Static
 
 from spm_console.errors import BadInputError
+from spm_console.input_rules import Bound
 from spm_console.tui.widgets.field import TextField
 
 #: Characters a number field accepts: its narrowest form shows this many in full (its CSS
@@ -54,6 +55,24 @@ class NumberRule:
     hi_reason: str = ""
     """If set, a value above ``hi`` reads "{name}: {text} is above {hi_reason}"."""
     max_chars: int = FIELD_CHARS
+    slack: float = 0.0
+    """Values within this of ``lo`` or ``hi`` count as on it (see :class:`Bound`)."""
+
+    @classmethod
+    def of(cls, bound: Bound, name: str, quantity: str, unit: str, *, limits: str = "",
+           hi_reason: str = "") -> NumberRule:
+        """The field that accepts what ``bound`` (a shared input rule) accepts."""
+        if bound.hi_open:
+            raise ValueError("a number field's upper end is closed")
+        return cls(name, quantity, unit, bound.lo, bound.hi, lo_open=bound.lo_open,
+                   integer=bound.integer, limits=limits, hi_reason=hi_reason,
+                   slack=bound.slack)
+
+    @property
+    def bound(self) -> Bound:
+        """What the field accepts, as an input rule."""
+        return Bound(self.lo, self.hi, lo_open=self.lo_open, integer=self.integer,
+                     slack=self.slack)
 
     def _range(self) -> str:
         lo = "−∞" if math.isinf(self.lo) else f"{self.lo:g}"
@@ -78,13 +97,14 @@ class NumberRule:
                                     f"point: {s.replace(',', '.', 1)}")
             raise BadInputError(f"{self.name}: {s!r} is not {self.quantity}")
         v = float(s.replace("\u2212", "-"))  # finite, or ±inf when the exponent overflows
-        if v > self.hi and self.hi_reason:
+        bound = self.bound
+        if v > self.hi + self.slack and self.hi_reason:
             raise BadInputError(f"{self.name}: {s} is above {self.hi_reason}")
         if self.integer and math.isfinite(v) and not v.is_integer():
             raise BadInputError(f"{self.name}: {s} must be a whole number")
-        if self.lo_open and v <= self.lo:
-            raise BadInputError(f"{self.name}: {s} must be above {self.lo:g}{self.unit}")
-        if v < self.lo or v > self.hi:
+        if not bound.contains(v):
+            if self.lo_open and v <= self.lo:
+                raise BadInputError(f"{self.name}: {s} must be above {self.lo:g}{self.unit}")
             raise BadInputError(f"{self.name}: {s} is outside {self._range()}")
         if not math.isfinite(v):
             raise BadInputError(f"{self.name}: {s} is too large")

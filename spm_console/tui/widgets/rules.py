@@ -1,6 +1,7 @@
 """What the console's number fields accept: θ within the servo limits, roll/pitch/yaw that
 IK reaches, N within the documented bounds, v_max within (0, the lower of the servo's rated
-speed and the profile's planning limit]. Degrees and deg/s throughout."""
+speed and the profile's planning limit]. The bounds are the CLI's and scripts'
+(:mod:`spm_console.input_rules`); the words are the console's. Degrees and deg/s throughout."""
 
 from __future__ import annotations
 
@@ -11,8 +12,15 @@ import numpy as np
 
 from spm_console.config.models import servo_limits_deg
 from spm_console.config.schema import Profile
-from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
+from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS
 from spm_console.errors import SpmError
+from spm_console.input_rules import (
+    INTERSAMPLE,
+    RPY_FIELD,
+    STEPS,
+    servo_limit_bounds,
+    vmax_bound,
+)
 from spm_console.tui.widgets.number import NumberRule
 
 if TYPE_CHECKING:
@@ -23,59 +31,56 @@ TripleCheck = Callable[[Sequence[float]], str]
 
 THETA_NAMES = ("θ1", "θ2", "θ3")
 RPY_NAMES = ("roll", "pitch", "yaw")
-#: Bound on each of roll, pitch, yaw (deg): beyond it the same orientation has a smaller name.
-RPY_LIMIT_DEG = 180.0
 
 
 def theta_rules(profile: Profile, prefix: str = "") -> list[NumberRule]:
     """θ1..θ3 (deg), each within its servo's software limits."""
-    lo, hi = servo_limits_deg(profile)
-    return [NumberRule(f"{prefix}{name}", "a number of degrees", "°", float(lo[i]), float(hi[i]),
-                       limits="the servo limits")
-            for i, name in enumerate(THETA_NAMES)]
+    return [NumberRule.of(bound, f"{prefix}{name}", "a number of degrees", "°",
+                          limits="the servo limits")
+            for bound, name in zip(servo_limit_bounds(profile), THETA_NAMES, strict=True)]
 
 
 def rpy_rules(prefix: str = "") -> list[NumberRule]:
-    """Roll, pitch, yaw from home (deg), each within ±RPY_LIMIT_DEG (IK is checked apart)."""
-    return [NumberRule(f"{prefix}{name}", "a number of degrees", "°", -RPY_LIMIT_DEG,
-                       RPY_LIMIT_DEG) for name in RPY_NAMES]
+    """Roll, pitch, yaw from home (deg), each within ±RPY_FIELD_LIMIT_DEG (IK is checked
+    apart)."""
+    return [NumberRule.of(RPY_FIELD, f"{prefix}{name}", "a number of degrees", "°")
+            for name in RPY_NAMES]
 
 
 def steps_rule() -> NumberRule:
-    """The horizon N: a whole number of intervals in 2..N_MAX."""
-    return NumberRule("steps N", "a whole number of steps", "", 2.0, float(N_MAX), integer=True)
+    """The horizon N: a whole number of intervals in STEPS_MIN..N_MAX."""
+    return NumberRule.of(STEPS, "steps N", "a whole number of steps", "")
 
 
 def intersample_rule() -> NumberRule:
     """K: also bound speed and region at K−1 instants inside each interval (1 = samples only)."""
-    return NumberRule("intersample K", "a whole number", "", 1.0, 100.0, integer=True)
+    return NumberRule.of(INTERSAMPLE, "intersample K", "a whole number", "")
 
 
 def vmax_rule(profile: Profile) -> NumberRule:
     """The speed bound (deg/s): above 0, at most the servo's rated no-load speed and the
     profile's planning limit (plans faster than that are refused before execution)."""
-    prof = float(profile.limits.vmax_degps)
-    if prof < MX106_NO_LOAD_SPEED_DEGPS:
-        hi, why = prof, f"the profile's planning limit {prof:g}°/s (limits.vmax_degps)"
+    bound = vmax_bound(profile)
+    if bound.hi < MX106_NO_LOAD_SPEED_DEGPS:
+        why = f"the profile's planning limit {bound.hi:g}°/s (limits.vmax_degps)"
     else:
-        hi, why = MX106_NO_LOAD_SPEED_DEGPS, (f"the servo's rated speed "
-                                              f"{MX106_NO_LOAD_SPEED_DEGPS:g}°/s (MX-106, 12 V)")
-    return NumberRule("v_max", "a speed in °/s", "°/s", 0.0, hi, lo_open=True, hi_reason=why)
+        why = f"the servo's rated speed {MX106_NO_LOAD_SPEED_DEGPS:g}°/s (MX-106, 12 V)"
+    return NumberRule.of(bound, "v_max", "a speed in °/s", "°/s", hi_reason=why)
 
 
 def ik_check(session: Session, prefix: str = "") -> TripleCheck:
     """Refuse an orientation IK cannot reach, or whose motor angles leave the servo limits."""
-    lo, hi = servo_limits_deg(session.profile)
+    bounds = servo_limit_bounds(session.profile)
 
     def check(rpy_deg: Sequence[float]) -> str:
         try:
             theta = session.ik(list(rpy_deg))
         except SpmError as exc:
             return f"{prefix}roll/pitch/yaw: IK fails: {exc.message}"
-        for i, t in enumerate(theta):
-            if not lo[i] <= t <= hi[i]:
+        for i, (t, b) in enumerate(zip(theta, bounds, strict=True)):
+            if not b.contains(t):
                 return (f"{prefix}roll/pitch/yaw: IK gives θ{i + 1} = {t:.2f}°, outside the "
-                        f"servo limits {lo[i]:g}…{hi[i]:g}°")
+                        f"servo limits {b.lo:g}…{b.hi:g}°")
         return ""
 
     return check
