@@ -21,8 +21,9 @@ from spm_console.config.models import servo_limits_deg, servo_model_of
 from spm_console.config.schema import Profile
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan import Plan
-from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
-from spm_console.core.planning.mintime import check_horizon
+from spm_console.core.planning.mintime import check_horizon, solve_mintime_problem
+from spm_console.core.planning.mvn import solve_problem
+from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.route_search import RouteChoice, find_route, solve_route_mvn
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions.choice import RegionChoice, choose_region
