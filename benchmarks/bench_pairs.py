@@ -29,7 +29,8 @@ from benchmarks.common import Row
 from spm_console.config.load import load_profile
 from spm_console.config.models import servo_limits_deg, servo_model_of
 from spm_console.config.schema import Profile
-from spm_console.core.planning import PlanProblem, solve_problem
+from spm_console.core.planning.mvn import solve_problem
+from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.regions.choice import choose_region
 from spm_console.core.workspace.build import check_theta
 from spm_console.core.workspace.data import Workspace

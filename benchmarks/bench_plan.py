@@ -22,8 +22,10 @@ import numpy as np
 
 from benchmarks.common import Row, timeit
 from spm_console.config.load import load_profile
-from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
+from spm_console.core.planning.mintime import solve_mintime_problem
+from spm_console.core.planning.mvn import solve_problem
 from spm_console.core.planning.osqp_solve import solve_osqp
+from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.qp_build import Pool, equalities
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import discretize

@@ -61,7 +61,9 @@ class Issue(StrEnum):
     TOO_MANY_INSTANTS = "too_many_instants"
     """N times the intersample count K is above the bound of constrained instants."""
     END_NOT_FEASIBLE = "end_not_feasible"
-    """A start or goal is outside the servo or reference limits, or not feasible."""
+    """A start or goal is outside the servo or reference limits, or not feasible; or the
+    straight segment between them leaves the feasible set, the workspace has no feasible
+    node, or the motion planned between them leaves the servo limits."""
 
 
 class SpmError(Exception):

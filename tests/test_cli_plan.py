@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from spm_console.cli.main import main
-from spm_console.core.planning import PlanProblem
+from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.identify import response
 from spm_console.core.servo.model import discretize

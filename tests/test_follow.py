@@ -6,7 +6,6 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from spm_console.core.planning import solve_mvn
 from spm_console.core.planning.follow.solver import (
     TARGET_REFUSED,
     FollowResult,
@@ -15,6 +14,7 @@ from spm_console.core.planning.follow.solver import (
     FollowWeights,
 )
 from spm_console.core.planning.follow.target import ProjectionError
+from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.polytope.region import Region
 from spm_console.errors import BadInputError
 from tests.planning_cases import MODEL

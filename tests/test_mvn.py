@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.core.planning import PlanProblem, solve_mvn, solve_problem
+from spm_console.core.planning.mvn import solve_mvn, solve_problem
+from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.qp_build import Pool
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import discretize

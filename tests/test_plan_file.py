@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from spm_console.config.schema import Profile
-from spm_console.core.planning import solve_mintime, solve_mvn
+from spm_console.core.planning.mintime import solve_mintime
+from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.servo.model import discretize
 from spm_console.errors import ExitCode, PlanMismatchError
 from spm_console.motion.plans import synthetic_plan

@@ -21,7 +21,7 @@ import spm_console.store.plan_file as plan_file
 from spm_console.cli.main import main
 from spm_console.cli.plan import _human
 from spm_console.config.schema import Profile
-from spm_console.core.planning import solve_mvn
+from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.servo.model import discretize, simulate
 from spm_console.errors import ExitCode, PlanMismatchError, SpmError
 from spm_console.store.plan_file import load_plan, plan_hash, plan_to_dict, save_plan

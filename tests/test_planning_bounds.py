@@ -11,8 +11,9 @@ import pytest
 
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan_rules import LIMIT_TOL_DEG
-from spm_console.core.planning import PlanProblem, solve_mintime
+from spm_console.core.planning.mintime import solve_mintime
 from spm_console.core.planning.mvn import ROUND_OFF_DEG, clamp_round_off
+from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.polytope.region import Region
 from spm_console.errors import BadInputError, InfeasibleError, PlanRefusedError
 from spm_console.motion.plans import plan_from_references

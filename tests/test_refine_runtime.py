@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from spm_console.config.models import servo_limits_deg, servo_model_of
-from spm_console.core.planning import PlanProblem, solve_mintime_problem
+from spm_console.core.planning.mintime import solve_mintime_problem
+from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.regions.choice import choose_region
 from spm_console.core.workspace.data import Workspace
 from spm_console.core.workspace.refine import RefinedCertifiedSet

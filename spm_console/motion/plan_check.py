@@ -59,7 +59,7 @@ from spm_console.core.workspace.certify import CertifiedSet
 from spm_console.core.workspace.check import check_points
 from spm_console.core.workspace.data import Workspace
 from spm_console.core.workspace.refine import RefinedCertifiedSet
-from spm_console.errors import PlanRefusedError
+from spm_console.errors import Issue, PlanRefusedError
 from spm_console.motion.plans import settle_samples
 from spm_console.motion.segments import Segment
 
@@ -67,6 +67,11 @@ F = NDArray[np.float64]
 
 #: Phases built by the runtime as straight lines from a measured position.
 LINE_PHASES = ("homing", "approach")
+
+#: What went wrong, for a front end's advice, when a motion breaks a rule: beyond the servo
+#: limits, the start or goal lies too near them.
+_ISSUES: dict[Rule, Issue] = {Rule.REFERENCE_LIMIT: Issue.END_NOT_FEASIBLE,
+                              Rule.POSITION_LIMIT: Issue.END_NOT_FEASIBLE}
 
 
 @dataclass(frozen=True)
@@ -112,8 +117,9 @@ class PlanVerifier:
         return PlanCheck(len(segments), points, vmax_seen, step_seen, time.perf_counter() - t0)
 
     # ------------------------------------------------------------------ one segment
-    def _refuse(self, seg: Segment, what: str) -> PlanRefusedError:
-        return PlanRefusedError(f"{seg.phase} refused by the runtime's plan verification: {what}")
+    def _refuse(self, seg: Segment, what: str, issue: Issue | None = None) -> PlanRefusedError:
+        return PlanRefusedError(f"{seg.phase} refused by the runtime's plan verification: {what}",
+                                issue)
 
     def _segment(self, seg: Segment) -> tuple[int, float, float]:
         plan, ts = seg.plan, self.profile.servo.ts_s
@@ -132,7 +138,8 @@ class PlanVerifier:
                              None if line else self.certified,
                              hold_samples=settle_samples(self.profile))
         if check.violation is not None:
-            raise self._refuse(seg, self._words(check.violation, check.positions_deg))
+            raise self._refuse(seg, self._words(check.violation, check.positions_deg),
+                               _ISSUES.get(check.violation.rule))
         if line:
             self._exact(seg, check.positions_deg)
         return check.points, check.max_speed_degps, check.max_step_deg

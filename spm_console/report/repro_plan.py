@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from spm_console.config.schema import Profile
-from spm_console.core.planning import solve_mintime, solve_mvn
+from spm_console.core.planning.mintime import solve_mintime
+from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.regions.choice import choose_region, region_containing
 from spm_console.core.servo.model import discretize
 from spm_console.core.workspace.data import Workspace

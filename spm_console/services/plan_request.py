@@ -21,8 +21,9 @@ from spm_console.config.models import servo_limits_deg, servo_model_of
 from spm_console.config.schema import Profile
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan import Plan
-from spm_console.core.planning import PlanProblem, solve_mintime_problem, solve_problem
-from spm_console.core.planning.mintime import check_horizon
+from spm_console.core.planning.mintime import check_horizon, solve_mintime_problem
+from spm_console.core.planning.mvn import solve_problem
+from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.route_search import RouteChoice, find_route, solve_route_mvn
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions.choice import RegionChoice, choose_region
@@ -30,33 +31,12 @@ from spm_console.core.regions.cover import connected_graph
 from spm_console.core.workspace.build import check_theta
 from spm_console.core.workspace.check import ThetaCheck
 from spm_console.core.workspace.data import Workspace
-from spm_console.errors import BadInputError, InfeasibleError, Issue, SpmError
+from spm_console.errors import BadInputError, InfeasibleError, Issue
 from spm_console.formatting import fmt_deg, fmt_vec
 from spm_console.motion.plan_check import verify_plan
 from spm_console.store.plan_file import plan_hash
 
 F = NDArray[np.float64]
-
-#: What went wrong in a refusal of the planner (:mod:`spm_console.core.planning`) and the region
-#: choice, by its words, first match wins: their errors do not carry an Issue yet (it is set
-#: here, in one place, until they do).
-_PLANNER_WORDS: tuple[tuple[Issue, tuple[str, ...]], ...] = (
-    (Issue.TOO_FEW_STEPS,
-     ("no reference reaches the goal in N =", "too few for a route", "no room for the route")),
-    (Issue.SPEED_TOO_LOW, ("use a speed bound of at least",)),
-    (Issue.NO_PLAN_WITHIN_N_MAX, ("no feasible plan with N ≤",)),
-    (Issue.TOO_MANY_INSTANTS, ("constrained instants", "intersample")),
-    (Issue.END_NOT_FEASIBLE,
-     ("outside the servo limits", "NOT feasible", "not feasible", "singular", "collid",
-      "below the reference limits", "above the reference limits")),
-)
-
-
-def planner_issue(message: str) -> Issue | None:
-    """The Issue of a planner refusal without one, from its words (None: none known)."""
-    return next((issue for issue, words in _PLANNER_WORDS if any(w in message for w in words)),
-                None)
-
 
 @dataclass(frozen=True)
 class PlanRequest:
@@ -127,25 +107,13 @@ def precheck(profile: Profile, req: PlanRequest) -> None:
                     f"{fmt_vec(lo, 2)}…{fmt_deg(hi)}", Issue.END_NOT_FEASIBLE)
     if req.method == "mintime":
         vmax = profile.limits.vmax_degps if req.vmax_degps is None else float(req.vmax_degps)
-        try:
-            check_horizon(servo_model_of(profile), s, g, vmax,
-                          min(N_MAX, MAX_INSTANTS // max(1, int(req.intersample))))
-        except SpmError as exc:
-            exc.issue = exc.issue or planner_issue(exc.message)
-            raise
+        check_horizon(servo_model_of(profile), s, g, vmax,
+                      min(N_MAX, MAX_INSTANTS // max(1, int(req.intersample))))
 
 
 def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMotion:
     """Assemble, solve and verify (see the module docstring); raises the SpmError that says
-    why not (bad input 4, infeasible 6, plan refused 26), with its Issue when known."""
-    try:
-        return _plan_motion(profile, ws, req)
-    except SpmError as exc:
-        exc.issue = exc.issue or planner_issue(exc.message)
-        raise
-
-
-def _plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMotion:
+    why not (bad input 4, infeasible 6, plan refused 26), with the Issue it was raised with."""
     precheck(profile, req)
     s = np.asarray(req.start_deg, float).reshape(3)
     g = np.asarray(req.goal_deg, float).reshape(3)
@@ -162,12 +130,12 @@ def _plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMo
                      int(req.intersample), req.hold_first,
                      lo if req.reference_limits else None, hi if req.reference_limits else None)
     in_p = bool(ws.region.contains(np.stack([s, g]), tol=INSIDE_TOL_DEG).all())  # as choose_region
-    route_error = ""
+    route_error: InfeasibleError | None = None
     if req.region is None and not in_p:
         try:
             routed = _plan_along_cover(profile, ws, pb, req)
         except InfeasibleError as exc:
-            routed, route_error = None, str(exc)
+            routed, route_error = None, exc
         if routed is not None:
             verify_plan(profile, ws, routed[0])  # the executor's own check, as below
             return PlannedMotion(routed[0], None, checks[0], checks[1], routed[1])
@@ -177,8 +145,9 @@ def _plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMo
         else:  # P holds both ends (tested above), else a region grown for the segment
             choice = RegionChoice(ws.region, "P") if in_p else choose_region(ws, s, g)
     except InfeasibleError as exc:
-        if route_error:
-            raise InfeasibleError(f"{exc}; along the workspace's region cover: {route_error}") from exc
+        if route_error is not None:  # the route's issue, more specific when it has one
+            raise InfeasibleError(f"{exc}; along the workspace's region cover: {route_error}",
+                                  route_error.issue or exc.issue) from exc
         raise
     pb = PlanProblem(pb.model, s, g, pb.N, choice.region, vmax, pb.intersample, pb.hold_first,
                      pb.ref_lo_deg, pb.ref_hi_deg)

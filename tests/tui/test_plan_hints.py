@@ -11,12 +11,13 @@ import pytest
 from textual.widgets import Input, Select
 
 from spm_console.config.schema import Profile
-from spm_console.errors import BadInputError, Issue, SpmError
-from spm_console.services.plan_request import PlanRequest, planner_issue, precheck
+from spm_console.errors import BadInputError, InfeasibleError, Issue, SpmError
+from spm_console.services.plan_request import PlanRequest, plan_motion, precheck
 from spm_console.tui.screens.base import describe_error
 from spm_console.tui.screens.plan_words import next_step
 from spm_console.tui.widgets.angles import AnglesInput
 from tests.tui.helpers import settle, status_of, text_of
+from tests.ws_helpers import agile_workspace
 
 SIZE = (120, 40)
 #: What a shell command or option looks like in a message.
@@ -57,14 +58,19 @@ async def test_a_failed_solve_says_which_field_to_change(
         assert len([s for s in said if "solve" in s or "N =" in s or "v_max" in s]) <= 1
 
 
-def test_each_kind_of_failure_gets_its_own_advice() -> None:
+def test_each_kind_of_failure_gets_its_own_advice(agile: Profile) -> None:
     assert "connect first (press 1 (F1), then c)" in next_step(Issue.POSE_UNKNOWN)
-    assert "'v_max °/s' field" in next_step(planner_issue(
-        "no plan within N ≤ 5000 steps (100 s): at v_max = 0.01 deg/s the largest joint "
-        "move (40°) needs about 4e+03 s; use a speed bound of at least about 0.4 deg/s"))
-    assert "start or goal fields" in next_step(planner_issue(
-        "goal θ = [62.00, 135.00, 135.00]° is NOT feasible (singular)"))
-    assert "then press s" in next_step(planner_issue("something else went wrong"))
+    with pytest.raises(SpmError) as slow:
+        precheck(agile, PlanRequest("mintime", np.full(3, 135.0), np.full(3, 95.0),
+                                    vmax_degps=0.01))
+    assert "use a speed bound of at least" in slow.value.message
+    assert "'v_max °/s' field" in next_step(slow.value.issue)
+    with pytest.raises(SpmError) as end:
+        plan_motion(agile, agile_workspace(), PlanRequest("mvn", np.full(3, 100.0),
+                                                          np.array([62.0, 135.0, 135.0])))
+    assert end.value.message.startswith("goal θ = [62.00, 135.00, 135.00]° is NOT feasible")
+    assert "start or goal fields" in next_step(end.value.issue)
+    assert "then press s" in next_step(SpmError("something else went wrong").issue)
     assert "then press s" in next_step(None)
 
 
@@ -85,7 +91,37 @@ def test_the_advice_follows_the_issue_not_the_words(agile: Profile) -> None:
     with pytest.raises(SpmError) as refused:  # tagged where it is raised: below the servo limits
         precheck(agile, PlanRequest("mvn", np.zeros(3), np.full(3, 135.0)))
     assert refused.value.issue is Issue.END_NOT_FEASIBLE
-    with pytest.raises(SpmError) as slow:  # a planner refusal: tagged by the services
+    with pytest.raises(SpmError) as slow:  # a planner refusal: tagged where it is raised too
         precheck(agile, PlanRequest("mintime", np.full(3, 135.0), np.full(3, 95.0),
                                     vmax_degps=0.01))
     assert slow.value.issue is Issue.SPEED_TOO_LOW
+
+
+@pytest.mark.parametrize(("issue", "field"), [
+    (Issue.TOO_FEW_STEPS, "'steps N' field"),
+    (Issue.SPEED_TOO_LOW, "'v_max °/s' field"),
+    (Issue.TOO_MANY_INSTANTS, "intersample K field"),
+    (Issue.END_NOT_FEASIBLE, "start or goal fields"),
+])
+async def test_the_plan_step_advises_by_the_issue_whatever_the_words(
+        console: Any, monkeypatch: pytest.MonkeyPatch, issue: Issue, field: str) -> None:
+    """A refusal whose words belong to another kind (here a too-slow minimum-time search's)
+    gets the advice of the Issue it carries: the console never reads the message for it."""
+    words = ("no plan within N ≤ 5000 steps (100 s): at v_max = 0.01 deg/s the largest joint "
+             "move (40°) needs about 4e+03 s; use a speed bound of at least about 0.4 deg/s")
+
+    def refuse(*args: object, **kw: object) -> None:
+        raise InfeasibleError(words, issue)
+
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await settle(pilot)
+        monkeypatch.setattr(app.session, "solve_plan", refuse)
+        await pilot.press("4")
+        await pilot.pause()
+        await pilot.press("s")
+        await settle(pilot, timeout_s=60)
+        out = text_of(app, "#plan-text")
+        assert words in out, out
+        next_line = out.split("\nNext: ", 1)[1]
+        assert next_line == next_step(issue) and field in next_line, next_line

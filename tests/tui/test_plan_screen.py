@@ -6,7 +6,7 @@ import numpy as np
 from textual.widgets import Input, Select
 
 from spm_console.config.models import servo_model_of
-from spm_console.core.planning import solve_mvn
+from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.regions.choice import region_containing
 from spm_console.tui.widgets.angles import AnglesInput
 from tests.tui.helpers import settle, status_of, text_of

@@ -34,7 +34,7 @@ from spm_console.core.planning.result import PlanResult
 from spm_console.core.planning.screening import QpOutcome, solve_qp
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import ServoModel
-from spm_console.errors import BadInputError, InfeasibleError, SolverError
+from spm_console.errors import BadInputError, InfeasibleError, Issue, SolverError
 
 F = NDArray[np.float64]
 
@@ -157,7 +157,8 @@ def check_horizon(model: ServoModel, start_deg: F, goal_deg: F, vmax_degps: floa
     raise InfeasibleError(
         f"no plan within N ≤ {n_max} steps ({n_max * ts:g} s): at v_max = "
         f"{vmax_degps:g} deg/s the largest joint move ({d:.4g}°) needs about "
-        f"{t:.3g} s; use a speed bound of at least about {d / t_room:.3g} deg/s")
+        f"{t:.3g} s; use a speed bound of at least about {d / t_room:.3g} deg/s",
+        Issue.SPEED_TOO_LOW)
 
 
 def _decide(problem: PlanProblem, guess: F) -> tuple[QpOutcome, Any]:
@@ -204,7 +205,8 @@ def solve_mintime_problem(problem: PlanProblem) -> MintimeResult:
         if hi_feas is None:  # still infeasible: gallop up (trying n_max itself last)
             if n >= n_max:
                 raise InfeasibleError(f"no feasible plan with N ≤ {n_max} steps: the goal cannot be "
-                                      "reached inside the region under this speed bound")
+                                      "reached inside the region under this speed bound",
+                                      Issue.NO_PLAN_WITHIN_N_MAX)
             n = min(n + step, n_max)
             step *= 2
         elif lo_inf is None:  # feasible: step down, galloping

@@ -14,7 +14,7 @@ from spm_console.core.planning.screening import Backend, QpOutcome, solve_qp
 from spm_console.core.planning.verify import check
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import ServoModel
-from spm_console.errors import InfeasibleError, SolverError
+from spm_console.errors import InfeasibleError, Issue, SolverError
 
 F = NDArray[np.float64]
 
@@ -106,7 +106,8 @@ def solve_problem(problem: PlanProblem, guess: F | None = None,
         extra = f" under v_max = {problem.vmax_degps}°/s" if problem.vmax_degps else ""
         raise InfeasibleError(
             f"no reference reaches the goal in N = {problem.N} steps ({problem.N * problem.model.ts:g} s)"
-            f"{extra} inside the region (infeasibility certified); use more steps or 'plan mintime'")
+            f"{extra} inside the region (infeasibility certified); use more steps or 'plan mintime'",
+            Issue.TOO_FEW_STEPS)
     if out.status != "solved":
         raise SolverError(f"the QP solvers failed on the MVN problem (N = {problem.N}): "
                           f"{out.status} {out.detail}")

@@ -17,7 +17,7 @@ from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.route import RegionRoute
 from spm_console.core.servo.model import ServoModel, substeps
-from spm_console.errors import BadInputError, InfeasibleError
+from spm_console.errors import BadInputError, InfeasibleError, Issue
 from spm_console.formatting import fmt_deg
 
 F = NDArray[np.float64]
@@ -66,15 +66,17 @@ class PlanProblem:
         if self.vmax_degps is not None and not (np.isfinite(self.vmax_degps) and self.vmax_degps > 0):
             raise BadInputError(f"vmax must be a positive finite speed in deg/s, got {self.vmax_degps}")
         if int(self.intersample) != self.intersample or not 1 <= self.intersample <= 100:
-            raise BadInputError(f"intersample K must be an integer in 1..100, got {self.intersample}")
+            raise BadInputError(f"intersample K must be an integer in 1..100, got {self.intersample}",
+                                Issue.TOO_MANY_INSTANTS)
         if self.N * self.intersample > MAX_INSTANTS:
             raise BadInputError(f"N·K = {self.N} × {self.intersample} is above {MAX_INSTANTS:,} "
-                                "constrained instants; use fewer steps or a smaller K")
+                                "constrained instants; use fewer steps or a smaller K", Issue.TOO_MANY_INSTANTS)
         if self.intersample > 1 and self.model.method != "zoh":
-            raise BadInputError("intersample constraints need the exact (zoh) servo model")
+            raise BadInputError("intersample constraints need the exact (zoh) servo model",
+                                Issue.TOO_MANY_INSTANTS)
         if self.route is not None and self.route.count > 1 and not self.route.fits(self.N):
             raise BadInputError(f"N = {self.N} steps leave no room for the route's switch samples "
-                                f"{list(self.route.switch)}")
+                                f"{list(self.route.switch)}", Issue.TOO_FEW_STEPS)
         for name in ("ref_lo_deg", "ref_hi_deg"):
             v = getattr(self, name)
             if v is not None:
@@ -119,10 +121,10 @@ class PlanProblem:
         for name, th in (("start", self.start_deg), ("goal", self.goal_deg)):
             if self.ref_lo_deg is not None and np.any(th < self.ref_lo_deg - 1e-9):
                 raise InfeasibleError(f"{name} θ = {fmt_deg(th, 4)} is below the reference limits "
-                                      f"{fmt_deg(self.ref_lo_deg)}")
+                                      f"{fmt_deg(self.ref_lo_deg)}", Issue.END_NOT_FEASIBLE)
             if self.ref_hi_deg is not None and np.any(th > self.ref_hi_deg + 1e-9):
                 raise InfeasibleError(f"{name} θ = {fmt_deg(th, 4)} is above the reference limits "
-                                      f"{fmt_deg(self.ref_hi_deg)}")
+                                      f"{fmt_deg(self.ref_hi_deg)}", Issue.END_NOT_FEASIBLE)
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ from spm_console.core.planning.result import PlanResult
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.graph import waypoint_paths
 from spm_console.core.regions.route import RegionRoute, spread
-from spm_console.errors import InfeasibleError
+from spm_console.errors import InfeasibleError, Issue
 
 F = NDArray[np.float64]
 
@@ -165,7 +165,7 @@ def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: Rou
     t0 = time.perf_counter()
     if len(choice.regions) > problem.N:
         raise InfeasibleError(f"N = {problem.N} steps are too few for a route through "
-                              f"{len(choice.regions)} regions; use more steps")
+                              f"{len(choice.regions)} regions; use more steps", Issue.TOO_FEW_STEPS)
     route = choice.route(regions, problem.N, labels)
     pb = problem.with_route(route)
     first = solve_problem(pb)

@@ -17,7 +17,7 @@ from spm_console.core.regions.refined import refined_region
 from spm_console.core.workspace.data import Workspace
 from spm_console.core.workspace.refine import FineGrid
 from spm_console.core.workspace.segment_check import check_range, check_segment, exact_samples
-from spm_console.errors import InfeasibleError
+from spm_console.errors import InfeasibleError, Issue
 
 F = NDArray[np.float64]
 
@@ -62,7 +62,7 @@ def choose_region(ws: Workspace, theta_a_deg: F, theta_b_deg: F,
     if not bool(ws.feasible.any()):
         raise InfeasibleError("the workspace has no feasible node (every grid node is singular, "
                               "colliding or unreachable): nothing can be planned in it; check the "
-                              "profile's links, δ and ζ_min")
+                              "profile's links, δ and ζ_min", Issue.END_NOT_FEASIBLE)
     if bool(ws.region.contains(np.stack([a, b]), tol=INSIDE_TOL_DEG).all()):
         return RegionChoice(ws.region, "P")
     check_range(ws, a, b)

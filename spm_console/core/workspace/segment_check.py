@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.workspace.check import PointChecks, check_points, pair_name
-from spm_console.errors import InfeasibleError
+from spm_console.errors import InfeasibleError, Issue
 
 if TYPE_CHECKING:
     from spm_console.core.workspace.data import Workspace
@@ -162,11 +162,11 @@ def check_segment(ws: Workspace, a: F, b: F, cubes: Sequence[CubeSet] | None = N
                f"within {cs.label} of " + cs.describe(j))
         if ex.feasible:
             msg += f". Checked exactly, the segment itself is feasible ({ex.summary()}): {hint}"
-        raise InfeasibleError(msg)
+        raise InfeasibleError(msg, Issue.END_NOT_FEASIBLE)
     if not ex.feasible:
         k = int(np.argmin(ex.ok))
         why = ex.checks.reason(k, ws.zeta_min, ws.min_distance_mm, links)
         raise InfeasibleError(
             f"the straight segment {_fmt(a)}° → {_fmt(b)}° is infeasible at "
-            f"θ = {_fmt(ex.points[k])}°: {why}"
+            f"θ = {_fmt(ex.points[k])}°: {why}", Issue.END_NOT_FEASIBLE
         )
