@@ -1,6 +1,6 @@
 """The front end's side of the motion process (:mod:`spm_console.motion.server`).
 
-:class:`MotionClient` starts ``python -m spm_console.motion.server`` with one end of a
+:class:`MotionClient` starts the motion process (:mod:`.warm_start`) with one end of a
 socket pair, sends it what to serve, and then talks to it with the typed messages of
 :mod:`spm_console.motion.protocol`: requests and E-stops out, replies and telemetry in,
 a heartbeat every :data:`~spm_console.motion.server.HEARTBEAT_S` during a motion. When
@@ -10,12 +10,10 @@ the process dies, every waiting call raises :class:`MotionProcessLostError` (exi
 from __future__ import annotations
 
 import contextlib
-import os
 import queue
 import signal
 import socket
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -48,6 +46,7 @@ from spm_console.motion.protocol import (
 from spm_console.motion.runs import RunContext
 from spm_console.motion.sample import Sample
 from spm_console.motion.server import HEARTBEAT_S, REQUEST_TIMEOUT_S, Start
+from spm_console.services.warm_start import MotionProcessHandle, start_motion_process
 
 
 class MotionClient:
@@ -57,13 +56,7 @@ class MotionClient:
                  logs_root: str | Path | None = None, sim: bool = False,
                  faults: Sequence[str] = (), start_timeout_s: float = 60.0) -> None:
         mine, theirs = socket.socketpair()
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "spm_console.motion.server", "--fd", str(theirs.fileno())],
-            pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
-            # its own session: a signal to the front end's process group (Ctrl-C, Ctrl-\, the
-            # terminal closing, ``kill -- -PGID``, ``timeout``) reaches the front end, which
-            # E-stops through this connection; the servo loop is never killed by it
-            start_new_session=True)
+        self.process: MotionProcessHandle = start_motion_process(theirs)
         theirs.close()
         self.conn = Connection(mine.detach())
         ctx = RunContext(port, sim, tuple(faults), None if logs_root is None else str(logs_root))
@@ -265,7 +258,7 @@ class MotionClient:
             pass
         if self.process.poll() is None:
             with contextlib.suppress(OSError):
-                os.kill(self.process.pid, signal.SIGUSR1)
+                self.process.send_signal(signal.SIGUSR1)
 
     def close(self, timeout_s: float = 5.0) -> None:
         if self._closed:
