@@ -12,7 +12,7 @@ STAMP := $(VENV)/.installed
 UV_ENV := UV_PROJECT_ENVIRONMENT=$(VENV) UV_PYTHON_DOWNLOADS=never UV_PYTHON=$(PY)
 PROFILE ?=
 
-.PHONY: run test test-all test-slow lint bench clean venv lock
+.PHONY: run test test-unit test-runtime test-all test-slow lint bench clean venv lock
 
 # uv itself, pinned, in its own small environment (pip from PyPI).
 $(UV):
@@ -37,8 +37,17 @@ venv: $(STAMP)
 run: $(STAMP)
 	$(BIN)/spm-console tui $(if $(PROFILE),--profile $(PROFILE)) $(if $(GRID),--grid-step $(GRID))
 
-test: $(STAMP)
-	$(BIN)/python -m pytest
+# The unit tests (no process, no terminal: tests/unit) on every core, then the tests that
+# run the servo loop in real time, the console and whole commands (tests/runtime, tests/tui,
+# tests/e2e) one at a time: two real-time loops side by side on two cores would miss their
+# deadlines.
+test: test-unit test-runtime
+
+test-unit: $(STAMP)
+	SPM_TESTS_HOST_STALLS=0 $(BIN)/python -m pytest tests/unit -n auto
+
+test-runtime: $(STAMP)
+	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -m ''

@@ -1,6 +1,6 @@
 """Planning benchmarks: MVN (30) and minimum time (31) against cvxpy, same run.
 
-Baselines are the same problems written in cvxpy (``tests/reference_qp.py``) and
+Baselines are the same problems written in cvxpy (``tests/support/reference_qp.py``) and
 solved by cvxpy's default solver choice, timed from definition to solution like the
 paper's CVX figures (25 s and 85 s). The minimum-time baseline is the paper's search:
 bisection started at N = 100, one cvxpy solve per N. Timings are wall times (best of a
@@ -30,7 +30,7 @@ from spm_console.core.planning.qp_build import Pool, equalities
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import discretize
 from spm_console.errors import SpmError
-from tests.reference_qp import solve_reference
+from tests.support.reference_qp import solve_reference
 
 START = np.array([127.53, 83.23, 85.25])
 GOAL = np.array([66.80, 155.00, 131.48])
@@ -124,7 +124,7 @@ def run() -> list[Row]:
                         f"cvxpy bisection from N=100: N = {n_b}, {q_b} QPs"))
 
     # a hard case: thin region, references limited, constraints between samples
-    from tests.planning_cases import slab  # the test suite's hand-made regions
+    from tests.support.planning_cases import slab  # the test suite's hand-made regions
 
     hard = PlanProblem(model, START, GOAL, 150, slab(START, GOAL, 0.1), None, 4,
                        ref_lo_deg=np.full(3, 60.0), ref_hi_deg=np.array([160.0, 155.05, 160.0]))

@@ -32,9 +32,9 @@ _hypothesis_settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "suite"))
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Host stall probes and the retake rule of ``tests/host_stalls.py`` (off with
+    """Host stall probes and the retake rule of ``tests/support/host_stalls.py`` (off with
     ``SPM_TESTS_HOST_STALLS=0``: every failure is then final)."""
-    from tests.host_stalls import MAX_SUITE_RERUNS, HostStalls
+    from tests.support.host_stalls import MAX_SUITE_RERUNS, HostStalls
 
     if os.environ.get("SPM_TESTS_HOST_STALLS", "1") == "0":
         return

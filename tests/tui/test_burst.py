@@ -10,7 +10,7 @@ import pytest
 from textual import events
 
 from spm_console.tui.widgets.angles import AnglesInput
-from tests.tui.helpers import burst, settle
+from tests.support.console_helpers import burst, settle
 
 SIZE = (160, 48)
 

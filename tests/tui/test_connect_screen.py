@@ -9,7 +9,7 @@ from textual.widgets import DataTable
 
 from spm_console.errors import ExitCode
 from spm_console.motion.logs.runlog import list_runs
-from tests.tui.helpers import MotionSpy, settle, status_of, text_of
+from tests.support.console_helpers import MotionSpy, settle, status_of, text_of
 
 SIZE = (120, 36)
 

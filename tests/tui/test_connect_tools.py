@@ -15,7 +15,7 @@ from spm_console.devices.emulator.faults import parse_fault
 from spm_console.motion.logs.runlog import list_runs
 from spm_console.tui.app import SpmConsoleApp
 from spm_console.tui.screens.connect import HealthPolled
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (120, 36)
 

@@ -10,7 +10,7 @@ import numpy as np
 from textual.widgets import Input, Select
 
 from spm_console.tui.widgets.angles import AnglesInput
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (160, 48)
 #: Where the emulated servos stand at start (feasible, not home), deg.

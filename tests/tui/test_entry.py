@@ -14,7 +14,7 @@ from spm_console.errors import BadInputError
 from spm_console.tui.widgets.angles import AnglesInput
 from spm_console.tui.widgets.number import FIELD_CHARS, NumberField, NumberRow
 from spm_console.tui.widgets.rules import rpy_rules, steps_rule, theta_rules, vmax_rule
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SMALL = (80, 24)
 LARGE = (160, 48)

@@ -14,8 +14,8 @@ from textual.widgets import DataTable
 from spm_console.motion.stats import run_stats
 from spm_console.tui.messages import Telemetry
 from spm_console.tui.screens.execute import NO_REPLY, LiveTiming, LoopTiming
-from tests.runlog_helpers import TS, sample
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
+from tests.support.runlog_helpers import TS, sample
 
 SIZE = (130, 42)
 

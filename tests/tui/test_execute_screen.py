@@ -10,7 +10,7 @@ from textual.widgets import DataTable
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import ExitCode
 from spm_console.motion.logs.runlog import list_runs, load_run
-from tests.tui.helpers import MotionSpy, settle, status_of, text_of
+from tests.support.console_helpers import MotionSpy, settle, status_of, text_of
 
 SIZE = (130, 42)
 
@@ -121,7 +121,7 @@ async def test_a_stalled_joint_stops_the_run_with_the_reason(console, tmp_path) 
 async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
         console, tmp_path, capsys) -> None:
     """The runtime's rules through the console: homed first; the run log's metadata has the
-    keys a CLI ``execute`` writes (tests/test_same_rules.py runs the CLI and scripts)."""
+    keys a CLI ``execute`` writes (tests/e2e/test_same_rules.py runs the CLI and scripts)."""
     from spm_console.services.session import PoseSpec
 
     app = console()

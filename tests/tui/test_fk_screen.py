@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from spm_console.tui.widgets.angles import AnglesInput
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (120, 40)
 

@@ -7,7 +7,7 @@ import numpy as np
 from textual.widgets import DataTable, Input
 
 from spm_console.motion.logs.runlog import list_runs
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (130, 42)
 

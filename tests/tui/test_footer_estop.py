@@ -6,7 +6,7 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
-from tests.tui.helpers import settle, status_of
+from tests.support.console_helpers import settle, status_of
 from tests.tui.test_small_terminal import screen_text
 
 SMALL = (80, 24)

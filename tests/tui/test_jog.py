@@ -20,7 +20,7 @@ from spm_console.tui.screens.help import HelpScreen
 from spm_console.tui.screens.jog import JOG_SOURCE, JogScreen
 from spm_console.tui.screens.jog_target import JOG_STEPS_DEG, JogTarget, TargetSender
 from spm_console.viewer.view import NullView
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (130, 42)
 #: The emulated wrist settles on its target within this, deg (the follower's own settle
@@ -371,7 +371,7 @@ async def test_jog_starts_where_a_plan_to_a_boundary_pose_left_the_wrist(console
     """A plan to a pose no cover region holds (the planner grew a region around it) leaves
     the wrist there; the jog starts from it (the runtime grows its own region around the
     start), the start is not shown clamped, and the jog ends completed."""
-    from tests.test_follow_runtime import BOUNDARY_NODE
+    from tests.runtime.test_follow_runtime import BOUNDARY_NODE
 
     app = console()
     async with app.run_test(size=SIZE) as pilot:

@@ -15,7 +15,7 @@ from textual.widgets import Input, Select, Static
 from spm_console.tui.screens.help import HelpScreen
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.steps import STEPS
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (120, 40)
 

@@ -11,8 +11,8 @@ from textual.widgets import DataTable
 from spm_console.config.schema import Profile
 from spm_console.motion.logs.runlog import LOGS_ENV
 from spm_console.tui.app import make_app
-from tests.runlog_helpers import write_run
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
+from tests.support.runlog_helpers import write_run
 
 SIZE = (160, 40)
 

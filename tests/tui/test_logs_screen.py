@@ -7,7 +7,7 @@ from textual.widgets import DataTable
 
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.sample import Sample
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (130, 40)
 

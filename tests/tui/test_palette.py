@@ -11,7 +11,7 @@ from textual.command import CommandPalette
 
 from spm_console.tui.app import SETTINGS_TITLE
 from spm_console.tui.widgets.steps import STEPS
-from tests.tui.helpers import settle, status_of
+from tests.support.console_helpers import settle, status_of
 
 SIZE = (120, 40)
 

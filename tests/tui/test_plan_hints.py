@@ -16,8 +16,8 @@ from spm_console.services.plan_request import PlanRequest, plan_motion, precheck
 from spm_console.tui.screens.base import describe_error
 from spm_console.tui.screens.plan_words import next_step
 from spm_console.tui.widgets.angles import AnglesInput
-from tests.tui.helpers import settle, status_of, text_of
-from tests.ws_helpers import agile_workspace
+from tests.support.console_helpers import settle, status_of, text_of
+from tests.support.ws_helpers import agile_workspace
 
 SIZE = (120, 40)
 #: What a shell command or option looks like in a message.

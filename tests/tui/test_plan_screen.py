@@ -9,7 +9,7 @@ from spm_console.config.models import servo_model_of
 from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.regions.choice import region_containing
 from spm_console.tui.widgets.angles import AnglesInput
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (130, 42)
 

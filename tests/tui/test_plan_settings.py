@@ -9,7 +9,7 @@ from textual.widgets import Checkbox, Input
 
 from spm_console.services.session import PoseSpec
 from spm_console.store.plan_file import save_plan
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (130, 42)
 

@@ -7,7 +7,7 @@ import time
 
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.confirm import QuitConfirm
-from tests.tui.helpers import burst, settle
+from tests.support.console_helpers import burst, settle
 from tests.tui.test_small_terminal import screen_text
 
 SIZE = (100, 30)

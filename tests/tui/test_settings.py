@@ -16,7 +16,7 @@ from spm_console.tui.screens.help import HelpScreen
 from spm_console.tui.screens.settings import SettingsScreen, SwitchRequest, list_profiles
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from tests.conftest import ROOT
-from tests.tui.helpers import settle, text_of
+from tests.support.console_helpers import settle, text_of
 
 SIZE = (120, 40)
 AGILE = ROOT / "profiles" / "agile_wrist.toml"

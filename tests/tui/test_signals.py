@@ -13,7 +13,7 @@ import pytest
 from spm_console.errors import ExitCode
 from spm_console.motion.logs.runlog import list_runs
 from spm_console.system.signals import STOP_SIGNALS
-from tests.tui.helpers import settle, status_of
+from tests.support.console_helpers import settle, status_of
 
 SIZE = (130, 42)
 pytestmark = pytest.mark.usefixtures("sighup_default")

@@ -15,7 +15,7 @@ from textual.widgets import Input
 
 from spm_console.tui.widgets.plot import PlotView
 from spm_console.tui.widgets.steps import STEPS
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SMALL = (80, 24)
 _TEXT = re.compile(r'<text class="[^"]*" x="([\d.]+)" y="([\d.]+)"[^>]*>([^<]*)</text>')
@@ -132,7 +132,7 @@ def test_every_step_fits_80_columns_when_all_are_done() -> None:
 async def test_the_reason_under_an_invalid_field_shows_at_80x24(console: Any) -> None:
     """Compact fields are one line high; the reason line under them still appears."""
     from spm_console.tui.widgets.angles import AnglesInput
-    from tests.tui.helpers import settle
+    from tests.support.console_helpers import settle
 
     app = console()
     async with app.run_test(size=(80, 24)) as pilot:

@@ -19,7 +19,7 @@ import pytest
 from textual.pilot import Pilot
 
 from spm_console.tui.widgets.angles import AnglesInput
-from tests.tui.helpers import settle
+from tests.support.console_helpers import settle
 
 SIZE = (120, 34)
 

@@ -10,7 +10,7 @@ from textual.widgets import Input, Select
 
 from spm_console.errors import CacheError, SpmError
 from spm_console.tui.widgets.angles import AnglesInput
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (120, 40)
 

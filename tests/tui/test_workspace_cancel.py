@@ -16,7 +16,7 @@ import spm_console.store.workspace_cache as workspace_cache
 from spm_console.config.load import with_grid_step
 from spm_console.config.schema import Profile
 from spm_console.tui.app import make_app
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (120, 40)
 

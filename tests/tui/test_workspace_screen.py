@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from spm_console.store.workspace_cache import load_or_build
 from spm_console.tui.widgets.angles import AnglesInput
-from tests.tui.helpers import settle, status_of, text_of
+from tests.support.console_helpers import settle, status_of, text_of
 
 SIZE = (120, 40)
 

@@ -1,0 +1,234 @@
+"""Signals to the whole process group, as terminals, ``kill -- -PGID``, ``timeout`` and
+service managers send them, end every motion with an E-stop.
+
+Each front end (``execute``, ``home``, ``follow``, ``script``) runs in a terminal of its own
+(:class:`tests.support.terminal_helpers.Terminal`): Ctrl-C and Ctrl-\\ are typed on it, the terminal is
+closed under it, or the group is signalled. The motion process runs in a session of its own,
+so such a signal reaches the front end only, which E-stops through its connection; a signal
+sent to the motion process itself E-stops the motion there. In every case: exit 20, the hold
+written within two servo periods of the request, the log closed ``stopped``, no process left.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.config.schema import Profile
+from spm_console.errors import ExitCode
+from spm_console.motion.logs.runlog import list_runs, load_run
+from spm_console.motion.plans import synthetic_plan
+from spm_console.store.plan_file import save_plan
+from tests.support.exec_helpers import PAPER_START
+from tests.support.terminal_helpers import (
+    CTRL_BACKSLASH,
+    CTRL_C,
+    Terminal,
+    alive,
+    assert_estopped,
+    wait_until,
+)
+
+GOAL = np.array([100.0, 120.0, 110.0])
+pytestmark = pytest.mark.usefixtures("sighup_default")
+
+
+@pytest.fixture(scope="module")
+def long_plan(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
+    path = tmp_path_factory.mktemp("plans") / "long.json"
+    save_plan(synthetic_plan(agile, PAPER_START, GOAL, 4.0), path)  # 4 s of motion
+    return path
+
+
+def _start_args() -> list[str]:
+    return ["--sim-start", *map(str, PAPER_START)]
+
+
+def _front_end(kind: str, tmp: Path, plan: Path) -> list[str]:
+    """The command line of one front end whose first motion lasts several seconds."""
+    if kind == "execute":
+        return ["execute", "--plan", str(plan), "--sim", "--skip-homing", "signal test",
+                *_start_args()]
+    if kind == "home":  # from the paper's start: about 3 s at the profile's homing speed
+        return ["home", "--sim", *_start_args()]
+    if kind == "follow":
+        csv = tmp / "targets.csv"
+        rows = [(0.0, PAPER_START), (3.0, GOAL), (6.0, PAPER_START)]
+        csv.write_text("t,theta1,theta2,theta3\n" + "".join(
+            f"{t},{a[0]},{a[1]},{a[2]}\n" for t, a in rows))
+        return ["follow", "--targets", str(csv), "--sim", "--skip-homing", "signal test",
+                *_start_args()]
+    assert kind == "script"
+    script = tmp / "session.toml"
+    script.write_text(
+        "[session]\nport = \"\"\n"
+        f"initial_deg = [{PAPER_START[0]}, {PAPER_START[1]}, {PAPER_START[2]}]\n"
+        "[[step]]\ndo = \"home\"\n")
+    return ["script", str(script)]
+
+
+def _env(logs: Path) -> dict[str, str]:
+    return {**os.environ, "SPM_CONSOLE_LOGS": str(logs)}  # the suite's workspace cache
+
+
+def _moving_run(logs: Path, rows: int) -> Path | None:
+    """The run folder of the motion under way once it has logged ``rows`` samples."""
+    for run in list_runs(logs):
+        csv = run.path / "samples.csv"
+        if run.meta.get("outcome") == "running" and csv.is_file() and \
+                csv.read_text().count("\n") - 1 >= rows:
+            return run.path
+    return None
+
+
+Deliver = Callable[[Terminal], None]
+DELIVERIES: dict[str, tuple[signal.Signals, Deliver]] = {
+    "ctrl-c": (signal.SIGINT, lambda t: t.type(CTRL_C)),
+    "ctrl-backslash": (signal.SIGQUIT, lambda t: t.type(CTRL_BACKSLASH)),
+    "terminal-closed": (signal.SIGHUP, lambda t: t.close()),
+    "kill-group-term": (signal.SIGTERM, lambda t: t.signal_group(signal.SIGTERM)),
+    "kill-group-int": (signal.SIGINT, lambda t: t.signal_group(signal.SIGINT)),
+    "kill-group-hup": (signal.SIGHUP, lambda t: t.signal_group(signal.SIGHUP)),
+    "kill-group-quit": (signal.SIGQUIT, lambda t: t.signal_group(signal.SIGQUIT)),
+}
+
+
+@pytest.fixture
+def terminal() -> Iterator[Callable[..., Terminal]]:
+    made: list[Terminal] = []
+
+    def start(args: list[str], env: dict[str, str]) -> Terminal:
+        t = Terminal([sys.executable, "-m", "spm_console", *args], env)
+        made.append(t)
+        return t
+
+    yield start
+    for t in made:
+        t.kill()
+
+
+def _start_moving(terminal: Callable[..., Terminal], tmp_path: Path, plan: Path,
+                  kind: str = "execute") -> tuple[Terminal, Path, int]:
+    """``kind`` started in a terminal of its own, once its motion has logged 25 samples:
+    (the terminal, the motion's run folder, the motion process's pid)."""
+    logs = tmp_path / "logs"
+    t = terminal(_front_end(kind, tmp_path, plan), _env(logs))
+    found: list[Path] = []
+
+    def moving() -> bool:
+        run = _moving_run(logs, 25)
+        if run is not None:
+            found.append(run)
+        return run is not None
+
+    wait_until(moving, f"{kind}: the motion logs 25 samples", 60.0, t.proc)
+    return t, found[0], int(load_run(found[0]).meta["process"]["pid"])
+
+
+def _run_and_signal(terminal: Callable[..., Terminal], tmp_path: Path,
+                    plan: Path, kind: str, delivery: str, ts_s: float) -> None:
+    sig, deliver = DELIVERIES[delivery]
+    t, run_dir, loop_pid = _start_moving(terminal, tmp_path, plan, kind)
+    deliver(t)
+    code = t.wait(30.0)
+    assert code == int(ExitCode.STOP_ESTOP), (code, t.output[-2000:])
+    assert "Traceback" not in t.output
+    assert_estopped(tmp_path / "logs", run_dir, sig, ts_s, loop_pid)
+
+
+@pytest.mark.parametrize(("kind", "delivery"), [
+    ("execute", "ctrl-c"), ("execute", "ctrl-backslash"), ("execute", "terminal-closed"),
+    ("execute", "kill-group-term"), ("home", "kill-group-hup"), ("follow", "kill-group-quit"),
+    ("script", "ctrl-backslash"),
+])
+def test_a_signal_to_the_front_ends_group_is_an_estop(
+        terminal: Callable[..., Terminal], tmp_path: Path,
+        long_plan: Path, agile: Profile, kind: str, delivery: str) -> None:
+    _run_and_signal(terminal, tmp_path, long_plan, kind, delivery, agile.servo.ts_s)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", ["execute", "home", "follow", "script"])
+@pytest.mark.parametrize("delivery", ["kill-group-int", "kill-group-term", "kill-group-hup",
+                                      "kill-group-quit", "terminal-closed"])
+def test_every_group_signal_on_every_front_end(
+        terminal: Callable[..., Terminal], tmp_path: Path,
+        long_plan: Path, agile: Profile, kind: str, delivery: str) -> None:
+    _run_and_signal(terminal, tmp_path, long_plan, kind, delivery, agile.servo.ts_s)
+
+
+@pytest.mark.skipif(shutil.which("timeout") is None, reason="coreutils timeout is missing")
+def test_timeout_stops_the_run_with_an_estop(tmp_path: Path,
+                                             long_plan: Path, agile: Profile) -> None:
+    """``timeout -s TERM`` signals its command, then its own process group."""
+    logs = tmp_path / "logs"
+    args = _front_end("execute", tmp_path, long_plan)
+    proc = subprocess.Popen(["timeout", "--preserve-status", "-s", "TERM", "4.5", sys.executable,
+                             "-m", "spm_console", *args, "--json"], env=_env(logs),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == int(ExitCode.STOP_ESTOP), err
+    d = json.loads(out)
+    assert d["outcome"] == "stopped" and d["message"] == "E-stop: signal SIGTERM"
+    run_dir = Path(d["log_dir"])
+    assert_estopped(logs, run_dir, signal.SIGTERM, agile.servo.ts_s,
+                    int(load_run(run_dir).meta["process"]["pid"]))
+
+
+def test_a_service_stop_signals_every_process_and_the_wrist_holds(
+        terminal: Callable[..., Terminal], tmp_path: Path,
+        long_plan: Path, agile: Profile) -> None:
+    """A service manager stopping a unit sends SIGTERM to each of its processes at once: the
+    front end, the motion process and the emulated servos. The motion process E-stops its
+    motion itself; the emulated servos keep their power until their owner is gone."""
+    logs = tmp_path / "logs"
+    t, run_dir, loop_pid = _start_moving(terminal, tmp_path, long_plan)
+    unit = _descendants(t.proc.pid) | {t.proc.pid}
+    assert loop_pid in unit and len(unit) >= 3  # front end, motion process, emulated servos
+    for pid in unit:
+        os.kill(pid, signal.SIGTERM)
+    code = t.wait(30.0)
+    assert code == int(ExitCode.STOP_ESTOP), t.output[-2000:]
+    run = load_run(run_dir)
+    # whichever SIGTERM was handled first is the reason logged: both E-stop the motion
+    where = "" if run.meta["message"] == "E-stop: signal SIGTERM" else " to the motion process"
+    assert_estopped(logs, run_dir, signal.SIGTERM, agile.servo.ts_s, loop_pid, where=where)
+    wait_until(lambda: not any(alive(p) for p in unit), "every process of the unit ends", 10.0)
+
+
+def test_a_signal_to_the_motion_process_alone_stops_the_motion_and_it_serves_on(
+        terminal: Callable[..., Terminal], tmp_path: Path,
+        long_plan: Path, agile: Profile) -> None:
+    t, run_dir, loop_pid = _start_moving(terminal, tmp_path, long_plan)
+    os.kill(loop_pid, signal.SIGHUP)
+    code = t.wait(30.0)
+    assert code == int(ExitCode.STOP_ESTOP), t.output[-2000:]
+    assert "motion process is gone" not in t.output  # it lived to send the result
+    assert_estopped(tmp_path / "logs", run_dir, signal.SIGHUP, agile.servo.ts_s, loop_pid,
+                    where=" to the motion process")
+
+
+def _descendants(pid: int) -> set[int]:
+    out: set[int] = set()
+    todo = [pid]
+    while todo:
+        p = todo.pop()
+        for task in Path(f"/proc/{p}/task").glob("*"):
+            try:
+                kids = (task / "children").read_text().split()
+            except OSError:
+                continue
+            for k in map(int, kids):
+                if k not in out:
+                    out.add(k)
+                    todo.append(k)
+    return out

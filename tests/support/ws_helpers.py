@@ -1,0 +1,46 @@
+"""Workspaces built once per test process (the 46³ build takes ~2 s)."""
+
+from __future__ import annotations
+
+import functools
+
+from spm_console.config.load import load_profile
+from spm_console.config.models import build_workspace
+from spm_console.config.schema import Profile
+from spm_console.core.workspace.data import Workspace
+from tests.support.paths import ROOT as PROJECT_ROOT
+
+ROOT = PROJECT_ROOT
+
+#: The paper's configurations (deg).
+MVN_START = (127.53, 83.23, 85.25)
+MVN_GOAL = (66.80, 155.00, 131.48)
+MINTIME_START = (70.0, 90.0, 80.0)
+
+
+def agile_profile() -> Profile:
+    return load_profile(ROOT / "profiles" / "agile_wrist.toml")
+
+
+def with_step(profile: Profile, step_deg: float) -> Profile:
+    """The profile with another grid spacing (a coarse grid keeps tests fast)."""
+    ws = profile.workspace.model_copy(update={"step_deg": step_deg})
+    return profile.model_copy(update={"workspace": ws})
+
+
+@functools.lru_cache(maxsize=1)
+def agile_workspace() -> Workspace:
+    """The Agile Wrist workspace on the profile's own 2° grid."""
+    return build_workspace(agile_profile())
+
+
+@functools.lru_cache(maxsize=1)
+def coarse_workspace() -> Workspace:
+    """The Agile Wrist on a 5° grid (19³ nodes), for cache and CLI tests."""
+    return build_workspace(with_step(agile_profile(), 5.0))
+
+
+@functools.lru_cache(maxsize=1)
+def agile_workspace_refined() -> Workspace:
+    """The Agile Wrist workspace on the 2° grid with the refined region cover (~2× the default build)."""
+    return build_workspace(agile_profile(), refined_cover=True)
