@@ -105,6 +105,7 @@ class Executor:
         sleep: Callable[[float], None] | None = None,
         emulated: bool = False,
     ) -> None:
+        KalmanVelocity.load()  # not after torque-on (see KalmanVelocity.load)
         self.profile = profile
         self.emulated = emulated
         """Driving the emulated bus (said in a communication-loss stop's reason)."""

@@ -55,6 +55,13 @@ class KalmanVelocity:
     bus read failed: prediction only).
     """
 
+    @staticmethod
+    def load() -> None:
+        """Import the filters now (~1 s: filterpy loads scipy.stats), before anything runs in
+        real time: a run builds its filters after torque-on, where an import would hold the
+        interpreter for longer than the servos' Bus Watchdog allows."""
+        import filterpy.kalman  # noqa: F401  # here: ~1 s to import, only a run needs it
+
     def __init__(
         self,
         model: ServoModel,
@@ -63,7 +70,7 @@ class KalmanVelocity:
         process_noise_deg: float,
         velocity0_std_degps: float = 1.0,
     ) -> None:
-        from filterpy.kalman import KalmanFilter  # here: ~1 s to import (it loads scipy.stats)
+        from filterpy.kalman import KalmanFilter  # here: ~1 s to import (see load)
 
         self.model = model
         theta0 = np.asarray(theta0_deg, float).reshape(3)
