@@ -32,10 +32,10 @@ import numpy as np
 from spm_console.config.models import build_workspace, grid_axes_deg, link_model_of, model_of
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.continuation import NEWTON_TOL, PATH_ZETA_FLOOR
+from spm_console.core.polytope.cover import RegionCover
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions import cover as core_cover
 from spm_console.core.regions import p_build as region_build
-from spm_console.core.regions.cover_data import RegionCover
 from spm_console.core.regions.cover_grow import SEED_WINDOW
 from spm_console.core.workspace import build as core_ws
 from spm_console.core.workspace.check import STEP_RAD

@@ -6,7 +6,7 @@ the goal and one point deep inside every overlap (its Chebyshev centre). Two way
 are joined when one region holds both (the straight move between them then stays in
 that region, which is convex); a hop costs its largest joint move (the time a
 speed-bounded move needs) plus a small Euclidean tie-break (the region graph's search,
-:func:`~spm_console.core.regions.graph.waypoint_paths`, with :func:`hop_cost`). Consecutive hops in one
+:func:`~spm_console.core.polytope.graph.waypoint_paths`, with :func:`hop_cost`). Consecutive hops in one
 region merge, so the route is a sequence of regions and the waypoints where it changes
 region.
 
@@ -30,8 +30,8 @@ from numpy.typing import NDArray
 from spm_console.core.planning.mvn import solve_problem
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.result import PlanResult
+from spm_console.core.polytope.graph import waypoint_paths
 from spm_console.core.polytope.region import Region
-from spm_console.core.regions.graph import waypoint_paths
 from spm_console.core.regions.route import RegionRoute, spread
 from spm_console.errors import InfeasibleError, Issue
 

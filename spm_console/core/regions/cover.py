@@ -70,10 +70,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.polytope.cover import RegionCover
+from spm_console.core.polytope.graph import RegionGraph, containing
 from spm_console.core.polytope.iris import Frame, half_widths
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions import p_build as rb
-from spm_console.core.regions.cover_data import RegionCover
 from spm_console.core.regions.cover_graph import S_CYCLIC, overlap_graph
 from spm_console.core.regions.cover_grow import Grower, Reporter, deepest_seed, dense_seed
 from spm_console.core.regions.cover_refine import (
@@ -83,7 +84,6 @@ from spm_console.core.regions.cover_refine import (
     region_clear,
     uncertified_cells,
 )
-from spm_console.core.regions.graph import RegionGraph, containing
 from spm_console.core.workspace.refine import FineGrid
 from spm_console.core.workspace.rowmap import RowMap, serial
 from spm_console.errors import InfeasibleError, SolverError

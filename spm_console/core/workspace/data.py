@@ -13,8 +13,8 @@ from numpy.typing import NDArray
 
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
+from spm_console.core.polytope.cover import RegionCover
 from spm_console.core.polytope.region import Region
-from spm_console.core.regions.cover_data import RegionCover
 from spm_console.core.workspace.certify import CertifiedSet
 
 F = NDArray[np.float64]

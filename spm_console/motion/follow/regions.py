@@ -14,7 +14,7 @@ end left it on the boundary of the certified set — starts in a region grown ar
 position, as the planner grows one around a plan's end (:func:`~spm_console.core.regions.cover.
 connected_graph`: the cover's obstacles, so certified alike), computed by the runtime from
 its own workspace and joined to the cover through its overlaps. The path is the region graph's
-search (:meth:`~spm_console.core.regions.graph.RegionGraph.region_paths`) with :func:`hop_costs`.
+search (:meth:`~spm_console.core.polytope.graph.RegionGraph.region_paths`) with :func:`hop_costs`.
 Degrees.
 """
 
@@ -25,8 +25,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.polytope.graph import RegionGraph
 from spm_console.core.regions.cover import connected_graph
-from spm_console.core.regions.graph import RegionGraph
 from spm_console.errors import BadInputError, InfeasibleError
 from spm_console.formatting import fmt_deg
 

@@ -11,10 +11,10 @@ import pytest
 from scipy import ndimage
 
 from spm_console.cli.main import main
+from spm_console.core.polytope.cover import RegionCover
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions import cover as cv
 from spm_console.core.regions.cover import build_cover, cyclic_symmetric, uncertified_regions
-from spm_console.core.regions.cover_data import RegionCover
 from spm_console.core.regions.cover_graph import overlap_graph
 from spm_console.core.regions.cover_refine import boxes_met
 from spm_console.core.regions.p_build import obstacle_nodes

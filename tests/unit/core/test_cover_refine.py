@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from spm_console.core.polytope.cover import RegionCover
 from spm_console.core.polytope.region import Region
-from spm_console.core.regions.cover_data import RegionCover
 from spm_console.core.regions.cover_refine import bad_cells, refine_cells, region_clear
 from spm_console.core.workspace.check import check_points
 from spm_console.core.workspace.data import Workspace

@@ -9,12 +9,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-import spm_console.core.regions.graph as graph_module
+import spm_console.core.polytope.graph as graph_module
 from spm_console.core.planning.follow.solver import CHECK_TOL
 from spm_console.core.planning.route_search import find_route
+from spm_console.core.polytope.graph import RegionGraph, cheapest_paths, containing, members
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions.cover_refine import CLEAR_TOL_DEG
-from spm_console.core.regions.graph import RegionGraph, cheapest_paths, containing, members
 from spm_console.motion.follow.regions import FOLLOW_TOL_DEG, RegionHopper
 
 

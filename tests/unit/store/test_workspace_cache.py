@@ -218,7 +218,7 @@ def test_a_cover_of_p_alone_is_read_back(tmp_path: Path, monkeypatch: pytest.Mon
     stores no cover rows; loading it was refused as corrupt and rebuilt every time."""
     from dataclasses import replace
 
-    from spm_console.core.regions.cover_data import RegionCover
+    from spm_console.core.polytope.cover import RegionCover
 
     ws = coarse_workspace()
     alone = RegionCover(regions=(ws.region,), seeds_deg=np.zeros((1, 3)),

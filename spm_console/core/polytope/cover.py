@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.polytope.graph import RegionGraph, containing
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
-from spm_console.core.regions.graph import RegionGraph, containing
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]

@@ -1,7 +1,7 @@
 """The region graph: convex regions {θ : A θ ≤ b} (θ in degrees), the overlaps that join
 them, which regions hold a point, and the one cheapest-path search over them.
 
-A cover's regions (:class:`~spm_console.core.regions.cover_data.RegionCover`), possibly with
+A cover's regions (:class:`~spm_console.core.polytope.cover.RegionCover`), possibly with
 regions grown around points no cover region holds
 (:func:`~spm_console.core.regions.cover.connected_graph`), form a :class:`RegionGraph`: two
 regions are joined when their intersection holds a ball (its centre: the switch point).
