@@ -37,17 +37,17 @@ venv: $(STAMP)
 run: $(STAMP)
 	$(BIN)/spm-console tui $(if $(PROFILE),--profile $(PROFILE)) $(if $(GRID),--grid-step $(GRID))
 
-# The unit tests (no process, no terminal: tests/unit) on every core, then the tests that
-# run the servo loop in real time, the console and whole commands (tests/runtime, tests/tui,
-# tests/e2e) one at a time: two real-time loops side by side on two cores would miss their
-# deadlines.
+# The unit tests (no process, no terminal: tests/unit) on every core, then the rest on two
+# workers: one runs the tests of the real-time servo loop and whole commands (tests/runtime,
+# tests/e2e) one at a time, the other the console's tests (tests/tui) beside them (groups
+# set in tests/conftest.py): two real-time runs never compete with each other.
 test: test-unit test-runtime
 
 test-unit: $(STAMP)
 	SPM_TESTS_HOST_STALLS=0 $(BIN)/python -m pytest tests/unit -n auto
 
 test-runtime: $(STAMP)
-	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e
+	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e -n 2 --dist loadgroup
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -m ''

@@ -34,15 +34,32 @@ _hypothesis_settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "suite"))
 def pytest_configure(config: pytest.Config) -> None:
     """Host stall probes and the retake rule of ``tests/support/host_stalls.py`` (off with
     ``SPM_TESTS_HOST_STALLS=0``: every failure is then final)."""
-    from tests.support.host_stalls import MAX_SUITE_RERUNS, HostStalls
+    from tests.support.host_stalls import MAX_SUITE_RERUNS, HostStalls, WorkerStallReports
 
     if os.environ.get("SPM_TESTS_HOST_STALLS", "1") == "0":
+        return
+    if getattr(config.option, "numprocesses", None) and "PYTEST_XDIST_WORKER" not in os.environ:
+        # the controller of a parallel run runs no test: its workers probe and report to it
+        config.pluginmanager.register(WorkerStallReports(), "spm_host_stall_reports")
         return
     if config.option.max_suite_reruns is None:
         config.option.max_suite_reruns = MAX_SUITE_RERUNS
     stalls = HostStalls()
     config.pluginmanager.register(stalls, "spm_host_stalls")
     stalls.start()
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """For a parallel run (``--dist loadgroup``): the tests that run the servo loop in real
+    time or whole commands (tests/runtime, tests/e2e) all go to one worker, one at a time, so
+    two real-time runs never compete; each console test module (tests/tui) is a group of its
+    own, run beside them."""
+    for item in items:
+        parts = Path(str(item.fspath)).relative_to(ROOT).parts
+        if len(parts) > 2 and parts[1] in ("runtime", "e2e"):
+            item.add_marker(pytest.mark.xdist_group("realtime"))
+        elif len(parts) > 2 and parts[1] == "tui":
+            item.add_marker(pytest.mark.xdist_group(parts[-1]))
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

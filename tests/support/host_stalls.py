@@ -55,6 +55,8 @@ PRIORITY = 50
 #: virtual machine every timer wake-up costs the host's attention.
 PERIOD_MS = 20.0
 REPORT_MS = 2.0
+#: Environment variable naming the folder where the workers of a parallel run leave their lines.
+REPORTS_ENV = "SPM_TESTS_STALL_REPORTS"
 
 
 @dataclass
@@ -161,17 +163,42 @@ class HostStalls:
         elif report.failed:  # the condition has just been evaluated for this attempt
             self.final[report.nodeid] = self._last
 
-    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
-        tr = terminalreporter
+    def summary_lines(self) -> list[str]:
         for c in self.cpus:
             c.read_new()
         minutes = max((time.monotonic() - self.started) / 60.0, 1e-9)
-        tr.write_sep("-", "host stalls (tests/support/host_stalls.py)")
+        lines = []
         for c in self.cpus:
             over = sum(1 for x in c.lates_ms if x >= STALL_MS)
-            tr.write_line(f"CPU {c.cpu} ({c.policy}): {over / minutes:.0f} stalls ≥ {STALL_MS:.0f} ms "
-                          f"per minute, longest {max(c.lates_ms, default=0.0):.0f} ms")
-        for nodeid, why in self.retaken:
-            tr.write_line(f"retaken: {nodeid} ({why})")
-        for nodeid, why in self.final.items():
-            tr.write_line(f"failed: {nodeid} ({why})")
+            lines.append(f"CPU {c.cpu} ({c.policy}): {over / minutes:.0f} stalls ≥ {STALL_MS:.0f} ms "
+                         f"per minute, longest {max(c.lates_ms, default=0.0):.0f} ms")
+        lines += [f"retaken: {nodeid} ({why})" for nodeid, why in self.retaken]
+        lines += [f"failed: {nodeid} ({why})" for nodeid, why in self.final.items()]
+        return lines
+
+    def pytest_sessionfinish(self) -> None:
+        """A worker of a parallel run leaves its lines for the controller's summary."""
+        where, worker = os.environ.get(REPORTS_ENV), os.environ.get("PYTEST_XDIST_WORKER")
+        if where and worker:
+            (Path(where) / f"{worker}.txt").write_text("\n".join(self.summary_lines()) + "\n")
+
+    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        terminalreporter.write_sep("-", "host stalls (tests/support/host_stalls.py)")
+        for line in self.summary_lines():
+            terminalreporter.write_line(line)
+
+
+class WorkerStallReports:
+    """The controller of a parallel run (pytest-xdist): it runs no test and no probe; it
+    prints each worker's host-stall lines at the end."""
+
+    def __init__(self) -> None:
+        self.dir = Path(tempfile.mkdtemp(prefix="spm-stall-reports-"))
+        os.environ[REPORTS_ENV] = str(self.dir)  # the workers start after this, and inherit it
+
+    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        terminalreporter.write_sep("-", "host stalls (tests/support/host_stalls.py)")
+        for f in sorted(self.dir.glob("*.txt")):
+            for line in f.read_text().splitlines():
+                terminalreporter.write_line(f"{f.stem}: {line}")
+        shutil.rmtree(self.dir, ignore_errors=True)
