@@ -49,6 +49,7 @@ def pytest_configure(config: pytest.Config) -> None:
     stalls.start()
 
 
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """For a parallel run (``--dist loadgroup``): the tests that run the servo loop in real
     time or whole commands (tests/runtime, tests/e2e) all go to one worker, one at a time, so

@@ -54,52 +54,73 @@ class MotionProcessHandle(Protocol):
     def terminate(self) -> None: ...
 
 
+#: The exit code reported for a fork whose end the warm start never reported (it died).
+UNKNOWN_EXIT = 255
+
+
+def _readable(fd: int, timeout_s: float | None) -> bool:
+    poller = select.poll()  # not select(): any fd number
+    poller.register(fd, select.POLLIN)
+    return bool(poller.poll(None if timeout_s is None else max(0, int(timeout_s * 1000))))
+
+
 class ForkedProcess:
     """A motion process forked by the warm start: waited for and signalled through its
-    pidfd (this process is not its parent); its exit code as the warm start reports it."""
+    pidfd (this process is not its parent); its exit code as the warm start reports it.
+    Thread-safe (the motion client polls it from several threads)."""
 
     def __init__(self, pid: int, pidfd: int, starter: WarmStart) -> None:
         self._pid = pid
         self._pidfd = pidfd
         self._starter = starter
+        self._lock = threading.Lock()
         self.returncode: int | None = None
 
     @property
     def pid(self) -> int:
         return self._pid
 
-    def _ended(self, timeout: float | None) -> bool:
-        if self._pidfd < 0:
-            return True
-        ready, _, _ = select.select([self._pidfd], [], [], timeout)
-        return bool(ready)
+    def _settle(self, timeout_s: float | None) -> int | None:
+        """The exit code once the process has ended within ``timeout_s``, else None."""
+        with self._lock:
+            if self.returncode is not None:
+                return self.returncode
+            fd = self._pidfd
+        if fd >= 0 and not _readable(fd, timeout_s):
+            return None
+        code = self._starter.exit_code(self._pid, 0.0 if timeout_s == 0 else 2.0)
+        with self._lock:
+            if self.returncode is None:
+                if code is None and timeout_s == 0:
+                    return None  # ended; its code is on its way
+                self.returncode = UNKNOWN_EXIT if code is None else code
+                if self._pidfd >= 0:
+                    os.close(self._pidfd)
+                    self._pidfd = -1
+            return self.returncode
 
     def poll(self) -> int | None:
-        if self.returncode is None and self._ended(0.0):
-            self.returncode = self._starter.exit_code(self._pid)
-            self._close()
-        return self.returncode
+        return self._settle(0)
 
     def wait(self, timeout: float | None = None) -> int:
-        if self.returncode is None:
-            if not self._ended(timeout):
-                raise subprocess.TimeoutExpired("motion process", timeout or 0.0)
-            self.returncode = self._starter.exit_code(self._pid)
-            self._close()
-        return self.returncode
+        code = self._settle(timeout)
+        if code is None:
+            raise subprocess.TimeoutExpired("motion process", timeout or 0.0)
+        return code
 
     def send_signal(self, sig: int) -> None:
-        if self.returncode is None and self._pidfd >= 0:
-            with contextlib.suppress(ProcessLookupError):
-                signal.pidfd_send_signal(self._pidfd, sig)
+        with self._lock:
+            if self.returncode is None and self._pidfd >= 0:
+                with contextlib.suppress(ProcessLookupError):
+                    signal.pidfd_send_signal(self._pidfd, sig)
 
     def terminate(self) -> None:
         self.send_signal(signal.SIGTERM)
 
-    def _close(self) -> None:
-        if self._pidfd >= 0:
-            os.close(self._pidfd)
-            self._pidfd = -1
+
+class NotSentError(OSError):
+    """The warm start could not be asked: the motion process's socket is still unused (a
+    direct start may serve it)."""
 
 
 class WarmStart:
@@ -119,25 +140,43 @@ class WarmStart:
         self._lock = threading.Lock()
         self._cond = threading.Condition()
         self._exits: dict[int, int] = {}
-        self._forks: list[tuple[int, int]] = []
+        self._answers: dict[int, tuple[int, int] | str] = {}
+        self._waiting: set[int] = set()
+        self._next_id = 1
         self._gone = False
         self._ready = False
-        if not self._wait_for(lambda: self._ready, READY_TIMEOUT_S, first=True):
+        self.unsupported = ""
+        if not self._wait_for(lambda: self._ready or bool(self.unsupported), READY_TIMEOUT_S,
+                              first=True) or not self._ready:
             self.close()
-            raise OSError("the warm start of the motion process did not become ready")
+            raise NotSentError(self.unsupported
+                               or "the warm start of the motion process did not become ready")
         threading.Thread(target=self._read, daemon=True, name="spm-warm-start").start()
 
     def _handle(self, data: bytes, fds: list[int]) -> None:
         msg = json.loads(data)
+        late: list[int] = []
         with self._cond:
             if "ready" in msg:
                 self._ready = True
-            elif "pid" in msg and len(fds) == 1:
-                self._forks.append((int(msg["pid"]), fds[0]))
-                fds = []
+            elif "unsupported" in msg:
+                self.unsupported = str(msg["unsupported"])
+            elif "id" in msg:
+                ident = int(msg["id"])
+                if ident in self._waiting and "pid" in msg and len(fds) == 1:
+                    self._answers[ident] = (int(msg["pid"]), fds.pop())
+                elif ident in self._waiting:
+                    self._answers[ident] = str(msg.get("error", "no pidfd"))
+                else:
+                    late = fds  # an answer nobody waits for any more: stop that fork
+                    fds = []
             elif "exit" in msg:
                 self._exits[int(msg["exit"])] = int(msg["code"])
             self._cond.notify_all()
+        for f in late:
+            with contextlib.suppress(OSError):
+                signal.pidfd_send_signal(f, signal.SIGKILL)
+            os.close(f)
         for f in fds:
             os.close(f)
 
@@ -163,8 +202,7 @@ class WarmStart:
         reader thread is not running yet)."""
         if first:
             while not done():
-                ready, _, _ = select.select([self._sock], [], [], timeout_s)
-                if not ready or not self._recv_one():
+                if not _readable(self._sock.fileno(), timeout_s) or not self._recv_one():
                     return False
             return True
         with self._cond:
@@ -175,21 +213,36 @@ class WarmStart:
         return not self._gone and os.getpid() == self._owner and self.process.poll() is None
 
     def fork(self, theirs: socket.socket) -> ForkedProcess:
-        """A motion process serving ``theirs`` (raises OSError if the warm start is gone)."""
-        req = json.dumps({"env": dict(os.environ), "cwd": os.getcwd()}).encode()
-        with self._lock:
-            socket.send_fds(self._sock, [req], [theirs.fileno()])
-            if not self._wait_for(lambda: bool(self._forks), FORK_TIMEOUT_S):
-                raise OSError("the warm start of the motion process did not fork")
-            with self._cond:
-                pid, pidfd = self._forks.pop(0)
-        return ForkedProcess(pid, pidfd, self)
-
-    def exit_code(self, pid: int) -> int:
-        """The exit code of a fork that has ended (-1 if the warm start never reported it)."""
-        self._wait_for(lambda: pid in self._exits, 2.0)
+        """A motion process serving ``theirs``. :class:`NotSentError` when the warm start
+        could not be asked; OSError when it was asked but gave no motion process (``theirs``
+        has been handed over: it must not be served by another process)."""
         with self._cond:
-            return self._exits.pop(pid, -1)
+            ident = self._next_id
+            self._next_id += 1
+            self._waiting.add(ident)
+        req = json.dumps({"id": ident, "env": dict(os.environ), "cwd": os.getcwd()}).encode()
+        try:
+            with self._lock:
+                try:
+                    socket.send_fds(self._sock, [req], [theirs.fileno()])
+                except OSError as exc:
+                    raise NotSentError(str(exc)) from None
+            got = self._wait_for(lambda: ident in self._answers, FORK_TIMEOUT_S)
+        finally:
+            with self._cond:
+                self._waiting.discard(ident)
+                answer = self._answers.pop(ident, None)
+        if not got or answer is None:
+            raise OSError("the warm start of the motion process did not fork in time")
+        if isinstance(answer, str):
+            raise OSError(f"the warm start of the motion process failed: {answer}")
+        return ForkedProcess(answer[0], answer[1], self)
+
+    def exit_code(self, pid: int, timeout_s: float) -> int | None:
+        """The exit code of a fork that has ended (None if not reported within ``timeout_s``)."""
+        self._wait_for(lambda: pid in self._exits, timeout_s)
+        with self._cond:
+            return self._exits.pop(pid, None)
 
     def close(self) -> None:
         with contextlib.suppress(OSError):  # the reader thread's recv returns; the peer sees EOF
@@ -201,21 +254,26 @@ class WarmStart:
 
 
 _starter: WarmStart | None = None
+_starter_failed = ""
+"""Why this process's warm start could not be started (then it is not tried again)."""
 _starter_lock = threading.Lock()
 
 
 def _warm_start() -> WarmStart | None:
     """This process's warm start (started on first use), or None when it is not to be used
     or cannot be."""
-    global _starter
+    global _starter, _starter_failed
     if os.environ.get(ENV_WARM_START, "1").strip().lower() in ("0", "no", "off", "false"):
         return None
     with _starter_lock:
-        if _starter is None or not _starter.alive:
+        if _starter is not None and not _starter.alive:
+            _starter.close()
+            _starter = None
+        if _starter is None and not _starter_failed:
             try:
                 _starter = WarmStart()
-            except OSError:
-                _starter = None
+            except OSError as exc:
+                _starter_failed = str(exc) or type(exc).__name__
         return _starter
 
 
@@ -223,7 +281,7 @@ def start_direct(theirs: socket.socket) -> subprocess.Popen[bytes]:
     """``python -m spm_console.motion.server`` on ``theirs``, in a session of its own."""
     return subprocess.Popen(
         [sys.executable, "-m", "spm_console.motion.server", "--fd", str(theirs.fileno())],
-        pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
+        pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
         # its own session: a signal to the front end's process group (Ctrl-C, Ctrl-\, the
         # terminal closing, ``kill -- -PGID``, ``timeout``) reaches the front end, which
         # E-stops through this connection; the servo loop is never killed by it
@@ -231,11 +289,12 @@ def start_direct(theirs: socket.socket) -> subprocess.Popen[bytes]:
 
 
 def start_motion_process(theirs: socket.socket) -> MotionProcessHandle:
-    """The motion process serving ``theirs`` (see the module docstring)."""
+    """The motion process serving ``theirs`` (see the module docstring). OSError when the
+    warm start took ``theirs`` but gave no motion process: never two processes on one socket."""
     starter = _warm_start()
     if starter is not None:
         try:
             return starter.fork(theirs)
-        except OSError:
-            pass  # the warm start is gone: start this one directly
+        except NotSentError:
+            pass  # the warm start is gone before it was asked: start this one directly
     return start_direct(theirs)

@@ -14,22 +14,30 @@ What a fork gets, and what it does not:
   signal to the front end's process group or terminal never reaches the servo loop;
 * the front end's environment and working directory *of the moment it asks* (sent with the
   request): the CPU plan, the cache and log folders are read from them;
-* the default disposition of every signal; this process's socket is closed in it;
-* no thread: this process starts none (the forks start their own).
+* the default disposition of the terminating signals and SIGCHLD; this process's socket is
+  closed in it; it starts only once its owner holds its pid and pidfd (a failure before
+  that kills it before it has read anything);
+* this process starts no thread (numpy's BLAS may: its own fork handler stops them).
+
+What the fork does *not* get anew: what Python fixed when this process started (``sys.path``,
+the interpreter's ``PYTHON*`` settings, locale, time zone), and its scheduling and limits.
 
 This process ignores the terminating signals: its owner ends it by closing the socket (or
 by exiting, which closes it). It reaps its forks and reports each one's exit status.
 
 Messages (``SOCK_SEQPACKET``, one JSON object each): the owner sends
-``{"env": {...}, "cwd": "..."}`` with the motion process's end of its socket pair attached;
-this process answers ``{"pid": N}`` with a pidfd of the fork attached (race-free waiting and
-signalling for the owner, who is not the fork's parent), and later ``{"exit": N, "code": C}``
-when the fork has ended.
+``{"id": K, "env": {...}, "cwd": "..."}`` with the motion process's end of its socket pair
+attached; this process answers ``{"id": K, "pid": N}`` with a pidfd of the fork attached
+(race-free waiting and signalling for the owner, who is not the fork's parent) or
+``{"id": K, "error": "..."}``, and later ``{"exit": N, "code": C}`` when the fork has ended.
+On a kernel without pidfds it answers ``{"unsupported": "..."}`` instead of ``{"ready": PID}``
+and ends (its owner then starts motion processes directly).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import importlib
 import json
@@ -55,28 +63,39 @@ def _send(sock: socket.socket, msg: dict[str, object], fds: Sequence[int] = ()) 
     socket.send_fds(sock, [json.dumps(msg).encode()], list(fds))
 
 
-def _fork_motion_process(sock: socket.socket, fd: int, env: dict[str, str], cwd: str) -> int:
-    """Fork; the child runs the motion process on ``fd`` and never returns."""
+def _fork_motion_process(sock: socket.socket, fd: int, env: dict[str, str], cwd: str,
+                         go: int, go_w: int) -> int:
+    """Fork; the child waits for one byte on ``go`` (the parent has told the owner its pid and
+    pidfd), then runs the motion process on ``fd``; it never returns. Without that byte it
+    leaves at once, having touched nothing."""
     pid = os.fork()
     if pid:
         return pid
     code = 1
     try:
-        sock.close()
-        os.setsid()
-        for sig in (*STOP_SIGNALS, signal.SIGCHLD):
-            signal.signal(sig, signal.SIG_DFL)
-        os.environ.clear()
-        os.environ.update(env)
-        os.chdir(cwd)
-        from spm_console.motion.server import main as serve_main
+        try:
+            sock.close()
+            os.close(go_w)  # the parent's end: closed without a byte, the read below ends
+            if os.read(go, 1) == b"g":
+                os.close(go)
+                os.setsid()
+                for sig in (*STOP_SIGNALS, signal.SIGCHLD):
+                    signal.signal(sig, signal.SIG_DFL)
+                os.environ.clear()
+                os.environ.update(env)
+                os.chdir(cwd)
+                from spm_console.motion import server
 
-        code = serve_main(["--fd", str(fd)])
-    except BaseException:  # a bug: say so on stderr, then leave like a crashed process
-        traceback.print_exc()
+                sys.argv = [server.__file__, "--fd", str(fd)]  # what the run logs record
+                code = server.main(["--fd", str(fd)])
+        except BaseException:  # a bug: say so on stderr, then leave like a crashed process
+            with contextlib.suppress(BaseException):
+                traceback.print_exc()
+        finally:
+            with contextlib.suppress(BaseException):
+                sys.stdout.flush()
+                sys.stderr.flush()
     finally:
-        sys.stdout.flush()
-        sys.stderr.flush()
         os._exit(code)
 
 
@@ -89,6 +108,35 @@ def _reap(sock: socket.socket) -> None:
         if pid == 0:
             return
         _send(sock, {"exit": pid, "code": os.waitstatus_to_exitcode(status)})
+
+
+def _answer(sock: socket.socket, req: dict[str, object], fd: int) -> None:
+    """Fork one motion process for request ``req`` and tell the owner (id, pid, pidfd); on
+    any failure the fork is killed before it has read anything, and the owner told why."""
+    ident = req.get("id")
+    go_r, go_w = os.pipe()
+    pid = 0
+    try:
+        env = req["env"]
+        assert isinstance(env, dict)
+        pid = _fork_motion_process(sock, fd, {str(k): str(v) for k, v in env.items()},
+                                   str(req["cwd"]), go_r, go_w)
+        pidfd = os.pidfd_open(pid)  # before any reaping: race-free
+        try:
+            _send(sock, {"id": ident, "pid": pid}, [pidfd])
+        finally:
+            os.close(pidfd)
+        os.write(go_w, b"g")
+    except Exception as exc:  # the owner is told, and the fork never runs
+        if pid:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+        with contextlib.suppress(OSError):
+            _send(sock, {"id": ident, "error": f"{type(exc).__name__}: {exc}"})
+    finally:
+        os.close(go_r)
+        os.close(go_w)
+        os.close(fd)
 
 
 def serve(sock: socket.socket) -> None:
@@ -108,16 +156,16 @@ def serve(sock: socket.socket) -> None:
             for f in fds:
                 os.close(f)
             continue
-        req = json.loads(data)
-        pid = _fork_motion_process(sock, fds[0], dict(req["env"]), str(req["cwd"]))
-        os.close(fds[0])
-        pidfd = os.pidfd_open(pid)
-        try:
-            _send(sock, {"pid": pid}, [pidfd])
-        except OSError:
-            return
-        finally:
-            os.close(pidfd)
+        _answer(sock, json.loads(data), fds[0])
+
+
+def _pidfd_support() -> str:
+    """"" when this kernel gives pidfds (Linux 5.3), else why not."""
+    try:
+        os.close(os.pidfd_open(os.getpid()))
+    except (AttributeError, OSError) as exc:
+        return f"no pidfd: {exc}"
+    return ""
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -127,7 +175,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     for sig in STOP_SIGNALS:  # its owner ends it by closing the socket
         signal.signal(sig, signal.SIG_IGN)
+    signal.signal(signal.SIGCHLD, signal.SIG_DFL)  # reaped here, whatever the launcher ignored
     sock = socket.socket(fileno=args.fd)
+    why_not = _pidfd_support()
+    if why_not:
+        with contextlib.suppress(OSError):
+            _send(sock, {"unsupported": why_not})
+        return 0
     for name in PRELOAD:
         importlib.import_module(name)
     gc.collect()

@@ -139,7 +139,8 @@ def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type
     live = t.wait_for(r"(?s)(?=.*E-STOP: press SPACE)(?=.*(s to go|executing))")
     assert "E-STOP: press SPACE" in live and ("s to go" in live or "executing" in live)
     t.wait_for(r"COMPLETED \(exit code 0\)", timeout_s=30)
-    done = t.wait_for(r"^(?![\s\S]*E-STOP: press SPACE)", timeout_s=3)  # banner gone
+    # banner gone, and the run's log named (the result panel may be painted a frame later)
+    done = t.wait_for(r"^(?![\s\S]*E-STOP: press SPACE)[\s\S]*log: \S+", timeout_s=3)
     m = re.search(r"log: (\S+)", done)
     assert m is not None, done
     t.keys("6")

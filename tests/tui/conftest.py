@@ -27,8 +27,9 @@ def ws_cache(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
 def console(agile: Profile, ws_cache: Path, tmp_path: Path) -> Callable[..., SpmConsoleApp]:
     """``console(initial_deg=..., faults=...)`` -> a fresh app (emulated bus, no viewer)."""
 
-    def build(initial_deg: Sequence[float] | None = None, **kw: Any) -> SpmConsoleApp:
-        return make_app(agile, sim=True, viewer=False, logs_root=tmp_path / "logs",
+    def build(initial_deg: Sequence[float] | None = None, logs_root: Path | None = None,
+              **kw: Any) -> SpmConsoleApp:
+        return make_app(agile, sim=True, viewer=False, logs_root=logs_root or tmp_path / "logs",
                         cache_dir=ws_cache, initial_deg=initial_deg, **kw)
 
     return build

@@ -3,6 +3,8 @@ duration, plan and its ends; a filter by outcome; the log root actually in use."
 
 from __future__ import annotations
 
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -185,11 +187,21 @@ async def test_at_80_columns_the_highlighted_run_shows_outcome_exit_reason_durat
         assert app.screen.query_one("#runs").region.width >= 72  # the table: all the width
 
 
-async def test_at_80x24_an_opened_run_scrolls_to_its_plot_by_keyboard(console, tmp_path) -> None:
+async def test_at_80x24_an_opened_run_scrolls_to_its_plot_by_keyboard(console) -> None:
     """80×24: the opened run's text and plot do not fit under the table; tab moves to them
-    and End scrolls to the plot's bottom, tab again goes back to the runs."""
-    _runs(tmp_path / "logs")
-    app = console()
+    and End scrolls to the plot's bottom, tab again goes back to the runs. The logs folder has
+    a path of fixed length: its path is shown, and a long one (pytest's temporary folders
+    differ in length between machines, users and parallel workers) wraps to one more line."""
+    logs = Path(tempfile.mkdtemp(prefix="spm-logs-", dir="/tmp"))
+    try:
+        await _scrolls_to_its_plot(console, logs)
+    finally:
+        shutil.rmtree(logs, ignore_errors=True)
+
+
+async def _scrolls_to_its_plot(console, logs: Path) -> None:  # type: ignore[no-untyped-def]
+    _runs(logs)
+    app = console(logs_root=logs)
     async with app.run_test(size=(80, 24)) as pilot:
         await settle(pilot)
         await pilot.press("6")
