@@ -49,14 +49,6 @@ def pytest_configure(config: pytest.Config) -> None:
     stalls.start()
 
 
-#: Modules of tests/runtime and tests/e2e that run no servo loop and no emulated servo (no
-#: real-time thread): in a parallel run they go beside the real-time group, like the console's.
-NO_SERVO_LOOP = frozenset({
-    "test_viewer_browser.py", "test_cli_entry.py", "test_killed_writers.py", "test_forked.py",
-    "test_cli_corrupt_plans.py",
-})
-
-
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """For a parallel run (``--dist loadgroup``): the tests that run the servo loop in real
@@ -65,9 +57,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     own, run beside them."""
     for item in items:
         parts = Path(str(item.fspath)).relative_to(ROOT).parts
-        if len(parts) > 2 and parts[1] in ("runtime", "e2e") and parts[-1] not in NO_SERVO_LOOP:
+        if len(parts) > 2 and parts[1] in ("runtime", "e2e"):
             item.add_marker(pytest.mark.xdist_group("realtime"))
-        elif len(parts) > 2 and parts[1] in ("runtime", "e2e", "tui"):
+        elif len(parts) > 2 and parts[1] == "tui":
             item.add_marker(pytest.mark.xdist_group(parts[-1]))
 
 
