@@ -180,3 +180,83 @@ def test_no_folder_of_the_package_holds_more_than_15_modules() -> None:
                if d.is_dir() and d.name != "__pycache__"
                and (n := sum(1 for f in d.glob("*.py") if f.name != "__init__.py")) > 15}
     assert crowded == {}
+
+
+#: Modules whose import takes long enough to defer (a solver, a plot, the console's toolkit,
+#: the Kalman filters' scipy.stats): a function-level import of the package's own modules is
+#: allowed only when it puts off loading one of these.
+SLOW = ("scipy.stats", "scipy.optimize", "scipy.sparse", "scipy.spatial", "scipy.signal",
+        "scipy.linalg", "cvxpy", "osqp", "clarabel", "filterpy", "textual", "rich", "meshcat",
+        "matplotlib", "control", "highspy", "plotext", "zmq", "PIL", "playwright")
+
+
+def _module_imports() -> tuple[dict[str, set[str]], dict[str, set[str]],
+                               list[tuple[str, int, str]]]:
+    """(own modules each module imports at its top, other modules it imports at its top,
+    [(module, line, own module) imported inside a function]); ``TYPE_CHECKING`` blocks left
+    out: they import nothing at run time."""
+    import ast
+
+    files = {".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__"): p
+             for p in (ROOT / "spm_console").rglob("*.py")}
+
+    def owner(name: str) -> str | None:
+        while name and name not in files:
+            name = name.rpartition(".")[0]
+        return name or None
+
+    own: dict[str, set[str]] = {m: set() for m in files}
+    other: dict[str, set[str]] = {m: set() for m in files}
+    lazy: list[tuple[str, int, str]] = []
+    for m, path in files.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        in_function = {id(n) for f in ast.walk(tree)
+                       if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
+                       for n in ast.walk(f)}
+        type_only = {id(n) for i in ast.walk(tree)
+                     if isinstance(i, ast.If) and "TYPE_CHECKING" in ast.unparse(i.test)
+                     for n in ast.walk(i)}
+        for node in ast.walk(tree):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)) or id(node) in type_only:
+                continue
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                base = node.module or ""
+                if node.level:
+                    here = m.split(".") if path.name == "__init__.py" else m.split(".")[:-1]
+                    base = ".".join([*here[: len(here) - node.level + 1], *([base] if base else [])])
+                names = [base] + [f"{base}.{a.name}" for a in node.names]
+            for n in names:
+                o = owner(n) if n.startswith("spm_console") else None
+                if id(node) in in_function:
+                    if o is not None and o != m:
+                        lazy.append((m, node.lineno, o))
+                elif o is not None:
+                    own[m].add(o)
+                elif not n.startswith("spm_console"):
+                    other[m].add(n)
+    return own, other, lazy
+
+
+def test_a_function_level_import_of_our_own_modules_puts_off_a_slow_import() -> None:
+    """An import inside a function hides a dependency: it is allowed only where it keeps a slow
+    import (``SLOW``) off a start-up path. What the imported module loads at its top (its own
+    modules' tops included) is compared with what the importing module already loads."""
+    own, other, lazy = _module_imports()
+
+    def loads(m: str) -> set[str]:
+        seen, out, stack = set(), set(), [m]
+        while stack:
+            x = stack.pop()
+            if x not in seen:
+                seen.add(x)
+                out |= other[x]
+                stack.extend(own[x])
+        return out
+
+    assert len(lazy) >= 5  # the walk finds them
+    needless = sorted({f"{m}:{line} imports {target}" for m, line, target in lazy
+                       if not any(n == s or n.startswith(s + ".")
+                                  for n in loads(target) - loads(m) for s in SLOW)})
+    assert needless == []
