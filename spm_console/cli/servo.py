@@ -17,7 +17,6 @@ from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError, BusError, ExitCode
 from spm_console.input_rules import finite_number, theta_in_servo_limits
 from spm_console.motion.servo_query import BusQuery, BusReport, check_ids
-from spm_console.services.session import Session
 from spm_console.system.signals import install_stop_handler
 
 #: Longest ``emulate --duration`` (one day; without --duration it runs until stopped).
@@ -67,6 +66,7 @@ def register(sub: Any) -> None:
 def _query(args: argparse.Namespace, q: BusQuery) -> BusReport:
     """Run ``q`` in the operator runtime: the motion process opens the port (as for every
     motion), answers, and is closed again."""
+    from spm_console.services.session import Session
 
     profile = profile_of(args)
     if args.ids:  # checked before the port is opened

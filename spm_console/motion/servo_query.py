@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 from spm_console.devices.base import CommError
-from spm_console.devices.dynamixel.bus import DynamixelBus
 from spm_console.errors import BadInputError, BusError
 
 Action = Literal["ping", "joints", "register", "torque"]
@@ -73,6 +72,7 @@ def check_ids(ids: list[int]) -> list[int]:
 
 def answer(bus: object, q: BusQuery) -> BusReport:
     """Run ``q`` on ``bus`` (a DynamixelBus)."""
+    from spm_console.devices.dynamixel.bus import DynamixelBus
 
     assert isinstance(bus, DynamixelBus)
     ids = tuple(check_ids(list(q.ids) if q.ids else list(bus.ids)))

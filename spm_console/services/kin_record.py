@@ -19,7 +19,6 @@ from spm_console.core.kinematics.model import FkResult, SpmModel
 from spm_console.core.kinematics.modes import AssemblyMode
 from spm_console.core.workspace.data import Workspace
 from spm_console.core.workspace.fk_path import FkGraph, fk_connected, fk_graph
-from spm_console.store.workspace_cache import load_or_build
 
 F = NDArray[np.float64]
 
@@ -42,6 +41,7 @@ class FkGraphSource:
         ws = self.current() if self.current is not None else None
         if ws is None:
             if self._ws is None:
+                from spm_console.store.workspace_cache import load_or_build
 
                 self._ws, _ = load_or_build(self.profile, self.cache_dir)
             ws = self._ws

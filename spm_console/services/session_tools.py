@@ -19,7 +19,6 @@ from numpy.typing import NDArray
 from spm_console.config.models import servo_limits_deg
 from spm_console.config.schema import Profile
 from spm_console.errors import BadInputError, Issue, RefusedError
-from spm_console.motion.plans import line_plan
 from spm_console.motion.servo_tools import ServoHealth, jog_target
 from spm_console.refusals import Refusal
 
@@ -114,6 +113,7 @@ class ServoTools:
         homing speed, the others held: a motion of the runtime like any other (only when
         homed; verified against the workspace before torque-on, logged, E-stop and deadman
         apply). Refused, with nothing moved, as :meth:`jog_plan_target` says."""
+        from spm_console.motion.plans import line_plan
 
         theta0, target = self.jog_plan_target(joint, step_deg)
         client = self.require_bus()

@@ -49,7 +49,6 @@ import sys
 import traceback
 from collections.abc import Sequence
 
-from spm_console.motion import server
 from spm_console.system.signals import STOP_SIGNALS
 
 #: What a motion process imports before it answers, and what only a motion needs.
@@ -85,6 +84,7 @@ def _fork_motion_process(sock: socket.socket, fd: int, env: dict[str, str], cwd:
                 os.environ.clear()
                 os.environ.update(env)
                 os.chdir(cwd)
+                from spm_console.motion import server
 
                 sys.argv = [server.__file__, "--fd", str(fd)]  # what the run logs record
                 code = server.main(["--fd", str(fd)])

@@ -12,9 +12,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
-from spm_console.core.kinematics.ik import ik_rpy
 from spm_console.core.planning.follow.timed import MAX_TIMED_TARGETS, TimedTargets
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
@@ -31,6 +29,8 @@ MAX_RPY_DEG = 90.0
 
 def theta_of_rpy(profile: Profile, rpy_deg: F) -> F:
     """Motor angles (deg) for roll, pitch, yaw (deg) from home, home working mode."""
+    from spm_console.config.models import model_of
+    from spm_console.core.kinematics.ik import ik_rpy
 
     r = np.asarray(rpy_deg, float).reshape(3)
     if not (np.all(np.isfinite(r)) and np.all(np.abs(r) <= MAX_RPY_DEG)):

@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.workspace.check import PointChecks, check_points, pair_name
-from spm_console.core.workspace.data import NodeClass
 from spm_console.errors import InfeasibleError, Issue
 
 if TYPE_CHECKING:
@@ -57,6 +56,7 @@ def segment_entry(a: F, b: F, centers: F, half: float) -> tuple[F, F]:
 
 def node_reason(ws: Workspace, flat: int) -> str:
     """Why a grid node is not feasible, in words."""
+    from spm_console.core.workspace.data import NodeClass
 
     _, links = ws.exact_models()
     idx = np.unravel_index(flat, ws.shape)
