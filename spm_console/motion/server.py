@@ -189,6 +189,8 @@ class _Server:
         self.pending_clock: float | None = None
         self.pending_by_signal = False
         self.last_heartbeat = time.monotonic()
+        self.signals: list[str] = []
+        """Terminating signals to this process not yet acted on (left by its handler)."""
         self.feed: TargetFeed | None = None
         """The target feed of the following under way (None otherwise)."""
 
@@ -361,6 +363,10 @@ class _Server:
         """E-stop when the client's heartbeat stops during a motion."""
         request_realtime(HELPER_PRIORITY)
         while not stop.wait(HEARTBEAT_S / 2):
+            while self.signals:  # what the signal handler left (see _estop_on_signals)
+                name = self.signals.pop(0)
+                if self.moving():
+                    self.estop(f"signal {name} to the motion process", by_signal=True)
             if self.moving() and time.monotonic() - self.last_heartbeat > DEADMAN_S:
                 self.estop(f"client lost: no heartbeat for more than {DEADMAN_S * 1e3:.0f} ms")
 
@@ -403,9 +409,11 @@ def _estop_on_signals(server: _Server | None) -> None:
         return
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:
-        if server.moving():
-            server.estop(f"signal {signal.Signals(signum).name} to the motion process",
-                         by_signal=True)
+        # no lock here: the handler runs in the main thread between two bytecodes, maybe
+        # inside Event.set of the very E-stop it would request (a client's E-stop and a
+        # service stop's SIGTERM arrive together), which would wait for itself for ever. The
+        # deadman thread requests the E-stop within HEARTBEAT_S / 2 (list.append takes none).
+        server.signals.append(signal.Signals(signum).name)
 
     for sig in STOP_SIGNALS:
         signal.signal(sig, on_signal)
