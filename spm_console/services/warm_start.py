@@ -6,8 +6,9 @@ returns a :class:`MotionProcessHandle` (poll, wait, signal), whichever way it wa
 * **warm** (the default): the first call starts one warm-start process for this front end
   (it imports what a motion process needs, about 2 s, once); each motion process is then
   forked from it in milliseconds, with this process's environment and working directory of
-  the moment. If the warm start cannot be used (it failed to start, or died), the motion
-  process is started directly instead;
+  the moment. If the warm start cannot be used (it failed to start, or died before it was
+  asked), the motion process is started directly instead; once it has been handed the
+  socket, a failure is an error (never two processes on one socket);
 * **direct** (``SPM_CONSOLE_WARM_START=0``): ``python -m spm_console.motion.server`` is
   started for each motion process, in a session of its own.
 
