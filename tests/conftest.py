@@ -23,11 +23,12 @@ os.environ["SPM_CONSOLE_CONFIG"] = str(_SCRATCH / "config")
 
 # Property tests draw the same examples on every run and machine (a failure found once is
 # found again, and CI cannot fail on a draw the last run did not make); set
-# HYPOTHESIS_PROFILE=explore to search with fresh random examples instead.
+# HYPOTHESIS_PROFILE=explore to search with fresh random examples instead. No example has a
+# deadline: a test asserts no timing (the unit tests of `make test` run at idle priority).
 from hypothesis import settings as _hypothesis_settings  # noqa: E402
 
-_hypothesis_settings.register_profile("suite", derandomize=True, database=None)
-_hypothesis_settings.register_profile("explore", derandomize=False, database=None)
+_hypothesis_settings.register_profile("suite", derandomize=True, database=None, deadline=None)
+_hypothesis_settings.register_profile("explore", derandomize=False, database=None, deadline=None)
 _hypothesis_settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "suite"))
 
 
