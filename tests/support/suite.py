@@ -4,7 +4,8 @@ The tests of the real-time loop, the console and whole commands (``tests/runtime
 ``tests/tui``, ``tests/e2e``) spend about a third of their time waiting on motions that run
 in real time; the unit tests (``tests/unit``: pure computation) run beside them at the
 idle scheduling class (``SCHED_IDLE``, else the lowest ``nice``), so they take only the CPU
-time nothing else wants and never delay an emulated servo's reply. Their output is printed
+time nothing else wants and yield at once to the emulated servos (at the lowest ``nice``
+instead, their replies came late: two failures in one run). Their output is printed
 after the other run's; the exit status is the first failing run's.
 
 Usage: ``python -m tests.support.suite [PYTEST ARGS FOR BOTH RUNS]``.
