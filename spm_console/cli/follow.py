@@ -24,6 +24,7 @@ from spm_console.cli.follow_source import UdpTargets
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.errors import BadInputError
 from spm_console.input_rules import finite_number
+from spm_console.services.oneshot import follow_once
 from spm_console.store.target_file import read_target_csv
 
 
@@ -47,7 +48,6 @@ def register(sub: Any) -> None:
 
 
 def cmd_follow(args: argparse.Namespace) -> int:
-    from spm_console.services.oneshot import follow_once
 
     profile = profile_of(args)
     req = _request(args, profile)

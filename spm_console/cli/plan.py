@@ -31,11 +31,15 @@ from spm_console.input_rules import (
     theta_in_servo_limits,
     vmax_arg,
 )
+from spm_console.motion.logs.runlog import load_run
+from spm_console.motion.plan_check import verify_plan
 from spm_console.numbers import NotANumberError, parse_number
+from spm_console.report.plot_plan import plot_plan
 from spm_console.safe_io import MB, load_json, read_text
-from spm_console.services.plan_request import PlanRequest
+from spm_console.services.plan_request import PlanRequest, plan_motion, precheck
 from spm_console.store.plan_file import MAX_PLAN_BYTES, load_plan, plan_to_dict, save_plan
 from spm_console.store.plan_schema import record_to_dict, region_of
+from spm_console.store.workspace_cache import load_or_build
 
 #: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
 MAX_CSV_BYTES = 20 * MB
@@ -107,7 +111,6 @@ def _region_file(path: Path) -> Region:
 
 
 def _workspace(args: argparse.Namespace, profile: Profile) -> Workspace:
-    from spm_console.store.workspace_cache import load_or_build
 
     ws, ci = load_or_build(profile, getattr(args, "cache_dir", None))
     if not ci.hit:
@@ -168,7 +171,6 @@ def _human(s: PlanSummary, out: Path | None, source: str) -> str:
 
 
 def _finish(args: argparse.Namespace, profile: Profile, req: PlanRequest) -> int:
-    from spm_console.services.plan_request import plan_motion, precheck
 
     precheck(profile, req)  # a refusal never pays for the workspace
     planned = plan_motion(profile, _workspace(args, profile), req)
@@ -186,7 +188,6 @@ def _finish(args: argparse.Namespace, profile: Profile, req: PlanRequest) -> int
 
 
 def _plot(plan: Plan, path: Path) -> None:
-    from spm_console.report.plot_plan import plot_plan
 
     try:
         plot_plan(plan, path)
@@ -217,7 +218,6 @@ def cmd_show(args: argparse.Namespace) -> int:
     plan = load_plan(args.file, profile)
     if args.plot is not None:
         _plot(plan, args.plot)
-    from spm_console.motion.plan_check import verify_plan
 
     # what the runtime will decide (the figures above the verdict are the file's own claims)
     try:
@@ -314,7 +314,6 @@ def cmd_identify(args: argparse.Namespace) -> int:
         t, ref, meas, at = _read_csv(args.csv)
         src = named = str(args.csv)
     else:
-        from spm_console.motion.logs.runlog import load_run
 
         run = load_run(args.run, args.logs)
         src, named = str(run.path), str(run.path / "samples.csv")

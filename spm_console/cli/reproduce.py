@@ -8,6 +8,7 @@ from typing import Any
 
 from spm_console.cli.common import emit, info, output_folder
 from spm_console.errors import ExitCode
+from spm_console.report.reproduce import ReproSettings, reproduce
 
 
 def register(sub: Any) -> None:
@@ -23,7 +24,6 @@ def register(sub: Any) -> None:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    from spm_console.report.reproduce import ReproSettings, reproduce
 
     output_folder(args.out, "--out")
     settings = ReproSettings(quick=args.quick, execute=not args.no_execute, fine_grid=args.fine_grid)

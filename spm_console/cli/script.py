@@ -13,6 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from spm_console.cli.common import info, output_may_be_gone, to_jsonable
+from spm_console.config.load import load_profile
+from spm_console.scripting.steps import load_script
 
 
 def register(sub: Any) -> None:
@@ -32,9 +34,7 @@ def register(sub: Any) -> None:
 
 
 def cmd_script(args: argparse.Namespace) -> int:
-    from spm_console.config.load import load_profile
     from spm_console.scripting.runner import run_script, session_for
-    from spm_console.scripting.steps import load_script
 
     script = load_script(args.file)
     profile = load_profile(args.profile) if args.profile else None

@@ -20,7 +20,9 @@ from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.modes import home_model
 from spm_console.core.servo.model import ServoModel, discretize
 from spm_console.core.workspace.data import GridSpec, Progress, Workspace
+from spm_console.core.workspace.rowmap import serial
 from spm_console.core.workspace_build import build_workspace as _build_workspace
+from spm_console.system.forked import ForkedRows
 
 F = NDArray[np.float64]
 
@@ -89,8 +91,6 @@ def build_workspace(profile: Profile, progress: Progress | None = None,
     the overlap graph's LPs) are split with a forked helper process where that is safe
     (:mod:`spm_console.system.forked`: not from a process running threads or under a real-time
     policy)."""
-    from spm_console.core.workspace.rowmap import serial
-    from spm_console.system.forked import ForkedRows
 
     if refined_cover is None:
         refined_cover = profile.workspace.refined_cover

@@ -13,6 +13,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.errors import BusError
+
 F = NDArray[np.float64]
 
 
@@ -95,7 +97,6 @@ def read_position_checked(bus: ServoBus, attempts: int) -> F:
     """:func:`read_position_settled` for operators: every try failed → BusError (exit 10)
     that says what to check. The one set-up read of the runtime (homing, execution, the
     console's 'read')."""
-    from spm_console.errors import BusError
 
     try:
         return read_position_settled(bus, attempts)

@@ -35,7 +35,8 @@ from typing import TYPE_CHECKING
 
 from spm_console.config.schema import Profile
 from spm_console.core.workspace.data import Workspace
-from spm_console.devices.base import ServoStatus
+from spm_console.devices.base import CommError, ServoStatus, read_position_checked
+from spm_console.devices.dynamixel.bus import open_bus
 from spm_console.errors import RefusedError, SpmError
 from spm_console.motion import servo_tools
 from spm_console.motion.executor import Executor
@@ -62,7 +63,9 @@ from spm_console.motion.protocol import (
 )
 from spm_console.motion.runs import RunContext, SampleCallback, run_execute, run_home
 from spm_console.motion.sample import Sample
+from spm_console.motion.servo_query import answer
 from spm_console.refusals import Refusal
+from spm_console.store.workspace_cache import load_or_build
 from spm_console.system.cpus import place_on_loop_cpu
 from spm_console.system.realtime import HELPER_PRIORITY, normal_priority, quick_gil_handoff, request_realtime
 from spm_console.system.signals import STOP_SIGNALS
@@ -169,7 +172,6 @@ class _Server:
 
     def __init__(self, conn: Connection, profile: Profile, ctx: RunContext,
                  cache_dir: str | None) -> None:
-        from spm_console.devices.dynamixel.bus import open_bus
 
         self.conn = conn
         self.profile = profile
@@ -244,13 +246,11 @@ class _Server:
     def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot | Query) -> None:
         try:
             if isinstance(req, ReadPosition):
-                from spm_console.devices.base import read_position_checked
 
                 value: object = read_position_checked(self.bus, 3)
             elif isinstance(req, Ping):
                 value = self.ping()
             elif isinstance(req, Query):
-                from spm_console.motion.servo_query import answer
 
                 value = answer(self.bus, req.query)
             else:
@@ -278,7 +278,6 @@ class _Server:
     def ping(self) -> list[ServoStatus]:
         from dataclasses import replace
 
-        from spm_console.devices.base import CommError
 
         volt = "present_input_voltage" if self.profile.bus.protocol == "2.0" else "present_voltage"
         out = []
@@ -295,7 +294,6 @@ class _Server:
         """This profile's workspace (cache, or built on first use): every motion is verified
         against it."""
         if self._workspace is None:
-            from spm_console.store.workspace_cache import load_or_build
 
             self._workspace, _ = load_or_build(self.profile, cache_dir=self.cache_dir)
         return self._workspace

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from spm_console.config.schema import Profile
+from spm_console.core.plan import Plan
 from spm_console.core.planning.mintime import solve_mintime
 from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.regions.choice import choose_region, region_containing
@@ -19,13 +19,9 @@ from spm_console.motion.logs.runlog import load_run
 from spm_console.motion.plan_check import verify_plan
 from spm_console.report import paper_values as pv
 from spm_console.report.plot_run import plot_run
-from spm_console.report.repro_types import Check, Section
+from spm_console.report.repro_types import Check, ReproSettings, Section
 from spm_console.services.oneshot import RunRequest, execute_once
 from spm_console.store.workspace_cache import load_or_build
-
-if TYPE_CHECKING:
-    from spm_console.core.plan import Plan
-    from spm_console.report.repro_types import ReproSettings
 
 
 def _execute(profile: Profile, plan: Plan, out: Path, fig: str, caption: str, sec: Section) -> None:

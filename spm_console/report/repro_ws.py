@@ -5,18 +5,14 @@ from __future__ import annotations
 import tempfile
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from spm_console.config.models import link_model_of, model_of
 from spm_console.config.schema import Profile
 from spm_console.core.workspace.verify import verify_region
 from spm_console.report import paper_values as pv
 from spm_console.report.plot_workspace import plot_workspace
-from spm_console.report.repro_types import Check, Section
+from spm_console.report.repro_types import Check, ReproSettings, Section
 from spm_console.store.workspace_cache import load_or_build
-
-if TYPE_CHECKING:
-    from spm_console.report.repro_types import ReproSettings
 
 
 def workspace_sections(profile: Profile, out: Path, settings: ReproSettings) -> list[Section]:

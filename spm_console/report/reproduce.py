@@ -14,6 +14,7 @@ from pathlib import Path
 from spm_console import __version__
 from spm_console.config.load import load_profile
 from spm_console.config.schema import Profile
+from spm_console.report.repro_kin import eq35_section, fk_section
 from spm_console.report.repro_types import Check, ReproSettings, Section
 
 
@@ -73,7 +74,6 @@ def reproduce(
 ) -> tuple[Path, list[Section]]:
     """Run every section, write ``report.md`` and its figures into ``out_dir`` (default
     settings: the full reproduction)."""
-    from spm_console.report.repro_kin import eq35_section, fk_section
 
     settings = ReproSettings() if settings is None else settings
 

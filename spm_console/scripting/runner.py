@@ -71,6 +71,8 @@ import numpy as np
 
 from spm_console.config.load import load_profile
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
+from spm_console.core.planning.follow.timed import TimedTargets
+from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError, ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
 from spm_console.scripting.checks import check_script
@@ -91,6 +93,7 @@ from spm_console.scripting.steps import (
 )
 from spm_console.services.kin_record import FkRecord
 from spm_console.services.session import PoseSpec, Session
+from spm_console.store.target_file import read_target_csv, theta_of_rpy
 from spm_console.system.signals import stop_signals
 
 
@@ -267,8 +270,6 @@ class ScriptRunner:
         return self._motion(self.session.execute(), step.allow_stop, "execution")
 
     def _step_follow(self, step: FollowStep) -> tuple[dict[str, Any], str]:
-        from spm_console.core.planning.follow.timed import TimedTargets
-        from spm_console.store.target_file import read_target_csv, theta_of_rpy
 
         if (step.targets is None) == (step.file is None):
             raise BadInputError("follow step: give exactly one of targets or file")
@@ -346,7 +347,6 @@ class ScriptRunner:
 def session_for(script: Script, profile: Profile | None = None, port: str | None = None,
                 sim: bool = False, logs: Path | None = None) -> Session:
     """The session a script runs on: command-line choices win over the ``[session]`` table."""
-    from spm_console.devices.emulator.faults import parse_fault
 
     spec = script.session
     if profile is None:

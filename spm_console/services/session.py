@@ -25,9 +25,13 @@ from spm_console.config.schema import Profile
 from spm_console.core.kinematics.ik import ik_rpy
 from spm_console.core.kinematics.modes import assembly_modes
 from spm_console.core.plan import Plan
+from spm_console.core.workspace.build import check_theta
 from spm_console.core.workspace.check import ThetaCheck
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoStatus
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.devices.emulator.child import EmulatorChild
+from spm_console.devices.emulator.faults import FaultSpec
 from spm_console.errors import (
     BadInputError,
     BusError,
@@ -36,18 +40,17 @@ from spm_console.errors import (
     UnreachableError,
 )
 from spm_console.formatting import fmt_deg
+from spm_console.motion.plans import line_plan
 from spm_console.motion.servo_tools import ServoHealth
-from spm_console.services.kin_record import FkGraphSource, FkRecord
+from spm_console.services.kin_record import FkGraphSource, FkRecord, fk_result, fk_route
 from spm_console.services.plan_info import PlanInfo
 from spm_console.services.session_follow import FollowTools
 from spm_console.services.session_tools import ServoTools
+from spm_console.store.plan_file import load_plan
 from spm_console.store.workspace_cache import CacheInfo, load_or_build
 from spm_console.system.cpus import cpu_plan, place_beside_loop
 
 if TYPE_CHECKING:
-    from spm_console.devices.emulator.bus import EmulatorHandle
-    from spm_console.devices.emulator.child import EmulatorChild
-    from spm_console.devices.emulator.faults import FaultSpec
     from spm_console.motion.homing import HomingResult
     from spm_console.motion.sample import Sample
     from spm_console.motion.segments import ExecutionResult
@@ -177,7 +180,6 @@ class Session(ServoTools, FollowTools):
         port = self.port
         cpu_plan()  # the CPU set is fixed before any child starts (see spm_console.system.cpus)
         if self.sim and self.emulator_process:
-            from spm_console.devices.emulator.child import EmulatorChild
 
             child = EmulatorChild(self.profile, self.faults, self.initial_deg)
             self.emulator = child
@@ -187,7 +189,6 @@ class Session(ServoTools, FollowTools):
                 self.disconnect()
                 raise BusError(exc.message) from None
         elif self.sim:
-            from spm_console.devices.emulator.bus import start_emulator
 
             self.emulator = start_emulator(self.profile, self.faults, record=False,
                                            initial_deg=self.initial_deg)
@@ -219,7 +220,6 @@ class Session(ServoTools, FollowTools):
     def _emulator_realtime(self) -> tuple[str, bool]:
         """The emulated servos' scheduling: (detail, SCHED_FIFO granted); ("", True) on a
         real bus."""
-        from spm_console.devices.emulator.bus import EmulatorHandle
 
         emu = self.emulator
         if emu is None:
@@ -272,7 +272,6 @@ class Session(ServoTools, FollowTools):
     def home(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
         """Move home at the profile's homing speed, in the motion process (which checks the
         assembly mode first and logs a refusal); ``self.homing`` keeps the whole result."""
-        from spm_console.motion.plans import line_plan
 
         client = self.require_bus()
         theta0 = self.read_position()
@@ -324,7 +323,6 @@ class Session(ServoTools, FollowTools):
     def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> FkRecord:
         """Unique FK of θ (deg) with its path and quality, around singularities if need be;
         ``all_modes``: with every assembly mode at θ."""
-        from spm_console.services.kin_record import fk_result, fk_route
 
         th = theta3(theta_deg, "θ")
         r = fk_route(self.profile, self.model, th, self._fk_graph)
@@ -372,7 +370,6 @@ class Session(ServoTools, FollowTools):
 
     def check_theta(self, theta_deg: Sequence[float] | F) -> ThetaCheck:
         """Is θ (deg) feasible and inside P (``core.workspace.check_theta`` -> ThetaCheck)."""
-        from spm_console.core.workspace.build import check_theta
 
         return check_theta(self.require_workspace(), theta3(theta_deg, "θ"))
 
@@ -410,7 +407,6 @@ class Session(ServoTools, FollowTools):
         (``store.plan_file.load_plan``: format, profile hash, model), then verified exactly as
         the executor will (``run.plan_check.verify_plan``). Refused with the reason."""
         from spm_console.motion.plan_check import verify_plan
-        from spm_console.store.plan_file import load_plan
 
         plan = load_plan(path, self.profile)
         verify_plan(self.profile, self.ensure_workspace(), plan)

@@ -25,6 +25,7 @@ from textual.screen import Screen
 from spm_console.config.schema import Profile
 from spm_console.errors import ExitCode
 from spm_console.services.session import Session
+from spm_console.store.form_memory import FormMemory
 from spm_console.system.signals import install_stop_handler
 from spm_console.tui.messages import Telemetry
 from spm_console.tui.screens.base import COMPACT_BELOW_COLUMNS, COMPACT_BELOW_ROWS, StepScreen
@@ -122,7 +123,6 @@ class SpmConsoleApp(App[int | SwitchRequest]):
         self._start_viewer = start_viewer and isinstance(view, MeshcatView)
         self.viewer_url: str | None = None
         self.fk_done = False
-        from spm_console.store.form_memory import FormMemory
 
         self.form_memory = FormMemory()
         """Typed form values per profile, kept between sessions ($SPM_CONSOLE_CONFIG)."""

@@ -28,6 +28,8 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from spm_console.system.cpus import place_beside_loop
+
 #: The only interface the viewer listens on.
 LOOPBACK = "127.0.0.1"
 #: How often the server checks that its parent is alive, ms.
@@ -139,7 +141,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--parent", type=int, default=0, help="exit when this process is gone")
     args = parser.parse_args(argv)
-    from spm_console.system.cpus import place_beside_loop
 
     place_beside_loop()  # never on the servo loop's CPU: see spm_console.system.cpus
     import tornado.ioloop

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pkgutil
 import subprocess
 import sys
-from pathlib import Path
 
 import spm_console.core as core
+from tests.support.import_graph import circles, own_import_graph
 from tests.support.paths import ROOT as PROJECT_ROOT
 
 ROOT = PROJECT_ROOT
@@ -76,102 +76,16 @@ def test_the_console_shows_its_first_screen_before_loading_scipy_or_meshcat() ->
     assert _loaded(code, (*HEAVY, "scipy.sparse", "scipy.spatial", "meshcat")) == []
 
 
-def _own_import_graph() -> dict[str, set[str]]:
-    """Module -> the package's modules it imports anywhere: at the top, inside functions and
-    under ``TYPE_CHECKING`` alike (a circle hidden in a function or a type hint is a circle),
-    and the packages whose ``__init__`` such an import runs first."""
-    import ast
-
-    pkg = ROOT / "spm_console"
-    mods: dict[str, Path] = {}
-    for p in pkg.rglob("*.py"):
-        parts = p.relative_to(ROOT).with_suffix("").parts
-        mods[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
-
-    def owner(name: str) -> str | None:
-        while name and name not in mods:
-            name = name.rpartition(".")[0]
-        return name or None
-
-    graph: dict[str, set[str]] = {m: set() for m in mods}
-    for m, path in mods.items():
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            names: list[str] = []
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                base = node.module or ""
-                if node.level:
-                    here = m.split(".") if path.name == "__init__.py" else m.split(".")[:-1]
-                    here = here[: len(here) - node.level + 1]
-                    base = ".".join([*here, base] if base else here)
-                names = [f"{base}.{a.name}" if f"{base}.{a.name}" in mods else base
-                         for a in node.names]
-            for n in names:
-                t = owner(n) if n.startswith("spm_console") else None
-                if t is None:
-                    continue
-                # importing a.b.c runs the packages a and a.b first (unless m is inside them)
-                parts = t.split(".")
-                for k in range(2, len(parts) + 1):
-                    dep = ".".join(parts[:k])
-                    if dep in mods and dep != m and not m.startswith(dep + "."):
-                        graph[m].add(dep)
-    return graph
-
-
-def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
-    """Strongly connected components of more than one module (Tarjan, iterative)."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    stack: list[str] = []
-    on: set[str] = set()
-    out: list[list[str]] = []
-    for root in graph:
-        if root in index:
-            continue
-        work = [(root, iter(sorted(graph[root])))]
-        index[root] = low[root] = len(index)
-        stack.append(root)
-        on.add(root)
-        while work:
-            v, it = work[-1]
-            w = next(it, None)
-            if w is not None:
-                if w not in index:
-                    index[w] = low[w] = len(index)
-                    stack.append(w)
-                    on.add(w)
-                    work.append((w, iter(sorted(graph[w]))))
-                elif w in on:
-                    low[v] = min(low[v], index[w])
-                continue
-            work.pop()
-            if work:
-                low[work[-1][0]] = min(low[work[-1][0]], low[v])
-            if low[v] == index[v]:
-                comp = []
-                while True:
-                    x = stack.pop()
-                    on.discard(x)
-                    comp.append(x)
-                    if x == v:
-                        break
-                if len(comp) > 1:
-                    out.append(sorted(comp))
-    return out
-
-
 def test_no_import_circle_anywhere_in_the_package() -> None:
     """Function-level and type-only imports count: each module depends on modules below it."""
-    graph = _own_import_graph()
+    graph = own_import_graph()
     assert len(graph) > 150 and graph["spm_console.motion.executor"]  # the walk sees the package
-    assert _circles(graph) == []
+    assert circles(graph) == []
 
 
 def test_the_circle_check_finds_a_circle() -> None:
-    assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
-    assert _circles({"a": {"b"}, "b": set()}) == []
+    assert circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert circles({"a": {"b"}, "b": set()}) == []
 
 
 def test_no_folder_of_the_package_holds_more_than_15_modules() -> None:

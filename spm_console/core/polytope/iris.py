@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.polytope.ellipsoid import Ellipsoid
+from spm_console.core.polytope.lp import solve_lp
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.errors import InfeasibleError
 
@@ -106,7 +107,6 @@ def keeping_plane(req: F, lo: F, hi: F, g: F) -> tuple[F, float] | None:
 
     First the smallest L1 change of the preferred normal ``g`` that separates
     (LP), else the max-margin separator (LP). The offset touches the box."""
-    from spm_console.core.polytope.lp import solve_lp
 
     corners = box_corners(lo, hi)
     m = len(req)

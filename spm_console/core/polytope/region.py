@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.polytope.lp import solve_lp
+
 F = NDArray[np.float64]
 
 #: Smallest slack (relative to the point's size) of a hint used as qhull's interior point.
@@ -62,7 +64,6 @@ class Region:
 
     def chebyshev(self) -> tuple[F, float]:
         """Centre and radius (deg) of the largest ball inside (LP); radius < 0 if empty."""
-        from spm_console.core.polytope.lp import solve_lp  # here: its solver costs ~0.2 s to import
 
         n = np.linalg.norm(self.A, axis=1)
         A_ub = np.hstack([self.A, n[:, None]])

@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.polytope.ellipsoid import inscribed_ellipsoid
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions.p_build import iris_region
 from spm_console.core.workspace.refine import FineGrid
@@ -162,7 +163,6 @@ def refined_region(ws: Workspace, a: F, b: F, fine: FineGrid | None = None,
                    reach_steps: float = REACH_STEPS) -> RefinedRegion:
     """Steps 1–5 of the module docstring: a region containing a and b (deg), or
     :class:`InfeasibleError` saying why not."""
-    from spm_console.core.polytope.ellipsoid import inscribed_ellipsoid
 
     t0 = time.perf_counter()
     fg = FineGrid(ws) if fine is None else fine

@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.kinematics.continuation import PATH_ZETA_FLOOR
 from spm_console.core.kinematics.model import FkResult, SpmModel
+from spm_console.core.kinematics.modes import solve_all
 from spm_console.core.workspace.data import NodeClass, Workspace
 
 F = NDArray[np.float64]
@@ -286,7 +287,6 @@ def route_fk(model: SpmModel, graph: FkGraph, theta_rad: F, straight: FkResult) 
 
 def _not_connected(model: SpmModel, graph: FkGraph, theta_rad: F, straight_reason: str) -> str:
     """Why no route reached θ (rad), from every assembly mode at θ (multi-start solve)."""
-    from spm_console.core.kinematics.modes import solve_all
 
     th = np.asarray(theta_rad, float)
     Rs = solve_all(model.geom, th, model.v_home)

@@ -25,7 +25,11 @@ from collections.abc import Sequence
 from typing import Any
 
 from spm_console.config.schema import Profile
+from spm_console.devices.emulator.faults import parse_fault
+from spm_console.errors import SpmError
 from spm_console.system.childproc import ChildProcess
+from spm_console.system.cpus import place_on_loop_cpu
+from spm_console.system.realtime import HELPER_PRIORITY, quick_gil_handoff, request_realtime
 from spm_console.system.signals import STOP_SIGNALS
 
 #: How often the child checks that its parent is alive, s.
@@ -61,16 +65,12 @@ class EmulatorChild(ChildProcess):
 def main(argv: Sequence[str] | None = None) -> int:
     from spm_console.config.load import parse_profile
     from spm_console.devices.emulator.bus import start_emulator
-    from spm_console.devices.emulator.faults import parse_fault
-    from spm_console.errors import SpmError
 
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--parent", type=int, default=0, help="exit when this process is gone")
     args = parser.parse_args(argv)
     for sig in STOP_SIGNALS:
         signal.signal(sig, signal.SIG_IGN)
-    from spm_console.system.cpus import place_on_loop_cpu
-    from spm_console.system.realtime import HELPER_PRIORITY, quick_gil_handoff, request_realtime
 
     place_on_loop_cpu()  # the emulated servos answer the loop: the same CPU, see spm_console.system.cpus
     request_realtime(HELPER_PRIORITY)  # shares the emulator's GIL: see realtime.HELPER_PRIORITY

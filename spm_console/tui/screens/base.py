@@ -16,7 +16,7 @@ key has bubbled up from the focused field, after the field took the keys queued 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, ClassVar, cast
+from typing import ClassVar, cast
 from weakref import WeakSet
 
 from textual import events, work
@@ -31,16 +31,13 @@ from textual.worker import get_current_worker
 
 from spm_console.errors import Issue, RefusedError, SolverError, SpmError
 from spm_console.refusals import worded
+from spm_console.services.session import Session
 from spm_console.tui.host import ConsoleHost
 from spm_console.tui.messages import Done, Failed, Outcome
 from spm_console.tui.widgets.estop import ESTOP_KEY, EstopBanner
 from spm_console.tui.widgets.footer import ConsoleFooter
 from spm_console.tui.widgets.status import StatusLine
 from spm_console.tui.widgets.steps import StepBar
-
-if TYPE_CHECKING:
-    from spm_console.services.session import Session
-
 
 #: The console's words after a runtime message (which names no console step or key), by
 #: what went wrong.

@@ -24,6 +24,7 @@ from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.servo_tools import ServoHealth, jog_target
 from spm_console.refusals import Refusal, worded
+from spm_console.services.session import SampleCallback
 from spm_console.tui.messages import (
     Connected,
     MotionDone,
@@ -38,7 +39,6 @@ from spm_console.tui.widgets.servo_health import JogStepField, ServoTable
 
 if TYPE_CHECKING:
     from spm_console.motion.segments import ExecutionResult
-    from spm_console.services.session import SampleCallback
 
 #: Period of the live status read while idle, s (2.5 reads a second).
 HEALTH_EVERY_S = 0.4

@@ -20,6 +20,7 @@ from textual.screen import ModalScreen, Screen
 from textual.widgets import Static
 
 from spm_console.tui.widgets.footer import ConsoleFooter
+from spm_console.tui.widgets.steps import STEPS
 
 if TYPE_CHECKING:
     from textual.app import App
@@ -133,7 +134,6 @@ def step_actions(screen_class: type[Screen[Any]], app: App[Any]) -> list[KeyEntr
 def screen_title(screen: Screen[Any]) -> str:
     """"Plan (step 4)" for a step screen (its ``HELP_TITLE`` when it has one), else the
     screen's class name in words."""
-    from spm_console.tui.widgets.steps import STEPS
 
     title = getattr(screen, "HELP_TITLE", "")
     if title:

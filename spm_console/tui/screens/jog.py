@@ -35,6 +35,7 @@ from spm_console.core.polytope.region import Region
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.follow.regions import follow_regions, follow_start
+from spm_console.services.session import Session
 from spm_console.tui.messages import FollowDone, Outcome, Telemetry, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.jog_target import OUTSIDE_TOL_DEG, JogTarget, TargetSender
@@ -42,7 +43,6 @@ from spm_console.tui.widgets.plot import PlotView, joint_series
 
 if TYPE_CHECKING:
     from spm_console.motion.sample import Sample
-    from spm_console.services.session import Session
 
 F = NDArray[np.float64]
 

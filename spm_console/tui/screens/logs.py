@@ -5,7 +5,7 @@ velocities)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from textual.app import ComposeResult
@@ -17,13 +17,11 @@ from textual.widgets import DataTable, Static
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.logs.run_info import RunInfo
+from spm_console.motion.logs.runlog import RunData, RunSummary, list_runs, load_run, logs_root
 from spm_console.tui.messages import Outcome, RunOpened
 from spm_console.tui.screens.base import StepScreen, describe_error
 from spm_console.tui.screens.plan_words import KIND_WORDS
 from spm_console.tui.widgets.plot import PlotView, Series
-
-if TYPE_CHECKING:  # the run-log reader is imported when the screen first lists runs
-    from spm_console.motion.logs.runlog import RunData, RunSummary
 
 PLOTS = ("positions", "velocities", "tracking error")
 
@@ -143,7 +141,6 @@ class LogsScreen(StepScreen):
     def root(self) -> Path:
         """The log root this session writes to and reads from (``--logs``,
         ``$SPM_CONSOLE_LOGS`` or ``logs/``), absolute."""
-        from spm_console.motion.logs.runlog import logs_root
 
         return logs_root(self.session.logs_root).absolute()
 
@@ -170,7 +167,6 @@ class LogsScreen(StepScreen):
         self.action_reload()
 
     def action_reload(self) -> None:
-        from spm_console.motion.logs.runlog import list_runs
 
         table = self.query_one("#runs", DataTable)
         table.clear()
@@ -227,7 +223,6 @@ class LogsScreen(StepScreen):
             self.status.error("no runs to open")
             return
         key = table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value
-        from spm_console.motion.logs.runlog import load_run
 
         self.run_blocking("open", lambda: RunOpened(load_run(str(key))), "reading the run …")
 

@@ -18,6 +18,7 @@ from textual.widgets import Checkbox, Input, Label, Select, Static
 
 from spm_console.errors import BadInputError, Issue, SpmError
 from spm_console.services.session import PoseSpec
+from spm_console.store.plan_file import save_plan
 from spm_console.tui.messages import Failed, Outcome, PlanLoaded, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.plan_words import console_words, next_step, plan_text
@@ -306,7 +307,6 @@ class PlanScreen(StepScreen):
         def save() -> PlanSaved:
             import time
 
-            from spm_console.store.plan_file import save_plan
 
             path = Path("plans") / f"{time.strftime('%Y%m%d-%H%M%S')}-{plan.kind}.json"
             path.parent.mkdir(exist_ok=True)

@@ -12,12 +12,11 @@ from textual.containers import Horizontal
 from textual.content import Content
 from textual.widgets import DataTable, Input, Static
 
-from spm_console.motion.servo_tools import JOG_MAX_STEP_DEG
+from spm_console.motion.servo_tools import JOG_MAX_STEP_DEG, JointHealth, ServoHealth
 from spm_console.tui.widgets.field import TextField
 from spm_console.tui.widgets.number import NumberRule
 
 if TYPE_CHECKING:
-    from spm_console.motion.servo_tools import JointHealth, ServoHealth
     from spm_console.services.session import BusState
 
 #: Table columns: key, label ("load" is "current" on Protocol 2.0).
