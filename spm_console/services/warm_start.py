@@ -30,6 +30,8 @@ import threading
 from collections.abc import Callable
 from typing import Protocol
 
+from spm_console.system.env import switched_off
+
 #: Environment variable: ``0`` starts every motion process directly.
 ENV_WARM_START = "SPM_CONSOLE_WARM_START"
 #: Seconds to wait for the warm start to be ready (it imports numpy, scipy, the solvers).
@@ -264,7 +266,7 @@ def _warm_start() -> WarmStart | None:
     """This process's warm start (started on first use), or None when it is not to be used
     or cannot be."""
     global _starter, _starter_failed
-    if os.environ.get(ENV_WARM_START, "1").strip().lower() in ("0", "no", "off", "false"):
+    if switched_off(ENV_WARM_START):
         return None
     with _starter_lock:
         if _starter is not None and not _starter.alive:

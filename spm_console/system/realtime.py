@@ -18,6 +18,10 @@ import os
 import threading
 from dataclasses import dataclass
 
+from spm_console.system.env import switched_off
+
+#: Environment variable: ``0`` (or ``no``, ``off``, ``false``) switches real-time scheduling off.
+ENV_REALTIME = "SPM_CONSOLE_REALTIME"
 #: SCHED_FIFO priorities (1..99): the emulated servos above the loop that talks to them.
 LOOP_PRIORITY = 40
 EMULATOR_PRIORITY = 45
@@ -50,13 +54,13 @@ class RtGrant:
 
 
 def _disabled() -> bool:
-    return os.environ.get("SPM_CONSOLE_REALTIME", "1").strip() in ("0", "no", "off", "false")
+    return switched_off(ENV_REALTIME)
 
 
 def request_realtime(priority: int) -> RtGrant:
     """SCHED_FIFO at ``priority`` for the calling thread, else a raised nice value."""
     if _disabled():
-        return RtGrant("normal", "real-time scheduling switched off (SPM_CONSOLE_REALTIME=0)")
+        return RtGrant("normal", f"real-time scheduling switched off ({ENV_REALTIME}=0)")
     if not hasattr(os, "sched_setscheduler"):
         return RtGrant("normal", "this platform has no sched_setscheduler")
     try:

@@ -4,8 +4,10 @@ Every front end that moves the wrist (``execute`` / ``home``, ``script``, the TU
 installs one callback for all of :data:`STOP_SIGNALS` with :func:`install_stop_handler`
 (or the :func:`stop_signals` context manager). The callback runs in the main thread
 between two Python bytecodes, like any Python signal handler: it should only request
-the stop (an E-stop is one ``threading.Event.set``) and leave the rest — the stop
-action, closing the run log, leaving — to the code it interrupted. SIGKILL cannot be
+the stop and leave the rest — the stop action, closing the run log, leaving — to the code
+it interrupted. It must take no lock the interrupted code may hold (a ``threading.Event``'s
+``set`` takes one): the front ends' E-stop is one message to the motion process, sent from
+a helper thread when the handler interrupted a send (``MotionClient.estop``). SIGKILL cannot be
 caught: a run left ``running`` by it is listed as ``killed`` (:mod:`spm_console.motion.logs.procid`).
 
 Exit codes stay those of docs/cli-reference.md: a signal that stops a motion ends it as an E-stop
