@@ -274,6 +274,33 @@ class Emulator(_Section):
     """Random seed of the emulator's noise and faults, 0..2^63−1 (numpy refuses negatives)."""
 
 
+class Plant(_Section):
+    """The emulated wrist behind ``--sim``: ``ideal`` servos that are eq. (27) with ``servo.p``,
+    or the ``physical`` wrist (MX-106 drives on the rigid-body closed chain, MuJoCo). Figures
+    at the output shaft, after the 225:1 gear; each names its source."""
+
+    model: Literal["ideal", "physical"] = "ideal"
+    """Which emulated wrist ``--sim`` runs."""
+    supply_v: Real = Field(default=12.0, gt=0.0, le=30.0)
+    """Supply voltage, V: the MX-106 e-manual's 12 V rating."""
+    kt_nm_per_a: Real = Field(default=2.2, gt=0.0, le=20.0)
+    """Torque constant, N·m/A: BAM (arXiv 2410.08650) identified 2.19–2.23 on the MX-106."""
+    resistance_ohm: Real = Field(default=3.14, gt=0.0, le=100.0)
+    """Winding resistance, Ω: kt·V / 8.4 N·m, the e-manual's stall torque at 12 V (BAM: 2–3)."""
+    armature_kgm2: Real = Field(default=0.026, gt=0.0, le=10.0)
+    """Rotor inertia reflected through the gear, kg·m²: BAM, 0.025–0.027."""
+    coulomb_nm: Real = Field(default=0.1, ge=0.0, le=10.0)
+    """Coulomb friction, N·m: BAM, about 0.10."""
+    viscous_nms: Real = Field(default=0.04, ge=0.0, le=10.0)
+    """Viscous friction, N·m·s/rad: BAM, 0.035–0.051."""
+    link_mass_kg: Real = Field(default=0.12, gt=0.0, le=10.0)
+    """Mass of each proximal and distal link, kg: assumed (an aluminium arc of about 10 cm)."""
+    platform_mass_kg: Real = Field(default=0.25, gt=0.0, le=50.0)
+    """Mass of the platform with its load, kg: assumed."""
+    link_radius_mm: Real = Field(default=100.0, gt=0.0, le=1000.0)
+    """Distance from the centre at which the links' mass is carried, mm: assumed."""
+
+
 class Profile(_Section):
     """One prototype. Load with :func:`load_profile`."""
 
@@ -288,6 +315,7 @@ class Profile(_Section):
     safety: Safety
     estimation: Estimation
     emulator: Emulator = Emulator()
+    plant: Plant = Plant()
 
     @property
     def name(self) -> str:

@@ -1,0 +1,159 @@
+"""A physical emulated wrist: three MX-106 drives on the rigid-body wrist (MuJoCo).
+
+Each servo is its firmware's position loop driving a DC motor (Protocol 2.0 e-manual):
+
+* PWM = K_PP·e + K_PI·Σe + K_PD·Δe on the position error e in ticks, with K_PP = P/128,
+  K_PI = I/65536, K_PD = D/16 (Position P/I/D Gain), clipped to the PWM Limit (885 = 100 %);
+* the motor's torque at the output τ = kt/R·(duty·V − kt·ω): back-EMF, the supply and the
+  winding resistance bound it (stall torque kt·V/R, no-load speed V/kt less friction);
+* Coulomb and viscous friction and the rotor's reflected inertia act on the output joint.
+
+The joints drive :func:`~spm_console.devices.emulator.wrist_mjcf.wrist_mjcf`'s closed chain
+under gravity. Angles are the joints' θ in radians (θ_home at the model's rest pose).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.schema import Plant
+from spm_console.core.kinematics.model import SpmModel
+from spm_console.devices.emulator.wrist_mjcf import PlantParams, plant_params, wrist_mjcf
+
+F = NDArray[np.float64]
+
+#: The PWM register's full scale (PWM Limit 885 = 100 % duty).
+PWM_FULL = 885.0
+
+
+@dataclass
+class DriveGains:
+    """Control-table values of one servo's position loop (raw register values)."""
+
+    p: int = 850
+    i: int = 0
+    d: int = 0
+    pwm_limit: int = 885
+
+
+@dataclass
+class Drive:
+    """The firmware loop and motor of one servo (state: the integral and last error)."""
+
+    params: PlantParams
+    ticks_per_rad: float
+    gains: DriveGains = field(default_factory=DriveGains)
+    integral: float = 0.0
+    last_error: float = 0.0
+    pwm: float = 0.0
+
+    def duty(self, goal_ticks: float, present_ticks: float) -> float:
+        """One firmware sample: the PWM duty (−1..1) for this error."""
+        e = goal_ticks - present_ticks
+        self.integral += e
+        g = self.gains
+        pwm = g.p / 128.0 * e + g.i / 65536.0 * self.integral + g.d / 16.0 * (e - self.last_error)
+        self.last_error = e
+        lim = min(float(g.pwm_limit), PWM_FULL)
+        self.pwm = max(-lim, min(lim, pwm))
+        return self.pwm / PWM_FULL
+
+    def torque(self, duty: float, omega: float) -> float:
+        """Motor torque at the output, N·m, for a duty and the output speed ω (rad/s)."""
+        p = self.params
+        return p.kt_nm_per_a / p.resistance_ohm * (duty * p.supply_v - p.kt_nm_per_a * omega)
+
+    def current(self, duty: float, omega: float) -> float:
+        """Winding current, A."""
+        p = self.params
+        return (duty * p.supply_v - p.kt_nm_per_a * omega) / p.resistance_ohm
+
+    def reset(self) -> None:
+        self.integral = 0.0
+        self.last_error = 0.0
+        self.pwm = 0.0
+
+
+class PhysicalWrist:
+    """The wrist's rigid bodies and its three drives, stepped to a time on demand."""
+
+    def __init__(self, model: SpmModel, params: PlantParams | None = None,
+                 ticks_per_turn: int = 4096) -> None:
+        self.params = params or plant_params(Plant())
+        self.spm = model
+        self.mj = mujoco.MjModel.from_xml_string(wrist_mjcf(model, self.params))
+        self.data = mujoco.MjData(self.mj)
+        self.ticks_per_rad = ticks_per_turn / (2.0 * math.pi)
+        self.drives = [Drive(self.params, self.ticks_per_rad) for _ in range(3)]
+        self._joint = [self.mj.joint(f"theta{i}").qposadr[0] for i in range(3)]
+        self._dof = [self.mj.joint(f"theta{i}").dofadr[0] for i in range(3)]
+        self.goal = np.array(model.theta_home, float)
+        """Goal angle per joint, rad (the servos' Goal Position)."""
+        self.enabled = [False, False, False]
+        """Torque on per joint (off: the drive is open, the shaft coasts)."""
+        self.t = 0.0
+        self.duty = np.zeros(3)
+
+    def theta(self) -> F:
+        """Joint angles θ, rad."""
+        return np.asarray(self.spm.theta_home + self.data.qpos[self._joint], float)
+
+    def omega(self) -> F:
+        """Joint speeds, rad/s."""
+        return np.asarray(self.data.qvel[self._dof], float)
+
+    def set_theta(self, theta: F) -> None:
+        """Place the wrist at rest at θ (rad): the chain is assembled by the solver from θ."""
+        q = np.asarray(theta, float) - self.spm.theta_home
+        mujoco.mj_resetData(self.mj, self.data)
+        self.data.qpos[self._joint] = q
+        # let the constraint solver assemble the passive joints with the motors held
+        for _ in range(400):
+            self.data.qpos[self._joint] = q
+            self.data.qvel[:] = 0.0
+            mujoco.mj_step(self.mj, self.data)
+        self.data.qpos[self._joint] = q
+        self.data.qvel[:] = 0.0
+        mujoco.mj_forward(self.mj, self.data)
+        self.goal = np.asarray(theta, float).copy()
+        for d in self.drives:
+            d.reset()
+
+    def closure_error(self) -> float:
+        """Largest distance between the points each ``connect`` equality joins, m."""
+        err = 0.0
+        for k in range(self.mj.neq):
+            b1, b2 = self.mj.eq_obj1id[k], self.mj.eq_obj2id[k]
+            a1 = self.mj.eq_data[k, 0:3]
+            a2 = self.mj.eq_data[k, 3:6]
+            p1 = self.data.xpos[b1] + self.data.xmat[b1].reshape(3, 3) @ a1
+            p2 = self.data.xpos[b2] + self.data.xmat[b2].reshape(3, 3) @ a2
+            err = max(err, float(np.linalg.norm(p1 - p2)))
+        return err
+
+    def platform_rotation(self) -> F:
+        """The platform's rotation from home (3, 3)."""
+        return np.asarray(self.data.xmat[self.mj.body("platform").id].reshape(3, 3), float)
+
+    def advance(self, t: float) -> None:
+        """Step the wrist to time ``t`` (s), the drives sampled every step."""
+        dt = self.params.timestep_s
+        while self.t + dt <= t + 1e-12:
+            th = self.theta()
+            om = self.omega()
+            for i, d in enumerate(self.drives):
+                if self.enabled[i]:
+                    present = round(th[i] * self.ticks_per_rad)
+                    duty = d.duty(self.goal[i] * self.ticks_per_rad, present)
+                    self.data.ctrl[i] = d.torque(duty, om[i])
+                    self.duty[i] = duty
+                else:
+                    self.data.ctrl[i] = 0.0
+                    self.duty[i] = 0.0
+            mujoco.mj_step(self.mj, self.data)
+            self.t += dt
