@@ -293,6 +293,10 @@ class Plant(_Section):
     """Coulomb friction, N·m: BAM, about 0.10."""
     viscous_nms: Real = Field(default=0.04, ge=0.0, le=10.0)
     """Viscous friction, N·m·s/rad: BAM, 0.035–0.051."""
+    backdrive_friction_nm: Real = Field(default=1.0, ge=0.0, le=20.0)
+    """Friction of a joint whose torque is off (the gear driven from the output), N·m:
+    assumed, so that the wrist's own weight (below 0.5 N·m at any joint with the default
+    masses) does not turn a 225:1 gear train, as it does not on the bench."""
     link_mass_kg: Real = Field(default=0.12, gt=0.0, le=10.0)
     """Mass of each proximal and distal link, kg: assumed (an aluminium arc of about 10 cm)."""
     platform_mass_kg: Real = Field(default=0.25, gt=0.0, le=50.0)

@@ -21,11 +21,12 @@ import time
 import tty
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.devices.dynamixel import protocol1 as p1
 from spm_console.devices.dynamixel import protocol2 as p2
@@ -33,14 +34,22 @@ from spm_console.devices.dynamixel.control_table import table_for
 from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
 from spm_console.devices.emulator.dispatch import dispatch1, dispatch2
 from spm_console.devices.emulator.faults import FaultSpec
+from spm_console.devices.emulator.plant_joint import PlantJoint
 from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
+from spm_console.devices.emulator.wrist_mjcf import plant_params
 from spm_console.errors import BusError
 from spm_console.system.realtime import EMULATOR_PRIORITY, RtGrant, request_realtime
+
+if TYPE_CHECKING:  # the physical wrist loads MuJoCo: only a physical plant needs it
+    from spm_console.devices.emulator.physical import PhysicalWrist
 
 F = NDArray[np.float64]
 
 #: Longest sleep of the serving thread when idle (also the idle recording interval), s.
 IDLE_S = 0.005
+#: The same with a physical wrist, which steps while idle: a request then finds at most
+#: this much of its motion left to integrate before the reply (a few steps, ~0.1 ms).
+PHYSICAL_IDLE_S = 0.001
 #: A partial packet older than this when new bytes arrive is dropped (like the firmware's
 #: byte-to-byte timeout), so a garbage header with a huge length cannot hold the line.
 GAP_S = 0.01
@@ -83,9 +92,12 @@ class EmulatorHandle:
         now = time.perf_counter()
         rng = np.random.default_rng(profile.emulator.seed)
         tpd = profile.bus.ticks_per_turn / 360.0
+        self.wrist = _physical_wrist(profile, theta0, now)
+        """The rigid-body wrist the servos drive (``[plant] model = "physical"``), or None."""
         self.servos = [
             EmulatedServo(table, m.id, profile.servo.p, m.to_ticks(theta0[i]), now,
-                          profile.emulator.noise_deg * tpd, rng, profile.bus.ticks_per_turn)
+                          profile.emulator.noise_deg * tpd, rng, profile.bus.ticks_per_turn,
+                          None if self.wrist is None else PlantJoint(self.wrist, i, m))
             for i, m in enumerate(self.maps)
         ]
         self._by_id = {s.id: s for s in self.servos}
@@ -161,6 +173,8 @@ class EmulatorHandle:
             raise BusError("set_joint_deg: expected three joint angles")
         with self._lock:
             self._advance(time.perf_counter())
+            if self.wrist is not None:
+                self.wrist.set_theta(np.radians(theta))
             for m, s, th in zip(self.maps, self.servos, theta, strict=True):
                 s.place(m.to_ticks(th))
             self._sample()
@@ -223,8 +237,9 @@ class EmulatorHandle:
     def _serve(self) -> None:
         self.realtime = request_realtime(EMULATOR_PRIORITY)
         try:
+            idle = IDLE_S if self.wrist is None else PHYSICAL_IDLE_S
             while not self._stop.is_set():
-                timeout = IDLE_S
+                timeout = idle
                 if self._pending:
                     timeout = max(0.0, min(timeout, self._pending[0][0] - time.perf_counter()))
                 try:
@@ -307,6 +322,18 @@ class EmulatorHandle:
                 select.select([], [self._master], [], 0.01)
             except OSError:
                 return
+
+
+def _physical_wrist(profile: Profile, theta0_deg: Sequence[float], now: float) -> PhysicalWrist | None:
+    """The physical wrist at rest at θ0 (deg), its clock at ``now``; None for ideal servos."""
+    if profile.plant.model != "physical":
+        return None
+    from spm_console.devices.emulator.physical import PhysicalWrist  # loads MuJoCo
+
+    wrist = PhysicalWrist(model_of(profile), plant_params(profile.plant), profile.bus.ticks_per_turn)
+    wrist.set_theta(np.radians(np.asarray(theta0_deg, float)))
+    wrist.t = now
+    return wrist
 
 
 def start_emulator(profile: Profile, faults: Sequence[FaultSpec] = (), record: bool = True,

@@ -29,6 +29,9 @@ F = NDArray[np.float64]
 
 #: The PWM register's full scale (PWM Limit 885 = 100 % duty).
 PWM_FULL = 885.0
+#: A blocked shaft (stall fault): stiffness, N·m/rad, and damping, N·m·s/rad, of the stop.
+BLOCK_STIFFNESS = 2000.0
+BLOCK_DAMPING = 20.0
 
 
 @dataclass
@@ -96,8 +99,29 @@ class PhysicalWrist:
         """Goal angle per joint, rad (the servos' Goal Position)."""
         self.enabled = [False, False, False]
         """Torque on per joint (off: the drive is open, the shaft coasts)."""
+        self.blocked: list[float | None] = [None, None, None]
+        """Per joint, the angle (rad) at which its shaft is blocked (a stall fault), or None."""
         self.t = 0.0
         self.duty = np.zeros(3)
+
+    def command(self, index: int, goal_rad: float, enabled: bool, blocked: bool) -> None:
+        """One servo's goal (rad), torque on/off and whether its shaft is blocked."""
+        self.goal[index] = goal_rad
+        if enabled and not self.enabled[index]:
+            self.drives[index].reset()
+        self.enabled[index] = enabled
+        # torque on: the motor drives the gear (Coulomb friction); off: the gear is driven
+        # from the output, and holds
+        self.mj.dof_frictionloss[self._dof[index]] = (
+            self.params.coulomb_nm if enabled else self.params.backdrive_friction_nm)
+        if blocked and self.blocked[index] is None:
+            self.blocked[index] = float(self.theta()[index])
+        elif not blocked:
+            self.blocked[index] = None
+
+    def current(self, index: int) -> float:
+        """Winding current of joint ``index`` now, A."""
+        return self.drives[index].current(float(self.duty[index]), float(self.omega()[index]))
 
     def theta(self) -> F:
         """Joint angles θ, rad."""
@@ -147,7 +171,11 @@ class PhysicalWrist:
             th = self.theta()
             om = self.omega()
             for i, d in enumerate(self.drives):
-                if self.enabled[i]:
+                lock = self.blocked[i]
+                if lock is not None:  # a blocked shaft: a stiff, damped stop where it stuck
+                    self.data.ctrl[i] = -BLOCK_STIFFNESS * (th[i] - lock) - BLOCK_DAMPING * om[i]
+                    self.duty[i] = 0.0
+                elif self.enabled[i]:
                     present = round(th[i] * self.ticks_per_rad)
                     duty = d.duty(self.goal[i] * self.ticks_per_rad, present)
                     self.data.ctrl[i] = d.torque(duty, om[i])

@@ -16,6 +16,7 @@ import numpy as np
 
 from spm_console.devices.dynamixel.control_table import ControlTable
 from spm_console.devices.dynamixel.protocol2 import ErrorNumber
+from spm_console.devices.emulator.plant_joint import PlantJoint
 
 #: Hardware Error Status bit 5 (overload) — what a stalled, overloaded servo reports.
 OVERLOAD = 0x20
@@ -26,8 +27,10 @@ class EmulatedServo:
 
     def __init__(self, table: ControlTable, ident: int, p: float, position_ticks: float,
                  t: float, noise_ticks: float = 0.0, rng: np.random.Generator | None = None,
-                 ticks_per_turn: int = 4096) -> None:
+                 ticks_per_turn: int = 4096, joint: PlantJoint | None = None) -> None:
         self.table = table
+        self.joint = joint
+        """The physical wrist's joint this servo drives (None: eq. (27) in closed form)."""
         self.p = p
         self.noise_ticks = noise_ticks
         self.rng = rng or np.random.default_rng(0)
@@ -45,6 +48,7 @@ class EmulatedServo:
         self.hw_error = 0
         self.last_rx = t
         self._set("goal_position", round(self.pos))
+        self._command()
 
     # --- memory -----------------------------------------------------------------------
 
@@ -75,6 +79,10 @@ class EmulatedServo:
         if t <= self.t:
             return
         self._watchdog(t)
+        if self.joint is not None:
+            self.t = t
+            self.pos, self.vel = self.joint.follow(t)
+            return
         dt = t - self.t
         self.t = t
         if not self.moving_freely:
@@ -99,11 +107,13 @@ class EmulatedServo:
             self.advance(trip)  # move with the old goal up to the trip time
             self._set("bus_watchdog", -1)
             self._set("goal_position", round(self.pos))
+            self._command()
 
     def stall(self) -> None:
         """The shaft is blocked from now on (call advance() to the stall time first)."""
         self.stalled = True
         self.vel = 0.0
+        self._command()
 
     def raise_hardware_error(self, bits: int = OVERLOAD) -> None:
         """Hardware error shutdown: latch the bits, torque off."""
@@ -112,6 +122,7 @@ class EmulatedServo:
             self._set("hardware_error_status", self.hw_error)
         self._set("torque_enable", 0)
         self.vel = 0.0
+        self._command()
 
     def reboot(self) -> None:
         """REBOOT: clears the hardware error, torque off, goal = present position."""
@@ -123,12 +134,19 @@ class EmulatedServo:
             self._set("bus_watchdog", 0)
         self._set("goal_position", round(self.pos))
         self.vel = 0.0
+        self._command()
 
     def place(self, position_ticks: float) -> None:
         """Put the shaft somewhere (at rest); the goal follows so torque-on does not lunge."""
         self.pos = float(position_ticks)
         self.vel = 0.0
         self._set("goal_position", round(self.pos))
+        self._command()
+
+    def _command(self) -> None:
+        """Hand the goal and the drive's state to the physical wrist (when there is one)."""
+        if self.joint is not None:
+            self.joint.command(float(self.get("goal_position")), self.moving_freely, self.stalled)
 
     def present_ticks(self) -> int:
         noise = self.rng.normal(0.0, self.noise_ticks) if self.noise_ticks > 0 else 0.0
@@ -148,7 +166,9 @@ class EmulatedServo:
             self._set("present_input_voltage", 120)
             self._set("present_temperature", 35)
             self._set("realtime_tick", int(self.t * 1000) % 32768)
-            self._set("present_current", 0)
+            self._set("present_current", 0 if self.joint is None else self.joint.current_units())
+            if self.joint is not None:
+                self._set("present_pwm", self.joint.pwm())
         else:
             self._set("present_position", min(max(self.present_ticks(), 0), 4095))
             speed = min(round(abs(rpm) / 0.114), 1023) | (1024 if rpm < 0 else 0)
@@ -212,6 +232,8 @@ class EmulatedServo:
         return ErrorNumber.NONE
 
     def _apply(self, name: str, value: int) -> None:
-        if name == "torque_enable" and bool(value) != self.torque:
+        if name == "torque_enable" and bool(value) != self.torque and self.joint is None:
             self.vel = 0.0
         self._set(name, value)
+        if name in ("goal_position", "torque_enable"):
+            self._command()

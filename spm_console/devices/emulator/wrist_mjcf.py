@@ -39,6 +39,7 @@ class PlantParams:
     armature_kgm2: float
     coulomb_nm: float
     viscous_nms: float
+    backdrive_friction_nm: float
     link_mass_kg: float
     platform_mass_kg: float
     link_radius_m: float
@@ -53,7 +54,8 @@ def plant_params(plant: Plant) -> PlantParams:
     """The ``[plant]`` section in SI units."""
     return PlantParams(plant.supply_v, plant.kt_nm_per_a, plant.resistance_ohm,
                        plant.armature_kgm2, plant.coulomb_nm, plant.viscous_nms,
-                       plant.link_mass_kg, plant.platform_mass_kg, plant.link_radius_mm / 1000.0)
+                       plant.backdrive_friction_nm, plant.link_mass_kg, plant.platform_mass_kg,
+                       plant.link_radius_mm / 1000.0)
 
 
 def _vec(a: F) -> str:
@@ -85,7 +87,8 @@ def wrist_mjcf(model: SpmModel, params: PlantParams) -> str:
         legs.append(
             f'<body name="proximal{i}">'
             f'<joint name="theta{i}" type="hinge" axis="{_vec(-u[i])}" armature="{params.armature_kgm2:.6g}" '
-            f'damping="{params.viscous_nms:.6g}" frictionloss="{params.coulomb_nm:.6g}"/>'
+            f'damping="{params.viscous_nms:.6g}" frictionloss="{params.backdrive_friction_nm:.6g}" '
+            f'solreffriction="{2 * params.timestep_s:.6g} 1"/>'
             f'{_capsule(r * u[i], r * w[i], c, m, f"proximal_link{i}")}'
             f'<body name="distal{i}"><joint name="distal{i}" type="hinge" axis="{_vec(w[i])}"/>'
             f'{_capsule(r * w[i], r * v[i], c, m, f"distal_link{i}")}{platform}</body>'

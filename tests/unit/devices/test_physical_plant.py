@@ -45,6 +45,11 @@ def test_the_firmware_duty_is_linear_up_to_the_pwm_limit() -> None:
     assert Drive(P, TICKS_PER_RAD).duty(-3 * edge, 0.0) == pytest.approx(-1.0)
 
 
+def _drive(wrist: PhysicalWrist, goal: np.ndarray) -> None:
+    for i in range(3):
+        wrist.command(i, float(goal[i]), True, False)
+
+
 @pytest.fixture(scope="module")
 def wrist() -> PhysicalWrist:
     return PhysicalWrist(model_of(load_profile(ROOT / "profiles" / "agile_wrist.toml")))
@@ -55,11 +60,11 @@ def test_the_chain_stays_closed_and_is_the_papers_fk(wrist: PhysicalWrist) -> No
     encoder's 0.088°), and the platform's rotation is the continuation FK of the measured θ."""
     m = wrist.spm
     wrist.set_theta(m.theta_home)
-    wrist.enabled = [True, True, True]
+    wrist.t = 0.0
     worst = 0.0
     t = 0.0
     for step_deg in ([5, -3, 4], [-6, 8, -2], [0, 0, 0]):
-        wrist.goal = m.theta_home + np.radians(step_deg)
+        _drive(wrist, m.theta_home + np.radians(step_deg))
         for _ in range(60):
             t += 0.005
             wrist.advance(t)
@@ -75,13 +80,39 @@ def test_a_step_overshoots_unlike_the_papers_critically_damped_model(wrist: Phys
     friction holds it within a fraction of a degree of the goal (its dead band)."""
     m = wrist.spm
     wrist.set_theta(m.theta_home)
-    wrist.enabled = [True, True, True]
     wrist.t = 0.0
     goal = m.theta_home + np.radians([5.0, 0.0, 0.0])
-    wrist.goal = goal
+    _drive(wrist, goal)
     peak = 0.0
     for k in range(1, 201):
         wrist.advance(k * 0.005)
         peak = max(peak, math.degrees(wrist.theta()[0] - m.theta_home[0]))
     assert peak > 5.05  # an overshoot eq. (27) cannot produce
     assert abs(math.degrees(wrist.theta()[0] - goal[0])) < 0.3
+
+
+def test_with_torque_off_the_wrist_holds_its_own_weight(wrist: PhysicalWrist) -> None:
+    """The gear driven from the output holds: a pose away from home stays put for 2 s."""
+    m = wrist.spm
+    start = np.radians([120.0, 140.0, 130.0])
+    wrist.set_theta(start)
+    for i in range(3):
+        wrist.command(i, float(start[i]), False, False)
+    wrist.t = 0.0
+    wrist.advance(2.0)
+    assert np.degrees(np.abs(wrist.theta() - start)).max() < 0.05
+    assert m.track(wrist.theta()).ok
+
+
+def test_a_blocked_shaft_stays_where_it_stuck(wrist: PhysicalWrist) -> None:
+    m = wrist.spm
+    wrist.set_theta(m.theta_home)
+    wrist.t = 0.0
+    goal = m.theta_home + np.radians([6.0, -4.0, 3.0])
+    _drive(wrist, goal)
+    wrist.advance(0.02)
+    stuck = float(wrist.theta()[1])
+    wrist.command(1, float(goal[1]), True, True)
+    wrist.advance(0.5)
+    assert abs(math.degrees(wrist.theta()[1] - stuck)) < 0.1
+    assert abs(math.degrees(wrist.theta()[0] - goal[0])) < 0.3  # the others reach their goals
