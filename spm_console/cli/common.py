@@ -18,6 +18,8 @@ from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError
 from spm_console.jsonutil import to_jsonable
 
+#: The emulated wrists ``--plant`` chooses from (``[plant] model``).
+PLANTS = ("ideal", "physical")
 #: File names a figure may be written to.
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
@@ -31,8 +33,24 @@ def add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
+def add_plant(p: argparse.ArgumentParser) -> None:
+    """--plant: which emulated wrist a --sim run drives."""
+    p.add_argument("--plant", choices=PLANTS, default=None,
+                   help="with --sim: the emulated wrist, ideal servos (eq. 27 with the "
+                        "profile's p) or the physical wrist (MX-106 drives on the rigid-body "
+                        "chain) (default: the profile's [plant] model)")
+
+
+def with_plant(profile: Profile, plant: str | None) -> Profile:
+    """``profile`` with ``[plant] model`` set to ``plant`` (unchanged for None)."""
+    if plant is None or plant == profile.plant.model:
+        return profile
+    return profile.model_copy(update={"plant": profile.plant.model_copy(update={"model": plant})})
+
+
 def profile_of(args: argparse.Namespace) -> Profile:
-    return load_profile(args.profile)
+    """The profile named by --profile, with --plant applied where the command takes it."""
+    return with_plant(load_profile(args.profile), getattr(args, "plant", None))
 
 
 def output_file(path: Path | None, what: str, suffixes: tuple[str, ...] = ()) -> None:

@@ -16,7 +16,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import add_common, emit, info, output_folder, output_may_be_gone, profile_of
+from spm_console.cli.common import add_common, add_plant, emit, info, output_folder, output_may_be_gone, profile_of
 from spm_console.config.schema import Profile
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError
@@ -41,6 +41,7 @@ def _bus_opts(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sim-start", nargs=3, type=float, metavar=("T1", "T2", "T3"),
                    help="with --sim: power-on joint angles of the emulated servos, deg "
                         "(default: the profile's home)")
+    add_plant(p)
     p.add_argument("--logs", metavar="DIR",
                    help="log root (default: $SPM_CONSOLE_LOGS or logs/)")
 

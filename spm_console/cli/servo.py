@@ -11,7 +11,7 @@ import time
 from dataclasses import asdict
 from typing import Any
 
-from spm_console.cli.common import add_common, emit, info, profile_of, to_jsonable
+from spm_console.cli.common import add_common, add_plant, emit, info, profile_of, to_jsonable
 from spm_console.devices.emulator.bus import start_emulator
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError, BusError, ExitCode
@@ -58,6 +58,7 @@ def register(sub: Any) -> None:
                         "delay:0.03@1, hwerror:1@2 (repeatable)")
     e.add_argument("--initial", nargs=3, type=float, metavar=("T1", "T2", "T3"),
                    help="power-on joint angles, deg (default: the profile's home)")
+    add_plant(e)
     e.add_argument("--duration", type=float, metavar="S",
                    help=f"stop by itself after S seconds, 0 < S ≤ {MAX_EMULATE_S:g}")
     e.set_defaults(func=cmd_emulate)

@@ -115,6 +115,22 @@ def test_home_sim(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert np.allclose(d["start_deg"], [128, 140, 130], atol=0.1)
 
 
+def test_home_sim_on_the_physical_wrist(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--plant physical: the MX-106 drives on the rigid-body wrist home it too; friction leaves
+    it within a fraction of a degree of home (the ideal servos land within 0.1°)."""
+    rc = main(["home", "--sim", "--plant", "physical", "--sim-start", "128", "140", "130",
+               "--json", "--logs", str(tmp_path)])
+    d = _json(capsys)
+    assert rc == 0, d
+    assert np.allclose(d["final_deg"], [135, 135, 135], atol=0.5)
+    assert d["stats"]["tracking_rms_deg"] > 0.05  # the measured motion is not the model's
+
+
+def test_an_unknown_plant_is_a_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["home", "--sim", "--plant", "rubber", "--logs", str(tmp_path)])
+    assert rc == ExitCode.USAGE and "invalid choice: 'rubber'" in capsys.readouterr().err
+
+
 def test_home_refuses_an_unknown_assembly_mode(tmp_path: Path,
                                                capsys: pytest.CaptureFixture[str]) -> None:
     rc = main(["home", "--sim", "--sim-start", "62", "62", "158", "--logs", str(tmp_path)])

@@ -29,6 +29,12 @@ F = NDArray[np.float64]
 
 #: The PWM register's full scale (PWM Limit 885 = 100 % duty).
 PWM_FULL = 885.0
+#: Overload shutdown: the drive at ≥ this duty with its shaft slower than OVERLOAD_RAD_S for
+#: OVERLOAD_S on end latches the Overload error (assumed: the e-manual says only "a persistent
+#: load that exceeds the maximum output").
+OVERLOAD_DUTY = 0.95
+OVERLOAD_RAD_S = 0.05
+OVERLOAD_S = 1.0
 #: A blocked shaft (stall fault): stiffness, N·m/rad, and damping, N·m·s/rad, of the stop.
 BLOCK_STIFFNESS = 2000.0
 BLOCK_DAMPING = 20.0
@@ -103,12 +109,20 @@ class PhysicalWrist:
         """Per joint, the angle (rad) at which its shaft is blocked (a stall fault), or None."""
         self.t = 0.0
         self.duty = np.zeros(3)
+        self.strain_s = np.zeros(3)
+        """Per joint, how long its drive has pushed at full duty against a shaft that does
+        not turn, s."""
+
+    def overloaded(self, index: int) -> bool:
+        """Whether joint ``index``'s drive has strained long enough to shut down."""
+        return bool(self.strain_s[index] >= OVERLOAD_S)
 
     def command(self, index: int, goal_rad: float, enabled: bool, blocked: bool) -> None:
         """One servo's goal (rad), torque on/off and whether its shaft is blocked."""
         self.goal[index] = goal_rad
         if enabled and not self.enabled[index]:
             self.drives[index].reset()
+            self.strain_s[index] = 0.0
         self.enabled[index] = enabled
         # torque on: the motor drives the gear (Coulomb friction); off: the gear is driven
         # from the output, and holds
@@ -171,17 +185,17 @@ class PhysicalWrist:
             th = self.theta()
             om = self.omega()
             for i, d in enumerate(self.drives):
+                torque = 0.0
+                self.duty[i] = 0.0
+                if self.enabled[i]:
+                    present = round(th[i] * self.ticks_per_rad)
+                    self.duty[i] = d.duty(self.goal[i] * self.ticks_per_rad, present)
+                    torque = d.torque(float(self.duty[i]), om[i])
                 lock = self.blocked[i]
                 if lock is not None:  # a blocked shaft: a stiff, damped stop where it stuck
-                    self.data.ctrl[i] = -BLOCK_STIFFNESS * (th[i] - lock) - BLOCK_DAMPING * om[i]
-                    self.duty[i] = 0.0
-                elif self.enabled[i]:
-                    present = round(th[i] * self.ticks_per_rad)
-                    duty = d.duty(self.goal[i] * self.ticks_per_rad, present)
-                    self.data.ctrl[i] = d.torque(duty, om[i])
-                    self.duty[i] = duty
-                else:
-                    self.data.ctrl[i] = 0.0
-                    self.duty[i] = 0.0
+                    torque += -BLOCK_STIFFNESS * (th[i] - lock) - BLOCK_DAMPING * om[i]
+                self.data.ctrl[i] = torque
             mujoco.mj_step(self.mj, self.data)
             self.t += dt
+            straining = (np.abs(self.duty) >= OVERLOAD_DUTY) & (np.abs(om) < OVERLOAD_RAD_S)
+            self.strain_s = np.where(straining, self.strain_s + dt, 0.0)

@@ -38,6 +38,10 @@ class PlantJoint:
         return (self.map.to_ticks(math.degrees(th)),
                 self.map.direction * math.degrees(om) * self.map.ticks_per_deg)
 
+    def overloaded(self) -> bool:
+        """The drive has strained against a shaft that does not turn long enough to shut down."""
+        return self.wrist.overloaded(self.index)
+
     def current_units(self) -> int:
         """Present Current (units of 3.36 mA), the winding's current now."""
         amps = self.wrist.current(self.index)

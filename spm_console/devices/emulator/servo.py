@@ -82,6 +82,8 @@ class EmulatedServo:
         if self.joint is not None:
             self.t = t
             self.pos, self.vel = self.joint.follow(t)
+            if self.torque and self.joint.overloaded():
+                self.raise_hardware_error(OVERLOAD)  # the firmware's overload shutdown
             return
         dt = t - self.t
         self.t = t

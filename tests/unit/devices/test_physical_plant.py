@@ -116,3 +116,20 @@ def test_a_blocked_shaft_stays_where_it_stuck(wrist: PhysicalWrist) -> None:
     wrist.advance(0.5)
     assert abs(math.degrees(wrist.theta()[1] - stuck)) < 0.1
     assert abs(math.degrees(wrist.theta()[0] - goal[0])) < 0.3  # the others reach their goals
+
+
+def test_a_drive_straining_against_a_blocked_shaft_overloads_after_a_second(
+        wrist: PhysicalWrist) -> None:
+    m = wrist.spm
+    wrist.set_theta(m.theta_home)
+    wrist.t = 0.0
+    goal = m.theta_home + np.radians([0.0, 20.0, 0.0])
+    _drive(wrist, m.theta_home)
+    wrist.command(1, float(goal[1]), True, True)  # blocked at home, asked 20° away: full duty
+    wrist.advance(0.9)
+    assert not wrist.overloaded(1)
+    wrist.advance(1.1)
+    assert wrist.overloaded(1) and not wrist.overloaded(0)
+    wrist.command(1, float(m.theta_home[1]), False, True)  # torque off (the shutdown) ...
+    wrist.command(1, float(m.theta_home[1]), True, True)  # ... and on again: strain anew
+    assert not wrist.overloaded(1)
