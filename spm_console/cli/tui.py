@@ -18,7 +18,9 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from spm_console.cli.common import add_plant, with_plant
+from spm_console.config.load import load_profile, with_grid_step
 from spm_console.config.schema import DEFAULT_PROFILE
+from spm_console.input_rules import finite_number
 
 
 def register(sub: Any) -> None:
@@ -101,14 +103,11 @@ def run_consoles(profile_path: Path, grid_step_deg: float | None,
 
 
 def cmd_tui(args: argparse.Namespace) -> int:
-    from spm_console.input_rules import finite_number
-
     grid = args.grid_step
     if grid is not None:
         grid = finite_number(grid, "--grid-step", 0.0, 30.0, lo_open=True)
 
     def factory(path: Path, step_deg: float | None, note: str) -> ConsoleApp:
-        from spm_console.config.load import load_profile, with_grid_step
         from spm_console.tui.app import make_app
 
         profile = with_plant(load_profile(path), args.plant)

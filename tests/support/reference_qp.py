@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.planning.problem import PlanProblem, sub_matrices
+from spm_console.core.planning.qp_build import PLAN_STEP_DEG
 
 F = NDArray[np.float64]
 
@@ -55,6 +56,9 @@ def formulate(pb: PlanProblem) -> tuple[cp.Problem, cp.Variable, cp.Variable, cp
         cons.append(th[ks] @ reg.A.T <= np.tile(reg.b, (len(ks), 1)))
     if pb.hold_first:
         cons.append(ref[0] == pb.start_deg)
+    # the runtime's largest reference step, from θ(0) (the reference held before) to θ*(N)
+    cons.append(cp.abs(ref[0] - pb.start_deg) <= PLAN_STEP_DEG)
+    cons.append(cp.abs(ref[1:] - ref[:-1]) <= PLAN_STEP_DEG)
     if pb.vmax_degps is not None:
         cons.append(cp.abs(om) <= pb.vmax_degps)  # (30d)
     if pb.ref_lo_deg is not None:

@@ -2,14 +2,15 @@
 
 * Equalities: boundary conditions (30b, c), dynamics (30f) and θ*(0) = θ(0).
 * The inequality *pool*: region rows (30e) and speed rows (30d) at the samples
-  k = 1..N−1, optional bounds on the references, and with K > 1 the region and
-  speed rows at the sub-sample instants. Most pool rows are inactive at the
+  k = 1..N−1, optional bounds on the references, the reference's steps (the
+  runtime's largest step between two references, from θ(0) to the goal), and with
+  K > 1 the region and speed rows at the sub-sample instants. Most pool rows are inactive at the
   optimum, so the pool is evaluated densely on a trajectory (:meth:`Pool.slack`)
   and only the rows that matter are assembled (:meth:`Pool.rows`).
 
 Variable layout: see :class:`~spm_console.core.planning.problem.Layout`.
 Pool families: 0 region at samples, 1 region between samples, 2 speed between
-samples, 3 speed at samples, 4 reference bounds.
+samples, 3 speed at samples, 4 reference bounds, 5 reference steps.
 """
 
 from __future__ import annotations
@@ -20,7 +21,12 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
 from spm_console.core.planning.problem import Layout, PlanProblem, sub_matrices
+
+#: The largest reference step a plan may take, deg: the runtime's bound less a margin above
+#: the solver's tolerance (a step the QP holds at its bound must pass the runtime's check).
+PLAN_STEP_DEG = MAX_REFERENCE_STEP_DEG - 1e-6
 
 F = NDArray[np.float64]
 I = NDArray[np.int64]
@@ -112,6 +118,7 @@ class Pool:
             N * self.K1 * 3 if v is not None else 0,
             (N - 1) * 3 if v is not None else 0,
             (N - self.k0) * 3 if has_ref else 0,
+            (N + 1) * 3,
         ]
         self.sizes = sizes
         self.offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
@@ -120,17 +127,28 @@ class Pool:
         rlo = problem.ref_lo_deg if problem.ref_lo_deg is not None else np.full(3, -inf)
         rhi = problem.ref_hi_deg if problem.ref_hi_deg is not None else np.full(3, inf)
         vv = v if v is not None else inf
+        # the reference's steps θ*(k) − θ*(k−1), k = 0..N, from θ*(−1) = θ(0) (the reference
+        # held before the plan) to θ*(N) = goal: the runtime refuses a step above STEP
+        step = np.full((N + 1, 3), PLAN_STEP_DEG)
+        start = np.asarray(problem.start_deg, float)
+        goal = np.asarray(problem.goal_deg, float)
+        step_lo, step_hi = -step.copy(), step.copy()
+        step_lo[0] += start
+        step_hi[0] += start
+        step_lo[N] -= goal
+        step_hi[N] -= goal
         self.lo = np.concatenate([
             np.full(sizes[0], -inf), np.full(sizes[1], -inf), np.full(sizes[2], -vv),
-            np.full(sizes[3], -vv), np.tile(rlo, sizes[4] // 3)])
+            np.full(sizes[3], -vv), np.tile(rlo, sizes[4] // 3), step_lo.ravel()])
         at_samples = route.sample_mask(N)[1:N][:, self.owner]  # (N−1, nr)
         between = np.repeat(route.interval_mask(N)[:, self.owner], self.K1, axis=0)  # (N·K1, nr)
         self.hi = np.concatenate([
             np.where(at_samples, self.bp, inf).ravel(), np.where(between, self.bp, inf).ravel(),
-            np.full(sizes[2], vv), np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3)])
+            np.full(sizes[2], vv), np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3), step_hi.ravel()])
         self.scale = np.concatenate([
-            np.tile(anorm, N - 1), np.tile(anorm, N * self.K1), np.ones(sizes[2] + sizes[3] + sizes[4])])
-        self.family = np.repeat(np.arange(5), sizes)
+            np.tile(anorm, N - 1), np.tile(anorm, N * self.K1),
+            np.ones(sizes[2] + sizes[3] + sizes[4] + sizes[5])])
+        self.family = np.repeat(np.arange(len(sizes)), sizes)
 
     def _split(self, z: F) -> tuple[F, F, F]:
         N = self.pb.N
@@ -155,6 +173,8 @@ class Pool:
             parts.append(om[1:N].ravel())
         if self.sizes[4]:
             parts.append(u[self.k0:].ravel())
+        zero = np.zeros((1, 3))
+        parts.append(np.diff(np.vstack([zero, u, zero]), axis=0).ravel())
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def slack(self, z: F) -> F:
@@ -168,12 +188,13 @@ class Pool:
         """The pool rows ``idx`` as a sparse (len(idx), n) matrix."""
         idx = np.asarray(idx, np.int64)
         L = self.L
+        N = self.pb.N
         fam = self.family[idx]
         rows: list[I] = []
         cols: list[I] = []
         vals: list[F] = []
         pos = np.arange(idx.size)
-        for f in range(5):
+        for f in range(len(self.sizes)):
             sel = fam == f
             if not sel.any():
                 continue
@@ -207,10 +228,16 @@ class Pool:
                 rows.append(rp)
                 cols.append(L.om(loc // 3 + 1, loc % 3))
                 vals.append(np.ones(loc.size))
-            else:
+            elif f == 4:
                 rows.append(rp)
                 cols.append(L.u(loc // 3 + self.k0, loc % 3))
                 vals.append(np.ones(loc.size))
+            else:  # the step into θ*(k): +θ*(k) (k < N), −θ*(k−1) (k > 0)
+                k, i = loc // 3, loc % 3
+                now, before = k < N, k > 0
+                rows += [rp[now], rp[before]]
+                cols += [L.u(k[now], i[now]), L.u(k[before] - 1, i[before])]
+                vals += [np.ones(int(now.sum())), -np.ones(int(before.sum()))]
         if not rows:
             return sp.csr_matrix((idx.size, L.n))
         return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
@@ -238,4 +265,6 @@ class Pool:
             return f"speed of joint {loc % 3 + 1} between k = {kj // self.K1}, sub-sample {kj % self.K1 + 1}"
         if f == 3:
             return f"speed of joint {loc % 3 + 1} at k = {loc // 3 + 1}"
-        return f"reference bound of joint {loc % 3 + 1} at k = {loc // 3 + self.k0}"
+        if f == 4:
+            return f"reference bound of joint {loc % 3 + 1} at k = {loc // 3 + self.k0}"
+        return f"reference step of joint {loc % 3 + 1} into k = {loc // 3}"

@@ -149,12 +149,12 @@ def _bus_steps(agile) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:  # ty
 
         def read() -> np.ndarray:  # a reply a loaded machine read late: retried, a disturbance
             nonlocal worst
-            for _attempt in range(2):
+            for _attempt in range(3):
                 try:
                     return bus.read_position_deg()
                 except CommError:
-                    worst = float("inf")
-            return bus.read_position_deg()
+                    worst = float("inf")  # the record is taken again (a lost sample: NaN)
+            return np.full(3, np.nan)
 
         t_next = time.perf_counter()
         for ref in plan:
