@@ -2,8 +2,11 @@
 
 The planner's model is eq. (27) with the profile's p; the physical wrist is MX-106 drives
 (firmware loop, PWM, DC motor, friction) on the rigid-body closed chain. For each plan:
-outcome, tracking against the model (RMS, max), final error, and the largest excursion of the
-wrist's true θ (the emulator's record) outside the region the plan was certified in. Runs:
+outcome, tracking against the model (RMS, max), final error, and how many of the emulator's
+records of the wrist's true θ lie outside the grid's certified set P′ (with the largest
+excursion outside the region the plan was planned in). The runtime certifies plans near the
+boundary against a finer set than P′: the ideal baseline shows how many records of a run the
+runtime accepted lie outside P′ all the same. Runs:
 the paper's MVN and minimum-time pairs, then minimum time at 100, 150 and 200 °/s on the
 minimum-time pair (a profile whose planning limit allows them). Baseline: the same plan on
 the ideal emulated wrist (eq. (27) itself), same run.
@@ -22,6 +25,7 @@ import numpy as np
 
 from benchmarks.common import Row
 from spm_console.config.load import load_profile
+from spm_console.config.models import servo_limits_deg
 from spm_console.config.schema import Plant, Profile
 from spm_console.core.plan import Plan
 from spm_console.core.planning.mintime import solve_mintime
@@ -45,9 +49,11 @@ class Outcome:
     max_deg: float
     final_deg: float
     excursion_deg: float
+    outside: int
 
 
 def _execute(profile: Profile, plan: Plan, region: Region) -> Outcome:
+    certified = load_or_build(profile)[0].certified_set()
     emu = start_emulator(profile, record=True, initial_deg=list(plan.reference_deg[0]))
     bus = open_bus(profile, emu.port)
     with tempfile.TemporaryDirectory() as tmp:
@@ -71,6 +77,7 @@ def _execute(profile: Profile, plan: Plan, region: Region) -> Outcome:
         float(err.max()) if err.size else float("nan"),
         float(np.abs(meas[ok][-1] - plan.reference_deg[-1]).max()) if ok.any() else float("nan"),
         float(region.violation_deg(truth["position_deg"][moving]).max()),
+        int((~certified.contains(truth["position_deg"][moving])).sum()),
     )
 
 
@@ -86,8 +93,10 @@ def _rows(name: str, profile: Profile, plan: Plan, region: Region) -> list[Row]:
                  f"(ideal {base.max_deg:.3f}°)"),
         Row(f"physical: {name}: final error", phy.final_deg, "°", "≤ 0.2°", base.final_deg,
             done and phy.final_deg <= 0.2),
-        Row(f"physical: {name}: outside the region", phy.excursion_deg, "°", "0", base.excursion_deg,
-            phy.excursion_deg <= 1e-6),
+        Row(f"physical: {name}: records outside P′", phy.outside, "", "0", base.outside,
+            phy.outside == 0,
+            note=f"largest excursion outside the plan's region {phy.excursion_deg:.3f}° "
+                 f"(ideal {base.excursion_deg:.3f}°)"),
     ]
 
 
@@ -103,7 +112,9 @@ def run() -> list[Row]:
     rows: list[Row] = []
     start, goal = np.array(pv.MVN_START_DEG), np.array(pv.MVN_GOAL_DEG)
     region = region_containing(ws, start, goal)
-    plan = solve_mvn(sm, start, goal, pv.MVN_STEPS, region).to_plan("mvn", agile.digest())
+    lo, hi = servo_limits_deg(agile)  # the references within the servo limits, as planned
+    plan = solve_mvn(sm, start, goal, pv.MVN_STEPS, region, ref_lo_deg=lo,
+                     ref_hi_deg=hi).to_plan("mvn", agile.digest())
     rows += _rows("paper MVN", agile, plan, region)
     fast = agile.model_copy(update={"limits": agile.limits.model_copy(update={"vmax_degps": 250.0})})
     start, goal = np.array(pv.MINTIME_START_DEG), np.array(pv.MINTIME_GOAL_DEG)
@@ -111,10 +122,9 @@ def run() -> list[Row]:
     for vmax in (pv.MINTIME_VMAX_DEGPS, 100.0, 150.0, 200.0):
         name = "paper minimum time" if vmax == pv.MINTIME_VMAX_DEGPS else f"minimum time {vmax:g}°/s"
         try:
-            res = solve_mintime(sm, start, goal, region, vmax)
+            res = solve_mintime(sm, start, goal, region, vmax, ref_lo_deg=lo, ref_hi_deg=hi)
+            rows += _rows(name, fast if vmax > agile.limits.vmax_degps else agile,
+                          res.to_plan("mintime", agile.digest()), region)
         except SpmError as exc:
             rows += _refused(name, exc)
-            continue
-        rows += _rows(name, fast if vmax > agile.limits.vmax_degps else agile,
-                      res.to_plan("mintime", agile.digest()), region)
     return rows
