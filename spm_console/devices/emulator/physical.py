@@ -104,7 +104,8 @@ class PhysicalWrist:
         self.goal = np.array(model.theta_home, float)
         """Goal angle per joint, rad (the servos' Goal Position)."""
         self.enabled = [False, False, False]
-        """Torque on per joint (off: the drive is open, the shaft coasts)."""
+        """Torque on per joint (off: no drive; the gear, driven from the output, holds up to
+        the backdrive friction)."""
         self.blocked: list[float | None] = [None, None, None]
         """Per joint, the angle (rad) at which its shaft is blocked (a stall fault), or None."""
         self.t = 0.0
