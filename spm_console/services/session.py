@@ -170,7 +170,11 @@ class Session(ServoTools, FollowTools):
 
     @property
     def bus_label(self) -> str:
-        return "emulated bus" if self.sim else f"serial port {self.port}"
+        """Where motions go, as the front ends word it (the emulated wrist named when it is
+        the physical one)."""
+        if not self.sim:
+            return f"serial port {self.port}"
+        return "emulated bus" if self.profile.plant.model == "ideal" else "emulated bus (physical wrist)"
 
     def connect(self, check: bool = True) -> BusState:
         """Start the motion process on the bus (the emulator first in sim mode): it owns the

@@ -10,6 +10,7 @@ import numpy as np
 from spm_console.config.schema import Plant, Profile
 from spm_console.devices.emulator.bus import EmulatorHandle
 from spm_console.motion.executor import Segment
+from spm_console.services.session import Session
 from tests.support.exec_helpers import paper_mvn, run_on_emulator
 
 
@@ -36,3 +37,10 @@ def test_the_paper_mvn_runs_on_the_physical_wrist_and_is_not_the_model(
     assert np.abs(meas[-1] - plan.reference_deg[-1]).max() < 1.0
     # the MuJoCo chain stayed closed (far below one encoder tick, 1.5e-3 rad)
     assert closure and closure[0] < 1e-5
+
+
+def test_the_front_ends_name_the_physical_wrist(agile: Profile, tmp_path: Path) -> None:
+    physical = agile.model_copy(update={"plant": Plant(model="physical")})
+    assert Session(physical, sim=True, logs_root=tmp_path).bus_label == \
+        "emulated bus (physical wrist)"
+    assert Session(agile, sim=True, logs_root=tmp_path).bus_label == "emulated bus"
