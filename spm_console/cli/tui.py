@@ -110,7 +110,7 @@ def cmd_tui(args: argparse.Namespace) -> int:
     def factory(path: Path, step_deg: float | None, note: str) -> ConsoleApp:
         from spm_console.tui.app import make_app
 
-        profile = with_plant(load_profile(path), args.plant)
+        profile = with_plant(load_profile(path), getattr(args, "plant", None))
         if step_deg is not None:
             profile = with_grid_step(profile, step_deg)
         port = args.port or (None if args.sim else (profile.bus.port or None))
