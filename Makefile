@@ -37,12 +37,12 @@ venv: $(STAMP)
 run: $(STAMP)
 	$(BIN)/spm-console tui $(if $(PROFILE),--profile $(PROFILE)) $(if $(GRID),--grid-step $(GRID))
 
-# The whole suite (slow tests deselected): the tests of the real-time servo loop, the console
-# and whole commands (tests/runtime, tests/e2e on one worker, one at a time; tests/tui on the
-# other: groups set in tests/conftest.py), and beside them the unit tests (no process, no
-# terminal: tests/unit) at the idle scheduling class, on the CPU time the others leave.
-test: $(STAMP)
-	$(BIN)/python -m tests.support.suite
+# The unit tests (no process, no terminal: tests/unit) on every core, then the rest on two
+# workers: one runs the tests of the real-time servo loop and whole commands (tests/runtime,
+# tests/e2e) one at a time, the other the console's tests (tests/tui) beside them (groups
+# set in tests/conftest.py): two real-time runs never compete. The unit tests are not run
+# beside the rest: docs/decisions/test-suite-time.md says what that did.
+test: test-unit test-runtime
 
 test-unit: $(STAMP)
 	SPM_TESTS_HOST_STALLS=0 $(BIN)/python -m pytest tests/unit -n auto

@@ -314,7 +314,6 @@ def cmd_identify(args: argparse.Namespace) -> int:
         t, ref, meas, at = _read_csv(args.csv)
         src = named = str(args.csv)
     else:
-
         run = load_run(args.run, args.logs)
         src, named = str(run.path), str(run.path / "samples.csv")
         t, ref, meas, at = _columns(dict(run.columns), named)

@@ -246,12 +246,10 @@ class _Server:
     def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot | Query) -> None:
         try:
             if isinstance(req, ReadPosition):
-
                 value: object = read_position_checked(self.bus, 3)
             elif isinstance(req, Ping):
                 value = self.ping()
             elif isinstance(req, Query):
-
                 value = answer(self.bus, req.query)
             else:
                 value = self.servo_tool(req)
@@ -294,7 +292,6 @@ class _Server:
         """This profile's workspace (cache, or built on first use): every motion is verified
         against it."""
         if self._workspace is None:
-
             self._workspace, _ = load_or_build(self.profile, cache_dir=self.cache_dir)
         return self._workspace
 

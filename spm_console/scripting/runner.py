@@ -270,7 +270,6 @@ class ScriptRunner:
         return self._motion(self.session.execute(), step.allow_stop, "execution")
 
     def _step_follow(self, step: FollowStep) -> tuple[dict[str, Any], str]:
-
         if (step.targets is None) == (step.file is None):
             raise BadInputError("follow step: give exactly one of targets or file")
         if step.file is not None:

@@ -183,8 +183,9 @@ class Session(ServoTools, FollowTools):
         self.disconnect()
         port = self.port
         cpu_plan()  # the CPU set is fixed before any child starts (see spm_console.system.cpus)
-        if self.sim and self.emulator_process:
-
+        # the physical wrist always in a process of its own: its physics would share this
+        # interpreter's lock with the front end
+        if self.sim and (self.emulator_process or self.profile.plant.model == "physical"):
             child = EmulatorChild(self.profile, self.faults, self.initial_deg)
             self.emulator = child
             try:
@@ -193,7 +194,6 @@ class Session(ServoTools, FollowTools):
                 self.disconnect()
                 raise BusError(exc.message) from None
         elif self.sim:
-
             self.emulator = start_emulator(self.profile, self.faults, record=False,
                                            initial_deg=self.initial_deg)
             port = self.emulator.port

@@ -12,6 +12,7 @@ import pytest
 
 from spm_console.cli.main import main
 from spm_console.config.schema import Plant, Profile
+from spm_console.devices.emulator.child import EmulatorChild
 from spm_console.services.session import Session
 from spm_console.store.plan_file import save_plan
 from tests.support.exec_helpers import paper_mvn
@@ -34,8 +35,17 @@ def test_the_paper_mvn_runs_on_the_physical_wrist_and_is_not_the_model(
     assert np.abs(np.array(d["final_deg"]) - plan.reference_deg[-1]).max() < 1.0
 
 
-def test_the_front_ends_name_the_physical_wrist(agile: Profile, tmp_path: Path) -> None:
+def test_the_physical_wrist_runs_apart_and_the_front_ends_name_it(agile: Profile,
+                                                                  tmp_path: Path) -> None:
+    """Even a session that would host ideal servos in its own process (scripts) starts the
+    physical wrist in a process of its own."""
     physical = agile.model_copy(update={"plant": Plant(model="physical")})
-    assert Session(physical, sim=True, logs_root=tmp_path).bus_label == \
-        "emulated bus (physical wrist)"
+    session = Session(physical, sim=True, logs_root=tmp_path)
+    assert session.bus_label == "emulated bus (physical wrist)"
     assert Session(agile, sim=True, logs_root=tmp_path).bus_label == "emulated bus"
+    session.connect()
+    try:
+        assert isinstance(session.emulator, EmulatorChild)
+        assert np.allclose(session.theta_deg, agile.home.theta_deg, atol=0.1)  # type: ignore[arg-type]
+    finally:
+        session.close()

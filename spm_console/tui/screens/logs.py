@@ -167,7 +167,6 @@ class LogsScreen(StepScreen):
         self.action_reload()
 
     def action_reload(self) -> None:
-
         table = self.query_one("#runs", DataTable)
         table.clear()
         self._listed.clear()
