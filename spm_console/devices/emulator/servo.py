@@ -1,4 +1,5 @@
-"""One emulated MX-106: control-table memory and the closed-loop model (27).
+"""One emulated MX-106: control-table memory and the closed-loop model (27), or its joint of
+the physical wrist (:mod:`spm_console.devices.emulator.physical`) when it has one.
 
 Position in ticks follows θ̈ = p²(θ* − θ) − 2p θ̇ (double pole at −p) with the Goal
 Position θ* held constant between writes (zero-order hold), integrated exactly
@@ -148,7 +149,10 @@ class EmulatedServo:
     def _command(self) -> None:
         """Hand the goal and the drive's state to the physical wrist (when there is one)."""
         if self.joint is not None:
-            self.joint.command(float(self.get("goal_position")), self.moving_freely, self.stalled)
+            # a blocked shaft still feels its drive (and overloads it); torque off or a
+            # hardware error leave the drive off
+            drive_on = self.torque and not self.hw_error
+            self.joint.command(float(self.get("goal_position")), drive_on, self.stalled)
 
     def present_ticks(self) -> int:
         noise = self.rng.normal(0.0, self.noise_ticks) if self.noise_ticks > 0 else 0.0

@@ -10,7 +10,11 @@ import pytest
 from spm_console.config.load import load_profile
 from spm_console.config.models import model_of
 from spm_console.config.schema import Plant
+from spm_console.devices.dynamixel.control_table import table_for
+from spm_console.devices.dynamixel.tick_map import joint_maps
 from spm_console.devices.emulator.physical import PWM_FULL, Drive, PhysicalWrist
+from spm_console.devices.emulator.plant_joint import PlantJoint
+from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
 from spm_console.devices.emulator.wrist_mjcf import plant_params
 from tests.support.paths import ROOT
 
@@ -133,3 +137,28 @@ def test_a_drive_straining_against_a_blocked_shaft_overloads_after_a_second(
     wrist.command(1, float(m.theta_home[1]), False, True)  # torque off (the shutdown) ...
     wrist.command(1, float(m.theta_home[1]), True, True)  # ... and on again: strain anew
     assert not wrist.overloaded(1)
+
+
+def test_an_emulated_servo_stalled_on_the_physical_wrist_shuts_down_overloaded() -> None:
+    """The servo's stall fault blocks its shaft; its drive strains at full duty against it and
+    the firmware latches Overload (Hardware Error Status bit 5) and switches torque off."""
+    profile = load_profile(ROOT / "profiles" / "agile_wrist.toml")
+    m = model_of(profile)
+    wrist = PhysicalWrist(m, P)
+    wrist.set_theta(m.theta_home)
+    maps = joint_maps(profile)
+    table = table_for(profile.bus.protocol)
+    servos = [EmulatedServo(table, mp.id, profile.servo.p, mp.to_ticks(135.0), 0.0,
+                            joint=PlantJoint(wrist, i, mp)) for i, mp in enumerate(maps)]
+    for s in servos:
+        s.write(table["torque_enable"].address, bytes([1]))
+    blocked = servos[1]
+    blocked.stall()
+    goal = round(maps[1].to_ticks(155.0))
+    reg = table["goal_position"]
+    assert blocked.write(reg.address, reg.encode(goal)) == 0
+    blocked.advance(0.8)
+    assert blocked.torque and not blocked.hw_error
+    blocked.advance(1.5)
+    assert blocked.hw_error & OVERLOAD and not blocked.torque
+    assert not servos[0].hw_error  # the others drive on
