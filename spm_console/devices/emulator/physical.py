@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from spm_console.config.schema import Plant
 from spm_console.core.kinematics.model import SpmModel
+from spm_console.devices.dynamixel.control_table import table_for
 from spm_console.devices.emulator.wrist_mjcf import PlantParams, plant_params, wrist_mjcf
 
 F = NDArray[np.float64]
@@ -40,14 +41,23 @@ BLOCK_STIFFNESS = 2000.0
 BLOCK_DAMPING = 20.0
 
 
-@dataclass
+@dataclass(frozen=True)
 class DriveGains:
-    """Control-table values of one servo's position loop (raw register values)."""
+    """Control-table values of one servo's position loop (raw register values: Position
+    P/I/D Gain, PWM Limit)."""
 
-    p: int = 850
-    i: int = 0
-    d: int = 0
-    pwm_limit: int = 885
+    p: int
+    i: int
+    d: int
+    pwm_limit: int
+
+    @classmethod
+    def power_on(cls) -> DriveGains:
+        """The Protocol 2.0 firmware's values at power-on (its control table's initial values);
+        also the loop of a servo on the 1.0 firmware, whose gains are not modelled."""
+        t = table_for("2.0")
+        return cls(*(int(t[name].initial or 0) for name in
+                     ("position_p_gain", "position_i_gain", "position_d_gain", "pwm_limit")))
 
 
 @dataclass
@@ -56,7 +66,7 @@ class Drive:
 
     params: PlantParams
     ticks_per_rad: float
-    gains: DriveGains = field(default_factory=DriveGains)
+    gains: DriveGains = field(default_factory=DriveGains.power_on)
     integral: float = 0.0
     last_error: float = 0.0
     pwm: float = 0.0
@@ -118,9 +128,13 @@ class PhysicalWrist:
         """Whether joint ``index``'s drive has strained long enough to shut down."""
         return bool(self.strain_s[index] >= OVERLOAD_S)
 
-    def command(self, index: int, goal_rad: float, enabled: bool, blocked: bool) -> None:
-        """One servo's goal (rad), torque on/off and whether its shaft is blocked."""
+    def command(self, index: int, goal_rad: float, enabled: bool, blocked: bool,
+                gains: DriveGains | None = None) -> None:
+        """One servo's goal (rad), torque on/off, whether its shaft is blocked and the gains
+        of its position loop (None: unchanged)."""
         self.goal[index] = goal_rad
+        if gains is not None:
+            self.drives[index].gains = gains
         if enabled and not self.enabled[index]:
             self.drives[index].reset()
             self.strain_s[index] = 0.0

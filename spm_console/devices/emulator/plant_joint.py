@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 from spm_console.devices.dynamixel.tick_map import JointMap
 
 if TYPE_CHECKING:  # the physical wrist loads MuJoCo: only an emulator that runs one needs it
-    from spm_console.devices.emulator.physical import PhysicalWrist
+    from spm_console.devices.emulator.physical import DriveGains, PhysicalWrist
 
 #: Present Current's unit on the MX-106 (Protocol 2.0), A.
 CURRENT_UNIT_A = 0.00336
@@ -27,8 +27,10 @@ class PlantJoint:
         self.index = index
         self.map = tick_map
 
-    def command(self, goal_ticks: float, enabled: bool, blocked: bool) -> None:
-        self.wrist.command(self.index, math.radians(self.map.to_deg(goal_ticks)), enabled, blocked)
+    def command(self, goal_ticks: float, enabled: bool, blocked: bool,
+                gains: DriveGains | None = None) -> None:
+        self.wrist.command(self.index, math.radians(self.map.to_deg(goal_ticks)), enabled, blocked,
+                           gains)
 
     def follow(self, t: float) -> tuple[float, float]:
         """Step the wrist to ``t`` (s); (position in ticks, velocity in ticks/s) of this joint."""

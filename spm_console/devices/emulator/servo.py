@@ -12,12 +12,16 @@ the shaft. Protocol-independent: the dispatch modules turn packets into
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from spm_console.devices.dynamixel.control_table import ControlTable
 from spm_console.devices.dynamixel.protocol2 import ErrorNumber
 from spm_console.devices.emulator.plant_joint import PlantJoint
+
+if TYPE_CHECKING:  # the physical wrist loads MuJoCo: only a servo on it needs its types
+    from spm_console.devices.emulator.physical import DriveGains
 
 #: Hardware Error Status bit 5 (overload) — what a stalled, overloaded servo reports.
 OVERLOAD = 0x20
@@ -152,7 +156,18 @@ class EmulatedServo:
             # a blocked shaft still feels its drive (and overloads it); torque off or a
             # hardware error leave the drive off
             drive_on = self.torque and not self.hw_error
-            self.joint.command(float(self.get("goal_position")), drive_on, self.stalled)
+            self.joint.command(float(self.get("goal_position")), drive_on, self.stalled,
+                               self._gains())
+
+    def _gains(self) -> DriveGains | None:
+        """The position loop's gains as the driver wrote them (Protocol 2.0 registers); None on
+        the 1.0 firmware (the physical wrist keeps its power-on loop)."""
+        if "position_p_gain" not in self.table.registers:
+            return None
+        from spm_console.devices.emulator.physical import DriveGains  # loads MuJoCo
+
+        return DriveGains(self.get("position_p_gain"), self.get("position_i_gain"),
+                          self.get("position_d_gain"), self.get("pwm_limit"))
 
     def present_ticks(self) -> int:
         noise = self.rng.normal(0.0, self.noise_ticks) if self.noise_ticks > 0 else 0.0
@@ -241,5 +256,6 @@ class EmulatedServo:
         if name == "torque_enable" and bool(value) != self.torque and self.joint is None:
             self.vel = 0.0
         self._set(name, value)
-        if name in ("goal_position", "torque_enable"):
+        if name in ("goal_position", "torque_enable", "position_p_gain", "position_i_gain",
+                    "position_d_gain", "pwm_limit"):
             self._command()

@@ -162,3 +162,20 @@ def test_an_emulated_servo_stalled_on_the_physical_wrist_shuts_down_overloaded()
     blocked.advance(1.5)
     assert blocked.hw_error & OVERLOAD and not blocked.torque
     assert not servos[0].hw_error  # the others drive on
+
+
+def test_the_drive_uses_the_gains_the_driver_wrote() -> None:
+    """Position P Gain halved through the control table: half the duty for the same error."""
+    profile = load_profile(ROOT / "profiles" / "agile_wrist.toml")
+    m = model_of(profile)
+    wrist = PhysicalWrist(m, P)
+    wrist.set_theta(m.theta_home)
+    maps = joint_maps(profile)
+    table = table_for(profile.bus.protocol)
+    servo = EmulatedServo(table, maps[0].id, profile.servo.p, maps[0].to_ticks(135.0), 0.0,
+                          joint=PlantJoint(wrist, 0, maps[0]))
+    assert wrist.drives[0].gains.p == table["position_p_gain"].initial == 850
+    reg = table["position_p_gain"]
+    assert servo.write(reg.address, reg.encode(425)) == 0
+    assert wrist.drives[0].gains.p == 425
+    assert wrist.drives[0].duty(10.0, 0.0) == pytest.approx(425 / 128 * 10 / PWM_FULL)
