@@ -309,3 +309,30 @@ def test_any_single_mutation_loads_or_raises_profile_error(where: tuple[str | in
             assert exc.exit_code == ExitCode.PROFILE_ERROR
             return
     assert prof.name == "agile_wrist"
+
+
+@pytest.mark.parametrize(("key", "value", "words"), [
+    ("armature_kgm2", -0.026, "greater than 0"),
+    ("armature_kgm2", math.nan, "finite"),
+    ("link_mass_kg", math.inf, "finite"),
+    ("resistance_ohm", 1e300, "less than or equal"),
+    ("coulomb_nm", "0.1", "valid number"),
+    ("model", "rubber", "'ideal' or 'physical'"),
+])
+def test_a_bad_plant_is_refused_naming_its_key(key: str, value: object, words: str) -> None:
+    """[plant] figures are physics: a negative or NaN inertia, a mass of inf, a string for a
+    number or an unknown model is refused at load with exit 3, naming plant.<key>."""
+    doc = agile_doc()
+    doc["plant"] = {"model": "physical", key: value}
+    bad = parse_doc(doc)
+    assert bad is not None and f"plant.{key}" in bad.message and words in bad.message, \
+        bad.message if bad else None
+    assert bad.exit_code == ExitCode.PROFILE_ERROR
+
+
+def parse_doc(doc: dict[str, Any]) -> ProfileError | None:
+    try:
+        parse_profile(doc, "profile")
+    except ProfileError as exc:
+        return exc
+    return None
