@@ -4,8 +4,6 @@ with SPACE (exit 20)."""
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
 from spm_console.motion.logs.runlog import list_runs
