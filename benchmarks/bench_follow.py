@@ -170,7 +170,7 @@ def run() -> list[Row]:
                     f"{_cost(pv_states, targets, w) / off_cost:.3f}; solve p50 {pv50:.2f} ms, p99 "
                     f"{pv99:.2f} ms, max {pvmx:.2f} ms"))
     inside = region.contains(states[:, :, 0], tol=1e-9)
-    _, cont = simulate_continuous(model.p, ts, states[0], np.vstack([refs, refs[-1:]]), 10)
+    _, cont = simulate_continuous(model.dynamics, ts, states[0], np.vstack([refs, refs[-1:]]), 10)
     between = int((~region.contains(cont[:, :, 0], tol=1e-9)).sum())
     rows.append(Row("follow: samples outside P", float((~inside).sum()), "", "0", None,
                     bool((~inside).sum() == 0),

@@ -25,14 +25,13 @@ import numpy as np
 
 from benchmarks.common import Row
 from spm_console.config.load import load_profile
-from spm_console.config.models import servo_limits_deg
+from spm_console.config.models import servo_limits_deg, servo_model_of
 from spm_console.config.schema import Plant, Profile
 from spm_console.core.plan import Plan
 from spm_console.core.planning.mintime import solve_mintime
 from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.choice import choose_region, region_containing
-from spm_console.core.servo.model import discretize
 from spm_console.devices.dynamixel.bus import open_bus
 from spm_console.devices.emulator.child import EmulatorChild
 from spm_console.errors import SpmError
@@ -110,7 +109,7 @@ def _refused(name: str, exc: SpmError) -> list[Row]:
 def run() -> list[Row]:
     agile = load_profile("profiles/agile_wrist.toml")
     ws, _ = load_or_build(agile)
-    sm = discretize(agile.servo.p, agile.servo.ts_s, agile.servo.discretization)
+    sm = servo_model_of(agile)
     rows: list[Row] = []
     start, goal = np.array(pv.MVN_START_DEG), np.array(pv.MVN_GOAL_DEG)
     region = region_containing(ws, start, goal)

@@ -18,7 +18,7 @@ from spm_console.core.kinematics.geometry import SpmGeometry
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.modes import home_model
-from spm_console.core.servo.model import ServoModel, discretize
+from spm_console.core.servo.model import Dynamics, ServoModel, discretize
 from spm_console.core.workspace.data import GridSpec, Progress, Workspace
 from spm_console.core.workspace.rowmap import serial
 from spm_console.core.workspace_build import build_workspace as _build_workspace
@@ -50,9 +50,10 @@ def link_model_of(profile: Profile) -> LinkModel:
 
 
 def servo_model_of(profile: Profile) -> ServoModel:
-    """The discretized servo model (28) of a profile (its p, Ts and discretization)."""
+    """The discretized servo model (28) of a profile (its p or ωn, ζ, delay, Ts and
+    discretization)."""
     s = profile.servo
-    return discretize(s.p, s.ts_s, s.discretization)
+    return discretize(Dynamics(s.p, s.zeta, s.delay_s), s.ts_s, s.discretization)
 
 
 def servo_limits_deg(profile: Profile) -> tuple[F, F]:

@@ -156,18 +156,58 @@ class WorkspaceGrid(_Section):
         return [self.theta_min_deg + k * self.step_deg for k in range(n + 1)]
 
 
+class Identified(_Section):
+    """Where an identified ``[servo]`` model came from (``identify`` writes it)."""
+
+    date: str = Field(max_length=64)
+    """When it was fitted (ISO 8601, UTC)."""
+    source: str = Field(max_length=500)
+    """What it was fitted to: the experiment's run folder, a run or a CSV file."""
+    samples: Count = Field(ge=0, le=10_000_000)
+    """Samples fitted (all joints)."""
+    fit_rms_deg: Real = Field(ge=0.0, le=360.0)
+    """RMS of model − measurement on the fitted samples, deg."""
+    held_out_rms_deg: Real | None = Field(default=None, ge=0.0, le=360.0)
+    """RMS of model − measurement on held-out samples, deg (None: none held out)."""
+    held_out_max_deg: Real | None = Field(default=None, ge=0.0, le=360.0)
+    """Largest |model − measurement| on held-out samples, deg."""
+
+
 class Servo(_Section):
-    """Closed-loop servo model, eq. (27)-(28)."""
+    """Closed-loop servo model, eq. (27)-(28), or an identified one with the same state."""
 
     p: Real = Field(gt=0.0, le=1000.0)
-    """Double real closed-loop pole at −p, rad/s, 0 < p ≤ 1000, with 1e-3 ≤ p·Ts ≤ 20: below,
-    settling takes over 10,000 samples (homing plans hold ⌈10/(p·Ts)⌉ samples); above, the
-    sampled model (28) settles within e^−20 in one sample and has no dynamics left."""
+    """Natural frequency ωn, rad/s: with ``zeta = 1`` the double real closed-loop pole at −p
+    of (27). 0 < p ≤ 1000, with 1e-3 ≤ p·Ts ≤ 20: below, settling takes over 10,000 samples
+    (homing plans hold ⌈10/(p·Ts)⌉ samples); above, the sampled model (28) settles within
+    e^−20 in one sample and has no dynamics left."""
     ts_s: Real = Field(ge=0.001, le=1.0)
     """Sampling (reference update) interval Ts, s, 1 ms ≤ Ts ≤ 1 s (one bus cycle of three
     servos needs about a millisecond)."""
     discretization: Literal["zoh", "tustin"] = "zoh"
     """Discretization of (27): exact sampling (zoh) or Tustin."""
+    zeta: Real = Field(default=1.0, ge=0.2, le=5.0)
+    """Damping ratio ζ, 0.2..5: 1 is the paper's (27); an identified servo may be under- or
+    overdamped. Below 0.2 a servo rings for tens of periods and is not a position servo to
+    plan for; above 5 one pole is twenty-five times slower than ωn."""
+    delay_s: Real = Field(default=0.0, ge=0.0, le=1.0)
+    """Transport delay, s, 0 ≤ delay < Ts: the reference sent at t acts from t + delay."""
+    linear_range_deg: Real | None = Field(default=None, gt=0.0, le=180.0)
+    """Largest |θ* − θ| at which the servo still follows the model, deg (its drive saturates
+    beyond). Plans keep every joint within it; none: unbounded, as in the paper."""
+    residual_bound_deg: Real | None = Field(default=None, gt=0.0, le=10.0)
+    """Largest |model − measurement| seen on held-out data, deg: plans stay this far inside
+    the certified set (a tube) and a run whose model error exceeds it is reported as a model
+    that looks wrong; none: not known (the paper's exact model)."""
+    identified: Identified | None = None
+    """Provenance of an identified model; none for a model typed in."""
+
+    @model_validator(mode="after")
+    def _delay(self) -> Servo:
+        if self.delay_s >= self.ts_s:
+            raise ValueError(f"servo.delay_s = {self.delay_s} s must be below servo.ts_s = "
+                             f"{self.ts_s} s (a delay of a period or more is not modelled)")
+        return self
 
 
 class Limits(_Section):

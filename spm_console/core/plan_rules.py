@@ -33,7 +33,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.servo.model import simulate_continuous
+from spm_console.core.servo.model import Pole, simulate_continuous
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
@@ -162,11 +162,11 @@ def _speed(rule: Rule, speed: F, cap: F) -> Violation | None:
     return Violation(rule, k, i, float(speed[k, i]), float(cap[i]))
 
 
-def check_motion(p: float, ts: float, x0: F, references_deg: F, lo_deg: F, hi_deg: F,
+def check_motion(p: Pole, ts: float, x0: F, references_deg: F, lo_deg: F, hi_deg: F,
                  vmax_degps: float, certified: Membership | None, *,
                  rules: Rules = EXECUTE_RULES, previous_reference_deg: F | None = None,
                  hold_samples: int = 0, speed_floor_degps: F | None = None) -> MotionCheck:
-    """Check the motion of (27) with pole ``p`` (rad/s) and period ``ts`` (s) from state
+    """Check the motion of (27) with pole ``p`` (rad/s; or ωn, ζ as :class:`Dynamics`) and period ``ts`` (s) from state
     ``x0`` ((3, 2): θ deg, θ̇ deg/s) under ``references_deg`` ((N+1, 3)) against the rules
     (module docstring).
 

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.models import link_model_of, model_of, servo_limits_deg
+from spm_console.config.models import link_model_of, model_of, servo_limits_deg, servo_model_of
 from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.plan_rules import (
@@ -134,7 +134,7 @@ class PlanVerifier:
             raise self._refuse(seg, f"sampled at Ts = {plan.Ts} s but the servos run at Ts = {ts} s")
         line = seg.phase in LINE_PHASES
         x0 = np.column_stack([ref[0], np.zeros(3)])
-        check = check_motion(self.profile.servo.p, ts, x0, ref, self.lo, self.hi, self.vmax,
+        check = check_motion(servo_model_of(self.profile).dynamics, ts, x0, ref, self.lo, self.hi, self.vmax,
                              None if line else self.certified,
                              hold_samples=settle_samples(self.profile))
         if check.violation is not None:

@@ -32,8 +32,10 @@ def limits_region(profile: Profile) -> Region:
 
 
 def settle_samples(profile: Profile) -> int:
-    """Samples to hold the final reference: 10/p s, when (27)'s lag is below 1e-3 of a step."""
-    return max(1, math.ceil(10.0 / profile.servo.p / profile.servo.ts_s))
+    """Samples to hold the final reference: 10/p s, when (27)'s lag is below 1e-3 of a step
+    (10 over the slowest mode's decay rate for an identified model), plus its delay."""
+    m = servo_model_of(profile)
+    return max(1, math.ceil((10.0 / m.dynamics.slowest_rate + m.delay_s) / m.ts))
 
 
 def plan_from_references(
@@ -64,9 +66,10 @@ def plan_from_references(
 
 def quantization_speed_margin(profile: Profile) -> float:
     """Speed (deg/s) one tick of goal quantization can add: a 1-tick step into (27) peaks
-    at tick·p/e in velocity (the double pole's step response, at t = 1/p)."""
+    at tick·p/e in velocity (the double pole's step response, at t = 1/p; an identified
+    model's own peak)."""
     tick = 360.0 / profile.bus.ticks_per_turn
-    return tick * profile.servo.p / math.e
+    return tick * servo_model_of(profile).dynamics.step_peak_speed()
 
 
 def line_plan(profile: Profile, start_deg: F, goal_deg: F, speed_degps: float,
@@ -76,7 +79,8 @@ def line_plan(profile: Profile, start_deg: F, goal_deg: F, speed_degps: float,
 
     References ramp at constant speed (all joints arrive together), then hold the
     goal for :func:`settle_samples`. The model (27) is critically damped, so its
-    speed under a ramp rises monotonically to the ramp speed and never exceeds it;
+    speed under a ramp rises monotonically to the ramp speed and never exceeds it (an
+    underdamped model overshoots it by its step overshoot: the ramp is that much slower);
     the ramp runs :func:`quantization_speed_margin` below the bound because the
     servos receive whole ticks, not the exact ramp.
     """
@@ -85,6 +89,7 @@ def line_plan(profile: Profile, start_deg: F, goal_deg: F, speed_degps: float,
     ts = profile.servo.ts_s
     margin = quantization_speed_margin(profile)
     ramp = speed_degps - margin if speed_degps > 2 * margin else speed_degps / 2
+    ramp /= 1.0 + servo_model_of(profile).dynamics.overshoot()
     dist = float(np.abs(b - a).max())
     n_move = max(1, math.ceil(dist / ramp / ts))
     s = np.minimum(np.arange(n_move + 1 + settle_samples(profile)) / n_move, 1.0)

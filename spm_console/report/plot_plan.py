@@ -28,7 +28,7 @@ def plot_plan(plan: Plan, path: str | Path, measured_deg: F | None = None,
     ts = plan.Ts
     t = np.arange(n + 1) * ts
     x0 = np.column_stack([plan.position_deg[0], plan.velocity_degps[0]])
-    cont = simulate_continuous(plan.model.p, ts, x0, plan.reference_deg, 10)
+    cont = simulate_continuous(plan.model.dynamics, ts, x0, plan.reference_deg, 10)
     vmax = plan.options.vmax_degps if plan.options is not None else None
     fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
     for i in range(3):

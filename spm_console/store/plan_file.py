@@ -99,10 +99,13 @@ def check_plan(plan: Plan, profile: Profile, src: str = "plan") -> None:
     if not math.isclose(plan.Ts, sv.ts_s, rel_tol=0, abs_tol=1e-12):
         raise PlanMismatchError(f"{src}: Ts = {plan.Ts} s but the profile's Ts is {sv.ts_s} s")
     m = plan.model
-    if m.method != sv.discretization or not math.isclose(m.p, sv.p, rel_tol=1e-12):
+    if (m.method != sv.discretization or not math.isclose(m.p, sv.p, rel_tol=1e-12)
+            or not math.isclose(m.zeta, sv.zeta, rel_tol=1e-12)
+            or not math.isclose(m.delay_s, sv.delay_s, rel_tol=0, abs_tol=1e-12)):
         raise PlanMismatchError(
-            f"{src}: servo model p = {m.p}, {m.method} but the profile has "
-            f"p = {sv.p}, {sv.discretization}")
+            f"{src}: servo model p = {m.p}, ζ = {m.zeta}, delay {m.delay_s} s, {m.method} but "
+            f"the profile has p = {sv.p}, ζ = {sv.zeta}, delay {sv.delay_s} s, "
+            f"{sv.discretization}")
     ref_model = servo_model_of(profile)
     A = np.asarray(m.A, float).reshape(2, 2)  # shapes checked by plan_from_dict
     B = np.asarray(m.B, float).reshape(2)

@@ -134,7 +134,8 @@ def region_of(value: Any, where: str, error: type[SpmError] = PlanMismatchError)
 
 
 def _model(value: Any, src: str, ts: float) -> ServoModel:
-    """The servo model {A, B, p, discretization[, Ts]}; Ts, when present, is the plan's."""
+    """The servo model {A, B, p, discretization[, Ts][, zeta, delay_s]}; Ts, when present, is
+    the plan's; zeta and delay_s (an identified model) default to the paper's 1 and 0."""
     if not isinstance(value, dict) or not {"A", "B", "p", "discretization"} <= value.keys():
         raise PlanMismatchError(f"{src}: 'model' must be an object holding A, B, p and discretization")
     A = matrix(value["A"], f"{src}: model.A", 2, 2, min_rows=2)
@@ -150,7 +151,12 @@ def _model(value: Any, src: str, ts: float) -> ServoModel:
         mts = number(value, "Ts", f"{src}: model", positive=True)
         if not math.isclose(mts, ts, rel_tol=0, abs_tol=1e-12):
             raise PlanMismatchError(f"{src}: model.Ts = {mts:g} s but the plan's Ts is {ts:g} s")
-    return ServoModel(p=p, ts=ts, method=cast(Discretization, method), A=A, B=B)
+    zeta = number(value, "zeta", f"{src}: model", positive=True) if "zeta" in value else 1.0
+    delay = number(value, "delay_s", f"{src}: model") if "delay_s" in value else 0.0
+    if not 0.0 <= delay < ts:
+        raise PlanMismatchError(f"{src}: model.delay_s = {delay:g} s must lie in [0, Ts)")
+    return ServoModel(p=p, ts=ts, method=cast(Discretization, method), A=A, B=B, zeta=zeta,
+                      delay_s=delay)
 
 
 @dataclass(frozen=True)

@@ -79,7 +79,7 @@ def estimate_steps(problem: PlanProblem) -> int:
     """N ≈ (largest joint move / v_max + 2/p) / Ts (+1 with θ*(0) held)."""
     assert problem.vmax_degps is not None
     d = float(np.abs(problem.goal_deg - problem.start_deg).max())
-    t = d / problem.vmax_degps + 2.0 / problem.model.p
+    t = d / problem.vmax_degps + 2.0 / problem.model.dynamics.slowest_rate
     return max(2, math.ceil(t / problem.model.ts) + (1 if problem.hold_first else 0))
 
 
@@ -150,10 +150,10 @@ def check_horizon(model: ServoModel, start_deg: F, goal_deg: F, vmax_degps: floa
     check that needs no region and no workspace."""
     d = float(np.abs(np.asarray(goal_deg, float) - np.asarray(start_deg, float)).max())
     ts = model.ts
-    t = d / vmax_degps + 2.0 / model.p
+    t = d / vmax_degps + 2.0 / model.dynamics.slowest_rate
     if t / ts <= n_max:
         return
-    t_room = max(n_max * ts - 2.0 / model.p, ts)
+    t_room = max(n_max * ts - 2.0 / model.dynamics.slowest_rate, ts)
     raise InfeasibleError(
         f"no plan within N ≤ {n_max} steps ({n_max * ts:g} s): at v_max = "
         f"{vmax_degps:g} deg/s the largest joint move ({d:.4g}°) needs about "

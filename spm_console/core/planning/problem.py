@@ -156,4 +156,4 @@ class Layout:
 
 def sub_matrices(problem: PlanProblem) -> tuple[F, F]:
     """Exact ZOH matrices at the K−1 sub-sample instants (empty for K = 1)."""
-    return substeps(problem.model.p, problem.model.ts, problem.intersample)
+    return substeps(problem.model.dynamics, problem.model.ts, problem.intersample)

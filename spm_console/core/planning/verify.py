@@ -60,7 +60,7 @@ def check(problem: PlanProblem, reference: F, position: F | None = None,
     pts = problem.intersample * int(np.ceil(BETWEEN_POINTS / problem.intersample))
     x0 = np.column_stack([problem.start_deg, np.zeros(3)])
     known = np.stack([pos, vel], axis=-1) if problem.model.method == "zoh" else None
-    _, xs = simulate_continuous(problem.model.p, problem.model.ts, x0, reference, pts, known)
+    _, xs = simulate_continuous(problem.model.dynamics, problem.model.ts, x0, reference, pts, known)
     vb = float(np.abs(xs[..., 1]).max())
     # the continuous motion: point m lies in interval min(m // pts, N − 1)
     where = np.minimum(np.arange(len(xs)) // pts, N - 1)

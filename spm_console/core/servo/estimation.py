@@ -108,7 +108,7 @@ class KalmanVelocity:
         for dt, u in spans:
             if dt <= 0.0:
                 continue
-            Phi, Gam = exact_step(self.model.p, dt)
+            Phi, Gam = exact_step(self.model.dynamics, dt)
             u3 = np.asarray(u, float).reshape(3)
             for i, kf in enumerate(self.filters):
                 kf.predict(u=u3[i], B=Gam.reshape(2, 1), F=Phi, Q=self._q * (dt / self.model.ts))
@@ -169,6 +169,10 @@ class ModelPredictor:
         self.model = model
         self.x = np.zeros((2, 3))
         self.x[0] = np.asarray(theta0_deg, float).reshape(3)
+        self._acting = self.x[0].copy()
+        """The reference the servo acts on now (a delayed model): at rest, the start."""
+        self._pending: list[tuple[float, F]] = []
+        """References sent and not yet acting: (seconds until they act, θ*)."""
 
     @property
     def position_deg(self) -> F:
@@ -180,13 +184,34 @@ class ModelPredictor:
 
     def propagate(self, spans: Sequence[tuple[float, F]]) -> None:
         """Exact response of (27) through [(duration s, θ* held), …] (actual timing)."""
+        if self.model.delay_s > 0.0:
+            for dt, u in spans:
+                self._delayed(dt, u)
+            return
         for dt, u in spans:
             if dt > 0.0:
-                Phi, Gam = exact_step(self.model.p, dt)
+                Phi, Gam = exact_step(self.model.dynamics, dt)
                 self.x = Phi @ self.x + np.outer(Gam, np.asarray(u, float).reshape(3))
 
     def advance(self, reference_deg: F) -> None:
-        """x(k+1) = A x(k) + B θ*(k) for the three joints."""
+        """x(k+1) = A x(k) + B θ*(k) for the three joints (with a delay d: the reference
+        sent before acts for the first d of the period, this one for the rest)."""
+        if self.model.delay_s > 0.0:
+            self._delayed(self.model.ts, reference_deg)
+            return
         ref = np.asarray(reference_deg, float).reshape(3)
         self.x = self.model.A @ self.x + np.outer(self.model.B, ref)
+
+    def _delayed(self, dt: float, reference_deg: F) -> None:
+        """``reference_deg`` sent now, held ``dt`` s: it acts from d after now (exact)."""
+        self._pending.append((self.model.delay_s, np.asarray(reference_deg, float).reshape(3)))
+        left = dt
+        while left > 0.0:
+            while self._pending and self._pending[0][0] <= 0.0:
+                self._acting = self._pending.pop(0)[1]
+            step = min(left, self._pending[0][0]) if self._pending else left
+            Phi, Gam = exact_step(self.model.dynamics, step)
+            self.x = Phi @ self.x + np.outer(Gam, self._acting)
+            self._pending = [(w - step, u) for w, u in self._pending]
+            left -= step
 

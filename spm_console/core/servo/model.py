@@ -1,11 +1,17 @@
 """Closed-loop servo model (27) and its discretization (28).
 
 Continuous model per joint, state x = [θ, θ̇] (deg, deg/s), input θ* (deg):
-    ẋ = [[0, 1], [−p², −2p]] x + [0, p²] θ*,   double pole at −p (rad/s).
-Discretized with Ts in closed form: exact sampling (zero-order hold, the paper's
-Sec. V and our default) or Tustin (bilinear). python-control's ``c2d`` is the
+    ẋ = [[0, 1], [−ωn², −2ζωn]] x + [0, ωn²] θ*,
+with ζ = 1 the paper's (27), a double pole at −p (ωn = p, rad/s). An identified servo may
+be under- or overdamped (ζ ≠ 1) and see its reference a transport delay d later
+(:class:`Dynamics`). Discretized with Ts in closed form: exact sampling (zero-order hold,
+the paper's Sec. V and our default) or Tustin (bilinear). python-control's ``c2d`` is the
 independent cross-check in the tests; the core does not import it. Note: the paper's printed
 eq. (35) is the Tustin discretization with the poles at +p — unstable; never used.
+
+The delay does not enter (A, B): a plan starts at rest with its first reference held at the
+start (30b), so the delayed response is the undelayed one d later, on the same path. The
+runtime's model of what it will measure (:func:`delayed_spans`) applies it.
 """
 
 from __future__ import annotations
@@ -21,10 +27,57 @@ F = NDArray[np.float64]
 Discretization = Literal["zoh", "tustin"]
 
 
-def continuous(p: float) -> tuple[F, F]:
-    """(Ac, Bc) of (27) for pole −p (rad/s)."""
-    Ac = np.array([[0.0, 1.0], [-p * p, -2.0 * p]])
-    Bc = np.array([[0.0], [p * p]])
+@dataclass(frozen=True)
+class Dynamics:
+    """A joint's continuous closed-loop dynamics (unit DC gain)."""
+
+    wn: float
+    """Natural frequency ωn, rad/s (the paper's p when ζ = 1)."""
+    zeta: float = 1.0
+    """Damping ratio ζ > 0 (1: the paper's double pole)."""
+    delay_s: float = 0.0
+    """Transport delay d, s, 0 ≤ d < Ts: the reference sent at t acts from t + d."""
+
+    @property
+    def slowest_rate(self) -> float:
+        """Decay rate of the slowest mode, 1/s: ζωn up to ζ = 1 (p for (27)), the slow real
+        pole ωn(ζ − √(ζ² − 1)) above."""
+        z = self.zeta
+        return self.wn * (z if z <= 1.0 else z - float(np.sqrt(z * z - 1.0)))
+
+    def step_peak_speed(self) -> float:
+        """Largest speed of the response to a unit step of the reference, 1/s (deg/s per
+        deg): p/e for (27); for ζ < 1, ωn·e^{−ζφ/√(1−ζ²)} with φ = arccos ζ (at ω_d·t = φ)."""
+        z, w = self.zeta, self.wn
+        if z < 1.0:
+            r = float(np.sqrt(1.0 - z * z))
+            return w * float(np.exp(-z * float(np.arccos(z)) / r))
+        # ζ ≥ 1: real poles a ≤ b; the velocity peaks at ln(b/a)/(b − a) (1/p at ζ = 1)
+        t = np.linspace(0.0, 10.0 / self.slowest_rate, 20001)
+        _, g = exact_step_many(self, t)
+        return float(np.abs(g[:, 1]).max())
+
+    def overshoot(self) -> float:
+        """Fractional overshoot of the step response: e^{−πζ/√(1−ζ²)} below ζ = 1, else 0."""
+        z = self.zeta
+        return float(np.exp(-np.pi * z / np.sqrt(1.0 - z * z))) if z < 1.0 else 0.0
+
+
+Pole = float | Dynamics
+"""A bare p (rad/s) means the paper's (27): Dynamics(p)."""
+
+
+def dynamics(pole: Pole) -> Dynamics:
+    """``pole`` as :class:`Dynamics` (a float is the double pole at −p)."""
+    return pole if isinstance(pole, Dynamics) else Dynamics(float(pole))
+
+
+def continuous(pole: Pole) -> tuple[F, F]:
+    """(Ac, Bc) of (27) for pole −p (rad/s), or of ωn, ζ."""
+    d = dynamics(pole)
+    w, z = d.wn, d.zeta
+    Ac = np.array([[0.0, 1.0], [-w * w, -2.0 * z * w]])
+    Bc = np.array([[0.0], [w * w]])
     return Ac, Bc
 
 
@@ -33,7 +86,7 @@ class ServoModel:
     """Discrete model x(k+1) = A x(k) + B θ*(k) of one joint (28)."""
 
     p: float
-    """Closed-loop double pole at −p, rad/s."""
+    """Natural frequency ωn, rad/s: with ζ = 1 the closed-loop double pole at −p of (27)."""
     ts: float
     """Sampling interval, s."""
     method: Discretization
@@ -42,46 +95,86 @@ class ServoModel:
     """(2, 2) state matrix."""
     B: F
     """(2,) input vector."""
+    zeta: float = 1.0
+    """Damping ratio ζ (1: the paper's double pole)."""
+    delay_s: float = 0.0
+    """Transport delay d, s (0 ≤ d < Ts); not in (A, B), see the module's note."""
+
+    @property
+    def dynamics(self) -> Dynamics:
+        """The continuous model this was sampled from."""
+        return Dynamics(self.p, self.zeta, self.delay_s)
 
     def to_dict(self) -> dict[str, object]:
-        return {"A": self.A.tolist(), "B": self.B.tolist(), "p": self.p, "Ts": self.ts,
-                "discretization": self.method}
+        out: dict[str, object] = {"A": self.A.tolist(), "B": self.B.tolist(), "p": self.p,
+                                  "Ts": self.ts, "discretization": self.method}
+        if self.zeta != 1.0 or self.delay_s != 0.0:
+            out.update(zeta=self.zeta, delay_s=self.delay_s)
+        return out
 
 
-def discretize(p: float, ts: float, method: Discretization = "zoh") -> ServoModel:
+def discretize(pole: Pole, ts: float, method: Discretization = "zoh") -> ServoModel:
     """Discretize (27) in closed form: 'zoh' = :func:`exact_step` over Ts; 'tustin' =
     A = (I − Ts/2·Ac)⁻¹(I + Ts/2·Ac), B = (I − Ts/2·Ac)⁻¹ Bc·Ts (the bilinear map of the
     state equation, as python-control's ``c2d(method="bilinear")`` gives it)."""
+    d = dynamics(pole)
     if method == "tustin":
-        Ac, Bc = continuous(p)
+        Ac, Bc = continuous(d)
         M = np.eye(2) - 0.5 * ts * Ac
         A = np.asarray(np.linalg.solve(M, np.eye(2) + 0.5 * ts * Ac), float)
         B = np.asarray(np.linalg.solve(M, Bc * ts), float).reshape(2)
     else:
-        A, B = exact_step(p, ts)
-    return ServoModel(p=p, ts=ts, method=method, A=A, B=B)
+        A, B = exact_step(d, ts)
+    return ServoModel(p=d.wn, ts=ts, method=method, A=A, B=B, zeta=d.zeta, delay_s=d.delay_s)
 
 
-def exact_step(p: float, tau: float) -> tuple[F, F]:
+_SERIES_X = 1e-4
+"""Below this |ω_d·τ| the circular/hyperbolic terms use their series (no 0/0 near ζ = 1)."""
+
+
+def exact_step(pole: Pole, tau: float) -> tuple[F, F]:
     """Exact (ZOH) transition of (27) over ``tau`` seconds: x(t+τ) = Φ x(t) + Γ θ*.
 
-    Closed form for the double pole at −p: Φ = e^{−pτ} [[1+pτ, τ], [−p²τ, 1−pτ]],
-    Γ = [1 − e^{−pτ}(1+pτ), p²τ e^{−pτ}]. Returns (Φ (2, 2), Γ (2,)).
+    Closed form, σ = ζωn, λ = ωn²(ζ² − 1): Φ = e^{−στ} [c·I + s·(Ac + σI)] with
+    c = cos(ω_d τ), s = sin(ω_d τ)/ω_d, ω_d = √−λ when ζ < 1 (cosh, sinh and √λ when ζ > 1;
+    c = 1, s = τ when ζ = 1, where Φ = e^{−pτ} [[1+pτ, τ], [−p²τ, 1−pτ]]). The DC gain is 1,
+    so Γ = (I − Φ)·[1, 0]. Returns (Φ (2, 2), Γ (2,)).
     """
-    e = float(np.exp(-p * tau))
-    Phi = e * np.array([[1.0 + p * tau, tau], [-p * p * tau, 1.0 - p * tau]])
-    Gam = np.array([1.0 - e * (1.0 + p * tau), p * p * tau * e])
+    d = dynamics(pole)
+    w, z = d.wn, d.zeta
+    sigma = z * w
+    lam = w * w * (z * z - 1.0)
+    wd = float(np.sqrt(abs(lam)))
+    x = wd * tau
+    if x < _SERIES_X:
+        sgn = 1.0 if lam > 0 else -1.0  # cosh/sinh above ζ = 1, cos/sin below
+        c = 1.0 + sgn * x * x / 2.0
+        s = tau * (1.0 + sgn * x * x / 6.0)
+    elif lam < 0:
+        c, s = float(np.cos(x)), float(np.sin(x)) / wd
+    else:
+        c, s = float(np.cosh(x)), float(np.sinh(x)) / wd
+    e = float(np.exp(-sigma * tau))
+    Phi = e * np.array([[c + s * sigma, s], [-s * w * w, c + s * (sigma - 2.0 * sigma)]])
+    Gam = np.array([1.0 - Phi[0, 0], -Phi[1, 0]])
     return Phi, Gam
 
 
-def substeps(p: float, ts: float, k: int) -> tuple[F, F]:
+def exact_step_many(pole: Pole, taus: F) -> tuple[F, F]:
+    """:func:`exact_step` at every τ of ``taus`` (M,): (Φ (M, 2, 2), Γ (M, 2))."""
+    mats = [exact_step(pole, float(t)) for t in np.asarray(taus, float).reshape(-1)]
+    return (np.array([m[0] for m in mats]).reshape(-1, 2, 2),
+            np.array([m[1] for m in mats]).reshape(-1, 2))
+
+
+def substeps(pole: Pole, ts: float, k: int) -> tuple[F, F]:
     """Exact ZOH matrices at the sub-sample instants j·Ts/k, j = 1..k−1.
 
     Returns (Phis (k−1, 2, 2), Gams (k−1, 2)); empty for k = 1.
     """
     if k < 1:
         raise ValueError(f"sub-samples per interval must be ≥ 1, got {k}")
-    mats = [exact_step(p, j * ts / k) for j in range(1, k)]
+    mats = [exact_step(pole, j * ts / k) for j in range(1, k)]
     Phis = np.array([m[0] for m in mats]).reshape(k - 1, 2, 2)
     Gams = np.array([m[1] for m in mats]).reshape(k - 1, 2)
     return Phis, Gams
@@ -108,7 +201,7 @@ def simulate(model: ServoModel, x0: F, reference: F) -> F:
     return out
 
 
-def simulate_continuous(p: float, ts: float, x0: F, reference: F, points: int,
+def simulate_continuous(pole: Pole, ts: float, x0: F, reference: F, points: int,
                         samples: F | None = None) -> tuple[F, F]:
     """Exact continuous response of (27) under the piecewise-constant references.
 
@@ -119,12 +212,11 @@ def simulate_continuous(p: float, ts: float, x0: F, reference: F, points: int,
     ref = np.asarray(reference, float)
     n = ref.shape[0] - 1
     if samples is None:
-        Phi1, Gam1 = exact_step(p, ts)
-        exact = ServoModel(p=p, ts=ts, method="zoh", A=Phi1, B=Gam1)
+        exact = discretize(pole, ts, "zoh")
         xk = simulate(exact, x0, ref)  # (N+1, J, 2) at the samples
     else:
         xk = np.asarray(samples, float)
-    Phis, Gams = substeps(p, ts, points)
+    Phis, Gams = substeps(pole, ts, points)
     # inside interval k: x = Φ_j x(k) + Γ_j θ*(k); shapes (k, j, i, a)
     xa = xk[:n, None, :, None, :]  # (n, 1, J, 1, 2)
     inner = ((Phis[None, :, None, :, :] * xa).sum(-1)

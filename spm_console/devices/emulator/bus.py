@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.models import model_of
+from spm_console.config.models import model_of, servo_model_of
 from spm_console.config.schema import Profile
 from spm_console.devices.dynamixel import protocol1 as p1
 from spm_console.devices.dynamixel import protocol2 as p2
@@ -95,7 +95,7 @@ class EmulatorHandle:
         self.wrist = _physical_wrist(profile, theta0, now)
         """The rigid-body wrist the servos drive (``[plant] model = "physical"``), or None."""
         self.servos = [
-            EmulatedServo(table, m.id, profile.servo.p, m.to_ticks(theta0[i]), now,
+            EmulatedServo(table, m.id, servo_model_of(profile).dynamics, m.to_ticks(theta0[i]), now,
                           profile.emulator.noise_deg * tpd, rng, profile.bus.ticks_per_turn,
                           None if self.wrist is None else PlantJoint(self.wrist, i, m))
             for i, m in enumerate(self.maps)

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from spm_console.core.servo.model import Pole, dynamics, exact_step
 from spm_console.devices.dynamixel.control_table import ControlTable
 from spm_console.devices.dynamixel.protocol2 import ErrorNumber
 from spm_console.devices.emulator.plant_joint import PlantJoint
@@ -30,13 +31,15 @@ OVERLOAD = 0x20
 class EmulatedServo:
     """State and memory of one servo. Not thread-safe: the emulator holds a lock."""
 
-    def __init__(self, table: ControlTable, ident: int, p: float, position_ticks: float,
+    def __init__(self, table: ControlTable, ident: int, p: Pole, position_ticks: float,
                  t: float, noise_ticks: float = 0.0, rng: np.random.Generator | None = None,
                  ticks_per_turn: int = 4096, joint: PlantJoint | None = None) -> None:
         self.table = table
         self.joint = joint
         """The physical wrist's joint this servo drives (None: eq. (27) in closed form)."""
-        self.p = p
+        self.dynamics = dynamics(p)
+        """The closed-loop model the ideal servo is (eq. (27) for a bare p; its delay is not
+        emulated)."""
         self.noise_ticks = noise_ticks
         self.rng = rng or np.random.default_rng(0)
         self.ticks_per_turn = ticks_per_turn
@@ -96,7 +99,12 @@ class EmulatedServo:
             self.vel = 0.0
             return
         u = float(self.get("goal_position"))
-        p = self.p
+        if self.dynamics.zeta != 1.0:
+            Phi, Gam = exact_step(self.dynamics, dt)
+            self.pos, self.vel = (Phi[0, 0] * self.pos + Phi[0, 1] * self.vel + Gam[0] * u,
+                                  Phi[1, 0] * self.pos + Phi[1, 1] * self.vel + Gam[1] * u)
+            return
+        p = self.dynamics.wn
         z0, v0 = self.pos - u, self.vel
         c2 = v0 + p * z0
         e = math.exp(-p * dt)

@@ -280,7 +280,7 @@ class Follower(Executor):
         """The model state at the next deadline, from the Kalman estimate at the read instant
         under the reference just sent."""
         dt = self.ts - (read_offset_s if np.isfinite(read_offset_s) else 0.0)
-        Phi, Gam = exact_step(self.model.p, max(dt, 0.0))
+        Phi, Gam = exact_step(self.model.dynamics, max(dt, 0.0))
         th = Phi[0, 0] * theta + Phi[0, 1] * omega + Gam[0] * ref
         om = Phi[1, 0] * theta + Phi[1, 1] * omega + Gam[1] * ref
         return np.asarray(th, float), np.asarray(om, float)
@@ -297,7 +297,7 @@ class Follower(Executor):
         refs = np.vstack([res.reference_deg, res.reference_at(res.horizon)[None]])
         # a joint already faster than the bound (an estimate disturbed by a late read) only
         # needs a plan that does not make it faster: refusing every plan would keep the old one
-        return check_motion(self.model.p, self.ts, np.column_stack([theta, omega]), refs,
+        return check_motion(self.model.dynamics, self.ts, np.column_stack([theta, omega]), refs,
                             self.lo, self.hi, self.profile.limits.vmax_degps,
                             self.verifier.certified, rules=FOLLOW_RULES,
                             previous_reference_deg=prev_ref, speed_floor_degps=np.abs(omega))

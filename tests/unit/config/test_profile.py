@@ -336,3 +336,33 @@ def parse_doc(doc: dict[str, Any]) -> ProfileError | None:
     except ProfileError as exc:
         return exc
     return None
+
+
+@pytest.mark.parametrize(("key", "value", "words"), [
+    ("zeta", 0.1, "greater than or equal to 0.2"),
+    ("zeta", float("nan"), "finite"),
+    ("delay_s", 0.02, "below servo.ts_s"),
+    ("delay_s", -0.001, "greater than or equal to 0"),
+    ("linear_range_deg", 0.0, "greater than 0"),
+    ("residual_bound_deg", "0.1", "valid number"),
+])
+def test_a_bad_identified_servo_model_is_refused_naming_its_key(key: str, value: object,
+                                                                words: str) -> None:
+    doc = agile_doc()
+    doc["servo"] = {**doc["servo"], key: value}
+    bad = parse_doc(doc)
+    assert bad is not None and "servo" in bad.message and words in bad.message, \
+        bad.message if bad else None
+    assert bad.exit_code == ExitCode.PROFILE_ERROR
+
+
+def test_an_identified_servo_model_loads_and_a_p_alone_means_the_paper(agile) -> None:  # type: ignore[no-untyped-def]
+    assert (agile.servo.zeta, agile.servo.delay_s, agile.servo.linear_range_deg) == (1.0, 0.0, None)
+    doc = agile_doc()
+    doc["servo"] = {**doc["servo"], "p": 44.3, "zeta": 0.79, "delay_s": 0.001,
+                    "linear_range_deg": 9.5, "residual_bound_deg": 0.3,
+                    "identified": {"date": "2026-11-27T06:00:00Z", "source": "logs/x",
+                                   "samples": 1800, "fit_rms_deg": 0.05}}
+    prof = parse_profile(doc, "profile")
+    assert prof.servo.zeta == 0.79 and prof.servo.identified is not None
+    assert prof.digest() != agile.digest()
