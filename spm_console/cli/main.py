@@ -26,7 +26,7 @@ COMMANDS: dict[str, str] = {
     "emulate": "spm_console.cli.servo",
     "workspace": "spm_console.cli.workspace",
     "plan": "spm_console.cli.plan",
-    "identify": "spm_console.cli.plan",
+    "identify": "spm_console.cli.identify",
     "tui": "spm_console.cli.tui",
     "script": "spm_console.cli.script",
     "home": "spm_console.cli.run",

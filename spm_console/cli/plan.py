@@ -1,25 +1,18 @@
-"""``plan mvn``, ``plan mintime``, ``plan show`` and ``identify`` commands."""
+"""``plan mvn``, ``plan mintime`` and ``plan show`` commands."""
 
 from __future__ import annotations
 
 import argparse
-import csv
-import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
-import numpy as np
-
 from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output_file, profile_of
-from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.schema import Profile
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan import Plan, PlanSummary
 from spm_console.core.polytope.region import Region
-from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, identify
 from spm_console.core.workspace.data import Workspace
-from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, SolverError, SpmError
+from spm_console.errors import BadInputError, ExitCode, PlanRefusedError
 from spm_console.formatting import fmt_vec
 from spm_console.input_rules import (
     INTERSAMPLE,
@@ -31,19 +24,13 @@ from spm_console.input_rules import (
     theta_in_servo_limits,
     vmax_arg,
 )
-from spm_console.motion.logs.runlog import load_run
 from spm_console.motion.plan_check import verify_plan
-from spm_console.numbers import NotANumberError, parse_number
 from spm_console.report.plot_plan import plot_plan
-from spm_console.safe_io import MB, load_json, read_text
+from spm_console.safe_io import load_json
 from spm_console.services.plan_request import PlanRequest, plan_motion, precheck
 from spm_console.store.plan_file import MAX_PLAN_BYTES, load_plan, plan_to_dict, save_plan
 from spm_console.store.plan_schema import record_to_dict, region_of
 from spm_console.store.workspace_cache import load_or_build
-
-#: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
-MAX_CSV_BYTES = 20 * MB
-MAX_IDENTIFY_SAMPLES = 100_000
 
 
 def register(sub: Any) -> None:
@@ -71,16 +58,6 @@ def register(sub: Any) -> None:
     s.add_argument("file", type=Path, metavar="FILE")
     s.add_argument("--plot", type=Path, metavar="FILE.png", help="save a Figs. 7–10-like plot")
     s.set_defaults(func=cmd_show)
-
-    i = sub.add_parser("identify", help="fit the servo pole p (and a delay) to a logged response")
-    add_common(i)
-    src = i.add_mutually_exclusive_group(required=True)
-    src.add_argument("--run", metavar="RUN", help="an executed run (folder or name under the logs)")
-    src.add_argument("--csv", type=Path, metavar="FILE",
-                     help="CSV with a header: t, ref1[, ref2, ref3], meas1[, meas2, meas3]")
-    i.add_argument("--logs", type=Path, default=None, help="log root for --run")
-    i.add_argument("--delay", action="store_true", help="also fit a pure delay")
-    i.set_defaults(func=cmd_identify)
 
 
 def _problem_args(p: argparse.ArgumentParser) -> None:
@@ -234,106 +211,3 @@ def cmd_show(args: argparse.Namespace) -> int:
         f"\nstart {fmt_vec(s.start_deg, 2)} deg → goal {fmt_vec(s.goal_deg, 2)} deg\n{verdict}")
     emit(args, d, human)
     return int(ExitCode.OK if refused is None else refused.exit_code)
-
-
-Samples = tuple[np.ndarray, np.ndarray, np.ndarray, Callable[[int], str]]
-"""t, reference and measured of identify, and the name of sample k in messages."""
-
-
-def _cell(text: str) -> float:
-    """A CSV cell: a plain decimal number (:func:`~spm_console.numbers.parse_number`), or a
-    written NaN/inf, which the column checks refuse naming the column (a column not used may
-    hold them)."""
-    if text.strip().lower().lstrip("+-") in ("nan", "inf", "infinity"):
-        return float(text)
-    return parse_number(text)
-
-
-def _read_csv(path: Path) -> Samples:
-    """The samples of an identify CSV; a cell that is not a number, or a non-finite or
-    out-of-range value in a column used, is refused naming its line."""
-    text = read_text(path, "--csv", MAX_CSV_BYTES, BadInputError)
-    numbered = [(n, line) for n, line in enumerate(text.splitlines(), start=1)
-                if line.strip() and not line.startswith("#")]
-    if len(numbered) < 2:
-        raise BadInputError(f"{path}: expected a header line and data rows")
-    head = [h.strip() for h in next(csv.reader([numbered[0][1]]))]
-    lines = [n for n, _ in numbered[1:]]
-    values: list[list[float]] = []
-    for n, row in zip(lines, csv.reader(line for _, line in numbered[1:]), strict=True):
-        if len(row) != len(head):
-            raise BadInputError(f"{path}, line {n}: {len(row)} cells, the header has {len(head)}")
-        try:
-            values.append([_cell(c) for c in row])
-        except NotANumberError as exc:
-            raise BadInputError(f"{path}, line {n}: every data cell must be a number ({exc})") from None
-    data = np.array(values, float).reshape(len(values), len(head))
-    return _columns(dict(zip(head, data.T, strict=True)), str(path), lines)
-
-
-def _columns(cols: dict[str, np.ndarray], src: str, lines: list[int] | None = None) -> Samples:
-    """The samples (θ in deg) in named columns: t with ref1/meas1 (… ref3/meas3), or t, ref,
-    meas. ``lines`` are a CSV's line numbers of the rows: every value used must
-    be finite. Without them (a run log), a row whose measurement is missing (NaN: a lost
-    reply) is skipped. A non-finite value otherwise, an angle beyond ±ANGLE_MAX_DEG or a time
-    beyond ±CLOCK_MAX_S is refused naming the line (or the data row of a run log)."""
-    if "t" not in cols:
-        raise BadInputError(f"{src}: missing column 't'")
-    if len(cols["t"]) > MAX_IDENTIFY_SAMPLES:
-        raise BadInputError(f"{src}: {len(cols['t']):,} samples, more than the "
-                            f"{MAX_IDENTIFY_SAMPLES:,} identify fits; cut the log")
-    joints = [i for i in (1, 2, 3) if f"ref{i}" in cols and f"meas{i}" in cols]
-    if not joints and "ref" in cols and "meas" in cols:
-        rnames, mnames = ["ref"], ["meas"]
-    elif joints:
-        rnames, mnames = [f"ref{i}" for i in joints], [f"meas{i}" for i in joints]
-    else:
-        raise BadInputError(f"{src}: needs columns ref1/meas1 (… ref3/meas3) or ref/meas")
-    t = cols["t"]
-    ref = np.column_stack([cols[c] for c in rnames])
-    meas = np.column_stack([cols[c] for c in mnames])
-    keep = np.ones(t.size, bool) if lines is not None else ~np.isnan(meas).any(axis=1)
-
-    def where(k: int) -> str:
-        return f"line {lines[k]}" if lines is not None else f"data row {k + 1}"
-
-    for name, col, bound, unit in [("t", t, CLOCK_MAX_S, " s")] + [
-            (c, cols[c], ANGLE_MAX_DEG, "°") for c in rnames + mnames]:
-        bad = np.flatnonzero(keep & ~(np.abs(col) <= bound))
-        if bad.size:
-            k = int(bad[0])
-            why = "not finite" if not np.isfinite(col[k]) else f"outside ±{bound:g}{unit}"
-            raise BadInputError(f"{src}, {where(k)}: {name} = {col[k]:g} is {why}")
-    rows = np.flatnonzero(keep)  # sample k is row rows[k]
-    return t[keep], ref[keep], meas[keep], lambda k: where(int(rows[k]))
-
-
-def cmd_identify(args: argparse.Namespace) -> int:
-    profile = profile_of(args)
-    if args.csv is not None:
-        t, ref, meas, at = _read_csv(args.csv)
-        src = named = str(args.csv)
-    else:
-        run = load_run(args.run, args.logs)
-        src, named = str(run.path), str(run.path / "samples.csv")
-        t, ref, meas, at = _columns(dict(run.columns), named)
-    try:
-        res = identify(t, ref, meas, fit_delay=args.delay, at=at)
-    except SpmError as exc:  # the refusal names the file its sample numbers refer to
-        raise type(exc)(f"{named}: {exc.message}") from None
-    ts = profile.servo.ts_s
-    if not PTS_MIN <= res.p * ts <= PTS_MAX:
-        raise SolverError(
-            f"{src}: fitted p = {res.p:.4g} rad/s gives p·Ts = {res.p * ts:.4g} with the "
-            f"profile's Ts = {ts:g} s, outside the [{PTS_MIN:g}, {PTS_MAX:g}] a profile accepts "
-            "(servo.p), so this profile's model (28) cannot use it")
-    rec = res.to_dict()
-    rec.update({"source": src, "profile_p": profile.servo.p,
-                "relative_to_profile": res.p / profile.servo.p - 1.0})
-    human = (f"p = {res.p:.3f} ± {res.p_std:.3f} rad/s (profile {profile.servo.p:g}, "
-             f"{100 * (res.p / profile.servo.p - 1):+.1f} %)"
-             + (f", delay {1e3 * res.delay_s:.1f} ms" if res.fit_delay else "")
-             + f"; RMS residual {res.rms_deg:.4f} deg over {res.samples} samples × {res.joints} joints")
-    emit(args, rec, human)
-    sys.stdout.flush()
-    return int(ExitCode.OK)

@@ -54,13 +54,22 @@ def load_profile(path: str | Path = DEFAULT_PROFILE) -> Profile:
         reason = exc.reason.removeprefix("cannot read: ")
         raise ProfileError(f"{p}: cannot read profile: {reason}") from None
     try:
-        data = tomllib.loads(raw.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise ProfileError(f"{p}: not valid TOML: {exc}") from None
+    return parse_profile_text(text, str(p))
+
+
+def parse_profile_text(text: str, source: str) -> Profile:
+    """A profile's TOML text, validated as :func:`load_profile` validates a file."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProfileError(f"{source}: not valid TOML: {exc}") from None
     except RecursionError:
-        raise ProfileError(f"{p}: not a profile: values nested too deeply") from None
-    prof = parse_profile(data, str(p))
-    check_home_mode(prof, str(p))
+        raise ProfileError(f"{source}: not a profile: values nested too deeply") from None
+    prof = parse_profile(data, source)
+    check_home_mode(prof, source)
     return prof
 
 

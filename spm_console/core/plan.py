@@ -39,7 +39,7 @@ class PlanOptions:
 class Plan:
     """References θ*(k) and the model's predicted θ(k), θ̇(k), k = 0..N (deg, deg/s)."""
 
-    kind: Literal["mvn", "mintime", "synthetic", "homing", "jog"]
+    kind: Literal["mvn", "mintime", "synthetic", "homing", "jog", "experiment"]
     """What problem produced it."""
     Ts: float
     """Sampling interval, s."""

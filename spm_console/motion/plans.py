@@ -41,7 +41,7 @@ def settle_samples(profile: Profile) -> int:
 def plan_from_references(
     profile: Profile,
     reference_deg: F,
-    kind: Literal["synthetic", "homing", "jog"],
+    kind: Literal["synthetic", "homing", "jog", "experiment"],
     region: Region | None = None,
     notes: dict[str, float] | None = None,
 ) -> Plan:

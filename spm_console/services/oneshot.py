@@ -102,13 +102,13 @@ class _SignalStop:
                 f"interrupted by {self.pending.name} before any motion; nothing moved")
 
 
-def _context(profile: Profile, req: RunRequest) -> RunContext:
+def run_context(profile: Profile, req: RunRequest) -> RunContext:
     sim = req.sim or not (req.port or profile.bus.port)
     return RunContext(req.port or profile.bus.port or "", sim, tuple(str(f) for f in req.faults),
                       None if req.log_root is None else str(req.log_root))
 
 
-def _one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Session], T]) -> T:
+def one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Session], T]) -> T:
     dev = req.port or profile.bus.port
     sim = req.sim or not dev
     if not sim and (req.faults or req.sim_start_deg is not None):
@@ -129,12 +129,12 @@ def _one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Sess
                 if req.on_connected is not None:
                     req.on_connected(session)
             except SpmError as exc:
-                refused_run(profile, kind, _context(profile, req), exc)
+                refused_run(profile, kind, run_context(profile, req), exc)
                 raise
             try:
                 result = body(session)
             except InterruptedBySignalError as exc:  # refused before the runtime saw a request
-                refused_run(profile, kind, _context(profile, req), exc)
+                refused_run(profile, kind, run_context(profile, req), exc)
                 raise
             late = on_signal.pending is not None and not on_signal.stopped_motion
             if late and on_signal.pending is not None and req.on_late_signal is not None:
@@ -144,7 +144,7 @@ def _one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Sess
             session.close()
 
 
-def _home_first(session: Session, req: RunRequest) -> HomingResult | None:
+def home_first(session: Session, req: RunRequest) -> HomingResult | None:
     """Home the wrist unless the operator overrode it (``req.skip_homing``); the result."""
     if req.skip_homing:
         return None
@@ -158,7 +158,7 @@ def execute_once(profile: Profile, plan: Plan, req: RunRequest,
     """Home (unless overridden), then execute ``plan`` with an approach move when needed."""
 
     def body(session: Session) -> OneShotResult:
-        homing = _home_first(session, req)
+        homing = home_first(session, req)
         if homing is not None and not homing.execution.ok:
             return OneShotResult(homing.execution, homing)
         if not req.approach:  # the wrist must already be at the plan's start
@@ -167,13 +167,13 @@ def execute_once(profile: Profile, plan: Plan, req: RunRequest,
                 exc = BadInputError(
                     f"the wrist is at θ = {fmt_deg(theta0)}, not at the plan's "
                     f"start {fmt_deg(start)} (approach move disabled)")
-                refused_run(profile, "execute", _context(profile, req), exc)
+                refused_run(profile, "execute", run_context(profile, req), exc)
                 raise exc
         session.plan = plan
         result = session.execute(req.on_sample, skip_homing=req.skip_homing, source=source)
         return OneShotResult(result, homing)
 
-    return _one_shot(profile, "execute", req, body)
+    return one_shot(profile, "execute", req, body)
 
 
 def home_once(profile: Profile, req: RunRequest) -> HomingResult:
@@ -184,7 +184,7 @@ def home_once(profile: Profile, req: RunRequest) -> HomingResult:
         assert session.homing is not None
         return session.homing
 
-    return _one_shot(profile, "home", req, body)
+    return one_shot(profile, "home", req, body)
 
 
 def follow_once(profile: Profile, req: RunRequest, timed: TimedTargets | None = None,
@@ -197,7 +197,7 @@ def follow_once(profile: Profile, req: RunRequest, timed: TimedTargets | None = 
     wrist's position."""
 
     def body(session: Session) -> FollowOneShot:
-        homing = _home_first(session, req)
+        homing = home_first(session, req)
         if homing is not None and not homing.execution.ok:
             return FollowOneShot(None, homing)
         initial = None if timed is not None else session.read_position()
@@ -220,7 +220,7 @@ def follow_once(profile: Profile, req: RunRequest, timed: TimedTargets | None = 
                 done.set()
         return FollowOneShot(out, homing)
 
-    return _one_shot(profile, "follow", req, body)
+    return one_shot(profile, "follow", req, body)
 
 
 @dataclass(frozen=True)

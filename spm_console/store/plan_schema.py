@@ -39,7 +39,7 @@ F = NDArray[np.float64]
 
 FORMAT = "spm_console.plan"
 VERSION = 1
-KINDS = ("mvn", "mintime", "synthetic", "homing", "jog")
+KINDS = ("mvn", "mintime", "synthetic", "homing", "jog", "experiment")
 #: Largest N a plan file may hold (2000 s at Ts = 20 ms).
 MAX_PLAN_STEPS = 100_000
 #: Most half-spaces a region read from a file may have.

@@ -262,10 +262,10 @@ def test_row_counts_are_capped(tmp_path: Path, capsys: pytest.CaptureFixture[str
                                monkeypatch: pytest.MonkeyPatch) -> None:
     """fk --theta-file and identify --csv refuse more rows than their documented caps."""
     import spm_console.cli.kin as kin
-    import spm_console.cli.plan as cli_plan
+    import spm_console.cli.identify as cli_identify
 
     monkeypatch.setattr(kin, "MAX_THETA_ROWS", 3)
-    monkeypatch.setattr(cli_plan, "MAX_IDENTIFY_SAMPLES", 3)
+    monkeypatch.setattr(cli_identify, "MAX_IDENTIFY_SAMPLES", 3)
     thetas = tmp_path / "thetas.csv"
     thetas.write_text("t1,t2,t3\n" + "100,100,100\n" * 4)
     assert main(["fk", "--theta-file", str(thetas)]) == B

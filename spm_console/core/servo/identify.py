@@ -1,4 +1,6 @@
-"""Identification of the closed-loop servo model (27): fit p (and a pure delay) by least squares.
+"""Identification of the closed-loop servo model (27): fit p (and a pure delay) by least squares;
+with ``fit_damping``, the natural frequency ωn (reported as p) and the damping ratio ζ of the
+identified structure (:class:`~spm_console.core.servo.model.Dynamics`).
 
 Data: sample instants t (s), the reference θ*(t_k) (deg) applied from t_k until the
 next sample (zero-order hold, as the executor streams it), and the measured
@@ -30,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
-from spm_console.core.servo.model import exact_step
+from spm_console.core.servo.model import Dynamics, Pole, dynamics, exact_coeffs
 from spm_console.errors import BadInputError, SolverError
 
 F = NDArray[np.float64]
@@ -67,6 +69,10 @@ MIN_DOUBLING_DEG = 0.1
 """Least change of the fitted response (27) at some sample when p is doubled, deg (just
 over one 0.088° encoder tick): samples that cannot tell p from 2p (a response settled
 at every sample) show only that p is large, not its value."""
+ZETA_BOUNDS = (0.2, 5.0)
+"""Search range of the damping ratio ζ (a profile's ``servo.zeta`` range)."""
+ZETA_GRID = (0.5, 0.8, 1.0, 1.5)
+"""Damping ratios of the coarse grid the fit starts from."""
 BOUND_REL_TOL = 1e-3
 """A fitted p within this fraction of an end of P_BOUNDS (or a delay within it of
 DELAY_MAX_S) is on the bound: the optimum lies outside the search range."""
@@ -77,7 +83,7 @@ class IdentifyResult:
     """A fitted servo model."""
 
     p: float
-    """Double closed-loop pole at −p, rad/s."""
+    """Double closed-loop pole at −p, rad/s (with a fitted ζ: the natural frequency ωn)."""
     delay_s: float
     """Pure delay, s (0 when not fitted)."""
     theta0_deg: F
@@ -94,6 +100,16 @@ class IdentifyResult:
     seconds: float
     status: str
     """least_squares' message."""
+    zeta: float = 1.0
+    """Damping ratio ζ (1: the paper's double pole, when not fitted)."""
+    zeta_std: float = 0.0
+    """Approximate standard deviation of ζ (0 when not fitted)."""
+    fit_damping: bool = False
+
+    @property
+    def dynamics(self) -> Dynamics:
+        """The fitted continuous model."""
+        return Dynamics(self.p, self.zeta, self.delay_s)
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -102,8 +118,8 @@ class IdentifyResult:
 
 
 def _forward_jacobian(resid: Callable[[F], F], v: F, hi: list[float]) -> F:
-    """Forward differences with absolute steps: p by 1e-6 of itself, the delay by 1 µs, each
-    θ0 by 1e-6°. (least_squares' relative steps vanish for a delay at its bound of 0, which
+    """Forward differences with absolute steps: p by 1e-6 of itself, ζ, the delay (by 1 µs)
+    and each θ0 (by 1e-6°) by 1e-6. (least_squares' relative steps vanish for a delay at its bound of 0, which
     left the delay where the coarse grid put it.) A step that would cross the upper bound is
     taken backwards."""
     r0 = resid(v)
@@ -183,8 +199,9 @@ def _check_motion(ref: F, meas: F) -> None:
                             "did not follow (torque off, or the wrong columns?)")
 
 
-def response(p: float, delay_s: float, t: F, reference: F, theta0: F) -> F:
-    """Positions (n, J) at the instants t of (27) at rest at θ0, under the delayed ZOH reference."""
+def response(p: Pole, delay_s: float, t: F, reference: F, theta0: F) -> F:
+    """Positions (n, J) at the instants t of (27) (pole −p, or ωn and ζ) at rest at θ0, under
+    the delayed ZOH reference."""
     n, J = reference.shape
     switch = t + delay_s
     # events: sample instants (measure) and switching instants (input change), in time order;
@@ -193,26 +210,27 @@ def response(p: float, delay_s: float, t: F, reference: F, theta0: F) -> F:
     kinds = np.concatenate([np.zeros(n, int), np.ones(n, int)])
     idx = np.concatenate([np.arange(n), np.arange(n)])
     order = np.lexsort((-kinds, times)) if delay_s > 0 else np.lexsort((kinds, times))
-    x = np.column_stack([theta0, np.zeros(J)])
-    u = np.asarray(theta0, float).copy()
-    out = np.empty((n, J))
-    tc = float(times[order[0]])
-    cache: dict[float, tuple[F, F]] = {}
-    for e in order:
-        te = float(times[e])
+    th = [float(v) for v in np.asarray(theta0, float).reshape(J)]
+    om = [0.0] * J
+    u = list(th)
+    rows = reference.tolist()
+    out: list[list[float]] = [[]] * n
+    tl, kl, il = times[order].tolist(), kinds[order].tolist(), idx[order].tolist()
+    tc = tl[0]
+    dyn = dynamics(p)
+    for te, kind, i in zip(tl, kl, il, strict=True):
         dt = te - tc
         if dt > 0:
-            key = round(dt, 12)
-            if key not in cache:
-                cache[key] = exact_step(p, dt)
-            Phi, Gam = cache[key]
-            x = x @ Phi.T + u[:, None] * Gam[None, :]
+            a, b, c, d, g0, g1 = exact_coeffs(dyn, dt)
+            for j in range(J):
+                th[j], om[j] = (a * th[j] + b * om[j] + g0 * u[j],
+                                c * th[j] + d * om[j] + g1 * u[j])
             tc = te
-        if kinds[e] == 0:
-            out[idx[e]] = x[:, 0]
+        if kind == 0:
+            out[i] = list(th)
         else:
-            u = reference[idx[e]].copy()
-    return out
+            u = rows[i]
+    return np.array(out, float).reshape(n, J)
 
 
 def _check_determined(p: float, delay_s: float, p_std: float, doubling_deg: float) -> None:
@@ -239,13 +257,19 @@ def _check_determined(p: float, delay_s: float, p_std: float, doubling_deg: floa
 
 
 def identify(t: F, reference: F, measured: F, fit_delay: bool = False, *,
-             at: Callable[[int], str] = _sample) -> IdentifyResult:
-    """Least-squares fit of p (and optionally a pure delay) to a logged response.
+             at: Callable[[int], str] = _sample, fit_damping: bool = False,
+             lost: NDArray[np.bool_] | None = None,
+             start: Dynamics | None = None) -> IdentifyResult:
+    """Least-squares fit of p (and optionally a pure delay, and a damping ratio ζ with p then
+    the natural frequency) to a logged response.
 
     t (n,) s, reference and measured (n,) or (n, J) deg. Raises BadInputError for malformed
     data or data without the motion p needs, SolverError for a fit that does not determine
     p (see the module's docstring for the thresholds). ``at(k)`` names sample k (0-based) in
-    those messages, e.g. by its line in a file."""
+    those messages, e.g. by its line in a file. ``lost`` (n,): samples whose measurement is
+    missing (a lost reply; any value there is ignored) while their reference was sent.
+    ``start``: a model to start the fit from instead of the coarse grid (a fit of similar
+    data, e.g. the three joints together before each alone)."""
     t0 = time.perf_counter()
     tt = np.asarray(t, float).reshape(-1)
     n = tt.size
@@ -253,33 +277,53 @@ def identify(t: F, reference: F, measured: F, fit_delay: bool = False, *,
         raise BadInputError(f"identification needs at least 5 samples, got {n}")
     _check_times(tt, at)
     ref = _as2d(reference, n, "reference", at)
-    meas = _as2d(measured, n, "measured", at)
+    miss = np.zeros(n, bool) if lost is None else np.asarray(lost, bool).reshape(n)
+    if miss[0] or miss.all():
+        raise BadInputError("the first sample's measurement is missing: the fit starts there")
+    meas = np.asarray(measured, float).copy()
+    meas[miss] = meas[0] if meas.ndim == 1 else meas[0][None, :]  # ignored below
+    meas = _as2d(meas, n, "measured", at)
+    seen = ~miss
     if ref.shape != meas.shape:
         raise BadInputError(f"reference {ref.shape} and measured {meas.shape} differ in shape")
     J = ref.shape[1]
-    _check_motion(ref, meas)
+    _check_motion(ref, meas[seen])
 
     tt = tt - tt[0]  # a log's clock may read 1e5 s: a microsecond must still move an event
 
+    nz = 1 if fit_damping else 0
+    nd = 1 if fit_delay else 0
+
+    def unpack(v: F) -> tuple[Dynamics, F]:
+        """v = [p, (ζ), (delay), θ0…] as (ωn, ζ, delay) and θ0."""
+        z = float(v[1]) if fit_damping else 1.0
+        d = float(v[1 + nz]) if fit_delay else 0.0
+        return Dynamics(float(v[0]), z, d), v[1 + nz + nd:]
+
     def resid(v: F) -> F:
-        p, d = v[0], (v[1] if fit_delay else 0.0)
-        th0 = v[2:] if fit_delay else v[1:]
-        return (response(p, d, tt, ref, th0) - meas).ravel()
+        dyn, th0 = unpack(v)
+        return (response(dyn, dyn.delay_s, tt, ref, th0)[seen] - meas[seen]).ravel()
 
     def jac(v: F) -> F:
         return _forward_jacobian(resid, v, hi)
 
     th_init = meas[0].copy()
     best = None
-    for p in np.geomspace(2.0, 400.0, 12):
-        for d in (DELAY_GRID_S if fit_delay else [0.0]):
-            v = np.r_[p, d, th_init] if fit_delay else np.r_[p, th_init]
-            c = float(np.sum(resid(v) ** 2))
-            if best is None or c < best[0]:
-                best = (c, v)
+    # with ζ free the grid's delays are fewer: ζ and the delay trade against each other, and
+    # the least-squares step finds the delay from any of them
+    delays = (DELAY_GRID_S[::2] if fit_damping else DELAY_GRID_S) if fit_delay else (0.0,)
+    grid = [(p, z, d) for p in np.geomspace(2.0, 400.0, 12)
+            for z in (ZETA_GRID if fit_damping else (1.0,)) for d in delays]
+    if start is not None:
+        grid = [(start.wn, start.zeta if fit_damping else 1.0, start.delay_s if fit_delay else 0.0)]
+    for p, z, d in grid:
+        v = np.r_[p, [z] * nz, [d] * nd, th_init]
+        c = float(np.sum(resid(v) ** 2))
+        if best is None or c < best[0]:
+            best = (c, v)
     assert best is not None
-    lo = [P_BOUNDS[0]] + ([0.0] if fit_delay else []) + [-np.inf] * J
-    hi = [P_BOUNDS[1]] + ([DELAY_MAX_S] if fit_delay else []) + [np.inf] * J
+    lo = [P_BOUNDS[0]] + [ZETA_BOUNDS[0]] * nz + [0.0] * nd + [-np.inf] * J
+    hi = [P_BOUNDS[1]] + [ZETA_BOUNDS[1]] * nz + [DELAY_MAX_S] * nd + [np.inf] * J
     v0 = np.clip(best[1], np.array(lo) + 1e-9, np.array(hi) - 1e-9)
     sol = least_squares(resid, v0, jac=jac, bounds=(lo, hi), x_scale="jac",
                         xtol=1e-12, ftol=1e-12, gtol=1e-12)
@@ -291,15 +335,33 @@ def identify(t: F, reference: F, measured: F, fit_delay: bool = False, *,
     try:
         cov = np.linalg.inv(sol.jac.T @ sol.jac) * s2
         p_std = float(np.sqrt(max(cov[0, 0], 0.0)))
+        z_std = float(np.sqrt(max(cov[1, 1], 0.0))) if fit_damping else 0.0
     except np.linalg.LinAlgError:
-        p_std = float("nan")
-    p_fit, d_fit = float(sol.x[0]), float(sol.x[1]) if fit_delay else 0.0
-    th0 = sol.x[2:] if fit_delay else sol.x[1:]
-    fitted = response(p_fit, d_fit, tt, ref, th0)
-    doubling = float(np.abs(response(2 * p_fit, d_fit, tt, ref, th0) - fitted).max())
+        p_std = z_std = float("nan")
+    dyn, th0 = unpack(sol.x)
+    p_fit, z_fit, d_fit = dyn.wn, dyn.zeta, dyn.delay_s
+    fitted = response(dyn, d_fit, tt, ref, th0)
+    doubling = float(np.abs(response(Dynamics(2 * p_fit, z_fit), d_fit, tt, ref, th0)
+                            - fitted).max())
     _check_determined(p_fit, d_fit, p_std, doubling)
+    if fit_damping:
+        _check_zeta(z_fit, z_std)
     return IdentifyResult(
         p=p_fit, delay_s=d_fit, theta0_deg=th0,
         rms_deg=float(np.sqrt(np.mean(r**2))), max_abs_deg=float(np.abs(r).max()),
         p_std=p_std, samples=n, joints=J, fit_delay=fit_delay,
-        seconds=time.perf_counter() - t0, status=str(sol.message))
+        seconds=time.perf_counter() - t0, status=str(sol.message), zeta=z_fit, zeta_std=z_std,
+        fit_damping=fit_damping)
+
+
+def _check_zeta(zeta: float, zeta_std: float) -> None:
+    """A fitted ζ strictly inside ZETA_BOUNDS with a finite standard deviation below
+    P_REL_STD_MAX of ζ (else SolverError)."""
+    lo, hi = ZETA_BOUNDS
+    if zeta <= lo * (1 + BOUND_REL_TOL) or zeta >= hi * (1 - BOUND_REL_TOL):
+        raise SolverError(f"the fit put the damping ratio on its bound (ζ = {zeta:.4g}, range "
+                          f"{lo:g}..{hi:g}): this servo is not a second-order position servo "
+                          "on these samples")
+    if not np.isfinite(zeta_std) or zeta_std > P_REL_STD_MAX * zeta:
+        raise SolverError(f"the data do not determine the damping ratio: ζ = {zeta:.4g} ± "
+                          f"{zeta_std:.3g}")

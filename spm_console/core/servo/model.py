@@ -16,6 +16,7 @@ runtime's model of what it will measure (:func:`delayed_spans`) applies it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -140,24 +141,31 @@ def exact_step(pole: Pole, tau: float) -> tuple[F, F]:
     c = 1, s = τ when ζ = 1, where Φ = e^{−pτ} [[1+pτ, τ], [−p²τ, 1−pτ]]). The DC gain is 1,
     so Γ = (I − Φ)·[1, 0]. Returns (Φ (2, 2), Γ (2,)).
     """
-    d = dynamics(pole)
+    a, b, c, d, g0, g1 = exact_coeffs(pole, tau)
+    return np.array([[a, b], [c, d]]), np.array([g0, g1])
+
+
+def exact_coeffs(pole: Pole, tau: float) -> tuple[float, float, float, float, float, float]:
+    """:func:`exact_step` as plain floats (Φ00, Φ01, Φ10, Φ11, Γ0, Γ1): for loops over many
+    irregular intervals, where small arrays cost more than the arithmetic."""
+    d = pole if isinstance(pole, Dynamics) else Dynamics(float(pole))
     w, z = d.wn, d.zeta
     sigma = z * w
     lam = w * w * (z * z - 1.0)
-    wd = float(np.sqrt(abs(lam)))
+    wd = math.sqrt(abs(lam))
     x = wd * tau
     if x < _SERIES_X:
         sgn = 1.0 if lam > 0 else -1.0  # cosh/sinh above ζ = 1, cos/sin below
         c = 1.0 + sgn * x * x / 2.0
         s = tau * (1.0 + sgn * x * x / 6.0)
     elif lam < 0:
-        c, s = float(np.cos(x)), float(np.sin(x)) / wd
+        c, s = math.cos(x), math.sin(x) / wd
     else:
-        c, s = float(np.cosh(x)), float(np.sinh(x)) / wd
-    e = float(np.exp(-sigma * tau))
-    Phi = e * np.array([[c + s * sigma, s], [-s * w * w, c + s * (sigma - 2.0 * sigma)]])
-    Gam = np.array([1.0 - Phi[0, 0], -Phi[1, 0]])
-    return Phi, Gam
+        c, s = math.cosh(x), math.sinh(x) / wd
+    e = math.exp(-sigma * tau)
+    p00, p01 = e * (c + s * sigma), e * s
+    p10, p11 = -e * s * w * w, e * (c - s * sigma)
+    return p00, p01, p10, p11, 1.0 - p00, -p10
 
 
 def exact_step_many(pole: Pole, taus: F) -> tuple[F, F]:

@@ -1,0 +1,274 @@
+"""``identify``: fit the servo model to a logged response (``--run``, ``--csv``), or run the
+identification experiment on the wrist and write a profile with the model it found
+(``--experiment --out NEW.toml``).
+
+``--run`` and ``--csv`` fit the paper's p (and with ``--delay`` a pure delay); ``--damping``
+adds the damping ratio ζ, the structure the experiment fits. The experiment homes the wrist,
+runs an excitation the runtime verifies like any plan (:mod:`spm_console.services.identify_experiment`),
+fits ωn, ζ and a delay on its first part and measures the model's error on the second,
+held out. Exit codes: 0 done; a stop of the experiment ends with its own code (20–25);
+3 a model no profile can hold; 4 bad input; 8 a fit that does not determine the model.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime as dt
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spm_console.cli.common import PLOT_SUFFIXES, emit, output_file, profile_of
+from spm_console.cli.run import _bus_opts, _report, _request
+from spm_console.config.checks import PTS_MAX, PTS_MIN
+from spm_console.config.schema import Identified, Profile, Servo
+from spm_console.config.servo_section import with_servo
+from spm_console.core.servo.experiment import ExperimentFit, fit_record
+from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, IdentifyResult, identify
+from spm_console.errors import BadInputError, ExitCode, ProfileError, SolverError, SpmError
+from spm_console.motion.logs.runlog import load_run
+from spm_console.numbers import NotANumberError, parse_number
+from spm_console.safe_io import MB, read_text
+from spm_console.services.identify_experiment import ExperimentRun, experiment_once
+
+#: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
+MAX_CSV_BYTES = 20 * MB
+MAX_IDENTIFY_SAMPLES = 100_000
+
+
+def register(sub: Any) -> None:
+    i = sub.add_parser("identify", help="fit the servo model to a logged response, or run the "
+                       "identification experiment and write a profile with the model found")
+    _bus_opts(i)
+    src = i.add_mutually_exclusive_group(required=True)
+    src.add_argument("--run", metavar="RUN", help="an executed run (folder or name under the logs)")
+    src.add_argument("--csv", type=Path, metavar="FILE",
+                     help="CSV with a header: t, ref1[, ref2, ref3], meas1[, meas2, meas3]")
+    src.add_argument("--experiment", action="store_true",
+                     help="home the wrist, run the identification experiment (about 20 s of "
+                          "motion about home) and fit ωn, ζ and a delay to it")
+    i.add_argument("--delay", action="store_true", help="--run/--csv: also fit a pure delay")
+    i.add_argument("--damping", action="store_true",
+                   help="--run/--csv: also fit a damping ratio ζ (p is then ωn)")
+    i.add_argument("--out", type=Path, metavar="NEW.toml",
+                   help="--experiment: write the profile with the identified [servo] here")
+    i.add_argument("--plot", type=Path, metavar="FILE.png",
+                   help="--experiment: save measured against fitted responses")
+    i.set_defaults(func=cmd_identify)
+Samples = tuple[np.ndarray, np.ndarray, np.ndarray, Callable[[int], str]]
+"""t, reference and measured of identify, and the name of sample k in messages."""
+
+
+def _cell(text: str) -> float:
+    """A CSV cell: a plain decimal number (:func:`~spm_console.numbers.parse_number`), or a
+    written NaN/inf, which the column checks refuse naming the column (a column not used may
+    hold them)."""
+    if text.strip().lower().lstrip("+-") in ("nan", "inf", "infinity"):
+        return float(text)
+    return parse_number(text)
+
+
+def _read_csv(path: Path) -> Samples:
+    """The samples of an identify CSV; a cell that is not a number, or a non-finite or
+    out-of-range value in a column used, is refused naming its line."""
+    text = read_text(path, "--csv", MAX_CSV_BYTES, BadInputError)
+    numbered = [(n, line) for n, line in enumerate(text.splitlines(), start=1)
+                if line.strip() and not line.startswith("#")]
+    if len(numbered) < 2:
+        raise BadInputError(f"{path}: expected a header line and data rows")
+    head = [h.strip() for h in next(csv.reader([numbered[0][1]]))]
+    lines = [n for n, _ in numbered[1:]]
+    values: list[list[float]] = []
+    for n, row in zip(lines, csv.reader(line for _, line in numbered[1:]), strict=True):
+        if len(row) != len(head):
+            raise BadInputError(f"{path}, line {n}: {len(row)} cells, the header has {len(head)}")
+        try:
+            values.append([_cell(c) for c in row])
+        except NotANumberError as exc:
+            raise BadInputError(f"{path}, line {n}: every data cell must be a number ({exc})") from None
+    data = np.array(values, float).reshape(len(values), len(head))
+    return _columns(dict(zip(head, data.T, strict=True)), str(path), lines)
+
+
+def _columns(cols: dict[str, np.ndarray], src: str, lines: list[int] | None = None) -> Samples:
+    """The samples (θ in deg) in named columns: t with ref1/meas1 (… ref3/meas3), or t, ref,
+    meas. ``lines`` are a CSV's line numbers of the rows: every value used must
+    be finite. Without them (a run log), a row whose measurement is missing (NaN: a lost
+    reply) is skipped. A non-finite value otherwise, an angle beyond ±ANGLE_MAX_DEG or a time
+    beyond ±CLOCK_MAX_S is refused naming the line (or the data row of a run log)."""
+    if "t" not in cols:
+        raise BadInputError(f"{src}: missing column 't'")
+    if len(cols["t"]) > MAX_IDENTIFY_SAMPLES:
+        raise BadInputError(f"{src}: {len(cols['t']):,} samples, more than the "
+                            f"{MAX_IDENTIFY_SAMPLES:,} identify fits; cut the log")
+    joints = [i for i in (1, 2, 3) if f"ref{i}" in cols and f"meas{i}" in cols]
+    if not joints and "ref" in cols and "meas" in cols:
+        rnames, mnames = ["ref"], ["meas"]
+    elif joints:
+        rnames, mnames = [f"ref{i}" for i in joints], [f"meas{i}" for i in joints]
+    else:
+        raise BadInputError(f"{src}: needs columns ref1/meas1 (… ref3/meas3) or ref/meas")
+    t = cols["t"]
+    ref = np.column_stack([cols[c] for c in rnames])
+    meas = np.column_stack([cols[c] for c in mnames])
+    keep = np.ones(t.size, bool) if lines is not None else ~np.isnan(meas).any(axis=1)
+
+    def where(k: int) -> str:
+        return f"line {lines[k]}" if lines is not None else f"data row {k + 1}"
+
+    for name, col, bound, unit in [("t", t, CLOCK_MAX_S, " s")] + [
+            (c, cols[c], ANGLE_MAX_DEG, "°") for c in rnames + mnames]:
+        bad = np.flatnonzero(keep & ~(np.abs(col) <= bound))
+        if bad.size:
+            k = int(bad[0])
+            why = "not finite" if not np.isfinite(col[k]) else f"outside ±{bound:g}{unit}"
+            raise BadInputError(f"{src}, {where(k)}: {name} = {col[k]:g} is {why}")
+    rows = np.flatnonzero(keep)  # sample k is row rows[k]
+    return t[keep], ref[keep], meas[keep], lambda k: where(int(rows[k]))
+
+
+def cmd_identify(args: argparse.Namespace) -> int:
+    profile = profile_of(args)
+    if args.experiment:
+        return _experiment(args, profile)
+    for flag in ("out", "plot", "port", "sim_start"):
+        if getattr(args, flag) not in (None, False):
+            raise BadInputError(f"--{flag.replace('_', '-')} goes with --experiment")
+    if args.sim or args.fault or args.plant:
+        raise BadInputError("--sim, --fault and --plant go with --experiment")
+    if args.csv is not None:
+        t, ref, meas, at = _read_csv(args.csv)
+        src = named = str(args.csv)
+    else:
+        run = load_run(args.run, args.logs)
+        src, named = str(run.path), str(run.path / "samples.csv")
+        t, ref, meas, at = _columns(dict(run.columns), named)
+    try:
+        res = identify(t, ref, meas, fit_delay=args.delay, at=at, fit_damping=args.damping)
+    except SpmError as exc:  # the refusal names the file its sample numbers refer to
+        raise type(exc)(f"{named}: {exc.message}") from None
+    ts = profile.servo.ts_s
+    if not PTS_MIN <= res.p * ts <= PTS_MAX:
+        raise SolverError(
+            f"{src}: fitted p = {res.p:.4g} rad/s gives p·Ts = {res.p * ts:.4g} with the "
+            f"profile's Ts = {ts:g} s, outside the [{PTS_MIN:g}, {PTS_MAX:g}] a profile accepts "
+            "(servo.p), so this profile's model (28) cannot use it")
+    rec = res.to_dict()
+    rec.update({"source": src, "profile_p": profile.servo.p,
+                "relative_to_profile": res.p / profile.servo.p - 1.0})
+    human = (f"p = {res.p:.3f} ± {res.p_std:.3f} rad/s (profile {profile.servo.p:g}, "
+             f"{100 * (res.p / profile.servo.p - 1):+.1f} %)"
+             + (f", ζ = {res.zeta:.3f} ± {res.zeta_std:.3f}" if res.fit_damping else "")
+             + (f", delay {1e3 * res.delay_s:.1f} ms" if res.fit_delay else "")
+             + f"; RMS residual {res.rms_deg:.4f} deg over {res.samples} samples × {res.joints} joints")
+    emit(args, rec, human)
+    sys.stdout.flush()
+    return int(ExitCode.OK)
+
+
+def _experiment(args: argparse.Namespace, profile: Profile) -> int:
+    if args.out is None:
+        raise BadInputError("--experiment writes a profile: give --out NEW.toml")
+    output_file(args.out, "--out", (".toml",))
+    output_file(args.plot, "--plot", PLOT_SUFFIXES)
+    if args.out.resolve() == Path(args.profile).resolve():
+        raise BadInputError("--out must name a new file: the profile the experiment runs with "
+                            "stays as it is")
+    if args.delay or args.damping:
+        raise BadInputError("--delay and --damping go with --run/--csv (the experiment fits both)")
+    run = experiment_once(profile, _request(args, profile))
+    extra: dict[str, Any] = {"experiment": {"motion_s": run.excitation.duration_s,
+                                            "step_deg": run.excitation.step_deg,
+                                            "speed_degps": run.excitation.speed_degps}}
+    if run.t is None or run.reference_deg is None or run.measured_deg is None:
+        extra["stopped_during"] = "homing" if run.execution is (
+            run.homing.execution if run.homing else None) else "experiment"
+        return _report(args, run.execution, extra)
+    try:
+        fit = fit_record(run.excitation, run.t, run.reference_deg, run.measured_deg)
+    except SpmError as exc:
+        raise type(exc)(f"{run.execution.log_dir}: {exc.message}") from None
+    servo = _servo(profile, fit, str(run.execution.log_dir))
+    text, _ = _new_profile(args, servo)
+    args.out.write_text(text, encoding="utf-8")
+    if args.plot is not None:
+        from spm_console.report.plot_identify import plot_experiment  # matplotlib: only here
+
+        plot_experiment(run.excitation, run.t, run.measured_deg, fit, args.plot)
+    return _report_fit(args, run, fit, servo)
+
+
+def _servo(profile: Profile, fit: ExperimentFit, source: str) -> Servo:
+    """The identified [servo] section (Ts and discretization kept)."""
+    s, a = fit.shared, fit.assessment
+    return Servo(
+        p=round(s.p, 4), ts_s=profile.servo.ts_s, discretization=profile.servo.discretization,
+        zeta=round(s.zeta, 4), delay_s=round(min(s.delay_s, 0.999 * profile.servo.ts_s), 6),
+        linear_range_deg=round(max(a.linear_range_deg, 0.01), 2),
+        residual_bound_deg=max(fit.residual_bound_deg, 0.01),
+        identified=Identified(
+            date=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), source=source,
+            samples=s.samples * s.joints, fit_rms_deg=round(a.fit_rms_deg, 4),
+            held_out_rms_deg=round(a.held_out_rms_deg, 4),
+            held_out_max_deg=round(a.held_out_max_deg, 4)))
+
+
+def _new_profile(args: argparse.Namespace, servo: Servo) -> tuple[str, Profile]:
+    """The input profile's text with the identified servo; a model no profile can hold is a
+    SolverError naming what is out of range."""
+    old = read_text(Path(args.profile), "--profile", 1 * MB, BadInputError)
+    ts = servo.ts_s
+    if not PTS_MIN <= servo.p * ts <= PTS_MAX:
+        raise SolverError(f"fitted ωn = {servo.p:.4g} rad/s gives ωn·Ts = {servo.p * ts:.4g}, "
+                          f"outside the [{PTS_MIN:g}, {PTS_MAX:g}] a profile accepts")
+    try:
+        return with_servo(old, servo, str(args.out))
+    except ProfileError as exc:
+        raise SolverError(f"the identified model does not make a valid profile: {exc.message}") \
+            from None
+
+
+def _fit_dict(r: IdentifyResult) -> dict[str, float]:
+    return {"wn_radps": r.p, "wn_std": r.p_std, "zeta": r.zeta, "zeta_std": r.zeta_std,
+            "delay_s": r.delay_s, "rms_deg": r.rms_deg}
+
+
+def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit,
+                servo: Servo) -> int:
+    a, s = fit.assessment, fit.shared
+    data = {
+        "outcome": run.execution.outcome, "exit_code": 0, "log_dir": str(run.execution.log_dir),
+        "profile_written": str(args.out), "model": _fit_dict(s),
+        "joints": [_fit_dict(j) for j in fit.joints],
+        "fit_rms_deg": a.fit_rms_deg, "held_out_rms_deg": a.held_out_rms_deg,
+        "held_out_max_deg": a.held_out_max_deg, "linear_range_deg": servo.linear_range_deg,
+        "saturated": a.saturated, "residual_bound_deg": servo.residual_bound_deg,
+        "blocks": [{"kind": b.block.kind, "part": b.block.part, "size": b.block.size,
+                    "reached_deg": b.reached_deg, "rms_deg": b.rms_deg, "max_deg": b.max_deg}
+                   for b in a.blocks],
+        "motion_s": run.excitation.duration_s,
+    }
+    lines = [
+        f"identified: ωn = {s.p:.2f} ± {s.p_std:.2f} rad/s, ζ = {s.zeta:.3f} ± {s.zeta_std:.3f}, "
+        f"delay {1e3 * s.delay_s:.1f} ms (the profile had p = {args_p(args)})",
+        *(f"  joint {i + 1} alone: ωn = {j.p:.2f} rad/s, ζ = {j.zeta:.3f}, delay "
+          f"{1e3 * j.delay_s:.1f} ms, RMS {j.rms_deg:.3f}°" for i, j in enumerate(fit.joints)),
+        f"model against measurement: fitted part RMS {a.fit_rms_deg:.3f}°; held-out part RMS "
+        f"{a.held_out_rms_deg:.3f}°, max {a.held_out_max_deg:.3f}°",
+        f"linear range: {servo.linear_range_deg:.2f}° of |θ* − θ|"
+        + ("" if a.saturated else " at least (the experiment never saturated the servo)"),
+        f"{run.excitation.duration_s:.1f} s of motion; log: {run.execution.log_dir}",
+        f"profile written: {args.out}",
+    ]
+    emit(args, data, "\n".join(lines))
+    return int(ExitCode.OK)
+
+
+def args_p(args: argparse.Namespace) -> str:
+    """The input profile's servo model in words."""
+    sv = profile_of(args).servo
+    return f"{sv.p:g} rad/s" + ("" if sv.zeta == 1.0 else f", ζ = {sv.zeta:g}")

@@ -1,0 +1,127 @@
+"""``identify --experiment``: home, run the identification excitation, fit the servo as it is.
+
+The excitation (:mod:`spm_console.core.servo.experiment`) is sized to what the runtime will
+accept with the profile's present model: its largest step keeps the model's speed at
+:data:`SPEED_SHARE` of the profile's bound and below the 10° step rule, and its ramps and
+chirp run at that share of the bound. When the runtime's verification refuses it (the
+excursion leaves the certified set near the edge of the workspace), the amplitude shrinks by
+:data:`SHRINK` until it passes, at most :data:`MAX_TRIES` times. Then it runs like any plan:
+homed first (identification never skips homing), verified by the motion process, logged, and
+stopped by the same signals. The fit reads the run's own log.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.models import servo_model_of
+from spm_console.config.schema import Profile
+from spm_console.core.plan import Plan
+from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
+from spm_console.core.servo.experiment import Excitation, excitation
+from spm_console.errors import BadInputError, PlanRefusedError
+from spm_console.motion.homing import HomingResult
+from spm_console.motion.logs.runlog import load_run
+from spm_console.motion.plan_check import verify_plan
+from spm_console.motion.plans import plan_from_references
+from spm_console.motion.segments import ExecutionResult
+from spm_console.services.oneshot import RunRequest, home_first, one_shot
+from spm_console.services.session import Session
+from spm_console.store.workspace_cache import load_or_build
+
+F = NDArray[np.float64]
+
+SPEED_SHARE = 0.85
+"""Share of the profile's speed bound the excitation may ask of the model."""
+STEP_MARGIN_DEG = 1.0
+"""The largest step stays this far below the runtime's step rule, deg."""
+SHRINK = 0.7
+"""Amplitude factor after a refusal."""
+MAX_TRIES = 6
+"""Excitations tried before the refusal is the answer."""
+LOST_SHARE_MAX = 0.01
+"""Most samples of the record whose reply was lost before the fit refuses it."""
+
+
+@dataclass(frozen=True)
+class ExperimentRun:
+    """The homing, the experiment's execution, and its record (None when it did not
+    complete)."""
+
+    homing: HomingResult | None
+    execution: ExecutionResult
+    excitation: Excitation
+    t: F | None = None
+    """(n,) sample instants, s."""
+    reference_deg: F | None = None
+    """(n, 3) references as sent, deg."""
+    measured_deg: F | None = None
+    """(n, 3) positions read, deg."""
+
+
+def experiment_plan(profile: Profile, cache_dir: Path | None = None) -> tuple[Excitation, Plan]:
+    """The largest excitation about the home pose the runtime accepts (PlanRefusedError with
+    the last refusal when none of :data:`MAX_TRIES` does)."""
+    ws, _ = load_or_build(profile, cache_dir)
+    vmax = profile.limits.vmax_degps
+    per_deg = servo_model_of(profile).dynamics.step_peak_speed()
+    step = min(MAX_REFERENCE_STEP_DEG - STEP_MARGIN_DEG, SPEED_SHARE * vmax / per_deg)
+    centre = np.asarray(profile.home.theta_deg, float)
+    last: PlanRefusedError | None = None
+    for _ in range(MAX_TRIES):
+        ex = excitation(centre, profile.servo.ts_s, step, SPEED_SHARE * vmax)
+        plan = plan_from_references(profile, ex.reference_deg, "experiment",
+                                    notes={"step_deg": step, "speed_degps": SPEED_SHARE * vmax})
+        try:
+            verify_plan(profile, ws, plan)
+            return ex, plan
+        except PlanRefusedError as exc:
+            last = exc
+            step *= SHRINK
+    assert last is not None
+    raise PlanRefusedError(f"no identification experiment about home passes the runtime's "
+                           f"verification (largest step tried down to {step / SHRINK:.2g}°): "
+                           f"{last.message}", last.issue)
+
+
+def experiment_once(profile: Profile, req: RunRequest) -> ExperimentRun:
+    """Home, then execute the experiment; its record read back from the run's log."""
+    if req.skip_homing:
+        raise BadInputError("identification homes the wrist first: it cannot skip homing")
+    ex, plan = experiment_plan(profile, None if req.cache_dir is None else Path(req.cache_dir))
+
+    def body(session: Session) -> ExperimentRun:
+        homing = home_first(session, req)
+        assert homing is not None
+        if not homing.execution.ok:
+            return ExperimentRun(homing, homing.execution, ex)
+        session.plan = plan
+        result = session.execute(req.on_sample, source="identification experiment")
+        if not result.ok or result.log_dir is None:
+            return ExperimentRun(homing, result, ex)
+        t, ref, meas = _record(Path(result.log_dir), len(plan.reference_deg))
+        return ExperimentRun(homing, result, ex, t, ref, meas)
+
+    return one_shot(profile, "identify", req, body)
+
+
+def _record(run_dir: Path, n: int) -> tuple[F, F, F]:
+    """The experiment's samples (its plan phase) from its run log: t (s), θ* and θ (deg; NaN
+    where the reply was lost, up to :data:`LOST_SHARE_MAX` of the record, beyond which the
+    record is refused)."""
+    run = load_run(run_dir)
+    rows = np.array([p == "plan" for p in run.phase])
+    t = run.columns["t"][rows]
+    ref, meas = run.vec("ref")[rows], run.vec("meas")[rows]
+    if len(t) != n:
+        raise BadInputError(f"{run_dir}: the log holds {len(t)} samples of the experiment, "
+                            f"its plan {n}: not a complete record")
+    ok = np.isfinite(meas).all(axis=1)
+    if (~ok).mean() > LOST_SHARE_MAX:
+        raise BadInputError(f"{run_dir}: {int((~ok).sum())} of {n} replies were lost, more "
+                            f"than {100 * LOST_SHARE_MAX:g} %: repeat the experiment")
+    return t, ref, meas
