@@ -32,6 +32,7 @@ from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, Identify
 from spm_console.errors import BadInputError, ExitCode, ProfileError, SolverError, SpmError
 from spm_console.motion.logs.runlog import load_run
 from spm_console.numbers import NotANumberError, parse_number
+from spm_console.report.plot_identify import plot_experiment
 from spm_console.safe_io import MB, read_text
 from spm_console.services.identify_experiment import ExperimentRun, experiment_once
 
@@ -196,8 +197,6 @@ def _experiment(args: argparse.Namespace, profile: Profile) -> int:
     text, _ = _new_profile(args, servo)
     args.out.write_text(text, encoding="utf-8")
     if args.plot is not None:
-        from spm_console.report.plot_identify import plot_experiment  # matplotlib: only here
-
         plot_experiment(run.excitation, run.t, run.measured_deg, fit, args.plot)
     return _report_fit(args, run, fit, servo)
 

@@ -9,6 +9,9 @@ simulated exactly (zero-order hold) at :data:`POINTS_PER_INTERVAL` instants in e
 3. no reference changes by more than :data:`MAX_REFERENCE_STEP_DEG` from one sample to the
    next (and from the reference in use before the plan, when given);
 4. every simulated position lies inside the servo limits, to :data:`LIMIT_TOL_DEG`;
+4a. with a linear range (an identified servo's), no reference runs ahead of the model's
+   position at its sample by more than it (+ :data:`SAMPLE_TOL`): beyond, the drive
+   saturates and the model no longer describes the servo;
 5. the model speed stays within vmax + :data:`SAMPLE_TOL` at the samples;
 6. … and within vmax·(1 + :data:`BETWEEN_SPEED_ALLOWANCE`) at every instant checked
    (piecewise-constant references make the continuous speed overshoot the sampled one);
@@ -65,6 +68,7 @@ class Rule(enum.Enum):
     SPEED_BETWEEN = "speed above the bound between samples"
     NOTHING_CERTIFIED = "the workspace certifies nothing"
     NOT_CERTIFIED = "position not certified"
+    LEAD = "reference ahead of the position beyond the servo's linear range"
 
 
 class Membership(Protocol):
@@ -165,7 +169,8 @@ def _speed(rule: Rule, speed: F, cap: F) -> Violation | None:
 def check_motion(p: Pole, ts: float, x0: F, references_deg: F, lo_deg: F, hi_deg: F,
                  vmax_degps: float, certified: Membership | None, *,
                  rules: Rules = EXECUTE_RULES, previous_reference_deg: F | None = None,
-                 hold_samples: int = 0, speed_floor_degps: F | None = None) -> MotionCheck:
+                 hold_samples: int = 0, speed_floor_degps: F | None = None,
+                 lead_max_deg: float | None = None) -> MotionCheck:
     """Check the motion of (27) with pole ``p`` (rad/s; or ωn, ζ as :class:`Dynamics`) and period ``ts`` (s) from state
     ``x0`` ((3, 2): θ deg, θ̇ deg/s) under ``references_deg`` ((N+1, 3)) against the rules
     (module docstring).
@@ -204,12 +209,26 @@ def check_motion(p: Pole, ts: float, x0: F, references_deg: F, lo_deg: F, hi_deg
     floor = np.zeros(3) if speed_floor_degps is None else np.asarray(speed_floor_degps, float)
     violation = (
         (_limits(Rule.POSITION_LIMIT, pos, lo, hi) if rules.position_limits else None)
+        or (_lead(ref, pos[::POINTS_PER_INTERVAL][: len(ref)], lead_max_deg)
+            if lead_max_deg is not None else None)
         or (_speed(Rule.SPEED_AT_SAMPLE, speed[::POINTS_PER_INTERVAL],
                    np.maximum(vmax_degps + SAMPLE_TOL, floor)) if rules.speed_at_samples else None)
         or _speed(Rule.SPEED_BETWEEN, speed,
                   np.maximum(vmax_degps * (1.0 + BETWEEN_SPEED_ALLOWANCE), floor))
         or _certify(certified, pos))
     return MotionCheck(violation, pos, float(speed.max()), step)
+
+
+def _lead(ref: F, at_samples: F, bound: float) -> Violation | None:
+    """The largest |θ*(k) − θ(k)| above ``bound`` + :data:`SAMPLE_TOL` (the model's θ at the
+    samples, k = 0..N−1: the last reference is the goal, held), if any."""
+    lead = np.abs(ref[:-1] - at_samples[:-1]) if len(ref) > 1 else np.zeros((0, 3))
+    bad = lead > bound + SAMPLE_TOL
+    if not bad.any():
+        return None
+    k, i = (int(x) for x in np.unravel_index(int(np.argmax(np.where(bad, lead, -np.inf))),
+                                             lead.shape))
+    return Violation(Rule.LEAD, k, i, float(lead[k, i]), bound)
 
 
 def _certify(certified: Membership | None, pos: F) -> Violation | None:

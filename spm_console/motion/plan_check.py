@@ -73,6 +73,11 @@ LINE_PHASES = ("homing", "approach")
 _ISSUES: dict[Rule, Issue] = {Rule.REFERENCE_LIMIT: Issue.END_NOT_FEASIBLE,
                               Rule.POSITION_LIMIT: Issue.END_NOT_FEASIBLE}
 
+LEAD_KINDS = frozenset({"mvn", "mintime"})
+"""Plans held to the servo's linear range: the planner's, which choose how far the reference
+runs ahead. Lines (homing, approach, jog) are slow by construction, and the identification
+experiment probes beyond the range on purpose."""
+
 
 @dataclass(frozen=True)
 class PlanCheck:
@@ -134,9 +139,11 @@ class PlanVerifier:
             raise self._refuse(seg, f"sampled at Ts = {plan.Ts} s but the servos run at Ts = {ts} s")
         line = seg.phase in LINE_PHASES
         x0 = np.column_stack([ref[0], np.zeros(3)])
-        check = check_motion(servo_model_of(self.profile).dynamics, ts, x0, ref, self.lo, self.hi, self.vmax,
-                             None if line else self.certified,
-                             hold_samples=settle_samples(self.profile))
+        optimal = plan.kind in LEAD_KINDS
+        check = check_motion(servo_model_of(self.profile).dynamics, ts, x0, ref, self.lo,
+                             self.hi, self.vmax, None if line else self.certified,
+                             hold_samples=settle_samples(self.profile),
+                             lead_max_deg=self.profile.servo.linear_range_deg if optimal else None)
         if check.violation is not None:
             raise self._refuse(seg, self._words(check.violation, check.positions_deg),
                                _ISSUES.get(check.violation.rule))
@@ -162,6 +169,10 @@ class PlanVerifier:
             return (f"between samples {between} the model speed of joint {i + 1} "
                     f"reaches {v.value:.1f}°/s, above {v.bound:.1f}°/s "
                     f"(limits.vmax_degps + {BETWEEN_SPEED_ALLOWANCE:.0%})")
+        if v.rule is Rule.LEAD:
+            return (f"reference θ{i + 1} runs {v.value:.2f}° ahead of the model position at "
+                    f"sample {k}, beyond the servo's linear range servo.linear_range_deg = "
+                    f"{v.bound:g}° (its drive saturates there and the model no longer holds)")
         if v.rule is Rule.NOTHING_CERTIFIED:
             return ("the workspace of this profile has no feasible node, so it "
                     "certifies no motion (check the profile's links, δ and ζ_min)")

@@ -11,7 +11,7 @@ execute is returned. Degrees, deg/s, seconds.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -128,7 +128,8 @@ def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMot
     vmax = profile.limits.vmax_degps if req.vmax_degps is None else float(req.vmax_degps)
     pb = PlanProblem(servo_model_of(profile), s, g, int(req.steps), ws.region, vmax,
                      int(req.intersample), req.hold_first,
-                     lo if req.reference_limits else None, hi if req.reference_limits else None)
+                     lo if req.reference_limits else None, hi if req.reference_limits else None,
+                     lead_max_deg=profile.servo.linear_range_deg)
     in_p = bool(ws.region.contains(np.stack([s, g]), tol=INSIDE_TOL_DEG).all())  # as choose_region
     route_error: InfeasibleError | None = None
     if req.region is None and not in_p:
@@ -149,14 +150,24 @@ def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMot
             raise InfeasibleError(f"{exc}; along the workspace's region cover: {route_error}",
                                   route_error.issue or exc.issue) from exc
         raise
-    pb = PlanProblem(pb.model, s, g, pb.N, choice.region, vmax, pb.intersample, pb.hold_first,
-                     pb.ref_lo_deg, pb.ref_hi_deg)
+    pb = replace(pb, region=tube(profile, choice.region, s, g))
     if req.method == "mvn":
         plan = solve_problem(pb).to_plan("mvn", plan_hash(profile))
     else:
         plan = solve_mintime_problem(pb).to_plan("mintime", plan_hash(profile))
     verify_plan(profile, ws, plan)  # exactly the executor's check: emit only what executes
     return PlannedMotion(plan, choice, checks[0], checks[1])
+
+
+def tube(profile: Profile, region: Region, start_deg: F, goal_deg: F) -> Region:
+    """``region`` tightened by the servo's residual bound (the largest model error seen on
+    held-out data), so the measured motion, off the model by at most that, stays inside it;
+    faces nearer the start or goal than the bound move only as far as those (a plan must
+    start and end there). The region itself for a profile without a residual bound."""
+    r = profile.servo.residual_bound_deg
+    if r is None:
+        return region
+    return region.tightened(r, np.stack([start_deg, goal_deg]))
 
 
 def _plan_along_cover(profile: Profile, ws: Workspace, pb: PlanProblem,

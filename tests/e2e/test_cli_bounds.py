@@ -261,8 +261,8 @@ def test_a_huge_profile_is_refused_without_reading_it(tmp_path: Path,
 def test_row_counts_are_capped(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                monkeypatch: pytest.MonkeyPatch) -> None:
     """fk --theta-file and identify --csv refuse more rows than their documented caps."""
-    import spm_console.cli.kin as kin
     import spm_console.cli.identify as cli_identify
+    import spm_console.cli.kin as kin
 
     monkeypatch.setattr(kin, "MAX_THETA_ROWS", 3)
     monkeypatch.setattr(cli_identify, "MAX_IDENTIFY_SAMPLES", 3)

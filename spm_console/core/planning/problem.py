@@ -8,7 +8,7 @@ is printed — θ*(0) = θ(0) (``hold_first``; set False to let the first refere
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,6 +53,9 @@ class PlanProblem:
     route: RegionRoute | None = None
     """Several regions in sequence (:mod:`spm_console.core.regions.route`) instead of
     ``region`` alone; ``region`` is then the route's first region."""
+    lead_max_deg: float | None = None
+    """Largest |θ*(k) − θ(k)| at the samples, deg: the servo's identified linear range (its
+    drive saturates beyond, and the model no longer holds); None: unbounded, as (30)."""
 
     def __post_init__(self) -> None:
         s = np.asarray(self.start_deg, float).reshape(-1)
@@ -77,6 +80,10 @@ class PlanProblem:
         if self.route is not None and self.route.count > 1 and not self.route.fits(self.N):
             raise BadInputError(f"N = {self.N} steps leave no room for the route's switch samples "
                                 f"{list(self.route.switch)}", Issue.TOO_FEW_STEPS)
+        if self.lead_max_deg is not None and not (np.isfinite(self.lead_max_deg)
+                                                  and self.lead_max_deg > 0):
+            raise BadInputError(f"the linear range must be a positive angle in degrees, got "
+                                f"{self.lead_max_deg}")
         for name in ("ref_lo_deg", "ref_hi_deg"):
             v = getattr(self, name)
             if v is not None:
@@ -85,15 +92,11 @@ class PlanProblem:
     def with_steps(self, n: int) -> PlanProblem:
         """The same problem with another horizon N."""
         route = None if self.route is None else self.route.rescaled(self.N, n)
-        return PlanProblem(self.model, self.start_deg, self.goal_deg, n, self.region,
-                           self.vmax_degps, self.intersample, self.hold_first,
-                           self.ref_lo_deg, self.ref_hi_deg, route)
+        return replace(self, N=n, route=route)
 
     def with_route(self, route: RegionRoute) -> PlanProblem:
         """The same problem through another route (its first region becomes ``region``)."""
-        return PlanProblem(self.model, self.start_deg, self.goal_deg, self.N, route.regions[0],
-                           self.vmax_degps, self.intersample, self.hold_first,
-                           self.ref_lo_deg, self.ref_hi_deg, route)
+        return replace(self, region=route.regions[0], route=route)
 
     @property
     def regions(self) -> RegionRoute:

@@ -10,7 +10,8 @@
 
 Variable layout: see :class:`~spm_console.core.planning.problem.Layout`.
 Pool families: 0 region at samples, 1 region between samples, 2 speed between
-samples, 3 speed at samples, 4 reference bounds, 5 reference steps.
+samples, 3 speed at samples, 4 reference bounds, 5 reference steps, 6 the reference's lead
+θ*(k) − θ(k) at the samples k = 0..N−1 within the servo's linear range (when it has one).
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ PLAN_STEP_DEG = MAX_REFERENCE_STEP_DEG - 1e-6
 F = NDArray[np.float64]
 I = NDArray[np.int64]
 
-FAMILY_NAMES = ("region", "region_between", "speed_between", "speed", "reference_bound")
+FAMILY_NAMES = ("region", "region_between", "speed_between", "speed", "reference_bound",
+                "reference_step", "lead")
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,7 @@ class Pool:
             (N - 1) * 3 if v is not None else 0,
             (N - self.k0) * 3 if has_ref else 0,
             (N + 1) * 3,
+            N * 3 if problem.lead_max_deg is not None else 0,
         ]
         self.sizes = sizes
         self.offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
@@ -137,17 +140,20 @@ class Pool:
         step_hi[0] += start
         step_lo[N] -= goal
         step_hi[N] -= goal
+        lead = problem.lead_max_deg if problem.lead_max_deg is not None else inf
         self.lo = np.concatenate([
             np.full(sizes[0], -inf), np.full(sizes[1], -inf), np.full(sizes[2], -vv),
-            np.full(sizes[3], -vv), np.tile(rlo, sizes[4] // 3), step_lo.ravel()])
+            np.full(sizes[3], -vv), np.tile(rlo, sizes[4] // 3), step_lo.ravel(),
+            np.full(sizes[6], -lead)])
         at_samples = route.sample_mask(N)[1:N][:, self.owner]  # (N−1, nr)
         between = np.repeat(route.interval_mask(N)[:, self.owner], self.K1, axis=0)  # (N·K1, nr)
         self.hi = np.concatenate([
             np.where(at_samples, self.bp, inf).ravel(), np.where(between, self.bp, inf).ravel(),
-            np.full(sizes[2], vv), np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3), step_hi.ravel()])
+            np.full(sizes[2], vv), np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3), step_hi.ravel(),
+            np.full(sizes[6], lead)])
         self.scale = np.concatenate([
             np.tile(anorm, N - 1), np.tile(anorm, N * self.K1),
-            np.ones(sizes[2] + sizes[3] + sizes[4] + sizes[5])])
+            np.ones(sizes[2] + sizes[3] + sizes[4] + sizes[5] + sizes[6])])
         self.family = np.repeat(np.arange(len(sizes)), sizes)
 
     def _split(self, z: F) -> tuple[F, F, F]:
@@ -175,6 +181,8 @@ class Pool:
             parts.append(u[self.k0:].ravel())
         zero = np.zeros((1, 3))
         parts.append(np.diff(np.vstack([zero, u, zero]), axis=0).ravel())
+        if self.sizes[6]:
+            parts.append((u - th[:N]).ravel())
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def slack(self, z: F) -> F:
@@ -232,12 +240,17 @@ class Pool:
                 rows.append(rp)
                 cols.append(L.u(loc // 3 + self.k0, loc % 3))
                 vals.append(np.ones(loc.size))
-            else:  # the step into θ*(k): +θ*(k) (k < N), −θ*(k−1) (k > 0)
+            elif f == 5:  # the step into θ*(k): +θ*(k) (k < N), −θ*(k−1) (k > 0)
                 k, i = loc // 3, loc % 3
                 now, before = k < N, k > 0
                 rows += [rp[now], rp[before]]
                 cols += [L.u(k[now], i[now]), L.u(k[before] - 1, i[before])]
                 vals += [np.ones(int(now.sum())), -np.ones(int(before.sum()))]
+            else:  # the lead θ*(k) − θ(k)
+                k, i = loc // 3, loc % 3
+                rows += [rp, rp]
+                cols += [L.u(k, i), L.th(k, i)]
+                vals += [np.ones(loc.size), -np.ones(loc.size)]
         if not rows:
             return sp.csr_matrix((idx.size, L.n))
         return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
@@ -267,4 +280,7 @@ class Pool:
             return f"speed of joint {loc % 3 + 1} at k = {loc // 3 + 1}"
         if f == 4:
             return f"reference bound of joint {loc % 3 + 1} at k = {loc // 3 + self.k0}"
-        return f"reference step of joint {loc % 3 + 1} into k = {loc // 3}"
+        if f == 5:
+            return f"reference step of joint {loc % 3 + 1} into k = {loc // 3}"
+        return (f"lead θ* − θ of joint {loc % 3 + 1} at k = {loc // 3} (the servo's linear "
+                "range)")

@@ -57,6 +57,18 @@ class Region:
         b = np.concatenate([np.full(3, hi_deg), np.full(3, -lo_deg)])
         return cls(A, b)
 
+    def tightened(self, margin_deg: float, keep_deg: F | None = None) -> Region:
+        """Every face moved ``margin_deg`` inwards (a tube: a motion inside it that is off by
+        at most the margin stays inside this region), except as far as it would shut out a
+        point of ``keep_deg`` ((M, 3), e.g. a plan's start and goal): a face is moved by
+        min(margin, the point's distance to it) and never past where the points lie."""
+        n = np.linalg.norm(self.A, axis=1)
+        move = np.full(self.halfspaces, float(margin_deg))
+        if keep_deg is not None:
+            room = (self.slack(np.atleast_2d(np.asarray(keep_deg, float))) / n).min(axis=0)
+            move = np.minimum(move, np.maximum(room, 0.0))
+        return Region(self.A.copy(), self.b - move * n)
+
     def normalized(self) -> Region:
         """The same polytope with unit-norm rows (slack then reads in degrees)."""
         n = np.linalg.norm(self.A, axis=1)
