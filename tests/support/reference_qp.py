@@ -61,6 +61,8 @@ def formulate(pb: PlanProblem) -> tuple[cp.Problem, cp.Variable, cp.Variable, cp
     cons.append(cp.abs(ref[1:] - ref[:-1]) <= PLAN_STEP_DEG)
     if pb.vmax_degps is not None:
         cons.append(cp.abs(om) <= pb.vmax_degps)  # (30d)
+    if pb.lead_max_deg is not None:  # the servo's linear range: |θ*(k) − θ(k)|, k < N
+        cons.append(cp.abs(ref[:N] - th[:N]) <= pb.lead_max_deg)
     if pb.ref_lo_deg is not None:
         cons.append(ref[:N] >= np.tile(pb.ref_lo_deg, (N, 1)))
     if pb.ref_hi_deg is not None:

@@ -1,0 +1,82 @@
+"""Plans for an identified servo (ωn, ζ, a delay, a linear range and a residual bound): the
+planner holds the reference's lead within the linear range, the runtime refuses a plan that
+does not, plans stay in the tube, and every plan returned passes the runtime's verification up
+to the rated 270 °/s. A second solver (cvxpy) with the same constraints agrees on N*."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from spm_console.config.models import servo_limits_deg, servo_model_of
+from spm_console.config.schema import Profile
+from spm_console.core.planning.mintime import solve_mintime, solve_mintime_problem
+from spm_console.core.polytope.region import Region
+from spm_console.errors import PlanRefusedError
+from spm_console.motion.plan_check import verify_plan
+from spm_console.services.plan_request import PlanRequest, plan_motion
+from tests.support.planning_cases import GOAL, START_MT
+from tests.support.reference_qp import solve_reference
+from tests.support.ws_helpers import agile_profile, agile_workspace
+
+LEAD_DEG = 6.0
+RESIDUAL_DEG = 0.3
+
+
+def identified(vmax: float = 270.0) -> Profile:
+    p = agile_profile()
+    servo = p.servo.model_copy(update={"p": 43.0, "zeta": 0.89, "delay_s": 0.0035,
+                                       "linear_range_deg": LEAD_DEG,
+                                       "residual_bound_deg": RESIDUAL_DEG})
+    return p.model_copy(update={"servo": servo, "limits": p.limits.model_copy(
+        update={"vmax_degps": vmax})})
+
+
+def _lead(plan) -> float:  # type: ignore[no-untyped-def]
+    return float(np.abs(plan.reference_deg[:-1] - plan.position_deg[:-1]).max())
+
+
+@pytest.mark.parametrize("vmax", [50.0, 150.0, 270.0])
+def test_every_minimum_time_plan_keeps_the_lead_and_passes_the_runtime(vmax: float) -> None:
+    prof = identified()
+    ws = agile_workspace()
+    got = plan_motion(prof, ws, PlanRequest("mintime", START_MT, GOAL, vmax_degps=vmax))
+    plan = got.plan
+    assert _lead(plan) <= LEAD_DEG + 1e-6
+    assert verify_plan(prof, ws, plan).points > 0
+    assert plan.model.zeta == 0.89 and plan.model.delay_s == 0.0035
+    # the tube: the model's motion keeps the residual bound from every face of P's region
+    # except where the goal itself lies nearer (it is on θ2 = 155°)
+    if got.region is not None:
+        base = got.region.region
+        assert base.halfspaces == plan.region.halfspaces
+        n = np.linalg.norm(base.A, axis=1)
+        moved = (base.b - plan.region.b) / n
+        assert moved.max() == pytest.approx(RESIDUAL_DEG) and moved.min() >= 0.0
+
+
+def test_the_lead_binds_at_speed_and_a_second_solver_agrees_on_the_horizon() -> None:
+    model = servo_model_of(identified())
+    free = solve_mintime(model, START_MT, GOAL, Region.box(65.0, 155.0), 270.0)
+    held = replace(free.plan.problem, lead_max_deg=LEAD_DEG)
+    bound = solve_mintime_problem(held)
+    assert _lead(free.to_plan("mintime", "")) > LEAD_DEG  # unbounded, the lead is larger
+    lead = np.abs(bound.plan.reference_deg[:-1] - bound.plan.position_deg[:-1]).max()
+    assert lead == pytest.approx(LEAD_DEG, abs=1e-3)  # it binds
+    assert bound.N > free.N
+    assert solve_reference(held.with_steps(bound.N)).status == "optimal"
+    assert solve_reference(held.with_steps(bound.N - 1)).status == "infeasible"
+
+
+def test_the_runtime_refuses_a_plan_beyond_the_linear_range() -> None:
+    prof = identified()
+    ws = agile_workspace()
+    lo, hi = servo_limits_deg(prof)
+    res = solve_mintime(servo_model_of(prof), START_MT, GOAL, Region.box(65.0, 155.0), 270.0,
+                        ref_lo_deg=lo, ref_hi_deg=hi)
+    plan = res.to_plan("mintime", prof.digest())
+    assert _lead(plan) > LEAD_DEG
+    with pytest.raises(PlanRefusedError, match="linear range"):
+        verify_plan(prof, ws, plan)
