@@ -110,6 +110,8 @@ def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any
             f"{st.tracking_max_deg:.3f}°; jitter p99 {st.jitter_ms.p99:.2f} ms; bus "
             f"{st.bus_ms.mean:.2f} ms/cycle; retries {st.comm_retries}, failed cycles "
             f"{st.comm_failed_cycles}")
+    if st.model is not None:
+        lines.append(st.model.text())
     if res.realtime:
         lines.append(f"servo loop: {res.realtime}")
     if res.log_dir:
@@ -118,6 +120,10 @@ def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any
         emit(args, data, "\n".join(lines))
         if not res.ok:
             info(f"stopped: {res.message}")
+        if st.model is not None and st.model.exceeds:
+            info("warning: the servo model looks wrong for this servo (model error above "
+                 f"{st.model.bound_deg:.2f}°); identify it: spm-console identify --experiment "
+                 "--out NEW.toml")
         if res.realtime and not res.realtime_granted:
             info(f"warning: no real-time scheduling for the servo loop ({res.realtime}); "
                  "timing may suffer under load")

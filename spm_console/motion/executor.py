@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.models import servo_limits_deg, servo_model_of
+from spm_console.config.models import servo_limits_deg, servo_model_of, servo_tick_deg
 from spm_console.config.schema import Profile
 from spm_console.core.servo.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
 from spm_console.core.workspace.data import Workspace
@@ -46,7 +46,7 @@ from spm_console.motion.plan_check import LINE_PHASES, PlanCheck, PlanVerifier
 from spm_console.motion.safety import SafetyMonitor, StopReason
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult, Segment
-from spm_console.motion.stats import StopTiming, run_stats, stale_replies
+from spm_console.motion.stats import StopTiming, model_health, run_stats, stale_replies
 from spm_console.motion.stop_action import apply_stop_action
 from spm_console.system.cpus import placement
 from spm_console.system.realtime import (
@@ -480,7 +480,9 @@ class Executor:
             stale_replies=stale_replies(self.bus) - getattr(self, "_stale0", 0),
             comm_retries=0 if safety is None else safety.comm_retries,
             comm_failed_cycles=0 if safety is None else safety.comm_failed_cycles,
-            stop=None if stop is None else StopTiming(stop.kind, stop.t, stop.k, *(timing or ())))
+            stop=None if stop is None else StopTiming(stop.kind, stop.t, stop.k, *(timing or ())),
+            model=model_health(self.samples, self.profile.servo.residual_bound_deg,
+                               servo_tick_deg(self.profile)))
         if self.log is not None:
             self.log.finish(outcome, int(code), message, stats.to_dict())
         final = next((s.measured_deg for s in reversed(self.samples) if s.read_ok), None)

@@ -56,6 +56,55 @@ class StopTiming:
 
 
 @dataclass(frozen=True)
+class ModelHealth:
+    """The servo model against the measurement, per joint, and the verdict: a largest error
+    above the profile's residual bound says the model looks wrong for this servo."""
+
+    rms_per_joint_deg: tuple[float, ...]
+    max_per_joint_deg: tuple[float, ...]
+    bound_deg: float
+    """The profile's ``servo.residual_bound_deg``, or :data:`DEFAULT_TICKS` encoder ticks
+    for a model without one (the model's quantization alone reaches about one)."""
+    identified_bound: bool
+    """True when the bound is the profile's (measured on held-out data)."""
+    exceeds: bool
+    """Some joint's largest error is above the bound: the model looks wrong."""
+
+    def text(self) -> str:
+        """One line for people."""
+        per = ", ".join(f"{r:.3f}/{m:.3f}" for r, m in zip(self.rms_per_joint_deg,
+                                                           self.max_per_joint_deg, strict=True))
+        bound = (f"the profile's residual bound {self.bound_deg:.2f}°" if self.identified_bound
+                 else f"{self.bound_deg:.2f}° ({DEFAULT_TICKS} encoder ticks; the profile has no "
+                      "identified residual bound)")
+        head = f"model vs measured per joint, RMS/max: {per}°"
+        if not self.exceeds:
+            return f"{head}; within {bound}"
+        return (f"{head}; above {bound}: the servo model looks wrong for this servo; run the "
+                "identification experiment (spm-console identify --experiment --out NEW.toml)")
+
+
+DEFAULT_TICKS = 3
+"""Encoder ticks the model may be off by when the profile has no identified residual bound:
+the goal and the reading are each quantized to a tick."""
+
+
+def model_health(samples: Sequence[Sample], bound_deg: float | None, tick_deg: float
+                 ) -> ModelHealth | None:
+    """The model's errors at the samples read, and the verdict (None when nothing was read)."""
+    ok = np.array([s.read_ok for s in samples], bool)
+    if not ok.any():
+        return None
+    err = np.abs(np.array([s.measured_deg for s in samples])[ok]
+                 - np.array([s.predicted_deg for s in samples])[ok])
+    bound = DEFAULT_TICKS * tick_deg if bound_deg is None else float(bound_deg)
+    mx = err.max(axis=0)
+    return ModelHealth(tuple(float(x) for x in np.sqrt(np.mean(err ** 2, axis=0))),
+                       tuple(float(x) for x in mx), bound, bound_deg is not None,
+                       bool((mx > bound).any()))
+
+
+@dataclass(frozen=True)
 class RunStats:
     """What a run measured (no cycle ran: only ``samples`` = 0 and ``duration_s``)."""
 
@@ -83,6 +132,8 @@ class RunStats:
     comm_retries: int = 0
     comm_failed_cycles: int = 0
     stop: StopTiming | None = None
+    model: ModelHealth | None = None
+    """The servo model against the measurement (None when nothing was read)."""
 
     def to_dict(self) -> dict[str, Any]:
         """The run-log / JSON form (the keys of the fields; absent parts left out)."""

@@ -373,6 +373,9 @@ def outcome_text(result: Any) -> str:
     rms = result.stats.tracking_rms_deg
     if result.stats.samples and np.isfinite(rms):
         lines.append(f"tracking error RMS {rms:.3f}°")
+    if result.stats.model is not None:
+        lines.append(result.stats.model.text().replace(
+            "spm-console identify --experiment --out NEW.toml", "Tools: identify the servo"))
     if result.realtime:
         flag = "" if result.realtime_granted else "  (NOT real-time: timing may suffer under load)"
         lines.append(f"servo loop: {result.realtime}{flag}")
