@@ -47,7 +47,7 @@ def test_the_physical_wrist_is_identified_and_its_profile_tracks_better(
     assert [b["part"] for b in d["blocks"]].count("held-out") >= 3
     assert prof.geometry == agile.geometry and prof.bus == agile.bus  # the rest kept
     # the paper's MVN, planned and executed with each profile on the physical wrist
-    rms = []
+    rms: list[float] = []
     for profile, path in ((agile, AGILE), (prof, str(out))):
         plan_file = tmp_path / f"mvn-{len(rms)}.json"
         save_plan(paper_mvn(profile), plan_file)
@@ -80,9 +80,9 @@ def test_sigint_mid_experiment_stops_closes_the_log_and_writes_nothing(tmp_path:
     assert proc.returncode == int(ExitCode.STOP_ESTOP), err
     assert json.loads(stdout)["outcome"] == "stopped"
     assert not out.exists()
-    runs = list_runs(logs)
-    assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]  # homed, then stopped
-    run = load_run(runs[-1].path)
+    done = list_runs(logs)
+    assert [r.meta["outcome"] for r in done] == ["completed", "stopped"]  # homed, then stopped
+    run = load_run(done[-1].path)
     assert not run.truncated and run.meta["exit_code"] == int(ExitCode.STOP_ESTOP)
 
 
