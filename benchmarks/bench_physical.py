@@ -1,19 +1,20 @@
-"""Plans executed on the physical emulated wrist (``[plant] model = "physical"``).
+"""Plans executed on the physical emulated wrist, before and after identifying its servos.
 
-The planner's model is eq. (27) with the profile's p; the physical wrist is MX-106 drives
-(firmware loop, PWM, DC motor, friction) on the rigid-body closed chain. For each plan:
-outcome, tracking against the model (RMS, max), final error, and how many measured samples
-lie outside the grid's certified set P′ (with the largest excursion outside the region the
-plan was planned in). The emulated wrist runs in a process of its own, as under ``--sim``.
-The runtime certifies plans near the boundary against a finer set than P′: the ideal
-baseline shows how many samples of a run the runtime accepted lie outside P′ all the same.
+The physical wrist is MX-106 drives (firmware loop, PWM, DC motor, friction) on the rigid-body
+closed chain. First the identification experiment runs on it (as ``identify --experiment``
+does, with the speed bound of 250 °/s so its steps reach 9°) and the identified ``[servo]``
+is put in the profile. Then each run is planned (the planner's own path: linear range and
+tube included) and executed twice on a fresh physical wrist: with the paper's model (27),
+p = 32.22 (the baseline column) and with the identified model (ours). For each: outcome,
+tracking against the run's model (RMS, max), final error, how many measured samples lie
+outside the grid's certified set P′ and the largest excursion outside the plan's region (the
+union of its route's regions).
 Runs: the paper's MVN and minimum-time pairs, then minimum time at 100, 150 and 200 °/s on the
-minimum-time pair (a profile whose planning limit allows them). Baseline: the same plan on
-the ideal emulated wrist (eq. (27) itself), same run.
+minimum-time pair. The emulated wrist runs in a process of its own, as under ``--sim``.
 
-Targets are the physical-servo issue's, meant for after identification: every run completes,
-no excursion, final error ≤ 0.2°, tracking RMS ≤ 0.15°. Until the planner uses an identified
-servo model, rows that miss them say how far the plans are from what the servo does.
+Targets are the physical-servo issue's: after identification every run completes, no sample
+outside P′, final error ≤ 0.2°, tracking RMS ≤ 0.15°; identification held-out RMS ≤ 0.1°
+with ≤ 30 s of motion.
 """
 
 from __future__ import annotations
@@ -25,20 +26,23 @@ import numpy as np
 
 from benchmarks.common import Row
 from spm_console.config.load import load_profile
-from spm_console.config.models import servo_limits_deg, servo_model_of
 from spm_console.config.schema import Plant, Profile
 from spm_console.core.plan import Plan
-from spm_console.core.planning.mintime import solve_mintime
-from spm_console.core.planning.mvn import solve_mvn
-from spm_console.core.polytope.region import Region
-from spm_console.core.regions.choice import choose_region, region_containing
+from spm_console.core.servo.experiment import fit_record
+from spm_console.core.workspace.data import Workspace
 from spm_console.devices.dynamixel.bus import open_bus
 from spm_console.devices.emulator.child import EmulatorChild
 from spm_console.errors import SpmError
 from spm_console.motion.executor import Executor, Segment
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.report import paper_values as pv
+from spm_console.services.identify_experiment import experiment_once, identified_servo
+from spm_console.services.oneshot import RunRequest
+from spm_console.services.plan_request import PlanRequest, plan_motion
 from spm_console.store.workspace_cache import load_or_build
+
+FAST_DEGPS = 250.0
+"""The speed bound of the profile for the runs above the paper's 50 °/s."""
 
 
 @dataclass
@@ -52,80 +56,97 @@ class Outcome:
     message: str
 
 
-def _execute(profile: Profile, plan: Plan, region: Region) -> Outcome:
-    """The plan on a fresh emulated wrist in a process of its own (as ``--sim`` runs it: its
-    physics shares no interpreter with the servo loop, which runs here)."""
-    certified = load_or_build(profile)[0].certified_set()
+def _execute(profile: Profile, ws: Workspace, plan: Plan) -> Outcome:
+    """The plan on a fresh physical wrist in a process of its own."""
+    certified = ws.certified_set()
     emu = EmulatorChild(profile, initial_deg=list(plan.reference_deg[0]))
     bus = open_bus(profile, emu.launch())
     with tempfile.TemporaryDirectory() as tmp:
         log = RunLog.create("bench", profile.name, profile.digest(), [], root=tmp)
-        ex = Executor(profile, bus, workspace=load_or_build(profile)[0], log=log)
+        ex = Executor(profile, bus, workspace=ws, log=log)
         try:
             result = ex.run([Segment("plan", plan)])
         finally:
             bus.close()
             emu.stop()
-    meas = np.array([s.measured_deg for s in ex.samples])
-    ok = np.isfinite(meas).all(axis=1)
-    n = len(meas)
-    err = np.abs(meas - plan.position_deg[:n])[ok]
-    seen = meas[ok]
+    ok = np.array([s.read_ok for s in ex.samples], bool)
+    meas = np.array([s.measured_deg for s in ex.samples])[ok]
+    err = np.abs(meas - np.array([s.predicted_deg for s in ex.samples])[ok])
+    nan = float("nan")
     return Outcome(
         result.outcome,
-        float(np.sqrt(np.mean(err ** 2))) if err.size else float("nan"),
-        float(err.max()) if err.size else float("nan"),
-        float(np.abs(seen[-1] - plan.reference_deg[-1]).max()) if seen.size else float("nan"),
-        float(region.violation_deg(seen).max()) if seen.size else float("nan"),
-        int((~certified.contains(seen)).sum()),
-        result.message,
-    )
+        float(np.sqrt(np.mean(err ** 2))) if err.size else nan,
+        float(err.max()) if err.size else nan,
+        float(np.abs(meas[-1] - plan.reference_deg[-1]).max()) if meas.size else nan,
+        float(np.min([r.violation_deg(meas) for r in plan.regions.regions], axis=0).max())
+        if meas.size else nan,
+        int((~certified.contains(meas)).sum()) if meas.size else 0,
+        result.message)
 
 
-def _rows(name: str, profile: Profile, plan: Plan, region: Region) -> list[Row]:
-    physical = profile.model_copy(update={"plant": Plant(model="physical")})
-    ideal = profile.model_copy(update={"plant": Plant(model="ideal")})
-    phy, base = _execute(physical, plan, region), _execute(ideal, plan, region)
-    done = phy.outcome == "completed"
+def _rows(name: str, before: Outcome | SpmError, after: Outcome | SpmError) -> list[Row]:
+    if isinstance(after, SpmError):
+        return [Row(f"physical: {name}: planned", float("nan"), "", "a plan", passed=False,
+                    note=f"refused after identification: {after.message[:200]}")]
+    b = before if isinstance(before, Outcome) else None
+    done = after.outcome == "completed"
+    was = (f"before: {b.outcome}, max {b.max_deg:.3f}°" if b is not None else
+           f"before: refused ({before.message[:120] if isinstance(before, SpmError) else ''})")
     return [
-        Row(f"physical: {name}: tracking RMS", phy.rms_deg, "°", "≤ 0.15° (after identification)",
-            base.rms_deg, done and phy.rms_deg <= 0.15,
-            note=f"outcome {phy.outcome} (ideal: {base.outcome}); max {phy.max_deg:.3f}° "
-                 f"(ideal {base.max_deg:.3f}°)" + ("" if done else f"; {phy.message[:150]}")),
-        Row(f"physical: {name}: final error", phy.final_deg, "°", "≤ 0.2°", base.final_deg,
-            done and phy.final_deg <= 0.2),
-        Row(f"physical: {name}: samples outside P′", phy.outside, "", "0", base.outside,
-            phy.outside == 0,
-            note=f"largest excursion outside the plan's region {phy.excursion_deg:.3f}° "
-                 f"(ideal {base.excursion_deg:.3f}°)"),
+        Row(f"physical: {name}: tracking RMS", after.rms_deg, "°", "≤ 0.15°",
+            None if b is None else b.rms_deg, done and after.rms_deg <= 0.15,
+            note=f"outcome {after.outcome}; max {after.max_deg:.3f}°; {was}"
+                 + ("" if done else f"; {after.message[:150]}")),
+        Row(f"physical: {name}: final error", after.final_deg, "°", "≤ 0.2°",
+            None if b is None else b.final_deg, done and after.final_deg <= 0.2),
+        Row(f"physical: {name}: samples outside P′", after.outside, "", "0",
+            None if b is None else b.outside, after.outside == 0,
+            note=f"largest excursion outside the plan's region {after.excursion_deg:.3f}°"
+                 + ("" if b is None else f" (before {b.excursion_deg:.3f}°)")),
     ]
 
 
-def _refused(name: str, exc: SpmError) -> list[Row]:
-    return [Row(f"physical: {name}: planned", float("nan"), "", "a plan", passed=False,
-                note=f"refused: {exc.message}")]
+def _run(profile: Profile, ws: Workspace, req: PlanRequest) -> Outcome | SpmError:
+    try:
+        plan = plan_motion(profile, ws, req).plan
+    except SpmError as exc:
+        return exc
+    return _execute(profile, ws, plan)
 
 
 def run() -> list[Row]:
-    agile = load_profile("profiles/agile_wrist.toml")
+    agile = load_profile("profiles/agile_wrist.toml").model_copy(
+        update={"plant": Plant(model="physical")})
     ws, _ = load_or_build(agile)
-    sm = servo_model_of(agile)
+    fast = agile.model_copy(update={"limits": agile.limits.model_copy(
+        update={"vmax_degps": FAST_DEGPS})})
     rows: list[Row] = []
-    start, goal = np.array(pv.MVN_START_DEG), np.array(pv.MVN_GOAL_DEG)
-    region = region_containing(ws, start, goal)
-    lo, hi = servo_limits_deg(agile)  # the references within the servo limits, as planned
-    plan = solve_mvn(sm, start, goal, pv.MVN_STEPS, region, ref_lo_deg=lo,
-                     ref_hi_deg=hi).to_plan("mvn", agile.digest())
-    rows += _rows("paper MVN", agile, plan, region)
-    fast = agile.model_copy(update={"limits": agile.limits.model_copy(update={"vmax_degps": 250.0})})
-    start, goal = np.array(pv.MINTIME_START_DEG), np.array(pv.MINTIME_GOAL_DEG)
-    region = choose_region(ws, start, goal).region
-    for vmax in (pv.MINTIME_VMAX_DEGPS, 100.0, 150.0, 200.0):
-        name = "paper minimum time" if vmax == pv.MINTIME_VMAX_DEGPS else f"minimum time {vmax:g}°/s"
-        try:
-            res = solve_mintime(sm, start, goal, region, vmax, ref_lo_deg=lo, ref_hi_deg=hi)
-            rows += _rows(name, fast if vmax > agile.limits.vmax_degps else agile,
-                          res.to_plan("mintime", agile.digest()), region)
-        except SpmError as exc:
-            rows += _refused(name, exc)
+    with tempfile.TemporaryDirectory() as tmp:
+        exp = experiment_once(fast, RunRequest(sim=True, log_root=tmp, handle_signals=False))
+    if exp.t is None or exp.reference_deg is None or exp.measured_deg is None:
+        return [Row("physical: identification", float("nan"), "", "completes", passed=False,
+                    note=exp.execution.message)]
+    fit = fit_record(exp.excitation, exp.t, exp.reference_deg, exp.measured_deg)
+    servo = identified_servo(agile, fit, "benchmark")
+    a = fit.assessment
+    rows += [
+        Row("physical: identification held-out RMS", a.held_out_rms_deg, "°", "≤ 0.1°",
+            passed=a.held_out_rms_deg <= 0.1,
+            note=f"ωn {servo.p:.2f} rad/s, ζ {servo.zeta:.3f}, delay {1e3 * servo.delay_s:.1f} "
+                 f"ms, linear range {servo.linear_range_deg}° "
+                 f"({'saturation seen' if a.saturated else 'never saturated'}), residual bound "
+                 f"{servo.residual_bound_deg}°; held-out max {a.held_out_max_deg:.3f}°"),
+        Row("physical: identification motion", exp.excitation.duration_s, "s", "≤ 30 s",
+            passed=exp.excitation.duration_s <= 30.0),
+    ]
+    cases = [("paper MVN", "mvn", pv.MVN_START_DEG, pv.MVN_STEPS, None),
+             ("paper minimum time", "mintime", pv.MINTIME_START_DEG, 2, pv.MINTIME_VMAX_DEGPS)]
+    cases += [(f"minimum time {v:g}°/s", "mintime", pv.MINTIME_START_DEG, 2, v)
+              for v in (100.0, 150.0, 200.0)]
+    for name, method, start, steps, vmax in cases:
+        base = fast if vmax is not None and vmax > agile.limits.vmax_degps else agile
+        after = base.model_copy(update={"servo": servo})
+        req = PlanRequest(method, np.asarray(start, float), np.asarray(pv.MVN_GOAL_DEG, float),  # type: ignore[arg-type]
+                          steps=steps, vmax_degps=vmax)
+        rows += _rows(name, _run(base, ws, req), _run(after, ws, req))
     return rows

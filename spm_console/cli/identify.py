@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import datetime as dt
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -25,7 +24,7 @@ import numpy as np
 from spm_console.cli.common import PLOT_SUFFIXES, emit, output_file, profile_of
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.config.checks import PTS_MAX, PTS_MIN
-from spm_console.config.schema import Identified, Profile, Servo
+from spm_console.config.schema import Profile, Servo
 from spm_console.config.servo_section import with_servo
 from spm_console.core.servo.experiment import ExperimentFit, fit_record
 from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, IdentifyResult, identify
@@ -34,7 +33,7 @@ from spm_console.motion.logs.runlog import load_run
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.report.plot_identify import plot_experiment
 from spm_console.safe_io import MB, read_text
-from spm_console.services.identify_experiment import ExperimentRun, experiment_once
+from spm_console.services.identify_experiment import ExperimentRun, experiment_once, identified_servo
 
 #: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
 MAX_CSV_BYTES = 20 * MB
@@ -193,27 +192,12 @@ def _experiment(args: argparse.Namespace, profile: Profile) -> int:
         fit = fit_record(run.excitation, run.t, run.reference_deg, run.measured_deg)
     except SpmError as exc:
         raise type(exc)(f"{run.execution.log_dir}: {exc.message}") from None
-    servo = _servo(profile, fit, str(run.execution.log_dir))
+    servo = identified_servo(profile, fit, str(run.execution.log_dir))
     text, _ = _new_profile(args, servo)
     args.out.write_text(text, encoding="utf-8")
     if args.plot is not None:
         plot_experiment(run.excitation, run.t, run.measured_deg, fit, args.plot)
     return _report_fit(args, run, fit, servo)
-
-
-def _servo(profile: Profile, fit: ExperimentFit, source: str) -> Servo:
-    """The identified [servo] section (Ts and discretization kept)."""
-    s, a = fit.shared, fit.assessment
-    return Servo(
-        p=round(s.p, 4), ts_s=profile.servo.ts_s, discretization=profile.servo.discretization,
-        zeta=round(s.zeta, 4), delay_s=round(min(s.delay_s, 0.999 * profile.servo.ts_s), 6),
-        linear_range_deg=round(max(a.linear_range_deg, 0.01), 2),
-        residual_bound_deg=max(fit.residual_bound_deg, 0.01),
-        identified=Identified(
-            date=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), source=source,
-            samples=s.samples * s.joints, fit_rms_deg=round(a.fit_rms_deg, 4),
-            held_out_rms_deg=round(a.held_out_rms_deg, 4),
-            held_out_max_deg=round(a.held_out_max_deg, 4)))
 
 
 def _new_profile(args: argparse.Namespace, servo: Servo) -> tuple[str, Profile]:

@@ -12,6 +12,7 @@ stopped by the same signals. The fit reads the run's own log.
 
 from __future__ import annotations
 
+import datetime as dt
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,10 +20,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.config.models import servo_model_of
-from spm_console.config.schema import Profile
+from spm_console.config.schema import Identified, Profile, Servo
 from spm_console.core.plan import Plan
 from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
-from spm_console.core.servo.experiment import Excitation, excitation
+from spm_console.core.servo.experiment import Excitation, ExperimentFit, excitation
 from spm_console.errors import BadInputError, PlanRefusedError
 from spm_console.motion.homing import HomingResult
 from spm_console.motion.logs.runlog import load_run
@@ -125,3 +126,19 @@ def _record(run_dir: Path, n: int) -> tuple[F, F, F]:
         raise BadInputError(f"{run_dir}: {int((~ok).sum())} of {n} replies were lost, more "
                             f"than {100 * LOST_SHARE_MAX:g} %: repeat the experiment")
     return t, ref, meas
+
+
+def identified_servo(profile: Profile, fit: ExperimentFit, source: str) -> Servo:
+    """The identified ``[servo]`` section of ``fit`` (Ts and discretization kept), its
+    provenance naming ``source`` and the time now (UTC)."""
+    s, a = fit.shared, fit.assessment
+    return Servo(
+        p=round(s.p, 4), ts_s=profile.servo.ts_s, discretization=profile.servo.discretization,
+        zeta=round(s.zeta, 4), delay_s=round(min(s.delay_s, 0.999 * profile.servo.ts_s), 6),
+        linear_range_deg=round(max(a.linear_range_deg, 0.01), 2),
+        residual_bound_deg=max(fit.residual_bound_deg, 0.01),
+        identified=Identified(
+            date=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), source=source,
+            samples=s.samples * s.joints, fit_rms_deg=round(a.fit_rms_deg, 4),
+            held_out_rms_deg=round(a.held_out_rms_deg, 4),
+            held_out_max_deg=round(a.held_out_max_deg, 4)))
