@@ -128,7 +128,8 @@ class Follower(Executor):
         vmax = self.profile.limits.vmax_degps
         # one solver per region, built before torque-on (about 15 ms each: not in the loop)
         self.solvers = [FollowSolver(self.model, r, vmax, HORIZON, self.lo, self.hi,
-                                     settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S))
+                                     settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S),
+                                     lead_max_deg=self.profile.servo.linear_range_deg)
                         for r in regions]
         targets, _ = feed.targets(0.0, self.ts, HORIZON, theta0)
         idx, goal = self.hopper.aim(begin, targets[-1])
@@ -258,7 +259,8 @@ class Follower(Executor):
         if self.hopper.switches != before:  # inside the next region: plan there from now on
             self.solvers[idx].reset()
             self._event("region", k=k, region=idx, switches=self.hopper.switches)
-        res = self.solvers[idx].solve(th, om, _aimed(feed, targets, goal), elapsed=1)
+        res = self.solvers[idx].solve(th, om, _aimed(feed, targets, goal), elapsed=1,
+                                      previous_reference_deg=ref)
         self._times.append(time.perf_counter() - t0)
         if res.detail == TARGET_REFUSED and res.reason != self._refused_target:
             self._refused_target = res.reason  # logged once per target: the plan in use goes on
@@ -300,4 +302,5 @@ class Follower(Executor):
         return check_motion(self.model.dynamics, self.ts, np.column_stack([theta, omega]), refs,
                             self.lo, self.hi, self.profile.limits.vmax_degps,
                             self.verifier.certified, rules=FOLLOW_RULES,
-                            previous_reference_deg=prev_ref, speed_floor_degps=np.abs(omega))
+                            previous_reference_deg=prev_ref, speed_floor_degps=np.abs(omega),
+                            lead_max_deg=self.profile.servo.linear_range_deg)

@@ -284,3 +284,40 @@ def test_an_untimed_solve_ignores_the_time_limit_and_the_next_timed_one_keeps_it
     _assert_safe(first, s)
     again = s.solve(HOME, np.zeros(3), target, warm=False)
     assert not again.ok and "out of time" in again.reason
+
+
+def test_the_linear_range_and_the_step_from_the_reference_in_use_hold_as_in_cvxpy() -> None:
+    """An identified servo (ζ = 0.8) with a 2° linear range, the reference in use 6° off the
+    state: the first reference steps at most 10° from it, every reference leads the position by
+    at most 2°, and the optimum equals the cvxpy formulation with the same rows."""
+    from spm_console.core.servo.model import Dynamics, discretize
+
+    model = discretize(Dynamics(43.0, 0.8), MODEL.ts)
+    solver = FollowSolver(model, REGION, VMAX, ref_lo_deg=LO, ref_hi_deg=HI, horizon=40,
+                          settings=TIGHT, lead_max_deg=2.0)
+    th0, om0, prev = HOME, np.zeros(3), HOME + np.array([-6.0, 6.0, 0.0])
+    target = _at(6.0, -3.0, 3.0)  # inside the region: the solver does not move it
+    r = solver.solve(th0, om0, target, warm=False, timed=False, previous_reference_deg=prev)
+    assert r.ok, r.reason
+    steps = np.abs(np.diff(np.vstack([prev, r.reference_deg]), axis=0))
+    assert steps.max() <= 10.0 + 1e-6
+    lead = np.abs(r.reference_deg - r.position_deg[:-1])
+    assert lead.max() <= 2.0 + 1e-5 and lead.max() > 1.9  # it binds
+    H, w = solver.horizon, solver.weights
+    b = REGION.b - solver.margin_deg * np.linalg.norm(REGION.A, axis=1)
+    th, om, ref = cp.Variable((H + 1, 3)), cp.Variable((H + 1, 3)), cp.Variable((H, 3))
+    A, B = model.A, model.B
+    cons = [th[0] == th0, om[0] == om0, om[H] == 0,
+            th[1:] == A[0, 0] * th[:-1] + A[0, 1] * om[:-1] + B[0] * ref,
+            om[1:] == A[1, 0] * th[:-1] + A[1, 1] * om[:-1] + B[1] * ref,
+            cp.abs(om[1:]) <= VMAX - solver.speed_margin_degps,
+            th[1:] @ REGION.A.T <= np.tile(b, (H, 1)),
+            ref >= np.tile(LO, (H, 1)), ref <= np.tile(HI, (H, 1)), th[H] >= LO, th[H] <= HI,
+            cp.abs(ref[0] - prev) <= 10.0 - 1e-6, cp.abs(ref[1:] - ref[:-1]) <= 10.0 - 1e-6,
+            cp.abs(ref - th[:-1]) <= 2.0]
+    cost = (cp.sum_squares(om[1:]) + w.track * cp.sum_squares(th[1:] - np.tile(target, (H, 1)))
+            + w.terminal * cp.norm1(th[H] - target))
+    prob = cp.Problem(cp.Minimize(cost), cons)
+    prob.solve(solver="CLARABEL", tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10)
+    assert prob.status == "optimal"
+    assert r.cost == pytest.approx(float(prob.value), rel=1e-5)

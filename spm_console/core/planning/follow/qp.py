@@ -9,12 +9,16 @@ Variables, one block of nine per sample k = 1..H, then three slacks::
 (θ*(k−1) is the reference that leads from sample k−1 to sample k.) The current state
 θ(0), θ̇(0) is data: it enters only the right-hand side of the first dynamics rows.
 
-Rows, one block of 12 + n_r per sample k = 1..H, then nine terminal rows::
+Rows, one block of 18 + n_r per sample k = 1..H, then nine terminal rows::
 
     dynamics  θ(k) − a θ(k−1) − b θ̇(k−1) − b₀ θ*(k−1) = 0      (3 rows, k = 1: = a θ(0) + b θ̇(0))
               θ̇(k) − c θ(k−1) − d θ̇(k−1) − b₁ θ*(k−1) = 0      (3 rows, k = 1: = c θ(0) + d θ̇(0))
     speed     −v ≤ θ̇(k) ≤ v                                   (3 rows; k = H: 0 ≤ θ̇(H) ≤ 0, rest)
     reference lo ≤ θ*(k−1) ≤ hi                                (3 rows)
+    step      |θ*(k−1) − θ*(k−2)| ≤ S                          (3 rows; k = 1: from the reference
+                                                                in use, data)
+    lead      |θ*(k−1) − θ(k−1)| ≤ L (the linear range)        (3 rows; k = 1: from θ(0), data;
+                                                                ±∞ without a linear range)
     region    A θ(k) ≤ b − margin·‖A_r‖                        (n_r rows)
     terminal  s − θ(H) ≥ −t,  s + θ(H) ≥ t                     (6 rows: s ≥ |θ(H) − t|)
               lo ≤ θ(H) ≤ hi                                   (3 rows: θ(H) may be held)
@@ -23,8 +27,8 @@ Cost (½ zᵀPz + qᵀz, plus a constant)::
 
     Σ_{k=1..H} ‖θ̇(k)‖²  +  w Σ_{k=1..H} ‖θ(k) − t(k)‖²  +  ρ Σ_i s_i
 
-The target enters only q and the terminal rows' lower bounds; the current state only the
-first block's equality bounds; P and A never change, so OSQP factors once.
+The target enters only q and the terminal rows' lower bounds; the current state and the
+reference in use only the first block's bounds; P and A never change, so OSQP factors once.
 """
 
 from __future__ import annotations
@@ -43,6 +47,8 @@ I = NDArray[np.int64]
 
 BLOCK = 9
 """Variables per sample: θ*(k−1), θ(k), θ̇(k) (three joints each)."""
+FIXED_ROWS = 18
+"""Rows per sample before the region's: dynamics 6, speed 3, reference 3, step 3, lead 3."""
 
 
 @dataclass(frozen=True)
@@ -59,7 +65,7 @@ class FollowLayout:
 
     @property
     def rows_per_block(self) -> int:
-        return 12 + self.nr
+        return FIXED_ROWS + self.nr
 
     @property
     def m(self) -> int:
@@ -135,11 +141,17 @@ class FollowMatrices:
     """(m,) lower bounds with the state and target parts left at 0 (filled per solve)."""
     hi: F
     """(m,) upper bounds, likewise."""
+    step_deg: float = np.inf
+    """Largest reference step, deg."""
+    lead_deg: float = np.inf
+    """Largest |θ*(k) − θ(k)| (the servo's linear range), deg; ∞: none."""
 
 
 def build(model: ServoModel, region: Region, vmax_degps: float, H: int, ref_lo_deg: F, ref_hi_deg: F,
-          track_weight: float, margin_deg: float, speed_margin_degps: float) -> FollowMatrices:
-    """Assemble P, A and the constant bounds of the follow QP (see the module docstring)."""
+          track_weight: float, margin_deg: float, speed_margin_degps: float,
+          step_deg: float = np.inf, lead_deg: float = np.inf) -> FollowMatrices:
+    """Assemble P, A and the constant bounds of the follow QP (see the module docstring);
+    ``step_deg``: largest reference step, ``lead_deg``: the linear range (∞: none)."""
     nr = region.halfspaces
     L = FollowLayout(H, nr)
     (a, b), (c, d) = model.A.tolist()
@@ -179,8 +191,16 @@ def build(model: ServoModel, region: Region, vmax_degps: float, H: int, ref_lo_d
         lo[r0 + 6: r0 + 9], hi[r0 + 6: r0 + 9] = -lim, lim
         add(r0 + 9 + np.arange(3), L.u(k - 1), 1.0)
         lo[r0 + 9: r0 + 12], hi[r0 + 9: r0 + 12] = ref_lo_deg, ref_hi_deg
+        # step from the reference before, lead over the position (k = 1: bounds per solve)
+        add(r0 + 12 + np.arange(3), L.u(k - 1), 1.0)
+        add(r0 + 15 + np.arange(3), L.u(k - 1), 1.0)
+        if k > 1:
+            add(r0 + 12 + np.arange(3), L.u(k - 2), -1.0)
+            add(r0 + 15 + np.arange(3), L.th(k - 1), -1.0)
+            lo[r0 + 12: r0 + 15], hi[r0 + 12: r0 + 15] = -step_deg, step_deg
+            lo[r0 + 15: r0 + 18], hi[r0 + 15: r0 + 18] = -lead_deg, lead_deg
         # region
-        rr = r0 + 12 + np.arange(nr)
+        rr = r0 + FIXED_ROWS + np.arange(nr)
         for i in range(3):
             add(rr, np.full(nr, L.th(k)[i]), region.A[:, i])
         lo[rr], hi[rr] = -inf, b_tight
@@ -200,7 +220,7 @@ def build(model: ServoModel, region: Region, vmax_degps: float, H: int, ref_lo_d
         diag[L.th(k)] = 2.0 * track_weight
     idx = np.arange(L.n)
     P = sp.csc_matrix((diag, (idx, idx)), shape=(L.n, L.n))
-    return FollowMatrices(L, P, Amat, lo, hi)
+    return FollowMatrices(L, P, Amat, lo, hi, float(step_deg), float(lead_deg))
 
 
 def linear_cost(L: FollowLayout, targets: F, track_weight: float, terminal_weight: float) -> F:
@@ -213,14 +233,18 @@ def linear_cost(L: FollowLayout, targets: F, track_weight: float, terminal_weigh
 
 
 def fill_bounds(mats: FollowMatrices, model: ServoModel, theta_deg: F, omega_degps: F,
-                terminal_deg: F) -> tuple[F, F]:
-    """(lo, hi) of the QP for the current state and the terminal target."""
+                terminal_deg: F, previous_reference_deg: F | None = None) -> tuple[F, F]:
+    """(lo, hi) of the QP for the current state, the reference in use (θ(0) when None: at
+    rest) and the terminal target."""
     L = mats.layout
     lo, hi = mats.lo.copy(), mats.hi.copy()
     x1_th = model.A[0, 0] * theta_deg + model.A[0, 1] * omega_degps
     x1_om = model.A[1, 0] * theta_deg + model.A[1, 1] * omega_degps
     lo[0:3] = hi[0:3] = x1_th
     lo[3:6] = hi[3:6] = x1_om
+    prev = theta_deg if previous_reference_deg is None else previous_reference_deg
+    lo[12:15], hi[12:15] = prev - mats.step_deg, prev + mats.step_deg
+    lo[15:18], hi[15:18] = theta_deg - mats.lead_deg, theta_deg + mats.lead_deg
     t0 = L.terminal_row
     lo[t0: t0 + 3] = -terminal_deg
     lo[t0 + 3: t0 + 6] = terminal_deg

@@ -57,6 +57,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.planning.follow.qp import FollowLayout, build, fill_bounds, linear_cost, predict
 from spm_console.core.planning.follow.target import ProjectionError, TargetProjector
+from spm_console.core.planning.qp_build import PLAN_STEP_DEG
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import ServoModel
 from spm_console.errors import BadInputError
@@ -197,6 +198,8 @@ class FollowSolver:
     settings: FollowSettings = field(default_factory=FollowSettings)
     margin_deg: float = 0.05
     speed_margin_degps: float = 0.25
+    lead_max_deg: float | None = None
+    """The servo's linear range: largest |θ*(k) − θ(k)|, deg (None: none)."""
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.vmax_degps) and self.vmax_degps > self.speed_margin_degps):
@@ -214,8 +217,10 @@ class FollowSolver:
         if np.any(lo >= hi):
             raise BadInputError(f"reference limits must satisfy lo < hi, got {lo} and {hi}")
         self._lo, self._hi = lo, hi
+        lead = np.inf if self.lead_max_deg is None else float(self.lead_max_deg)
         self._mats = build(self.model, self.region, self.vmax_degps, self.horizon, lo, hi,
-                           self.weights.track, self.margin_deg, self.speed_margin_degps)
+                           self.weights.track, self.margin_deg, self.speed_margin_degps,
+                           PLAN_STEP_DEG, lead)
         self._projector = TargetProjector(self.region, lo, hi, 2.0 * self.margin_deg)
         self._osqp = osqp.OSQP()
         m = self._mats
@@ -252,13 +257,16 @@ class FollowSolver:
         return self._projector.project(np.asarray(target_deg, float))
 
     def solve(self, theta_deg: F, omega_degps: F, target_deg: F, elapsed: int = 1,
-              warm: bool = True, timed: bool = True) -> FollowResult:
+              warm: bool = True, timed: bool = True,
+              previous_reference_deg: F | None = None) -> FollowResult:
         """Re-plan from the state θ(0) = ``theta_deg``, θ̇(0) = ``omega_degps`` (3,) toward
         ``target_deg``: (3,) held over the horizon, or (H, 3) a preview t(1..H).
 
         ``elapsed``: periods since the previous solve (the warm start is shifted by that);
         ``warm=False``: solve cold (from OSQP's zero start); ``timed=False``: without the
-        settings' ``time_limit_s`` (a solve before the motion starts, where nothing waits)."""
+        settings' ``time_limit_s`` (a solve before the motion starts, where nothing waits);
+        ``previous_reference_deg``: the reference in use, from which the first one may step
+        at most the runtime's largest step (None: θ(0), a wrist at rest)."""
         t0 = time.perf_counter()
         H = self.horizon
         th0 = np.asarray(theta_deg, float).reshape(-1)
@@ -294,7 +302,9 @@ class FollowSolver:
             return refuse("infeasible", f"the state θ = {fmt_deg(th0, 3)} is outside the "
                           f"region by {viol:.3g}°: following starts only inside it")
         q = linear_cost(self.layout, targets, self.weights.track, self.weights.terminal)
-        lo, hi = fill_bounds(self._mats, self.model, th0, om0, terminal)
+        prev = None if previous_reference_deg is None else np.asarray(
+            previous_reference_deg, float).reshape(3)
+        lo, hi = fill_bounds(self._mats, self.model, th0, om0, terminal, prev)
         self._osqp.update(q=q, l=lo, u=hi)
         used_warm = warm and self._warm is not None
         if used_warm:
