@@ -25,15 +25,19 @@ from spm_console.cli.common import PLOT_SUFFIXES, emit, output_file, profile_of
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.schema import Profile, Servo
-from spm_console.config.servo_section import with_servo
 from spm_console.core.servo.experiment import ExperimentFit, fit_record
 from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, IdentifyResult, identify
-from spm_console.errors import BadInputError, ExitCode, ProfileError, SolverError, SpmError
+from spm_console.errors import BadInputError, ExitCode, SolverError, SpmError
 from spm_console.motion.logs.runlog import load_run
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.report.plot_identify import plot_experiment
 from spm_console.safe_io import MB, read_text
-from spm_console.services.identify_experiment import ExperimentRun, experiment_once, identified_servo
+from spm_console.services.identify_experiment import (
+    ExperimentRun,
+    experiment_once,
+    identified_profile,
+    identified_servo,
+)
 
 #: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
 MAX_CSV_BYTES = 20 * MB
@@ -193,26 +197,12 @@ def _experiment(args: argparse.Namespace, profile: Profile) -> int:
     except SpmError as exc:
         raise type(exc)(f"{run.execution.log_dir}: {exc.message}") from None
     servo = identified_servo(profile, fit, str(run.execution.log_dir))
-    text, _ = _new_profile(args, servo)
+    old = read_text(Path(args.profile), "--profile", 1 * MB, BadInputError)
+    text, _ = identified_profile(old, servo, str(args.out))
     args.out.write_text(text, encoding="utf-8")
     if args.plot is not None:
         plot_experiment(run.excitation, run.t, run.measured_deg, fit, args.plot)
     return _report_fit(args, run, fit, servo)
-
-
-def _new_profile(args: argparse.Namespace, servo: Servo) -> tuple[str, Profile]:
-    """The input profile's text with the identified servo; a model no profile can hold is a
-    SolverError naming what is out of range."""
-    old = read_text(Path(args.profile), "--profile", 1 * MB, BadInputError)
-    ts = servo.ts_s
-    if not PTS_MIN <= servo.p * ts <= PTS_MAX:
-        raise SolverError(f"fitted ωn = {servo.p:.4g} rad/s gives ωn·Ts = {servo.p * ts:.4g}, "
-                          f"outside the [{PTS_MIN:g}, {PTS_MAX:g}] a profile accepts")
-    try:
-        return with_servo(old, servo, str(args.out))
-    except ProfileError as exc:
-        raise SolverError(f"the identified model does not make a valid profile: {exc.message}") \
-            from None
 
 
 def _fit_dict(r: IdentifyResult) -> dict[str, float]:

@@ -19,19 +19,22 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.models import servo_model_of
 from spm_console.config.schema import Identified, Profile, Servo
+from spm_console.config.servo_section import with_servo
 from spm_console.core.plan import Plan
 from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
 from spm_console.core.servo.experiment import Excitation, ExperimentFit, excitation
-from spm_console.errors import BadInputError, PlanRefusedError
+from spm_console.errors import BadInputError, PlanRefusedError, ProfileError, RefusedError, SolverError
 from spm_console.motion.homing import HomingResult
 from spm_console.motion.logs.runlog import load_run
 from spm_console.motion.plan_check import verify_plan
 from spm_console.motion.plans import plan_from_references
 from spm_console.motion.segments import ExecutionResult
+from spm_console.refusals import Refusal
 from spm_console.services.oneshot import RunRequest, home_first, one_shot
-from spm_console.services.session import Session
+from spm_console.services.session import SampleCallback, Session
 from spm_console.store.workspace_cache import load_or_build
 
 F = NDArray[np.float64]
@@ -100,14 +103,33 @@ def experiment_once(profile: Profile, req: RunRequest) -> ExperimentRun:
         assert homing is not None
         if not homing.execution.ok:
             return ExperimentRun(homing, homing.execution, ex)
-        session.plan = plan
-        result = session.execute(req.on_sample, source="identification experiment")
-        if not result.ok or result.log_dir is None:
-            return ExperimentRun(homing, result, ex)
-        t, ref, meas = _record(Path(result.log_dir), len(plan.reference_deg))
-        return ExperimentRun(homing, result, ex, t, ref, meas)
+        return _execute(session, ex, plan, req.on_sample, homing)
 
     return one_shot(profile, "identify", req, body)
+
+
+def experiment_in_session(session: Session, on_sample: SampleCallback | None = None
+                          ) -> ExperimentRun:
+    """The experiment on the console's connected session: refused unless the wrist is homed
+    (the session's plan, if any, is left as it was)."""
+    if not session.homed:
+        raise RefusedError(Refusal.NOT_HOMED)
+    ex, plan = experiment_plan(session.profile, session.cache_dir)
+    kept, info = session.plan, session.plan_info
+    try:
+        return _execute(session, ex, plan, on_sample, None)
+    finally:
+        session.plan, session.plan_info = kept, info
+
+
+def _execute(session: Session, ex: Excitation, plan: Plan, on_sample: SampleCallback | None,
+             homing: HomingResult | None) -> ExperimentRun:
+    session.plan = plan
+    result = session.execute(on_sample, source="identification experiment")
+    if not result.ok or result.log_dir is None:
+        return ExperimentRun(homing, result, ex)
+    t, ref, meas = _record(Path(result.log_dir), len(plan.reference_deg))
+    return ExperimentRun(homing, result, ex, t, ref, meas)
 
 
 def _record(run_dir: Path, n: int) -> tuple[F, F, F]:
@@ -142,3 +164,17 @@ def identified_servo(profile: Profile, fit: ExperimentFit, source: str) -> Servo
             samples=s.samples * s.joints, fit_rms_deg=round(a.fit_rms_deg, 4),
             held_out_rms_deg=round(a.held_out_rms_deg, 4),
             held_out_max_deg=round(a.held_out_max_deg, 4)))
+
+
+def identified_profile(text: str, servo: Servo, source: str) -> tuple[str, Profile]:
+    """``text`` (the profile's TOML) with the identified ``[servo]``, and the profile it
+    parses to; a model no profile can hold is a SolverError naming what is out of range."""
+    ts = servo.ts_s
+    if not PTS_MIN <= servo.p * ts <= PTS_MAX:
+        raise SolverError(f"fitted ωn = {servo.p:.4g} rad/s gives ωn·Ts = {servo.p * ts:.4g}, "
+                          f"outside the [{PTS_MIN:g}, {PTS_MAX:g}] a profile accepts")
+    try:
+        return with_servo(text, servo, source)
+    except ProfileError as exc:
+        raise SolverError(f"the identified model does not make a valid profile: {exc.message}") \
+            from None

@@ -100,6 +100,17 @@ class RunOpened:
 
 
 @dataclass(frozen=True)
+class IdentifyDone:
+    """The identification experiment ended: its run, and when it completed the profile and
+    plot written and a summary."""
+
+    result: ExecutionResult
+    profile: Path | None
+    plot: Path | None
+    summary: str
+
+
+@dataclass(frozen=True)
 class BenchmarkDone:
     """Benchmarks' own blocking work (no screen shows it)."""
 
@@ -108,7 +119,7 @@ class BenchmarkDone:
 
 Outcome = (Connected | PositionRead | MotionDone | FkSolved | WorkspaceLoaded | ThetaChecked
            | PlanSolved | PlanSaved | PlanLoaded | RunOpened | BenchmarkDone | ServoToolDone
-           | FollowDone)
+           | FollowDone | IdentifyDone)
 
 
 class Done(Message):

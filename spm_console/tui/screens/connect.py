@@ -25,8 +25,10 @@ from spm_console.formatting import fmt_deg
 from spm_console.motion.servo_tools import ServoHealth, jog_target
 from spm_console.refusals import Refusal, worded
 from spm_console.services.session import SampleCallback
+from spm_console.tui.identify_run import identify_blocking, question
 from spm_console.tui.messages import (
     Connected,
+    IdentifyDone,
     MotionDone,
     Outcome,
     PositionRead,
@@ -43,7 +45,7 @@ if TYPE_CHECKING:
 #: Period of the live status read while idle, s (2.5 reads a second).
 HEALTH_EVERY_S = 0.4
 TOOLS_HELP = ("↑↓ choose a joint · t torque on/off · - / + jog it by the step (homed only) · "
-              "b reboot it (clears a hardware error)")
+              "b reboot it (clears a hardware error) · i identify the servos (homed only)")
 
 
 class HealthPolled(Message):
@@ -69,6 +71,8 @@ class ConnectScreen(StepScreen):
         Binding("minus", "jog(-1)", "Jog−", key_display="-"),
         Binding("plus,equals_sign", "jog(1)", "Jog+", key_display="+"),
         Binding("b", "reboot", "Reboot"),
+        Binding("i", "identify", "Identify", tooltip="the identification experiment: fit the "
+                "servo model as it is and write a profile with it (homed only)"),
     ]
 
     def __init__(self) -> None:
@@ -176,6 +180,27 @@ class ConnectScreen(StepScreen):
             self.status.ok("homing cancelled: nothing moved")
             return
         self._start_motion("home", "homing", lambda on_sample: self.session.home(on_sample))
+
+    def action_identify(self) -> None:
+        if not self._ready("identify"):
+            return
+        if not self.session.homed:
+            self.status.error(f"identify refused: {worded(Refusal.NOT_HOMED, 'console')}")
+            return
+        self.app.push_screen(ConfirmScreen("Identify the servos?", question(self.session)),
+                             self._identify_confirmed)
+
+    def _identify_confirmed(self, yes: bool | None) -> None:
+        if not yes:
+            self.status.ok("identification cancelled: nothing moved")
+            return
+        on_sample = self.console.telemetry_sink(self)
+        self.console.moving = True
+        self._motion_label = "identification experiment"
+        path = getattr(self.app, "profile_path", None)
+        if not self.run_blocking("identify", lambda: identify_blocking(
+                self.session, path, on_sample), "identification experiment …"):
+            self.console.moving = False
 
     def _start_motion(self, kind: Literal["home", "jog"], label: str,
                       fn: Callable[[SampleCallback], ExecutionResult]) -> None:
@@ -289,6 +314,12 @@ class ConnectScreen(StepScreen):
             self.status.ok(f"θ = {fmt_deg(outcome.theta_deg)}")
         elif isinstance(outcome, ServoToolDone):
             self._tool_done(outcome)
+        elif isinstance(outcome, IdentifyDone):
+            self.console.moving = False
+            self.console.after_motion(outcome.result)
+            self.status.run_result(outcome.summary if outcome.result.ok else
+                                   f"identification stopped: {outcome.result.message}. "
+                                   f"Log: {outcome.result.log_dir}", outcome.result)
         elif isinstance(outcome, MotionDone):
             result = outcome.result
             self._health_error = ""
@@ -319,7 +350,7 @@ class ConnectScreen(StepScreen):
             self.status.ok(f"torque on, joint {done.joint}: it holds where it is{at}")
 
     def handle_failed(self, op: str, message: str) -> None:
-        if op in ("home", "jog"):
+        if op in ("home", "jog", "identify"):
             self.console.moving = False
         self.show_bus()
 
