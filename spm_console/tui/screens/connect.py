@@ -25,7 +25,6 @@ from spm_console.formatting import fmt_deg
 from spm_console.motion.servo_tools import ServoHealth, jog_target
 from spm_console.refusals import Refusal, worded
 from spm_console.services.session import SampleCallback
-from spm_console.tui.identify_run import identify_blocking, question
 from spm_console.tui.messages import (
     Connected,
     IdentifyDone,
@@ -187,6 +186,9 @@ class ConnectScreen(StepScreen):
         if not self.session.homed:
             self.status.error(f"identify refused: {worded(Refusal.NOT_HOMED, 'console')}")
             return
+        # scipy's optimizers and matplotlib: loaded when asked for, not before the first screen
+        from spm_console.tui.identify_run import question
+
         self.app.push_screen(ConfirmScreen("Identify the servos?", question(self.session)),
                              self._identify_confirmed)
 
@@ -194,6 +196,8 @@ class ConnectScreen(StepScreen):
         if not yes:
             self.status.ok("identification cancelled: nothing moved")
             return
+        from spm_console.tui.identify_run import identify_blocking
+
         on_sample = self.console.telemetry_sink(self)
         self.console.moving = True
         self._motion_label = "identification experiment"

@@ -114,7 +114,10 @@ def test_estop_from_another_thread(agile: Profile, tmp_path: Path) -> None:
     timer.join()
     assert res.exit_code == ExitCode.STOP_ESTOP and "test button" in res.message
     stop = _stop_event(res.log_dir)  # type: ignore[arg-type]
-    assert 0.45 < stop["detected_t"] < 0.6  # woken at once, not at the plan's end
+    # woken at once by the request (not at the next deadline, nor at the plan's end, 1.5 s
+    # and more); when the request comes is the timer thread's scheduling, not the loop's
+    assert 0.0 <= stop["detected_t"] - stop["requested_t"] < 0.5 * agile.servo.ts_s
+    assert stop["detected_t"] < 1.0
     assert len(ex.samples) < plan.N
 
 
