@@ -30,7 +30,7 @@ from spm_console.core.workspace.check import ThetaCheck
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoStatus
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
-from spm_console.devices.emulator.child import EmulatorChild
+from spm_console.devices.emulator.child import EVENTS_EVERY_S, EmulatorChild
 from spm_console.devices.emulator.faults import FaultSpec
 from spm_console.errors import (
     BadInputError,
@@ -40,6 +40,7 @@ from spm_console.errors import (
     UnreachableError,
 )
 from spm_console.formatting import fmt_deg
+from spm_console.motion.logs.runlog import append_events
 from spm_console.motion.plans import line_plan
 from spm_console.motion.servo_tools import ServoHealth
 from spm_console.services.kin_record import FkGraphSource, FkRecord, fk_result, fk_route
@@ -59,6 +60,9 @@ if TYPE_CHECKING:
 F = NDArray[np.float64]
 
 SampleCallback = Callable[["Sample"], None]
+
+COLLISION_REPORT_S = 1.5 * EVENTS_EVERY_S
+"""Wait after a motion on the physical emulated wrist for its last leg contacts to arrive."""
 ProgressCallback = Callable[[str, float], None]
 
 
@@ -258,6 +262,7 @@ class Session(ServoTools, FollowTools):
             raise BadInputError("a motion is already running")
         self._estop_sent = False
         self.moving.set()
+        began = time.perf_counter()
         try:
             if self.before_motion is not None:
                 self.before_motion()
@@ -265,6 +270,7 @@ class Session(ServoTools, FollowTools):
         finally:
             self.moving.clear()
             self._motion.release()
+        self._log_collisions(result, began)
         if result.final_deg is not None and np.all(np.isfinite(result.final_deg)):
             self.theta_deg = np.asarray(result.final_deg, float)
         else:  # the last cycle had no reply: ask again rather than show a stale or NaN pose
@@ -272,6 +278,19 @@ class Session(ServoTools, FollowTools):
                 self.read_position()
         self.last_run = result
         return result
+
+    def _log_collisions(self, result: ExecutionResult, began: float) -> None:
+        """The physical emulated wrist's leg contacts during the run, into its log: events
+        ``collision`` (``t``: seconds since the run was asked for, from the emulator's clock)."""
+        emu = self.emulator
+        if not isinstance(emu, EmulatorChild) or not emu.physical or result.log_dir is None:
+            return
+        time.sleep(COLLISION_REPORT_S)  # the child tells its contacts every 0.1 s
+        hits = emu.collisions(began, time.perf_counter())
+        append_events(Path(result.log_dir), [
+            {"t": float(c["t"]) - began, "event": "collision", "source": "emulated wrist",
+             "legs": [int(x) + 1 for x in c["legs"]], "segments": c["segments"],
+             "distance_mm": c["distance_mm"], "theta_deg": c["theta_deg"]} for c in hits])
 
     def home(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
         """Move home at the profile's homing speed, in the motion process (which checks the

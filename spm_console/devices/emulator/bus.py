@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.models import model_of, servo_model_of
+from spm_console.config.models import link_model_of, model_of, servo_model_of
 from spm_console.config.schema import Profile
 from spm_console.devices.dynamixel import protocol1 as p1
 from spm_console.devices.dynamixel import protocol2 as p2
@@ -330,7 +330,8 @@ def _physical_wrist(profile: Profile, theta0_deg: Sequence[float], now: float) -
         return None
     from spm_console.devices.emulator.physical import PhysicalWrist  # loads MuJoCo
 
-    wrist = PhysicalWrist(model_of(profile), plant_params(profile.plant), profile.bus.ticks_per_turn)
+    wrist = PhysicalWrist(model_of(profile), plant_params(profile.plant), profile.bus.ticks_per_turn,
+                          link_model_of(profile))
     wrist.set_theta(np.radians(np.asarray(theta0_deg, float)))
     wrist.t = now
     return wrist

@@ -22,6 +22,7 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
+from dataclasses import asdict
 from typing import Any
 
 from spm_console.config.schema import Profile
@@ -34,6 +35,11 @@ from spm_console.system.signals import STOP_SIGNALS
 
 #: How often the child checks that its parent is alive, s.
 PARENT_POLL_S = 0.5
+#: Leg contacts kept for the owner (the newest).
+MAX_COLLISIONS = 10_000
+#: How often the child tells its owner of the physical wrist's new leg contacts (and checks
+#: its parent), s.
+EVENTS_EVERY_S = 0.1
 
 
 class EmulatorChild(ChildProcess):
@@ -52,9 +58,37 @@ class EmulatorChild(ChildProcess):
         self.port = ""
         self.realtime = ""
         self.realtime_granted = False
+        self.physical = profile.plant.model == "physical"
+        """The physical wrist (its leg contacts are told): see :meth:`collisions`."""
+        self._collisions: list[dict[str, Any]] = []
+        self._lock = threading.Lock()
+
+    def collisions(self, since: float, until: float) -> list[dict[str, Any]]:
+        """The physical wrist's leg contacts that began between the monotonic instants
+        ``since`` and ``until`` (``time.perf_counter()``, shared by the processes)."""
+        with self._lock:
+            return [c for c in self._collisions if since <= float(c["t"]) <= until]
+
+    def _read_events(self, stdout: Any) -> None:
+        try:
+            for line in stdout:
+                try:
+                    data = json.loads(line)
+                except ValueError:
+                    continue
+                if isinstance(data, dict) and isinstance(data.get("collision"), dict):
+                    with self._lock:
+                        self._collisions.append(data["collision"])
+                        del self._collisions[:-MAX_COLLISIONS]
+        except (OSError, ValueError):  # the pipe closed under us: the child was stopped
+            return
 
     def launch(self) -> str:
         info = self.start(json.dumps(self.request).encode())
+        out = self._proc.stdout if self._proc is not None else None
+        if out is not None:  # what the child says after it is ready: the wrist's contacts
+            threading.Thread(target=self._read_events, args=(out,), daemon=True,
+                             name="emulator-events").start()
         self.port = str(info["port"])
         self.realtime = str(info.get("realtime", ""))
         """The scheduling the emulated servos' thread got (e.g. "SCHED_FIFO priority 45")."""
@@ -94,9 +128,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  "realtime_granted": em.realtime.policy == "SCHED_FIFO"}) + "\n")
     sys.stdout.flush()
     try:
-        while not stop.wait(PARENT_POLL_S) and em.running:
+        while not stop.wait(EVENTS_EVERY_S) and em.running:
             if args.parent and os.getppid() != args.parent:
                 break
+            if em.wrist is not None:  # the legs' contacts, told to the owner as they begin
+                for c in em.wrist.contacts.take():
+                    sys.stdout.write(json.dumps({"collision": asdict(c)}) + "\n")
+                sys.stdout.flush()
     finally:
         em.stop()
     return 0

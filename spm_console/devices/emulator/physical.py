@@ -15,6 +15,7 @@ under gravity. Angles are the joints' θ in radians (θ_home at the model's rest
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 
 import mujoco
@@ -22,9 +23,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.config.schema import Plant
+from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.devices.dynamixel.control_table import table_for
-from spm_console.devices.emulator.wrist_mjcf import PlantParams, plant_params, wrist_mjcf
+from spm_console.devices.emulator.wrist_mjcf import (
+    PlantParams,
+    envelope_name,
+    plant_params,
+    wrist_mjcf,
+)
 
 F = NDArray[np.float64]
 
@@ -98,14 +105,77 @@ class Drive:
         self.pwm = 0.0
 
 
+CONTACT_CHECK_S = 0.002
+"""How often the legs' envelopes are checked for contact, s of simulated time."""
+CONTACT_DISTMAX_M = 0.01
+"""Distances beyond this are not computed exactly (only their sign matters), m."""
+
+
+@dataclass(frozen=True)
+class Collision:
+    """Two legs' envelope capsules met (their segments closer than 2δ)."""
+
+    t: float
+    """Simulated time, s (the emulator's clock)."""
+    legs: tuple[int, int]
+    """Legs 0..2."""
+    segments: tuple[str, str]
+    """The segment of each leg, e.g. ("DE", "EF")."""
+    distance_mm: float
+    """Signed distance between the capsules' surfaces, mm (< 0: they overlap)."""
+    theta_deg: tuple[float, float, float]
+    """The joint angles then, deg."""
+
+
+class LegContacts:
+    """Contact between two legs' envelope capsules, told once when it begins: MuJoCo's
+    capsule–capsule distance (``mj_geomDistance``), independent of the workspace's own
+    segment distances."""
+
+    def __init__(self, mj: mujoco.MjModel, links: LinkModel | None) -> None:
+        self.mj = mj
+        self.pairs: list[tuple[int, int, int, str, int, str]] = []
+        """(geom, geom, leg i, segment, leg j, segment) for every checked pair."""
+        if links is not None:
+            for i, s1, j, s2 in links.pairs():
+                self.pairs.append((mj.geom(envelope_name(i, s1)).id,
+                                   mj.geom(envelope_name(j, s2)).id, i, s1, j, s2))
+        self.touching: set[int] = set()
+        self.events: list[Collision] = []
+        """Contacts begun and not yet taken (:meth:`take`)."""
+        self.lock = threading.Lock()
+
+    def check(self, data: mujoco.MjData, t: float, theta_rad: F) -> None:
+        fromto = np.zeros(6)
+        now: set[int] = set()
+        for k, (g1, g2, i, s1, j, s2) in enumerate(self.pairs):
+            d = mujoco.mj_geomDistance(self.mj, data, g1, g2, CONTACT_DISTMAX_M, fromto)
+            if d < 0.0:
+                now.add(k)
+                if k not in self.touching:
+                    th = tuple(float(x) for x in np.degrees(theta_rad))
+                    with self.lock:
+                        self.events.append(Collision(t, (i, j), (s1, s2), 1000.0 * d,
+                                                     (th[0], th[1], th[2])))
+        self.touching = now
+
+    def take(self) -> list[Collision]:
+        """The contacts begun since the last call (thread-safe)."""
+        with self.lock:
+            out, self.events = self.events, []
+        return out
+
+
 class PhysicalWrist:
     """The wrist's rigid bodies and its three drives, stepped to a time on demand."""
 
     def __init__(self, model: SpmModel, params: PlantParams | None = None,
-                 ticks_per_turn: int = 4096) -> None:
+                 ticks_per_turn: int = 4096, links: LinkModel | None = None) -> None:
         self.params = params or plant_params(Plant())
         self.spm = model
-        self.mj = mujoco.MjModel.from_xml_string(wrist_mjcf(model, self.params))
+        self.mj = mujoco.MjModel.from_xml_string(wrist_mjcf(model, self.params, links))
+        self.contacts = LegContacts(self.mj, links)
+        """The legs' collision envelopes (none without a link model)."""
         self.data = mujoco.MjData(self.mj)
         self.ticks_per_rad = ticks_per_turn / (2.0 * math.pi)
         self.drives = [Drive(self.params, self.ticks_per_rad) for _ in range(3)]
@@ -119,6 +189,7 @@ class PhysicalWrist:
         self.blocked: list[float | None] = [None, None, None]
         """Per joint, the angle (rad) at which its shaft is blocked (a stall fault), or None."""
         self.t = 0.0
+        self._next_contact_check = 0.0
         self.duty = np.zeros(3)
         self.strain_s = np.zeros(3)
         """Per joint, how long its drive has pushed at full duty against a shaft that does
@@ -214,3 +285,6 @@ class PhysicalWrist:
             self.t += dt
             straining = (np.abs(self.duty) >= OVERLOAD_DUTY) & (np.abs(om) < OVERLOAD_RAD_S)
             self.strain_s = np.where(straining, self.strain_s + dt, 0.0)
+            if self.t >= self._next_contact_check:
+                self._next_contact_check = self.t + CONTACT_CHECK_S
+                self.contacts.check(self.data, self.t, self.theta())

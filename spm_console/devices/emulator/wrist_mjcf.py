@@ -13,6 +13,12 @@ with the world's orientation, in the home configuration (joint angles 0 there):
 Masses and the capsules that carry them are the profile's ``[plant]``; joint
 friction (Coulomb ``frictionloss``, viscous ``damping``) and the motor's reflected inertia
 (``armature``) sit on the proximal joints, the servos' output shafts.
+
+With a link model, each leg also carries the paper's collision envelope (Sec. IV-B): a
+capsule of radius δ on every checked segment (A_iB_i, B_iC_i on the proximal link, D_iE_i,
+E_iF_i on the distal one, eqs. 18–23), massless and without contact forces (the envelope is a
+safety margin around thinner parts, not the parts): MuJoCo's own distance between two legs'
+capsules tells when they meet (:class:`~spm_console.devices.emulator.physical.PhysicalWrist`).
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.config.schema import Plant
+from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
 from spm_console.core.kinematics.model import SpmModel
 
 F = NDArray[np.float64]
@@ -67,8 +74,34 @@ def _capsule(a: F, b: F, radius: float, mass: float, name: str) -> str:
             f'size="{radius:.6g}" mass="{mass:.6g}" contype="0" conaffinity="0"/>')
 
 
-def wrist_mjcf(model: SpmModel, params: PlantParams) -> str:
-    """The MJCF text of the wrist in its home configuration."""
+PROXIMAL_SEGMENTS = ("AB", "BC")
+"""Segments on the proximal link (the rest are on the distal link)."""
+
+
+def envelope_name(leg: int, segment: str) -> str:
+    """The name of leg ``leg``'s envelope capsule on ``segment`` (e.g. "envelope0_BC")."""
+    return f"envelope{leg}_{segment}"
+
+
+def _envelopes(model: SpmModel, links: LinkModel | None, leg: int, proximal: bool) -> str:
+    if links is None:
+        return ""
+    w = model.geom.w(model.theta_home)
+    pts = links.points(model.u, w, model.v_home)  # mm, at home: the bodies' own frames
+    out = []
+    for seg in links.segments:
+        if (seg in PROXIMAL_SEGMENTS) != proximal:
+            continue
+        a, b = (pts[e][leg] / 1000.0 for e in SEGMENT_ENDS[seg])
+        out.append(f'<geom name="{envelope_name(leg, seg)}" type="capsule" '
+                   f'fromto="{_vec(a)} {_vec(b)}" size="{links.delta / 1000.0:.6g}" mass="0" '
+                   f'contype="0" conaffinity="0" group="3"/>')
+    return "".join(out)
+
+
+def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = None) -> str:
+    """The MJCF text of the wrist in its home configuration (with ``links``, the legs'
+    collision envelopes)."""
     u = model.u
     w = model.geom.w(model.theta_home)
     v = model.v_home
@@ -90,8 +123,10 @@ def wrist_mjcf(model: SpmModel, params: PlantParams) -> str:
             f'damping="{params.viscous_nms:.6g}" frictionloss="{params.backdrive_friction_nm:.6g}" '
             f'solreffriction="{2 * params.timestep_s:.6g} 1"/>'
             f'{_capsule(r * u[i], r * w[i], c, m, f"proximal_link{i}")}'
+            f'{_envelopes(model, links, i, True)}'
             f'<body name="distal{i}"><joint name="distal{i}" type="hinge" axis="{_vec(w[i])}"/>'
-            f'{_capsule(r * w[i], r * v[i], c, m, f"distal_link{i}")}{platform}</body>'
+            f'{_capsule(r * w[i], r * v[i], c, m, f"distal_link{i}")}'
+            f'{_envelopes(model, links, i, False)}{platform}</body>'
             f'</body>')
     closures = "\n".join(
         f'<connect body1="distal{j}" body2="platform" anchor="{_vec(r * v[j])}" '

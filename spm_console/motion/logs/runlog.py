@@ -283,6 +283,17 @@ def with_liveness(meta: dict[str, Any]) -> dict[str, Any]:
     return {**meta, "outcome": "killed", "message": meta.get("message") or msg}
 
 
+def append_events(run_dir: Path, events: list[dict[str, Any]]) -> None:
+    """Add events seen outside the servo loop to a finished run's ``events.jsonl`` (one line
+    each, ``{"t", "event", …}``): the emulated wrist's leg contacts, told by its own process
+    after the run."""
+    if not events:
+        return
+    with (Path(run_dir) / "events.jsonl").open("a") as fh:
+        for rec in events:
+            fh.write(json.dumps(to_jsonable(rec)) + "\n")
+
+
 def load_run(run: str | Path, root: str | Path | None = None) -> RunData:
     """Read meta, samples and events of a run; a partial last CSV/JSONL line is dropped."""
     path = resolve_run(run, root)
