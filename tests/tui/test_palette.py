@@ -17,7 +17,7 @@ SIZE = (120, 40)
 
 #: What each step offers (its own keys), by the words the operator reads in its footer.
 OPERATIONS = {
-    "connect": {"Connect", "Home", "Read", "Torque", "Jog−", "Jog+", "Reboot"},
+    "connect": {"Connect", "Home", "Read", "Torque", "Jog−", "Jog+", "Reboot", "Identify"},
     "fk": {"FK", "IK", "Modes", "Current"},
     "workspace": {"Load", "Rebuild", "Cancel build", "Check"},
     "plan": {"Solve", "Plot", "Save", "Open plan"},
