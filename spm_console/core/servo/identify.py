@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
+from scipy.signal import lfilter
 
 from spm_console.core.servo.model import Dynamics, Pole, dynamics, exact_coeffs
 from spm_console.errors import BadInputError, SolverError
@@ -73,6 +74,8 @@ ZETA_BOUNDS = (0.2, 5.0)
 """Search range of the damping ratio ζ (a profile's ``servo.zeta`` range)."""
 ZETA_GRID = (0.5, 0.8, 1.0, 1.5)
 """Damping ratios of the coarse grid the fit starts from."""
+UNIFORM_REL = 0.1
+"""Sample intervals within this fraction of their median count as uniform for the grid."""
 BOUND_REL_TOL = 1e-3
 """A fitted p within this fraction of an end of P_BOUNDS (or a delay within it of
 DELAY_MAX_S) is on the bound: the optimum lies outside the search range."""
@@ -233,6 +236,33 @@ def response(p: Pole, delay_s: float, t: F, reference: F, theta0: F) -> F:
     return np.array(out, float).reshape(n, J)
 
 
+def response_uniform(dyn: Dynamics, ts: float, reference: F, theta0: F) -> F:
+    """:func:`response` for samples exactly ``ts`` apart (the grid's approximation of a
+    record's timing): the sampled model with its delay d = m·Ts + f as a linear filter,
+    θ(k+1) = Φ θ(k) + Φ(Ts−f)Γ(f) θ*(k−m−1) + Γ(Ts−f) θ*(k−m), run by scipy's ``lfilter``
+    on the deviations from the rest at θ0. (n, J) positions, deg."""
+    ref = np.asarray(reference, float)
+    th0 = np.asarray(theta0, float).reshape(1, -1)
+    m = int(dyn.delay_s // ts)
+    f = dyn.delay_s - m * ts
+    a, b, c, d, _, _ = exact_coeffs(dyn, ts)
+    if f > 0.0:
+        pa, pb, pc, pd, g0, g1 = exact_coeffs(dyn, ts - f)
+        _, _, _, _, h0, h1 = exact_coeffs(dyn, f)
+        b0, b1 = (g0, g1), (pa * h0 + pb * h1, pc * h0 + pd * h1)
+    else:
+        b0, b1 = exact_coeffs(dyn, ts)[4:], (0.0, 0.0)
+    # C adj(zI − Φ) B = B[0] z + (Φ01 B[1] − Φ11 B[0]), C = [1, 0]
+    c0 = b * b0[1] - d * b0[0]
+    c1 = b * b1[1] - d * b1[0]
+    num = [0.0, b0[0], c0 + b1[0], c1]
+    den = [1.0, -(a + d), a * d - b * c]
+    u = ref - th0
+    if m:
+        u = np.vstack([np.zeros((m, u.shape[1])), u[:-m]])
+    return np.asarray(lfilter(num, den, u, axis=0) + th0, float)
+
+
 def _check_determined(p: float, delay_s: float, p_std: float, doubling_deg: float) -> None:
     """A converged fit determines p: p strictly inside P_BOUNDS, the delay below DELAY_MAX_S,
     the fitted response moved by MIN_DOUBLING_DEG at some sample when p is doubled, and p's
@@ -316,9 +346,16 @@ def identify(t: F, reference: F, measured: F, fit_delay: bool = False, *,
             for z in (ZETA_GRID if fit_damping else (1.0,)) for d in delays]
     if start is not None:
         grid = [(start.wn, start.zeta if fit_damping else 1.0, start.delay_s if fit_delay else 0.0)]
+    dts = np.diff(tt)
+    ts = float(np.median(dts))
+    uniform = len(grid) > 1 and float(np.abs(dts - ts).max()) <= UNIFORM_REL * ts
     for p, z, d in grid:
         v = np.r_[p, [z] * nz, [d] * nd, th_init]
-        c = float(np.sum(resid(v) ** 2))
+        if uniform:  # the grid only picks a start: sampled at the median interval, in C
+            e = response_uniform(Dynamics(p, z, d), ts, ref, th_init)[seen] - meas[seen]
+            c = float(np.sum(e ** 2))
+        else:
+            c = float(np.sum(resid(v) ** 2))
         if best is None or c < best[0]:
             best = (c, v)
     assert best is not None

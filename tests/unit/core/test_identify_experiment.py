@@ -90,3 +90,17 @@ def test_samples_whose_reply_was_lost_are_left_out_not_their_references() -> Non
     assert a.held_out_max_deg < 1e-9 and a.fit_rms_deg < 1e-9
     fit = fit_record(ex, t, ex.reference_deg, meas)
     assert fit.shared.p == pytest.approx(dyn.wn, rel=1e-6)
+
+
+@pytest.mark.parametrize("dyn", [Dynamics(40.0, 0.8), Dynamics(40.0, 0.8, 0.007),
+                                 Dynamics(32.22, 1.0, 0.05), Dynamics(50.0, 1.5, 0.1)])
+def test_the_grids_filter_is_the_event_response_on_uniform_samples(dyn: Dynamics) -> None:
+    """The fit's coarse grid runs the sampled model as a linear filter (delays of whole and
+    part samples); on uniform samples it is the exact event-by-event response."""
+    from spm_console.core.servo.identify import response_uniform
+
+    rng = np.random.default_rng(0)
+    ref = 135.0 + np.cumsum(rng.normal(size=(300, 3)), axis=0)
+    t = np.arange(300) * TS
+    np.testing.assert_allclose(response_uniform(dyn, TS, ref, ref[0]),
+                               response(dyn, dyn.delay_s, t, ref, ref[0]), atol=1e-9)
