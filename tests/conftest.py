@@ -50,15 +50,21 @@ def pytest_configure(config: pytest.Config) -> None:
     stalls.start()
 
 
+#: Console test modules whose motions are long real-time runs (the identification
+#: experiment's 18 s and its fit): beside another real-time run on two cores, one of the two
+#: lost the bus now and then, so they run in the real-time group, one at a time.
+LONG_CONSOLE_RUNS = frozenset({"test_identify.py"})
+
+
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """For a parallel run (``--dist loadgroup``): the tests that run the servo loop in real
     time or whole commands (tests/runtime, tests/e2e) all go to one worker, one at a time, so
     two real-time runs never compete; each console test module (tests/tui) is a group of its
-    own, run beside them."""
+    own, run beside them, except those of :data:`LONG_CONSOLE_RUNS`, which join the first."""
     for item in items:
         parts = Path(str(item.fspath)).relative_to(ROOT).parts
-        if len(parts) > 2 and parts[1] in ("runtime", "e2e"):
+        if len(parts) > 2 and (parts[1] in ("runtime", "e2e") or parts[-1] in LONG_CONSOLE_RUNS):
             item.add_marker(pytest.mark.xdist_group("realtime"))
         elif len(parts) > 2 and parts[1] == "tui":
             item.add_marker(pytest.mark.xdist_group(parts[-1]))
