@@ -7,8 +7,9 @@ is put in the profile. Then each run is planned (the planner's own path: linear 
 tube included) and executed twice on a fresh physical wrist: with the paper's model (27),
 p = 32.22 (the baseline column) and with the identified model (ours). For each: outcome,
 tracking against the run's model (RMS, max), final error, how many measured samples lie
-outside the grid's certified set P′ and the largest excursion outside the plan's region (the
-union of its route's regions).
+outside the grid's certified set P′, the largest excursion outside the plan's region (the
+union of its route's regions) and the leg contacts the emulated wrist told (an independent
+check of the workspace's link-interference model: any is a finding).
 Runs: the paper's MVN and minimum-time pairs, then minimum time at 100, 150 and 200 °/s on the
 minimum-time pair. The emulated wrist runs in a process of its own, as under ``--sim``.
 
@@ -20,6 +21,7 @@ with ≤ 30 s of motion.
 from __future__ import annotations
 
 import tempfile
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +56,8 @@ class Outcome:
     excursion_deg: float
     outside: int
     message: str
+    contacts: int
+    """Leg contacts the emulated wrist told during the run."""
 
 
 def _execute(profile: Profile, ws: Workspace, plan: Plan) -> Outcome:
@@ -64,8 +68,11 @@ def _execute(profile: Profile, ws: Workspace, plan: Plan) -> Outcome:
     with tempfile.TemporaryDirectory() as tmp:
         log = RunLog.create("bench", profile.name, profile.digest(), [], root=tmp)
         ex = Executor(profile, bus, workspace=ws, log=log)
+        began = time.perf_counter()
         try:
             result = ex.run([Segment("plan", plan)])
+            time.sleep(0.2)  # the emulator tells its contacts every 0.1 s
+            contacts = len(emu.collisions(began, time.perf_counter()))
         finally:
             bus.close()
             emu.stop()
@@ -81,7 +88,7 @@ def _execute(profile: Profile, ws: Workspace, plan: Plan) -> Outcome:
         float(np.min([r.violation_deg(meas) for r in plan.regions.regions], axis=0).max())
         if meas.size else nan,
         int((~certified.contains(meas)).sum()) if meas.size else 0,
-        result.message)
+        result.message, contacts)
 
 
 def _rows(name: str, before: Outcome | SpmError, after: Outcome | SpmError) -> list[Row]:
@@ -102,7 +109,9 @@ def _rows(name: str, before: Outcome | SpmError, after: Outcome | SpmError) -> l
         Row(f"physical: {name}: samples outside P′", after.outside, "", "0",
             None if b is None else b.outside, after.outside == 0,
             note=f"largest excursion outside the plan's region {after.excursion_deg:.3f}°"
-                 + ("" if b is None else f" (before {b.excursion_deg:.3f}°)")),
+                 + ("" if b is None else f" (before {b.excursion_deg:.3f}°)")
+                 + f"; leg contacts in the emulated wrist {after.contacts}"
+                 + ("" if b is None else f" (before {b.contacts})")),
     ]
 
 

@@ -5,6 +5,7 @@ operation (the wrist's physics shares no interpreter with the servo loop)."""
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,6 @@ import pytest
 from spm_console.cli.main import main
 from spm_console.config.schema import Plant, Profile
 from spm_console.devices.emulator.child import EmulatorChild
-from spm_console.motion.logs.runlog import load_run
 from spm_console.services.session import Session
 from spm_console.store.plan_file import save_plan
 from tests.support.exec_helpers import paper_mvn
@@ -52,23 +52,26 @@ def test_the_physical_wrist_runs_apart_and_the_front_ends_name_it(agile: Profile
         session.close()
 
 
-def test_legs_meeting_in_the_physical_wrist_are_logged_as_collisions(
-        agile: Profile, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """Powered on where two legs' envelopes overlap (the workspace's link model says the
-    closest pair is 11 mm apart, under 2δ = 28 mm), homing starts in contact: the emulated
-    wrist's own collision check tells it, and the homing run's log holds it; a run that never
-    comes near holds none."""
-    logs = tmp_path / "logs"
-    rc = main(["home", "--sim", "--plant", "physical", "--sim-start", "62.6", "127.4", "62.1",
-               "--logs", str(logs), "--json"])
-    assert rc == 0, capsys.readouterr().err
-    run = load_run("last", logs)
-    hits = [e for e in run.events if e["event"] == "collision"]
-    assert hits, run.events
-    assert all(e["source"] == "emulated wrist" and e["distance_mm"] < 0 for e in hits)
-    assert {tuple(e["legs"]) for e in hits} <= {(1, 2), (1, 3), (2, 3)}
-    assert hits[0]["t"] < 1.0  # at the start, where the legs overlap
-    capsys.readouterr()
-    rc = main(["home", "--sim", "--plant", "physical", "--logs", str(logs), "--json"])
-    assert rc == 0
-    assert [e for e in load_run("last", logs).events if e["event"] == "collision"] == []
+def test_the_emulated_wrist_tells_its_owner_when_two_legs_meet(agile: Profile) -> None:
+    """Powered on where two legs' envelopes overlap (the workspace's link model puts leg 1's
+    DE and leg 3's EF 14.8 mm apart, under 2δ = 28 mm): the emulator's process finds the
+    contact with MuJoCo's own distance and tells its owner (who writes such contacts into the
+    run log of the motion during which they began); at home it tells nothing."""
+    physical = agile.model_copy(update={"plant": Plant(model="physical")})
+    for start, touching in (([118.2, 62.0, 63.7], True), (list(agile.home.theta_deg), False)):
+        emu = EmulatorChild(physical, initial_deg=start)
+        began = time.perf_counter()
+        emu.launch()
+        try:
+            time.sleep(0.5)
+            hits = emu.collisions(began, time.perf_counter())
+        finally:
+            emu.stop()
+        if not touching:
+            assert hits == []
+            continue
+        assert hits, "no contact told"
+        legs = {tuple(h["legs"]) for h in hits}
+        assert (0, 2) in legs and all(h["distance_mm"] < 0 for h in hits)
+        assert {"DE", "EF"} & {s for h in hits for s in h["segments"]}
+        np.testing.assert_allclose(hits[0]["theta_deg"], start, atol=0.5)
