@@ -42,6 +42,7 @@ from spm_console.errors import (
 from spm_console.formatting import fmt_deg
 from spm_console.motion.logs.runlog import append_events
 from spm_console.motion.plans import line_plan
+from spm_console.motion.sample import Sample
 from spm_console.motion.servo_tools import ServoHealth
 from spm_console.services.kin_record import FkGraphSource, FkRecord, fk_result, fk_route
 from spm_console.services.plan_info import PlanInfo
@@ -53,7 +54,6 @@ from spm_console.system.cpus import cpu_plan, place_beside_loop
 
 if TYPE_CHECKING:
     from spm_console.motion.homing import HomingResult
-    from spm_console.motion.sample import Sample
     from spm_console.motion.segments import ExecutionResult
     from spm_console.services.client import MotionClient
 

@@ -18,6 +18,7 @@ from textual.content import Content
 from textual.widgets import DataTable, ProgressBar, Static
 
 from spm_console.formatting import fmt_deg
+from spm_console.motion.sample import Sample
 from spm_console.tui.messages import FollowDone, MotionDone, Outcome, Telemetry
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.jog import JogFailure, JogResult, JogScreen
@@ -26,7 +27,6 @@ from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
 if TYPE_CHECKING:
-    from spm_console.motion.sample import Sample
     from spm_console.motion.stats import RunStats
 
 #: Live plot redraw interval, s (telemetry itself arrives every Ts, coalesced).

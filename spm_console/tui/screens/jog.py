@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,14 +35,12 @@ from spm_console.core.polytope.region import Region
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.follow.regions import follow_regions, follow_start
+from spm_console.motion.sample import Sample
 from spm_console.services.session import Session
 from spm_console.tui.messages import FollowDone, Outcome, Telemetry, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.jog_target import OUTSIDE_TOL_DEG, JogTarget, TargetSender
 from spm_console.tui.widgets.plot import PlotView, joint_series
-
-if TYPE_CHECKING:
-    from spm_console.motion.sample import Sample
 
 F = NDArray[np.float64]
 
