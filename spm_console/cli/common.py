@@ -33,12 +33,21 @@ def add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
-def add_plant(p: argparse.ArgumentParser) -> None:
-    """--plant: which emulated wrist a --sim run drives."""
+def add_plant(p: argparse.ArgumentParser, default: str = "the profile's [plant] model") -> None:
+    """--plant: which emulated wrist a --sim run drives (``default`` words its default)."""
     p.add_argument("--plant", choices=PLANTS, default=None,
                    help="with --sim: the emulated wrist, ideal servos (eq. 27 with the "
                         "profile's p) or the physical wrist (MX-106 drives on the rigid-body "
-                        "chain) (default: the profile's [plant] model)")
+                        f"chain) (default: {default})")
+
+
+def console_plant(profile: Profile, plant: str | None) -> str | None:
+    """The console's emulated wrist: ``plant`` when given, the profile's ``[plant] model``
+    when it names one, else the physical wrist (a lab's first day meets a servo that is not
+    the planner's model, and the console says so and offers to identify it)."""
+    if plant is not None or "model" in profile.plant.model_fields_set:
+        return plant
+    return "physical"
 
 
 def with_plant(profile: Profile, plant: str | None) -> Profile:

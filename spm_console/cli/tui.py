@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
-from spm_console.cli.common import add_plant, with_plant
+from spm_console.cli.common import add_plant, console_plant, with_plant
 from spm_console.config.load import load_profile, with_grid_step
 from spm_console.config.schema import DEFAULT_PROFILE
 from spm_console.input_rules import finite_number
@@ -33,7 +33,7 @@ def register(sub: Any) -> None:
     g.add_argument("--sim", action="store_true",
                    help="use the emulated servo bus (default when neither --port nor the "
                    "profile's bus.port is set)")
-    add_plant(p)
+    add_plant(p, "the profile's [plant] model when it names one, else physical")
     p.add_argument("--no-viewer", action="store_true", help="do not start the meshcat 3D view")
     p.add_argument("--grid-step", type=float, default=None, metavar="DEG",
                    help="workspace grid step Δ instead of the profile's (e.g. 1 for the paper's "
@@ -110,7 +110,8 @@ def cmd_tui(args: argparse.Namespace) -> int:
     def factory(path: Path, step_deg: float | None, note: str) -> ConsoleApp:
         from spm_console.tui.app import make_app
 
-        profile = with_plant(load_profile(path), getattr(args, "plant", None))
+        loaded = load_profile(path)
+        profile = with_plant(loaded, console_plant(loaded, getattr(args, "plant", None)))
         if step_deg is not None:
             profile = with_grid_step(profile, step_deg)
         port = args.port or (None if args.sim else (profile.bus.port or None))

@@ -141,7 +141,7 @@ def _start_execution(t) -> None:  # type: ignore[no-untyped-def]
 
 
 def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    t = tmux_console("--sim", "--no-viewer")
+    t = tmux_console("--sim", "--plant", "ideal", "--no-viewer")
     _home_and_solve(t)
     # the result panel may be painted a frame after the status line: wait for it, then check it
     screen = t.wait_for(r"N = 150 × 0\.02 s = 3\.00 s")
@@ -177,7 +177,9 @@ def _wait_gone(port: int, timeout_s: float = 10.0) -> None:
 
 
 def test_viewer_url_shown_loopback_only_and_stopped_on_quit(tmux_console) -> None:  # type: ignore[no-untyped-def]
+    """Also: without --plant, the console drives the physical emulated wrist (its default)."""
     t = tmux_console("--sim")
+    t.wait_for(r"physical wrist", timeout_s=30)
     screen = t.wait_for(r"3D view: http://127\.0\.0\.1:\d+/static/", timeout_s=30)
     port = _viewer_port(screen)
     addrs = listening(port)
@@ -197,7 +199,7 @@ def test_a_signal_to_its_group_mid_motion_stops_the_wrist_the_console_and_its_vi
     """``kill -SIG -- -PGID`` of the console's process group (a service stop, a shell's hang-up
     of its job): the console E-stops through the motion process, which the signal does not
     reach (its own session), then leaves; the hold is written within two periods."""
-    t = tmux_console("--sim")
+    t = tmux_console("--sim", "--plant", "ideal")
     port = _viewer_port(t.wait_for(r"3D view: http://127\.0\.0\.1:\d+/static/", timeout_s=30))
     _home_and_solve(t)
     _start_execution(t)
@@ -220,7 +222,7 @@ def test_a_signal_to_its_group_mid_motion_stops_the_wrist_the_console_and_its_vi
 def test_closing_the_terminal_mid_motion_stops_the_wrist_and_closes_the_log(  # type: ignore[no-untyped-def]
         tmux_console, tmp_path, agile) -> None:
     """The terminal goes away (tmux closes the pty: SIGHUP, as a dropped SSH session)."""
-    t = tmux_console("--sim", "--no-viewer")
+    t = tmux_console("--sim", "--plant", "ideal", "--no-viewer")
     _home_and_solve(t)
     _start_execution(t)
     t.wait_for(r"E-STOP: press SPACE")
@@ -249,7 +251,7 @@ def _alive(pid: int) -> bool:
 def test_walk_the_new_tools_in_a_real_terminal(tmux_console) -> None:  # type: ignore[no-untyped-def]
     """As a person at 80×24: the live servo table, a jog refused before homing, F-keys from
     inside a field, digits typed into a field staying there, `?` listing the keys."""
-    t = tmux_console("--sim", "--no-viewer")
+    t = tmux_console("--sim", "--plant", "ideal", "--no-viewer")
     t._tmux("resize-window", "-t", "t", "-x", "80", "-y", "24")
     t.wait_for(r"press h to home")
     t.wait_for(r"12\.0 V")  # the live status table: voltage read from the servos

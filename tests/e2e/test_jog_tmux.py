@@ -12,7 +12,7 @@ from tests.e2e.test_console_tmux import env, pytestmark, tmux_console, ws_cache_
 
 @pytest.mark.slow  # a whole real-time run (the slow set runs in CI as its own stage)
 def test_walk_a_live_jog_by_keys(tmux_console, tmp_path) -> None:  # type: ignore[no-untyped-def]  # noqa: F811
-    t = tmux_console("--sim", "--no-viewer")
+    t = tmux_console("--sim", "--plant", "ideal", "--no-viewer")
     t.wait_for(r"press h to home")
     t.keys("5", "j")  # not homed: refused
     t.wait_for(r"not connected and homed")

@@ -29,7 +29,7 @@ def test_switch_profile_and_grid_step_restarts_in_the_same_terminal(tmp_path: Pa
     env = {"SPM_CONSOLE_LOGS": str(tmp_path / "logs"), "SPM_CONSOLE_CACHE": str(tmp_path / "c"),
            "SPM_CONSOLE_CONFIG": str(tmp_path / "config"), "TERM": "xterm-256color",
            "PATH": os.environ["PATH"], "HOME": os.environ.get("HOME", "/tmp")}
-    t = Tmux([sys.executable, "-m", "spm_console", "tui", "--sim", "--no-viewer",
+    t = Tmux([sys.executable, "-m", "spm_console", "tui", "--sim", "--plant", "ideal", "--no-viewer",
               "--grid-step", "5"], env)
     try:
         t.wait_for(r"press h to home")
