@@ -27,19 +27,25 @@ def _json(capsys: pytest.CaptureFixture[str]) -> dict:  # type: ignore[type-arg]
     return json.loads(out[0])  # type: ignore[no-any-return]
 
 
-def test_follow_timed_rpy_targets_settles_on_the_last(tmp_path: Path,
+#: How close each emulated wrist settles on the last target, deg: the ideal servos are the
+#: model; the physical wrist's P-only drives stop short by friction and the links' weight.
+SETTLED_DEG = {"ideal": 0.3, "physical": 0.6}
+
+
+@pytest.mark.parametrize("plant", ["ideal", "physical"])
+def test_follow_timed_rpy_targets_settles_on_the_last(tmp_path: Path, plant: str,
                                                       capsys: pytest.CaptureFixture[str]) -> None:
     csv = tmp_path / "t.csv"
     csv.write_text("t, roll, pitch, yaw\n0, 0, 0, 0\n0.3, 6, 0, 0  # a step\n1.0, 0, -4, 3\n")
-    code = main(["follow", "--sim", "--targets", str(csv), "--rpy", "--json", "--logs",
-                 str(tmp_path / "logs"), "--skip-homing", "test"])
+    code = main(["follow", "--sim", "--plant", plant, "--targets", str(csv), "--rpy", "--json",
+                 "--logs", str(tmp_path / "logs"), "--skip-homing", "test"])
     d = _json(capsys)
     assert code == 0 and d["outcome"] == "completed"
     from spm_console.config.load import load_profile
     from spm_console.store.target_file import theta_of_rpy
 
     last = theta_of_rpy(load_profile(ROOT / "profiles" / "agile_wrist.toml"), np.array([0, -4, 3.0]))
-    np.testing.assert_allclose(d["final_deg"], last, atol=0.3)
+    np.testing.assert_allclose(d["final_deg"], last, atol=SETTLED_DEG[plant])
     assert d["follow"]["solves"] > 0 and d["follow"]["refused"] == 0
     run = load_run(d["log_dir"])
     assert run.meta["kind"] == "follow" and run.meta["homing"].startswith("skipped")
