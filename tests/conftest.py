@@ -52,7 +52,8 @@ def pytest_configure(config: pytest.Config) -> None:
 
 #: Console test modules whose motions are long real-time runs (the identification
 #: experiment's 18 s and its fit): beside another real-time run on two cores, one of the two
-#: lost the bus now and then, so they run in the real-time group, one at a time.
+#: lost the bus now and then, so they run in the real-time group, one at a time (when a
+#: parallel run includes them: they are in the slow set, which runs on its own).
 LONG_CONSOLE_RUNS = frozenset({"test_identify.py"})
 
 

@@ -28,6 +28,7 @@ from tests.support.paths import ROOT
 AGILE = str(ROOT / "profiles" / "agile_wrist.toml")
 
 
+@pytest.mark.slow  # the 18 s experiment, its fit and two plans (CI runs the slow set)
 def test_the_physical_wrist_is_identified_and_its_profile_tracks_better(
         agile: Profile, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "identified.toml"

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import asyncio
 
+import pytest
+
 from spm_console.config.load import load_profile
 from spm_console.motion.logs.runlog import list_runs
 from spm_console.tui.identify_run import PLOT_NAME, PROFILE_NAME
@@ -14,6 +16,7 @@ from tests.support.console_helpers import MotionSpy, settle, status_of
 SIZE = (130, 42)
 
 
+@pytest.mark.slow  # the 18 s experiment and its fit (CI runs the slow set, alone)
 async def test_identify_is_refused_until_homed_then_writes_a_profile(console, tmp_path) -> None:  # type: ignore[no-untyped-def]
     app = console()
     spy = MotionSpy()
