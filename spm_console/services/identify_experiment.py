@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import ValidationError
 
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.models import servo_model_of
@@ -154,16 +155,22 @@ def identified_servo(profile: Profile, fit: ExperimentFit, source: str) -> Servo
     """The identified ``[servo]`` section of ``fit`` (Ts and discretization kept), its
     provenance naming ``source`` and the time now (UTC)."""
     s, a = fit.shared, fit.assessment
-    return Servo(
-        p=round(s.p, 4), ts_s=profile.servo.ts_s, discretization=profile.servo.discretization,
-        zeta=round(s.zeta, 4), delay_s=round(min(s.delay_s, 0.999 * profile.servo.ts_s), 6),
-        linear_range_deg=round(max(a.linear_range_deg, 0.01), 2),
-        residual_bound_deg=max(fit.residual_bound_deg, 0.01),
-        identified=Identified(
-            date=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), source=source,
-            samples=s.samples * s.joints, fit_rms_deg=round(a.fit_rms_deg, 4),
-            held_out_rms_deg=round(a.held_out_rms_deg, 4),
-            held_out_max_deg=round(a.held_out_max_deg, 4)))
+    try:
+        return Servo(
+            p=round(s.p, 4), ts_s=profile.servo.ts_s, discretization=profile.servo.discretization,
+            zeta=round(s.zeta, 4), delay_s=round(min(s.delay_s, 0.999 * profile.servo.ts_s), 6),
+            linear_range_deg=round(max(a.linear_range_deg, 0.01), 2),
+            residual_bound_deg=max(fit.residual_bound_deg, 0.01),
+            identified=Identified(
+                date=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                source=source[:500], samples=s.samples * s.joints,
+                fit_rms_deg=round(a.fit_rms_deg, 4),
+                held_out_rms_deg=round(a.held_out_rms_deg, 4),
+                held_out_max_deg=round(a.held_out_max_deg, 4)))
+    except ValidationError as exc:  # e.g. a model error above the 10° a profile accepts
+        raise SolverError("the identified model does not make a valid [servo] section: "
+                          + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}"
+                                      for e in exc.errors())) from None
 
 
 def identified_profile(text: str, servo: Servo, source: str) -> tuple[str, Profile]:

@@ -104,3 +104,4 @@ def test_the_grids_filter_is_the_event_response_on_uniform_samples(dyn: Dynamics
     t = np.arange(300) * TS
     np.testing.assert_allclose(response_uniform(dyn, TS, ref, ref[0]),
                                response(dyn, dyn.delay_s, t, ref, ref[0]), atol=1e-9)
+
