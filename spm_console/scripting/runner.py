@@ -353,8 +353,12 @@ def session_for(script: Script, profile: Profile | None = None, port: str | None
     check_script(script, profile)  # the CLI's input rules, before the bus is opened
     dev = None if sim else (port or spec.port or profile.bus.port or None)
     faults = [parse_fault(f) for f in spec.faults]
-    if dev is not None and (faults or spec.initial_deg is not None):
-        raise BadInputError("[session] faults and initial_deg apply to the emulated bus only")
+    if dev is not None and (faults or spec.initial_deg is not None or spec.plant is not None):
+        raise BadInputError("[session] faults, initial_deg and plant apply to the emulated bus "
+                            "only")
+    if spec.plant is not None:
+        profile = profile.model_copy(update={"plant": profile.plant.model_copy(
+            update={"model": spec.plant})})
     logs_dir = logs if logs is not None else (Path(spec.logs) if spec.logs else None)
     return Session(profile, port=dev, sim=dev is None, logs_root=logs_dir, faults=faults,
                    initial_deg=spec.initial_deg)

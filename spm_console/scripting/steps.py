@@ -52,6 +52,8 @@ class SessionSpec(_Model):
     initial_deg: Vec3 | None = None
     faults: tuple[str, ...] = ()
     logs: str | None = None
+    plant: Literal["ideal", "physical"] | None = None
+    """The emulated wrist (as ``--plant``): None keeps the profile's ``[plant] model``."""
 
 
 class ThetaPose(_Model):

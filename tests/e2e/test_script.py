@@ -296,3 +296,20 @@ def test_a_follow_step_tracks_timed_targets(tmp_path: Path, capsys: pytest.Captu
     assert main(["script", str(f), "--logs", str(tmp_path / "logs2")]) == ExitCode.BAD_INPUT
     assert "exactly one of targets or file" in capsys.readouterr().err
     assert not (tmp_path / "logs2").exists()
+
+
+def test_the_session_table_chooses_the_emulated_wrist() -> None:
+    """``[session] plant`` is ``--plant`` for a script: the physical wrist on the emulated bus;
+    refused with a serial port (it is the emulator's), and any other value is named."""
+    from spm_console.scripting.runner import session_for
+
+    script = parse_script('[session]\nplant = "physical"\n[[step]]\ndo = "home"\n', "s.toml")
+    session = session_for(script)
+    assert session.profile.plant.model == "physical"
+    assert session.bus_label == "emulated bus (physical wrist)"
+    assert session_for(parse_script('[[step]]\ndo = "home"\n', "s.toml")).bus_label == "emulated bus"
+    with pytest.raises(BadInputError, match="plant apply to the emulated bus only"):
+        session_for(parse_script('[session]\nplant = "ideal"\nport = "/dev/ttyUSB0"\n'
+                                 '[[step]]\ndo = "home"\n', "s.toml"))
+    with pytest.raises(BadInputError, match="session.plant"):
+        parse_script('[session]\nplant = "rubber"\n[[step]]\ndo = "home"\n', "s.toml")
