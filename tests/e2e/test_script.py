@@ -311,5 +311,5 @@ def test_the_session_table_chooses_the_emulated_wrist() -> None:
     with pytest.raises(BadInputError, match="plant apply to the emulated bus only"):
         session_for(parse_script('[session]\nplant = "ideal"\nport = "/dev/ttyUSB0"\n'
                                  '[[step]]\ndo = "home"\n', "s.toml"))
-    with pytest.raises(BadInputError, match="session.plant"):
+    with pytest.raises(BadInputError, match=r"session\.plant"):
         parse_script('[session]\nplant = "rubber"\n[[step]]\ndo = "home"\n', "s.toml")
