@@ -73,6 +73,9 @@ TARGET_REFUSED = "target refused"
 REACH_TOL_DEG = 1e-2
 #: Tolerance of the final check against the true region and speed bound (deg, deg/s).
 CHECK_TOL = 1e-6
+RULE_MARGIN_DEG = 0.01
+"""The QP holds the runtime's reference step and lead this far inside their bounds: its
+loosest pass answers to 1e-3, and an answer over a bound by that is one the runtime refuses."""
 #: OSQP's own "no time limit" (its default), s.
 NO_TIME_LIMIT_S = 1e10
 
@@ -217,10 +220,11 @@ class FollowSolver:
         if np.any(lo >= hi):
             raise BadInputError(f"reference limits must satisfy lo < hi, got {lo} and {hi}")
         self._lo, self._hi = lo, hi
-        lead = np.inf if self.lead_max_deg is None else float(self.lead_max_deg)
+        lead = np.inf if self.lead_max_deg is None else max(
+            float(self.lead_max_deg) - RULE_MARGIN_DEG, 0.5 * float(self.lead_max_deg))
         self._mats = build(self.model, self.region, self.vmax_degps, self.horizon, lo, hi,
                            self.weights.track, self.margin_deg, self.speed_margin_degps,
-                           PLAN_STEP_DEG, lead)
+                           PLAN_STEP_DEG - RULE_MARGIN_DEG, lead)
         self._projector = TargetProjector(self.region, lo, hi, 2.0 * self.margin_deg)
         self._osqp = osqp.OSQP()
         m = self._mats
