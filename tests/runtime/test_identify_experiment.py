@@ -63,6 +63,7 @@ def test_the_physical_wrist_is_identified_and_its_profile_tracks_better(
     assert rms[1] < 0.8 * rms[0], rms
 
 
+@pytest.mark.slow  # a whole command with its homing and part of the experiment
 def test_sigint_mid_experiment_stops_closes_the_log_and_writes_nothing(tmp_path: Path) -> None:
     out = tmp_path / "never.toml"
     logs = tmp_path / "logs"
