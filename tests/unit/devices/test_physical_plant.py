@@ -9,9 +9,9 @@ import pytest
 
 from spm_console.config.load import load_profile
 from spm_console.config.models import model_of
-from spm_console.config.schema import Plant
-from spm_console.devices.dynamixel.control_table import table_for
-from spm_console.devices.dynamixel.tick_map import joint_maps
+from spm_console.config.schema import Plant, Profile
+from spm_console.devices.dynamixel.control_table import ControlTable, table_for
+from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
 from spm_console.devices.emulator.physical import PWM_FULL, Drive, PhysicalWrist
 from spm_console.devices.emulator.plant_joint import PlantJoint
 from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
@@ -139,15 +139,20 @@ def test_a_drive_straining_against_a_blocked_shaft_overloads_after_a_second(
     assert not wrist.overloaded(1)
 
 
-def test_an_emulated_servo_stalled_on_the_physical_wrist_shuts_down_overloaded() -> None:
-    """The servo's stall fault blocks its shaft; its drive strains at full duty against it and
-    the firmware latches Overload (Hardware Error Status bit 5) and switches torque off."""
+def _wrist_at_home() -> tuple[Profile, PhysicalWrist, list[JointMap], ControlTable]:
+    """The default profile, its physical wrist at rest at home, its joints' tick maps and
+    its servos' control table."""
     profile = load_profile(ROOT / "profiles" / "agile_wrist.toml")
     m = model_of(profile)
     wrist = PhysicalWrist(m, P)
     wrist.set_theta(m.theta_home)
-    maps = joint_maps(profile)
-    table = table_for(profile.bus.protocol)
+    return profile, wrist, joint_maps(profile), table_for(profile.bus.protocol)
+
+
+def test_an_emulated_servo_stalled_on_the_physical_wrist_shuts_down_overloaded() -> None:
+    """The servo's stall fault blocks its shaft; its drive strains at full duty against it and
+    the firmware latches Overload (Hardware Error Status bit 5) and switches torque off."""
+    profile, wrist, maps, table = _wrist_at_home()
     servos = [EmulatedServo(table, mp.id, profile.servo.p, mp.to_ticks(135.0), 0.0,
                             joint=PlantJoint(wrist, i, mp)) for i, mp in enumerate(maps)]
     for s in servos:
@@ -166,12 +171,7 @@ def test_an_emulated_servo_stalled_on_the_physical_wrist_shuts_down_overloaded()
 
 def test_the_drive_uses_the_gains_the_driver_wrote() -> None:
     """Position P Gain halved through the control table: half the duty for the same error."""
-    profile = load_profile(ROOT / "profiles" / "agile_wrist.toml")
-    m = model_of(profile)
-    wrist = PhysicalWrist(m, P)
-    wrist.set_theta(m.theta_home)
-    maps = joint_maps(profile)
-    table = table_for(profile.bus.protocol)
+    profile, wrist, maps, table = _wrist_at_home()
     servo = EmulatedServo(table, maps[0].id, profile.servo.p, maps[0].to_ticks(135.0), 0.0,
                           joint=PlantJoint(wrist, 0, maps[0]))
     assert wrist.drives[0].gains.p == table["position_p_gain"].initial == 850
