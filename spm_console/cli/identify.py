@@ -202,7 +202,7 @@ def _experiment(args: argparse.Namespace, profile: Profile) -> int:
     args.out.write_text(text, encoding="utf-8")
     if args.plot is not None:
         plot_experiment(run.excitation, run.t, run.measured_deg, fit, args.plot)
-    return _report_fit(args, run, fit, servo)
+    return _report_fit(args, run, fit, servo, profile.servo)
 
 
 def _fit_dict(r: IdentifyResult) -> dict[str, float]:
@@ -211,7 +211,7 @@ def _fit_dict(r: IdentifyResult) -> dict[str, float]:
 
 
 def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit,
-                servo: Servo) -> int:
+                servo: Servo, before: Servo) -> int:
     a, s = fit.assessment, fit.shared
     data = {
         "outcome": run.execution.outcome, "exit_code": 0, "log_dir": str(run.execution.log_dir),
@@ -227,7 +227,7 @@ def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit
     }
     lines = [
         f"identified: ωn = {s.p:.2f} ± {s.p_std:.2f} rad/s, ζ = {s.zeta:.3f} ± {s.zeta_std:.3f}, "
-        f"delay {1e3 * s.delay_s:.1f} ms (the profile had p = {args_p(args)})",
+        f"delay {1e3 * s.delay_s:.1f} ms (the profile had p = {_words(before)})",
         *(f"  joint {i + 1} alone: ωn = {j.p:.2f} rad/s, ζ = {j.zeta:.3f}, delay "
           f"{1e3 * j.delay_s:.1f} ms, RMS {j.rms_deg:.3f}°" for i, j in enumerate(fit.joints)),
         f"model against measurement: fitted part RMS {a.fit_rms_deg:.3f}°; held-out part RMS "
@@ -241,7 +241,6 @@ def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit
     return int(ExitCode.OK)
 
 
-def args_p(args: argparse.Namespace) -> str:
-    """The input profile's servo model in words."""
-    sv = profile_of(args).servo
+def _words(sv: Servo) -> str:
+    """A servo model in words."""
     return f"{sv.p:g} rad/s" + ("" if sv.zeta == 1.0 else f", ζ = {sv.zeta:g}")
