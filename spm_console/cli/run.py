@@ -31,9 +31,11 @@ def _bus_opts(p: argparse.ArgumentParser) -> None:
     add_common(p)
     g = p.add_mutually_exclusive_group()
     g.add_argument("--sim", action="store_true",
-                   help="start an emulated servo bus on a pseudo-terminal and use it")
+                   help="start an emulated servo bus and use it (reached over the profile's "
+                        "emulator.link)")
     g.add_argument("--port", metavar="DEV",
-                   help="serial device (default: the profile's bus.port; empty = --sim)")
+                   help="serial device, or unix:PATH for a socket bus (default: the profile's "
+                        "bus.port; empty = --sim)")
     p.add_argument("--fault", action="append", default=[], metavar="KIND[@SECONDS]",
                    help="with --sim: inject a fault, e.g. unplug@1.0, stall:2@0.5, drop:0.05, "
                         "corrupt:0.02, delay:0.03@1.0, hwerror:1@0.5 (repeatable; seconds "

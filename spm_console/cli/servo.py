@@ -51,7 +51,7 @@ def register(sub: Any) -> None:
     t.set_defaults(func=cmd_torque)
 
     e = sub.add_parser("emulate", help="serve an emulated MX-106 bus on a pseudo-terminal "
-                                       "until SIGINT/SIGTERM")
+                                       "(or a socket) until SIGINT/SIGTERM")
     add_common(e)
     e.add_argument("--fault", action="append", default=[], metavar="KIND[@SECONDS]",
                    help="inject a fault, e.g. unplug@5, stall:2@1, drop:0.05, corrupt:0.02, "
@@ -59,6 +59,10 @@ def register(sub: Any) -> None:
     e.add_argument("--initial", nargs=3, type=float, metavar=("T1", "T2", "T3"),
                    help="power-on joint angles, deg (default: the profile's home)")
     add_plant(e)
+    e.add_argument("--link", choices=("pty", "socket"), default="pty",
+                   help="pty (default): a serial device any serial tool opens; socket: a "
+                        "Unix-domain socket, port unix:PATH, which the spm-console commands "
+                        "open (less exposed to a loaded machine's delays)")
     e.add_argument("--duration", type=float, metavar="S",
                    help=f"stop by itself after S seconds, 0 < S ≤ {MAX_EMULATE_S:g}")
     e.set_defaults(func=cmd_emulate)
@@ -130,10 +134,10 @@ def cmd_emulate(args: argparse.Namespace) -> int:
     if args.duration is not None:
         finite_number(args.duration, "--duration", 0.0, MAX_EMULATE_S, lo_open=True, unit="s")
     stop = threading.Event()
-    em = start_emulator(profile, faults, record=False, initial_deg=initial)
+    em = start_emulator(profile, faults, record=False, initial_deg=initial, link=args.link)
     restore = install_stop_handler(lambda _sig: stop.set())
     try:
-        head = {"port": em.port, "protocol": em.protocol, "ids": [m.id for m in em.maps],
+        head = {"port": em.port, "link": em.link, "protocol": em.protocol, "ids": [m.id for m in em.maps],
                 "model_number": profile.bus.model_number, "faults": [str(f) for f in faults],
                 "profile": profile.name}
         if args.json:

@@ -312,6 +312,10 @@ class Emulator(_Section):
     """Standard deviation of position noise added before quantization, deg, 0..10."""
     seed: Count = Field(default=0, ge=0, le=(1 << 63) - 1)
     """Random seed of the emulator's noise and faults, 0..2^63−1 (numpy refuses negatives)."""
+    link: Literal["socket", "pty"] = "socket"
+    """How ``--sim`` runs and the console reach the emulated bus: a Unix-domain ``socket``
+    (the bytes cross in the sender's system call) or a ``pty``, a serial device any serial tool
+    can open (its bytes wait for a kernel worker, which a loaded machine delays)."""
 
 
 class Plant(_Section):

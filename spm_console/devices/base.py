@@ -1,7 +1,7 @@
 """The one small interface between orchestration (executor, homing, UI) and a servo bus.
 
 Implemented by the real Dynamixel bus over a serial port (real hardware or the
-emulator's pseudo-terminal). Angles are joint angles θ in degrees (the profile's
+emulator's pseudo-terminal) or the emulator's socket. Angles are joint angles θ in degrees (the profile's
 tick mapping is applied inside the bus); times in seconds.
 """
 

@@ -2,8 +2,9 @@
 
 Real-time priority decides who runs first *on a CPU*; it does not help a servo reply that
 waits in the kernel. Every byte between the servo loop and the servos passes through the
-tty layer's kernel workers (``flush_to_ldisc``: a pseudo-terminal to the emulated servos,
-a USB serial adapter to real ones), and those run at normal priority. Traced on a 2-core
+tty layer's kernel workers (``flush_to_ldisc``: a USB serial adapter to real servos, or a
+pseudo-terminal to emulated ones when ``emulator.link = "pty"``; the emulated bus's default
+link, a socket, bypasses them), and those run at normal priority. Traced on a 2-core
 machine, they waited up to 77 ms behind normal-priority processes on the same CPU (the
 console's own UI process, the 3D view's server, a browser), long enough for three missed
 replies in a row, a "communication lost" stop.

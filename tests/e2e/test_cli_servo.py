@@ -52,17 +52,23 @@ def cli(capsys: pytest.CaptureFixture[str], relaxed: str) -> Run:
     return run
 
 
-def test_emulate_process_serves_until_sigterm(relaxed: str) -> None:
+@pytest.mark.parametrize("link", ["pty", "socket"])
+def test_emulate_process_serves_until_sigterm(relaxed: str, link: str) -> None:
+    """The default pty, a serial device; or the socket, port unix:PATH, which ``--port`` opens
+    and which is gone with the emulator."""
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen([sys.executable, "-m", "spm_console", "emulate", "--json",
-                             "--fault", "stall:1@100"],
+                             "--fault", "stall:1@100", *(["--link", link] if link != "pty" else [])],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         assert proc.stdout is not None
         head = json.loads(proc.stdout.readline())
         assert head["ids"] == [1, 2, 3] and head["model_number"] == 321
         assert head["protocol"] == "2.0" and head["faults"] == ["stall:1@100"]
-        assert os.path.exists(head["port"])
+        assert head["link"] == link
+        path = head["port"].removeprefix("unix:") if link == "socket" else head["port"]
+        assert head["port"].startswith("unix:" if link == "socket" else "/dev/")
+        assert os.path.exists(path)
         ping = subprocess.run([sys.executable, "-m", "spm_console", "servo", "ping", "--json",
                                "--port", head["port"], "--profile", relaxed],
                               capture_output=True, text=True, timeout=60)
@@ -74,6 +80,8 @@ def test_emulate_process_serves_until_sigterm(relaxed: str) -> None:
         assert proc.returncode == 0
         summary = json.loads(out.strip().splitlines()[-1])
         assert summary["stopped"] and summary["instructions"] >= 3
+        if link == "socket":
+            assert not os.path.exists(path)
     finally:
         if proc.poll() is None:
             proc.kill()

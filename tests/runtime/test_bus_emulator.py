@@ -1,9 +1,12 @@
-"""Our DynamixelBus against the emulated MX-106 bus, over a real pseudo-terminal."""
+"""Our DynamixelBus against the emulated MX-106 bus, over both of its links: a Unix-domain
+socket (the default) and a real pseudo-terminal."""
 
 from __future__ import annotations
 
+import socket
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -29,11 +32,69 @@ def protocol1(profile: Profile) -> Profile:
     return profile.model_copy(update={"bus": bus})
 
 
-@pytest.fixture(params=["2.0", "1.0"])
+class RawClient:
+    """Bytes to and from the emulated bus, below our transport: pyserial on the pty, a plain
+    socket on the socket."""
+
+    def __init__(self, em: EmulatorHandle) -> None:
+        import serial
+
+        self.ser: serial.Serial | None = None
+        self.sock: socket.socket | None = None
+        if em.link == "pty":
+            self.ser = serial.Serial(em.port, 1_000_000, timeout=0.05)
+        else:
+            self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            self.sock.connect(em.port.removeprefix("unix:"))
+            self.sock.settimeout(0.05)
+
+    def write(self, data: bytes) -> None:
+        if self.ser is not None:
+            self.ser.write(data)
+        else:
+            assert self.sock is not None
+            self.sock.sendall(data)
+
+    def read(self, n: int) -> bytes:
+        if self.ser is not None:
+            return bytes(self.ser.read(n))
+        assert self.sock is not None
+        got = b""
+        end = time.perf_counter() + 0.5
+        while len(got) < n and time.perf_counter() < end:
+            try:
+                got += self.sock.recv(n - len(got))
+            except TimeoutError:
+                continue
+        return got
+
+    def close(self) -> None:
+        if self.ser is not None:
+            self.ser.close()
+        if self.sock is not None:
+            self.sock.close()
+
+
+@contextmanager
+def raw_client(em: EmulatorHandle) -> Iterator[RawClient]:
+    client = RawClient(em)
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+#: The e-manual's example READ of servo 1's Present Position (protocol 2.0).
+READ_POSITION = bytes.fromhex("FF FF FD 00 01 07 00 02 84 00 04 00 1D 15")
+
+
+@pytest.fixture(params=[("2.0", "socket"), ("2.0", "pty"), ("1.0", "socket"), ("1.0", "pty")],
+                ids=lambda p: f"{p[0]}-{p[1]}")
 def rig(request: pytest.FixtureRequest, agile: Profile) -> Iterator[tuple[EmulatorHandle,
                                                                           DynamixelBus]]:
-    prof = agile if request.param == "2.0" else protocol1(agile)
-    em = start_emulator(prof)
+    protocol, link = request.param
+    prof = agile if protocol == "2.0" else protocol1(agile)
+    em = start_emulator(prof, link=link)
     bus = open_bus(relaxed(prof), em.port)
     yield em, bus
     bus.close()
@@ -170,15 +231,13 @@ def test_open_bus_on_missing_port(agile: Profile) -> None:
         open_bus(agile, "")
 
 
-def test_emulator_survives_line_garbage(agile: Profile) -> None:
-    import serial
-
-    with start_emulator(agile) as em:
-        raw = serial.Serial(em.port, 1_000_000, timeout=0.05)
-        raw.write(b"\xff\xff\xfd\x00\x01\xff\xff" + bytes(range(256)) + b"\xff\xff\xfd")
-        raw.write(bytes.fromhex("FF FF FD 00 01 07 00 02 84 00 04 00 1D 15"))  # e-manual READ
-        reply = raw.read(15)
-        raw.close()
+@pytest.mark.parametrize("link", ["socket", "pty"])
+def test_emulator_survives_line_garbage(agile: Profile, link: str) -> None:
+    with start_emulator(agile, link=link) as em:  # type: ignore[arg-type]
+        with raw_client(em) as raw:
+            raw.write(b"\xff\xff\xfd\x00\x01\xff\xff" + bytes(range(256)) + b"\xff\xff\xfd")
+            raw.write(READ_POSITION)
+            reply = raw.read(15)
         # the READ after the garbage is answered with a valid status (position 2048)
         assert reply[:9] == bytes.fromhex("FF FF FD 00 01 08 00 55 00")
         assert int.from_bytes(reply[9:13], "little") == 2048
@@ -188,14 +247,15 @@ def test_emulator_survives_line_garbage(agile: Profile) -> None:
         bus.close()
 
 
-def test_a_stale_partial_header_does_not_hold_the_line(agile: Profile) -> None:
-    import serial
-
-    with start_emulator(agile) as em:
-        raw = serial.Serial(em.port, 1_000_000, timeout=0.05)
-        raw.write(bytes.fromhex("FF FF FD 00 01 E8 03"))  # a header announcing 1000 bytes
-        time.sleep(0.05)
-        raw.close()
+@pytest.mark.parametrize("link", ["socket", "pty"])
+def test_a_stale_partial_header_does_not_hold_the_line(agile: Profile, link: str) -> None:
+    with start_emulator(agile, link=link) as em:  # type: ignore[arg-type]
+        with raw_client(em) as raw:
+            raw.write(bytes.fromhex("FF FF FD 00 01 E8 03"))  # a header announcing 1000 bytes
+            time.sleep(0.05)
+            raw.write(READ_POSITION)  # on the same stream, after the firmware's byte timeout
+            reply = raw.read(15)
+        assert int.from_bytes(reply[9:13], "little") == 2048
         bus = open_bus(relaxed(agile), em.port)
         assert np.allclose(bus.read_position_deg(), 135.0)
         bus.close()
@@ -219,3 +279,27 @@ def test_one_lost_ping_reply_is_retried_not_a_missing_servo(
     lost["n"] = -10  # now every reply is lost: the servo is reported absent
     with pytest.raises(BusError, match="no status packet from servo id 1"):
         bus.ping(1)
+
+
+def test_the_profile_names_the_link_and_the_socket_serves_clients_apart(agile: Profile) -> None:
+    """``emulator.link`` picks the link; on the socket each client gets its own replies, and
+    a client that leaves (even mid-packet) leaves the others served."""
+    pty_profile = agile.model_copy(update={"emulator": agile.emulator.model_copy(
+        update={"link": "pty"})})
+    with start_emulator(pty_profile) as em:
+        assert em.link == "pty" and em.port.startswith("/dev/")
+    with start_emulator(agile) as em:
+        assert em.link == "socket" and em.port.startswith("unix:")
+        first = open_bus(relaxed(agile), em.port)
+        second = open_bus(relaxed(agile), em.port)
+        with raw_client(em) as leaving:
+            leaving.write(READ_POSITION[:5])
+        for _ in range(20):
+            assert np.allclose(first.read_position_deg(), 135.0)
+            assert np.allclose(second.read_position_deg(), 135.0)
+        assert first.stale_replies == 0 and second.stale_replies == 0
+        first.close()
+        assert np.allclose(second.read_position_deg(), 135.0)
+        second.close()
+    with pytest.raises(BusError, match="cannot connect to the bus socket"):
+        open_bus(agile, em.port)  # the emulator is gone, and its socket with it

@@ -28,13 +28,13 @@ def protocol1(profile: Profile) -> Profile:
 
 @pytest.fixture
 def em2(agile: Profile) -> Iterator[EmulatorHandle]:
-    with start_emulator(agile) as em:
+    with start_emulator(agile, link="pty") as em:
         yield em
 
 
 @pytest.fixture
 def em1(agile: Profile) -> Iterator[EmulatorHandle]:
-    with start_emulator(protocol1(agile)) as em:
+    with start_emulator(protocol1(agile), link="pty") as em:
         yield em
 
 
@@ -99,7 +99,7 @@ def test_sdk_protocol2_sync_write_and_sync_read(em2: EmulatorHandle) -> None:
 
 
 def test_sdk_sees_the_hardware_error_alert(agile: Profile) -> None:
-    with start_emulator(agile, faults=[FaultSpec("hwerror", joint=3)]) as em:
+    with start_emulator(agile, faults=[FaultSpec("hwerror", joint=3)], link="pty") as em:
         port, pk = open_sdk(em.port, 2.0)
         try:
             time.sleep(0.02)
@@ -114,7 +114,7 @@ def test_sdk_sees_the_hardware_error_alert(agile: Profile) -> None:
 
 
 def test_sdk_rejects_corrupted_replies(agile: Profile) -> None:
-    with start_emulator(agile, faults=[FaultSpec("corrupt", rate=1.0)]) as em:
+    with start_emulator(agile, faults=[FaultSpec("corrupt", rate=1.0)], link="pty") as em:
         port, pk = open_sdk(em.port, 2.0)
         try:
             _, res, _ = pk.read4ByteTxRx(port, 1, 132)

@@ -1,7 +1,7 @@
 """The Dynamixel servo bus: three MX-106 driving joints 1..3, angles in degrees.
 
 :class:`DynamixelBus` implements :class:`spm_console.devices.base.ServoBus` over a
-:class:`SerialTransport` (real adapter or the emulator's pty), in Protocol 2.0
+:class:`Transport` (a serial adapter, the emulator's pty or its socket), in Protocol 2.0
 or 1.0 as the profile says. Registers are addressed by name from the control
 table (``devices/dynamixel/control_table.py``). Joint angles map to ticks per joint
 (offset, direction) and a goal outside the joint's limits is refused with
@@ -32,7 +32,7 @@ from spm_console.devices.dynamixel.control_table import (
 from spm_console.devices.dynamixel.link import Link, Link1, Link2, Reply
 from spm_console.devices.dynamixel.protocol2 import describe_error
 from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
-from spm_console.devices.dynamixel.transport import SerialTransport
+from spm_console.devices.dynamixel.transport import Transport, open_transport
 from spm_console.errors import BadInputError, BusError
 
 T = TypeVar("T")
@@ -74,7 +74,7 @@ def _retry(fn: Callable[[], T], drain: Callable[[float], object], attempts: int 
 class DynamixelBus:
     """Three servos on one serial port (see module docstring)."""
 
-    def __init__(self, profile: Profile, transport: SerialTransport) -> None:
+    def __init__(self, profile: Profile, transport: Transport) -> None:
         self.profile = profile
         self.transport = transport
         self.table: ControlTable = table_for(profile.bus.protocol)
@@ -273,4 +273,4 @@ class DynamixelBus:
 
 def open_bus(profile: Profile, port: str) -> DynamixelBus:
     """Open ``port`` with the profile's baud rate and reply timeout; BusError if impossible."""
-    return DynamixelBus(profile, SerialTransport(port, profile.bus.baud, profile.bus.timeout_s))
+    return DynamixelBus(profile, open_transport(port, profile.bus.baud, profile.bus.timeout_s))

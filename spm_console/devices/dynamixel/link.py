@@ -34,7 +34,7 @@ from spm_console.devices.dynamixel import protocol1 as p1
 from spm_console.devices.dynamixel import protocol2 as p2
 from spm_console.devices.dynamixel.control_table import HARDWARE_MASK_P1, ControlTable
 from spm_console.devices.dynamixel.reply_ledger import ReplyLedger, Request, Verdict, read_variants
-from spm_console.devices.dynamixel.transport import SerialTransport, StreamDecoder
+from spm_console.devices.dynamixel.transport import StreamDecoder, Transport
 from spm_console.errors import BusError
 
 
@@ -85,7 +85,7 @@ class _LedgerLink(Generic[P]):
 
     protocol = ""
 
-    def __init__(self, transport: SerialTransport, table: ControlTable) -> None:
+    def __init__(self, transport: Transport, table: ControlTable) -> None:
         self.tr = transport
         self.table = table
         self.ledger = ReplyLedger()
@@ -259,7 +259,7 @@ class Link2(_LedgerLink[p2.Packet]):
 
     protocol = "2.0"
 
-    def __init__(self, transport: SerialTransport, table: ControlTable) -> None:
+    def __init__(self, transport: Transport, table: ControlTable) -> None:
         super().__init__(transport, table)
         self.dec = p2.Decoder2()
 

@@ -1,4 +1,6 @@
-"""Serial transport: a pyserial port, short reply timeouts, one transaction at a time.
+"""Bus transport: short reply timeouts, one transaction at a time, over a serial port
+(pyserial: a real adapter or the emulator's pty) or a Unix-domain socket (the emulated
+bus's default link, port ``unix:PATH``; see :func:`open_transport`).
 
 ``transact(packet, decoder, count, check=…)`` discards the input already waiting
 (counted in ``bytes_flushed``; ``on_late`` may look at it first), writes one instruction packet and collects
@@ -31,7 +33,10 @@ time (it is then the current request's own reply, never another's).
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import select
+import socket
+import termios
 import threading
 import time
 from collections.abc import Callable
@@ -44,6 +49,9 @@ from spm_console.errors import BusError
 
 P = TypeVar("P")
 
+#: Port prefix of a Unix-domain socket bus (the emulated bus's default link).
+UNIX_PREFIX = "unix:"
+
 
 class StreamDecoder(Protocol[P]):
     """What transact() needs from Decoder1 / Decoder2."""
@@ -55,32 +63,44 @@ class StreamDecoder(Protocol[P]):
     def reset(self) -> None: ...
 
 
-class SerialTransport:
-    """One open serial port (real adapter or the emulator's pty)."""
+class Transport:
+    """One open bus link: transactions, sends and drains over a byte stream. Subclasses give
+    the stream (:class:`SerialTransport`, :class:`SocketTransport`)."""
 
-    def __init__(self, port: str, baud: int = 1_000_000, timeout_s: float = 0.004) -> None:
-        if not port:
-            raise BusError("no serial port given (profile bus.port is empty): pass --port DEV "
-                           "or use the emulated bus (--sim)")
-        try:
-            self._ser = serial.Serial(port=port, baudrate=baud, timeout=0, write_timeout=1.0)
-        except (serial.SerialException, OSError, ValueError) as exc:
-            raise BusError(f"cannot open serial port {port}: {exc}. Check the device path, "
-                           "that the adapter is plugged in and that you are in the 'dialout' "
-                           "group") from None
+    def __init__(self, port: str, timeout_s: float) -> None:
         self.port = port
         self.timeout_s = timeout_s
         self.low_latency = False
-        try:
-            self._ser.set_low_latency_mode(True)
-            self.low_latency = True
-        except (AttributeError, NotImplementedError, ValueError, OSError, serial.SerialException):
-            pass  # a pty or an adapter without ASYNC_LOW_LATENCY: best effort only
+        """The serial adapter's low-latency mode was granted (never for a pty or a socket)."""
         self._lock = threading.RLock()
         self.bytes_out = 0
         self.bytes_in = 0
         self.bytes_flushed = 0
         """Input discarded unread before a request (replies that came too late)."""
+
+    # --- the byte stream (OSError on failure) --------------------------------------
+
+    def fileno(self) -> int:
+        raise NotImplementedError
+
+    def _waiting(self) -> int:
+        """Bytes ready to read now."""
+        raise NotImplementedError
+
+    def _read(self, n: int) -> bytes:
+        """Up to ``n`` bytes that are ready (at least one when select said so)."""
+        raise NotImplementedError
+
+    def _write(self, data: bytes) -> None:
+        raise NotImplementedError
+
+    def _discard_input(self) -> None:
+        raise NotImplementedError
+
+    def _close(self) -> None:
+        raise NotImplementedError
+
+    # --- transactions ---------------------------------------------------------------
 
     @property
     def lock(self) -> threading.RLock:
@@ -89,21 +109,21 @@ class SerialTransport:
         return self._lock
 
     def close(self) -> None:
-        with contextlib.suppress(serial.SerialException, OSError):
-            self._ser.close()
+        with contextlib.suppress(OSError):
+            self._close()
 
     def _send(self, packet: bytes, on_late: Callable[[bytes], object] | None = None) -> None:
         try:
-            waiting = self._ser.in_waiting
+            waiting = self._waiting()
             if waiting and on_late is not None:  # came after the last transaction: late
-                late = self._ser.read(waiting)
+                late = self._read(waiting)
                 self.bytes_flushed += len(late)
                 on_late(late)
             elif waiting:
                 self.bytes_flushed += waiting
-            self._ser.reset_input_buffer()
-            self._ser.write(packet)
-        except (serial.SerialException, OSError) as exc:
+            self._discard_input()
+            self._write(packet)
+        except OSError as exc:  # serial.SerialException is an OSError
             raise CommError(f"write to {self.port} failed: {exc}") from None
         self.bytes_out += len(packet)
 
@@ -142,15 +162,15 @@ class SerialTransport:
         """
         chunks: list[bytes] = []
         with self._lock:
-            fd = self._ser.fileno()
+            fd = self.fileno()
             end = time.perf_counter() + max_s
             while (left := end - time.perf_counter()) > 0:
                 try:
                     ready, _, _ = select.select([fd], [], [], min(quiet_s, left))
                     if not ready:
                         break
-                    chunks.append(self._ser.read(self._ser.in_waiting or 1))
-                except (serial.SerialException, OSError) as exc:
+                    chunks.append(self._read(self._waiting() or 1))
+                except OSError as exc:
                     raise CommError(f"read from {self.port} failed: {exc}") from None
             data = b"".join(chunks)
             if data and on_late is not None:
@@ -162,7 +182,7 @@ class SerialTransport:
                  check: Callable[[P], int] | None) -> list[P]:
         got: list[P] = []
         settled = 0
-        fd = self._ser.fileno()
+        fd = self.fileno()
         deadline = time.perf_counter() + timeout_s
         while settled < count:
             remaining = deadline - time.perf_counter()
@@ -173,8 +193,8 @@ class SerialTransport:
                 ready, _, _ = select.select([fd], [], [], remaining)
                 if not ready:
                     continue
-                data = self._ser.read(self._ser.in_waiting or 1)
-            except (serial.SerialException, OSError) as exc:
+                data = self._read(self._waiting() or 1)
+            except OSError as exc:
                 raise CommError(f"read from {self.port} failed: {exc}") from None
             self.bytes_in += len(data)
             for pkt in decoder.feed(data):
@@ -184,3 +204,109 @@ class SerialTransport:
                     settled += n
                     deadline = time.perf_counter() + timeout_s
         return got
+
+
+class SerialTransport(Transport):
+    """A serial port through pyserial (a real adapter or the emulator's pty)."""
+
+    def __init__(self, port: str, baud: int = 1_000_000, timeout_s: float = 0.004) -> None:
+        super().__init__(port, timeout_s)
+        try:
+            self._ser = serial.Serial(port=port, baudrate=baud, timeout=0, write_timeout=1.0)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise BusError(f"cannot open serial port {port}: {exc}. Check the device path, "
+                           "that the adapter is plugged in and that you are in the 'dialout' "
+                           "group") from None
+        try:
+            self._ser.set_low_latency_mode(True)
+            self.low_latency = True
+        except (AttributeError, NotImplementedError, ValueError, OSError, serial.SerialException):
+            pass  # a pty or an adapter without ASYNC_LOW_LATENCY: best effort only
+
+    def fileno(self) -> int:
+        return int(self._ser.fileno())
+
+    def _waiting(self) -> int:
+        return int(self._ser.in_waiting)
+
+    def _read(self, n: int) -> bytes:
+        return bytes(self._ser.read(n))
+
+    def _write(self, data: bytes) -> None:
+        self._ser.write(data)
+
+    def _discard_input(self) -> None:
+        self._ser.reset_input_buffer()
+
+    def _close(self) -> None:
+        self._ser.close()
+
+
+class SocketTransport(Transport):
+    """A Unix-domain stream socket (port ``unix:PATH``): the emulated bus's default link.
+
+    The bytes go from one process to the other in the sender's system call. A pty hands
+    them to a kernel worker thread first, which a loaded 2-core machine can leave waiting
+    past the 4 ms reply timeout."""
+
+    def __init__(self, port: str, timeout_s: float = 0.004) -> None:
+        super().__init__(port, timeout_s)
+        path = port[len(UNIX_PREFIX):]
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            sock.settimeout(1.0)
+            sock.connect(path)
+        except OSError as exc:
+            sock.close()
+            raise BusError(f"cannot connect to the bus socket {path}: {exc.strerror or exc}. "
+                           "Is the emulated bus (spm-console emulate) still running?") from None
+        sock.setblocking(False)
+        self._sock = sock
+
+    def fileno(self) -> int:
+        return self._sock.fileno()
+
+    def _waiting(self) -> int:
+        buf = fcntl.ioctl(self._sock.fileno(), termios.FIONREAD, b"\0\0\0\0")
+        return int.from_bytes(buf, "little", signed=True)
+
+    def _read(self, n: int) -> bytes:
+        try:
+            data = self._sock.recv(max(n, 1))
+        except BlockingIOError:
+            return b""
+        if not data:
+            raise ConnectionResetError("the emulated bus closed the connection")
+        return data
+
+    def _write(self, data: bytes) -> None:
+        view = memoryview(data)
+        deadline = time.perf_counter() + 1.0  # as the serial port's write timeout
+        while view:
+            try:
+                view = view[self._sock.send(view):]
+            except BlockingIOError:
+                if time.perf_counter() > deadline:
+                    raise TimeoutError("write timeout") from None
+                select.select([], [self._sock], [], 0.01)
+
+    def _discard_input(self) -> None:
+        while True:
+            try:
+                if not self._sock.recv(65536):
+                    return
+            except BlockingIOError:
+                return
+
+    def _close(self) -> None:
+        self._sock.close()
+
+
+def open_transport(port: str, baud: int = 1_000_000, timeout_s: float = 0.004) -> Transport:
+    """The transport for ``port``: ``unix:PATH`` a socket, anything else a serial device."""
+    if not port:
+        raise BusError("no serial port given (profile bus.port is empty): pass --port DEV "
+                       "or use the emulated bus (--sim)")
+    if port.startswith(UNIX_PREFIX):
+        return SocketTransport(port, timeout_s)
+    return SerialTransport(port, baud, timeout_s)

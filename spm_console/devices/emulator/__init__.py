@@ -1,1 +1,1 @@
-"""The emulated MX-106 bus on a pseudo-terminal, in-process or as a child."""
+"""The emulated MX-106 bus on a socket or a pseudo-terminal, in-process or as a child."""

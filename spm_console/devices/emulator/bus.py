@@ -1,24 +1,22 @@
-"""Emulated servo bus: three MX-106 behind a pseudo-terminal, faults on demand.
+"""Emulated servo bus: three MX-106 behind a socket or a pseudo-terminal, faults on demand.
 
-:func:`start_emulator` opens a pty pair (slave set raw), builds one
+:func:`start_emulator` opens the link (``devices/emulator/endpoint.py``: a Unix-domain
+socket by default, port ``unix:PATH``; or a raw pty pair, port the slave's path), builds one
 :class:`EmulatedServo` per joint of the profile (its protocol, ids, model number,
-tick mapping, pole p) and serves the master side from a background thread:
+tick mapping, servo model) and serves the link from a background thread:
 it decodes instruction packets, lets the servos answer with the same bytes a real
 servo sends, and applies the injected faults to the replies. The thread sleeps in
-``select`` on the master fd (no busy wait), so it answers as soon as a packet is
+``select`` on the link (no busy wait), so it answers as soon as a packet is
 complete. Time is ``time.perf_counter()``; ``true_state()`` reports it relative
 to the clock start together with the true joint angles and velocities (deg, deg/s).
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
 import random
 import select
 import threading
 import time
-import tty
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -33,6 +31,7 @@ from spm_console.devices.dynamixel import protocol2 as p2
 from spm_console.devices.dynamixel.control_table import table_for
 from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
 from spm_console.devices.emulator.dispatch import dispatch1, dispatch2
+from spm_console.devices.emulator.endpoint import Channel, Link, open_endpoint
 from spm_console.devices.emulator.faults import FaultSpec
 from spm_console.devices.emulator.plant_joint import PlantJoint
 from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
@@ -76,7 +75,7 @@ class EmulatorHandle:
     """A running emulated bus. Use :func:`start_emulator`; ``stop()`` when done."""
 
     def __init__(self, profile: Profile, faults: Sequence[FaultSpec] = (), record: bool = True,
-                 initial_deg: Sequence[float] | None = None) -> None:
+                 initial_deg: Sequence[float] | None = None, link: Link | None = None) -> None:
         self.profile = profile
         self.protocol = profile.bus.protocol
         self.maps: list[JointMap] = joint_maps(profile)
@@ -110,8 +109,7 @@ class EmulatorHandle:
         self._faults: list[FaultSpec] = []
         self._fired: set[int] = set()
         self._frng = random.Random(profile.emulator.seed + 1)
-        self._pending: list[tuple[float, bytes]] = []
-        self._last_rx = 0.0
+        self._pending: list[tuple[float, Channel, bytes]] = []
         self.stats = EmulatorStats()
         self._lock = threading.RLock()
         self._stop = threading.Event()
@@ -119,13 +117,10 @@ class EmulatorHandle:
         self.clock_started = False
         """Set by the first torque-on or :meth:`start_clock`: until then only faults at
         t = 0 act (a fault at t > 0 waits for the motion, wherever it was started from)."""
-        self._decoder: p2.Decoder2 | p1.Decoder1 = (
-            p2.Decoder2() if self.protocol == "2.0" else p1.Decoder1()
-        )
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._slave)
-        os.set_blocking(self._master, False)
-        self.port: str = os.ttyname(self._slave)
+        self.link: Link = link or profile.emulator.link
+        self._endpoint = open_endpoint(self.link, p2.Decoder2 if self.protocol == "2.0" else p1.Decoder1)
+        self.port: str = self._endpoint.port
+        """What a client opens: ``unix:PATH`` for the socket, the pty slave's path."""
         for f in faults:
             self.inject(f)
         self.realtime = RtGrant("normal", "not serving yet")
@@ -180,13 +175,11 @@ class EmulatorHandle:
             self._sample()
 
     def stop(self) -> None:
-        """Stop serving and close the pty."""
+        """Stop serving and close the link."""
         self._stop.set()
         if self._thread.is_alive() and self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
-        for fd in (self._master, self._slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        self._endpoint.close()
 
     def __enter__(self) -> EmulatorHandle:
         return self
@@ -243,49 +236,47 @@ class EmulatorHandle:
                 if self._pending:
                     timeout = max(0.0, min(timeout, self._pending[0][0] - time.perf_counter()))
                 try:
-                    ready, _, _ = select.select([self._master], [], [], timeout)
+                    ready, _, _ = select.select(self._endpoint.fds(), [], [], timeout)
                 except (OSError, ValueError):
                     return
-                data = b""
-                if ready:
-                    try:
-                        data = os.read(self._master, 4096)
-                    except BlockingIOError:
-                        data = b""
-                    except OSError:
-                        return
+                received = self._endpoint.receive(ready) if ready else []
                 with self._lock:
                     now = time.perf_counter()
                     self._advance(now)
-                    if data:
-                        self._handle(data, now)
-                        if not self.clock_started and any(sv.torque for sv in self.servos):
-                            self.start_clock()  # the first torque-on: the motion starts
+                    for channel, data in received:
+                        self._handle(channel, data, now)
+                    if received and not self.clock_started and any(sv.torque for sv in self.servos):
+                        self.start_clock()  # the first torque-on: the motion starts
                     self._flush(now)
         finally:
             self._stop.set()
 
-    def _handle(self, data: bytes, now: float) -> None:
-        if self._decoder.pending and now - self._last_rx > GAP_S:
-            self.stats.rejected_bytes += self._decoder.pending
-            self._decoder.reset()
-        self._last_rx = now
-        before = self._decoder.skipped
-        packets = self._decoder.feed(data)
-        self.stats.rejected_bytes += self._decoder.skipped - before
+    def _handle(self, channel: Channel, data: bytes, now: float) -> None:
+        decoder = channel.decoder
+        if decoder.pending and now - channel.last_rx > GAP_S:
+            self.stats.rejected_bytes += decoder.pending
+            decoder.reset()
+        channel.last_rx = now
+        before = decoder.skipped
+        packets = decoder.feed(data)
+        self.stats.rejected_bytes += decoder.skipped - before
         for pkt in packets:
             self.stats.instructions += 1
             if self._active("unplug", now):
                 self.stats.silenced += 1
                 continue
-            replies = (dispatch2(self._by_id, pkt) if isinstance(pkt, p2.Packet)
-                       else dispatch1(self._by_id, pkt))
+            if isinstance(pkt, p2.Packet):
+                replies = dispatch2(self._by_id, pkt)
+            elif isinstance(pkt, p1.Packet):
+                replies = dispatch1(self._by_id, pkt)
+            else:  # neither protocol's packet: no decoder makes one
+                continue
             if replies and self._record and self._t and pkt.instruction in _READS:
                 self._reads.append(len(self._t) - 1)  # the record _advance(now) just took
             for _ident, raw in replies:
-                self._emit(raw, now)
+                self._emit(channel, raw, now)
 
-    def _emit(self, raw: bytes, now: float) -> None:
+    def _emit(self, channel: Channel, raw: bytes, now: float) -> None:
         for f in self._active("drop", now):
             if self._frng.random() < (f.rate or 0.0):
                 self.stats.dropped += 1
@@ -301,27 +292,13 @@ class EmulatorHandle:
         due = now + delay
         if self._pending:
             due = max(due, self._pending[-1][0])
-        self._pending.append((due, raw))
+        self._pending.append((due, channel, raw))
         self.stats.replies += 1
 
     def _flush(self, now: float) -> None:
         while self._pending and self._pending[0][0] <= now:
-            _, raw = self._pending.pop(0)
-            self._write(raw)
-
-    def _write(self, raw: bytes) -> None:
-        view = memoryview(raw)
-        deadline = time.perf_counter() + 0.5
-        while view:
-            try:
-                n = os.write(self._master, view)
-                view = view[n:]
-            except BlockingIOError:
-                if time.perf_counter() > deadline:
-                    return
-                select.select([], [self._master], [], 0.01)
-            except OSError:
-                return
+            _, channel, raw = self._pending.pop(0)
+            channel.write(raw)
 
 
 def _physical_wrist(profile: Profile, theta0_deg: Sequence[float], now: float) -> PhysicalWrist | None:
@@ -338,12 +315,15 @@ def _physical_wrist(profile: Profile, theta0_deg: Sequence[float], now: float) -
 
 
 def start_emulator(profile: Profile, faults: Sequence[FaultSpec] = (), record: bool = True,
-                   initial_deg: Sequence[float] | None = None) -> EmulatorHandle:
-    """Start an emulated bus for ``profile`` in a background thread; open ``handle.port``.
+                   initial_deg: Sequence[float] | None = None,
+                   link: Link | None = None) -> EmulatorHandle:
+    """Start an emulated bus for ``profile`` in a background thread; open ``handle.port``
+    (``link``: a Unix-domain socket, ``unix:PATH``, or a pseudo-terminal; default the
+    profile's ``emulator.link``).
 
     The servos start at the profile's home θ (or ``initial_deg``), torque off, goal
     equal to their position. Fault times count from the clock start: the first torque-on
     (the first motion, whichever process drives it) or an earlier
     :meth:`EmulatorHandle.start_clock`; until then only faults at t = 0 act.
     """
-    return EmulatorHandle(profile, faults, record, initial_deg)
+    return EmulatorHandle(profile, faults, record, initial_deg, link)
