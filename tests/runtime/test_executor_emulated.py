@@ -1,4 +1,5 @@
-"""The executor over the real protocol: our DynamixelBus on the emulator's pty.
+"""The executor over the real protocol: our DynamixelBus on the emulated bus, over its socket
+(the default link) and its pty.
 
 Targets of issue 5 on the paper's MVN plan: measured within 0.5° RMS of the model's
 simulated positions; Kalman velocity within 1°/s RMS of the emulator's true velocity
@@ -11,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from spm_console.config.schema import Profile
 from spm_console.motion.executor import Executor, Segment
@@ -20,11 +22,14 @@ from tests.support.exec_helpers import paper_mvn, run_on_emulator, true_velocity
 from tests.support.ws_helpers import agile_workspace
 
 
+@pytest.mark.parametrize("link", ["socket", "pty"])
 def test_paper_mvn_tracks_model_and_kalman_beats_finite_differences(
-    agile: Profile, tmp_path: Path
+    agile: Profile, tmp_path: Path, link: str
 ) -> None:
     plan = paper_mvn(agile)
-    run = run_on_emulator(agile, [Segment("plan", plan)], tmp_path)
+    profile = agile.model_copy(update={"emulator": agile.emulator.model_copy(update={"link": link})})
+    run = run_on_emulator(profile, [Segment("plan", plan)], tmp_path)
+    assert run.emulator.link == link
     assert run.result.ok, run.result.message
     meas = np.array([s.measured_deg for s in run.samples])
     ok = np.isfinite(meas).all(axis=1)  # a read that timed out twice (a loaded host) is NaN
