@@ -117,14 +117,97 @@ def _key(key: str) -> Any:
     return events.Key(key, key if len(key) == 1 else None)
 
 
-async def _latency_rows(cache: Path) -> list[Row]:
+def console_profile(link: str = "") -> Any:
+    """The default profile as the console runs it (``make run``): the physical emulated wrist
+    unless the profile names one; ``link`` overrides its ``emulator.link``."""
+    from spm_console.cli.common import console_plant, with_plant
+    from spm_console.config.load import load_profile
+
+    profile = load_profile(PROFILE)
+    profile = with_plant(profile, console_plant(profile, None))
+    if link:
+        profile = profile.model_copy(update={"emulator": profile.emulator.model_copy(
+            update={"link": link})})
+    return profile
+
+
+async def _prepare(app: Any, pilot: Any) -> None:
+    """Home, load the workspace and solve the 150-step MVN plan, by keys."""
     from textual.widgets import Input
 
-    from spm_console.config.load import load_profile
+    async def settle() -> None:
+        await pilot.pause()
+        await app.workers.wait_for_complete()
+        await pilot.pause()
+
+    await settle()
+    await pilot.press("h", "y")
+    await settle()
+    await pilot.press("3")
+    await settle()
+    await pilot.press("4")
+    await settle()
+    app.screen.query_one("#steps", Input).value = "150"
+    await pilot.press("s")
+    await settle()
+
+
+async def _execute_runs(app: Any, pilot: Any, n: int, browser: _Browser | None = None,
+                        reload_first: bool = False) -> list[Any]:
+    """``n`` executions of the solved plan started by keys (approach move, then the plan);
+    ``reload_first``: the 3D view's page is reloaded during the first."""
+    done = []
+    for i in range(n):
+        await pilot.press("5", "x", "y")
+        if reload_first and i == 0 and browser is not None:
+            await pilot.pause(0.5)
+            browser.reload.set()
+        await pilot.pause(0.2)
+        await pilot.pause()
+        await app.workers.wait_for_complete()
+        await pilot.pause()
+        if app.session.last_run is not None:
+            done.append(app.session.last_run)
+    return done
+
+
+async def _browser_on(app: Any, pilot: Any, cpus: str) -> _Browser | None:
+    """Headless Chromium showing the console's 3D view, once the page has drawn."""
+    for _ in range(100):
+        if app.viewer_url or not CHROMIUM.exists():
+            break
+        await pilot.pause(0.1)
+    if not app.viewer_url:
+        return None
+    b = _Browser(app.viewer_url, cpus)
+    b.start()
+    while not b.ready.wait(0.05):
+        await pilot.pause(0.05)
+    return b
+
+
+async def _link_runs(cache: Path, link: str, n: int) -> list[Any]:
+    """``n`` console-driven executions as in the target row, the emulated bus on ``link``."""
+    from spm_console.tui.app import make_app
+
+    app = make_app(console_profile(link), sim=True, viewer=CHROMIUM.exists(),
+                   logs_root=cache / f"logs-{link}", cache_dir=cache)
+    async with app.run_test(size=(120, 40)) as pilot:
+        await _prepare(app, pilot)
+        browser = await _browser_on(app, pilot, "console")
+        try:
+            return await _execute_runs(app, pilot, n, browser)
+        finally:
+            if browser is not None:
+                browser.stop.set()
+                browser.join(30)
+
+
+async def _latency_rows(cache: Path) -> list[Row]:
     from spm_console.services.session import PoseSpec
     from spm_console.tui.app import make_app
 
-    profile = load_profile(PROFILE)
+    profile = console_profile()
     app = make_app(profile, sim=True, viewer=CHROMIUM.exists(), logs_root=cache / "logs",
                    cache_dir=cache)
     rows: list[Row] = []
@@ -135,17 +218,8 @@ async def _latency_rows(cache: Path) -> list[Row]:
             await app.workers.wait_for_complete()
             await pilot.pause()
 
-        await settle()
-        await pilot.press("h", "y")
-        await settle()
-        await pilot.press("3")
-        await settle()
-        await pilot.press("4")
-        await settle()
+        await _prepare(app, pilot)
         screen = app.screen
-        screen.query_one("#steps", Input).value = "150"
-        await pilot.press("s")
-        await settle()
 
         # idle baseline (plan screen, 'p' redraws the plot)
         idle = await _latencies(app, pilot, "p", "action_next_plot", lambda: True, 20)
@@ -189,58 +263,33 @@ async def _latency_rows(cache: Path) -> list[Row]:
         late = run.stats.late_ms.max if run and run.stats.late_ms else float("nan")
 
         # the same plan executed from the console again and again (approach move, then the
-        # plan), the loop in its own process, the 3D view open in headless Chromium
-        for _ in range(100):
-            if app.viewer_url or not CHROMIUM.exists():
-                break
-            await pilot.pause(0.1)
-        async def open_browser(cpus: str) -> _Browser | None:
-            if not app.viewer_url:
-                return None
-            b = _Browser(app.viewer_url, cpus)
-            b.start()
-            while not b.ready.wait(0.05):
-                await pilot.pause(0.05)
-            return b
-
-        # the browser where the README advises: off the servo loop's CPU
-        browser = await open_browser("console")
-
-        async def execute_runs(n: int, reload_first: bool = False) -> list[Any]:
-            done = []
-            for i in range(n):
-                await pilot.press("5", "x", "y")
-                if reload_first and i == 0 and browser is not None:
-                    await pilot.pause(0.5)
-                    browser.reload.set()
-                await pilot.pause(0.2)
-                await settle()
-                if session.last_run is not None:
-                    done.append(session.last_run)
-            return done
-
+        # plan), the loop in its own process, the 3D view open in headless Chromium, placed
+        # where the README advises: off the servo loop's CPU
+        browser = await _browser_on(app, pilot, "console")
         with wakeup_probe() as probe:
-            loop_runs = await execute_runs(LOOP_RUNS)
+            loop_runs = await _execute_runs(app, pilot, LOOP_RUNS, browser)
         # the same with the browser left on every CPU (reported beside the target)
         target_browser = browser
         if browser is not None:
             browser.stop.set()
             browser.join(30)
-        browser = await open_browser("all")
+        browser = await _browser_on(app, pilot, "all")
         with wakeup_probe() as anywhere_probe:
-            anywhere_runs = await execute_runs(ANYWHERE_RUNS)
+            anywhere_runs = await _execute_runs(app, pilot, ANYWHERE_RUNS, browser)
         # the stress case beside the target: the page reloaded mid-motion (as when an operator
         # opens the view during a run) — a burst of software WebGL on both cores
         reload_runs = []
         for _ in range(RELOAD_RUNS):
-            reload_runs += await execute_runs(1, reload_first=True)
+            reload_runs += await _execute_runs(app, pilot, 1, browser, reload_first=True)
         if browser is not None:  # the load rows: one CPU-bound process per core instead
             browser.stop.set()
             browser.join(30)
         with _busy_loops() as n_busy, wakeup_probe() as loaded_probe:
-            loaded_runs = await execute_runs(LOADED_RUNS)
+            loaded_runs = await _execute_runs(app, pilot, LOADED_RUNS)
+    # the baseline of the target row: the same console-driven runs, the bus on a pty
+    pty_runs = await _link_runs(cache, "pty", PTY_RUNS)
 
-    rows += _loop_rows(loop_runs, target_browser, probe)
+    rows += _loop_rows(loop_runs, target_browser, probe, pty_runs)
     rows += _anywhere_rows(anywhere_runs, anywhere_probe)
     rows += _reload_rows(reload_runs)
     rows += _loaded_rows(loaded_runs, n_busy, loaded_probe)
@@ -268,6 +317,8 @@ ANYWHERE_RUNS = 10
 RELOAD_RUNS = 3
 #: Executions driven from the console with one CPU-bound process per core beside it.
 LOADED_RUNS = 5
+#: The target row's executions again with the emulated bus on a pty (its baseline).
+PTY_RUNS = 10
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
                  "--disable-background-networking", "--disable-component-update",
@@ -387,8 +438,7 @@ def _reload_rows(runs: list[Any]) -> list[Row]:
                 f"reported ({len(runs)} runs)", None, None,
                 note=f"exit codes {stopped or 'none'}; jitter max per run "
                      + ", ".join(f"{v:.3g}" for v in mx) + " ms; loading the page in software "
-                     "WebGL takes both cores for about a second, and the pseudo-terminal's kernel "
-                     "workers wait behind it: a stop here is a hold with exit 22")]
+                     "WebGL takes both cores for about a second: a stop here is a hold with exit 22")]
 
 
 def _stops(runs: list[Any]) -> list[str]:
@@ -419,7 +469,8 @@ def _anywhere_rows(runs: list[Any], probe: ProbeResult) -> list[Row]:
                      f"meanwhile: {probe.summary()}")]
 
 
-def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult) -> list[Row]:
+def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult,
+               pty_runs: list[Any]) -> list[Row]:
     """Loop timing of executions started from the console (the loop in its own process)."""
     if not runs:
         return [Row("tui: executions driven from the console", float("nan"), "", "runs to the end",
@@ -427,6 +478,7 @@ def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult) ->
     p99 = [r.stats.jitter_ms.p99 for r in runs if r.stats.jitter_ms]
     mx = [r.stats.jitter_ms.max for r in runs if r.stats.jitter_ms]
     comm = sum(1 for r in runs if int(r.exit_code) == 22)
+    pty_comm = sum(1 for r in pty_runs if int(r.exit_code) == 22)
     stopped = _stops(runs)
     if browser is None:
         view = "3D view NOT rendered (no /usr/bin/chromium)"
@@ -447,8 +499,11 @@ def _loop_rows(runs: list[Any], browser: _Browser | None, probe: ProbeResult) ->
         Row("tui: real-time wake-up latency of the machine (max)", probe.max_ms, "ms",
             "reported", note=probe.summary()),
         Row("tui: communication-loss stops, console-driven", comm, "", f"0 of {len(runs)}",
-            passed=comm == 0 and not stopped,
-            note=f"other stops (exit codes): {stopped}" if stopped else "every run completed"),
+            baseline=float(pty_comm), passed=comm == 0 and not stopped,
+            note=(f"other stops (exit codes): {stopped}" if stopped else "every run completed")
+                 + f"; the emulated bus on its socket (the default link); baseline: "
+                   f"{pty_comm} of {len(pty_runs)} such runs with the bus on a pty"
+                   + (f" (its stops: {_stops(pty_runs)})" if _stops(pty_runs) else "")),
     ]
 
 
