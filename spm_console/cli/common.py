@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from spm_console.cli import stdout_guard
 from spm_console.config.load import load_profile
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError
@@ -94,11 +95,12 @@ EMITTED = threading.Event()
 def emit(args: argparse.Namespace, data: dict[str, Any] | list[Any], human: str) -> None:
     """JSON on stdout with --json, otherwise the human-readable text."""
     EMITTED.set()
+    stream = stdout_guard.out()
     if getattr(args, "json", False):
-        sys.stdout.write(json.dumps(to_jsonable(data)) + "\n")
+        stream.write(json.dumps(to_jsonable(data)) + "\n")
     else:
-        sys.stdout.write(human.rstrip("\n") + "\n")
-    sys.stdout.flush()
+        stream.write(human.rstrip("\n") + "\n")
+    stream.flush()
 
 
 def info(msg: str) -> None:
@@ -121,3 +123,4 @@ def output_may_be_gone() -> Iterator[None]:
         for fd in (1, 2):
             os.dup2(devnull, fd)
         os.close(devnull)
+        stdout_guard.silence()

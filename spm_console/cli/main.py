@@ -13,6 +13,7 @@ from types import FrameType
 from typing import NoReturn
 
 from spm_console import __version__
+from spm_console.cli.stdout_guard import json_stdout, out
 from spm_console.errors import ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
 
@@ -97,8 +98,8 @@ def _fail(as_json: bool, code: int, message: str) -> int:
     sys.stderr.write(f"error: {message}\n")
     common = sys.modules.get("spm_console.cli.common")
     if as_json and not (common is not None and common.EMITTED.is_set()):
-        sys.stdout.write(json.dumps({"ok": False, "exit_code": code, "error": message}) + "\n")
-        sys.stdout.flush()
+        out().write(json.dumps({"ok": False, "exit_code": code, "error": message}) + "\n")
+        out().flush()
     return code
 
 
@@ -108,6 +109,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if common is not None:  # in-process callers (tests) run main() more than once
         common.EMITTED.clear()
     args_list = list(sys.argv[1:] if argv is None else argv)
+    # with --json, stdout carries the JSON object only, whatever a library prints
+    # (a script's summary is always JSON)
+    with json_stdout(_wants_json(args_list) or args_list[:1] == ["script"]):
+        return _main(args_list)
+
+
+def _main(args_list: list[str]) -> int:
     as_json = _wants_json(args_list)
     try:
         parser = build_parser(args_list[0] if args_list else None)
@@ -117,14 +125,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             code = int(exc.code or 0)
             if code and as_json:  # the reason is on stderr too, after the usage line
                 why = exc.message if isinstance(exc, UsageError) else "bad command line"
-                sys.stdout.write(json.dumps({"ok": False, "exit_code": code, "error": why})
-                                 + "\n")
+                out().write(json.dumps({"ok": False, "exit_code": code, "error": why}) + "\n")
             return code
         if not getattr(args, "func", None):
             parser.print_help(sys.stderr)
             if as_json:
-                sys.stdout.write(json.dumps({"ok": False, "exit_code": int(ExitCode.USAGE),
-                                             "error": "no command given"}) + "\n")
+                out().write(json.dumps({"ok": False, "exit_code": int(ExitCode.USAGE),
+                                        "error": "no command given"}) + "\n")
             return int(ExitCode.USAGE)
         as_json = bool(getattr(args, "json", False))
         return int(args.func(args))

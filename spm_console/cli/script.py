@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
+from spm_console.cli import stdout_guard
 from spm_console.cli.common import info, output_may_be_gone, to_jsonable
 from spm_console.config.load import load_profile
 from spm_console.scripting.steps import load_script
@@ -49,7 +49,7 @@ def cmd_script(args: argparse.Namespace) -> int:
     runner = run_script(script, session, progress)
     summary = runner.summary()
     with output_may_be_gone():  # after SIGHUP the terminal is gone: the exit code still tells
-        sys.stdout.write(json.dumps(to_jsonable(summary)) + "\n")
-        sys.stdout.flush()
+        stdout_guard.out().write(json.dumps(to_jsonable(summary)) + "\n")
+        stdout_guard.out().flush()
         info(("done: " if summary["ok"] else "FAILED: ") + summary["message"])
     return int(runner.exit_code)

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import threading
 import time
 from dataclasses import asdict
 from typing import Any
 
+from spm_console.cli import stdout_guard
 from spm_console.cli.common import add_common, add_plant, emit, info, profile_of, to_jsonable
 from spm_console.devices.emulator.bus import start_emulator
 from spm_console.devices.emulator.faults import parse_fault
@@ -137,14 +137,12 @@ def cmd_emulate(args: argparse.Namespace) -> int:
     em = start_emulator(profile, faults, record=False, initial_deg=initial, link=args.link)
     restore = install_stop_handler(lambda _sig: stop.set())
     try:
-        head = {"port": em.port, "link": em.link, "protocol": em.protocol, "ids": [m.id for m in em.maps],
-                "model_number": profile.bus.model_number, "faults": [str(f) for f in faults],
-                "profile": profile.name}
-        if args.json:
-            sys.stdout.write(json.dumps(to_jsonable(head)) + "\n")
-        else:
-            sys.stdout.write(f"{em.port}\n")
-        sys.stdout.flush()
+        head = {"port": em.port, "link": em.link, "protocol": em.protocol,
+                "ids": [m.id for m in em.maps], "model_number": profile.bus.model_number,
+                "faults": [str(f) for f in faults], "profile": profile.name}
+        stream = stdout_guard.out()
+        stream.write(json.dumps(to_jsonable(head)) + "\n" if args.json else f"{em.port}\n")
+        stream.flush()
         info(f"emulating {len(em.servos)} MX-106 (protocol {em.protocol}, ids {head['ids']}) "
              f"on {em.port}; stop with Ctrl-C")
         t_end = time.monotonic() + args.duration if args.duration else None
@@ -160,8 +158,8 @@ def cmd_emulate(args: argparse.Namespace) -> int:
                "dropped": st.dropped, "corrupted": st.corrupted, "delayed": st.delayed,
                "silenced": st.silenced, "faults_fired": st.faults_fired}
     if args.json:
-        sys.stdout.write(json.dumps(summary) + "\n")
-        sys.stdout.flush()
+        stdout_guard.out().write(json.dumps(summary) + "\n")
+        stdout_guard.out().flush()
     else:
         info(f"stopped after {st.instructions} instructions, {st.replies} replies")
     return int(ExitCode.OK)
