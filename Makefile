@@ -12,7 +12,7 @@ STAMP := $(VENV)/.installed
 UV_ENV := UV_PROJECT_ENVIRONMENT=$(VENV) UV_PYTHON_DOWNLOADS=never UV_PYTHON=$(PY)
 PROFILE ?=
 
-.PHONY: run test test-unit test-runtime test-all test-slow lint bench clean venv lock
+.PHONY: run test test-unit test-runtime test-all test-slow test-newest lint bench clean venv lock
 
 # uv itself, pinned, in its own small environment (pip from PyPI).
 $(UV):
@@ -56,6 +56,21 @@ test-all: $(STAMP)
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -m slow
 
+# The newest releases pyproject.toml allows, resolved from the package registry (not the lock)
+# into a throw-away environment, against the --json contract and the core's unit tests: a new
+# release that prints on stdout or changes an API we use fails here first. README: "Newest
+# dependencies".
+NEWEST := .venv-newest
+test-newest: $(UV)
+	rm -rf $(NEWEST)
+	UV_PYTHON_DOWNLOADS=never $(UV) venv --quiet --python $(PY) $(NEWEST)
+	VIRTUAL_ENV=$(NEWEST) UV_PYTHON_DOWNLOADS=never $(UV) pip install --quiet --compile-bytecode \
+		--resolution highest -e ".[dev]"
+	VIRTUAL_ENV=$(NEWEST) $(UV) pip freeze > $(NEWEST)/versions.txt
+	grep -iE '^(numpy|scipy|cvxpy|osqp|clarabel|highspy|control|textual|pydantic|mujoco)==' $(NEWEST)/versions.txt
+	SPM_TESTS_HOST_STALLS=0 $(NEWEST)/bin/python -m pytest -m '' -p no:cacheprovider -n 2 \
+		tests/e2e/test_json_contract.py tests/e2e/test_json_stdout.py tests/unit/core tests/unit/cli
+
 lint: $(STAMP)
 	$(BIN)/ruff check spm_console tests benchmarks
 	$(BIN)/mypy
@@ -65,4 +80,4 @@ bench: $(STAMP)
 	$(BIN)/python -m benchmarks
 
 clean:
-	rm -rf $(VENV) $(UV_DIR) .cache .mypy_cache .ruff_cache .pytest_cache
+	rm -rf $(VENV) $(NEWEST) $(UV_DIR) .cache .mypy_cache .ruff_cache .pytest_cache
