@@ -6,7 +6,8 @@ on), and is read with a size cap (a larger file is refused after ``max_bytes`` +
 never read whole), decoded
 as UTF-8 (a binary file is refused as such) and, for JSON, parsed with a nesting cap.
 Failures raise the caller's :class:`~spm_console.errors.SpmError` subclass with a
-message naming the file and what was wrong — never a traceback.
+message naming the file and what was wrong — never a traceback. Files the commands write
+are replaced atomically (:func:`write_text_atomic`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import stat
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -133,3 +135,19 @@ def load_json(path: str | Path, what: str, max_bytes: int, error: type[SpmError]
     """Read and decode a JSON file with the size and depth caps."""
     text = read_text(path, what, max_bytes, error)
     return parse_json(text, f"{what} {path}", error, max_depth)
+
+
+def write_text_atomic(path: str | Path, text: str, error: type[SpmError]) -> None:
+    """Write ``text`` to ``path`` atomically (a temporary file beside it, then a rename). Only a
+    regular file (or nothing) may be replaced: a device, pipe or folder there raises ``error``."""
+    p = Path(path)
+    if p.exists() and not p.is_file():
+        raise error(f"{p}: exists and is not a regular file; not replaced")
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent) or ".")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

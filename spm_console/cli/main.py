@@ -34,8 +34,9 @@ COMMANDS: dict[str, str] = {
     "execute": "spm_console.cli.run",
     "follow": "spm_console.cli.follow",
     "logs": "spm_console.cli.logs",
-    "reproduce": "spm_console.cli.reproduce",
-    "latency": "spm_console.cli.host",
+    "reproduce": "spm_console.cli.tools.reproduce",
+    "latency": "spm_console.cli.tools.latency",
+    "export": "spm_console.cli.tools.export",
 }
 COMMAND_MODULES = list(dict.fromkeys(COMMANDS.values()))
 

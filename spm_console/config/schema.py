@@ -53,7 +53,8 @@ Direction = Annotated[Literal[1, -1], BeforeValidator(_whole)]
 
 
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False,
+                              use_attribute_docstrings=True)
 
 
 class Meta(_Section):

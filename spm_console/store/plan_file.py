@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +23,7 @@ from spm_console.core.plan import Plan
 from spm_console.core.servo.model import simulate
 from spm_console.errors import BadInputError, PlanMismatchError
 from spm_console.jsonutil import to_jsonable
-from spm_console.safe_io import MB, load_json
+from spm_console.safe_io import MB, load_json, write_text_atomic
 from spm_console.store.plan_schema import (
     FORMAT,
     VERSION,
@@ -73,18 +71,7 @@ def plan_to_dict(plan: Plan) -> dict[str, Any]:
 def save_plan(plan: Plan, path: str | Path) -> None:
     """Write the plan atomically (temporary file + rename). Only a regular file (or nothing)
     may be replaced: a device, pipe or folder at ``path`` is refused (BadInputError)."""
-    p = Path(path)
-    if p.exists() and not p.is_file():
-        raise BadInputError(f"{p}: exists and is not a regular file; not replaced")
-    text = json.dumps(plan_to_dict(plan), indent=1)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent) or ".")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text + "\n")
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_text_atomic(path, json.dumps(plan_to_dict(plan), indent=1) + "\n", BadInputError)
 
 
 def check_plan(plan: Plan, profile: Profile, src: str = "plan") -> None:

@@ -58,6 +58,8 @@ def test_every_command_prints_one_json_value(tmp_path: Path) -> None:
         ["home", "--sim", "--plant", "ideal", "--json"],
         ["execute", "--sim", "--plant", "ideal", "--plan", str(mvn), "--json"],
         ["latency", "--seconds", "0.2", "--json"],
+        ["export", "urdf", "--out", str(tmp_path / "wrist.urdf"), "--json"],
+        ["export", "mjcf", "--out", str(tmp_path / "wrist.xml"), "--json"],
     ]
     runs: dict[str, Any] = {}
     for argv in ok:
@@ -83,6 +85,7 @@ def test_every_command_prints_one_json_value(tmp_path: Path) -> None:
         ["fk", "--theta", "135", "135", "135", "--profile", str(tmp_path / "none.toml"),
           "--json"],
         ["no-such-command", "--json"],
+        ["export", "urdf", "--out", str(tmp_path / "wrist.txt"), "--json"],
     ]
     for argv in bad:
         code, value, _ = _run(argv, env)

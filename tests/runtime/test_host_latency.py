@@ -14,8 +14,8 @@ import time
 import numpy as np
 import pytest
 
-from spm_console.cli.host import VERDICTS, verdict
 from spm_console.cli.main import main
+from spm_console.cli.tools.latency import VERDICTS, verdict
 from spm_console.errors import ExitCode
 from spm_console.system.host_latency import THRESHOLDS_MS, measured_meanwhile, summarize
 

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from spm_console.config.models import link_model_of, model_of, servo_model_of
 from spm_console.config.schema import Profile
+from spm_console.description.mjcf import plant_params
 from spm_console.devices.dynamixel import protocol1 as p1
 from spm_console.devices.dynamixel import protocol2 as p2
 from spm_console.devices.dynamixel.control_table import table_for
@@ -35,7 +36,6 @@ from spm_console.devices.emulator.endpoint import Channel, Link, open_endpoint
 from spm_console.devices.emulator.faults import FaultSpec
 from spm_console.devices.emulator.plant_joint import PlantJoint
 from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
-from spm_console.devices.emulator.wrist_mjcf import plant_params
 from spm_console.errors import BusError
 from spm_console.system.realtime import EMULATOR_PRIORITY, RtGrant, request_realtime
 

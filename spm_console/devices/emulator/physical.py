@@ -8,7 +8,7 @@ Each servo is its firmware's position loop driving a DC motor (Protocol 2.0 e-ma
   winding resistance bound it (stall torque kt·V/R, no-load speed V/kt less friction);
 * Coulomb and viscous friction and the rotor's reflected inertia act on the output joint.
 
-The joints drive :func:`~spm_console.devices.emulator.wrist_mjcf.wrist_mjcf`'s closed chain
+The joints drive :func:`~spm_console.description.mjcf.wrist_mjcf`'s closed chain
 under gravity. Angles are the joints' θ in radians (θ_home at the model's rest pose).
 """
 
@@ -25,13 +25,13 @@ from numpy.typing import NDArray
 from spm_console.config.schema import Plant
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
-from spm_console.devices.dynamixel.control_table import table_for
-from spm_console.devices.emulator.wrist_mjcf import (
+from spm_console.description.mjcf import (
     PlantParams,
     envelope_name,
     plant_params,
     wrist_mjcf,
 )
+from spm_console.devices.dynamixel.control_table import table_for
 
 F = NDArray[np.float64]
 

@@ -11,8 +11,8 @@ import pytest
 
 from spm_console.config.load import load_profile
 from spm_console.config.models import link_model_of, model_of
+from spm_console.description.mjcf import envelope_name
 from spm_console.devices.emulator.physical import PhysicalWrist
-from spm_console.devices.emulator.wrist_mjcf import envelope_name
 from tests.support.paths import ROOT
 
 

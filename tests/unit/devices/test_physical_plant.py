@@ -10,12 +10,12 @@ import pytest
 from spm_console.config.load import load_profile
 from spm_console.config.models import model_of
 from spm_console.config.schema import Plant, Profile
+from spm_console.description.mjcf import plant_params
 from spm_console.devices.dynamixel.control_table import ControlTable, table_for
 from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
 from spm_console.devices.emulator.physical import PWM_FULL, Drive, PhysicalWrist
 from spm_console.devices.emulator.plant_joint import PlantJoint
 from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
-from spm_console.devices.emulator.wrist_mjcf import plant_params
 from tests.support.paths import ROOT
 
 P = plant_params(Plant())

@@ -69,9 +69,36 @@ def _vec(a: F) -> str:
     return " ".join(f"{float(x):.12g}" for x in a)
 
 
-def _capsule(a: F, b: F, radius: float, mass: float, name: str) -> str:
-    return (f'<geom name="{name}" type="capsule" fromto="{_vec(a)} {_vec(b)}" '
-            f'size="{radius:.6g}" mass="{mass:.6g}" contype="0" conaffinity="0"/>')
+@dataclass(frozen=True)
+class Capsule:
+    """A solid capsule that carries mass: from ``a`` to ``b`` (m, home configuration)."""
+
+    name: str
+    a: F
+    b: F
+    radius_m: float
+    mass_kg: float
+
+
+def body_capsules(model: SpmModel, params: PlantParams) -> dict[str, list[Capsule]]:
+    """The capsules that carry each body's mass, by body name ("proximal0", "distal0", …,
+    "platform"), in the home configuration: the links are arcs of radius
+    ``params.link_radius_m`` about the centre, drawn as chords (u_i→w_i, w_i→v_i, the
+    platform's triangle v_a→v_a+1)."""
+    u, w, v = model.u, model.geom.w(model.theta_home), model.v_home
+    r, c, m = params.link_radius_m, params.capsule_m, params.link_mass_kg
+    bodies = {}
+    for i in range(3):
+        bodies[f"proximal{i}"] = [Capsule(f"proximal_link{i}", r * u[i], r * w[i], c, m)]
+        bodies[f"distal{i}"] = [Capsule(f"distal_link{i}", r * w[i], r * v[i], c, m)]
+    bodies["platform"] = [Capsule(f"platform{a}", r * v[a], r * v[(a + 1) % 3], c,
+                                  params.platform_mass_kg / 3) for a in range(3)]
+    return bodies
+
+
+def _capsule(cap: Capsule) -> str:
+    return (f'<geom name="{cap.name}" type="capsule" fromto="{_vec(cap.a)} {_vec(cap.b)}" '
+            f'size="{cap.radius_m:.12g}" mass="{cap.mass_kg:.12g}" contype="0" conaffinity="0"/>')
 
 
 PROXIMAL_SEGMENTS = ("AB", "BC")
@@ -106,15 +133,12 @@ def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = N
     w = model.geom.w(model.theta_home)
     v = model.v_home
     r = params.link_radius_m
-    c = params.capsule_m
-    m = params.link_mass_kg
+    caps = body_capsules(model, params)
     legs = []
     for i in range(3):
         platform = ""
         if i == 0:
-            plat_geoms = "\n".join(_capsule(r * v[a], r * v[(a + 1) % 3], c,
-                                            params.platform_mass_kg / 3, f"platform{a}")
-                                   for a in range(3))
+            plat_geoms = "\n".join(_capsule(c) for c in caps["platform"])
             platform = (f'<body name="platform"><joint name="platform_hinge" type="hinge" '
                         f'axis="{_vec(v[0])}"/>{plat_geoms}</body>')
         legs.append(
@@ -122,10 +146,10 @@ def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = N
             f'<joint name="theta{i}" type="hinge" axis="{_vec(-u[i])}" armature="{params.armature_kgm2:.6g}" '
             f'damping="{params.viscous_nms:.6g}" frictionloss="{params.backdrive_friction_nm:.6g}" '
             f'solreffriction="{2 * params.timestep_s:.6g} 1"/>'
-            f'{_capsule(r * u[i], r * w[i], c, m, f"proximal_link{i}")}'
+            f'{_capsule(caps[f"proximal{i}"][0])}'
             f'{_envelopes(model, links, i, True)}'
             f'<body name="distal{i}"><joint name="distal{i}" type="hinge" axis="{_vec(w[i])}"/>'
-            f'{_capsule(r * w[i], r * v[i], c, m, f"distal_link{i}")}'
+            f'{_capsule(caps[f"distal{i}"][0])}'
             f'{_envelopes(model, links, i, False)}{platform}</body>'
             f'</body>')
     closures = "\n".join(

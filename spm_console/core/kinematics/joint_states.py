@@ -1,0 +1,65 @@
+"""Every joint of the wrist, actuated and passive, from one solved pose: what a tree model of
+the closed chain (URDF) needs to draw the whole wrist, and what the logs publish.
+
+All joint axes pass through the centre, and every link's frame is the world's frame in the
+home configuration, where every joint angle is 0 (the product-of-exponentials form). Leg i:
+
+* the motor joint turns the proximal link about −u_i by q_i = θ_i − θ_home,i (eq. 1: θ_i grows
+  by a rotation about −u_i);
+* the distal link turns about w_i(θ_home) by φ_i, so that it carries v_i(home) to v_i (eq. 2);
+* the platform, seen from leg i, turns about v_i(home) by ψ_i: R = P_i D_i Rot(v_i⁰, ψ_i),
+  with P_i, D_i the two rotations above.
+
+Angles in radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.kinematics.model import SpmModel, platform_axes
+from spm_console.core.kinematics.rotations import expm_so3
+
+F = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class JointStates:
+    """The wrist's joints at one pose, rad (each (3,), leg i at index i)."""
+
+    motor: F
+    """q_i = θ_i − θ_home,i: the proximal link about −u_i."""
+    distal: F
+    """φ_i: the distal link about w_i(θ_home), relative to the proximal link."""
+    platform: F
+    """ψ_i: the platform about v_i(home), relative to leg i's distal link."""
+
+
+def signed_angle(axis: F, a: F, b: F) -> float:
+    """The angle (rad) of the rotation about unit ``axis`` that takes ``a`` to ``b``'s direction
+    in the plane normal to the axis."""
+    a_n = a - axis * float(axis @ a)
+    b_n = b - axis * float(axis @ b)
+    return float(np.arctan2(axis @ np.cross(a_n, b_n), a_n @ b_n))
+
+
+def joint_states(model: SpmModel, theta: F, R: F) -> JointStates:
+    """The joints of the pose (θ rad (3,), platform rotation R from home (3, 3))."""
+    u = model.u
+    w0 = model.geom.w(model.theta_home)
+    v0 = model.v_home
+    v = platform_axes(R, v0)
+    q = np.asarray(theta, float) - model.theta_home
+    phi = np.zeros(3)
+    psi = np.zeros(3)
+    for i in range(3):
+        prox = expm_so3(-u[i] * q[i])
+        phi[i] = signed_angle(w0[i], v0[i], prox.T @ v[i])
+        dist = prox @ expm_so3(w0[i] * phi[i])
+        rel = dist.T @ R  # a rotation about v_i(home) when the pose closes the chain
+        ref = np.cross(v0[i], w0[i])
+        psi[i] = signed_angle(v0[i], ref, rel @ ref)
+    return JointStates(q, phi, psi)

@@ -1,0 +1,124 @@
+"""The wrist as a URDF: base, three proximal and three distal links, the platform.
+
+A URDF is a tree, the wrist a closed chain: the tree keeps leg 1 whole (motor, distal and
+platform joints) and legs 2 and 3 up to their distal links; the two joints where those meet
+the platform are left out. Every joint's state at a pose comes from the unique FK
+(:mod:`spm_console.core.kinematics.joint_states`), which is what the run logs publish, so
+robot_state_publisher, RViz or Foxglove draw the whole wrist, closed, from a log.
+
+Frames as in the MJCF (:mod:`spm_console.description.mjcf`): every joint at the centre, every
+link's frame the base's in the home configuration, where every joint is 0; motor joint i turns
+about −u_i by θ_i − θ_home,i. Masses and inertias are those of the MJCF's capsules (the same
+bodies, :mod:`spm_console.description.inertia`). SI units: m, kg, rad.
+"""
+
+from __future__ import annotations
+
+from xml.sax.saxutils import escape
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
+from spm_console.core.kinematics.model import SpmModel
+from spm_console.core.kinematics.rotations import matrix_rpy
+from spm_console.description.inertia import MassProperties, capsule, combined
+from spm_console.description.mjcf import PROXIMAL_SEGMENTS, PlantParams, body_capsules
+
+F = NDArray[np.float64]
+
+
+def _vec(a: F) -> str:
+    return " ".join(f"{float(x):.12g}" for x in a)
+
+
+def _z_to(d: F) -> F:
+    """A rotation taking the z axis to the unit vector ``d``."""
+    z = np.array([0.0, 0.0, 1.0])
+    c = float(z @ d)
+    axis = np.cross(z, d)
+    s = float(np.linalg.norm(axis))
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    k = axis / s
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * K + (1 - c) * (K @ K)
+
+
+def _cylinder(a: F, b: F, radius: float) -> str:
+    """A cylinder from a to b (URDF's cylinder lies along its frame's z)."""
+    d = b - a
+    length = float(np.linalg.norm(d))
+    rpy = matrix_rpy(_z_to(d / length))
+    return (f'<origin xyz="{_vec((a + b) / 2)}" rpy="{_vec(rpy)}"/>'
+            f'<geometry><cylinder radius="{radius:.6g}" length="{length:.9g}"/></geometry>')
+
+
+def _inertial(p: MassProperties) -> str:
+    i = p.inertia
+    return (f'<inertial><origin xyz="{_vec(p.com)}" rpy="0 0 0"/><mass value="{p.mass:.9g}"/>'
+            f'<inertia ixx="{i[0, 0]:.9g}" ixy="{i[0, 1]:.9g}" ixz="{i[0, 2]:.9g}" '
+            f'iyy="{i[1, 1]:.9g}" iyz="{i[1, 2]:.9g}" izz="{i[2, 2]:.9g}"/></inertial>')
+
+
+def _envelope(model: SpmModel, links: LinkModel | None, leg: int, proximal: bool) -> str:
+    """The paper's collision envelope (Sec. IV-B) on the leg's checked segments: cylinders of
+    radius δ (URDF has no capsule)."""
+    if links is None:
+        return ""
+    pts = links.points(model.u, model.geom.w(model.theta_home), model.v_home)
+    out = []
+    for seg in links.segments:
+        if (seg in PROXIMAL_SEGMENTS) != proximal:
+            continue
+        a, b = (pts[e][leg] / 1000.0 for e in SEGMENT_ENDS[seg])
+        out.append(f"<collision name=\"envelope{leg + 1}_{seg}\">"
+                   f"{_cylinder(a, b, links.delta / 1000.0)}</collision>")
+    return "".join(out)
+
+
+def wrist_urdf(model: SpmModel, params: PlantParams, limits_rad: F,
+               links: LinkModel | None = None, name: str = "spm_wrist",
+               sources: str = "") -> str:
+    """The URDF text. ``limits_rad`` (3, 2): each motor joint's range, rad from home;
+    ``sources``: a comment naming where the masses and figures come from."""
+    u, w, v = model.u, model.geom.w(model.theta_home), model.v_home
+    caps = body_capsules(model, params)
+    effort = params.kt_nm_per_a * params.supply_v / params.resistance_ohm  # stall torque
+    speed = params.supply_v / params.kt_nm_per_a  # no-load speed (back-EMF = supply)
+    out = [f'<?xml version="1.0"?>\n<robot name="{escape(name)}">']
+    if sources:
+        out.append(f"<!-- {escape(sources).replace('--', '- -')} -->")
+    out.append('<link name="base_link"/>')
+
+    def link(body: str, proximal_leg: int | None = None, distal_leg: int | None = None) -> str:
+        parts = [capsule(c.a, c.b, c.radius_m, c.mass_kg) for c in caps[body]]
+        visuals = "".join(f'<visual name="{c.name}">{_cylinder(c.a, c.b, c.radius_m)}</visual>'
+                          for c in caps[body])
+        env = ""
+        if proximal_leg is not None:
+            env = _envelope(model, links, proximal_leg, True)
+        if distal_leg is not None:
+            env = _envelope(model, links, distal_leg, False)
+        return f'<link name="{body}">{_inertial(combined(parts))}{visuals}{env}</link>'
+
+    def joint(jname: str, kind: str, parent: str, child: str, axis: F, extra: str = "") -> str:
+        return (f'<joint name="{jname}" type="{kind}"><parent link="{parent}"/>'
+                f'<child link="{child}"/><origin xyz="0 0 0" rpy="0 0 0"/>'
+                f'<axis xyz="{_vec(axis)}"/>{extra}</joint>')
+
+    for i in range(3):
+        lo, hi = limits_rad[i]
+        out.append(link(f"proximal{i}", proximal_leg=i))
+        out.append(joint(f"motor{i + 1}", "revolute", "base_link", f"proximal{i}", -u[i],
+                         f'<limit lower="{lo:.12g}" upper="{hi:.12g}" effort="{effort:.6g}" '
+                         f'velocity="{speed:.6g}"/><dynamics damping="{params.viscous_nms:.6g}" '
+                         f'friction="{params.coulomb_nm:.6g}"/>'))
+        out.append(link(f"distal{i}", distal_leg=i))
+        out.append(joint(f"distal{i + 1}", "continuous", f"proximal{i}", f"distal{i}", w[i]))
+    out.append(link("platform"))
+    out.append(joint("platform1", "continuous", "distal0", "platform", v[0]))
+    out.append("<!-- legs 2 and 3 meet the platform about v2 and v3 (joints platform2 and "
+               "platform3 of the logs); a tree cannot close them, the joint states do -->")
+    out.append("</robot>")
+    return "\n".join(out) + "\n"

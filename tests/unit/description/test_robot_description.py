@@ -1,0 +1,128 @@
+"""The exported URDF and MJCF against independent readers: yourdfpy's forward kinematics and
+MuJoCo's kinematics and mass properties, at 100 random poses of the unique FK."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import yourdfpy
+
+from spm_console.config.models import model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.joint_states import JointStates, joint_states
+from spm_console.core.kinematics.model import platform_axes
+from spm_console.core.kinematics.rotations import expm_so3
+from spm_console.services.description import robot_description
+
+POSES = 100
+
+
+@pytest.fixture(scope="module")
+def poses(agile: Profile) -> list[tuple[np.ndarray, np.ndarray, JointStates]]:
+    """(θ rad, R, joint states) at 100 random θ within ±25° of home that the FK solves in
+    the home modes, well away from singularities (ζ > 0.05)."""
+    model = model_of(agile)
+    rng = np.random.default_rng(7)
+    out = []
+    while len(out) < POSES:
+        theta = model.theta_home + np.radians(rng.uniform(-25.0, 25.0, 3))
+        res = model.track(theta)
+        if res.ok and res.pose is not None and res.pose.zeta > 0.05:
+            out.append((theta, res.pose.R, joint_states(model, theta, res.pose.R)))
+    return out
+
+
+def test_joint_states_close_every_leg(agile: Profile,
+                                      poses: list[tuple[np.ndarray, np.ndarray, JointStates]]) -> None:
+    """Each leg's chain (motor, distal, platform joint) gives the FK's platform rotation, and
+    the proximal joint puts w_i where eq. (2) does."""
+    model = model_of(agile)
+    w0, v0 = model.geom.w(model.theta_home), model.v_home
+    for theta, R, js in poses:
+        w = model.geom.w(theta)
+        for i in range(3):
+            prox = expm_so3(-model.u[i] * js.motor[i])
+            assert np.abs(prox @ w0[i] - w[i]).max() < 1e-12
+            chain = prox @ expm_so3(w0[i] * js.distal[i]) @ expm_so3(v0[i] * js.platform[i])
+            assert np.abs(chain - R).max() < 1e-12
+
+
+def test_urdf_forward_kinematics_puts_the_platform_where_the_fk_does(
+        agile: Profile, tmp_path: Path,
+        poses: list[tuple[np.ndarray, np.ndarray, JointStates]]) -> None:
+    path = tmp_path / "wrist.urdf"
+    path.write_text(robot_description(agile, "urdf"))
+    robot = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=True)
+    assert sorted(robot.actuated_joint_names) == sorted(
+        ["motor1", "motor2", "motor3", "distal1", "distal2", "distal3", "platform1"])
+    model = model_of(agile)
+    v_home = model.v_home
+    for _theta, R, js in poses:
+        cfg = {f"motor{i + 1}": js.motor[i] for i in range(3)}
+        cfg |= {f"distal{i + 1}": js.distal[i] for i in range(3)}
+        cfg["platform1"] = js.platform[0]
+        robot.update_cfg(cfg)
+        T = robot.get_transform("platform", "base_link")
+        assert np.abs(T[:3, :3] - R).max() < 1e-9
+        assert np.abs(T[:3, 3]).max() < 1e-12  # every joint at the centre
+        v = platform_axes(R, v_home)
+        for i in range(3):  # legs 2 and 3 end where the platform's v_i is
+            D = robot.get_transform(f"distal{i}", "base_link")[:3, :3]
+            assert np.abs(D @ v_home[i] - v[i]).max() < 1e-9
+    lo_hi = [(robot.joint_map[f"motor{i + 1}"].limit.lower, robot.joint_map[f"motor{i + 1}"].limit.upper)
+             for i in range(3)]
+    home = np.array(agile.home.theta_deg)
+    for i, (lo, hi) in enumerate(lo_hi):
+        assert np.isclose(np.degrees(lo), agile.bus.joints[i].min_deg - home[i])
+        assert np.isclose(np.degrees(hi), agile.bus.joints[i].max_deg - home[i])
+
+
+def _mjcf(agile: Profile) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    mj = mujoco.MjModel.from_xml_string(robot_description(agile, "mjcf"))
+    return mj, mujoco.MjData(mj)
+
+
+def test_mjcf_closes_the_chain_at_the_fk_joint_states(
+        agile: Profile, poses: list[tuple[np.ndarray, np.ndarray, JointStates]]) -> None:
+    mj, data = _mjcf(agile)
+    adr = {name: mj.jnt_qposadr[mj.joint(name).id] for name in
+           ("theta0", "theta1", "theta2", "distal0", "distal1", "distal2", "platform_hinge")}
+    assert mj.neq == 2
+    worst = 0.0
+    for _theta, R, js in poses:
+        for i in range(3):
+            data.qpos[adr[f"theta{i}"]] = js.motor[i]
+            data.qpos[adr[f"distal{i}"]] = js.distal[i]
+        data.qpos[adr["platform_hinge"]] = js.platform[0]
+        mujoco.mj_kinematics(mj, data)
+        assert np.abs(data.xmat[mj.body("platform").id].reshape(3, 3) - R).max() < 1e-9
+        for k in range(mj.neq):
+            b1, b2 = mj.eq_obj1id[k], mj.eq_obj2id[k]
+            p1 = data.xpos[b1] + data.xmat[b1].reshape(3, 3) @ mj.eq_data[k, 0:3]
+            p2 = data.xpos[b2] + data.xmat[b2].reshape(3, 3) @ mj.eq_data[k, 3:6]
+            worst = max(worst, float(np.linalg.norm(p1 - p2)))
+    assert worst < 1e-9, worst
+
+
+def test_urdf_masses_and_inertias_are_mujocos(agile: Profile, tmp_path: Path) -> None:
+    """The URDF's inertial of each body equals what MuJoCo computes from the MJCF's capsules."""
+    path = tmp_path / "wrist.urdf"
+    path.write_text(robot_description(agile, "urdf"))
+    robot = yourdfpy.URDF.load(str(path), load_meshes=False)
+    mj, _ = _mjcf(agile)
+    names = [f"proximal{i}" for i in range(3)] + [f"distal{i}" for i in range(3)] + ["platform"]
+    for name in names:
+        inertial = robot.link_map[name].inertial
+        b = mj.body(name).id
+        assert np.isclose(inertial.mass, mj.body_mass[b], rtol=1e-9)
+        assert np.allclose(inertial.origin[:3, 3], mj.body_ipos[b], atol=1e-12)
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, mj.body_iquat[b])
+        rot = rot.reshape(3, 3)
+        full = rot @ np.diag(mj.body_inertia[b]) @ rot.T
+        assert np.allclose(inertial.inertia, full, rtol=1e-7, atol=1e-12), name
+    total = sum(robot.link_map[n].inertial.mass for n in names)
+    assert np.isclose(total, 6 * agile.plant.link_mass_kg + agile.plant.platform_mass_kg)
