@@ -1,4 +1,4 @@
-"""``logs`` (list runs) and ``logs show RUN [--plot FILE.png]``."""
+"""``logs`` (list runs), ``logs show RUN [--plot FILE.png]`` and ``logs export --mcap RUN``."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import add_common, emit
+from spm_console.cli.common import add_common, emit, output_file, profile_of
 from spm_console.errors import BadInputError, ExitCode
-from spm_console.motion.logs.runlog import list_runs, load_run
+from spm_console.motion.logs.runlog import list_runs, load_run, resolve_run
 
 
 def register(sub: Any) -> None:
@@ -29,6 +29,20 @@ def register(sub: Any) -> None:
     s.add_argument("run", metavar="RUN", help="run folder name or path, or 'last'")
     s.add_argument("--plot", type=Path, metavar="FILE.png", help="write the figure here")
     s.set_defaults(func=cmd_show)
+    e = lsub.add_parser("export", help="write a run as MCAP with ROS 2 messages (Foxglove, "
+                                       "PlotJuggler, ros2 bag play): runs logged before "
+                                       "MCAP was written beside the CSV")
+    e.add_argument("--profile", default=argparse.SUPPRESS,
+                   help="the profile the run was logged with (its digest is checked)")
+    e.add_argument("--json", action="store_true", default=argparse.SUPPRESS,
+                   help="print one JSON object on stdout")
+    e.add_argument("--logs", metavar="DIR", default=argparse.SUPPRESS,
+                   help="log root (default: $SPM_CONSOLE_LOGS or logs/)")
+    e.add_argument("--mcap", action="store_true", required=True, help="MCAP (the one format)")
+    e.add_argument("run", metavar="RUN", help="run folder name or path, or 'last'")
+    e.add_argument("--out", type=Path, metavar="FILE.mcap",
+                   help="file to write (default: run.mcap in the run's folder)")
+    e.set_defaults(func=cmd_export)
     p.set_defaults(func=cmd_list)
 
 
@@ -84,4 +98,23 @@ def cmd_show(args: argparse.Namespace) -> int:
         data["plot"] = str(args.plot)
         lines.append(f"plot: {args.plot}")
     emit(args, data, "\n".join(lines))
+    return int(ExitCode.OK)
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from spm_console.motion.logs.mcap_log import write_run_mcap
+
+    output_file(args.out, "--out", (".mcap",))
+    run_dir = resolve_run(args.run, args.logs)
+    profile = profile_of(args)
+    logged = load_run(run_dir).meta.get("profile", {})
+    want = logged.get("hash") if isinstance(logged, dict) else None
+    if want != profile.digest():
+        name = logged.get("name") if isinstance(logged, dict) else None
+        raise BadInputError(f"{run_dir.name} was logged with profile '{name}' (digest "
+                            f"{str(want)[:12]}…), not with {args.profile} ({profile.digest()[:12]}…):"
+                            " give the run's own profile with --profile, its wrist draws the run")
+    out = write_run_mcap(run_dir, profile, args.out)
+    emit(args, {"ok": True, "run": run_dir.name, "mcap": str(out), "bytes": out.stat().st_size},
+         f"{run_dir.name}: MCAP written to {out}")
     return int(ExitCode.OK)

@@ -27,7 +27,7 @@ def register(sub: Any) -> None:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from spm_console.services.description import robot_description
+    from spm_console.description.for_profile import robot_description
 
     output_file(args.out, "--out", SUFFIXES[args.format])
     profile = profile_of(args)

@@ -28,7 +28,7 @@ F = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class JointStates:
-    """The wrist's joints at one pose, rad (each (3,), leg i at index i)."""
+    """The wrist's joints, rad: each (..., 3), leg i at index i (one row per pose)."""
 
     motor: F
     """q_i = θ_i − θ_home,i: the proximal link about −u_i."""
@@ -38,28 +38,27 @@ class JointStates:
     """ψ_i: the platform about v_i(home), relative to leg i's distal link."""
 
 
-def signed_angle(axis: F, a: F, b: F) -> float:
+def signed_angle(axis: F, a: F, b: F) -> F:
     """The angle (rad) of the rotation about unit ``axis`` that takes ``a`` to ``b``'s direction
-    in the plane normal to the axis."""
-    a_n = a - axis * float(axis @ a)
-    b_n = b - axis * float(axis @ b)
-    return float(np.arctan2(axis @ np.cross(a_n, b_n), a_n @ b_n))
+    in the plane normal to the axis (each (..., 3))."""
+    a_n = a - axis * np.sum(axis * a, axis=-1, keepdims=True)
+    b_n = b - axis * np.sum(axis * b, axis=-1, keepdims=True)
+    return np.asarray(np.arctan2(np.sum(axis * np.cross(a_n, b_n), axis=-1),
+                                 np.sum(a_n * b_n, axis=-1)))
 
 
 def joint_states(model: SpmModel, theta: F, R: F) -> JointStates:
-    """The joints of the pose (θ rad (3,), platform rotation R from home (3, 3))."""
+    """The joints of poses: θ rad (..., 3), platform rotations R from home (..., 3, 3)."""
     u = model.u
     w0 = model.geom.w(model.theta_home)
     v0 = model.v_home
-    v = platform_axes(R, v0)
+    v = platform_axes(R, v0)  # (..., 3 legs, 3)
     q = np.asarray(theta, float) - model.theta_home
-    phi = np.zeros(3)
-    psi = np.zeros(3)
-    for i in range(3):
-        prox = expm_so3(-u[i] * q[i])
-        phi[i] = signed_angle(w0[i], v0[i], prox.T @ v[i])
-        dist = prox @ expm_so3(w0[i] * phi[i])
-        rel = dist.T @ R  # a rotation about v_i(home) when the pose closes the chain
-        ref = np.cross(v0[i], w0[i])
-        psi[i] = signed_angle(v0[i], ref, rel @ ref)
+    prox = expm_so3(-u * q[..., None])  # (..., 3 legs, 3, 3)
+    t = np.einsum("...lba,...lb->...la", prox, v)  # Pᵀ v_i
+    phi = signed_angle(w0, v0, t)
+    dist = prox @ expm_so3(w0 * phi[..., None])
+    rel = np.einsum("...lba,...bc->...lac", dist, R)  # Dᵀ R: about v_i(home) on a closed chain
+    ref = np.cross(v0, w0)
+    psi = signed_angle(v0, ref, np.einsum("...lab,lb->...la", rel, ref))
     return JointStates(q, phi, psi)

@@ -9,7 +9,9 @@ A run folder holds
   flushed to the OS every :data:`FLUSH_EVERY` rows, so a killed process (even by
   SIGKILL) leaves every row up to the last flush;
 * ``events.jsonl`` — faults, retries, stops: one JSON object per line, flushed
-  at once.
+  at once;
+* ``run.mcap`` — the same as ROS 2 messages (:mod:`spm_console.motion.logs.mcap_log`),
+  written from the files above once the run has finished (``on_finish``).
 
 Readers (:func:`load_run`, :func:`list_runs`) tolerate a truncated last line, and
 report a run still marked ``running`` whose process is gone as ``killed``.
@@ -26,6 +28,7 @@ import math
 import os
 import platform
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -118,6 +121,9 @@ class RunLog:
         self.finished = False
         self.sample_count = 0
         self.event_count = 0
+        self.on_finish: Callable[[Path], object] | None = None
+        """Called with the run folder once :meth:`finish` has written everything (the MCAP
+        beside the CSV); its failure is reported on stderr and changes nothing else."""
 
     @classmethod
     def create(
@@ -209,6 +215,11 @@ class RunLog:
         _write_json_atomic(self.path / "meta.json", self.meta)
         self.finished = True
         self.close()
+        if self.on_finish is not None:
+            try:
+                self.on_finish(self.path)
+            except Exception as exc:  # the run and its CSV stand; the companion file is extra
+                sys.stderr.write(f"spm-console: {self.path}: {exc!r}\n")
 
     def close(self) -> None:
         for fh in (self._samples, self._events):

@@ -15,7 +15,7 @@ from spm_console.config.schema import Profile
 from spm_console.core.kinematics.joint_states import JointStates, joint_states
 from spm_console.core.kinematics.model import platform_axes
 from spm_console.core.kinematics.rotations import expm_so3
-from spm_console.services.description import robot_description
+from spm_console.description.for_profile import robot_description
 
 POSES = 100
 

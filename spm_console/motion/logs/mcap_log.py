@@ -1,0 +1,189 @@
+"""A run log as MCAP with ROS 2 messages, beside its CSV: Foxglove and PlotJuggler open it,
+``ros2 bag play`` replays it.
+
+Written from the finished run's files (:func:`write_mcap`), never from inside the servo loop.
+Topics (CDR-encoded ROS 2 messages; angles in rad, as ROS has them; each message stamped with
+the run's wall-clock start plus the sample's time):
+
+* ``/joint_states`` (sensor_msgs/msg/JointState): every joint of the URDF that ``spm-console
+  export urdf`` writes, from the measured θ and the unique FK along the run: ``motor1..3``
+  (θ − θ_home), ``distal1..3``, ``platform1..3``; robot_state_publisher and Foxglove draw the
+  whole wrist from it;
+* ``/spm/reference``, ``/spm/measured``, ``/spm/model``, ``/spm/error`` (JointState, joints
+  ``joint1..3``): θ*, the measured θ with the Kalman velocity, the model's θ and velocity,
+  measured − model;
+* ``/spm/platform`` (geometry_msgs/msg/QuaternionStamped) and ``/tf`` (tf2_msgs/msg/TFMessage,
+  base_link → platform): the platform's orientation from the FK of the measured θ;
+* ``/spm/events`` (std_msgs/msg/String): each event as one JSON object, so every channel stays
+  CDR and ``ros2 bag play`` can replay the whole file;
+* ``/robot_description`` (std_msgs/msg/String, once at the start): the URDF.
+
+A row whose read failed (no measured θ) publishes references and the model only.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mcap_ros2.writer import Writer
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from spm_console.config.models import model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.joint_states import joint_states
+from spm_console.core.kinematics.model import SpmModel
+from spm_console.description.for_profile import robot_description
+from spm_console.jsonutil import to_jsonable
+from spm_console.motion.logs.runlog import RunData, load_run
+
+F = NDArray[np.float64]
+
+MCAP_NAME = "run.mcap"
+
+_RULE = "=" * 80
+_TIME = "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
+_HEADER = "MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n"
+_QUAT = "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n"
+_VEC3 = "MSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n"
+
+
+def _msgdef(main: str, *deps: str) -> str:
+    return "\n".join([main, *(f"{_RULE}\n{d}" for d in deps)])
+
+
+JOINT_STATE = _msgdef("std_msgs/Header header\nstring[] name\nfloat64[] position\n"
+                      "float64[] velocity\nfloat64[] effort\n", _HEADER, _TIME)
+QUATERNION_STAMPED = _msgdef("std_msgs/Header header\ngeometry_msgs/Quaternion quaternion\n",
+                             _HEADER, _TIME, _QUAT)
+TF_MESSAGE = _msgdef(
+    "geometry_msgs/TransformStamped[] transforms\n",
+    "MSG: geometry_msgs/TransformStamped\nstd_msgs/Header header\nstring child_frame_id\n"
+    "geometry_msgs/Transform transform\n",
+    _HEADER, _TIME,
+    "MSG: geometry_msgs/Transform\ngeometry_msgs/Vector3 translation\n"
+    "geometry_msgs/Quaternion rotation\n",
+    _VEC3, _QUAT)
+STRING = "string data\n"
+
+MOTORS = ("joint1", "joint2", "joint3")
+URDF_JOINTS = (*(f"motor{i}" for i in (1, 2, 3)), *(f"distal{i}" for i in (1, 2, 3)),
+               *(f"platform{i}" for i in (1, 2, 3)))
+
+
+def start_ns(meta: dict[str, Any]) -> int:
+    """The run's wall-clock start, ns since the epoch (0 when meta.json does not say)."""
+    try:
+        return int(dt.datetime.fromisoformat(str(meta["start_time"])).timestamp() * 1e9)
+    except (KeyError, TypeError, ValueError):
+        return 0
+
+
+def _stamp(ns: int, frame: str = "") -> dict[str, Any]:
+    return {"stamp": {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000},
+            "frame_id": frame}
+
+
+def _joints(ns: int, names: tuple[str, ...], pos: F, vel: F | None = None) -> dict[str, Any]:
+    return {"header": _stamp(ns), "name": list(names), "position": [float(x) for x in pos],
+            "velocity": [] if vel is None else [float(x) for x in vel], "effort": []}
+
+
+def platform_rotations(model: SpmModel, theta: F) -> F:
+    """The platform's rotation at each θ row (rad, (N, 3)) by the unique FK, NaN where it has
+    none: all rows tracked from home at once; a row refused there (a singularity on the
+    straight path) is tracked from the row before it, as the wrist went."""
+    rots = np.full((len(theta), 3, 3), np.nan)
+    ok = np.isfinite(theta).all(axis=1)
+    if not ok.any():
+        return rots
+    idx = np.flatnonzero(ok)
+    for k, res in zip(idx, model.track_batch(theta[idx]), strict=True):
+        if res.ok and res.pose is not None:
+            rots[k] = res.pose.R
+    prev: int | None = None
+    for k in idx:
+        if np.isnan(rots[k, 0, 0]) and prev is not None:
+            res = model.track(theta[k], theta[prev], rots[prev])
+            if res.ok and res.pose is not None:
+                rots[k] = res.pose.R
+        if not np.isnan(rots[k, 0, 0]):
+            prev = int(k)
+    return rots
+
+
+def write_mcap(run: RunData, model: SpmModel, urdf: str, out: Path) -> int:
+    """Write ``run`` as MCAP to ``out`` (replaced); the number of messages written."""
+    t0 = start_ns(run.meta)
+    rad = math.pi / 180.0
+    t = run.columns.get("t", np.zeros(run.rows))
+    ref, meas, pred = run.vec("ref") * rad, run.vec("meas") * rad, run.vec("pred") * rad
+    vel, pred_vel = run.vec("vel") * rad, run.vec("pred_vel") * rad
+    rots = platform_rotations(model, meas)
+    posed = ~np.isnan(rots[:, 0, 0])
+    joints = joint_states(model, np.where(posed[:, None], meas, model.theta_home),
+                          np.where(posed[:, None, None], rots, np.eye(3)))
+    quats = Rotation.from_matrix(np.where(posed[:, None, None], rots, np.eye(3))).as_quat()
+    count = 0
+    tmp = out.with_name(f".{out.name}.tmp")
+    with tmp.open("wb") as fh:
+        w = Writer(fh)
+        js_schema = w.register_msgdef("sensor_msgs/msg/JointState", JOINT_STATE)
+        q_schema = w.register_msgdef("geometry_msgs/msg/QuaternionStamped", QUATERNION_STAMPED)
+        tf_schema = w.register_msgdef("tf2_msgs/msg/TFMessage", TF_MESSAGE)
+        str_schema = w.register_msgdef("std_msgs/msg/String", STRING)
+        w.add_metadata("spm_console", {k: str(run.meta.get(k, "")) for k in
+                                       ("run", "kind", "outcome", "exit_code", "start_time")}
+                       | {"profile": json.dumps(run.meta.get("profile", {}))})
+        w.write_message("/robot_description", str_schema, {"data": urdf}, t0, t0)
+        count += 1
+        for k in range(run.rows):
+            ns = t0 + round(float(t[k]) * 1e9)
+            msgs: list[tuple[str, Any, dict[str, Any]]] = [
+                ("/spm/reference", js_schema, _joints(ns, MOTORS, ref[k])),
+                ("/spm/model", js_schema, _joints(ns, MOTORS, pred[k], pred_vel[k])),
+            ]
+            if np.isfinite(meas[k]).all():
+                msgs += [("/spm/measured", js_schema, _joints(ns, MOTORS, meas[k], vel[k])),
+                         ("/spm/error", js_schema, _joints(ns, MOTORS, meas[k] - pred[k]))]
+                if posed[k]:
+                    all_q = np.concatenate([joints.motor[k], joints.distal[k], joints.platform[k]])
+                    x, y, z, qw = quats[k]
+                    quat = {"x": float(x), "y": float(y), "z": float(z), "w": float(qw)}
+                    tf = {"header": _stamp(ns, "base_link"), "child_frame_id": "platform",
+                          "transform": {"translation": {"x": 0.0, "y": 0.0, "z": 0.0},
+                                        "rotation": quat}}
+                    msgs += [("/joint_states", js_schema, _joints(ns, URDF_JOINTS, all_q)),
+                             ("/spm/platform", q_schema,
+                              {"header": _stamp(ns, "base_link"), "quaternion": quat}),
+                             ("/tf", tf_schema, {"transforms": [tf]})]
+            for topic, schema, msg in msgs:
+                w.write_message(topic, schema, msg, ns, ns, sequence=k)
+            count += len(msgs)
+        for ev in run.events:
+            ns = t0 + round(float(ev.get("t", 0.0)) * 1e9)
+            w.write_message("/spm/events", str_schema,
+                            {"data": json.dumps(to_jsonable(ev))}, ns, ns)
+            count += 1
+        w.finish()
+    tmp.replace(out)
+    return count
+
+
+def write_run_mcap(run_dir: Path, profile: Profile, out: Path | None = None) -> Path:
+    """Write the run folder's MCAP (``run.mcap`` in it, or ``out``) from its files, with
+    ``profile``'s wrist (the one the run was logged with); the file's path."""
+    target = out if out is not None else Path(run_dir) / MCAP_NAME
+    write_mcap(load_run(run_dir), model_of(profile), robot_description(profile, "urdf"), target)
+    return target
+
+
+def mcap_beside(profile: Profile) -> Callable[[Path], object]:
+    """A :attr:`RunLog.on_finish` that writes the run's MCAP beside its CSV."""
+    return lambda run_dir: write_run_mcap(run_dir, profile)
