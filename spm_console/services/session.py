@@ -285,12 +285,20 @@ class Session(ServoTools, FollowTools):
         emu = self.emulator
         if not isinstance(emu, EmulatorChild) or not emu.physical or result.log_dir is None:
             return
-        time.sleep(COLLISION_REPORT_S)  # the child tells its contacts every 0.1 s
-        hits = emu.collisions(began, time.perf_counter())
+        until = time.perf_counter()
+        if not emu.flush():  # the child did not answer: take what it told so far
+            time.sleep(COLLISION_REPORT_S)
+        hits = emu.collisions(began, until)
+        if not hits:
+            return
         append_events(Path(result.log_dir), [
             {"t": float(c["t"]) - began, "event": "collision", "source": "emulated wrist",
              "legs": [int(x) + 1 for x in c["legs"]], "segments": c["segments"],
              "distance_mm": c["distance_mm"], "theta_deg": c["theta_deg"]} for c in hits])
+        from spm_console.motion.logs.mcap_log import write_run_mcap  # loads mcap
+
+        with contextlib.suppress(SpmError, OSError, ValueError):  # the MCAP carries them too
+            write_run_mcap(Path(result.log_dir), self.profile)
 
     def home(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
         """Move home at the profile's homing speed, in the motion process (which checks the

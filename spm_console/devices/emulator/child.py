@@ -5,7 +5,9 @@ the console's interpreter (and its GIL) with the UI may miss the bus's 4 ms repl
 timeout. So the console runs :func:`~spm_console.devices.emulator.bus.start_emulator`
 here, in its own process: ``python -m spm_console.devices.emulator.child --parent PID``
 reads the profile (JSON) and options on stdin, prints ``{"port": ...}`` and serves
-until its owner stops it (SIGUSR1) or is gone.
+until its owner stops it (SIGUSR1) or is gone. On SIGUSR2 it tells the physical wrist's leg
+contacts at once and then ``{"flushed": N}`` (N: the how-many-th such request), so that its
+owner knows it has heard every contact up to that instant (:meth:`EmulatorChild.flush`).
 
 The emulated servos stand in for hardware, which no signal switches off: the terminating
 signals (SIGINT, SIGTERM, SIGHUP, SIGQUIT: a service manager stopping every process of its
@@ -40,6 +42,8 @@ MAX_COLLISIONS = 10_000
 #: How often the child tells its owner of the physical wrist's new leg contacts (and checks
 #: its parent), s.
 EVENTS_EVERY_S = 0.1
+#: Longest wait of :meth:`EmulatorChild.flush` for the child's answer, s.
+FLUSH_TIMEOUT_S = 1.0
 
 
 class EmulatorChild(ChildProcess):
@@ -62,12 +66,31 @@ class EmulatorChild(ChildProcess):
         """The physical wrist (its leg contacts are told): see :meth:`collisions`."""
         self._collisions: list[dict[str, Any]] = []
         self._lock = threading.Lock()
+        self._flushed = threading.Condition(self._lock)
+        self._flush_asked = 0
+        self._flush_done = 0
 
     def collisions(self, since: float, until: float) -> list[dict[str, Any]]:
         """The physical wrist's leg contacts that began between the monotonic instants
         ``since`` and ``until`` (``time.perf_counter()``, shared by the processes)."""
         with self._lock:
             return [c for c in self._collisions if since <= float(c["t"]) <= until]
+
+    def flush(self, timeout_s: float = FLUSH_TIMEOUT_S) -> bool:
+        """Have the child tell every leg contact up to now; True once it has (False when it
+        did not answer within ``timeout_s``: it is gone or stalled)."""
+        proc = self._proc
+        if proc is None or proc.poll() is not None:
+            return False
+        with self._flushed:
+            self._flush_asked += 1
+            want = self._flush_asked
+        try:
+            proc.send_signal(signal.SIGUSR2)
+        except OSError:
+            return False
+        with self._flushed:
+            return self._flushed.wait_for(lambda: self._flush_done >= want, timeout_s)
 
     def _read_events(self, stdout: Any) -> None:
         try:
@@ -76,10 +99,15 @@ class EmulatorChild(ChildProcess):
                     data = json.loads(line)
                 except ValueError:
                     continue
-                if isinstance(data, dict) and isinstance(data.get("collision"), dict):
-                    with self._lock:
+                if not isinstance(data, dict):
+                    continue
+                with self._flushed:
+                    if isinstance(data.get("collision"), dict):
                         self._collisions.append(data["collision"])
                         del self._collisions[:-MAX_COLLISIONS]
+                    if isinstance(data.get("flushed"), int):
+                        self._flush_done = max(self._flush_done, int(data["flushed"]))
+                        self._flushed.notify_all()
         except (OSError, ValueError):  # the pipe closed under us: the child was stopped
             return
 
@@ -110,7 +138,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     request_realtime(HELPER_PRIORITY)  # shares the emulator's GIL: see realtime.HELPER_PRIORITY
     quick_gil_handoff()  # the servo thread answers within ~0.5 ms of a request
     stop = threading.Event()
-    signal.signal(signal.SIGUSR1, lambda *_: stop.set())
+    wake = threading.Event()
+    flushes = [0]
+
+    def on_flush(*_: Any) -> None:
+        flushes[0] += 1
+        wake.set()
+
+    def on_stop(*_: Any) -> None:
+        stop.set()
+        wake.set()
+
+    signal.signal(signal.SIGUSR1, on_stop)
+    signal.signal(signal.SIGUSR2, on_flush)
     try:
         req = json.loads(sys.stdin.read())
         profile = parse_profile(req["profile"], "profile")
@@ -127,14 +167,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     sys.stdout.write(json.dumps({"port": em.port, "realtime": em.realtime.detail,
                                  "realtime_granted": em.realtime.policy == "SCHED_FIFO"}) + "\n")
     sys.stdout.flush()
+    told = 0
     try:
-        while not stop.wait(EVENTS_EVERY_S) and em.running:
-            if args.parent and os.getppid() != args.parent:
+        while not stop.is_set() and em.running:
+            wake.wait(EVENTS_EVERY_S)
+            wake.clear()
+            if stop.is_set() or (args.parent and os.getppid() != args.parent):
                 break
+            asked = flushes[0]
             if em.wrist is not None:  # the legs' contacts, told to the owner as they begin
+                em.joint_deg()  # steps the wrist up to now first
                 for c in em.wrist.contacts.take():
                     sys.stdout.write(json.dumps({"collision": asdict(c)}) + "\n")
-                sys.stdout.flush()
+            if asked > told:
+                sys.stdout.write(json.dumps({"flushed": asked}) + "\n")
+                told = asked
+            sys.stdout.flush()
     finally:
         em.stop()
     return 0
