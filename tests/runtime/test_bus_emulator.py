@@ -303,3 +303,21 @@ def test_the_profile_names_the_link_and_the_socket_serves_clients_apart(agile: P
         second.close()
     with pytest.raises(BusError, match="cannot connect to the bus socket"):
         open_bus(agile, em.port)  # the emulator is gone, and its socket with it
+
+
+@pytest.mark.parametrize("link", ["socket", "pty"])
+def test_a_bus_whose_emulator_is_gone_fails_with_comm_errors(agile: Profile, link: str) -> None:
+    """The far end closed (the emulator stopped), then our own end closed: every transaction
+    fails promptly with CommError, never hangs, spins or raises something else."""
+    em = start_emulator(agile, link=link)  # type: ignore[arg-type]
+    bus = open_bus(relaxed(agile), em.port)
+    assert np.allclose(bus.read_position_deg(), 135.0)
+    em.stop()
+    for _ in range(2):
+        t0 = time.perf_counter()
+        with pytest.raises(CommError):
+            bus.read_position_deg()
+        assert time.perf_counter() - t0 < 1.0
+    bus.close()
+    with pytest.raises(CommError):
+        bus.read_position_deg()

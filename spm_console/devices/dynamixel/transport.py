@@ -33,6 +33,7 @@ time (it is then the current request's own reply, never another's).
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import select
 import socket
@@ -223,11 +224,16 @@ class SerialTransport(Transport):
         except (AttributeError, NotImplementedError, ValueError, OSError, serial.SerialException):
             pass  # a pty or an adapter without ASYNC_LOW_LATENCY: best effort only
 
+    def _open(self) -> serial.Serial:
+        if not self._ser.is_open:  # pyserial would fail with a TypeError on its missing fd
+            raise OSError(errno.EBADF, "the serial port is closed")
+        return self._ser
+
     def fileno(self) -> int:
-        return int(self._ser.fileno())
+        return int(self._open().fileno())
 
     def _waiting(self) -> int:
-        return int(self._ser.in_waiting)
+        return int(self._open().in_waiting)
 
     def _read(self, n: int) -> bytes:
         return bytes(self._ser.read(n))
@@ -264,10 +270,13 @@ class SocketTransport(Transport):
         self._sock = sock
 
     def fileno(self) -> int:
-        return self._sock.fileno()
+        fd = self._sock.fileno()
+        if fd < 0:  # closed: fail like a closed serial port (select would raise ValueError)
+            raise OSError(errno.EBADF, "the bus socket is closed")
+        return fd
 
     def _waiting(self) -> int:
-        buf = fcntl.ioctl(self._sock.fileno(), termios.FIONREAD, b"\0\0\0\0")
+        buf = fcntl.ioctl(self.fileno(), termios.FIONREAD, b"\0\0\0\0")
         return int.from_bytes(buf, "little", signed=True)
 
     def _read(self, n: int) -> bytes:
@@ -284,7 +293,7 @@ class SocketTransport(Transport):
         deadline = time.perf_counter() + 1.0  # as the serial port's write timeout
         while view:
             try:
-                view = view[self._sock.send(view):]
+                view = view[self._sock.send(view, socket.MSG_NOSIGNAL):]
             except BlockingIOError:
                 if time.perf_counter() > deadline:
                     raise TimeoutError("write timeout") from None

@@ -79,7 +79,8 @@ class Channel:
         deadline = time.perf_counter() + WRITE_WAIT_S
         while view:
             try:
-                n = self.sock.send(view) if self.sock is not None else os.write(self.fd, view)
+                n = (self.sock.send(view, socket.MSG_NOSIGNAL) if self.sock is not None
+                     else os.write(self.fd, view))
                 view = view[n:]
             except BlockingIOError:
                 if time.perf_counter() > deadline:
