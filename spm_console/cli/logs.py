@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import add_common, emit, output_file, profile_of
+from spm_console.cli.common import add_common, emit, info, output_file, profile_of
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.motion.logs.runlog import list_runs, load_run, resolve_run
 
@@ -33,7 +33,8 @@ def register(sub: Any) -> None:
                                        "PlotJuggler, ros2 bag play): runs logged before "
                                        "MCAP was written beside the CSV")
     e.add_argument("--profile", default=argparse.SUPPRESS,
-                   help="the profile the run was logged with (its digest is checked)")
+                   help="the profile the run was logged with (its name must match; another "
+                        "version of it is noted on stderr)")
     e.add_argument("--json", action="store_true", default=argparse.SUPPRESS,
                    help="print one JSON object on stdout")
     e.add_argument("--logs", metavar="DIR", default=argparse.SUPPRESS,
@@ -108,13 +109,18 @@ def cmd_export(args: argparse.Namespace) -> int:
     run_dir = resolve_run(args.run, args.logs)
     profile = profile_of(args)
     logged = load_run(run_dir).meta.get("profile", {})
-    want = logged.get("hash") if isinstance(logged, dict) else None
-    if want != profile.digest():
-        name = logged.get("name") if isinstance(logged, dict) else None
-        raise BadInputError(f"{run_dir.name} was logged with profile '{name}' (digest "
-                            f"{str(want)[:12]}…), not with {args.profile} ({profile.digest()[:12]}…):"
-                            " give the run's own profile with --profile, its wrist draws the run")
+    logged = logged if isinstance(logged, dict) else {}
+    if logged.get("name") != profile.name:
+        raise BadInputError(f"{run_dir.name} was logged with profile '{logged.get('name')}', not "
+                            f"'{profile.name}' ({args.profile}): give the run's own profile with "
+                            "--profile, its wrist draws the run")
+    same = logged.get("hash") == profile.digest()
+    if not same:  # the same prototype, its profile edited since (or a newer version's keys)
+        info(f"note: {run_dir.name} was logged with another version of '{profile.name}' (digest "
+             f"{str(logged.get('hash'))[:12]}…, now {profile.digest()[:12]}…): its joints are "
+             f"drawn with {args.profile} as it is now")
     out = write_run_mcap(run_dir, profile, args.out)
-    emit(args, {"ok": True, "run": run_dir.name, "mcap": str(out), "bytes": out.stat().st_size},
+    emit(args, {"ok": True, "run": run_dir.name, "mcap": str(out), "bytes": out.stat().st_size,
+                "profile_digest_matches": same},
          f"{run_dir.name}: MCAP written to {out}")
     return int(ExitCode.OK)

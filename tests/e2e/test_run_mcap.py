@@ -104,7 +104,7 @@ def test_logs_export_writes_the_same_file_again(run_dir: Path, tmp_path: Path,
     out = tmp_path / "again.mcap"
     assert main(["logs", "export", "--mcap", str(run_dir), "--out", str(out), "--json"]) == 0
     rec = json.loads(capsys.readouterr().out)
-    assert rec["ok"] and rec["mcap"] == str(out)
+    assert rec["ok"] and rec["mcap"] == str(out) and rec["profile_digest_matches"] is True
     a, b = _read(run_dir / MCAP_NAME), _read(out)
     assert a.keys() == b.keys()
     assert all(len(a[k]) == len(b[k]) for k in a)
