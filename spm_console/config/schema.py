@@ -294,6 +294,23 @@ class Safety(_Section):
     front end."""
 
 
+class Settle(_Section):
+    """The goal corrected at rest after a planned motion (MVN, minimum time): the servos' own
+    P-only position loop leaves an offset that friction and the links' weight set (a few encoder
+    ticks on the MX-106, more under load); the runtime then moves the goal it sends by the
+    measured offset, a little each period, until the wrist is within ``tolerance_deg`` of the
+    plan's goal. Off while ``duration_s`` is 0."""
+
+    duration_s: Real = Field(default=0.0, ge=0.0, le=5.0)
+    """Longest settling after the plan, s, 0..5 (0: off; the run ends with the plan)."""
+    max_correction_deg: Real = Field(default=0.5, gt=0.0, le=2.0)
+    """Largest shift of the goal sent, per joint, deg, 0 < shift ≤ 2; a shifted goal outside
+    the certified set is never sent."""
+    tolerance_deg: Real = Field(default=0.1, gt=0.0, le=1.0)
+    """Settled when every joint is this close to the goal for 5 periods, deg (0.1: an encoder
+    tick, 0.088°, and a little)."""
+
+
 class Estimation(_Section):
     """Kalman filter noise levels (per joint, model (28))."""
 
@@ -365,6 +382,7 @@ class Profile(_Section):
     estimation: Estimation
     emulator: Emulator = Emulator()
     plant: Plant = Plant()
+    settle: Settle = Settle()
 
     @property
     def name(self) -> str:

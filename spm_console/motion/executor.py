@@ -46,6 +46,7 @@ from spm_console.motion.plan_check import LINE_PHASES, PlanCheck, PlanVerifier
 from spm_console.motion.safety import SafetyMonitor, StopReason
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult, Segment
+from spm_console.motion.settle import Settling, settle_periods
 from spm_console.motion.stats import StopTiming, model_health, run_stats, stale_replies
 from spm_console.motion.stop_action import apply_stop_action
 from spm_console.system.cpus import placement
@@ -217,8 +218,11 @@ class Executor:
         regions = [s.phase not in LINE_PHASES for s in segments for _ in range(s.plan.N + 1)]
         self._event("start", theta0_deg=theta0, cycles=len(refs),
                     segments=[(s.phase, s.plan.kind, s.plan.N) for s in segments])
-        return self._guarded(theta0, lambda: self._loop(refs, phases, regions, theta0),
-                             lambda: f"executed {len(refs)} cycles ({len(refs) * self.ts:.2f} s)")
+        # a planned motion may end by settling at its goal (profile [settle]); a line does not
+        settle = (self.profile.settle.duration_s > 0 and segments[-1].phase not in LINE_PHASES)
+        return self._guarded(
+            theta0, lambda: self._loop(refs, phases, regions, theta0, settle),
+            lambda: f"executed {len(self.samples)} cycles ({len(self.samples) * self.ts:.2f} s)")
 
     def _guarded(self, theta0: F, loop: Callable[[], StopReason | None],
                  done: Callable[[], str]) -> ExecutionResult:
@@ -316,12 +320,36 @@ class Executor:
         self._event("torque_on", goal_deg=theta0)
         return None
 
-    def _loop(self, refs: F, phases: list[str], regions: list[bool], theta0: F) -> StopReason | None:
+    def _loop(self, refs: F, phases: list[str], regions: list[bool], theta0: F,
+              settle: bool = False) -> StopReason | None:
         st = self._loop_state(theta0)
         for k in range(len(refs)):
             stop = self._cycle(st, k, refs[k], phases[k], regions[k])
             if stop is not None:
                 return stop
+        return self._settle(st, len(refs), refs[-1]) if settle else None
+
+    def _settle(self, st: _LoopState, k0: int, goal: F) -> StopReason | None:
+        """Periods at the plan's goal with the goal sent shifted by the measured offset
+        (:mod:`spm_console.motion.settle`), each shifted goal inside the certified set."""
+        certified = self.verifier.certified
+
+        def allowed(theta: F) -> bool:
+            inside = bool(np.all(theta >= self.lo) and np.all(theta <= self.hi))
+            return inside and bool(certified.contains(theta[None])[0])
+
+        s = Settling(self.profile.settle, goal, allowed)
+        used = 0
+        for j in range(settle_periods(self.profile.settle, self.ts)):
+            stop = self._cycle(st, k0 + j, s.reference, "settle", True)
+            if stop is not None:
+                return stop
+            used = j + 1
+            s.update(self.samples[-1].measured_deg)
+            if s.settled:
+                break
+        self._event("settle", settled=s.settled, periods=used, shift_deg=s.shift,
+                    error_deg=goal - self.samples[-1].measured_deg, refused_shifts=s.refused)
         return None
 
     def _loop_state(self, theta0: F) -> _LoopState:

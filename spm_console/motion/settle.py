@@ -1,0 +1,82 @@
+"""Settling at the goal after a planned motion (profile ``[settle]``).
+
+The MX-106's firmware closes a P-only position loop (Position I Gain 0 by default): at rest
+the shaft stops where the drive's torque balances friction and the links' weight, a few encoder
+ticks from the goal, on either side depending on the approach and the pose. The runtime reads
+that offset and shifts the goal it sends by a fraction of it every period (a slow integral
+outside the servo, active only at rest, after the plan): c ← c + κ·(goal − θ), each joint's
+shift bounded by ``max_correction_deg``. A shifted goal is sent only inside the workspace's
+certified set, like every position the runtime sends; when a shift would leave it, the previous
+one stays. Settled once every joint is within ``tolerance_deg`` of the goal for
+:data:`SETTLED_PERIODS` periods; otherwise the settling ends after ``duration_s``. Degrees.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.schema import Settle
+
+F = NDArray[np.float64]
+
+#: Fraction of the measured offset added to the goal's shift each period (κ): about three
+#: periods to take up an offset, slow beside the servo's own response, so the shift never
+#: chases its motion.
+GAIN = 0.3
+#: Periods within the tolerance that end the settling.
+SETTLED_PERIODS = 5
+
+
+@dataclass
+class Settling:
+    """One settling at ``goal`` (deg, (3,)); :meth:`reference` is what to send each period."""
+
+    law: Settle
+    goal: F
+    allowed: Callable[[F], bool]
+    """Whether a goal may be sent (inside the certified set and the servo limits)."""
+    shift: F | None = None
+    within: int = 0
+    refused: int = 0
+    """Shifts not taken because the shifted goal was not allowed."""
+
+    def __post_init__(self) -> None:
+        self.goal = np.asarray(self.goal, float)
+        if self.shift is None:
+            self.shift = np.zeros(3)
+
+    @property
+    def reference(self) -> F:
+        """The goal to send now, deg."""
+        assert self.shift is not None
+        return np.asarray(self.goal + self.shift)
+
+    @property
+    def settled(self) -> bool:
+        return self.within >= SETTLED_PERIODS
+
+    def update(self, measured: F | None) -> None:
+        """Take one period's measurement (None or NaN: a failed read, nothing changes)."""
+        assert self.shift is not None
+        if measured is None or not np.all(np.isfinite(measured)):
+            return
+        error = self.goal - np.asarray(measured, float)
+        if float(np.abs(error).max()) <= self.law.tolerance_deg:
+            self.within += 1
+            return
+        self.within = 0
+        bound = self.law.max_correction_deg
+        shift = np.clip(self.shift + GAIN * error, -bound, bound)
+        if self.allowed(self.goal + shift):
+            self.shift = shift
+        else:
+            self.refused += 1
+
+
+def settle_periods(law: Settle, ts_s: float) -> int:
+    """Most periods a settling may take."""
+    return max(1, round(law.duration_s / ts_s))

@@ -1,0 +1,96 @@
+"""The settling law at the goal (motion/settle.py) against a servo that stops off its goal:
+a P-only loop with friction, modelled as a dead band and the links' weight as a bias, read
+through the encoder's ticks."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spm_console.config.schema import Settle
+from spm_console.motion.settle import SETTLED_PERIODS, Settling, settle_periods
+
+TICK = 360.0 / 4096
+
+
+class StickyServo:
+    """At rest the shaft moves only when the goal sent is farther than ``band`` from it, and
+    then stops ``band`` short on the side it came from, plus a constant ``bias`` (weight)."""
+
+    def __init__(self, start: np.ndarray, band: float, bias: np.ndarray) -> None:
+        self.pos = np.asarray(start, float)
+        self.band = band
+        self.bias = bias
+
+    def step(self, goal: np.ndarray) -> np.ndarray:
+        target = goal + self.bias
+        gap = target - self.pos
+        moving = np.abs(gap) > self.band
+        self.pos = np.where(moving, target - np.sign(gap) * self.band, self.pos)
+        return np.round(self.pos / TICK) * TICK  # what the encoder reads
+
+
+def _run(s: Settling, servo: StickyServo, periods: int) -> tuple[int, np.ndarray]:
+    for k in range(periods):
+        read = servo.step(s.reference)
+        s.update(read)
+        if s.settled:
+            return k + 1, read
+    return periods, read
+
+
+def test_the_offset_is_taken_up_within_the_tolerance() -> None:
+    goal = np.array([66.8, 155.0, 131.48])
+    law = Settle(duration_s=1.0, max_correction_deg=0.5, tolerance_deg=0.1)
+    servo = StickyServo(goal + [0.2, 0.25, -0.3], band=2 * TICK, bias=np.array([0.0, 0.2, -0.1]))
+    s = Settling(law, goal, lambda theta: True)
+    periods, read = _run(s, servo, settle_periods(law, 0.02))
+    assert s.settled and periods <= 30
+    assert np.abs(read - goal).max() <= 0.1
+    assert np.abs(s.shift).max() <= 0.5 and s.refused == 0
+    assert s.within == SETTLED_PERIODS
+
+
+def test_the_shift_is_bounded() -> None:
+    goal = np.array([66.8, 155.0, 131.48])
+    law = Settle(duration_s=1.0, max_correction_deg=0.3, tolerance_deg=0.1)
+    # the weight pulls joint 2 by 1°: more than the shift may take up
+    servo = StickyServo(goal, band=0.0, bias=np.array([0.0, 1.0, 0.0]))
+    s = Settling(law, goal, lambda theta: True)
+    periods, read = _run(s, servo, settle_periods(law, 0.02))
+    assert not s.settled and periods == 50
+    assert np.isclose(s.shift[1], -0.3)  # at its bound; the rest of the offset stays
+    assert np.isclose(read[1] - goal[1], 0.7, atol=TICK)
+
+
+def test_a_goal_not_allowed_is_never_sent() -> None:
+    goal = np.array([66.8, 155.0, 131.48])
+    law = Settle(duration_s=1.0, max_correction_deg=0.5, tolerance_deg=0.1)
+    servo = StickyServo(goal, band=0.0, bias=np.array([0.0, 0.4, 0.0]))
+
+    def allowed(theta: np.ndarray) -> bool:  # joint 2 no lower than 154.9 (a face of P′)
+        return bool(theta[1] >= 154.9)
+
+    s = Settling(law, goal, allowed)
+    sent = []
+    for _ in range(settle_periods(law, 0.02)):
+        sent.append(s.reference.copy())
+        s.update(servo.step(s.reference))
+    assert all(allowed(t) for t in sent)
+    assert s.refused > 0 and not s.settled
+
+
+def test_a_lost_read_changes_nothing() -> None:
+    goal = np.zeros(3)
+    s = Settling(Settle(duration_s=1.0), goal, lambda theta: True)
+    s.update(None)
+    s.update(np.array([np.nan, 0.0, 0.0]))
+    assert np.array_equal(s.shift, np.zeros(3)) and s.within == 0
+    s.update(np.array([0.3, 0.0, 0.0]))
+    assert np.isclose(s.shift[0], -0.3 * 0.3)
+
+
+def test_a_refused_shift_keeps_the_previous_one() -> None:
+    goal = np.array([10.0, 20.0, 30.0])
+    s = Settling(Settle(duration_s=1.0), goal, lambda theta: False)
+    s.update(goal + 0.5)
+    assert np.array_equal(s.reference, goal) and s.refused == 1
