@@ -11,7 +11,7 @@ import numpy as np
 from spm_console import __version__
 from spm_console.config.models import link_model_of, model_of
 from spm_console.config.schema import Plant, Profile
-from spm_console.description.mjcf import plant_params, wrist_mjcf
+from spm_console.description.mjcf import plant_params, wrist_mjcf, xml_comment
 from spm_console.description.urdf import wrist_urdf
 
 Format = Literal["urdf", "mjcf"]
@@ -39,8 +39,7 @@ def robot_description(profile: Profile, fmt: Format) -> str:
     params = plant_params(profile.plant)
     links = link_model_of(profile)
     if fmt == "mjcf":
-        note = sources(profile).replace("--", "- -")
-        return f"<!--\n  {note}\n-->\n{wrist_mjcf(model, params, links)}\n"
+        return f"{xml_comment(sources(profile))}\n{wrist_mjcf(model, params, links)}\n"
     home = np.asarray(profile.home.theta_deg, float)
     limits = np.array([[math.radians(j.min_deg - home[i]), math.radians(j.max_deg - home[i])]
                        for i, j in enumerate(profile.bus.joints)])

@@ -23,7 +23,9 @@ capsules tells when they meet (:class:`~spm_console.devices.emulator.physical.Ph
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
+from xml.sax.saxutils import escape
 
 import numpy as np
 from numpy.typing import NDArray
@@ -63,6 +65,12 @@ def plant_params(plant: Plant) -> PlantParams:
                        plant.armature_kgm2, plant.coulomb_nm, plant.viscous_nms,
                        plant.backdrive_friction_nm, plant.link_mass_kg, plant.platform_mass_kg,
                        plant.link_radius_mm / 1000.0)
+
+
+def xml_comment(text: str) -> str:
+    """``text`` as an XML comment: escaped, and without the "--" a comment may not hold."""
+    body = re.sub(r"-(?=-)", "- ", escape(text))
+    return f"<!-- {body}{' ' if body.endswith('-') else ''}-->"
 
 
 def _vec(a: F) -> str:

@@ -14,7 +14,7 @@ bodies, :mod:`spm_console.description.inertia`). SI units: m, kg, rad.
 
 from __future__ import annotations
 
-from xml.sax.saxutils import escape
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,7 +23,7 @@ from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.rotations import matrix_rpy
 from spm_console.description.inertia import MassProperties, capsule, combined
-from spm_console.description.mjcf import PROXIMAL_SEGMENTS, PlantParams, body_capsules
+from spm_console.description.mjcf import PROXIMAL_SEGMENTS, PlantParams, body_capsules, xml_comment
 
 F = NDArray[np.float64]
 
@@ -86,9 +86,9 @@ def wrist_urdf(model: SpmModel, params: PlantParams, limits_rad: F,
     caps = body_capsules(model, params)
     effort = params.kt_nm_per_a * params.supply_v / params.resistance_ohm  # stall torque
     speed = params.supply_v / params.kt_nm_per_a  # no-load speed (back-EMF = supply)
-    out = [f'<?xml version="1.0"?>\n<robot name="{escape(name)}">']
+    out = [f'<?xml version="1.0"?>\n<robot name={quoteattr(name)}>']
     if sources:
-        out.append(f"<!-- {escape(sources).replace('--', '- -')} -->")
+        out.append(xml_comment(sources))
     out.append('<link name="base_link"/>')
 
     def link(body: str, proximal_leg: int | None = None, distal_leg: int | None = None) -> str:

@@ -297,7 +297,7 @@ class Session(ServoTools, FollowTools):
              "distance_mm": c["distance_mm"], "theta_deg": c["theta_deg"]} for c in hits])
         from spm_console.motion.logs.mcap_log import write_run_mcap  # loads mcap
 
-        with contextlib.suppress(SpmError, OSError, ValueError):  # the MCAP carries them too
+        with contextlib.suppress(Exception):  # the MCAP carries them too (the run stands)
             write_run_mcap(Path(result.log_dir), self.profile)
 
     def home(self, on_sample: SampleCallback | None = None) -> ExecutionResult:

@@ -91,7 +91,7 @@ def test_every_sample_of_the_csv_is_in_the_mcap(run_dir: Path, agile: Profile) -
                  -2)
     assert np.allclose(R, rots, atol=1e-12)
     tf = topics["/tf"][0][1].transforms[0]
-    assert tf.header.frame_id == "base_link" and tf.child_frame_id == "platform"
+    assert tf.header.frame_id == "base_link" and tf.child_frame_id == "platform_fk"
 
     events = [json.loads(m.data) for _, m in topics["/spm/events"]]
     assert events == [json.loads(json.dumps(e)) for e in run.events]

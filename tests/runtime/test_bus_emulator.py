@@ -7,6 +7,7 @@ import socket
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -321,3 +322,17 @@ def test_a_bus_whose_emulator_is_gone_fails_with_comm_errors(agile: Profile, lin
     bus.close()
     with pytest.raises(CommError):
         bus.read_position_deg()
+
+
+def test_a_socket_folder_that_cannot_be_served_is_a_bus_error(
+        agile: Profile, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """A socket path over the 107-byte limit: refused as a BusError naming the remedy, and no
+    folder is left behind."""
+    from spm_console.devices.emulator import endpoint
+
+    deep = tmp_path / ("d" * 100)
+    deep.mkdir()
+    monkeypatch.setattr(endpoint, "_short_tmp", lambda: str(deep))
+    with pytest.raises(BusError, match='link = "pty"'):
+        start_emulator(agile)
+    assert list(deep.iterdir()) == []

@@ -81,6 +81,7 @@ def test_the_emulated_wrist_tells_its_owner_when_two_legs_meet(agile: Profile) -
         emu.launch()
         try:
             assert emu.flush()  # every contact up to now told (no waiting on the 0.1 s beat)
+            assert emu.flush()  # and again: each request is answered
             hits = emu.collisions(began, time.perf_counter())
         finally:
             emu.stop()

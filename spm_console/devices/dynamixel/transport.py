@@ -37,6 +37,7 @@ import errno
 import fcntl
 import select
 import socket
+import struct
 import termios
 import threading
 import time
@@ -277,7 +278,7 @@ class SocketTransport(Transport):
 
     def _waiting(self) -> int:
         buf = fcntl.ioctl(self.fileno(), termios.FIONREAD, b"\0\0\0\0")
-        return int.from_bytes(buf, "little", signed=True)
+        return int(struct.unpack("i", buf)[0])  # the host's int
 
     def _read(self, n: int) -> bytes:
         try:

@@ -6,8 +6,9 @@ timeout. So the console runs :func:`~spm_console.devices.emulator.bus.start_emul
 here, in its own process: ``python -m spm_console.devices.emulator.child --parent PID``
 reads the profile (JSON) and options on stdin, prints ``{"port": ...}`` and serves
 until its owner stops it (SIGUSR1) or is gone. On SIGUSR2 it tells the physical wrist's leg
-contacts at once and then ``{"flushed": N}`` (N: the how-many-th such request), so that its
-owner knows it has heard every contact up to that instant (:meth:`EmulatorChild.flush`).
+contacts at once and then ``{"flushed": T}``: every contact up to the instant T
+(``time.perf_counter()``, shared by the processes) has been told (:meth:`EmulatorChild.flush`;
+signals that arrive together count as one, and T still answers each of them).
 
 The emulated servos stand in for hardware, which no signal switches off: the terminating
 signals (SIGINT, SIGTERM, SIGHUP, SIGQUIT: a service manager stopping every process of its
@@ -18,11 +19,14 @@ end with their owner, at most :data:`PARENT_POLL_S` after it.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import select
 import signal
 import sys
 import threading
+import time
 from collections.abc import Sequence
 from dataclasses import asdict
 from typing import Any
@@ -67,8 +71,8 @@ class EmulatorChild(ChildProcess):
         self._collisions: list[dict[str, Any]] = []
         self._lock = threading.Lock()
         self._flushed = threading.Condition(self._lock)
-        self._flush_asked = 0
-        self._flush_done = 0
+        self._flushed_t = float("-inf")
+        """The latest instant up to which the child has told every contact."""
 
     def collisions(self, since: float, until: float) -> list[dict[str, Any]]:
         """The physical wrist's leg contacts that began between the monotonic instants
@@ -82,15 +86,13 @@ class EmulatorChild(ChildProcess):
         proc = self._proc
         if proc is None or proc.poll() is not None:
             return False
-        with self._flushed:
-            self._flush_asked += 1
-            want = self._flush_asked
+        asked = time.perf_counter()
         try:
             proc.send_signal(signal.SIGUSR2)
         except OSError:
             return False
         with self._flushed:
-            return self._flushed.wait_for(lambda: self._flush_done >= want, timeout_s)
+            return self._flushed.wait_for(lambda: self._flushed_t >= asked, timeout_s)
 
     def _read_events(self, stdout: Any) -> None:
         try:
@@ -105,8 +107,8 @@ class EmulatorChild(ChildProcess):
                     if isinstance(data.get("collision"), dict):
                         self._collisions.append(data["collision"])
                         del self._collisions[:-MAX_COLLISIONS]
-                    if isinstance(data.get("flushed"), int):
-                        self._flush_done = max(self._flush_done, int(data["flushed"]))
+                    if isinstance(data.get("flushed"), (int, float)):
+                        self._flushed_t = max(self._flushed_t, float(data["flushed"]))
                         self._flushed.notify_all()
         except (OSError, ValueError):  # the pipe closed under us: the child was stopped
             return
@@ -137,20 +139,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     place_on_loop_cpu()  # the emulated servos answer the loop: the same CPU, see spm_console.system.cpus
     request_realtime(HELPER_PRIORITY)  # shares the emulator's GIL: see realtime.HELPER_PRIORITY
     quick_gil_handoff()  # the servo thread answers within ~0.5 ms of a request
-    stop = threading.Event()
-    wake = threading.Event()
-    flushes = [0]
+    # the handlers only set a flag and write a byte to a pipe the loop waits on: no lock is
+    # taken in a handler (the main thread may hold it when the signal lands)
+    wake_r, wake_w = os.pipe()
+    os.set_blocking(wake_w, False)
+    asked = {"stop": 0, "flush": 0}  # counters: the loop never writes them
 
-    def on_flush(*_: Any) -> None:
-        flushes[0] += 1
-        wake.set()
+    def on_signal(sig: int, *_: Any) -> None:
+        asked["stop" if sig == signal.SIGUSR1 else "flush"] += 1
+        with contextlib.suppress(OSError):
+            os.write(wake_w, b"!")
 
-    def on_stop(*_: Any) -> None:
-        stop.set()
-        wake.set()
-
-    signal.signal(signal.SIGUSR1, on_stop)
-    signal.signal(signal.SIGUSR2, on_flush)
+    signal.signal(signal.SIGUSR1, on_signal)
+    signal.signal(signal.SIGUSR2, on_signal)
     try:
         req = json.loads(sys.stdin.read())
         profile = parse_profile(req["profile"], "profile")
@@ -163,25 +164,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     for _ in range(100):  # the serving thread asks for real-time scheduling as it starts
         if em.realtime.detail != "not serving yet":
             break
-        stop.wait(0.01)
+        time.sleep(0.01)
     sys.stdout.write(json.dumps({"port": em.port, "realtime": em.realtime.detail,
                                  "realtime_granted": em.realtime.policy == "SCHED_FIFO"}) + "\n")
     sys.stdout.flush()
     told = 0
     try:
-        while not stop.is_set() and em.running:
-            wake.wait(EVENTS_EVERY_S)
-            wake.clear()
-            if stop.is_set() or (args.parent and os.getppid() != args.parent):
+        while not asked["stop"] and em.running:
+            with contextlib.suppress(InterruptedError):
+                if select.select([wake_r], [], [], EVENTS_EVERY_S)[0]:
+                    os.read(wake_r, 4096)
+            if asked["stop"] or (args.parent and os.getppid() != args.parent):
                 break
-            asked = flushes[0]
+            flushes = asked["flush"]  # one read: a later request finds its byte in the pipe
+            now = time.perf_counter()
             if em.wrist is not None:  # the legs' contacts, told to the owner as they begin
                 em.joint_deg()  # steps the wrist up to now first
                 for c in em.wrist.contacts.take():
                     sys.stdout.write(json.dumps({"collision": asdict(c)}) + "\n")
-            if asked > told:
-                sys.stdout.write(json.dumps({"flushed": asked}) + "\n")
-                told = asked
+            if flushes > told:
+                sys.stdout.write(json.dumps({"flushed": now}) + "\n")
+                told = flushes
             sys.stdout.flush()
     finally:
         em.stop()

@@ -26,10 +26,11 @@ from collections.abc import Callable, Sequence
 from typing import Literal, Protocol
 
 from spm_console.devices.dynamixel.transport import UNIX_PREFIX
+from spm_console.errors import BusError
 
 Link = Literal["socket", "pty"]
-#: Clients served at once on the socket (a further one is turned away).
-MAX_CLIENTS = 8
+#: Clients served at once on the socket (a further one is turned away: its first request fails).
+MAX_CLIENTS = 32
 #: How long a reply may wait for a full client's stream before it is dropped, s.
 WRITE_WAIT_S = 0.5
 
@@ -137,12 +138,20 @@ class SocketEndpoint(Endpoint):
 
     def __init__(self, decoder: Callable[[], Decoder]) -> None:
         self._decoder = decoder
-        self._dir = tempfile.mkdtemp(prefix="spm-bus-")  # mode 0700: this user's clients only
+        # mode 0700: this user's clients only; in a short folder (a socket's path has at most
+        # 107 bytes)
+        self._dir = tempfile.mkdtemp(prefix="spm-bus-", dir=_short_tmp())
         path = os.path.join(self._dir, "bus")
         self._listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        self._listener.bind(path)
-        self._listener.listen(MAX_CLIENTS)
-        self._listener.setblocking(False)
+        try:
+            self._listener.bind(path)
+            self._listener.listen(MAX_CLIENTS)
+            self._listener.setblocking(False)
+        except OSError as exc:
+            self._listener.close()
+            shutil.rmtree(self._dir, ignore_errors=True)
+            raise BusError(f"cannot serve the emulated bus on {path}: {exc.strerror or exc}; "
+                           "set [emulator] link = \"pty\" in the profile") from None
         self.port = UNIX_PREFIX + path
         self._channels: dict[int, Channel] = {}
 
@@ -186,6 +195,14 @@ class SocketEndpoint(Endpoint):
         with contextlib.suppress(OSError):
             self._listener.close()
         shutil.rmtree(self._dir, ignore_errors=True)
+
+
+def _short_tmp() -> str:
+    """A writable folder for the socket whose path leaves room under the 107-byte limit."""
+    for base in (os.environ.get("XDG_RUNTIME_DIR"), tempfile.gettempdir(), "/tmp"):
+        if base and len(base) < 64 and os.path.isdir(base) and os.access(base, os.W_OK):
+            return base
+    return tempfile.gettempdir()
 
 
 def open_endpoint(link: Link, decoder: Callable[[], Decoder]) -> Endpoint:

@@ -13,7 +13,9 @@ the run's wall-clock start plus the sample's time):
   ``joint1..3``): θ*, the measured θ with the Kalman velocity, the model's θ and velocity,
   measured − model;
 * ``/spm/platform`` (geometry_msgs/msg/QuaternionStamped) and ``/tf`` (tf2_msgs/msg/TFMessage,
-  base_link → platform): the platform's orientation from the FK of the measured θ;
+  base_link → ``platform_fk``): the platform's orientation from the FK of the measured θ (a frame
+  of its own: robot_state_publisher, fed the URDF and ``/joint_states``, publishes the URDF's
+  ``platform`` link under ``distal0``, and a frame has one parent);
 * ``/spm/events`` (std_msgs/msg/String): each event as one JSON object, so every channel stays
   CDR and ``ros2 bag play`` can replay the whole file;
 * ``/robot_description`` (std_msgs/msg/String, once at the start): the URDF.
@@ -26,9 +28,12 @@ from __future__ import annotations
 import datetime as dt
 import json
 import math
+import os
+import tempfile
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 from mcap_ros2.writer import Writer
@@ -41,11 +46,15 @@ from spm_console.core.kinematics.joint_states import joint_states
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.description.for_profile import robot_description
 from spm_console.jsonutil import to_jsonable
-from spm_console.motion.logs.runlog import RunData, load_run
+from spm_console.motion.logs.runlog import RunData, append_events, load_run
+from spm_console.system.realtime import normal_priority
 
 F = NDArray[np.float64]
 
 MCAP_NAME = "run.mcap"
+#: Longest run (rows) whose MCAP is written as it ends: 5 minutes at Ts = 20 ms, about 6 s of
+#: writing on a 2-core machine (0.4 ms per row); a longer one is deferred to ``logs export``.
+MAX_ROWS_AT_FINISH = 15_000
 
 _RULE = "=" * 80
 _TIME = "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
@@ -118,61 +127,102 @@ def platform_rotations(model: SpmModel, theta: F) -> F:
     return rots
 
 
-def write_mcap(run: RunData, model: SpmModel, urdf: str, out: Path) -> int:
-    """Write ``run`` as MCAP to ``out`` (replaced); the number of messages written."""
-    t0 = start_ns(run.meta)
+@dataclass(frozen=True)
+class _Rows:
+    """The run's rows as published (rad, rad/s; ns stamps)."""
+
+    stamp_ns: list[int]
+    ref: F
+    meas: F
+    pred: F
+    vel: F
+    pred_vel: F
+    posed: NDArray[np.bool_]
+    """Rows with a measurement and a pose from the FK."""
+    joints: F
+    """Every URDF joint (N, 9): motors, distal, platform."""
+    quats: F
+    """The platform's orientation (N, 4), x y z w."""
+
+
+def _seconds(x: object) -> float:
+    """A time in seconds from a log (0 when it is missing or not a finite number)."""
+    try:
+        v = float(x)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return 0.0
+    return v if math.isfinite(v) else 0.0
+
+
+def _rows(run: RunData, model: SpmModel, t0: int) -> _Rows:
     rad = math.pi / 180.0
     t = run.columns.get("t", np.zeros(run.rows))
-    ref, meas, pred = run.vec("ref") * rad, run.vec("meas") * rad, run.vec("pred") * rad
-    vel, pred_vel = run.vec("vel") * rad, run.vec("pred_vel") * rad
+    meas = run.vec("meas") * rad
     rots = platform_rotations(model, meas)
     posed = ~np.isnan(rots[:, 0, 0])
-    joints = joint_states(model, np.where(posed[:, None], meas, model.theta_home),
-                          np.where(posed[:, None, None], rots, np.eye(3)))
-    quats = Rotation.from_matrix(np.where(posed[:, None, None], rots, np.eye(3))).as_quat()
-    count = 0
-    tmp = out.with_name(f".{out.name}.tmp")
-    with tmp.open("wb") as fh:
-        w = Writer(fh)
-        js_schema = w.register_msgdef("sensor_msgs/msg/JointState", JOINT_STATE)
-        q_schema = w.register_msgdef("geometry_msgs/msg/QuaternionStamped", QUATERNION_STAMPED)
-        tf_schema = w.register_msgdef("tf2_msgs/msg/TFMessage", TF_MESSAGE)
-        str_schema = w.register_msgdef("std_msgs/msg/String", STRING)
-        w.add_metadata("spm_console", {k: str(run.meta.get(k, "")) for k in
-                                       ("run", "kind", "outcome", "exit_code", "start_time")}
-                       | {"profile": json.dumps(run.meta.get("profile", {}))})
-        w.write_message("/robot_description", str_schema, {"data": urdf}, t0, t0)
+    rots = np.where(posed[:, None, None], rots, np.eye(3))
+    js = joint_states(model, np.where(posed[:, None], meas, model.theta_home), rots)
+    return _Rows([t0 + round(_seconds(x) * 1e9) for x in t], run.vec("ref") * rad, meas,
+                 run.vec("pred") * rad, run.vec("vel") * rad, run.vec("pred_vel") * rad, posed,
+                 np.hstack([js.motor, js.distal, js.platform]),
+                 Rotation.from_matrix(rots).as_quat())
+
+
+def write_mcap(run: RunData, model: SpmModel, urdf: str, out: Path) -> int:
+    """Write ``run`` as MCAP to ``out`` (replaced whole, never left half-written); the number
+    of messages written."""
+    t0 = start_ns(run.meta)
+    rows = _rows(run, model, t0)
+    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", dir=out.parent)
+    tmp = Path(name)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            count = _write(fh, run, rows, urdf, t0)
+        tmp.replace(out)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return count
+
+
+def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int) -> int:
+    w = Writer(fh)
+    js_schema = w.register_msgdef("sensor_msgs/msg/JointState", JOINT_STATE)
+    q_schema = w.register_msgdef("geometry_msgs/msg/QuaternionStamped", QUATERNION_STAMPED)
+    tf_schema = w.register_msgdef("tf2_msgs/msg/TFMessage", TF_MESSAGE)
+    str_schema = w.register_msgdef("std_msgs/msg/String", STRING)
+    w.add_metadata("spm_console", {k: str(run.meta.get(k, "")) for k in
+                                   ("run", "kind", "outcome", "exit_code", "start_time")}
+                   | {"profile": json.dumps(run.meta.get("profile", {}))})
+    w.write_message("/robot_description", str_schema, {"data": urdf}, t0, t0)
+    count = 1
+    for k, ns in enumerate(rows.stamp_ns):
+        msgs: list[tuple[str, Any, dict[str, Any]]] = [
+            ("/spm/reference", js_schema, _joints(ns, MOTORS, rows.ref[k])),
+            ("/spm/model", js_schema, _joints(ns, MOTORS, rows.pred[k], rows.pred_vel[k])),
+        ]
+        if np.isfinite(rows.meas[k]).all():
+            msgs += [("/spm/measured", js_schema, _joints(ns, MOTORS, rows.meas[k], rows.vel[k])),
+                     ("/spm/error", js_schema,
+                      _joints(ns, MOTORS, rows.meas[k] - rows.pred[k]))]
+            if rows.posed[k]:
+                x, y, z, qw = rows.quats[k]
+                quat = {"x": float(x), "y": float(y), "z": float(z), "w": float(qw)}
+                tf = {"header": _stamp(ns, "base_link"), "child_frame_id": "platform_fk",
+                      "transform": {"translation": {"x": 0.0, "y": 0.0, "z": 0.0},
+                                    "rotation": quat}}
+                msgs += [("/joint_states", js_schema, _joints(ns, URDF_JOINTS, rows.joints[k])),
+                         ("/spm/platform", q_schema,
+                          {"header": _stamp(ns, "base_link"), "quaternion": quat}),
+                         ("/tf", tf_schema, {"transforms": [tf]})]
+        for topic, schema, msg in msgs:
+            w.write_message(topic, schema, msg, ns, ns, sequence=k)
+        count += len(msgs)
+    for ev in run.events:
+        ns = t0 + round(_seconds(ev.get("t", 0.0)) * 1e9)
+        w.write_message("/spm/events", str_schema, {"data": json.dumps(to_jsonable(ev))}, ns, ns)
         count += 1
-        for k in range(run.rows):
-            ns = t0 + round(float(t[k]) * 1e9)
-            msgs: list[tuple[str, Any, dict[str, Any]]] = [
-                ("/spm/reference", js_schema, _joints(ns, MOTORS, ref[k])),
-                ("/spm/model", js_schema, _joints(ns, MOTORS, pred[k], pred_vel[k])),
-            ]
-            if np.isfinite(meas[k]).all():
-                msgs += [("/spm/measured", js_schema, _joints(ns, MOTORS, meas[k], vel[k])),
-                         ("/spm/error", js_schema, _joints(ns, MOTORS, meas[k] - pred[k]))]
-                if posed[k]:
-                    all_q = np.concatenate([joints.motor[k], joints.distal[k], joints.platform[k]])
-                    x, y, z, qw = quats[k]
-                    quat = {"x": float(x), "y": float(y), "z": float(z), "w": float(qw)}
-                    tf = {"header": _stamp(ns, "base_link"), "child_frame_id": "platform",
-                          "transform": {"translation": {"x": 0.0, "y": 0.0, "z": 0.0},
-                                        "rotation": quat}}
-                    msgs += [("/joint_states", js_schema, _joints(ns, URDF_JOINTS, all_q)),
-                             ("/spm/platform", q_schema,
-                              {"header": _stamp(ns, "base_link"), "quaternion": quat}),
-                             ("/tf", tf_schema, {"transforms": [tf]})]
-            for topic, schema, msg in msgs:
-                w.write_message(topic, schema, msg, ns, ns, sequence=k)
-            count += len(msgs)
-        for ev in run.events:
-            ns = t0 + round(float(ev.get("t", 0.0)) * 1e9)
-            w.write_message("/spm/events", str_schema,
-                            {"data": json.dumps(to_jsonable(ev))}, ns, ns)
-            count += 1
-        w.finish()
-    tmp.replace(out)
+    w.finish()
     return count
 
 
@@ -185,5 +235,23 @@ def write_run_mcap(run_dir: Path, profile: Profile, out: Path | None = None) -> 
 
 
 def mcap_beside(profile: Profile) -> Callable[[Path], object]:
-    """A :attr:`RunLog.on_finish` that writes the run's MCAP beside its CSV."""
-    return lambda run_dir: write_run_mcap(run_dir, profile)
+    """A :attr:`RunLog.on_finish` that writes the run's MCAP beside its CSV, at normal priority
+    whatever thread finishes the log (a stopped servo loop's is real-time). A run longer than
+    :data:`MAX_ROWS_AT_FINISH` rows gets an ``mcap_deferred`` event instead: writing it would
+    hold the run's result back for seconds; ``logs export --mcap`` writes it."""
+
+    def write(run_dir: Path) -> None:
+        normal_priority()
+        run = load_run(run_dir)
+        if run.rows > MAX_ROWS_AT_FINISH:
+            t = run.columns.get("t")
+            append_events(run_dir, [{
+                "t": _seconds(t[-1]) if t is not None and len(t) else 0.0,
+                "event": "mcap_deferred", "rows": run.rows,
+                "message": f"{run.rows} rows: run.mcap not written at the end of the run; "
+                           f"`spm-console logs export --mcap {run_dir.name}` writes it"}])
+            return
+        write_mcap(run, model_of(profile), robot_description(profile, "urdf"),
+                   Path(run_dir) / MCAP_NAME)
+
+    return write

@@ -126,3 +126,14 @@ def test_urdf_masses_and_inertias_are_mujocos(agile: Profile, tmp_path: Path) ->
         assert np.allclose(inertial.inertia, full, rtol=1e-7, atol=1e-12), name
     total = sum(robot.link_map[n].inertial.mass for n in names)
     assert np.isclose(total, 6 * agile.plant.link_mass_kg + agile.plant.platform_mass_kg)
+
+
+@pytest.mark.parametrize("name", ["x---y", "a--b-", "wrist 2.0+"])
+def test_any_profile_name_gives_well_formed_files(agile: Profile, name: str) -> None:
+    import xml.etree.ElementTree as ET
+
+    named = agile.model_copy(update={"profile": agile.profile.model_copy(update={"name": name})})
+    robot = ET.fromstring(robot_description(named, "urdf").split("\n", 1)[1])
+    assert robot.get("name") == name
+    ET.fromstring(robot_description(named, "mjcf"))
+    mujoco.MjModel.from_xml_string(robot_description(named, "mjcf"))

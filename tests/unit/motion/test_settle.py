@@ -41,7 +41,8 @@ def _run(s: Settling, servo: StickyServo, periods: int) -> tuple[int, np.ndarray
 def test_the_offset_is_taken_up_within_the_tolerance() -> None:
     goal = np.array([66.8, 155.0, 131.48])
     law = Settle(duration_s=1.0, max_correction_deg=0.5, tolerance_deg=0.1)
-    servo = StickyServo(goal + [0.2, 0.25, -0.3], band=2 * TICK, bias=np.array([0.0, 0.2, -0.1]))
+    servo = StickyServo(goal + np.array([0.2, 0.25, -0.3]), band=2 * TICK,
+                        bias=np.array([0.0, 0.2, -0.1]))
     s = Settling(law, goal, lambda theta: True)
     periods, read = _run(s, servo, settle_periods(law, 0.02))
     assert s.settled and periods <= 30
