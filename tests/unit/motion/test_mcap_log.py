@@ -56,3 +56,18 @@ def test_a_failed_write_leaves_nothing_behind(tmp_path: Path, agile: Profile,
     with pytest.raises(RuntimeError):
         mcap_log.write_run_mcap(run, agile)
     assert sorted(p.name for p in run.iterdir()) == ["events.jsonl", "meta.json", "samples.csv"]
+
+
+def test_a_long_run_defers_its_mcap_to_logs_export(tmp_path: Path, agile: Profile,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    from spm_console.motion.logs.runlog import load_run
+
+    run = _run(tmp_path, agile)
+    monkeypatch.setattr(mcap_log, "MAX_ROWS_AT_FINISH", 4)
+    mcap_log.mcap_beside(agile)(run)
+    assert not (run / mcap_log.MCAP_NAME).exists()
+    (ev,) = [e for e in load_run(run).events if e["event"] == "mcap_deferred"]
+    assert ev["rows"] == 5 and "logs export --mcap" in ev["message"]
+    monkeypatch.setattr(mcap_log, "MAX_ROWS_AT_FINISH", 5)
+    mcap_log.mcap_beside(agile)(run)
+    assert (run / mcap_log.MCAP_NAME).is_file()
