@@ -66,3 +66,29 @@ def random_rotations(n: int, seed: int) -> F:
         np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
         np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
     ], -2)
+
+
+def matrix_quaternion(R: F) -> F:
+    """Unit quaternions (..., 4) as x, y, z, w (ROS's order, w ≥ 0) of rotation matrices
+    (..., 3, 3): from the largest of the four squared components (Shepperd), exact to rounding
+    for any rotation."""
+    R = np.asarray(R, float)
+    tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
+    sq = np.stack([1 + 2 * R[..., 0, 0] - tr, 1 + 2 * R[..., 1, 1] - tr,
+                   1 + 2 * R[..., 2, 2] - tr, 1 + tr], -1)  # 4x², 4y², 4z², 4w²
+    pick = np.argmax(sq, axis=-1)
+    s = np.sqrt(np.maximum(np.take_along_axis(sq, pick[..., None], -1)[..., 0], 1e-300))
+    # each row of candidates: 4·q for the component picked, the others from the off-diagonals
+    d = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                  R[..., 1, 0] - R[..., 0, 1]], -1)  # 4w·(x, y, z)
+    p = np.stack([R[..., 1, 0] + R[..., 0, 1], R[..., 0, 2] + R[..., 2, 0],
+                  R[..., 2, 1] + R[..., 1, 2]], -1)  # 4xy, 4xz, 4yz
+    cand = np.stack([
+        np.stack([s * s, p[..., 0], p[..., 1], d[..., 0]], -1),  # x largest: 4x·(x, y, z, w)
+        np.stack([p[..., 0], s * s, p[..., 2], d[..., 1]], -1),  # y largest
+        np.stack([p[..., 1], p[..., 2], s * s, d[..., 2]], -1),  # z largest
+        np.stack([d[..., 0], d[..., 1], d[..., 2], s * s], -1),  # w largest
+    ], -2)
+    q = np.take_along_axis(cand, pick[..., None, None], -2)[..., 0, :] / (2.0 * s[..., None])
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.asarray(np.where(q[..., 3:4] < 0, -q, q))

@@ -38,12 +38,12 @@ from typing import IO, Any
 import numpy as np
 from mcap_ros2.writer import Writer
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.joint_states import joint_states
 from spm_console.core.kinematics.model import SpmModel
+from spm_console.core.kinematics.rotations import matrix_quaternion
 from spm_console.description.for_profile import robot_description
 from spm_console.jsonutil import to_jsonable
 from spm_console.motion.logs.runlog import RunData, append_events, load_run
@@ -165,7 +165,7 @@ def _rows(run: RunData, model: SpmModel, t0: int) -> _Rows:
     return _Rows([t0 + round(_seconds(x) * 1e9) for x in t], run.vec("ref") * rad, meas,
                  run.vec("pred") * rad, run.vec("vel") * rad, run.vec("pred_vel") * rad, posed,
                  np.hstack([js.motor, js.distal, js.platform]),
-                 Rotation.from_matrix(rots).as_quat())
+                 matrix_quaternion(rots))
 
 
 def write_mcap(run: RunData, model: SpmModel, urdf: str, out: Path) -> int:
