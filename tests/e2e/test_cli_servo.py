@@ -52,7 +52,8 @@ def cli(capsys: pytest.CaptureFixture[str], relaxed: str) -> Run:
     return run
 
 
-@pytest.mark.parametrize("link", ["pty", "socket"])
+# the socket variant in the slow set (make test-slow): make test stays within 8 minutes
+@pytest.mark.parametrize("link", ["pty", pytest.param("socket", marks=pytest.mark.slow)])
 def test_emulate_process_serves_until_sigterm(relaxed: str, link: str) -> None:
     """The default pty, a serial device; or the socket, port unix:PATH, which ``--port`` opens
     and which is gone with the emulator."""

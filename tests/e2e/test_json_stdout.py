@@ -47,6 +47,7 @@ sys.exit(main(["fk", "--theta", "135", "135", "135", "--json"]))
 '''
 
 
+@pytest.mark.slow  # two processes; in make test-slow and make test-newest
 @pytest.mark.parametrize("fail", [False, True])
 def test_json_stdout_is_one_object_whatever_libraries_print(fail: bool) -> None:
     env = {"FAIL": "1"} if fail else {}

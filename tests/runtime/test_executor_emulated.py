@@ -22,7 +22,8 @@ from tests.support.exec_helpers import paper_mvn, run_on_emulator, true_velocity
 from tests.support.ws_helpers import agile_workspace
 
 
-@pytest.mark.parametrize("link", ["socket", "pty"])
+# over the pty in the slow set (make test-slow; the bus tests cover the pty in make test)
+@pytest.mark.parametrize("link", ["socket", pytest.param("pty", marks=pytest.mark.slow)])
 def test_paper_mvn_tracks_model_and_kalman_beats_finite_differences(
     agile: Profile, tmp_path: Path, link: str
 ) -> None:
