@@ -179,7 +179,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             flushes = asked["flush"]  # one read: a later request finds its byte in the pipe
             now = time.perf_counter()
             if em.wrist is not None:  # the legs' contacts, told to the owner as they begin
-                em.joint_deg()  # steps the wrist up to now first
+                if flushes > told:
+                    em.joint_deg()  # steps the wrist up to now first (the serving thread waits)
                 for c in em.wrist.contacts.take():
                     sys.stdout.write(json.dumps({"collision": asdict(c)}) + "\n")
             if flushes > told:
