@@ -118,20 +118,21 @@ def envelope_name(leg: int, segment: str) -> str:
     return f"envelope{leg}_{segment}"
 
 
+def envelope_segments(model: SpmModel, links: LinkModel, leg: int,
+                      proximal: bool) -> list[tuple[str, F, F]]:
+    """The leg's checked segments on its proximal (or distal) link, at home: (name, a, b), m."""
+    pts = links.points(model.u, model.geom.w(model.theta_home), model.v_home)  # mm
+    return [(seg, *(pts[e][leg] / 1000.0 for e in SEGMENT_ENDS[seg]))
+            for seg in links.segments if (seg in PROXIMAL_SEGMENTS) == proximal]
+
+
 def _envelopes(model: SpmModel, links: LinkModel | None, leg: int, proximal: bool) -> str:
     if links is None:
         return ""
-    w = model.geom.w(model.theta_home)
-    pts = links.points(model.u, w, model.v_home)  # mm, at home: the bodies' own frames
-    out = []
-    for seg in links.segments:
-        if (seg in PROXIMAL_SEGMENTS) != proximal:
-            continue
-        a, b = (pts[e][leg] / 1000.0 for e in SEGMENT_ENDS[seg])
-        out.append(f'<geom name="{envelope_name(leg, seg)}" type="capsule" '
+    return "".join(f'<geom name="{envelope_name(leg, seg)}" type="capsule" '
                    f'fromto="{_vec(a)} {_vec(b)}" size="{links.delta / 1000.0:.6g}" mass="0" '
-                   f'contype="0" conaffinity="0" group="3"/>')
-    return "".join(out)
+                   f'contype="0" conaffinity="0" group="3"/>'
+                   for seg, a, b in envelope_segments(model, links, leg, proximal))
 
 
 def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = None) -> str:

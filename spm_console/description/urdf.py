@@ -19,11 +19,11 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
+from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.rotations import matrix_rpy
 from spm_console.description.inertia import MassProperties, capsule, combined
-from spm_console.description.mjcf import PROXIMAL_SEGMENTS, PlantParams, body_capsules, xml_comment
+from spm_console.description.mjcf import PlantParams, body_capsules, envelope_segments, xml_comment
 
 F = NDArray[np.float64]
 
@@ -66,15 +66,9 @@ def _envelope(model: SpmModel, links: LinkModel | None, leg: int, proximal: bool
     radius δ (URDF has no capsule)."""
     if links is None:
         return ""
-    pts = links.points(model.u, model.geom.w(model.theta_home), model.v_home)
-    out = []
-    for seg in links.segments:
-        if (seg in PROXIMAL_SEGMENTS) != proximal:
-            continue
-        a, b = (pts[e][leg] / 1000.0 for e in SEGMENT_ENDS[seg])
-        out.append(f"<collision name=\"envelope{leg + 1}_{seg}\">"
-                   f"{_cylinder(a, b, links.delta / 1000.0)}</collision>")
-    return "".join(out)
+    return "".join(f"<collision name=\"envelope{leg + 1}_{seg}\">"
+                   f"{_cylinder(a, b, links.delta / 1000.0)}</collision>"
+                   for seg, a, b in envelope_segments(model, links, leg, proximal))
 
 
 def wrist_urdf(model: SpmModel, params: PlantParams, limits_rad: F,
