@@ -269,7 +269,7 @@ def test_one_lost_ping_reply_is_retried_not_a_missing_servo(
     lost = {"n": 0}
 
     def flaky_ping(ident: int):  # type: ignore[no-untyped-def]
-        if lost["n"] < 2:  # the first two replies are lost (fewer than PING_ATTEMPTS)
+        if lost["n"] < 2:  # the first two replies are lost (fewer than the set-up tries)
             lost["n"] += 1
             raise CommError("no status packet (injected)")
         return real_ping(ident)

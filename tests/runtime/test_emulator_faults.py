@@ -114,6 +114,21 @@ def test_delayed_replies_time_out_and_never_arrive_as_stale_data(agile: Profile)
         assert np.allclose(bus.read_position_deg(), 135.0)
 
 
+def test_set_up_waits_longer_than_the_loop_but_not_forever(agile: Profile) -> None:
+    """A bus slower than the link's timeout: the loop's reads time out, but set-up (ping,
+    status) retries with more patience and finds the servos; a bus slower than the most
+    patient try reports the servo absent."""
+    with rig(agile, "delay:0.04", timeout_s=0.004) as (_, bus):
+        assert [s.id for s in bus.ping_all()] == [1, 2, 3]
+        time.sleep(0.1)  # the late replies of the set-up's first tries land and are dropped
+        with pytest.raises(CommError):
+            bus.read_position_deg()
+        assert bus.transport.timeout_s == 0.004  # the patience ended with the set-up
+    with rig(agile, "delay:0.6", timeout_s=0.004) as (_, bus), \
+            pytest.raises(BusError, match="no status packet from servo id 1"):
+        bus.ping(1)
+
+
 def test_delay_starts_at_its_time(agile: Profile) -> None:
     with rig(agile, "delay:0.05@0.3") as (em, bus):
         em.start_clock()

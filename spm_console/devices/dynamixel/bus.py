@@ -51,21 +51,27 @@ class LimitError(BadInputError):
         self.limits_deg = limits_deg
 
 
-#: Tries of a set-up transaction (ping, status read) before a servo counts as absent.
-PING_ATTEMPTS = 3
+#: Reply timeouts of the tries of a set-up transaction (ping, status read), s, before a
+#: servo counts as absent: the link's own first, then more patient ones. One lost or slow
+#: reply (a servo just powered, an emulated bus on a loaded machine) is not a missing servo;
+#: set-up is not the real-time loop, so waiting costs nothing there.
+SETUP_TIMEOUTS_S = (0.0, 0.05, 0.25)
 
 
 #: Quiet time on the line before a set-up retry: late replies to the failed try drain first.
 RETRY_QUIET_S = 0.02
 
 
-def _retry(fn: Callable[[], T], drain: Callable[[float], object], attempts: int = PING_ATTEMPTS) -> T:
-    """Call ``fn``, retrying once the line is quiet when a reply is lost (CommError)."""
-    for k in range(attempts):
+def _retry(fn: Callable[[], T], transport: Transport,
+           drain: Callable[[float], object]) -> T:
+    """Call ``fn``, retrying with a longer reply timeout, once the line is quiet, when a
+    reply is lost (CommError); the last CommError is raised."""
+    for k, timeout_s in enumerate(SETUP_TIMEOUTS_S):
         try:
-            return fn()
+            with transport.patience(timeout_s):
+                return fn()
         except CommError:
-            if k == attempts - 1:
+            if k == len(SETUP_TIMEOUTS_S) - 1:
                 raise
             drain(RETRY_QUIET_S)
     raise AssertionError("unreachable")
@@ -124,10 +130,10 @@ class DynamixelBus:
     # --- ping / status ----------------------------------------------------------------
 
     def ping(self, ident: int) -> ServoStatus:
-        """Ping one id; BusError if it does not answer (after :data:`PING_ATTEMPTS` tries:
-        one lost reply is not a missing servo) or is not the profile's model."""
+        """Ping one id; BusError if it does not answer (after the tries of
+        :data:`SETUP_TIMEOUTS_S`: one lost reply is not a missing servo) or is not the profile's model."""
         try:
-            model, fw, r = _retry(lambda: self.link.ping(ident), self.drain_input)
+            model, fw, r = _retry(lambda: self.link.ping(ident), self.transport, self.drain_input)
         except CommError as exc:
             raise BusError(
                 f"no status packet from servo id {ident} on {self.port} ({exc}). Check power, "
@@ -147,7 +153,8 @@ class DynamixelBus:
         out = []
         for ident in self.ids:
             st = self.ping(ident)
-            hw = _retry(functools.partial(self._hardware_error, ident), self.drain_input)
+            hw = _retry(functools.partial(self._hardware_error, ident), self.transport,
+                        self.drain_input)
             out.append(ServoStatus(id=st.id, model_number=st.model_number, firmware=st.firmware,
                                    hardware_error=hw))
         return out

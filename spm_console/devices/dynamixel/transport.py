@@ -41,7 +41,7 @@ import struct
 import termios
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Protocol, TypeVar
 
 import serial
@@ -128,6 +128,18 @@ class Transport:
         except OSError as exc:  # serial.SerialException is an OSError
             raise CommError(f"write to {self.port} failed: {exc}") from None
         self.bytes_out += len(packet)
+
+    @contextlib.contextmanager
+    def patience(self, timeout_s: float) -> Iterator[None]:
+        """Within the block, wait at least ``timeout_s`` for each reply (set-up retries: a
+        servo or an emulated bus slow to answer once is not absent). Holds the lock."""
+        with self._lock:
+            before = self.timeout_s
+            self.timeout_s = max(before, timeout_s)
+            try:
+                yield
+            finally:
+                self.timeout_s = before
 
     def transact(self, packet: bytes, decoder: StreamDecoder[P], count: int,
                  timeout_s: float | None = None,
