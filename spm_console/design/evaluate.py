@@ -1,0 +1,160 @@
+"""One design of a sweep: its profile (the base's TOML with the design's values), its
+workspace (Algorithm 2 and P, eq. (30)), its figures of merit and, when the spec names
+start/goal pairs, whether each can be planned (minimum time, eq. (31)).
+
+:func:`evaluate` is what a sweep's worker runs: it holds no state between designs (all it
+needs travels in its :class:`DesignTask`), so a task lost with its worker is simply run
+again. A design that cannot be built — a profile the checks refuse, no forward kinematics or
+a singular or infeasible home — is a row with its reason, never an exception.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import socket
+import time
+import tomllib
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from spm_console.config.load import check_home_mode, home_signs, parse_profile, with_grid_step
+from spm_console.config.models import geometry_of, grid_spec, servo_model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.modes import home_model
+from spm_console.core.workspace.metrics import WorkspaceMetrics, workspace_metrics
+from spm_console.core.workspace_build import build_workspace
+from spm_console.errors import SpmError
+
+#: The columns of a design's figures of merit (those of WorkspaceMetrics, in order).
+METRICS = (*(f.name for f in fields(WorkspaceMetrics)), "torsion_range_deg")
+
+
+@dataclass(frozen=True)
+class DesignTask:
+    """Everything one design needs (plain data: it travels to a worker)."""
+
+    index: int
+    params: dict[str, float]
+    """Parameter name -> value (deg or mm)."""
+    base_text: str
+    """The base profile's TOML."""
+    step_deg: float
+    """The workspace grid's Δ, deg."""
+    pairs: tuple[tuple[tuple[float, float, float], tuple[float, float, float]], ...] = ()
+    """(start, goal) motor angles, deg."""
+
+
+@dataclass(frozen=True)
+class DesignRow:
+    """One design's result: parameters, figures of merit (NaN when it failed), cost."""
+
+    index: int
+    params: dict[str, float]
+    ok: bool
+    reason: str
+    """Why the design could not be built ("" when ok)."""
+    metrics: dict[str, float]
+    """Figure name (:data:`METRICS`) -> value; NaN when not ok."""
+    pair_times_s: tuple[float, ...] = ()
+    """Minimum time of each start/goal pair, s (NaN: no plan)."""
+    pair_reasons: tuple[str, ...] = ()
+    """Why a pair has no plan ("" when it has one)."""
+    seconds: float = 0.0
+    """Wall time of the design on its worker, s."""
+    worker: str = ""
+    """host:pid of the process that computed it."""
+    sign_seed: tuple[int, ...] = field(default_factory=tuple)
+    """The home assembly mode's signs for this geometry (the base's mode, followed)."""
+
+    @property
+    def pairs_planned(self) -> int:
+        return sum(1 for t in self.pair_times_s if math.isfinite(t))
+
+    def to_json(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["metrics"] = {k: (None if not math.isfinite(v) else v) for k, v in self.metrics.items()}
+        d["pair_times_s"] = [None if not math.isfinite(t) else t for t in self.pair_times_s]
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> DesignRow:
+        def num(x: Any) -> float:
+            return math.nan if x is None else float(x)
+
+        return cls(
+            index=int(d["index"]), params={str(k): float(v) for k, v in d["params"].items()},
+            ok=bool(d["ok"]), reason=str(d["reason"]),
+            metrics={str(k): num(v) for k, v in d["metrics"].items()},
+            pair_times_s=tuple(num(t) for t in d.get("pair_times_s", ())),
+            pair_reasons=tuple(str(r) for r in d.get("pair_reasons", ())),
+            seconds=float(d.get("seconds", 0.0)), worker=str(d.get("worker", "")),
+            sign_seed=tuple(int(s) for s in d.get("sign_seed", ())),
+        )
+
+
+def design_profile(base_text: str, params: dict[str, float], source: str) -> Profile:
+    """The profile of one design: the base's TOML with ``params`` in ``[geometry]`` /
+    ``[links]``, and the home assembly mode the base's seed selects, followed to this
+    geometry (its signs become the seed). ProfileError when the checks refuse it."""
+    from spm_console.design.spec import PARAMETERS
+
+    data: dict[str, Any] = tomllib.loads(base_text)
+    for name, value in params.items():
+        data.setdefault(PARAMETERS[name][0], {})[name] = float(value)
+    prof = parse_profile(data, source)
+    try:
+        with np.errstate(all="ignore"):
+            model = home_model(geometry_of(prof), np.radians(np.asarray(prof.home.theta_deg)),
+                               np.asarray(prof.home.sign_seed, float))
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise ValueError(f"home: {exc}") from None
+    if not np.isfinite(model.v_home).all():
+        raise ValueError("home: the forward kinematics gives no finite pose")
+    data["home"]["sign_seed"] = home_signs(model.v_home.tolist())
+    prof = parse_profile(data, source)
+    check_home_mode(prof, source)
+    return prof
+
+
+def _pairs(prof: Profile, region: Any, task: DesignTask) -> tuple[tuple[float, ...], tuple[str, ...]]:
+    from spm_console.core.planning.mintime import solve_mintime
+
+    model = servo_model_of(prof)
+    times: list[float] = []
+    reasons: list[str] = []
+    for start, goal in task.pairs:
+        try:
+            res = solve_mintime(model, np.asarray(start), np.asarray(goal), region,
+                                prof.limits.vmax_degps)
+            times.append(res.N * prof.servo.ts_s)
+            reasons.append("")
+        except SpmError as exc:
+            times.append(math.nan)
+            reasons.append(exc.message)
+    return tuple(times), tuple(reasons)
+
+
+def evaluate(task: DesignTask) -> DesignRow:
+    """Build and measure one design (see the module docstring)."""
+    t0 = time.perf_counter()
+    who = f"{socket.gethostname()}:{os.getpid()}"
+    nan = dict.fromkeys(METRICS, math.nan)
+    source = f"design {task.index}"
+    try:
+        prof = with_grid_step(design_profile(task.base_text, task.params, source), task.step_deg)
+        with np.errstate(all="ignore"):
+            ws = build_workspace(grid_spec(prof), cover=False)
+        m = workspace_metrics(ws)
+    except (SpmError, ValueError, np.linalg.LinAlgError) as exc:
+        reason = exc.message if isinstance(exc, SpmError) else str(exc)
+        return DesignRow(task.index, dict(task.params), False, reason, nan,
+                         seconds=time.perf_counter() - t0, worker=who)
+    metrics = {**asdict(m), "torsion_range_deg": m.torsion_range_deg}
+    times, reasons = _pairs(prof, ws.region, task) if task.pairs else ((), ())
+    return DesignRow(task.index, dict(task.params), True, "",
+                     {k: float(v) for k, v in metrics.items()}, times, reasons,
+                     seconds=time.perf_counter() - t0, worker=who,
+                     sign_seed=tuple(prof.home.sign_seed))

@@ -1,0 +1,197 @@
+"""Run a design sweep on Dask (``dask.distributed``): an embedded local cluster on the
+allowed cores, or an existing cluster's scheduler.
+
+Each design is one task (:func:`spm_console.design.evaluate.evaluate`) with a key made of
+the spec's digest and the design's index; the driver writes each row to the folder's
+journal as it finishes (:mod:`spm_console.design.table`), so a stopped sweep resumes where
+it stopped. Workers hold no state between designs: when a worker dies, the scheduler runs
+its tasks again elsewhere; a design that kills its worker repeatedly (the scheduler's
+``allowed-failures``) is a row with that reason. Ctrl-C (or SIGTERM / SIGHUP) stops the
+sweep: the cluster is closed, the table is written from what is done, and the same
+command resumes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import resource
+import signal
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from spm_console.design.evaluate import METRICS, DesignRow, DesignTask, evaluate
+from spm_console.design.spec import SweepSpec
+from spm_console.design.table import Journal, SweepInfo, open_folder, write_table
+from spm_console.errors import BadInputError, InterruptedBySignalError
+
+#: How long to wait for an existing scheduler to answer, s.
+CONNECT_TIMEOUT_S = 10.0
+
+
+@dataclass(frozen=True)
+class SweepProgress:
+    """Where a sweep stands."""
+
+    done: int
+    """Designs done, this run and earlier ones."""
+    total: int
+    computed: int
+    """Designs computed in this run."""
+    elapsed_s: float
+    """Since this run's first task was sent, s."""
+
+    @property
+    def rate_per_s(self) -> float:
+        return self.computed / self.elapsed_s if self.elapsed_s > 0 else 0.0
+
+    @property
+    def eta_s(self) -> float | None:
+        r = self.rate_per_s
+        return (self.total - self.done) / r if r > 0 else None
+
+
+@dataclass(frozen=True)
+class SweepOutcome:
+    """A finished sweep."""
+
+    folder: Path
+    table: Path
+    total: int
+    resumed: int
+    """Designs found done in the folder before this run."""
+    computed: int
+    failed: int
+    """Designs that could not be built (rows with a reason)."""
+    seconds: float
+    workers: int
+    worker_peak_rss_mb: dict[str, float] = field(default_factory=dict)
+    """Peak resident memory of each worker process, MB (embedded cluster or not)."""
+
+
+def allowed_cores() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _peak_rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while the workers start: they inherit it, so Ctrl-C in the terminal
+    reaches only this process, which closes the cluster in order."""
+    try:
+        before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: leave the signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+@contextlib.contextmanager
+def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
+    """A client of ``scheduler`` (``tcp://host:port``), or of an embedded local cluster of
+    ``workers`` single-threaded processes (default: one per allowed core)."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise BadInputError(f"--scheduler {scheduler}: no Dask scheduler answered "
+                                f"({exc})") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = workers or allowed_cores()
+    with _sigint_ignored():
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+    try:
+        client = Client(cluster, set_as_default=False)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        cluster.close()
+
+
+def _killed_row(task: DesignTask, exc: BaseException) -> DesignRow:
+    return DesignRow(task.index, dict(task.params), False,
+                     f"its task killed the worker running it each time it ran ({exc})",
+                     dict.fromkeys(METRICS, float("nan")))
+
+
+def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
+              workers: int | None = None,
+              progress: Callable[[SweepProgress], None] | None = None,
+              on_client: Callable[[Any], None] | None = None) -> SweepOutcome:
+    """Run (or resume) ``spec`` into ``folder``; ``progress`` after each design,
+    ``on_client(client)`` once the cluster is up. InterruptedBySignalError on Ctrl-C /
+    SIGTERM / SIGHUP, after the table is written from what is done."""
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    t0 = time.perf_counter()
+    rows = open_folder(folder, spec)
+    info = SweepInfo.of(spec)
+    resumed = len(rows)
+    step = spec.base.workspace.step_deg
+    pairs = tuple((tuple(p.start_deg), tuple(p.goal_deg)) for p in spec.pairs)
+    tasks = [DesignTask(i, spec.params(i), spec.base_text, step, pairs)  # type: ignore[arg-type]
+             for i in range(spec.count) if i not in rows]
+    computed = 0
+    peak: dict[str, float] = {}
+    n_workers = 0
+    journal = Journal(folder)
+    try:
+        if tasks:
+            with dask_client(scheduler, workers) as client:
+                n_workers = len(client.scheduler_info().get("workers", {}))
+                if on_client is not None:
+                    on_client(client)
+                by_key = {f"design-{spec.digest[:16]}-{t.index}": t for t in tasks}
+                futures = client.map(evaluate, tasks, key=list(by_key), pure=False)
+                t_send = time.perf_counter()
+                for fut in as_completed(futures, loop=client.loop):
+                    exc = fut.exception() if fut.status == "error" else None
+                    # a design whose task killed its workers is a row; any other error is a bug
+                    row = (_killed_row(by_key[fut.key], exc) if isinstance(exc, KilledWorker)
+                           else fut.result())
+                    fut.release()
+                    journal.append(row)
+                    rows[row.index] = row
+                    computed += 1
+                    if progress is not None:
+                        progress(SweepProgress(len(rows), spec.count, computed,
+                                               time.perf_counter() - t_send))
+                with contextlib.suppress(Exception):  # a report, never a reason to fail
+                    peak = {str(k): float(v) for k, v in client.run(_peak_rss_mb).items()}
+    except KeyboardInterrupt as exc:
+        write_table(folder, info, rows)
+        why = f" by {exc.args[0]}" if exc.args else ""
+        raise InterruptedBySignalError(
+            f"sweep stopped{why}: {len(rows)} of {spec.count} designs done, kept in {folder}; "
+            "the same command resumes it") from None
+    finally:
+        journal.close()
+    table = write_table(folder, info, rows)
+    return SweepOutcome(folder=folder, table=table, total=spec.count, resumed=resumed,
+                        computed=computed, failed=sum(1 for r in rows.values() if not r.ok),
+                        seconds=time.perf_counter() - t0, workers=n_workers,
+                        worker_peak_rss_mb=peak)
