@@ -37,6 +37,7 @@ COMMANDS: dict[str, str] = {
     "reproduce": "spm_console.cli.tools.reproduce",
     "latency": "spm_console.cli.tools.latency",
     "export": "spm_console.cli.tools.export",
+    "design": "spm_console.cli.design",
 }
 COMMAND_MODULES = list(dict.fromkeys(COMMANDS.values()))
 

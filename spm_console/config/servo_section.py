@@ -8,26 +8,12 @@ profile before anyone writes it.
 
 from __future__ import annotations
 
-import json
-import math
 import re
 
+from spm_console.config.edit import HEADER as _HEADER
+from spm_console.config.edit import toml_value as _value
 from spm_console.config.load import parse_profile_text
 from spm_console.config.schema import Profile, Servo
-
-_HEADER = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\-\s\"']+?)\s*\]\s*(#.*)?$")
-
-
-def _value(v: object) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            raise ValueError(f"not a finite number: {v}")
-        return repr(v)
-    return json.dumps(str(v), ensure_ascii=False)
 
 
 def servo_lines(servo: Servo) -> list[str]:

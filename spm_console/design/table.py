@@ -22,6 +22,7 @@ from spm_console.errors import BadInputError
 from spm_console.safe_io import MB, FileRefusedError, read_capped, write_text_atomic
 
 SWEEP_FILE = "sweep.json"
+BASE_PROFILE = "base_profile.toml"
 JOURNAL = "rows.jsonl"
 TABLE = "results.parquet"
 #: Largest journal line read back (a row is under 2 kB).
@@ -59,6 +60,17 @@ def read_info(folder: Path) -> SweepInfo:
         raise BadInputError(f"{path}: not a sweep record ({exc})") from None
 
 
+def read_base_text(folder: Path) -> str:
+    """The base profile's TOML kept in a sweep folder (as the sweep read it)."""
+    path = folder / BASE_PROFILE
+    try:
+        return read_capped(path, MAX_SWEEP_FILE_BYTES).decode("utf-8")
+    except FileRefusedError as exc:
+        raise BadInputError(f"{path}: {exc.reason}") from None
+    except UnicodeDecodeError:
+        raise BadInputError(f"{path}: not UTF-8 text") from None
+
+
 def open_folder(folder: Path, spec: SweepSpec) -> dict[int, DesignRow]:
     """Create ``folder`` for ``spec``, or reopen it: the designs already done (by index).
     BadInputError when it holds another sweep."""
@@ -74,6 +86,7 @@ def open_folder(folder: Path, spec: SweepSpec) -> dict[int, DesignRow]:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise BadInputError(f"--out {folder}: {exc.strerror or exc}") from None
+    write_text_atomic(folder / BASE_PROFILE, spec.base_text, BadInputError)
     write_text_atomic(folder / SWEEP_FILE, json.dumps(
         {"digest": info.digest, "spec": info.spec, "names": list(info.names),
          "count": info.count, "sampling": info.sampling, "pairs": info.pairs}, indent=1) + "\n",
