@@ -35,7 +35,8 @@ def register(sub: Any) -> None:
                    help="an existing Dask scheduler (tcp://HOST:PORT); default: a local "
                         "cluster on the allowed cores")
     s.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="worker processes of the local cluster (default: one per allowed core)")
+                   help="worker processes of the local cluster (default: one per allowed core; "
+                        "0: in this process, without Dask)")
     s.add_argument("--max-designs", type=int, default=None, metavar="N",
                    help="refuse a spec with more designs (default 100000)")
     s.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -98,9 +99,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from spm_console.design.sweep import allowed_cores, run_sweep
 
     output_folder(args.out, "--out")
-    if args.workers is not None and not 1 <= args.workers <= 4 * allowed_cores():
-        raise BadInputError(f"--workers must be within 1..{4 * allowed_cores()} "
-                            f"(4 × the allowed cores), got {args.workers}")
+    if args.workers is not None and not 0 <= args.workers <= 4 * allowed_cores():
+        raise BadInputError(f"--workers must be within 0..{4 * allowed_cores()} "
+                            f"(4 × the allowed cores; 0: in this process, without Dask), "
+                            f"got {args.workers}")
+    if args.workers is not None and args.scheduler is not None:
+        raise BadInputError("--workers sizes the local cluster: not with --scheduler")
     spec = load_spec(args.spec, args.max_designs or DEFAULT_MAX_DESIGNS)
     info(f"sweep of {spec.count} designs ({spec.sampling}: {', '.join(spec.names)}), grid "
          f"Δ = {spec.base.workspace.step_deg:g}°, into {args.out}")

@@ -65,8 +65,11 @@ def pareto(cols: dict[str, list[Any]], x: str, y: str) -> NDArray[np.int64]:
     sy = 1.0 if RANKED[y] else -1.0
     X = sx * np.asarray([cols[x][i] for i in keep], float)
     Y = sy * np.asarray([cols[y][i] for i in keep], float)
-    front = [k for k in range(len(keep))
-             if not np.any((X >= X[k]) & (Y >= Y[k]) & ((X > X[k]) | (Y > Y[k])))]
+    front = []
+    for k in range(len(keep)):
+        dx, dy = X - X[k], Y - Y[k]
+        if not np.any((dx >= 0) & (dy >= 0) & ((dx > 0) | (dy > 0))):  # no design beats k
+            front.append(k)
     rows = keep[front]
     return rows[np.argsort([cols[x][i] for i in rows], kind="stable")]
 

@@ -137,16 +137,44 @@ def _killed_row(task: DesignTask, exc: BaseException) -> DesignRow:
                      dict.fromkeys(METRICS, float("nan")))
 
 
+def _results(tasks: list[DesignTask], digest: str, scheduler: str | None, workers: int | None,
+             on_client: Callable[[Any], None] | None,
+             peak: dict[str, float]) -> Iterator[DesignRow]:
+    """The tasks' rows as they finish: in this process with ``workers == 0`` (no Dask), else
+    on the cluster; ``peak`` receives the workers' peak memory at the end."""
+    if workers == 0 and scheduler is None:
+        for task in tasks:
+            yield evaluate(task)
+        peak["local"] = _peak_rss_mb()
+        return
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    with dask_client(scheduler, workers) as client:
+        if on_client is not None:
+            on_client(client)
+        by_key = {f"design-{digest[:16]}-{t.index}": t for t in tasks}
+        futures = client.map(evaluate, tasks, key=list(by_key), pure=False)
+        for fut in as_completed(futures, loop=client.loop):
+            exc = fut.exception() if fut.status == "error" else None
+            # a design whose task killed its workers is a row; any other error is a bug
+            row = (_killed_row(by_key[fut.key], exc) if isinstance(exc, KilledWorker)
+                   else fut.result())
+            fut.release()
+            yield row
+        with contextlib.suppress(Exception):  # a report, never a reason to fail
+            peak.update({str(k): float(v) for k, v in client.run(_peak_rss_mb).items()})
+
+
 def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
               workers: int | None = None,
               progress: Callable[[SweepProgress], None] | None = None,
               on_client: Callable[[Any], None] | None = None) -> SweepOutcome:
-    """Run (or resume) ``spec`` into ``folder``; ``progress`` after each design,
-    ``on_client(client)`` once the cluster is up. InterruptedBySignalError on Ctrl-C /
-    SIGTERM / SIGHUP, after the table is written from what is done."""
-    from distributed import as_completed
-    from distributed.scheduler import KilledWorker
-
+    """Run (or resume) ``spec`` into ``folder`` on ``scheduler``, or on a local cluster of
+    ``workers`` processes (None: one per allowed core; 0: in this process, without Dask);
+    ``progress`` after each design, ``on_client(client)`` once a cluster is up.
+    InterruptedBySignalError on Ctrl-C / SIGTERM / SIGHUP, after the table is written from
+    what is done."""
     t0 = time.perf_counter()
     rows = open_folder(folder, spec)
     info = SweepInfo.of(spec)
@@ -157,31 +185,16 @@ def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
              for i in range(spec.count) if i not in rows]
     computed = 0
     peak: dict[str, float] = {}
-    n_workers = 0
     journal = Journal(folder)
+    t_send = time.perf_counter()
     try:
-        if tasks:
-            with dask_client(scheduler, workers) as client:
-                n_workers = len(client.scheduler_info().get("workers", {}))
-                if on_client is not None:
-                    on_client(client)
-                by_key = {f"design-{spec.digest[:16]}-{t.index}": t for t in tasks}
-                futures = client.map(evaluate, tasks, key=list(by_key), pure=False)
-                t_send = time.perf_counter()
-                for fut in as_completed(futures, loop=client.loop):
-                    exc = fut.exception() if fut.status == "error" else None
-                    # a design whose task killed its workers is a row; any other error is a bug
-                    row = (_killed_row(by_key[fut.key], exc) if isinstance(exc, KilledWorker)
-                           else fut.result())
-                    fut.release()
-                    journal.append(row)
-                    rows[row.index] = row
-                    computed += 1
-                    if progress is not None:
-                        progress(SweepProgress(len(rows), spec.count, computed,
-                                               time.perf_counter() - t_send))
-                with contextlib.suppress(Exception):  # a report, never a reason to fail
-                    peak = {str(k): float(v) for k, v in client.run(_peak_rss_mb).items()}
+        for row in _results(tasks, spec.digest, scheduler, workers, on_client, peak):
+            journal.append(row)
+            rows[row.index] = row
+            computed += 1
+            if progress is not None:
+                progress(SweepProgress(len(rows), spec.count, computed,
+                                       time.perf_counter() - t_send))
     except KeyboardInterrupt as exc:
         write_table(folder, info, rows)
         why = f" by {exc.args[0]}" if exc.args else ""
@@ -193,5 +206,5 @@ def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
     table = write_table(folder, info, rows)
     return SweepOutcome(folder=folder, table=table, total=spec.count, resumed=resumed,
                         computed=computed, failed=sum(1 for r in rows.values() if not r.ok),
-                        seconds=time.perf_counter() - t0, workers=n_workers,
+                        seconds=time.perf_counter() - t0, workers=len(peak),
                         worker_peak_rss_mb=peak)
