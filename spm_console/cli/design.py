@@ -153,7 +153,7 @@ def cmd_show(args: argparse.Namespace) -> int:
         lines += [f"  #{r.index}: {r.value:.4g}  " + ", ".join(f"{k} = {v:.4g}" for k, v in r.params.items())
                   for r in rs] or ["  (no design built)"]
     lines.append(f"Pareto front of {x} and {y}: " + (", ".join(
-        f"#{d['index']}" for d in rec["pareto"]["designs"]) or "empty"))
+        f"#{cols['index'][r]}" for r in front) or "empty"))
     if args.plot is not None:
         lines.append(f"plot: {args.plot}")
     emit(args, rec, "\n".join(lines))
