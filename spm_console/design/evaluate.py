@@ -26,6 +26,7 @@ from spm_console.config.schema import Profile
 from spm_console.core.kinematics.modes import home_model
 from spm_console.core.workspace.metrics import WorkspaceMetrics, workspace_metrics
 from spm_console.core.workspace_build import build_workspace
+from spm_console.design.spec import PARAMETERS
 from spm_console.errors import SpmError
 
 #: The columns of a design's figures of merit (those of WorkspaceMetrics, in order).
@@ -99,8 +100,6 @@ def design_profile(base_text: str, params: dict[str, float], source: str) -> Pro
     """The profile of one design: the base's TOML with ``params`` in ``[geometry]`` /
     ``[links]``, and the home assembly mode the base's seed selects, followed to this
     geometry (its signs become the seed). ProfileError when the checks refuse it."""
-    from spm_console.design.spec import PARAMETERS
-
     data: dict[str, Any] = tomllib.loads(base_text)
     for name, value in params.items():
         data.setdefault(PARAMETERS[name][0], {})[name] = float(value)

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from spm_console.config.edit import with_values
 from spm_console.config.schema import Profile
+from spm_console.design.evaluate import design_profile
 from spm_console.design.spec import PARAMETERS
 from spm_console.errors import BadInputError
 
@@ -90,8 +91,6 @@ def design_profile_text(folder: Path, base_text: str, names: tuple[str, ...],
     r = row_of(cols, index)
     if not cols["ok"][r]:
         raise BadInputError(f"design {index} could not be built: {cols['reason'][r]}")
-    from spm_console.design.evaluate import design_profile
-
     params = {n: float(cols[n][r]) for n in names}
     source = f"design {index} of {folder}"
     prof = design_profile(base_text, params, source)
