@@ -120,7 +120,8 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
     n = workers or allowed_cores()
     with _sigint_ignored():
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                               silence_logs=logging.ERROR)
     try:
         client = Client(cluster, set_as_default=False)
         try:

@@ -1,0 +1,115 @@
+"""Design sweeps on Dask: the same table in one process and on a two-worker local cluster; a
+worker killed mid-sweep loses no design; Ctrl-C stops a sweep, and the same command finishes
+it without computing again what was done."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from spm_console.design.spec import load_spec
+from spm_console.design.sweep import SweepProgress, run_sweep
+from spm_console.design.table import JOURNAL, load_table
+from spm_console.errors import ExitCode
+from tests.support.paths import ROOT
+
+AGILE = ROOT / "profiles" / "agile_wrist.toml"
+
+
+def _spec(tmp_path: Path, count: int, step: float = 10.0) -> Path:
+    p = tmp_path / "spec.toml"
+    p.write_text(f'[sweep]\nbase_profile = "{AGILE}"\nstep_deg = {step}\n'
+                 f"[parameters.alpha1_deg]\nmin = 80.0\nmax = 100.0\ncount = {count}\n"
+                 "[parameters.delta_mm]\nmin = 12.0\nmax = 16.0\ncount = 2\n")
+    return p
+
+
+def _comparable(folder: Path) -> str:
+    _, cols = load_table(folder)
+    return repr({c: v for c, v in cols.items() if c not in ("seconds", "worker")})
+
+
+def test_one_process_and_a_two_worker_cluster_give_the_same_table(tmp_path: Path) -> None:
+    spec = load_spec(_spec(tmp_path, 3))
+    alone = run_sweep(spec, tmp_path / "alone", workers=0)
+    pair = run_sweep(spec, tmp_path / "pair", workers=2)
+    assert (alone.computed, pair.computed, pair.workers) == (6, 6, 2)
+    assert _comparable(tmp_path / "alone") == _comparable(tmp_path / "pair")
+    _, cols = load_table(tmp_path / "pair")
+    assert len({w.split(":")[1] for w in cols["worker"]}) >= 1  # computed by worker processes
+    assert str(os.getpid()) not in {w.split(":")[1] for w in cols["worker"]}
+
+
+@pytest.mark.slow  # a cluster, a killed worker and its restart (CI runs the slow set)
+def test_a_worker_killed_mid_sweep_loses_no_design(tmp_path: Path) -> None:
+    spec = load_spec(_spec(tmp_path, 8, step=5.0))
+    pids: list[int] = []
+    killed: list[int] = []
+
+    def on_client(client: Any) -> None:
+        pids.extend(client.run(os.getpid).values())
+
+    def progress(p: SweepProgress) -> None:
+        if p.computed == 2 and not killed:  # mid-sweep: one worker dies with its task
+            killed.append(pids[0])
+            os.kill(pids[0], signal.SIGKILL)
+
+    out = run_sweep(spec, tmp_path / "s", workers=2, progress=progress, on_client=on_client)
+    assert killed and out.computed == 16 and out.failed == 0
+    _, cols = load_table(tmp_path / "s")
+    assert cols["index"] == list(range(16)) and all(cols["ok"])
+    reference = run_sweep(spec, tmp_path / "ref", workers=0)
+    assert reference.computed == 16
+    assert _comparable(tmp_path / "s") == _comparable(tmp_path / "ref")
+
+
+@pytest.mark.slow  # two whole commands with their clusters
+def test_ctrl_c_stops_the_sweep_and_the_same_command_finishes_it(tmp_path: Path) -> None:
+    spec = _spec(tmp_path, 10, step=5.0)
+    out = tmp_path / "s"
+    cmd = [sys.executable, "-m", "spm_console", "design", "sweep", str(spec), "--out", str(out),
+           "--workers", "2", "--json"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)  # its own group: Ctrl-C reaches all of it
+    journal = out / JOURNAL
+    t_end = time.monotonic() + 120
+    while time.monotonic() < t_end and proc.poll() is None:
+        if journal.exists() and journal.read_text().count("\n") >= 3:
+            break
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == ExitCode.INTERRUPTED, stderr
+    assert json.loads(stdout)["ok"] is False and "the same command resumes" in stderr
+    assert "Traceback" not in stderr
+    before = journal.read_bytes()
+    done = before.count(b"\n")
+    assert 3 <= done < 20
+    second = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert second.returncode == 0, second.stderr
+    rec = json.loads(second.stdout)
+    assert rec["resumed"] == done and rec["computed"] == 20 - done
+    assert journal.read_bytes().startswith(before)  # nothing done was computed again
+    _, cols = load_table(out)
+    assert cols["index"] == list(range(20))
+
+
+def test_no_scheduler_at_the_address_is_a_refusal(tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    from spm_console.cli.main import main
+    from spm_console.design import sweep
+
+    monkeypatch.setattr(sweep, "CONNECT_TIMEOUT_S", 1.0)
+    rc = main(["design", "sweep", str(_spec(tmp_path, 2)), "--out", str(tmp_path / "s"),
+               "--scheduler", "tcp://127.0.0.1:9", "--json"])
+    assert rc == ExitCode.BAD_INPUT
+
+
