@@ -37,6 +37,7 @@ def _comparable(folder: Path) -> str:
     return repr({c: v for c, v in cols.items() if c not in ("seconds", "worker")})
 
 
+@pytest.mark.slow  # a two-worker cluster on both cores (CI runs the slow set)
 def test_one_process_and_a_two_worker_cluster_give_the_same_table(tmp_path: Path) -> None:
     spec = load_spec(_spec(tmp_path, 3))
     alone = run_sweep(spec, tmp_path / "alone", workers=0)
