@@ -20,14 +20,17 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.config.load import check_home_mode, home_signs, parse_profile, with_grid_step
+from spm_console.config.load import check_home_mode, home_signs, parse_profile
 from spm_console.config.models import geometry_of, grid_spec, servo_model_of
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.modes import home_model
 from spm_console.core.workspace.metrics import WorkspaceMetrics, workspace_metrics
 from spm_console.core.workspace_build import build_workspace
 from spm_console.design.spec import PARAMETERS
-from spm_console.errors import SpmError
+from spm_console.errors import ProfileError, SpmError
+
+#: How the reason of a design that met a bug begins (the sweep reports how many did).
+INTERNAL_ERROR = "internal error"
 
 #: The columns of a design's figures of merit (those of WorkspaceMetrics, in order).
 METRICS = (*(f.name for f in fields(WorkspaceMetrics)), "torsion_range_deg")
@@ -96,13 +99,20 @@ class DesignRow:
         )
 
 
-def design_profile(base_text: str, params: dict[str, float], source: str) -> Profile:
+def design_profile(base_text: str, params: dict[str, float], source: str,
+                   step_deg: float | None = None) -> Profile:
     """The profile of one design: the base's TOML with ``params`` in ``[geometry]`` /
-    ``[links]``, and the home assembly mode the base's seed selects, followed to this
-    geometry (its signs become the seed). ProfileError when the checks refuse it."""
-    data: dict[str, Any] = tomllib.loads(base_text)
+    ``[links]`` (and the grid step ``step_deg`` when given), and the home assembly mode the
+    base's seed selects, followed to this geometry (its signs become the seed). ProfileError
+    when the checks refuse it; ValueError when the home pose cannot be solved."""
+    try:
+        data: dict[str, Any] = tomllib.loads(base_text)
+    except (tomllib.TOMLDecodeError, RecursionError) as exc:
+        raise ProfileError(f"{source}: the base profile is not valid TOML: {exc}") from None
     for name, value in params.items():
         data.setdefault(PARAMETERS[name][0], {})[name] = float(value)
+    if step_deg is not None:
+        data.setdefault("workspace", {})["step_deg"] = float(step_deg)
     prof = parse_profile(data, source)
     try:
         with np.errstate(all="ignore"):
@@ -143,13 +153,18 @@ def evaluate(task: DesignTask) -> DesignRow:
     nan = dict.fromkeys(METRICS, math.nan)
     source = f"design {task.index}"
     try:
-        prof = with_grid_step(design_profile(task.base_text, task.params, source), task.step_deg)
+        prof = design_profile(task.base_text, task.params, source, task.step_deg)
         with np.errstate(all="ignore"):
             ws = build_workspace(grid_spec(prof), cover=False)
         m = workspace_metrics(ws)
     except (SpmError, ValueError, np.linalg.LinAlgError) as exc:
         reason = exc.message if isinstance(exc, SpmError) else str(exc)
         return DesignRow(task.index, dict(task.params), False, reason, nan,
+                         seconds=time.perf_counter() - t0, worker=who)
+    except Exception as exc:  # a bug on one design's geometry must not stop a whole sweep
+        return DesignRow(task.index, dict(task.params), False,
+                         f"{INTERNAL_ERROR}: {type(exc).__name__}: {exc} (please report it "
+                         "with this design's parameters)", nan,
                          seconds=time.perf_counter() - t0, worker=who)
     metrics = {**asdict(m), "torsion_range_deg": m.torsion_range_deg}
     times, reasons = _pairs(prof, ws.region, task) if task.pairs else ((), ())

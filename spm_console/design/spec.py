@@ -41,7 +41,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from spm_console.config.checks import validation_message
 from spm_console.config.load import parse_profile_text, with_grid_step
-from spm_console.config.schema import Geometry, Links, Profile, Real
+from spm_console.config.schema import Count, Geometry, Links, Profile, Real
 from spm_console.errors import BadInputError, ProfileError
 from spm_console.safe_io import MB, FileRefusedError, read_capped
 
@@ -74,17 +74,17 @@ class Range(_Strict):
 
     min: Real
     max: Real
-    count: int = Field(default=1, ge=1, le=1000)
+    count: Count = Field(default=1, ge=1, le=1000)
     """Values on the grid, evenly spaced from min to max (grid sampling only)."""
 
 
 class SweepSection(_Strict):
     base_profile: str = Field(min_length=1, max_length=4096)
     sampling: Literal["grid", "lhs"] = "grid"
-    samples: int = Field(default=0, ge=0, le=HARD_MAX_DESIGNS)
-    seed: int = Field(default=0, ge=0, le=2**32 - 1)
-    step_deg: Real | None = Field(default=None, gt=0.0, le=90.0)
-    max_nodes: int = Field(default=DEFAULT_MAX_NODES, ge=8, le=HARD_MAX_NODES)
+    samples: Count = Field(default=0, ge=0, le=HARD_MAX_DESIGNS)
+    seed: Count = Field(default=0, ge=0, le=2**32 - 1)
+    step_deg: Real | None = Field(default=None, gt=0.0, le=30.0)
+    max_nodes: Count = Field(default=DEFAULT_MAX_NODES, ge=8, le=HARD_MAX_NODES)
 
 
 class Pair(_Strict):
@@ -160,12 +160,19 @@ def _check_range(name: str, r: Range, source: str) -> None:
 def _values(spec: SpecFile, names: list[str], source: str, max_designs: int) -> np.ndarray:
     ranges = [spec.parameters[n] for n in names]
     if spec.sweep.sampling == "grid":
+        if spec.sweep.samples:
+            raise BadInputError(f"{source}: sweep.samples: only for sampling = \"lhs\" (a grid "
+                                "has the product of the parameters' counts)")
         count = math.prod(r.count for r in ranges)
         if count > max_designs:
             raise BadInputError(f"{source}: parameters: the grid has {count} designs, more than "
                                 f"the {max_designs} allowed (--max-designs)")
         axes = [np.linspace(r.min, r.max, r.count) for r in ranges]
         return np.array(list(itertools.product(*axes)), float).reshape(-1, len(names))
+    for n, r in zip(names, ranges, strict=True):
+        if r.count != 1:
+            raise BadInputError(f"{source}: parameters.{n}.count: only for sampling = \"grid\" "
+                                "(lhs draws sweep.samples designs)")
     if spec.sweep.samples < 1:
         raise BadInputError(f"{source}: sweep.samples: lhs sampling needs samples ≥ 1")
     if spec.sweep.samples > max_designs:
@@ -189,9 +196,16 @@ def _base(spec: SpecFile, path: Path) -> tuple[Profile, str]:
     except (FileRefusedError, UnicodeDecodeError) as exc:
         reason = exc.reason if isinstance(exc, FileRefusedError) else "not UTF-8 text"
         raise BadInputError(f"{path}: sweep.base_profile: {bp}: {reason}") from None
-    prof = parse_profile_text(text, str(bp))
+    try:
+        prof = parse_profile_text(text, str(bp))
+    except ProfileError as exc:
+        raise ProfileError(f"{path}: sweep.base_profile: {exc.message}") from None
     if spec.sweep.step_deg is not None:
-        prof = with_grid_step(prof, spec.sweep.step_deg, f"{path}: sweep.step_deg")
+        try:
+            prof = with_grid_step(prof, spec.sweep.step_deg, "step")
+        except ProfileError as exc:
+            why = exc.message.split(":", 1)[-1].strip()
+            raise BadInputError(f"{path}: sweep.step_deg = {spec.sweep.step_deg:g}: {why}") from None
     return prof, text
 
 
@@ -215,10 +229,7 @@ def load_spec(path: str | Path, max_designs: int = DEFAULT_MAX_DESIGNS) -> Sweep
     names = list(spec.parameters)
     for n in names:
         _check_range(n, spec.parameters[n], str(p))
-    try:
-        base, text = _base(spec, p)
-    except ProfileError as exc:
-        raise BadInputError(f"{p}: sweep.base_profile: {exc.message}") from None
+    base, text = _base(spec, p)
     w = base.workspace
     nodes = (round((w.theta_max_deg - w.theta_min_deg) / w.step_deg) + 1) ** 3
     if nodes > spec.sweep.max_nodes:

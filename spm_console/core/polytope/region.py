@@ -13,6 +13,8 @@ F = NDArray[np.float64]
 
 #: Smallest slack (relative to the point's size) of a hint used as qhull's interior point.
 INTERIOR_MARGIN = 1e-4
+#: Chebyshev radius (relative to the centre's size) below which a polytope counts as flat.
+FLAT_RADIUS = 1e-9
 #: A point lies in a region when it violates no half-space by more than this, deg (rows of
 #: unit norm: the slack is a distance). Points computed to lie *on* a face — an IRIS plane
 #: turned to pass through a required end, a vertex, a grid node on a cube's face — miss it by
@@ -161,27 +163,37 @@ class Region:
                     INTERIOR_MARGIN * max(1.0, float(np.abs(h).max())):
                 return h
         c, r = self.chebyshev()
-        return c if r > 0 else None
+        # thinner than this, qhull cannot tell the point from the boundary: flat
+        return c if r > FLAT_RADIUS * max(1.0, float(np.abs(c).max())) else None
 
     def vertices(self, interior: F | None = None) -> F:
         """Vertices (n, 3) of the bounded polytope, deg (qhull, around
         :meth:`interior_point` of ``interior``: a known inner point saves its LP)."""
         from scipy.spatial import HalfspaceIntersection  # here: ~0.2 s to import
 
+        from scipy.spatial import QhullError
+
         c = self.interior_point(interior)
         if c is None:
             return np.zeros((0, 3))
-        hs = HalfspaceIntersection(np.hstack([self.A, -self.b[:, None]]), c)
+        try:
+            hs = HalfspaceIntersection(np.hstack([self.A, -self.b[:, None]]), c)
+        except QhullError:  # numerically flat after all: no full-dimensional polytope
+            return np.zeros((0, 3))
         return np.asarray(hs.intersections)
 
     def volume(self) -> float:
-        """Volume of the bounded polytope, deg³ (0 if empty or flat)."""
-        from scipy.spatial import ConvexHull
+        """Volume of the bounded polytope, deg³ (0 if empty or flat, also when it is too
+        thin for qhull to tell an inner point from the boundary)."""
+        from scipy.spatial import ConvexHull, QhullError
 
         V = self.vertices()
         if len(V) < 4:
             return 0.0
-        return float(ConvexHull(V).volume)
+        try:
+            return float(ConvexHull(V).volume)
+        except QhullError:  # the vertices are coplanar
+            return 0.0
 
     def to_dict(self) -> dict[str, list[list[float]] | list[float]]:
         return {"A": self.A.tolist(), "b": self.b.tolist()}
