@@ -71,7 +71,8 @@ def output_file(path: Path | None, what: str, suffixes: tuple[str, ...] = ()) ->
         raise BadInputError(f"{what} {path}: use a {', '.join(suffixes)} file name")
     folder = path.parent
     if not folder.is_dir():
-        raise BadInputError(f"{what} {path}: the folder {folder} does not exist")
+        why = "is not a folder" if folder.exists() else "does not exist"
+        raise BadInputError(f"{what} {path}: the folder {folder} {why}")
     if path.is_dir():
         raise BadInputError(f"{what} {path}: is a folder; give a file name")
 

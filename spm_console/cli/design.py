@@ -8,6 +8,7 @@ draws a Pareto plot; ``profile DIR K --out NEW.toml`` writes design K's profile.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -29,7 +30,7 @@ def register(sub: Any) -> None:
     dsub = p.add_subparsers(dest="design_command", metavar="ACTION", required=True)
     s = dsub.add_parser("sweep", help="compute every design of a spec (resumes a stopped sweep)")
     s.add_argument("spec", type=Path, metavar="SPEC.toml", help="the sweep's specification")
-    s.add_argument("--out", type=Path, required=True, metavar="DIR",
+    s.add_argument("--out", type=str, required=True, metavar="DIR",
                    help="folder of the sweep (created; the same folder resumes it)")
     s.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="an existing Dask scheduler (tcp://HOST:PORT); default: a local "
@@ -94,21 +95,32 @@ def _duration(s: float) -> str:
     return f"{s / 3600:.1f} h"
 
 
+def check_scheduler(address: str) -> None:
+    """A Dask scheduler's address: ``tcp://HOST:PORT`` (or ``tls://``, or ``HOST:PORT``)."""
+    m = re.fullmatch(r"(?:(tcp|tls)://)?([A-Za-z0-9.\-]+|\[[0-9A-Fa-f:.]+\]):(\d{1,5})", address)
+    if m is None or not 1 <= int(m.group(3)) <= 65535:
+        raise BadInputError(f"--scheduler {address!r}: expected tcp://HOST:PORT (or tls://HOST:PORT)")
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     from spm_console.design.spec import DEFAULT_MAX_DESIGNS, load_spec
     from spm_console.design.sweep import allowed_cores, run_sweep
 
+    if not str(args.out).strip():
+        raise BadInputError("--out: give the sweep's folder")
     output_folder(args.out, "--out")
+    if args.scheduler is not None:
+        check_scheduler(args.scheduler)
     if args.workers is not None and not 0 <= args.workers <= 4 * allowed_cores():
         raise BadInputError(f"--workers must be within 0..{4 * allowed_cores()} "
                             f"(4 × the allowed cores; 0: in this process, without Dask), "
                             f"got {args.workers}")
     if args.workers is not None and args.scheduler is not None:
         raise BadInputError("--workers sizes the local cluster: not with --scheduler")
-    spec = load_spec(args.spec, args.max_designs or DEFAULT_MAX_DESIGNS)
+    spec = load_spec(args.spec, DEFAULT_MAX_DESIGNS if args.max_designs is None else args.max_designs)
     info(f"sweep of {spec.count} designs ({spec.sampling}: {', '.join(spec.names)}), grid "
          f"Δ = {spec.base.workspace.step_deg:g}°, into {args.out}")
-    out = run_sweep(spec, args.out, args.scheduler, args.workers, progress_printer(sys.stderr))
+    out = run_sweep(spec, Path(args.out), args.scheduler, args.workers, progress_printer(sys.stderr))
     rec = {"ok": True, "folder": str(out.folder), "table": str(out.table), "designs": out.total,
            "resumed": out.resumed, "computed": out.computed, "failed": out.failed,
            "seconds": out.seconds, "workers": out.workers,
@@ -131,6 +143,8 @@ def cmd_show(args: argparse.Namespace) -> int:
     for m in metrics:
         check_metric(m, "--metric")
     x, y = args.pareto or ("tilt_cone_deg", "zeta_mean")
+    if x == y:
+        raise BadInputError(f"--pareto {x} {y}: give two different figures")
     info_, cols = load_table(args.folder)
     ranked = {m: best(cols, info_.names, m, args.top) for m in metrics}
     front = pareto(cols, x, y)

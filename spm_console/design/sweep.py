@@ -26,7 +26,7 @@ from typing import Any
 
 from spm_console.design.evaluate import METRICS, DesignRow, DesignTask, evaluate
 from spm_console.design.spec import SweepSpec
-from spm_console.design.table import Journal, SweepInfo, open_folder, write_table
+from spm_console.design.table import Journal, SweepInfo, create_folder, read_done, write_table
 from spm_console.errors import BadInputError, InterruptedBySignalError
 
 #: How long to wait for an existing scheduler to answer, s.
@@ -139,11 +139,13 @@ def _killed_row(task: DesignTask, exc: BaseException) -> DesignRow:
 
 
 def _results(tasks: list[DesignTask], digest: str, scheduler: str | None, workers: int | None,
-             on_client: Callable[[Any], None] | None,
+             on_client: Callable[[Any], None] | None, ready: Callable[[], None],
              peak: dict[str, float]) -> Iterator[DesignRow]:
     """The tasks' rows as they finish: in this process with ``workers == 0`` (no Dask), else
-    on the cluster; ``peak`` receives the workers' peak memory at the end."""
+    on the cluster; ``ready()`` once they can run (the cluster is up); ``peak`` receives the
+    workers' peak memory at the end."""
     if workers == 0 and scheduler is None:
+        ready()
         for task in tasks:
             yield evaluate(task)
         peak["local"] = _peak_rss_mb()
@@ -152,6 +154,7 @@ def _results(tasks: list[DesignTask], digest: str, scheduler: str | None, worker
     from distributed.scheduler import KilledWorker
 
     with dask_client(scheduler, workers) as client:
+        ready()
         if on_client is not None:
             on_client(client)
         by_key = {f"design-{digest[:16]}-{t.index}": t for t in tasks}
@@ -177,7 +180,7 @@ def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
     InterruptedBySignalError on Ctrl-C / SIGTERM / SIGHUP, after the table is written from
     what is done."""
     t0 = time.perf_counter()
-    rows = open_folder(folder, spec)
+    rows = read_done(folder, spec)
     info = SweepInfo.of(spec)
     resumed = len(rows)
     step = spec.base.workspace.step_deg
@@ -186,24 +189,35 @@ def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
              for i in range(spec.count) if i not in rows]
     computed = 0
     peak: dict[str, float] = {}
-    journal = Journal(folder)
+    journals: list[Journal] = []
+
+    def ready() -> None:  # the folder is made only once the designs can run
+        create_folder(folder, spec)
+        journals.append(Journal(folder))
+
+    if not tasks:
+        ready()
+    results = (_results(tasks, spec.digest, scheduler, workers, on_client, ready, peak) if tasks
+               else iter(()))
     t_send = time.perf_counter()
     try:
-        for row in _results(tasks, spec.digest, scheduler, workers, on_client, peak):
-            journal.append(row)
+        for row in results:
+            journals[0].append(row)
             rows[row.index] = row
             computed += 1
             if progress is not None:
                 progress(SweepProgress(len(rows), spec.count, computed,
                                        time.perf_counter() - t_send))
     except KeyboardInterrupt as exc:
-        write_table(folder, info, rows)
+        if journals:
+            write_table(folder, info, rows)
         why = f" by {exc.args[0]}" if exc.args else ""
         raise InterruptedBySignalError(
             f"sweep stopped{why}: {len(rows)} of {spec.count} designs done, kept in {folder}; "
             "the same command resumes it") from None
     finally:
-        journal.close()
+        for j in journals:
+            j.close()
     table = write_table(folder, info, rows)
     return SweepOutcome(folder=folder, table=table, total=spec.count, resumed=resumed,
                         computed=computed, failed=sum(1 for r in rows.values() if not r.ok),

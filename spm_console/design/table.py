@@ -12,12 +12,13 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from spm_console.design.evaluate import METRICS, DesignRow
-from spm_console.design.spec import SweepSpec
+from spm_console.design.spec import HARD_MAX_DESIGNS, MAX_PAIRS, PARAMETERS, SweepSpec
 from spm_console.errors import BadInputError
 from spm_console.safe_io import MB, FileRefusedError, read_capped, write_text_atomic
 
@@ -52,12 +53,38 @@ def read_info(folder: Path) -> SweepInfo:
     path = folder / SWEEP_FILE
     try:
         d = json.loads(read_capped(path, MAX_SWEEP_FILE_BYTES))
-        return SweepInfo(str(d["digest"]), str(d["spec"]), tuple(str(n) for n in d["names"]),
-                         int(d["count"]), str(d["sampling"]), int(d.get("pairs", 0)))
+        info = SweepInfo(d["digest"], d["spec"], tuple(d["names"]), d["count"], d["sampling"],
+                         d.get("pairs", 0))
     except FileRefusedError as exc:
         raise BadInputError(f"{folder}: not a sweep folder ({SWEEP_FILE}: {exc.reason})") from None
     except (ValueError, KeyError, TypeError, RecursionError) as exc:
         raise BadInputError(f"{path}: not a sweep record ({exc})") from None
+    problem = _info_problem(info)
+    if problem:
+        raise BadInputError(f"{path}: not a sweep record ({problem})")
+    return info
+
+
+def _whole(v: object, lo: int, hi: int) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi
+
+
+def _info_problem(info: SweepInfo) -> str:
+    """What is wrong with a read ``sweep.json`` ("" when nothing)."""
+    if not (isinstance(info.digest, str) and re.fullmatch(r"[0-9a-f]{64}", info.digest)):
+        return "digest: not a SHA-256"
+    if not isinstance(info.spec, str):
+        return "spec: not a path"
+    if not (info.names and len(set(info.names)) == len(info.names)
+            and all(isinstance(n, str) and n in PARAMETERS for n in info.names)):
+        return f"names: not distinct sweep parameters ({', '.join(PARAMETERS)})"
+    if not _whole(info.count, 1, HARD_MAX_DESIGNS):
+        return f"count: not a whole number within 1..{HARD_MAX_DESIGNS}"
+    if info.sampling not in ("grid", "lhs"):
+        return "sampling: neither grid nor lhs"
+    if not _whole(info.pairs, 0, MAX_PAIRS):
+        return f"pairs: not a whole number within 0..{MAX_PAIRS}"
+    return ""
 
 
 def read_base_text(folder: Path) -> str:
@@ -71,31 +98,55 @@ def read_base_text(folder: Path) -> str:
         raise BadInputError(f"{path}: not UTF-8 text") from None
 
 
-def open_folder(folder: Path, spec: SweepSpec) -> dict[int, DesignRow]:
-    """Create ``folder`` for ``spec``, or reopen it: the designs already done (by index).
-    BadInputError when it holds another sweep."""
+def read_done(folder: Path, spec: SweepSpec) -> dict[int, DesignRow]:
+    """The designs of ``spec`` already done in ``folder`` (none when it does not exist yet).
+    BadInputError when the folder holds another sweep, or its table's path is not a file."""
+    if not (folder / SWEEP_FILE).exists():
+        return {}
+    held = read_info(folder)
+    if held.digest != spec.digest:
+        raise BadInputError(
+            f"{folder} holds another sweep (spec {held.spec}, digest {held.digest[:12]}…; "
+            f"this spec's is {spec.digest[:12]}…): give another --out")
+    table = folder / TABLE
+    if table.exists() and not table.is_file():
+        raise BadInputError(f"{table}: not a file (the sweep writes its table there)")
+    rows = read_rows(folder, held)
+    # a row is this spec's design only with this spec's values (else it is computed again)
+    return {k: r for k, r in rows.items() if r.params == spec.params(k)}
+
+
+def create_folder(folder: Path, spec: SweepSpec) -> None:
+    """Make ``folder`` hold ``spec``'s sweep (kept as it is when it does; the base profile's
+    copy is written again if it was removed)."""
     info = SweepInfo.of(spec)
-    if (folder / SWEEP_FILE).exists():
-        held = read_info(folder)
-        if held.digest != info.digest:
-            raise BadInputError(
-                f"{folder} holds another sweep (spec {held.spec}, digest {held.digest[:12]}…; "
-                f"this spec's is {info.digest[:12]}…): give another --out")
-        return read_rows(folder, info.count)
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise BadInputError(f"--out {folder}: {exc.strerror or exc}") from None
-    write_text_atomic(folder / BASE_PROFILE, spec.base_text, BadInputError)
-    write_text_atomic(folder / SWEEP_FILE, json.dumps(
-        {"digest": info.digest, "spec": info.spec, "names": list(info.names),
-         "count": info.count, "sampling": info.sampling, "pairs": info.pairs}, indent=1) + "\n",
-        BadInputError)
-    return {}
+    if not (folder / BASE_PROFILE).is_file():
+        write_text_atomic(folder / BASE_PROFILE, spec.base_text, BadInputError)
+    if not (folder / SWEEP_FILE).exists():
+        write_text_atomic(folder / SWEEP_FILE, json.dumps(
+            {"digest": info.digest, "spec": info.spec, "names": list(info.names),
+             "count": info.count, "sampling": info.sampling, "pairs": info.pairs},
+            indent=1) + "\n", BadInputError)
 
 
-def read_rows(folder: Path, count: int) -> dict[int, DesignRow]:
-    """The journal's rows by index (the last line of an index wins; a broken line is skipped)."""
+def valid_row(row: DesignRow, info: SweepInfo) -> bool:
+    """A journal row of this sweep: its index, parameters, figures and pairs as written."""
+    finite = all(isinstance(v, float) and math.isfinite(v) for v in row.params.values())
+    figures = set(row.metrics) == set(METRICS) and (
+        not row.ok or all(math.isfinite(v) for v in row.metrics.values()))
+    return (0 <= row.index < info.count and set(row.params) == set(info.names) and finite
+            and figures and (row.ok or bool(row.reason))
+            and len(row.pair_times_s) == len(row.pair_reasons) == (info.pairs if row.ok else 0))
+
+
+def read_rows(folder: Path, info: SweepInfo) -> dict[int, DesignRow]:
+    """The journal's valid rows by index (the last line of an index wins; a line cut short
+    by a kill, or one that is not a row of this sweep, is skipped: that design runs again)."""
+    count = info.count
     path = folder / JOURNAL
     rows: dict[int, DesignRow] = {}
     if not path.exists():
@@ -111,7 +162,7 @@ def read_rows(folder: Path, count: int) -> dict[int, DesignRow]:
             row = DesignRow.from_json(json.loads(line))
         except (ValueError, KeyError, TypeError, AttributeError, RecursionError):
             continue  # cut short by a kill: that design runs again
-        if 0 <= row.index < count:
+        if valid_row(row, info):
             rows[row.index] = row
     return rows
 
@@ -171,23 +222,18 @@ def write_table(folder: Path, info: SweepInfo, rows: dict[int, DesignRow]) -> Pa
         {"digest": info.digest, "names": list(info.names), "count": info.count})})
     out = folder / TABLE
     tmp = folder / f".{TABLE}.tmp"
-    pq.write_table(table, tmp)
-    os.replace(tmp, out)
+    try:
+        pq.write_table(table, tmp)
+        os.replace(tmp, out)
+    except OSError as exc:
+        raise BadInputError(f"{out}: cannot write the table ({exc.strerror or exc}); the "
+                            f"designs are kept in {folder / JOURNAL}") from None
     return out
 
 
 def load_table(folder: Path) -> tuple[SweepInfo, dict[str, list[Any]]]:
-    """A sweep folder's table as columns (from ``results.parquet``, or from the journal when
-    the table was not written yet)."""
+    """A sweep folder's table as columns, from its journal (what is done, even when the sweep
+    was killed before it wrote ``results.parquet``)."""
     info = read_info(folder)
-    path = folder / TABLE
-    if path.exists():
-        import pyarrow.lib
-        import pyarrow.parquet as pq
-
-        try:
-            return info, pq.read_table(path).to_pydict()
-        except (OSError, pyarrow.lib.ArrowException) as exc:
-            raise BadInputError(f"{path}: not a readable Parquet table ({exc})") from None
-    rows = read_rows(folder, info.count)
+    rows = read_rows(folder, info)
     return info, columns(info, [rows[k] for k in sorted(rows)])

@@ -114,3 +114,36 @@ def test_no_scheduler_at_the_address_is_a_refusal(tmp_path: Path,
     assert rc == ExitCode.BAD_INPUT
 
 
+
+
+@pytest.mark.slow  # a scheduler and a worker started as a lab would, then a sweep on them
+def test_a_sweep_runs_on_an_existing_cluster(tmp_path: Path) -> None:
+    import socket
+
+    from spm_console.cli.main import main
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    dask = Path(sys.executable).with_name("dask")
+    address = f"tcp://127.0.0.1:{port}"
+    logs = [open(tmp_path / f"{n}.log", "w") for n in ("scheduler", "worker")]  # noqa: SIM115
+    procs = [subprocess.Popen([str(dask), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--no-dashboard"], stdout=logs[0], stderr=logs[0])]
+    try:
+        procs.append(subprocess.Popen([str(dask), "worker", address, "--nworkers", "2",
+                                       "--nthreads", "1", "--no-dashboard"],
+                                      stdout=logs[1], stderr=logs[1]))
+        spec = load_spec(_spec(tmp_path, 2))
+        rc = main(["design", "sweep", str(_spec(tmp_path, 2)), "--out", str(tmp_path / "far"),
+                   "--scheduler", address])
+        assert rc == 0
+        run_sweep(spec, tmp_path / "near", workers=0)
+        assert _comparable(tmp_path / "far") == _comparable(tmp_path / "near")
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.wait(timeout=30)
+        for f in logs:
+            f.close()

@@ -169,9 +169,7 @@ class Region:
     def vertices(self, interior: F | None = None) -> F:
         """Vertices (n, 3) of the bounded polytope, deg (qhull, around
         :meth:`interior_point` of ``interior``: a known inner point saves its LP)."""
-        from scipy.spatial import HalfspaceIntersection  # here: ~0.2 s to import
-
-        from scipy.spatial import QhullError
+        from scipy.spatial import HalfspaceIntersection, QhullError  # here: ~0.2 s to import
 
         c = self.interior_point(interior)
         if c is None:

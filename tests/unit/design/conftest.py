@@ -13,8 +13,9 @@ AGILE = ROOT / "profiles" / "agile_wrist.toml"
 
 
 def spec_text(parameters: str, sweep: str = "", pairs: str = "") -> str:
-    return (f'[sweep]\nbase_profile = "{AGILE}"\nstep_deg = 10.0\n{sweep}\n'
-            f"{parameters}\n{pairs}\n")
+    step = "" if "step_deg" in sweep else "step_deg = 10.0\n"
+    return f'[sweep]\nbase_profile = "{AGILE}"\n{step}{sweep}\n{parameters}\n{pairs}\n'
+
 
 
 @pytest.fixture

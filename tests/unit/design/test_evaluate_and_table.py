@@ -17,7 +17,7 @@ from spm_console.design.evaluate import DesignTask, evaluate
 from spm_console.design.ranking import pareto
 from spm_console.design.spec import load_spec
 from spm_console.design.sweep import run_sweep
-from spm_console.design.table import JOURNAL, load_table, read_rows
+from spm_console.design.table import JOURNAL, load_table, read_info, read_rows
 from spm_console.errors import BadInputError, ExitCode
 from tests.unit.design.conftest import AGILE, GRID
 
@@ -49,7 +49,7 @@ def test_the_sweep_folder_resumes_and_its_table_holds_one_row_per_design(
     # a journal cut short by a kill: that design runs again, nothing else
     lines = (out / JOURNAL).read_bytes().splitlines(keepends=True)
     (out / JOURNAL).write_bytes(b"".join(lines[:4]) + lines[4][:40])
-    assert sorted(read_rows(out, 6)) == [0, 1, 2, 3]
+    assert sorted(read_rows(out, read_info(out))) == [0, 1, 2, 3]
     again = run_sweep(spec, out, workers=0)
     assert (again.resumed, again.computed) == (4, 2)
     _, cols2 = load_table(out)
