@@ -59,10 +59,10 @@ def run() -> list[Row]:
     per_design = 60.0 / rate1
     peak = max(two.worker_peak_rss_mb.values())
     return [
-        Row(f"design: {DESIGNS} designs (2° grid), 2 workers", rate2, "/min",
-            target="≥ 1.7× one worker", baseline=rate1, passed=rate2 >= 1.7 * rate1,
-            note=f"baseline: 1 worker, same designs, same run; ratio shown is baseline/ours, "
-                 f"speed-up {rate2 / rate1:.2f}× on {cores} allowed cores; "
+        Row(f"design: {DESIGNS} designs (2° grid), 2 workers", 60.0 / rate2, "s/design",
+            target="≥ 1.7× one worker's rate", baseline=60.0 / rate1, passed=rate2 >= 1.7 * rate1,
+            note=f"{rate2:.1f} designs/min on 2 workers, {rate1:.1f} on 1 (the baseline: same "
+                 f"designs, same run); the ratio is the speed-up, on {cores} allowed cores; "
                  f"{two.failed} designs could not be built"),
         Row("design: one design (2° grid), 1 worker", per_design, "s",
             note="grid (Algorithm 2), P (eq. 30) and the figures of merit; the cost a "
