@@ -4,7 +4,8 @@ peak memory.
 
 The designs: a Latin hypercube of α1, α2 and δ around the Agile Wrist, each built on the
 paper's 2° grid (97,336 nodes) with its region P and figures of merit. Rates count from the
-first task sent to the last row written (workers' warm-up included, cluster start-up not).
+first task sent (the cluster up, its workers' imports done, as a sweep does before it sends
+anything) to the last row written.
 """
 
 from __future__ import annotations

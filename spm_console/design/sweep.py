@@ -48,7 +48,7 @@ class SweepProgress:
     computed: int
     """Designs computed in this run."""
     elapsed_s: float
-    """Since this run's first task was sent, s."""
+    """Since this run's first task was sent (its cluster up and warm), s."""
 
     @property
     def rate_per_s(self) -> float:
@@ -145,6 +145,31 @@ def _killed_row(task: DesignTask, exc: BaseException) -> DesignRow:
                      dict.fromkeys(METRICS, float("nan")))
 
 
+def _imports(pairs: bool) -> int:
+    """Run on each worker before the first design: the modules a design needs."""
+    import importlib
+
+    importlib.import_module("spm_console.design.evaluate")
+    if pairs:
+        importlib.import_module("spm_console.core.planning.mintime")
+    return os.getpid()
+
+
+def _warm_up(client: Any, pairs: bool) -> None:
+    """Wait for a worker, and have every worker import what a design needs (a cluster whose
+    workers cannot import this package is refused before any design is sent)."""
+    try:
+        client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
+    except TimeoutError:
+        raise BadInputError(f"the Dask scheduler has no worker after {CONNECT_TIMEOUT_S:g} s: "
+                            "start some (dask worker ADDRESS)") from None
+    try:
+        client.run(_imports, pairs)
+    except ImportError as exc:
+        raise BadInputError(f"the Dask workers cannot import what a design needs ({exc}): install "
+                            "this project in the workers' environment") from None
+
+
 def _results(tasks: list[DesignTask], digest: str, scheduler: str | None, workers: int | None,
              on_client: Callable[[Any], None] | None, ready: Callable[[], None],
              peak: dict[str, float]) -> Iterator[DesignRow]:
@@ -161,6 +186,7 @@ def _results(tasks: list[DesignTask], digest: str, scheduler: str | None, worker
     from distributed.scheduler import KilledWorker
 
     with dask_client(scheduler, workers) as client:
+        _warm_up(client, bool(tasks[0].pairs))
         ready()
         if on_client is not None:
             on_client(client)
@@ -198,15 +224,17 @@ def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
     peak: dict[str, float] = {}
     journals: list[Journal] = []
 
+    t_send = [time.perf_counter()]
+
     def ready() -> None:  # the folder is made only once the designs can run
         create_folder(folder, spec)
         journals.append(Journal(folder))
+        t_send[0] = time.perf_counter()  # rates count from here: the cluster is up and warm
 
     if not tasks:
         ready()
     results = (_results(tasks, spec.digest, scheduler, workers, on_client, ready, peak) if tasks
                else iter(()))
-    t_send = time.perf_counter()
     try:
         for row in results:
             journals[0].append(row)
@@ -214,7 +242,7 @@ def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
             computed += 1
             if progress is not None:
                 progress(SweepProgress(len(rows), spec.count, computed,
-                                       time.perf_counter() - t_send))
+                                       time.perf_counter() - t_send[0]))
     except KeyboardInterrupt as exc:
         if journals:
             write_table(folder, info, rows)
