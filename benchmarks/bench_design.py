@@ -54,7 +54,7 @@ def run() -> list[Row]:
     with tempfile.TemporaryDirectory() as tmp:
         spec = Path(tmp) / "spec.toml"
         spec.write_text(SPEC)
-        one, rate1 = _sweep(spec, Path(tmp) / "one", 1)
+        _, rate1 = _sweep(spec, Path(tmp) / "one", 1)
         two, rate2 = _sweep(spec, Path(tmp) / "two", 2)
     cores = allowed_cores()
     per_design = 60.0 / rate1
