@@ -26,6 +26,7 @@ class ExitCode(IntEnum):
     PLAN_MISMATCH = 9
     BUS_ERROR = 10
     ASSERTION_FAILED = 11
+    CLUSTER_LOST = 12
     STOP_ESTOP = 20
     STOP_TRACKING = 21
     STOP_COMM = 22
@@ -147,6 +148,13 @@ class InterruptedBySignalError(SpmError):
     """A terminating signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT) arrived while nothing moved."""
 
     exit_code = ExitCode.INTERRUPTED
+
+
+class ClusterLostError(SpmError):
+    """The Dask cluster of a design sweep went away (scheduler lost, tasks cancelled): the
+    designs done are kept and the same command resumes."""
+
+    exit_code = ExitCode.CLUSTER_LOST
 
 
 class BuildCancelledError(SpmError):

@@ -123,11 +123,15 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     out = run_sweep(spec, Path(args.out), args.scheduler, args.workers, progress_printer(sys.stderr))
     rec = {"ok": True, "folder": str(out.folder), "table": str(out.table), "designs": out.total,
            "resumed": out.resumed, "computed": out.computed, "failed": out.failed,
+           "internal_errors": out.internal_errors,
            "seconds": out.seconds, "workers": out.workers,
            "worker_peak_rss_mb": out.worker_peak_rss_mb}
     human = (f"{out.total} designs in {out.table}: {out.computed} computed now on "
              f"{out.workers} workers in {out.seconds:.1f} s, {out.resumed} done before; "
              f"{out.failed} could not be built (see their reason column)")
+    if out.internal_errors:
+        info(f"warning: {out.internal_errors} designs met an internal error (a bug: their reason "
+             "says which; please report it). The same command runs them again.")
     emit(args, rec, human)
     return int(ExitCode.OK)
 

@@ -29,11 +29,17 @@ from spm_console.core.workspace_build import build_workspace
 from spm_console.design.spec import PARAMETERS
 from spm_console.errors import ProfileError, SpmError
 
-#: How the reason of a design that met a bug begins (the sweep reports how many did).
+#: How the reason of a design that met a bug begins (the sweep reports how many did, and a
+#: resumed sweep runs them again).
 INTERNAL_ERROR = "internal error"
+#: How the reason of a design whose task killed its workers begins (run again on resume).
+KILLED_WORKER = "its task killed"
 
-#: The columns of a design's figures of merit (those of WorkspaceMetrics, in order).
+#: The columns of a design's figures of merit: those of WorkspaceMetrics, in order, and the
+#: torsion range.
 METRICS = (*(f.name for f in fields(WorkspaceMetrics)), "torsion_range_deg")
+#: The figures that are counts.
+INT_FIGURES = frozenset(f.name for f in fields(WorkspaceMetrics) if f.type in ("int", int))
 
 
 @dataclass(frozen=True)
@@ -60,8 +66,8 @@ class DesignRow:
     ok: bool
     reason: str
     """Why the design could not be built ("" when ok)."""
-    metrics: dict[str, float]
-    """Figure name (:data:`METRICS`) -> value; NaN when not ok."""
+    metrics: WorkspaceMetrics | None
+    """The design's figures of merit (None when it could not be built)."""
     pair_times_s: tuple[float, ...] = ()
     """Minimum time of each start/goal pair, s (NaN: no plan)."""
     pair_reasons: tuple[str, ...] = ()
@@ -77,21 +83,45 @@ class DesignRow:
     def pairs_planned(self) -> int:
         return sum(1 for t in self.pair_times_s if math.isfinite(t))
 
+    @property
+    def retry(self) -> bool:
+        """Not this design's own outcome (a bug, a killed worker): run again on resume."""
+        return not self.ok and self.reason.startswith((INTERNAL_ERROR, KILLED_WORKER))
+
+    def figure(self, name: str) -> float:
+        """One figure of merit by its column name (:data:`METRICS`); NaN when not built."""
+        m = self.metrics
+        if m is None:
+            return math.nan
+        return m.torsion_range_deg if name == "torsion_range_deg" else float(getattr(m, name))
+
     def to_json(self) -> dict[str, Any]:
         d = asdict(self)
-        d["metrics"] = {k: (None if not math.isfinite(v) else v) for k, v in self.metrics.items()}
+        if self.metrics is not None:
+            d["metrics"] = {k: (None if not math.isfinite(v) else v)
+                            for k, v in asdict(self.metrics).items()}
         d["pair_times_s"] = [None if not math.isfinite(t) else t for t in self.pair_times_s]
         return d
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> DesignRow:
+        """A row as :meth:`to_json` wrote it (ValueError, KeyError or TypeError otherwise)."""
         def num(x: Any) -> float:
+            if isinstance(x, bool) or not isinstance(x, int | float | None):
+                raise TypeError(f"not a number: {x!r}")
             return math.nan if x is None else float(x)
 
+        m = d["metrics"]
+        metrics = None
+        if m is not None:
+            if set(m) != {f.name for f in fields(WorkspaceMetrics)}:
+                raise KeyError("metrics: not the figures of merit")
+            values: dict[str, Any] = {k: (int(v) if k in INT_FIGURES and isinstance(v, int)
+                                          else num(v)) for k, v in m.items()}
+            metrics = WorkspaceMetrics(**values)
         return cls(
-            index=int(d["index"]), params={str(k): float(v) for k, v in d["params"].items()},
-            ok=bool(d["ok"]), reason=str(d["reason"]),
-            metrics={str(k): num(v) for k, v in d["metrics"].items()},
+            index=int(d["index"]), params={str(k): num(v) for k, v in d["params"].items()},
+            ok=bool(d["ok"]), reason=str(d["reason"]), metrics=metrics,
             pair_times_s=tuple(num(t) for t in d.get("pair_times_s", ())),
             pair_reasons=tuple(str(r) for r in d.get("pair_reasons", ())),
             seconds=float(d.get("seconds", 0.0)), worker=str(d.get("worker", "")),
@@ -147,28 +177,27 @@ def _pairs(prof: Profile, region: Any, task: DesignTask) -> tuple[tuple[float, .
 
 
 def evaluate(task: DesignTask) -> DesignRow:
-    """Build and measure one design (see the module docstring)."""
+    """Build and measure one design (see the module docstring). Never raises: a design that
+    cannot be built, or meets a bug, is a row with its reason."""
     t0 = time.perf_counter()
     who = f"{socket.gethostname()}:{os.getpid()}"
-    nan = dict.fromkeys(METRICS, math.nan)
+
+    def failed(reason: str) -> DesignRow:
+        return DesignRow(task.index, dict(task.params), False, reason, None,
+                         seconds=time.perf_counter() - t0, worker=who)
+
     source = f"design {task.index}"
     try:
         prof = design_profile(task.base_text, task.params, source, task.step_deg)
         with np.errstate(all="ignore"):
             ws = build_workspace(grid_spec(prof), cover=False)
         m = workspace_metrics(ws)
+        times, reasons = _pairs(prof, ws.region, task) if task.pairs else ((), ())
     except (SpmError, ValueError, np.linalg.LinAlgError) as exc:
-        reason = exc.message if isinstance(exc, SpmError) else str(exc)
-        return DesignRow(task.index, dict(task.params), False, reason, nan,
-                         seconds=time.perf_counter() - t0, worker=who)
+        return failed(exc.message if isinstance(exc, SpmError) else str(exc))
     except Exception as exc:  # a bug on one design's geometry must not stop a whole sweep
-        return DesignRow(task.index, dict(task.params), False,
-                         f"{INTERNAL_ERROR}: {type(exc).__name__}: {exc} (please report it "
-                         "with this design's parameters)", nan,
-                         seconds=time.perf_counter() - t0, worker=who)
-    metrics = {**asdict(m), "torsion_range_deg": m.torsion_range_deg}
-    times, reasons = _pairs(prof, ws.region, task) if task.pairs else ((), ())
-    return DesignRow(task.index, dict(task.params), True, "",
-                     {k: float(v) for k, v in metrics.items()}, times, reasons,
+        return failed(f"{INTERNAL_ERROR}: {type(exc).__name__}: {exc} (please report it with "
+                      "this design's parameters)")
+    return DesignRow(task.index, dict(task.params), True, "", m, times, reasons,
                      seconds=time.perf_counter() - t0, worker=who,
                      sign_seed=tuple(prof.home.sign_seed))

@@ -39,9 +39,11 @@ import annotated_types as at
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from spm_console import __version__
 from spm_console.config.checks import validation_message
 from spm_console.config.load import parse_profile_text, with_grid_step
 from spm_console.config.schema import Count, Geometry, Links, Profile, Real
+from spm_console.core.workspace_build import FORMAT_VERSION
 from spm_console.errors import BadInputError, ProfileError
 from spm_console.safe_io import MB, FileRefusedError, read_capped
 
@@ -115,7 +117,8 @@ class SweepSpec:
     pairs: tuple[Pair, ...]
     sampling: str
     digest: str
-    """SHA-256 of the spec's content and the base profile's text: a sweep folder holds one."""
+    """SHA-256 of the spec's content, the base profile's text and the code's version: a sweep
+    folder holds one."""
 
     @property
     def count(self) -> int:
@@ -243,7 +246,10 @@ def load_spec(path: str | Path, max_designs: int = DEFAULT_MAX_DESIGNS) -> Sweep
                 raise BadInputError(f"{p}: pairs[{k}].{end} = {list(th)} is outside the "
                                     f"workspace grid's {lo:g}..{hi:g}°")
     values = _values(spec, names, str(p), max_designs)
-    content = json.dumps({"spec": spec.model_dump(mode="json"), "base": text}, sort_keys=True)
+    # the code's version too: rows of another release are not mixed into a resumed sweep
+    content = json.dumps({"spec": spec.model_dump(mode="json"), "base": text,
+                          "version": __version__, "workspace_format": FORMAT_VERSION},
+                         sort_keys=True)
     return SweepSpec(source=str(p), base=base, base_text=text, names=tuple(names), values=values,
                      pairs=tuple(spec.pairs), sampling=spec.sweep.sampling,
                      digest=hashlib.sha256(content.encode()).hexdigest())

@@ -14,25 +14,31 @@ command resumes.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import logging
 import os
 import resource
 import signal
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
+from concurrent.futures import CancelledError
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from spm_console.design.evaluate import METRICS, DesignRow, DesignTask, evaluate
+from spm_console.design.evaluate import INTERNAL_ERROR, KILLED_WORKER, DesignRow, DesignTask, evaluate
 from spm_console.design.spec import SweepSpec
 from spm_console.design.table import Journal, SweepInfo, create_folder, read_done, write_table
-from spm_console.errors import BadInputError, InterruptedBySignalError
+from spm_console.errors import BadInputError, ClusterLostError, InterruptedBySignalError
 
 #: The workers' environment, over Dask's: glibc's own heap trimming. Dask's 64 kB threshold
 #: made a design's build (large temporary arrays) twice as slow in a worker: 2.2 s against
 #: 1.1 s in this process (docs/decisions/design-sweeps.md). BLAS stays on one thread.
 WORKER_ENVIRON: dict[str, str | None] = {"MALLOC_TRIM_THRESHOLD_": None}
+
+#: Designs sent ahead per worker (and at least IN_FLIGHT_MIN): the rest wait in this process.
+IN_FLIGHT_PER_WORKER = 4
+IN_FLIGHT_MIN = 16
 
 #: How long to wait for an existing scheduler to answer, s.
 CONNECT_TIMEOUT_S = 10.0
@@ -72,6 +78,8 @@ class SweepOutcome:
     computed: int
     failed: int
     """Designs that could not be built (rows with a reason)."""
+    internal_errors: int
+    """Of those, the designs that met a bug (run again when the sweep is resumed)."""
     seconds: float
     workers: int
     worker_peak_rss_mb: dict[str, float] = field(default_factory=dict)
@@ -90,29 +98,35 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+#: The terminal's keys that signal the whole foreground process group (Ctrl-C, Ctrl-\\).
+TERMINAL_SIGNALS = {signal.SIGINT, signal.SIGQUIT}
+
+
 @contextlib.contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """SIGINT ignored while the workers start: they inherit it, so Ctrl-C in the terminal
-    reaches only this process, which closes the cluster in order."""
-    try:
-        before = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread: leave the signals alone
-        yield
-        return
+def _terminal_signals_held() -> Iterator[None]:
+    """Ctrl-C and Ctrl-\\ held (blocked, not lost) while the local cluster starts. Its
+    threads are made now and keep them blocked, and so does every worker process they start,
+    now or when a worker is restarted: the terminal's keys reach only this process, which
+    closes the cluster in order. A key pressed meanwhile is delivered when the block ends."""
+    from multiprocessing import resource_tracker
+
+    # started first: starting it unblocks SIGINT in the calling thread (the standard library
+    # blocks it around the start, then unblocks it rather than restoring the mask)
+    resource_tracker.ensure_running()
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, TERMINAL_SIGNALS)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, before)
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 @contextlib.contextmanager
 def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
     """A client of ``scheduler`` (``tcp://host:port``), or of an embedded local cluster of
     ``workers`` single-threaded processes (default: one per allowed core)."""
-    import dask
-    from distributed import Client, LocalCluster
-
     if scheduler is not None:
+        from distributed import Client
+
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
@@ -124,25 +138,29 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
             client.close()
         return
     n = workers or allowed_cores()
-    environ = {**dask.config.get("distributed.nanny.pre-spawn-environ"), **WORKER_ENVIRON}
-    with _sigint_ignored(), dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address="127.0.0.1:0",
-                               silence_logs=logging.ERROR)
-    try:
-        client = Client(cluster, set_as_default=False)
-        try:
-            yield client
-        finally:
-            client.close()
-    finally:
-        cluster.close()
+    with contextlib.ExitStack() as stack:
+        with _terminal_signals_held():
+            # imported here: the threads distributed starts (its IO loop is made on import)
+            # hold the signals too, and so do the workers they start
+            import dask
+            from distributed import Client, LocalCluster
+
+            environ = {**dask.config.get("distributed.nanny.pre-spawn-environ"), **WORKER_ENVIRON}
+            with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+                cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                                       silence_logs=logging.ERROR,
+                                       preload=["spm_console.design.worker_setup"])
+            stack.callback(cluster.close)  # closed even when a held Ctrl-C lands next
+            client = Client(cluster, set_as_default=False)
+            stack.callback(client.close)
+        yield client
 
 
 def _killed_row(task: DesignTask, exc: BaseException) -> DesignRow:
     return DesignRow(task.index, dict(task.params), False,
-                     f"its task killed the worker running it each time it ran ({exc})",
-                     dict.fromkeys(METRICS, float("nan")))
+                     f"{KILLED_WORKER} the worker running it each time it ran ({exc}); a "
+                     "resumed sweep runs it again", None)
 
 
 def _imports(pairs: bool) -> int:
@@ -172,7 +190,7 @@ def _warm_up(client: Any, pairs: bool) -> None:
 
 def _results(tasks: list[DesignTask], digest: str, scheduler: str | None, workers: int | None,
              on_client: Callable[[Any], None] | None, ready: Callable[[], None],
-             peak: dict[str, float]) -> Iterator[DesignRow]:
+             peak: dict[str, float]) -> Generator[DesignRow, None, None]:
     """The tasks' rows as they finish: in this process with ``workers == 0`` (no Dask), else
     on the cluster; ``ready()`` once they can run (the cluster is up); ``peak`` receives the
     workers' peak memory at the end."""
@@ -182,25 +200,50 @@ def _results(tasks: list[DesignTask], digest: str, scheduler: str | None, worker
             yield evaluate(task)
         peak["local"] = _peak_rss_mb()
         return
-    from distributed import as_completed
-    from distributed.scheduler import KilledWorker
-
     with dask_client(scheduler, workers) as client:
         _warm_up(client, bool(tasks[0].pairs))
         ready()
         if on_client is not None:
             on_client(client)
-        by_key = {f"design-{digest[:16]}-{t.index}": t for t in tasks}
-        futures = client.map(evaluate, tasks, key=list(by_key), pure=False)
-        for fut in as_completed(futures, loop=client.loop):
-            exc = fut.exception() if fut.status == "error" else None
-            # a design whose task killed its workers is a row; any other error is a bug
-            row = (_killed_row(by_key[fut.key], exc) if isinstance(exc, KilledWorker)
-                   else fut.result())
-            fut.release()
-            yield row
+        yield from _on_cluster(client, tasks, digest)
         with contextlib.suppress(Exception):  # a report, never a reason to fail
             peak.update({str(k): float(v) for k, v in client.run(_peak_rss_mb).items()})
+
+
+def _on_cluster(client: Any, tasks: list[DesignTask], digest: str) -> Iterator[DesignRow]:
+    """The tasks' rows from the cluster as they finish, with at most :data:`IN_FLIGHT_PER_WORKER`
+    per worker sent ahead (the scheduler holds a window, not the whole sweep). ClusterLostError
+    when the cluster goes away (the rows so far are kept)."""
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    window = max(IN_FLIGHT_MIN, IN_FLIGHT_PER_WORKER * max(1, len(
+        client.scheduler_info().get("workers", {}))))
+    pending = iter(tasks)
+
+    def send(n: int) -> list[Any]:
+        batch = list(itertools.islice(pending, n))
+        return client.map(evaluate, batch, key=[f"design-{digest[:16]}-{t.index}" for t in batch],
+                          pure=False) if batch else []
+
+    by_key = {t_key: t for t_key, t in ((f"design-{digest[:16]}-{t.index}", t) for t in tasks)}
+    try:
+        done = as_completed(send(window), loop=client.loop)
+        for fut in done:
+            exc = fut.exception() if fut.status == "error" else None
+            if isinstance(exc, KilledWorker):
+                row = _killed_row(by_key[fut.key], exc)
+            elif exc is not None:  # evaluate() returns a row for every design: the cluster's
+                raise ClusterLostError(f"the Dask cluster failed a design's task ({exc!r})")
+            else:
+                row = fut.result()
+            fut.release()
+            for nxt in send(1):
+                done.add(nxt)
+            yield row
+    except (CancelledError, OSError, TimeoutError) as exc:
+        raise ClusterLostError(f"the Dask cluster was lost ({type(exc).__name__}: {exc})") \
+            from None
 
 
 def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
@@ -233,28 +276,33 @@ def run_sweep(spec: SweepSpec, folder: Path, scheduler: str | None = None,
 
     if not tasks:
         ready()
-    results = (_results(tasks, spec.digest, scheduler, workers, on_client, ready, peak) if tasks
-               else iter(()))
+    results = _results(tasks, spec.digest, scheduler, workers, on_client, ready, peak)
     try:
-        for row in results:
+        for row in results if tasks else ():
             journals[0].append(row)
             rows[row.index] = row
             computed += 1
             if progress is not None:
                 progress(SweepProgress(len(rows), spec.count, computed,
                                        time.perf_counter() - t_send[0]))
-    except KeyboardInterrupt as exc:
+    except (KeyboardInterrupt, ClusterLostError) as exc:
+        results.close()  # the cluster closes now, before the message
         if journals:
             write_table(folder, info, rows)
+        kept = (f"{len(rows)} of {spec.count} designs done, kept in {folder}; the same command "
+                "resumes it") if journals else "nothing was computed"
+        if isinstance(exc, ClusterLostError):
+            raise ClusterLostError(f"{exc.message}: {kept}") from None
         why = f" by {exc.args[0]}" if exc.args else ""
-        raise InterruptedBySignalError(
-            f"sweep stopped{why}: {len(rows)} of {spec.count} designs done, kept in {folder}; "
-            "the same command resumes it") from None
+        raise InterruptedBySignalError(f"sweep stopped{why}: {kept}") from None
     finally:
+        results.close()
         for j in journals:
             j.close()
     table = write_table(folder, info, rows)
     return SweepOutcome(folder=folder, table=table, total=spec.count, resumed=resumed,
                         computed=computed, failed=sum(1 for r in rows.values() if not r.ok),
+                        internal_errors=sum(1 for r in rows.values()
+                                            if r.reason.startswith(INTERNAL_ERROR)),
                         seconds=time.perf_counter() - t0, workers=len(peak),
                         worker_peak_rss_mb=peak)

@@ -9,6 +9,7 @@ spec's digest in ``sweep.json`` must match, or the folder is refused.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -17,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from spm_console.design.evaluate import METRICS, DesignRow
+from spm_console.design.evaluate import INT_FIGURES, METRICS, DesignRow
 from spm_console.design.spec import HARD_MAX_DESIGNS, MAX_PAIRS, PARAMETERS, SweepSpec
 from spm_console.errors import BadInputError
 from spm_console.safe_io import MB, FileRefusedError, read_capped, write_text_atomic
@@ -112,8 +113,9 @@ def read_done(folder: Path, spec: SweepSpec) -> dict[int, DesignRow]:
     if table.exists() and not table.is_file():
         raise BadInputError(f"{table}: not a file (the sweep writes its table there)")
     rows = read_rows(folder, held)
-    # a row is this spec's design only with this spec's values (else it is computed again)
-    return {k: r for k, r in rows.items() if r.params == spec.params(k)}
+    # a row is this spec's design only with this spec's values, and done unless it met a bug
+    # or a killed worker (else it is computed again)
+    return {k: r for k, r in rows.items() if r.params == spec.params(k) and not r.retry}
 
 
 def create_folder(folder: Path, spec: SweepSpec) -> None:
@@ -136,10 +138,8 @@ def create_folder(folder: Path, spec: SweepSpec) -> None:
 def valid_row(row: DesignRow, info: SweepInfo) -> bool:
     """A journal row of this sweep: its index, parameters, figures and pairs as written."""
     finite = all(isinstance(v, float) and math.isfinite(v) for v in row.params.values())
-    figures = set(row.metrics) == set(METRICS) and (
-        not row.ok or all(math.isfinite(v) for v in row.metrics.values()))
     return (0 <= row.index < info.count and set(row.params) == set(info.names) and finite
-            and figures and (row.ok or bool(row.reason))
+            and row.ok == (row.metrics is not None) and (row.ok or bool(row.reason))
             and len(row.pair_times_s) == len(row.pair_reasons) == (info.pairs if row.ok else 0))
 
 
@@ -168,24 +168,30 @@ def read_rows(folder: Path, info: SweepInfo) -> dict[int, DesignRow]:
 
 
 class Journal:
-    """Appends each finished design to ``rows.jsonl``, on disk before the next is taken."""
+    """Appends each finished design to ``rows.jsonl``, on disk before the next is taken.
+    A write that fails (a full disk) is a BadInputError naming the file."""
 
     def __init__(self, folder: Path) -> None:
-        path = folder / JOURNAL
+        self.path = folder / JOURNAL
         try:
-            self._f = open(path, "ab")  # noqa: SIM115 (closed by close())
+            self._f = open(self.path, "ab")  # noqa: SIM115 (closed by close())
+            if self._f.tell() and not _ends_with_newline(self.path):
+                self._f.write(b"\n")  # a line cut short by a kill stays apart from the next
         except OSError as exc:
-            raise BadInputError(f"{path}: {exc.strerror or exc}") from None
-        if self._f.tell() and not _ends_with_newline(path):
-            self._f.write(b"\n")  # a line cut short by a kill stays apart from the next
+            raise BadInputError(f"{self.path}: {exc.strerror or exc}") from None
 
     def append(self, row: DesignRow) -> None:
-        self._f.write(json.dumps(row.to_json(), allow_nan=False).encode() + b"\n")
-        self._f.flush()
-        os.fsync(self._f.fileno())
+        try:
+            self._f.write(json.dumps(row.to_json(), allow_nan=False).encode() + b"\n")
+            self._f.flush()
+            os.fsync(self._f.fileno())
+        except OSError as exc:
+            raise BadInputError(f"{self.path}: cannot write design {row.index}'s row "
+                                f"({exc.strerror or exc})") from None
 
     def close(self) -> None:
-        self._f.close()
+        with contextlib.suppress(OSError):
+            self._f.close()
 
 
 def _ends_with_newline(path: Path) -> bool:
@@ -203,7 +209,8 @@ def columns(info: SweepInfo, rows: list[DesignRow]) -> dict[str, list[Any]]:
     cols["ok"] = [r.ok for r in rows]
     cols["reason"] = [r.reason for r in rows]
     for m in METRICS:
-        cols[m] = [r.metrics.get(m, math.nan) for r in rows]
+        cols[m] = [None if r.metrics is None else
+                   (getattr(r.metrics, m) if m in INT_FIGURES else r.figure(m)) for r in rows]
     cols["pairs_planned"] = [r.pairs_planned for r in rows]
     cols["pair_times_s"] = [list(r.pair_times_s) for r in rows]
     cols["seconds"] = [r.seconds for r in rows]
@@ -217,7 +224,13 @@ def write_table(folder: Path, info: SweepInfo, rows: dict[int, DesignRow]) -> Pa
     import pyarrow.parquet as pq
 
     ordered = [rows[k] for k in sorted(rows)]
-    table = pa.table(columns(info, ordered))
+    cols = columns(info, ordered)
+    types = {"index": pa.int64(), "ok": pa.bool_(), "reason": pa.string(),
+             "pairs_planned": pa.int64(), "pair_times_s": pa.list_(pa.float64()),
+             "seconds": pa.float64(), "worker": pa.string(),
+             **{m: pa.int64() if m in INT_FIGURES else pa.float64() for m in METRICS}}
+    schema = pa.schema([(c, types.get(c, pa.float64())) for c in cols])
+    table = pa.table(cols, schema=schema)
     table = table.replace_schema_metadata({"spm_console.sweep": json.dumps(
         {"digest": info.digest, "names": list(info.names), "count": info.count})})
     out = folder / TABLE

@@ -13,8 +13,6 @@ F = NDArray[np.float64]
 
 #: Smallest slack (relative to the point's size) of a hint used as qhull's interior point.
 INTERIOR_MARGIN = 1e-4
-#: Chebyshev radius (relative to the centre's size) below which a polytope counts as flat.
-FLAT_RADIUS = 1e-9
 #: A point lies in a region when it violates no half-space by more than this, deg (rows of
 #: unit norm: the slack is a distance). Points computed to lie *on* a face — an IRIS plane
 #: turned to pass through a required end, a vertex, a grid node on a cube's face — miss it by
@@ -108,9 +106,16 @@ class Region:
     def facet_rows(self, tol: float = 1e-7, interior: F | None = None) -> list[int]:
         """Rows that define a facet (2-D face) of the bounded, full-dimensional polytope,
         one row per facet: found from the vertices (qhull), no LP. A row is redundant
-        exactly when it defines no facet. ``interior``: see :meth:`vertices`."""
-        V = self.vertices(interior)
-        if len(V) < 4:
+        exactly when it defines no facet. ``interior``: see :meth:`vertices`. A polytope too
+        thin for qhull to find its vertices keeps every row (as a flat one does)."""
+        from scipy.spatial import QhullError
+
+        try:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                V = self.vertices(interior)
+        except QhullError:
+            return list(range(self.halfspaces))
+        if len(V) < 4 or not np.isfinite(V).all():  # flat, or too thin to intersect exactly
             return list(range(self.halfspaces))
         n = np.linalg.norm(self.A, axis=1)
         An, bn = self.A / n[:, None], self.b / n
@@ -163,21 +168,17 @@ class Region:
                     INTERIOR_MARGIN * max(1.0, float(np.abs(h).max())):
                 return h
         c, r = self.chebyshev()
-        # thinner than this, qhull cannot tell the point from the boundary: flat
-        return c if r > FLAT_RADIUS * max(1.0, float(np.abs(c).max())) else None
+        return c if r > 0 else None
 
     def vertices(self, interior: F | None = None) -> F:
         """Vertices (n, 3) of the bounded polytope, deg (qhull, around
         :meth:`interior_point` of ``interior``: a known inner point saves its LP)."""
-        from scipy.spatial import HalfspaceIntersection, QhullError  # here: ~0.2 s to import
+        from scipy.spatial import HalfspaceIntersection  # here: ~0.2 s to import
 
         c = self.interior_point(interior)
         if c is None:
             return np.zeros((0, 3))
-        try:
-            hs = HalfspaceIntersection(np.hstack([self.A, -self.b[:, None]]), c)
-        except QhullError:  # numerically flat after all: no full-dimensional polytope
-            return np.zeros((0, 3))
+        hs = HalfspaceIntersection(np.hstack([self.A, -self.b[:, None]]), c)
         return np.asarray(hs.intersections)
 
     def volume(self) -> float:
@@ -185,12 +186,11 @@ class Region:
         thin for qhull to tell an inner point from the boundary)."""
         from scipy.spatial import ConvexHull, QhullError
 
-        V = self.vertices()
-        if len(V) < 4:
-            return 0.0
         try:
-            return float(ConvexHull(V).volume)
-        except QhullError:  # the vertices are coplanar
+            with np.errstate(divide="ignore", invalid="ignore"):
+                V = self.vertices()
+            return float(ConvexHull(V).volume) if len(V) >= 4 and np.isfinite(V).all() else 0.0
+        except QhullError:  # too thin for qhull to tell its inside from its faces
             return 0.0
 
     def to_dict(self) -> dict[str, list[list[float]] | list[float]]:

@@ -29,11 +29,12 @@ def test_a_design_that_cannot_be_built_is_a_row_with_its_reason() -> None:
     for params, why in (({"beta_deg": 30.0}, "home"), ({"delta_mm": 60.0}, "links collide")):
         row = evaluate(DesignTask(7, params, text, 10.0))
         assert not row.ok and why in row.reason and row.index == 7
-        assert all(math.isnan(v) for v in row.metrics.values())
+        assert row.metrics is None and math.isnan(row.figure("zeta_mean")) and not row.retry
     row = evaluate(DesignTask(0, {"alpha1_deg": 85.0}, text, 10.0,
                                  (((105.0, 105.0, 105.0), (135.0, 125.0, 115.0)),
                                   ((65.0, 65.0, 65.0), (155.0, 155.0, 155.0)))))
-    assert row.ok and row.metrics["feasible_nodes"] > 0 and len(row.sign_seed) == 9
+    assert row.ok and row.metrics is not None and row.metrics.feasible_nodes > 0
+    assert len(row.sign_seed) == 9
     assert row.pairs_planned == 1 and row.pair_times_s[0] > 0 and row.pair_reasons[1]
 
 
@@ -59,6 +60,47 @@ def test_the_sweep_folder_resumes_and_its_table_holds_one_row_per_design(
     other = load_spec(write_spec(GRID.replace("count = 3", "count = 2"), name="other.toml"))
     with pytest.raises(BadInputError, match="holds another sweep"):
         run_sweep(other, out, workers=0)
+
+
+def test_a_design_that_meets_a_bug_is_a_row_the_next_run_computes_again(
+        write_spec: Callable[..., Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import spm_console.design.evaluate as ev
+
+    real = ev.workspace_metrics
+
+    def broken(ws):  # type: ignore[no-untyped-def]
+        raise ZeroDivisionError("a bug")
+
+    spec = load_spec(write_spec(GRID))
+    monkeypatch.setattr(ev, "workspace_metrics", broken)
+    first = run_sweep(spec, tmp_path / "s", workers=0)
+    assert first.internal_errors == 3 and first.failed == 6  # 3 bugs, 3 colliding homes
+    _, cols = load_table(tmp_path / "s")
+    assert sum(r.startswith("internal error: ZeroDivisionError") for r in cols["reason"]) == 3
+    monkeypatch.setattr(ev, "workspace_metrics", real)
+    again = run_sweep(spec, tmp_path / "s", workers=0)
+    assert (again.resumed, again.computed, again.internal_errors) == (3, 3, 0)
+
+
+def test_a_region_too_thin_for_qhull_keeps_its_rows_and_has_no_volume() -> None:
+    from spm_console.core.polytope.region import Region
+
+    box = Region.box(100.0, 140.0)
+    thin = Region(np.vstack([box.A, [[1.0, 1.0, 0.0], [-1.0, -1.0, 0.0]]]),
+                  np.r_[box.b, 280.0 + 2e-13, -280.0 + 2e-13])  # θ1 + θ2 = 280 within 1e-13
+    assert thin.facet_rows() == list(range(8)) and thin.volume() == 0.0
+    assert box.volume() == pytest.approx(40.0 ** 3)
+
+
+def test_a_design_whose_region_qhull_cannot_cut_is_a_row_with_a_reason() -> None:
+    """Found by probing: IRIS met a region thinner than qhull's precision (QH6023 "feasible
+    point is not clearly inside halfspace") and the design stopped its sweep."""
+    params = {"alpha1_deg": 68.73475376588952, "alpha2_deg": 31.91030678123554,
+              "beta_deg": 62.81832542200899, "gamma_deg": 32.17921267203597,
+              "oa_mm": 203.00629448980445, "od_mm": 484.17746653874383,
+              "delta_mm": 1.3054761817674743}
+    row = evaluate(DesignTask(8, params, AGILE.read_text(), 15.0))
+    assert not row.retry and (row.ok or "QH6023" not in row.reason), row.reason
 
 
 def test_the_pareto_front_is_what_no_design_beats_on_both() -> None:
@@ -125,3 +167,7 @@ def test_the_agile_wrist_design_has_the_figures_workspace_build_reports(
     assert cols["p_halfspaces"][0] == ws["halfspaces"]
     assert cols["p_coverage"][0] == pytest.approx(ws["coverage"])
     assert cols["feasible_volume_deg3"][0] == ws["feasible"] * ws["grid"]["step_deg"] ** 3
+    from spm_console.core.polytope.region import Region
+
+    assert cols["p_volume_deg3"][0] == pytest.approx(Region.from_dict(ws["region"]).volume())
+    assert cols["zeta_min"][0] >= ws["grid"]["zeta_min"] and cols["clearance_min_mm"][0] >= 0.0
