@@ -16,7 +16,8 @@ from spm_console.config.load import parse_profile_text
 from spm_console.config.schema import Profile
 from spm_console.errors import ProfileError
 
-HEADER = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\-\s\"']+?)\s*\]\s*(#.*)?$")
+#: A table header, ``[name]`` or ``[[name]]`` (an array of tables).
+HEADER = re.compile(r"^\s*\[\[?\s*([A-Za-z0-9_.\-\s\"']+?)\s*\]\]?\s*(#.*)?$")
 
 Value = bool | int | float | str | list[int] | list[float]
 

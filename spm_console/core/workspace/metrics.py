@@ -12,10 +12,12 @@ Algorithm 2, region P of eq. (30)):
   mm (distance − 2δ: ≥ 0 on feasible nodes by definition), and at home;
 - the reachable orientation cone. Each feasible node's platform rotation R (from home) is
   split into tilt-and-torsion angles about the platform normal at home n⁰: tilt
-  θt = ∠(n⁰, R n⁰), its azimuth φ about n⁰, and torsion σ. The cone is the largest tilt
-  found in *every* azimuth sector of :data:`AZIMUTH_SECTOR_DEG` (any torsion): the
-  half-angle of the cone the wrist can point within. The torsion range at zero tilt is
-  max σ − min σ over the feasible nodes whose tilt is at most one grid step Δ.
+  θt = ∠(n⁰, R n⁰), its azimuth φ about n⁰, and torsion σ. The cone is the smallest, over
+  the azimuth sectors of :data:`AZIMUTH_SECTOR_DEG`, of the largest tilt a feasible node
+  reaches in that sector (any torsion): a grid estimate of the half-angle the wrist can
+  point within (one node per sector reaches it; that every smaller tilt is reachable too
+  is not checked). The torsion range at zero tilt is max σ − min σ over the feasible nodes
+  whose tilt is at most one grid step Δ.
 
 Degrees and mm at the interface; radians inside.
 """
