@@ -162,6 +162,20 @@ def test_a_sweep_runs_on_an_existing_cluster(tmp_path: Path) -> None:
         assert rc == 0
         run_sweep(spec, tmp_path / "near", workers=0)
         assert _comparable(tmp_path / "far") == _comparable(tmp_path / "near")
+        # the scheduler goes away mid-sweep: exit 12, what is done is kept
+        longer = subprocess.Popen([sys.executable, "-m", "spm_console", "design", "sweep",
+                                   str(_spec(tmp_path, 12, step=5.0)), "--out",
+                                   str(tmp_path / "cut"), "--scheduler", address],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        journal = tmp_path / "cut" / JOURNAL
+        while time.monotonic() < t_end + 120 and longer.poll() is None and not (
+                journal.exists() and journal.read_text().count("\n") >= 2):
+            time.sleep(0.05)
+        procs[0].kill()
+        _, stderr = longer.communicate(timeout=120)
+        assert longer.returncode == ExitCode.CLUSTER_LOST, stderr
+        assert "Traceback" not in stderr and "the same command resumes" in stderr
+        assert len(load_table(tmp_path / "cut")[1]["index"]) >= 2
     finally:
         for p in procs:
             p.terminate()
