@@ -121,21 +121,32 @@ def _terminal_signals_held() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _dask_logs_quiet() -> Iterator[None]:
+    """Dask's own log lines off in this process while it serves a sweep: what goes wrong is
+    the sweep's to say (a row's reason, a lost cluster's message), not a traceback of Dask's
+    reconnection attempts. Entered after ``distributed`` is imported (it sets its loggers'
+    levels then)."""
+    names = ["distributed", *(n for n in logging.root.manager.loggerDict
+                              if n.startswith("distributed."))]
+    before = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        for n, level in before.items():
+            logging.getLogger(n).setLevel(level)
+
+
+@contextlib.contextmanager
 def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
     """A client of ``scheduler`` (``tcp://host:port``), or of an embedded local cluster of
     ``workers`` single-threaded processes (default: one per allowed core)."""
     if scheduler is not None:
         from distributed import Client
 
-        try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise BadInputError(f"--scheduler {scheduler}: no Dask scheduler answered "
-                                f"({exc})") from None
-        try:
-            yield client
-        finally:
-            client.close()
+        with _dask_logs_quiet():
+            yield from _existing(Client, scheduler)
         return
     n = workers or allowed_cores()
     with contextlib.ExitStack() as stack:
@@ -145,16 +156,30 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
             import dask
             from distributed import Client, LocalCluster
 
+            stack.enter_context(_dask_logs_quiet())
             environ = {**dask.config.get("distributed.nanny.pre-spawn-environ"), **WORKER_ENVIRON}
             with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
                 cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                        host="127.0.0.1", dashboard_address="127.0.0.1:0",
-                                       silence_logs=logging.ERROR,
+                                       silence_logs=logging.CRITICAL,
                                        preload=["spm_console.design.worker_setup"])
             stack.callback(cluster.close)  # closed even when a held Ctrl-C lands next
             client = Client(cluster, set_as_default=False)
             stack.callback(client.close)
         yield client
+
+
+def _existing(Client: Any, scheduler: str) -> Iterator[Any]:
+    """A client of an existing scheduler (BadInputError when none answers)."""
+    try:
+        client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise BadInputError(f"--scheduler {scheduler}: no Dask scheduler answered "
+                            f"({exc})") from None
+    try:
+        yield client
+    finally:
+        client.close()
 
 
 def _killed_row(task: DesignTask, exc: BaseException) -> DesignRow:
