@@ -48,7 +48,7 @@ test-unit: $(STAMP)
 	SPM_TESTS_HOST_STALLS=0 $(BIN)/python -m pytest tests/unit -n auto
 
 test-runtime: $(STAMP)
-	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e -n 2 --dist loadgroup
+	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e -n 2 --dist loadgroup --durations=25
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -m ''
