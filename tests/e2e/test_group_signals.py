@@ -167,12 +167,15 @@ def test_every_group_signal_on_every_front_end(
 
 
 @pytest.mark.skipif(shutil.which("timeout") is None, reason="coreutils timeout is missing")
-def test_timeout_stops_the_run_with_an_estop(tmp_path: Path,
-                                             long_plan: Path, agile: Profile) -> None:
-    """``timeout -s TERM`` signals its command, then its own process group."""
+def test_timeout_stops_the_run_with_an_estop(tmp_path: Path, agile: Profile) -> None:
+    """``timeout -s TERM`` signals its command, then its own process group. The command's
+    motion starts 2.6–4.3 s after launch here (a slow CI machine took longer than 4.5 s once):
+    the signal comes at 7 s, inside a 10 s motion."""
     logs = tmp_path / "logs"
-    args = _front_end("execute", tmp_path, long_plan)
-    proc = subprocess.Popen(["timeout", "--preserve-status", "-s", "TERM", "4.5", sys.executable,
+    longer = tmp_path / "longer.json"
+    save_plan(synthetic_plan(agile, PAPER_START, GOAL, 10.0), longer)
+    args = _front_end("execute", tmp_path, longer)
+    proc = subprocess.Popen(["timeout", "--preserve-status", "-s", "TERM", "7", sys.executable,
                              "-m", "spm_console", *args, "--json"], env=_env(logs),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out, err = proc.communicate(timeout=60)
