@@ -138,6 +138,35 @@ def _leaf(root: type[BaseModel], loc: Sequence[int | str]) -> tuple[Any, list[An
     return tp, _flatten([*meta, *more])
 
 
+def _bounds(meta: Sequence[Any]) -> tuple[Any, bool, Any, bool]:
+    """(low, low inclusive, high, high inclusive) of a field's constraints, as declared
+    (None where there is none)."""
+    low: Any = None
+    high: Any = None
+    low_in = high_in = False
+    for m in meta:
+        for attr in ("gt", "ge", "lt", "le"):
+            bound = getattr(m, attr, None)
+            if bound is None:
+                continue
+            if attr in ("gt", "ge"):
+                low, low_in = bound, attr == "ge"
+            else:
+                high, high_in = bound, attr == "le"
+    return low, low_in, high, high_in
+
+
+def field_bounds(root: type[BaseModel], loc: Sequence[int | str]) -> tuple[float, bool, float, bool]:
+    """(low, low inclusive, high, high inclusive) of the number at ``loc`` as the schema
+    declares it; ±inf where it sets none (KeyError when ``loc`` names no field)."""
+    found = _leaf(root, loc)
+    if found is None:
+        raise KeyError(".".join(map(str, loc)))
+    low, low_in, high, high_in = _bounds(found[1])
+    return (-math.inf if low is None else float(low), low_in,
+            math.inf if high is None else float(high), high_in)
+
+
 def allowed(root: type[BaseModel], loc: Sequence[int | str]) -> str | None:
     """The allowed values at ``loc``, e.g. ``0 < p ≤ 1000`` or ``one of "zoh", "tustin"``."""
     found = _leaf(root, loc)
@@ -154,16 +183,9 @@ def allowed(root: type[BaseModel], loc: Sequence[int | str]) -> str | None:
         return None
     if tp not in (float, int):
         return None
-    lo = hi = ""
-    for m in meta:
-        for attr, side in (("gt", "<"), ("ge", "≤"), ("lt", "<"), ("le", "≤")):
-            bound = getattr(m, attr, None)
-            if bound is None:
-                continue
-            if attr in ("gt", "ge"):
-                lo = f"{num(bound)} {side} "
-            else:
-                hi = f" {side} {num(bound)}"
+    low, low_in, high, high_in = _bounds(meta)
+    lo = "" if low is None else f"{num(low)} {'≤' if low_in else '<'} "
+    hi = "" if high is None else f" {'≤' if high_in else '<'} {num(high)}"
     kind = "integer" if tp is int else "finite number"
     if not lo and not hi:
         return f"any {kind}"

@@ -140,7 +140,7 @@ def design_profile(base_text: str, params: dict[str, float], source: str,
     except (tomllib.TOMLDecodeError, RecursionError) as exc:
         raise ProfileError(f"{source}: the base profile is not valid TOML: {exc}") from None
     for name, value in params.items():
-        data.setdefault(PARAMETERS[name][0], {})[name] = float(value)
+        data.setdefault(PARAMETERS[name], {})[name] = float(value)
     if step_deg is not None:
         data.setdefault("workspace", {})["step_deg"] = float(step_deg)
     prof = parse_profile(data, source)

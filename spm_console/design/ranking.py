@@ -94,6 +94,6 @@ def design_profile_text(folder: Path, base_text: str, names: tuple[str, ...],
     params = {n: float(cols[n][r]) for n in names}
     source = f"design {index} of {folder}"
     prof = design_profile(base_text, params, source)
-    values: dict[tuple[str, str], Any] = {(PARAMETERS[n][0], n): v for n, v in params.items()}
+    values: dict[tuple[str, str], Any] = {(PARAMETERS[n], n): v for n, v in params.items()}
     values[("home", "sign_seed")] = list(prof.home.sign_seed)
     return with_values(base_text, values, f"[design sweep] design {index} of {folder}", source)

@@ -35,14 +35,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-import annotated_types as at
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from spm_console import __version__
-from spm_console.config.checks import validation_message
+from spm_console.config.checks import field_bounds, validation_message
 from spm_console.config.load import parse_profile_text, with_grid_step
-from spm_console.config.schema import Count, Geometry, Links, Profile, Real
+from spm_console.config.schema import Count, Profile, Real
 from spm_console.core.workspace_build import FORMAT_VERSION
 from spm_console.errors import BadInputError, ProfileError
 from spm_console.safe_io import MB, FileRefusedError, read_capped
@@ -59,11 +58,10 @@ HARD_MAX_NODES = 2_000_000
 #: Most start/goal pairs planned per design.
 MAX_PAIRS = 16
 
-#: The parameters a sweep may vary: name -> (profile section, its model).
-PARAMETERS: dict[str, tuple[str, type[BaseModel]]] = {
-    **{k: ("geometry", Geometry) for k in ("alpha1_deg", "alpha2_deg", "beta_deg", "gamma_deg")},
-    **{k: ("links", Links) for k in ("oa_mm", "ob_mm", "oc_mm", "od_mm", "oe_mm", "of_mm",
-                                       "delta_mm")},
+#: The parameters a sweep may vary: name -> its profile section.
+PARAMETERS: dict[str, str] = {
+    **dict.fromkeys(("alpha1_deg", "alpha2_deg", "beta_deg", "gamma_deg"), "geometry"),
+    **dict.fromkeys(("oa_mm", "ob_mm", "oc_mm", "od_mm", "oe_mm", "of_mm", "delta_mm"), "links"),
 }
 
 
@@ -130,18 +128,7 @@ class SweepSpec:
 
 def _bounds(name: str) -> tuple[float, bool, float, bool]:
     """(low, low inclusive, high, high inclusive) of a parameter's profile field."""
-    _, model = PARAMETERS[name]
-    lo, lo_in, hi, hi_in = -math.inf, False, math.inf, False
-    for m in model.model_fields[name].metadata:
-        if isinstance(m, at.Gt):
-            lo, lo_in = float(m.gt), False  # type: ignore[arg-type]
-        elif isinstance(m, at.Ge):
-            lo, lo_in = float(m.ge), True  # type: ignore[arg-type]
-        elif isinstance(m, at.Lt):
-            hi, hi_in = float(m.lt), False  # type: ignore[arg-type]
-        elif isinstance(m, at.Le):
-            hi, hi_in = float(m.le), True  # type: ignore[arg-type]
-    return lo, lo_in, hi, hi_in
+    return field_bounds(Profile, (PARAMETERS[name], name))
 
 
 def _check_range(name: str, r: Range, source: str) -> None:
@@ -156,7 +143,7 @@ def _check_range(name: str, r: Range, source: str) -> None:
         if v < lo or (v == lo and not lo_in) or v > hi or (v == hi and not hi_in):
             raise BadInputError(
                 f"{source}: {key}.{end} = {v:g} is outside the profile's bounds for "
-                f"{PARAMETERS[name][0]}.{name}: {'[' if lo_in else '('}{lo:g}, {hi:g}"
+                f"{PARAMETERS[name]}.{name}: {'[' if lo_in else '('}{lo:g}, {hi:g}"
                 f"{']' if hi_in else ')'}")
 
 
