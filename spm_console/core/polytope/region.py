@@ -108,14 +108,8 @@ class Region:
         one row per facet: found from the vertices (qhull), no LP. A row is redundant
         exactly when it defines no facet. ``interior``: see :meth:`vertices`. A polytope too
         thin for qhull to find its vertices keeps every row (as a flat one does)."""
-        from scipy.spatial import QhullError
-
-        try:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                V = self.vertices(interior)
-        except QhullError:
-            return list(range(self.halfspaces))
-        if len(V) < 4 or not np.isfinite(V).all():  # flat, or too thin to intersect exactly
+        V = self._solid_vertices(interior)
+        if len(V) < 4:
             return list(range(self.halfspaces))
         n = np.linalg.norm(self.A, axis=1)
         An, bn = self.A / n[:, None], self.b / n
@@ -181,16 +175,29 @@ class Region:
         hs = HalfspaceIntersection(np.hstack([self.A, -self.b[:, None]]), c)
         return np.asarray(hs.intersections)
 
+    def _solid_vertices(self, interior: F | None = None) -> F:
+        """:meth:`vertices`, or none (0, 3) when qhull cannot intersect the half-spaces: a
+        polytope too thin to tell an inner point from its faces counts as flat."""
+        from scipy.spatial import QhullError
+
+        try:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                V = self.vertices(interior)
+        except QhullError:
+            return np.zeros((0, 3))
+        return V if np.isfinite(V).all() else np.zeros((0, 3))
+
     def volume(self) -> float:
         """Volume of the bounded polytope, deg³ (0 if empty or flat, also when it is too
         thin for qhull to tell an inner point from the boundary)."""
         from scipy.spatial import ConvexHull, QhullError
 
+        V = self._solid_vertices()
+        if len(V) < 4:
+            return 0.0
         try:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                V = self.vertices()
-            return float(ConvexHull(V).volume) if len(V) >= 4 and np.isfinite(V).all() else 0.0
-        except QhullError:  # too thin for qhull to tell its inside from its faces
+            return float(ConvexHull(V).volume)
+        except QhullError:  # the vertices are coplanar
             return 0.0
 
     def to_dict(self) -> dict[str, list[list[float]] | list[float]]:
