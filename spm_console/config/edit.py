@@ -37,7 +37,7 @@ def toml_value(v: Value) -> str:
     return json.dumps(str(v), ensure_ascii=False)
 
 
-def _key_line(line: str) -> str | None:
+def _key_of(line: str) -> str | None:
     m = re.match(r"^\s*([A-Za-z0-9_\-]+)\s*=", line)
     return m.group(1) if m else None
 
@@ -77,9 +77,9 @@ def with_values(text: str, values: dict[tuple[str, str], Value], note: str,
             out.append(line)
             k += 1
             continue
-        key = _key_line(line)
+        key = _key_of(line)
         if key is not None and (section, key) in todo:
-            out.append(_line(key, todo.pop((section, key)), note))
+            out.append(key_line(key, todo.pop((section, key)), note))
             k = _value_end(lines, k)
             continue
         out.append(line)
@@ -99,7 +99,8 @@ def with_values(text: str, values: dict[tuple[str, str], Value], note: str,
     return new, prof
 
 
-def _line(key: str, value: Value, note: str) -> str:
+def key_line(key: str, value: Value, note: str) -> str:
+    """One ``key = value  # note`` line, the comments lined up as in the shipped profiles."""
     return f"{key} = {toml_value(value)}".ljust(38) + f" # {note}"
 
 
@@ -111,4 +112,4 @@ def _flush(out: list[str], section: str, todo: dict[tuple[str, str], Value], not
     at = len(out)
     while at > 0 and not out[at - 1].strip():
         at -= 1
-    out[at:at] = [_line(key, todo.pop((s, key)), note) for s, key in mine]
+    out[at:at] = [key_line(key, todo.pop((s, key)), note) for s, key in mine]

@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import re
 
-from spm_console.config.edit import HEADER as _HEADER
-from spm_console.config.edit import toml_value as _value
+from spm_console.config.edit import HEADER, key_line, toml_value
 from spm_console.config.load import parse_profile_text
 from spm_console.config.schema import Profile, Servo
 
@@ -33,12 +32,12 @@ def servo_lines(servo: Servo) -> list[str]:
         v = getattr(servo, key)
         if v is None:
             continue
-        out.append(f"{key} = {_value(v)}".ljust(38) + f" # {note}")
+        out.append(key_line(key, v, note))
     if servo.identified is not None:
         out += ["", "[servo.identified]"]
         for key, v in servo.identified.model_dump().items():
             if v is not None:
-                out.append(f"{key} = {_value(v)}")
+                out.append(f"{key} = {toml_value(v)}")
     return out
 
 
@@ -50,7 +49,7 @@ def with_servo(text: str, servo: Servo, source: str) -> tuple[str, Profile]:
     inside = False
     placed = False
     for line in lines:
-        m = _HEADER.match(line)
+        m = HEADER.match(line)
         if m:
             name = re.sub(r"\s+", "", m.group(1))
             inside = name == "servo" or name.startswith("servo.")
