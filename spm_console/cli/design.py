@@ -16,6 +16,10 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from spm_console.cli.common import PLOT_SUFFIXES, emit, info, output_file, output_folder
+from spm_console.design.ranking import RANKED, best, check_metric, design_profile_text, pareto
+from spm_console.design.spec import DEFAULT_MAX_DESIGNS, load_spec
+from spm_console.design.sweep import allowed_cores, run_sweep
+from spm_console.design.table import load_table, read_base_text
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.safe_io import write_text_atomic
 
@@ -103,9 +107,6 @@ def check_scheduler(address: str) -> None:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from spm_console.design.spec import DEFAULT_MAX_DESIGNS, load_spec
-    from spm_console.design.sweep import allowed_cores, run_sweep
-
     if not str(args.out).strip():
         raise BadInputError("--out: give the sweep's folder")
     output_folder(args.out, "--out")
@@ -137,9 +138,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
-    from spm_console.design.ranking import RANKED, best, check_metric, pareto
-    from spm_console.design.table import load_table
-
     if not 1 <= args.top <= MAX_TOP:
         raise BadInputError(f"--top must be within 1..{MAX_TOP}, got {args.top}")
     output_file(args.plot, "--plot", PLOT_SUFFIXES)
@@ -179,9 +177,6 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_profile(args: argparse.Namespace) -> int:
-    from spm_console.design.ranking import design_profile_text
-    from spm_console.design.table import load_table, read_base_text
-
     output_file(args.out, "--out", (".toml",))
     info_, cols = load_table(args.folder)
     text, prof = design_profile_text(args.folder, read_base_text(args.folder), info_.names, cols,
