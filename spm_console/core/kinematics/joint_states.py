@@ -47,17 +47,31 @@ def signed_angle(axis: F, a: F, b: F) -> F:
                                  np.sum(a_n * b_n, axis=-1)))
 
 
-def joint_states(model: SpmModel, theta: F, R: F) -> JointStates:
-    """The joints of poses: θ rad (..., 3), platform rotations R from home (..., 3, 3)."""
-    u = model.u
+def _legs(model: SpmModel, theta: F, R: F) -> tuple[F, F, F, F]:
+    """(q, φ, proximal rotations P_i, distal rotations D_i) of poses (each leg's (..., 3)
+    angles, (..., 3, 3, 3) rotations from home)."""
     w0 = model.geom.w(model.theta_home)
     v0 = model.v_home
     v = platform_axes(R, v0)  # (..., 3 legs, 3)
     q = np.asarray(theta, float) - model.theta_home
-    prox = expm_so3(-u * q[..., None])  # (..., 3 legs, 3, 3)
+    prox = expm_so3(-model.u * q[..., None])  # (..., 3 legs, 3, 3)
     t = np.einsum("...lba,...lb->...la", prox, v)  # Pᵀ v_i
     phi = signed_angle(w0, v0, t)
-    dist = prox @ expm_so3(w0 * phi[..., None])
+    return q, phi, prox, prox @ expm_so3(w0 * phi[..., None])
+
+
+def body_rotations(model: SpmModel, theta: F, R: F) -> F:
+    """Every body's rotation from home (..., 7, 3, 3): proximal links 1-3, distal links 1-3,
+    the platform (R)."""
+    _, _, prox, dist = _legs(model, theta, R)
+    return np.concatenate([prox, dist, np.asarray(R, float)[..., None, :, :]], axis=-3)
+
+
+def joint_states(model: SpmModel, theta: F, R: F) -> JointStates:
+    """The joints of poses: θ rad (..., 3), platform rotations R from home (..., 3, 3)."""
+    w0 = model.geom.w(model.theta_home)
+    v0 = model.v_home
+    q, phi, _, dist = _legs(model, theta, R)
     rel = np.einsum("...lba,...bc->...lac", dist, R)  # Dᵀ R: about v_i(home) on a closed chain
     ref = np.cross(v0, w0)
     psi = signed_angle(v0, ref, np.einsum("...lab,lb->...la", rel, ref))

@@ -1,0 +1,77 @@
+"""Static loads on the motor joints: the regressor of the weight of the wrist's bodies.
+
+Every body of a spherical wrist turns about the centre, so body b's centre of mass is
+R_b(θ)·c_b, with c_b where it sits at home, and its potential energy is m_b·g·upᵀR_b(θ)c_b.
+The weight's torque on motor joint j is then linear in the bodies' first moments of mass
+s_b = m_b·c_b (the classical linear-in-parameters form of a manipulator's gravity, e.g.
+Khalil and Dombre, *Modeling, Identification and Control of Robots*, ch. 12):
+
+    τ_j(θ) = −∂U/∂θ_j = −g Σ_b Σ_k (upᵀ ∂R_b/∂θ_j e_k) s_b,k ,
+
+so the regressor Y(θ) (3 joints × 7 bodies · 3 components) needs only the kinematics. Bodies:
+the three proximal links, the three distal links, the platform (:data:`BODIES`). The
+derivatives are central differences of the bodies' rotations, the platform's from the
+continuation step of the unique FK (eq. 1-13), to O(h²).
+
+Angles in radians; the regressor is per radian of θ_j.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.core.kinematics.continuation import continuation_step
+from spm_console.core.kinematics.joint_states import body_rotations
+from spm_console.core.kinematics.model import SpmModel
+
+F = NDArray[np.float64]
+
+BODIES = ("proximal 1", "proximal 2", "proximal 3", "distal 1", "distal 2", "distal 3",
+          "platform")
+"""The bodies whose weight loads the motors, in the regressor's order."""
+PARAMETERS = 3 * len(BODIES)
+"""First-moment components: (body, x/y/z at home) flattened body-major."""
+DIFF_STEP_RAD = 1e-5
+"""Step of the central differences, rad (errors O(h²) ≈ 1e-10 of the regressor)."""
+
+
+def gravity_regressor(model: SpmModel, theta: F, R: F, up: F) -> F:
+    """Y(θ) of the poses θ (n, 3) rad, platform rotations R (n, 3, 3): (n, 3, 21), with
+    Y[n, j, 3b + k] = ∂(upᵀ R_b e_k)/∂θ_j at pose n. The weight's torque on the motors is
+    −g·Y·s for first moments s (kg·m, home frame) and ``up`` the unit vector against
+    gravity in the base frame."""
+    th = np.asarray(theta, float).reshape(-1, 3)
+    rot = np.asarray(R, float).reshape(-1, 3, 3)
+    up = np.asarray(up, float) / float(np.linalg.norm(up))
+    out = np.empty((th.shape[0], 3, PARAMETERS))
+    for j in range(3):
+        step = np.zeros(3)
+        step[j] = DIFF_STEP_RAD
+        sides = []
+        for sign in (1.0, -1.0):
+            t = th + sign * step
+            sides.append(body_rotations(model, t, continuation_step(model, th, rot, t).R))
+        d = (sides[0] - sides[1]) / (2.0 * DIFF_STEP_RAD)  # (n, 7, 3, 3)
+        out[:, j, :] = np.einsum("a,nbak->nbk", up, d).reshape(th.shape[0], PARAMETERS)
+    return out
+
+
+def path_rotations(model: SpmModel, theta: F, R0: F | None = None,
+                   theta0: F | None = None) -> F:
+    """The platform's rotation at every row of a path θ (n, 3) rad, by continuation from
+    (θ0, R0) (default home) through the rows in turn, each subdivided to steps ≤ 1°.
+    Raises ValueError where the path leaves the home modes (a singularity on the way)."""
+    th = np.asarray(theta, float).reshape(-1, 3)
+    cur_t = model.theta_home if theta0 is None else np.asarray(theta0, float)
+    cur_R = np.eye(3) if R0 is None else np.asarray(R0, float)
+    out = np.empty((th.shape[0], 3, 3))
+    for n, target in enumerate(th):
+        res = model.track(target, cur_t, cur_R, max_step=math.radians(1.0))
+        if not res.ok or res.pose is None:
+            raise ValueError(f"no FK along the path at row {n}: {res.reason}")
+        cur_t, cur_R = target, res.pose.R
+        out[n] = cur_R
+    return out

@@ -1,0 +1,76 @@
+"""The weight regressor (kinematics only) against MuJoCo's potential energy of the wrist."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from spm_console.config.load import load_profile
+from spm_console.config.models import model_of
+from spm_console.core.kinematics.loads import BODIES, gravity_regressor, path_rotations
+from spm_console.devices.emulator.physical import PhysicalWrist
+from tests.support.paths import ROOT
+
+G = 9.81
+UP = np.array([0.0, 0.0, 1.0])  # the MJCF's gravity is −z
+
+
+@pytest.fixture(scope="module")
+def wrist() -> PhysicalWrist:
+    w = PhysicalWrist(model_of(load_profile(ROOT / "profiles" / "agile_wrist.toml")))
+    w.mj.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    return w
+
+
+def _moments(w: PhysicalWrist) -> np.ndarray:
+    """First moments m·c (kg·m) of the regressor's bodies at home, from MuJoCo's bodies."""
+    w.set_theta(w.spm.theta_home)
+    names = [f"proximal{i}" for i in range(3)] + [f"distal{i}" for i in range(3)] + ["platform"]
+    assert len(names) == len(BODIES)
+    return np.concatenate([w.mj.body(n).mass[0] * w.data.xipos[w.mj.body(n).id] for n in names])
+
+
+def _energy_gradient(w: PhysicalWrist, theta: np.ndarray, h: float = 1e-4) -> np.ndarray:
+    """∂U/∂θ (N·m) of the assembled chain by central differences of MuJoCo's energy."""
+    def energy(t: np.ndarray) -> float:
+        w.set_theta(t)
+        mujoco.mj_energyPos(w.mj, w.data)
+        return float(w.data.energy[0])
+
+    out = np.zeros(3)
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = h
+        out[j] = (energy(theta + e) - energy(theta - e)) / (2 * h)
+    return out
+
+
+def test_the_regressor_gives_mujocos_weight_torques(wrist: PhysicalWrist) -> None:
+    """At poses across the workspace (the paper's MVN start and goal among them), g·Y(θ)·s
+    with MuJoCo's own masses and centres of mass is MuJoCo's ∂U/∂θ: the weight's load on
+    the motors, from kinematics and six first moments per leg only."""
+    s = _moments(wrist)
+    spm = wrist.spm
+    poses_deg = np.array([[135.0, 135.0, 135.0], [127.53, 83.23, 85.25],
+                          [66.8, 155.0, 131.48], [100.0, 120.0, 140.0], [150.0, 110.0, 95.0]])
+    theta = np.radians(poses_deg)
+    R = np.stack([path_rotations(spm, np.linspace(spm.theta_home, t, 30))[-1] for t in theta])
+    Y = gravity_regressor(spm, theta, R, UP)
+    for n, t in enumerate(theta):
+        dU = _energy_gradient(wrist, t)
+        assert np.abs(dU).max() > 0.01  # the weight does load the motors here
+        np.testing.assert_allclose(G * Y[n] @ s, dU, atol=2e-4 * max(1.0, np.abs(dU).max()))
+
+
+def test_rotating_the_gravity_about_a_fixed_wrist_is_a_different_load() -> None:
+    """``up`` enters: a wrist mounted upside down carries the opposite load."""
+    spm = model_of(load_profile(ROOT / "profiles" / "agile_wrist.toml"))
+    theta = np.radians([[120.0, 140.0, 130.0]])
+    R = path_rotations(spm, theta)
+    y_up = gravity_regressor(spm, theta, R, UP)
+    y_down = gravity_regressor(spm, theta, R, -UP)
+    np.testing.assert_allclose(y_down, -y_up)
+    assert math.isfinite(float(np.abs(y_up).max())) and np.abs(y_up).max() > 0
