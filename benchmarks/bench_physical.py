@@ -31,7 +31,6 @@ from benchmarks.common import Row
 from spm_console.config.load import load_profile
 from spm_console.config.schema import Plant, Profile, Settle
 from spm_console.core.plan import Plan
-from spm_console.core.servo.experiment import fit_record
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.dynamixel.bus import open_bus
 from spm_console.devices.emulator.child import EmulatorChild
@@ -39,7 +38,11 @@ from spm_console.errors import SpmError
 from spm_console.motion.executor import Executor, Segment
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.report import paper_values as pv
-from spm_console.services.identify_experiment import experiment_once, identified_servo
+from spm_console.services.identify_experiment import (
+    experiment_once,
+    fit_experiment,
+    identified_servo,
+)
 from spm_console.services.oneshot import RunRequest
 from spm_console.services.plan_request import PlanRequest, plan_motion
 from spm_console.store.workspace_cache import load_or_build
@@ -136,7 +139,7 @@ def run() -> list[Row]:
     if exp.t is None or exp.reference_deg is None or exp.measured_deg is None:
         return [Row("physical: identification", float("nan"), "", "completes", passed=False,
                     note=exp.execution.message)]
-    fit = fit_record(exp.excitation, exp.t, exp.reference_deg, exp.measured_deg)
+    fit = fit_experiment(agile, exp)
     servo = identified_servo(agile, fit, "benchmark")
     a = fit.assessment
     rows += [

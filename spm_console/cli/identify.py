@@ -25,7 +25,7 @@ from spm_console.cli.common import PLOT_SUFFIXES, emit, output_file, profile_of
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.schema import Profile, Servo
-from spm_console.core.servo.experiment import ExperimentFit, fit_record
+from spm_console.core.servo.experiment import ExperimentFit
 from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, IdentifyResult, identify
 from spm_console.errors import BadInputError, ExitCode, SolverError, SpmError
 from spm_console.motion.logs.runlog import load_run
@@ -35,6 +35,7 @@ from spm_console.safe_io import MB, read_text
 from spm_console.services.identify_experiment import (
     ExperimentRun,
     experiment_once,
+    fit_experiment,
     identified_profile,
     identified_servo,
 )
@@ -193,7 +194,7 @@ def _experiment(args: argparse.Namespace, profile: Profile) -> int:
             run.homing.execution if run.homing else None) else "experiment"
         return _report(args, run.execution, extra)
     try:
-        fit = fit_record(run.excitation, run.t, run.reference_deg, run.measured_deg)
+        fit = fit_experiment(profile, run)
     except SpmError as exc:
         raise type(exc)(f"{run.execution.log_dir}: {exc.message}") from None
     servo = identified_servo(profile, fit, str(run.execution.log_dir))

@@ -200,6 +200,14 @@ class Servo(_Section):
     """Largest |model − measurement| seen on held-out data, deg: plans stay this far inside
     the certified set (a tube) and a run whose model error exceeds it is reported as a model
     that looks wrong; none: not known (the paper's exact model)."""
+    load_deg_per_nm: Real | None = Field(default=None, gt=0.0, le=100.0)
+    """The drive's offset per N·m of the torque that holds the wrist's weight (computed from
+    ``[plant]``'s masses, the base's z axis up), deg/(N·m): the inverse of the position loop's
+    stiffness, scaled by the mass model's error. With it the runtime sends θ* plus the load's
+    offset, so the loaded servo follows the model of θ*; none: no load model (the paper's)."""
+    coulomb_deg: Real | None = Field(default=None, ge=0.0, le=5.0)
+    """The drive's offset against the motion that the gear's Coulomb friction costs, deg
+    (smoothed through rest over 2 deg/s); none: 0."""
     identified: Identified | None = None
     """Provenance of an identified model; none for a model typed in."""
 

@@ -26,6 +26,8 @@ def servo_lines(servo: Servo) -> list[str]:
         "discretization": "exact sampling of the model (kept)",
         "linear_range_deg": f"{why} largest |θ* − θ| the servo followed the model at, deg",
         "residual_bound_deg": f"{why} largest |model − θ| on held-out data, deg",
+        "load_deg_per_nm": f"{why} offset per N·m of the weight's holding torque, deg/(N·m)",
+        "coulomb_deg": f"{why} offset against the motion (Coulomb friction), deg",
     }
     out = ["[servo]"]
     for key, note in notes.items():

@@ -41,6 +41,7 @@ from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_checked
 from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
 from spm_console.formatting import fmt_deg
+from spm_console.motion.load_offsets import load_offsets, sent_references
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.plan_check import LINE_PHASES, PlanCheck, PlanVerifier
 from spm_console.motion.safety import SafetyMonitor, StopReason
@@ -212,6 +213,11 @@ class Executor:
             )
         # verified within 1e-9° of the servo limits: on them exactly (the bus refuses any goal past)
         refs = np.clip(np.vstack([s.plan.reference_deg for s in segments]), self.lo, self.hi)
+        offsets = load_offsets(self.profile, self.model, refs, theta0)
+        sent = sent_references(refs, offsets, self.lo, self.hi, theta0)
+        if offsets is not None:
+            self._event("load_offsets", max_deg=np.abs(offsets).max(axis=0),
+                        mean_deg=offsets.mean(axis=0))
         phases = [s.phase for s in segments for _ in range(s.plan.N + 1)]
         # planned segments stay in the certified set; runtime-built straight moves were
         # checked exactly along their path instead (plan_check.LINE_PHASES)
@@ -221,7 +227,7 @@ class Executor:
         # a planned motion may end by settling at its goal (profile [settle]); a line does not
         settle = (self.profile.settle.duration_s > 0 and segments[-1].phase not in LINE_PHASES)
         return self._guarded(
-            theta0, lambda: self._loop(refs, phases, regions, theta0, settle),
+            theta0, lambda: self._loop(refs, phases, regions, theta0, settle, sent),
             lambda: f"executed {len(self.samples)} cycles ({len(self.samples) * self.ts:.2f} s)")
 
     def _guarded(self, theta0: F, loop: Callable[[], StopReason | None],
@@ -321,15 +327,19 @@ class Executor:
         return None
 
     def _loop(self, refs: F, phases: list[str], regions: list[bool], theta0: F,
-              settle: bool = False) -> StopReason | None:
+              settle: bool = False, sent: F | None = None) -> StopReason | None:
+        """Cycle through the verified references; ``sent`` (same shape): what goes to the
+        servos instead, the references plus the load's offset (:mod:`.load_offsets`)."""
         st = self._loop_state(theta0)
+        out = refs if sent is None else sent
         for k in range(len(refs)):
-            stop = self._cycle(st, k, refs[k], phases[k], regions[k])
+            stop = self._cycle(st, k, refs[k], phases[k], regions[k], sent=out[k])
             if stop is not None:
                 return stop
-        return self._settle(st, len(refs), refs[-1]) if settle else None
+        return (self._settle(st, len(refs), refs[-1], out[-1] - refs[-1]) if settle else None)
 
-    def _settle(self, st: _LoopState, k0: int, goal: F) -> StopReason | None:
+    def _settle(self, st: _LoopState, k0: int, goal: F, offset: F | None = None
+                ) -> StopReason | None:
         """Periods at the plan's goal with the goal sent shifted by the measured offset
         (:mod:`spm_console.motion.settle`), each shifted goal inside the certified set."""
         certified = self.verifier.certified
@@ -341,7 +351,8 @@ class Executor:
         s = Settling(self.profile.settle, goal, allowed)
         used = 0
         for j in range(settle_periods(self.profile.settle, self.ts)):
-            stop = self._cycle(st, k0 + j, s.reference, "settle", True)
+            sent = None if offset is None else np.clip(s.reference + offset, self.lo, self.hi)
+            stop = self._cycle(st, k0 + j, s.reference, "settle", True, sent=sent)
             if stop is not None:
                 return stop
             used = j + 1
@@ -372,9 +383,10 @@ class Executor:
         return st
 
     def _cycle(self, st: _LoopState, k: int, ref: F, phase: str, region: bool,
-               target: F | None = None) -> StopReason | None:
-        """Cycle k: wait for its deadline, write ``ref``, read, filter, check, publish; the
-        stop (already applied) or None."""
+               target: F | None = None, sent: F | None = None) -> StopReason | None:
+        """Cycle k: wait for its deadline, write ``ref`` (or ``sent``: ``ref`` plus the load's
+        offset; the models run on ``ref``), read, filter, check, publish; the stop (already
+        applied) or None."""
         deadline = self.t0 + k * self.ts
         self._wait_until(deadline)
         t_start = self.clock()
@@ -386,7 +398,8 @@ class Executor:
             self._apply_stop(estop, self._hold_target(st.last_good), repeat_at)
             return estop
         t_write = self.clock()
-        z, retries, detail, t_read = self._cycle_io(ref)
+        goal = ref if sent is None else sent
+        z, retries, detail, t_read = self._cycle_io(goal)
         t_end = self.clock()
         bus_s = t_end - t_start
         t_meas = t_read if z is not None else t_end
@@ -410,7 +423,7 @@ class Executor:
             stop = safety.position(z, p_read, region, t, k)
         meas = z if z is not None else np.full(3, np.nan)
         err = float(np.abs(meas - p_read).max()) if z is not None else float("nan")
-        sample = Sample(t=t, k=k, phase=phase, reference_deg=ref, measured_deg=meas,
+        sample = Sample(t=t, k=k, phase=phase, reference_deg=goal, measured_deg=meas,
                         predicted_deg=p_pos, predicted_velocity_degps=p_vel,
                         filtered_deg=filt, velocity_degps=vel, fd_velocity_degps=fdv.copy(),
                         tracking_error_deg=err, bus_s=bus_s, late_s=t_start - deadline,

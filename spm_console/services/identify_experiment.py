@@ -26,7 +26,8 @@ from spm_console.config.schema import Identified, Profile, Servo
 from spm_console.config.servo_section import with_servo
 from spm_console.core.plan import Plan
 from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
-from spm_console.core.servo.experiment import Excitation, ExperimentFit, excitation
+from spm_console.core.servo.experiment import Excitation, ExperimentFit, excitation, fit_record
+from spm_console.description.weight import holding_torque_nm
 from spm_console.errors import BadInputError, PlanRefusedError, ProfileError, RefusedError, SolverError
 from spm_console.motion.homing import HomingResult
 from spm_console.motion.logs.runlog import load_run
@@ -151,6 +152,22 @@ def _record(run_dir: Path, n: int) -> tuple[F, F, F]:
     return t, ref, meas
 
 
+def fit_experiment(profile: Profile, run: ExperimentRun) -> ExperimentFit:
+    """The experiment's record fitted with the load (:func:`fit_record`): the weight's
+    holding torque at the poses read (the reference's where a reply was lost), from the
+    profile's mass model. Raises BadInputError / SolverError as the fit does."""
+    if run.t is None or run.reference_deg is None or run.measured_deg is None:
+        raise BadInputError("the experiment did not complete: nothing to fit")
+    meas, ref = run.measured_deg, run.reference_deg
+    seen = np.asarray(np.isfinite(meas).all(axis=1), bool)
+    poses = np.where(seen[:, None], meas, ref)
+    try:
+        hold = holding_torque_nm(profile, poses)
+    except ValueError as exc:
+        raise SolverError(f"the weight's load along the record: {exc}") from None
+    return fit_record(run.excitation, run.t, ref, meas, hold)
+
+
 def identified_servo(profile: Profile, fit: ExperimentFit, source: str) -> Servo:
     """The identified ``[servo]`` section of ``fit`` (Ts and discretization kept), its
     provenance naming ``source`` and the time now (UTC)."""
@@ -161,6 +178,9 @@ def identified_servo(profile: Profile, fit: ExperimentFit, source: str) -> Servo
             zeta=round(s.zeta, 4), delay_s=round(min(s.delay_s, 0.999 * profile.servo.ts_s), 6),
             linear_range_deg=round(max(a.linear_range_deg, 0.01), 2),
             residual_bound_deg=max(fit.residual_bound_deg, 0.01),
+            load_deg_per_nm=(None if fit.load is None or fit.load.moments_deg[0] <= 0.0
+                             else round(float(fit.load.moments_deg[0]), 4)),
+            coulomb_deg=None if fit.load is None else round(fit.load.coulomb_deg, 4),
             identified=Identified(
                 date=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
                 source=source[:500], samples=s.samples * s.joints,

@@ -9,7 +9,6 @@ from pathlib import Path
 from spm_console.config.models import servo_model_of
 from spm_console.config.schema import DEFAULT_PROFILE
 from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
-from spm_console.core.servo.experiment import fit_record
 from spm_console.errors import BadInputError
 from spm_console.report.plot_identify import plot_experiment
 from spm_console.safe_io import MB, read_text
@@ -17,6 +16,7 @@ from spm_console.services.identify_experiment import (
     SPEED_SHARE,
     STEP_MARGIN_DEG,
     experiment_in_session,
+    fit_experiment,
     identified_profile,
     identified_servo,
 )
@@ -48,7 +48,7 @@ def identify_blocking(session: Session, profile_path: Path | None,
     if run.t is None or run.reference_deg is None or run.measured_deg is None:
         return IdentifyDone(run.execution, None, None, "")
     folder = Path(str(run.execution.log_dir))
-    fit = fit_record(run.excitation, run.t, run.reference_deg, run.measured_deg)
+    fit = fit_experiment(session.profile, run)
     servo = identified_servo(session.profile, fit, str(folder))
     source = profile_path if profile_path is not None else DEFAULT_PROFILE
     text = read_text(source, "profile", 1 * MB, BadInputError)

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.servo.identify import IdentifyResult, identify, response
+from spm_console.core.servo.load import LoadModel, fit_load, model_velocity
 from spm_console.core.servo.model import Dynamics
 
 F = NDArray[np.float64]
@@ -168,11 +169,15 @@ class Assessment:
     """(n, 3) the model's positions at the samples, deg."""
 
 
-def assess(ex: Excitation, t: F, measured_deg: F, model: Dynamics, theta0_deg: F) -> Assessment:
-    """The model run from rest at ``theta0_deg`` under the experiment's references, against
-    the measured positions (n, 3) at the instants ``t`` (s) of its first n samples; a row
-    whose reply was lost is NaN and left out of every figure."""
+def assess(ex: Excitation, t: F, measured_deg: F, model: Dynamics, theta0_deg: F,
+           offset_deg: F | None = None) -> Assessment:
+    """The model run from rest at ``theta0_deg`` under the experiment's references (less the
+    load's offset (n, 3), when given), against the measured positions (n, 3) at the instants
+    ``t`` (s) of its first n samples; a row whose reply was lost is NaN and left out of every
+    figure."""
     ref = ex.reference_deg[: len(t)]
+    if offset_deg is not None:
+        ref = ref - offset_deg
     meas = np.asarray(measured_deg, float)
     seen = np.isfinite(meas).all(axis=1)
     sim = response(model, model.delay_s, np.asarray(t, float) - float(t[0]), ref,
@@ -211,6 +216,9 @@ class ExperimentFit:
     shared: IdentifyResult
     joints: tuple[IdentifyResult, ...]
     assessment: Assessment
+    load: LoadModel | None = None
+    """The load's offset fitted with the shared model (when the holding torques were given);
+    its ``moments_deg`` holds one value: deg per N·m of holding torque."""
 
     @property
     def residual_bound_deg(self) -> float:
@@ -218,17 +226,30 @@ class ExperimentFit:
         return math.ceil(self.assessment.held_out_max_deg * 100.0 - 1e-9) / 100.0
 
 
-def fit_record(ex: Excitation, t: F, reference_deg: F, measured_deg: F) -> ExperimentFit:
+def fit_record(ex: Excitation, t: F, reference_deg: F, measured_deg: F,
+               holding_nm: F | None = None) -> ExperimentFit:
     """Fit ωn, ζ and the delay to the experiment's fit part (all joints sharing them, then
     each joint alone), and assess the shared model on the whole record. ``t`` (n,) s and the
     logged references and positions (n, 3) deg of the excitation's first n samples (NaN where
-    a reply was lost). Raises BadInputError / SolverError as :func:`identify` does."""
+    a reply was lost). With ``holding_nm`` (n, 3), the torque that holds the wrist's weight at
+    the measured poses (N·m), the shared model is fitted with the load's offset
+    (:func:`~spm_console.core.servo.load.fit_load`: deg per N·m of it, and Coulomb friction).
+    Raises BadInputError / SolverError as :func:`identify` does."""
     t = np.asarray(t, float)
     ref, meas = np.asarray(reference_deg, float), np.asarray(measured_deg, float)
     m = ex.mask("fit")[: len(t)]
     lost = ~np.isfinite(meas[m]).all(axis=1)
     shared = identify(t[m], ref[m], meas[m], fit_delay=True, fit_damping=True, lost=lost)
+    load: LoadModel | None = None
+    offset: F | None = None
+    if holding_nm is not None:
+        hold = np.asarray(holding_nm, float)[:, :, None]
+        lf = fit_load(t[m], ref[m], meas[m], hold[m], lost, shared)
+        shared, load = lf.result, lf.load
+        vel = model_velocity(shared.dynamics, t, ref, shared.theta0_deg)
+        offset = load.offset_deg(hold, vel)
     joints = tuple(identify(t[m], ref[m][:, j], meas[m][:, j], fit_delay=True, fit_damping=True,
                             lost=lost, start=shared.dynamics) for j in range(ref.shape[1]))
     # the fit part starts at rest at its θ0, where the wrist rested from the record's start
-    return ExperimentFit(shared, joints, assess(ex, t, meas, shared.dynamics, shared.theta0_deg))
+    return ExperimentFit(shared, joints,
+                         assess(ex, t, meas, shared.dynamics, shared.theta0_deg, offset), load)

@@ -1,0 +1,44 @@
+"""The torque the motors give to hold the wrist's weight, from the profile's mass model.
+
+The bodies' first moments of mass come from the same capsules as the MJCF and URDF
+(``[plant]``'s link and platform masses); the regressor from the kinematics
+(:mod:`spm_console.core.kinematics.loads`). The base's z axis points up, as in the emulated
+wrist and the exported descriptions. Degrees at the interface, N·m.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.models import model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.loads import BODIES, gravity_regressor, path_rotations
+from spm_console.core.kinematics.model import SpmModel
+from spm_console.description.mjcf import PlantParams, body_capsules, plant_params
+
+F = NDArray[np.float64]
+
+GRAVITY_MPS2 = 9.81
+UP = np.array([0.0, 0.0, 1.0])
+"""Against gravity, in the base frame."""
+_NAMES = ("proximal0", "proximal1", "proximal2", "distal0", "distal1", "distal2", "platform")
+
+
+def first_moments(model: SpmModel, params: PlantParams) -> F:
+    """Σ m·c of each body's capsules at home (kg·m), in :data:`BODIES` order, flattened (21,)."""
+    caps = body_capsules(model, params)
+    assert len(_NAMES) == len(BODIES)
+    return np.concatenate([sum((c.mass_kg * 0.5 * (c.a + c.b) for c in caps[name]),
+                               np.zeros(3)) for name in _NAMES])
+
+
+def holding_torque_nm(profile: Profile, theta_deg: F) -> F:
+    """∂U/∂θ (n, 3), N·m: what each motor gives to hold the weight at the rows of
+    ``theta_deg`` (n, 3), a path from home through the rows in turn (its FK by continuation).
+    Raises ValueError where the path meets a singularity."""
+    model = model_of(profile)
+    th = np.radians(np.asarray(theta_deg, float).reshape(-1, 3))
+    R = path_rotations(model, th)
+    Y = gravity_regressor(model, th, R, UP)
+    return np.asarray(GRAVITY_MPS2 * Y @ first_moments(model, plant_params(profile.plant)), float)

@@ -1,0 +1,78 @@
+"""What the runtime adds to each reference so that a loaded servo follows its model.
+
+With an identified load (``[servo] load_deg_per_nm``, ``coulomb_deg``) the servo follows the
+model of θ* − d, d its load's offset (:mod:`spm_console.core.servo.load`). The runtime sends
+θ* + d, with d taken where the model of the verified references will be at the end of each
+period (the weight's holding torque at that pose, the friction against the model's speed
+there): the loaded servo then follows the model the plan was verified on. The references as
+sent are checked again here: finite, inside the servo limits (clipped onto them), steps
+within the runtime's bound, every offset within :data:`MAX_OFFSET_DEG`.
+Degrees, deg/s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.schema import Profile
+from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
+from spm_console.core.servo.load import LoadModel
+from spm_console.core.servo.model import ServoModel, simulate
+from spm_console.description.weight import holding_torque_nm
+from spm_console.errors import PlanRefusedError
+
+F = NDArray[np.float64]
+
+MAX_OFFSET_DEG = 2.0
+"""Largest load offset the runtime adds, deg: a model asking for more is not a load model
+of a position servo holding a wrist (the MX-106 sags about 0.5° under this wrist's weight)."""
+
+
+def load_model(profile: Profile) -> LoadModel | None:
+    """The profile's load model (weight as deg per N·m of holding torque); None without one."""
+    s = profile.servo
+    if s.load_deg_per_nm is None and not s.coulomb_deg:
+        return None
+    return LoadModel(np.array([float(s.load_deg_per_nm or 0.0)]), float(s.coulomb_deg or 0.0))
+
+
+def load_offsets(profile: Profile, model: ServoModel, refs: F, theta0: F) -> F | None:
+    """d (n, 3) deg for the references (n, 3) of a run from rest at θ0 (deg); None without a
+    load model. Raises PlanRefusedError when the offset is out of bounds or the model's path
+    has no FK."""
+    load = load_model(profile)
+    if load is None:
+        return None
+    refs = np.asarray(refs, float)
+    x0 = np.stack([np.asarray(theta0, float), np.zeros(3)], axis=1)
+    states = simulate(model, x0, np.vstack([refs, refs[-1:]]))[1:]  # end of each period
+    pos, vel = states[:, :, 0], states[:, :, 1]
+    if load.moments_deg[0] != 0.0:
+        try:
+            hold = holding_torque_nm(profile, pos)
+        except ValueError as exc:
+            raise PlanRefusedError(f"the load's offset cannot be computed: {exc}") from None
+    else:
+        hold = np.zeros_like(pos)
+    d = load.offset_deg(hold[:, :, None], vel)
+    worst = float(np.abs(d).max()) if d.size else 0.0
+    if not np.isfinite(worst) or worst > MAX_OFFSET_DEG:
+        raise PlanRefusedError(f"the servo's load model asks for an offset of {worst:.3g}° "
+                               f"(at most {MAX_OFFSET_DEG:g}°): check [servo] load_deg_per_nm "
+                               "and coulomb_deg")
+    return np.asarray(d, float)
+
+
+def sent_references(refs: F, offsets: F | None, lo: F, hi: F, previous: F | None) -> F:
+    """θ* + d clipped onto the servo limits [lo, hi], checked for the runtime's step bound
+    (from ``previous``, the reference in use before, when given)."""
+    if offsets is None:
+        return refs
+    sent = np.clip(np.asarray(refs, float) + offsets, lo, hi)
+    chain = sent if previous is None else np.vstack([np.asarray(previous, float)[None], sent])
+    steps = np.abs(np.diff(chain, axis=0))
+    if steps.size and float(steps.max()) > MAX_REFERENCE_STEP_DEG:
+        raise PlanRefusedError(f"with the load's offset a reference steps by "
+                               f"{float(steps.max()):.3g}° (at most {MAX_REFERENCE_STEP_DEG:g}°)")
+    return sent
