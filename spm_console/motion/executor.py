@@ -41,13 +41,13 @@ from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_checked
 from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
 from spm_console.formatting import fmt_deg
-from spm_console.motion.load_offsets import load_offsets, sent_references
+from spm_console.motion.goals.load_offsets import load_offsets, sent_references
+from spm_console.motion.goals.settle import Settling, settle_periods
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.plan_check import LINE_PHASES, PlanCheck, PlanVerifier
 from spm_console.motion.safety import SafetyMonitor, StopReason
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult, Segment
-from spm_console.motion.settle import Settling, settle_periods
 from spm_console.motion.stats import StopTiming, model_health, run_stats, stale_replies
 from spm_console.motion.stop_action import apply_stop_action
 from spm_console.system.cpus import placement
@@ -341,7 +341,7 @@ class Executor:
     def _settle(self, st: _LoopState, k0: int, goal: F, offset: F | None = None
                 ) -> StopReason | None:
         """Periods at the plan's goal with the goal sent shifted by the measured offset
-        (:mod:`spm_console.motion.settle`), each shifted goal inside the certified set."""
+        (:mod:`spm_console.motion.goals.settle`), each shifted goal inside the certified set."""
         certified = self.verifier.certified
 
         def allowed(theta: F) -> bool:

@@ -26,7 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.servo.identify import IdentifyResult, identify, response
-from spm_console.core.servo.load import LoadModel, fit_load, model_velocity
+from spm_console.core.servo.load import LoadModel
+from spm_console.core.servo.load_fit import fit_load, model_velocity
 from spm_console.core.servo.model import Dynamics
 
 F = NDArray[np.float64]

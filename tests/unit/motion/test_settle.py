@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from spm_console.config.schema import Settle
-from spm_console.motion.settle import SETTLED_PERIODS, Settling, settle_periods
+from spm_console.motion.goals.settle import SETTLED_PERIODS, Settling, settle_periods
 
 TICK = 360.0 / 4096
 
