@@ -8,18 +8,26 @@ response to θ* less Σ π_k times its responses to the columns. Degrees, second
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import least_squares
 
-from spm_console.core.servo.identify import IdentifyResult, identify, response
+from spm_console.core.servo.identify import (
+    DELAY_MAX_S,
+    P_BOUNDS,
+    ZETA_BOUNDS,
+    IdentifyResult,
+    identify,
+    response,
+)
 from spm_console.core.servo.load import SMOOTH_DEGPS, LoadModel
 from spm_console.core.servo.model import Dynamics
 
 F = NDArray[np.float64]
 
-FIT_ROUNDS = 4
+FIT_ROUNDS = 2
 """Alternations of dynamics and load parameters in :func:`fit_load`."""
 RIDGE = 1e-3
 """Tikhonov weight of the load parameters, relative to the largest squared singular value of
@@ -82,8 +90,42 @@ def fit_load(t: F, reference: F, measured: F, gravity_columns: F, lost: NDArray[
         d = cols @ params
         res = identify(t, ref - d, meas, fit_delay=True, fit_damping=True, lost=~seen,
                        start=res.dynamics)
+    res, params = _refine(t, ref, meas, gravity_columns, seen, res, params, smooth_degps)
     dyn = res.dynamics
     vel = model_velocity(dyn, t, ref, res.theta0_deg)
     cols = _columns(gravity_columns, vel, smooth_degps)
     load = LoadModel(params[:-1].copy(), float(params[-1]), smooth_degps)
     return LoadFit(res, load, cols @ params)
+
+
+def _refine(t: F, ref: F, meas: F, gravity_columns: F, seen: NDArray[np.bool_],
+            res: IdentifyResult, params: F, smooth: float) -> tuple[IdentifyResult, F]:
+    """All parameters at once (ωn, ζ, delay, θ0, load) by scipy's least_squares from the
+    alternation's estimate: the friction's column depends on the dynamics (through the
+    model's speed), which the alternation converges to only slowly."""
+    n0 = 3 + 3
+
+    def unpack(x: F) -> tuple[Dynamics, F, F]:
+        return Dynamics(float(x[0]), float(x[1]), float(x[2])), x[3:n0], x[n0:]
+
+    def resid(x: F) -> F:
+        dyn, th0, pi = unpack(x)
+        cols = _columns(gravity_columns, model_velocity(dyn, t, ref, th0), smooth)
+        sim = response(dyn, dyn.delay_s, t - t[0], ref - cols @ pi, th0 - cols[0] @ pi)
+        return np.asarray((sim - meas)[seen].reshape(-1), float)
+
+    x0 = np.concatenate([[res.p, res.zeta, res.delay_s], res.theta0_deg - 0.0, params])
+    lo = np.concatenate([[P_BOUNDS[0], ZETA_BOUNDS[0], 0.0], np.full(3, -np.inf),
+                         np.full(params.size - 1, -np.inf), [0.0]])
+    hi = np.concatenate([[P_BOUNDS[1], ZETA_BOUNDS[1], DELAY_MAX_S], np.full(3, np.inf),
+                         np.full(params.size, np.inf)])
+    x0 = np.clip(x0, lo, hi)
+    sol = least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", max_nfev=60)
+    if not sol.success or not np.isfinite(sol.x).all():
+        return res, params
+    dyn, th0, pi = unpack(sol.x)
+    r = sol.fun
+    out = replace(res, p=dyn.wn, zeta=dyn.zeta, delay_s=dyn.delay_s, theta0_deg=th0.copy(),
+                  rms_deg=float(np.sqrt(np.mean(r * r))) if r.size else 0.0,
+                  max_abs_deg=float(np.abs(r).max()) if r.size else 0.0)
+    return out, pi.copy()
