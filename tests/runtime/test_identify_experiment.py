@@ -43,6 +43,10 @@ def test_the_physical_wrist_is_identified_and_its_profile_tracks_better(
     # the MX-106 model is not eq. (27) with p = 32.22: faster and underdamped
     assert 35.0 < sv.p < 60.0 and 0.6 < sv.zeta < 0.98, sv
     assert sv.residual_bound_deg is not None and sv.residual_bound_deg < 0.5
+    # the load: the drive's P loop (850/128 of PWM per tick, 12 V, kt 2.2 N·m/A, 3.14 Ω) is
+    # about 41 N·m/rad, i.e. 1.4 deg/(N·m); the gear's 0.1 N·m of friction about 0.14°
+    assert sv.load_deg_per_nm is not None and 0.6 < sv.load_deg_per_nm < 2.5, sv
+    assert sv.coulomb_deg is not None and 0.02 < sv.coulomb_deg < 0.3, sv
     assert d["held_out_rms_deg"] < 0.2 and d["motion_s"] <= 30.0
     assert sv.linear_range_deg is not None and sv.linear_range_deg > 1.0
     assert [b["part"] for b in d["blocks"]].count("held-out") >= 3
