@@ -363,6 +363,9 @@ class Plant(_Section):
     """Coulomb friction, N·m: BAM, about 0.10."""
     viscous_nms: Real = Field(default=0.04, ge=0.0, le=10.0)
     """Viscous friction, N·m·s/rad: BAM, 0.035–0.051."""
+    backlash_deg: Real = Field(default=0.33, ge=0.0, le=5.0)
+    """Play of the gear train at the output, deg: the MX-106 e-manual's 0.33° (20′). The
+    encoder reads the output shaft, so the play sits inside the position loop. 0: none."""
     backdrive_friction_nm: Real = Field(default=1.0, ge=0.0, le=20.0)
     """Friction of a joint whose torque is off (the gear driven from the output), N·m:
     assumed, so that the wrist's own weight (below 0.5 N·m at any joint with the default

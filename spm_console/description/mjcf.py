@@ -12,7 +12,10 @@ with the world's orientation, in the home configuration (joint angles 0 there):
 
 Masses and the capsules that carry them are the profile's ``[plant]``; joint
 friction (Coulomb ``frictionloss``, viscous ``damping``) and the motor's reflected inertia
-(``armature``) sit on the proximal joints, the servos' output shafts.
+(``armature``) sit on the servos' drive joints. With a gear play (``[plant] backlash_deg``)
+the drive turns a rotor body ``rotor{i}`` (joint ``motor{i}``) and the output shaft (joint
+``theta{i}``, the proximal link) turns against it within ±half the play (a joint limit, so
+MuJoCo's constraint solver takes the impacts); without, the drive is the output joint.
 
 With a link model, each leg also carries the paper's collision envelope (Sec. IV-B): a
 capsule of radius δ on every checked segment (A_iB_i, B_iC_i on the proximal link, D_iE_i,
@@ -23,6 +26,7 @@ capsules tells when they meet (:class:`~spm_console.devices.emulator.physical.Ph
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from xml.sax.saxutils import escape
@@ -52,6 +56,8 @@ class PlantParams:
     link_mass_kg: float
     platform_mass_kg: float
     link_radius_m: float
+    backlash_rad: float = 0.0
+    """Play of the gear between the rotor and the output shaft, rad (0: rigid)."""
     capsule_m: float = 0.008
     """Radius of the capsules that carry the links' mass, m (their inertia only)."""
     timestep_s: float = 0.00025
@@ -64,7 +70,7 @@ def plant_params(plant: Plant) -> PlantParams:
     return PlantParams(plant.supply_v, plant.kt_nm_per_a, plant.resistance_ohm,
                        plant.armature_kgm2, plant.coulomb_nm, plant.viscous_nms,
                        plant.backdrive_friction_nm, plant.link_mass_kg, plant.platform_mass_kg,
-                       plant.link_radius_mm / 1000.0)
+                       plant.link_radius_mm / 1000.0, math.radians(plant.backlash_deg))
 
 
 def xml_comment(text: str) -> str:
@@ -150,21 +156,33 @@ def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = N
             plat_geoms = "\n".join(_capsule(c) for c in caps["platform"])
             platform = (f'<body name="platform"><joint name="platform_hinge" type="hinge" '
                         f'axis="{_vec(v[0])}"/>{plat_geoms}</body>')
+        drive = (f'type="hinge" axis="{_vec(-u[i])}" armature="{params.armature_kgm2:.6g}" '
+                 f'damping="{params.viscous_nms:.6g}" frictionloss="{params.backdrive_friction_nm:.6g}" '
+                 f'solreffriction="{2 * params.timestep_s:.6g} 1"')
+        half = math.degrees(params.backlash_rad) / 2.0
+        if half > 0.0:  # the rotor turns the output through the gear's play
+            head = (f'<body name="rotor{i}"><joint name="motor{i}" {drive}/>'
+                    f'<inertial pos="0 0 0" mass="1e-6" diaginertia="1e-9 1e-9 1e-9"/>'
+                    f'<body name="proximal{i}"><joint name="theta{i}" type="hinge" '
+                    f'axis="{_vec(-u[i])}" limited="true" range="{-half:.9g} {half:.9g}" '
+                    f'solreflimit="{2 * params.timestep_s:.6g} 1"/>')
+            tail = '</body></body>'
+        else:
+            head = f'<body name="proximal{i}"><joint name="theta{i}" {drive}/>'
+            tail = '</body>'
         legs.append(
-            f'<body name="proximal{i}">'
-            f'<joint name="theta{i}" type="hinge" axis="{_vec(-u[i])}" armature="{params.armature_kgm2:.6g}" '
-            f'damping="{params.viscous_nms:.6g}" frictionloss="{params.backdrive_friction_nm:.6g}" '
-            f'solreffriction="{2 * params.timestep_s:.6g} 1"/>'
+            f'{head}'
             f'{_capsule(caps[f"proximal{i}"][0])}'
             f'{_envelopes(model, links, i, True)}'
             f'<body name="distal{i}"><joint name="distal{i}" type="hinge" axis="{_vec(w[i])}"/>'
             f'{_capsule(caps[f"distal{i}"][0])}'
             f'{_envelopes(model, links, i, False)}{platform}</body>'
-            f'</body>')
+            f'{tail}')
     closures = "\n".join(
         f'<connect body1="distal{j}" body2="platform" anchor="{_vec(r * v[j])}" '
         f'solref="{2 * params.timestep_s:.6g} 1" solimp="0.99 0.999 0.001"/>' for j in (1, 2))
-    motors = "\n".join(f'<motor name="servo{i}" joint="theta{i}" gear="1" ctrllimited="false"/>'
+    driven = "motor" if params.backlash_rad > 0.0 else "theta"
+    motors = "\n".join(f'<motor name="servo{i}" joint="{driven}{i}" gear="1" ctrllimited="false"/>'
                        for i in range(3))
     return f"""<mujoco model="spm_wrist">
   <option timestep="{params.timestep_s:.6g}" gravity="0 0 -9.81" integrator="implicitfast"/>

@@ -181,6 +181,11 @@ class PhysicalWrist:
         self.drives = [Drive(self.params, self.ticks_per_rad) for _ in range(3)]
         self._joint = [self.mj.joint(f"theta{i}").qposadr[0] for i in range(3)]
         self._dof = [self.mj.joint(f"theta{i}").dofadr[0] for i in range(3)]
+        play = self.params.backlash_rad > 0.0
+        self._motor_q = [self.mj.joint(f"motor{i}").qposadr[0] for i in range(3)] if play else []
+        self._motor_dof = ([self.mj.joint(f"motor{i}").dofadr[0] for i in range(3)] if play
+                           else list(self._dof))
+        """The drive's joint per servo: the rotor's with a gear play, else the output's."""
         self.goal = np.array(model.theta_home, float)
         """Goal angle per joint, rad (the servos' Goal Position)."""
         self.enabled = [False, False, False]
@@ -212,36 +217,62 @@ class PhysicalWrist:
         self.enabled[index] = enabled
         # torque on: the motor drives the gear (Coulomb friction); off: the gear is driven
         # from the output, and holds
-        self.mj.dof_frictionloss[self._dof[index]] = (
+        self.mj.dof_frictionloss[self._motor_dof[index]] = (
             self.params.coulomb_nm if enabled else self.params.backdrive_friction_nm)
         if blocked and self.blocked[index] is None:
-            self.blocked[index] = float(self.theta()[index])
+            self.blocked[index] = float(self.motor_angle()[index])
         elif not blocked:
             self.blocked[index] = None
 
     def current(self, index: int) -> float:
         """Winding current of joint ``index`` now, A."""
-        return self.drives[index].current(float(self.duty[index]), float(self.omega()[index]))
+        return self.drives[index].current(float(self.duty[index]),
+                                          float(self.motor_omega()[index]))
 
     def theta(self) -> F:
-        """Joint angles θ, rad."""
-        return np.asarray(self.spm.theta_home + self.data.qpos[self._joint], float)
+        """Joint angles θ at the output shafts (what the encoders read), rad."""
+        q = self.data.qpos[self._joint]
+        if self._motor_q:
+            q = q + self.data.qpos[self._motor_q]
+        return np.asarray(self.spm.theta_home + q, float)
 
     def omega(self) -> F:
-        """Joint speeds, rad/s."""
-        return np.asarray(self.data.qvel[self._dof], float)
+        """Output shafts' speeds, rad/s."""
+        w = self.data.qvel[self._dof]
+        if self._motor_q:
+            w = w + self.data.qvel[self._motor_dof]
+        return np.asarray(w, float)
+
+    def motor_angle(self) -> F:
+        """The drives' angles at the output's scale (the gear's input side), rad from home."""
+        src = self._motor_q if self._motor_q else self._joint
+        return np.asarray(self.data.qpos[src], float)
+
+    def motor_omega(self) -> F:
+        """The drives' speeds at the output's scale, rad/s (back-EMF and current)."""
+        return np.asarray(self.data.qvel[self._motor_dof], float)
 
     def set_theta(self, theta: F) -> None:
         """Place the wrist at rest at θ (rad): the chain is assembled by the solver from θ."""
         q = np.asarray(theta, float) - self.spm.theta_home
         mujoco.mj_resetData(self.mj, self.data)
-        self.data.qpos[self._joint] = q
-        # let the constraint solver assemble the passive joints with the motors held
+        held = self._motor_q if self._motor_q else self._joint  # the output in mid-play
+        self.data.qpos[held] = q
+        # let the constraint solver assemble the passive joints with the motors held: the
+        # held joints made heavy meanwhile, so the solver's corrections go to the passive ones
+        forced = list(self._dof) + (list(self._motor_dof) if self._motor_q else [])
+        armature = self.mj.dof_armature[forced].copy()
+        self.mj.dof_armature[forced] = 1e3
         for _ in range(400):
-            self.data.qpos[self._joint] = q
+            self.data.qpos[held] = q
+            if self._motor_q:
+                self.data.qpos[self._joint] = 0.0
             self.data.qvel[:] = 0.0
             mujoco.mj_step(self.mj, self.data)
-        self.data.qpos[self._joint] = q
+        self.mj.dof_armature[forced] = armature
+        self.data.qpos[held] = q
+        if self._motor_q:
+            self.data.qpos[self._joint] = 0.0
         self.data.qvel[:] = 0.0
         mujoco.mj_forward(self.mj, self.data)
         self.goal = np.asarray(theta, float).copy()
@@ -269,7 +300,8 @@ class PhysicalWrist:
         dt = self.params.timestep_s
         while self.t + dt <= t + 1e-12:
             th = self.theta()
-            om = self.omega()
+            om = self.motor_omega()
+            phi = self.motor_angle()
             for i, d in enumerate(self.drives):
                 torque = 0.0
                 self.duty[i] = 0.0
@@ -279,7 +311,7 @@ class PhysicalWrist:
                     torque = d.torque(float(self.duty[i]), om[i])
                 lock = self.blocked[i]
                 if lock is not None:  # a blocked shaft: a stiff, damped stop where it stuck
-                    torque += -BLOCK_STIFFNESS * (th[i] - lock) - BLOCK_DAMPING * om[i]
+                    torque += -BLOCK_STIFFNESS * (phi[i] - lock) - BLOCK_DAMPING * om[i]
                 self.data.ctrl[i] = torque
             mujoco.mj_step(self.mj, self.data)
             self.t += dt
