@@ -8,6 +8,8 @@ wrist and the exported descriptions. Degrees at the interface, N·m.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -33,12 +35,35 @@ def first_moments(model: SpmModel, params: PlantParams) -> F:
                                np.zeros(3)) for name in _NAMES])
 
 
+@dataclass(frozen=True)
+class Weight:
+    """The wrist's weight as the motors feel it: its kinematics and the bodies' first
+    moments."""
+
+    model: SpmModel
+    moments_kgm: F
+    """(21,) first moments of the bodies at home, kg·m (:func:`first_moments`)."""
+
+    @classmethod
+    def of(cls, profile: Profile) -> Weight:
+        model = model_of(profile)
+        return cls(model, first_moments(model, plant_params(profile.plant)))
+
+    def torque_nm(self, theta_rad: F, R: F) -> F:
+        """∂U/∂θ (n, 3), N·m, at poses θ (n, 3) rad with platform rotations R (n, 3, 3)."""
+        Y = gravity_regressor(self.model, theta_rad, R, UP)
+        return np.asarray(GRAVITY_MPS2 * Y @ self.moments_kgm, float)
+
+    def along(self, theta_deg: F) -> F:
+        """∂U/∂θ (n, 3), N·m, along a path from home through the rows of ``theta_deg``
+        (n, 3) in turn (its FK by continuation). Raises ValueError where the path meets a
+        singularity."""
+        th = np.radians(np.asarray(theta_deg, float).reshape(-1, 3))
+        return self.torque_nm(th, path_rotations(self.model, th))
+
+
 def holding_torque_nm(profile: Profile, theta_deg: F) -> F:
     """∂U/∂θ (n, 3), N·m: what each motor gives to hold the weight at the rows of
-    ``theta_deg`` (n, 3), a path from home through the rows in turn (its FK by continuation).
+    ``theta_deg`` (n, 3), a path from home through the rows in turn (:meth:`Weight.along`).
     Raises ValueError where the path meets a singularity."""
-    model = model_of(profile)
-    th = np.radians(np.asarray(theta_deg, float).reshape(-1, 3))
-    R = path_rotations(model, th)
-    Y = gravity_regressor(model, th, R, UP)
-    return np.asarray(GRAVITY_MPS2 * Y @ first_moments(model, plant_params(profile.plant)), float)
+    return Weight.of(profile).along(theta_deg)

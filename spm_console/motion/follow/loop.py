@@ -53,6 +53,7 @@ from spm_console.motion.follow.regions import (
     follow_start,
 )
 from spm_console.motion.follow.target_feed import TargetFeed
+from spm_console.motion.goals.load_offsets import LoadTracker, load_model, step_limited
 from spm_console.motion.safety import SafetyMonitor, StopReason
 from spm_console.motion.segments import ExecutionResult
 from spm_console.motion.stats import stale_replies
@@ -209,16 +210,24 @@ class Follower(Executor):
         settled_since: float | None = None
         finished_at: float | None = None
         updates = 0  # targets that arrived before the start are logged with cycle 0
+        load = load_model(self.profile)
+        tracker = None if load is None else LoadTracker(self.profile, load, theta0)
+        th_next, om_next = theta0, np.zeros(3)
+        sent: F | None = None
         feed.arm()  # the deadman counts from here: the set-up is not the source's silence
         k = 0
         while True:
             asked = feed.now(k * self.ts, st.last_good)  # logged beside the reference
-            stop = self._cycle(st, k, ref, "follow", True, target=asked)
+            if tracker is not None:  # the load's offset where the model is headed
+                d = tracker.offset(th_next, om_next)
+                sent = step_limited(sent, ref if d is None else ref + d, self.lo, self.hi)
+            stop = self._cycle(st, k, ref, "follow", True, target=asked, sent=sent)
             if stop is not None:
                 return stop
             s = self.samples[-1]
             t_next = (k + 1) * self.ts
             th, om = self._predict(s.filtered_deg, s.velocity_degps, ref, s.read_offset_s)
+            th_next, om_next = th, om
             if feed.updates != updates:  # a live target arrived: logged with the cycle it meets
                 updates = feed.updates
                 self._event("target", k=k, theta_deg=feed.final(s.filtered_deg))

@@ -16,10 +16,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.config.schema import Profile
+from spm_console.core.kinematics.loads import path_rotations
 from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
 from spm_console.core.servo.load import LoadModel
 from spm_console.core.servo.model import ServoModel, simulate
-from spm_console.description.weight import holding_torque_nm
+from spm_console.description.weight import Weight, holding_torque_nm
 from spm_console.errors import PlanRefusedError
 
 F = NDArray[np.float64]
@@ -76,3 +77,38 @@ def sent_references(refs: F, offsets: F | None, lo: F, hi: F, previous: F | None
         raise PlanRefusedError(f"with the load's offset a reference steps by "
                                f"{float(steps.max()):.3g}° (at most {MAX_REFERENCE_STEP_DEG:g}°)")
     return sent
+
+
+class LoadTracker:
+    """The load's offset at one pose after another (live following, which has no plan to
+    compute it for ahead): the platform's FK continued from the last pose."""
+
+    def __init__(self, profile: Profile, load: LoadModel, theta0_deg: F) -> None:
+        self.load = load
+        self.weight = Weight.of(profile)
+        self.theta = np.radians(np.asarray(theta0_deg, float))
+        self.R = path_rotations(self.weight.model, self.theta[None])[0]
+
+    def offset(self, theta_deg: F, velocity_degps: F) -> F | None:
+        """d (3,) deg at θ (deg) and the model's speed (deg/s); None where the FK from the
+        last pose fails (nothing is added then)."""
+        th = np.radians(np.asarray(theta_deg, float))
+        if self.load.moments_deg[0] != 0.0:
+            res = self.weight.model.track(th, self.theta, self.R)
+            if not res.ok or res.pose is None:
+                return None
+            self.theta, self.R = th, res.pose.R
+            hold = self.weight.torque_nm(th[None], self.R[None])
+        else:
+            hold = np.zeros((1, 3))
+        d = self.load.offset_deg(hold[:, :, None], np.asarray(velocity_degps, float)[None])[0]
+        return np.clip(d, -MAX_OFFSET_DEG, MAX_OFFSET_DEG)
+
+
+def step_limited(previous: F | None, sent: F, lo: F, hi: F) -> F:
+    """``sent`` clipped onto [lo, hi] and to within the runtime's reference step of
+    ``previous`` (the reference sent before)."""
+    out = np.clip(sent, lo, hi)
+    if previous is not None:
+        out = previous + np.clip(out - previous, -MAX_REFERENCE_STEP_DEG, MAX_REFERENCE_STEP_DEG)
+    return np.asarray(out, float)

@@ -12,8 +12,11 @@ from spm_console.description.weight import holding_torque_nm
 from spm_console.errors import PlanRefusedError
 from spm_console.motion.goals.load_offsets import (
     MAX_OFFSET_DEG,
+    LoadTracker,
+    load_model,
     load_offsets,
     sent_references,
+    step_limited,
 )
 from tests.support.paths import ROOT
 
@@ -76,3 +79,26 @@ def test_the_profile_writer_keeps_the_load() -> None:
     assert back.servo.load_deg_per_nm == pytest.approx(1.3871)
     assert back.servo.coulomb_deg == pytest.approx(0.0857)
     assert "load_deg_per_nm" in text
+
+
+def test_the_live_tracker_gives_the_planned_offsets_pose_after_pose() -> None:
+    """Live following computes the offset cycle by cycle, continuing the FK from the last
+    pose: along a path it equals the offsets computed for the whole path at once."""
+    k, c = 1.4, 0.09
+    p = _loaded(k, c)
+    a, refs = _ramp()
+    load = load_model(p)
+    assert load is not None
+    tracker = LoadTracker(p, load, a)
+    vel = np.tile([-20.0, 25.0, 15.0], (len(refs), 1))
+    live = np.array([tracker.offset(th, v) for th, v in zip(refs, vel, strict=True)])
+    whole = k * holding_torque_nm(p, refs) + c * np.tanh(vel / 2.0)
+    np.testing.assert_allclose(live, whole, atol=1e-9)
+
+
+def test_a_sent_reference_is_limited_to_the_step_and_the_servo_limits() -> None:
+    lo, hi = np.zeros(3), np.full(3, 100.0)
+    out = step_limited(np.array([50.0, 50.0, 99.0]), np.array([65.0, 45.0, 101.0]), lo, hi)
+    np.testing.assert_allclose(out, [60.0, 45.0, 100.0])
+    np.testing.assert_allclose(step_limited(None, np.array([-1.0, 5.0, 7.0]), lo, hi),
+                               [0.0, 5.0, 7.0])
