@@ -3,7 +3,8 @@ identification experiment on the wrist and write a profile with the model it fou
 (``--experiment --out NEW.toml``).
 
 ``--run`` and ``--csv`` fit the paper's p (and with ``--delay`` a pure delay); ``--damping``
-adds the damping ratio ζ, the structure the experiment fits. The experiment homes the wrist,
+adds the damping ratio ζ; ``--load`` fits the experiment's structure (ωn, ζ, delay and the
+servo's load). The experiment homes the wrist,
 runs an excitation the runtime verifies like any plan (:mod:`spm_console.services.identify_experiment`),
 fits ωn, ζ and a delay on its first part and measures the model's error on the second,
 held out. Exit codes: 0 done; a stop of the experiment ends with its own code (20–25);
@@ -27,6 +28,8 @@ from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.schema import Profile, Servo
 from spm_console.core.servo.experiment import ExperimentFit
 from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, IdentifyResult, identify
+from spm_console.core.servo.load_fit import LoadFit, fit_load
+from spm_console.description.weight import holding_torque_nm
 from spm_console.errors import BadInputError, ExitCode, SolverError, SpmError
 from spm_console.motion.logs.runlog import load_run
 from spm_console.numbers import NotANumberError, parse_number
@@ -59,6 +62,10 @@ def register(sub: Any) -> None:
     i.add_argument("--delay", action="store_true", help="--run/--csv: also fit a pure delay")
     i.add_argument("--damping", action="store_true",
                    help="--run/--csv: also fit a damping ratio ζ (p is then ωn)")
+    i.add_argument("--load", action="store_true",
+                   help="--run/--csv: fit ωn, ζ, a delay and the servo's load (deg per N·m of "
+                        "the weight's holding torque from the profile's masses, and Coulomb "
+                        "friction), the experiment's structure; needs the three joints")
     i.add_argument("--out", type=Path, metavar="NEW.toml",
                    help="--experiment: write the profile with the identified [servo] here")
     i.add_argument("--plot", type=Path, metavar="FILE.png",
@@ -140,6 +147,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     if args.experiment:
         return _experiment(args, profile)
+    if args.load and (args.delay or args.damping):
+        raise BadInputError("--load fits the delay and ζ too: leave out --delay and --damping")
     for flag in ("out", "plot", "port", "sim_start"):
         if getattr(args, flag) not in (None, False):
             raise BadInputError(f"--{flag.replace('_', '-')} goes with --experiment")
@@ -153,9 +162,13 @@ def cmd_identify(args: argparse.Namespace) -> int:
         src, named = str(run.path), str(run.path / "samples.csv")
         t, ref, meas, at = _columns(dict(run.columns), named)
     try:
-        res = identify(t, ref, meas, fit_delay=args.delay, at=at, fit_damping=args.damping)
+        res = identify(t, ref, meas, fit_delay=args.delay or args.load, at=at,
+                       fit_damping=args.damping or args.load)
+        load = _fit_load(profile, t, ref, meas, res) if args.load else None
     except SpmError as exc:  # the refusal names the file its sample numbers refer to
         raise type(exc)(f"{named}: {exc.message}") from None
+    if load is not None:
+        res = load.result
     ts = profile.servo.ts_s
     if not PTS_MIN <= res.p * ts <= PTS_MAX:
         raise SolverError(
@@ -170,9 +183,29 @@ def cmd_identify(args: argparse.Namespace) -> int:
              + (f", ζ = {res.zeta:.3f} ± {res.zeta_std:.3f}" if res.fit_damping else "")
              + (f", delay {1e3 * res.delay_s:.1f} ms" if res.fit_delay else "")
              + f"; RMS residual {res.rms_deg:.4f} deg over {res.samples} samples × {res.joints} joints")
+    if load is not None:
+        rec.update(load_deg_per_nm=float(load.load.moments_deg[0]),
+                   coulomb_deg=load.load.coulomb_deg)
+        human += (f"; load {load.load.moments_deg[0]:.3f} deg/(N·m) of holding torque, Coulomb "
+                  f"{load.load.coulomb_deg:.3f}°")
     emit(args, rec, human)
     sys.stdout.flush()
     return int(ExitCode.OK)
+
+
+def _fit_load(profile: Profile, t: np.ndarray, ref: np.ndarray, meas: np.ndarray,
+              start: IdentifyResult) -> LoadFit:
+    """ωn, ζ, delay and load on a record of the three joints: the weight's holding torque at
+    the poses read (a path from home through them, by continuation) from the profile."""
+    if ref.ndim != 2 or ref.shape[1] != 3:
+        raise BadInputError("--load needs the three joints (ref1..ref3, meas1..meas3): the "
+                            "weight's load depends on the whole pose")
+    try:
+        hold = holding_torque_nm(profile, meas)
+    except ValueError as exc:
+        raise BadInputError(f"--load: the poses read have no FK from home in the profile's "
+                            f"modes ({exc})") from None
+    return fit_load(t, ref, meas, hold[:, :, None], np.zeros(len(t), bool), start)
 
 
 def _experiment(args: argparse.Namespace, profile: Profile) -> int:
@@ -183,8 +216,9 @@ def _experiment(args: argparse.Namespace, profile: Profile) -> int:
     if args.out.resolve() == Path(args.profile).resolve():
         raise BadInputError("--out must name a new file: the profile the experiment runs with "
                             "stays as it is")
-    if args.delay or args.damping:
-        raise BadInputError("--delay and --damping go with --run/--csv (the experiment fits both)")
+    if args.delay or args.damping or args.load:
+        raise BadInputError("--delay, --damping and --load go with --run/--csv (the experiment "
+                            "fits all three)")
     run = experiment_once(profile, _request(args, profile))
     extra: dict[str, Any] = {"experiment": {"motion_s": run.excitation.duration_s,
                                             "step_deg": run.excitation.step_deg,
@@ -225,6 +259,7 @@ def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit
                     "reached_deg": b.reached_deg, "rms_deg": b.rms_deg, "max_deg": b.max_deg}
                    for b in a.blocks],
         "motion_s": run.excitation.duration_s,
+        "load_deg_per_nm": servo.load_deg_per_nm, "coulomb_deg": servo.coulomb_deg,
     }
     lines = [
         f"identified: ωn = {s.p:.2f} ± {s.p_std:.2f} rad/s, ζ = {s.zeta:.3f} ± {s.zeta_std:.3f}, "
@@ -233,6 +268,9 @@ def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit
           f"{1e3 * j.delay_s:.1f} ms, RMS {j.rms_deg:.3f}°" for i, j in enumerate(fit.joints)),
         f"model against measurement: fitted part RMS {a.fit_rms_deg:.3f}°; held-out part RMS "
         f"{a.held_out_rms_deg:.3f}°, max {a.held_out_max_deg:.3f}°",
+        (f"load: {servo.load_deg_per_nm} deg per N·m of the weight's holding torque, "
+         f"Coulomb friction {servo.coulomb_deg}°" if servo.load_deg_per_nm is not None
+         else "load: none found"),
         f"linear range: {servo.linear_range_deg:.2f}° of |θ* − θ|"
         + ("" if a.saturated else " at least (the experiment never saturated the servo)"),
         f"{run.excitation.duration_s:.1f} s of motion; log: {run.execution.log_dir}",

@@ -59,7 +59,10 @@ def identify_blocking(session: Session, profile_path: Path | None,
     a = fit.assessment
     summary = (f"identified: ωn = {servo.p:.2f} rad/s, ζ = {servo.zeta:.3f}, delay "
                f"{1e3 * servo.delay_s:.1f} ms; held-out RMS {a.held_out_rms_deg:.3f}°, max "
-               f"{a.held_out_max_deg:.3f}°; linear range {servo.linear_range_deg:g}°. "
+               f"{a.held_out_max_deg:.3f}°; linear range {servo.linear_range_deg:g}°"
+               + (f"; load {servo.load_deg_per_nm:g} deg/(N·m) of holding torque, Coulomb "
+                  f"{servo.coulomb_deg:g}°" if servo.load_deg_per_nm is not None else "")
+               + ". "
                f"Profile written: {out} (start the console with --profile on it to use it); "
                f"plot: {plot}")
     return IdentifyDone(run.execution, out, plot, summary)
