@@ -1,7 +1,7 @@
 """Plans executed on the physical emulated wrist, before and after identifying its servos.
 
-The physical wrist is MX-106 drives (firmware loop, PWM, DC motor, friction) on the rigid-body
-closed chain. First the identification experiment runs on it (as ``identify --experiment``
+The physical wrist is MX-106 drives (firmware loop, PWM, DC motor, friction, gear play) on the
+rigid-body closed chain. First the identification experiment runs on it (as ``identify --experiment``
 does, with the speed bound of 250 °/s so its steps reach 9°) and the identified ``[servo]``
 is put in the profile. Then each run is planned (the planner's own path: linear range and
 tube included) and executed twice on a fresh physical wrist: with the paper's model (27),
@@ -148,7 +148,9 @@ def run() -> list[Row]:
             note=f"ωn {servo.p:.2f} rad/s, ζ {servo.zeta:.3f}, delay {1e3 * servo.delay_s:.1f} "
                  f"ms, linear range {servo.linear_range_deg}° "
                  f"({'saturation seen' if a.saturated else 'never saturated'}), residual bound "
-                 f"{servo.residual_bound_deg}°; held-out max {a.held_out_max_deg:.3f}°"),
+                 f"{servo.residual_bound_deg}°; held-out max {a.held_out_max_deg:.3f}°; load "
+                 f"{servo.load_deg_per_nm} deg/(N·m) of holding torque, Coulomb "
+                 f"{servo.coulomb_deg}°"),
         Row("physical: identification motion", exp.excitation.duration_s, "s", "≤ 30 s",
             passed=exp.excitation.duration_s <= 30.0),
     ]

@@ -47,7 +47,7 @@ def test_the_physical_wrist_is_identified_and_its_profile_tracks_better(
     # about 41 N·m/rad, i.e. 1.4 deg/(N·m); the gear's 0.1 N·m of friction about 0.14°
     assert sv.load_deg_per_nm is not None and 0.6 < sv.load_deg_per_nm < 2.5, sv
     assert sv.coulomb_deg is not None and 0.02 < sv.coulomb_deg < 0.3, sv
-    assert d["held_out_rms_deg"] < 0.2 and d["motion_s"] <= 30.0
+    assert d["held_out_rms_deg"] < 0.1 and d["motion_s"] <= 30.0  # the target
     assert sv.linear_range_deg is not None and sv.linear_range_deg > 1.0
     assert [b["part"] for b in d["blocks"]].count("held-out") >= 3
     assert prof.geometry == agile.geometry and prof.bus == agile.bus  # the rest kept
@@ -64,7 +64,7 @@ def test_the_physical_wrist_is_identified_and_its_profile_tracks_better(
         rms.append(e["stats"]["tracking_rms_deg"])
         if profile is agile:  # the paper's model, measured against this servo: looks wrong
             assert e["stats"]["model"]["exceeds"] and not e["stats"]["model"]["identified_bound"]
-    assert rms[1] < 0.8 * rms[0], rms
+    assert rms[1] < 0.15 and rms[1] < 0.5 * rms[0], rms  # the load's offset sent, too
 
 
 @pytest.mark.slow  # a whole command with its homing and part of the experiment

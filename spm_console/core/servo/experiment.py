@@ -230,7 +230,7 @@ class ExperimentFit:
 def fit_record(ex: Excitation, t: F, reference_deg: F, measured_deg: F,
                holding_nm: F | None = None) -> ExperimentFit:
     """Fit ωn, ζ and the delay to the experiment's fit part (all joints sharing them, then
-    each joint alone), and assess the shared model on the whole record. ``t`` (n,) s and the
+    each joint alone, driven by the reference less the shared fit's load offset), and assess the shared model on the whole record. ``t`` (n,) s and the
     logged references and positions (n, 3) deg of the excitation's first n samples (NaN where
     a reply was lost). With ``holding_nm`` (n, 3), the torque that holds the wrist's weight at
     the measured poses (N·m), the shared model is fitted with the load's offset
@@ -249,8 +249,10 @@ def fit_record(ex: Excitation, t: F, reference_deg: F, measured_deg: F,
         shared, load = lf.result, lf.load
         vel = model_velocity(shared.dynamics, t, ref, shared.theta0_deg)
         offset = load.offset_deg(hold, vel)
-    joints = tuple(identify(t[m], ref[m][:, j], meas[m][:, j], fit_delay=True, fit_damping=True,
-                            lost=lost, start=shared.dynamics) for j in range(ref.shape[1]))
+    driven = ref if offset is None else ref - offset  # what the model is driven by
+    joints = tuple(identify(t[m], driven[m][:, j], meas[m][:, j], fit_delay=True,
+                            fit_damping=True, lost=lost, start=shared.dynamics)
+                   for j in range(ref.shape[1]))
     # the fit part starts at rest at its θ0, where the wrist rested from the record's start
     return ExperimentFit(shared, joints,
                          assess(ex, t, meas, shared.dynamics, shared.theta0_deg, offset), load)
