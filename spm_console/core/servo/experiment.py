@@ -230,7 +230,8 @@ class ExperimentFit:
 def fit_record(ex: Excitation, t: F, reference_deg: F, measured_deg: F,
                holding_nm: F | None = None) -> ExperimentFit:
     """Fit ωn, ζ and the delay to the experiment's fit part (all joints sharing them, then
-    each joint alone, driven by the reference less the shared fit's load offset), and assess the shared model on the whole record. ``t`` (n,) s and the
+    each joint alone, driven by the reference less the shared fit's load offset), and assess
+    the shared model on the whole record. ``t`` (n,) s and the
     logged references and positions (n, 3) deg of the excitation's first n samples (NaN where
     a reply was lost). With ``holding_nm`` (n, 3), the torque that holds the wrist's weight at
     the measured poses (N·m), the shared model is fitted with the load's offset
