@@ -150,7 +150,11 @@ def run() -> list[Row]:
                  f"({'saturation seen' if a.saturated else 'never saturated'}), residual bound "
                  f"{servo.residual_bound_deg}°; held-out max {a.held_out_max_deg:.3f}°; load "
                  f"{servo.load_deg_per_nm} deg/(N·m) of holding torque, Coulomb "
-                 f"{servo.coulomb_deg}°"),
+                 f"{servo.coulomb_deg}°"
+                 + ("" if fit.order is None else
+                    f"; a third pole: held-out {fit.order.held_out_rms_3rd_deg:.3f}° against "
+                    f"{fit.order.held_out_rms_2nd_deg:.3f}° ("
+                    f"{'asks' if fit.order.asks else 'not asked'})")),
         Row("physical: identification motion", exp.excitation.duration_s, "s", "≤ 30 s",
             passed=exp.excitation.duration_s <= 30.0),
     ]

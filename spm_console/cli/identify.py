@@ -29,6 +29,7 @@ from spm_console.config.schema import Profile, Servo
 from spm_console.core.servo.experiment import ExperimentFit
 from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, IdentifyResult, identify
 from spm_console.core.servo.load_fit import LoadFit, fit_load
+from spm_console.core.servo.order import OrderCheck
 from spm_console.description.weight import holding_torque_nm
 from spm_console.errors import BadInputError, ExitCode, SolverError, SpmError
 from spm_console.motion.logs.runlog import load_run
@@ -260,6 +261,10 @@ def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit
                    for b in a.blocks],
         "motion_s": run.excitation.duration_s,
         "load_deg_per_nm": servo.load_deg_per_nm, "coulomb_deg": servo.coulomb_deg,
+        "order": None if fit.order is None else {
+            "third_pole_tau_s": fit.order.tau_s, "asks": fit.order.asks,
+            "held_out_rms_2nd_deg": fit.order.held_out_rms_2nd_deg,
+            "held_out_rms_3rd_deg": fit.order.held_out_rms_3rd_deg},
     }
     lines = [
         f"identified: ωn = {s.p:.2f} ± {s.p_std:.2f} rad/s, ζ = {s.zeta:.3f} ± {s.zeta_std:.3f}, "
@@ -271,6 +276,7 @@ def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit
         (f"load: {servo.load_deg_per_nm} deg per N·m of the weight's holding torque, "
          f"Coulomb friction {servo.coulomb_deg}°" if servo.load_deg_per_nm is not None
          else "load: none found"),
+        *([] if fit.order is None else [_order_words(fit.order)]),
         f"linear range: {servo.linear_range_deg:.2f}° of |θ* − θ|"
         + ("" if a.saturated else " at least (the experiment never saturated the servo)"),
         f"{run.excitation.duration_s:.1f} s of motion; log: {run.execution.log_dir}",
@@ -278,6 +284,15 @@ def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit
     ]
     emit(args, data, "\n".join(lines))
     return int(ExitCode.OK)
+
+
+def _order_words(o: OrderCheck) -> str:
+    """The order check in words."""
+    return (f"order: a third pole (lag {1e3 * o.tau_s:.1f} ms) gives held-out RMS "
+            f"{o.held_out_rms_3rd_deg:.3f}° against {o.held_out_rms_2nd_deg:.3f}° (same fit, "
+            f"second order): " + ("the data ask for it (the planner keeps the second order; "
+                                  "the residual bound covers the rest)" if o.asks
+                                  else "the data do not ask for a higher order"))
 
 
 def _words(sv: Servo) -> str:

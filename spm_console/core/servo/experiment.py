@@ -29,6 +29,7 @@ from spm_console.core.servo.identify import IdentifyResult, identify, response
 from spm_console.core.servo.load import LoadModel
 from spm_console.core.servo.load_fit import fit_load, model_velocity
 from spm_console.core.servo.model import Dynamics
+from spm_console.core.servo.order import OrderCheck, check_order
 
 F = NDArray[np.float64]
 
@@ -220,6 +221,8 @@ class ExperimentFit:
     load: LoadModel | None = None
     """The load's offset fitted with the shared model (when the holding torques were given);
     its ``moments_deg`` holds one value: deg per N·m of holding torque."""
+    order: OrderCheck | None = None
+    """Whether the record asks for a third pole (:mod:`.order`); None when not checked."""
 
     @property
     def residual_bound_deg(self) -> float:
@@ -230,8 +233,9 @@ class ExperimentFit:
 def fit_record(ex: Excitation, t: F, reference_deg: F, measured_deg: F,
                holding_nm: F | None = None) -> ExperimentFit:
     """Fit ωn, ζ and the delay to the experiment's fit part (all joints sharing them, then
-    each joint alone, driven by the reference less the shared fit's load offset), and assess
-    the shared model on the whole record. ``t`` (n,) s and the
+    each joint alone, driven by the reference less the shared fit's load offset), assess
+    the shared model on the whole record and check whether the record asks for a third pole
+    (:func:`~spm_console.core.servo.order.check_order`). ``t`` (n,) s and the
     logged references and positions (n, 3) deg of the excitation's first n samples (NaN where
     a reply was lost). With ``holding_nm`` (n, 3), the torque that holds the wrist's weight at
     the measured poses (N·m), the shared model is fitted with the load's offset
@@ -254,6 +258,9 @@ def fit_record(ex: Excitation, t: F, reference_deg: F, measured_deg: F,
     joints = tuple(identify(t[m], driven[m][:, j], meas[m][:, j], fit_delay=True,
                             fit_damping=True, lost=lost, start=shared.dynamics)
                    for j in range(ref.shape[1]))
+    order = check_order(t, driven, meas, m, ex.mask("held-out")[: len(t)], shared.p,
+                        shared.zeta, shared.delay_s, shared.theta0_deg)
     # the fit part starts at rest at its θ0, where the wrist rested from the record's start
     return ExperimentFit(shared, joints,
-                         assess(ex, t, meas, shared.dynamics, shared.theta0_deg, offset), load)
+                         assess(ex, t, meas, shared.dynamics, shared.theta0_deg, offset), load,
+                         order)
