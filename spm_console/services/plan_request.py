@@ -31,7 +31,7 @@ from spm_console.core.regions.cover import connected_graph
 from spm_console.core.workspace.build import check_theta
 from spm_console.core.workspace.check import ThetaCheck
 from spm_console.core.workspace.data import Workspace
-from spm_console.errors import BadInputError, InfeasibleError, Issue
+from spm_console.errors import BadInputError, InfeasibleError, Issue, PlanRefusedError, SpmError
 from spm_console.formatting import fmt_deg, fmt_vec
 from spm_console.motion.plan_check import verify_plan
 from spm_console.store.plan_file import plan_hash
@@ -111,9 +111,30 @@ def precheck(profile: Profile, req: PlanRequest) -> None:
                       min(N_MAX, MAX_INSTANTS // max(1, int(req.intersample))))
 
 
+RETRY_INTERSAMPLE = 5
+"""Instants per interval of the re-solve when the runtime refuses a plan bounded at the
+samples only: an underdamped servo's speed peaks between samples, above the runtime's 10 %
+allowance there, so the planner then bounds speed and region inside each interval too."""
+
+
 def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMotion:
     """Assemble, solve and verify (see the module docstring); raises the SpmError that says
-    why not (bad input 4, infeasible 6, plan refused 26), with the Issue it was raised with."""
+    why not (bad input 4, infeasible 6, plan refused 26), with the Issue it was raised with.
+    A plan the verification refuses is solved once more with the speed and region bounded at
+    :data:`RETRY_INTERSAMPLE` instants per interval; if that fails too, the first refusal is
+    raised."""
+    try:
+        return _plan_motion(profile, ws, req)
+    except PlanRefusedError as first:
+        if req.intersample >= RETRY_INTERSAMPLE:
+            raise
+        try:
+            return _plan_motion(profile, ws, replace(req, intersample=RETRY_INTERSAMPLE))
+        except SpmError:
+            raise first from None
+
+
+def _plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMotion:
     precheck(profile, req)
     s = np.asarray(req.start_deg, float).reshape(3)
     g = np.asarray(req.goal_deg, float).reshape(3)
