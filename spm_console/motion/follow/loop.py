@@ -211,7 +211,12 @@ class Follower(Executor):
         finished_at: float | None = None
         updates = 0  # targets that arrived before the start are logged with cycle 0
         load = load_model(self.profile)
-        tracker = None if load is None else LoadTracker(self.profile, load, theta0)
+        tracker = None
+        if load is not None:
+            try:
+                tracker = LoadTracker(self.profile, load, theta0)
+            except ValueError as exc:  # no FK from home to θ0: follow without the offset
+                self._event("load_offsets_off", reason=str(exc))
         th_next, om_next = theta0, np.zeros(3)
         sent: F | None = None
         feed.arm()  # the deadman counts from here: the set-up is not the source's silence
