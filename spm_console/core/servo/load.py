@@ -4,12 +4,13 @@ A position servo holding a load settles where its drive's torque balances it: wi
 proportional drive of stiffness K, θ = θ* − τ/K at rest. So the model (27)-(28) is driven by
 θ* − d(θ, θ̇) rather than θ*, with d (deg) the offset the load costs:
 
-* the wrist's weight, d_grav = Y(θ)·m: Y the regressor of the bodies' weight (per rad, from
-  the kinematics; :mod:`spm_console.core.kinematics.loads`) and m its first moments of mass
-  scaled by g/K (deg per unit of Y);
-* Coulomb friction in the gear, d_fric,j = c_j·tanh(θ̇_j / v_s): it opposes the motion (a
+* the wrist's weight, d_grav = Y(θ)·m: Y the regressor of the bodies' weight (from the
+  kinematics; :mod:`spm_console.core.kinematics.loads`) and m its parameters. A profile holds
+  one column, the torque that holds the weight from ``[plant]``'s masses (N·m), so m is one
+  number, k in deg/(N·m): the inverse of the drive's stiffness, times the mass model's error;
+* Coulomb friction in the gear, d_fric,j = c·tanh(θ̇_j / v_s): it opposes the motion (a
   smooth sign, so the reference stays smooth through a reversal; 0 at rest, where the
-  friction takes any value within ±c_j).
+  friction takes any value within ±c).
 
 Given the load's offset along a motion, sending θ* + d makes the loaded servo follow the model
 of θ* (the compensation the runtime applies). :mod:`.load_fit` identifies m and c together
@@ -37,7 +38,8 @@ class LoadModel:
     """The offset d the servos' load costs, deg: d = Y(θ)·m + c·tanh(θ̇/v_s)."""
 
     moments_deg: F
-    """(P,) first moments of the bodies' mass scaled by g/K, deg (Y per rad)."""
+    """(P,) the weight's parameters, deg per unit of the regressor's columns (the profile's
+    one column is N·m of holding torque: deg/(N·m))."""
     coulomb_deg: float
     """The friction's offset c, deg (≥ 0; the joints share it, as they share ωn and ζ)."""
     smooth_degps: float = SMOOTH_DEGPS
