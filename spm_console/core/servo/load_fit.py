@@ -55,8 +55,6 @@ class LoadFit:
     result: IdentifyResult
     """The dynamics fitted to the reference less the load's offset."""
     load: LoadModel
-    offset_deg: F
-    """(n, 3) the fitted offset along the record, deg."""
 
 
 def fit_load(t: F, reference: F, measured: F, gravity_columns: F, lost: NDArray[np.bool_],
@@ -91,11 +89,7 @@ def fit_load(t: F, reference: F, measured: F, gravity_columns: F, lost: NDArray[
         res = identify(t, ref - d, meas, fit_delay=True, fit_damping=True, lost=~seen,
                        start=res.dynamics)
     res, params = _refine(t, ref, meas, gravity_columns, seen, res, params, smooth_degps)
-    dyn = res.dynamics
-    vel = model_velocity(dyn, t, ref, res.theta0_deg)
-    cols = _columns(gravity_columns, vel, smooth_degps)
-    load = LoadModel(params[:-1].copy(), float(params[-1]), smooth_degps)
-    return LoadFit(res, load, cols @ params)
+    return LoadFit(res, LoadModel(params[:-1].copy(), float(params[-1]), smooth_degps))
 
 
 def _refine(t: F, ref: F, meas: F, gravity_columns: F, seen: NDArray[np.bool_],
@@ -114,7 +108,7 @@ def _refine(t: F, ref: F, meas: F, gravity_columns: F, seen: NDArray[np.bool_],
         sim = response(dyn, dyn.delay_s, t - t[0], ref - cols @ pi, th0 - cols[0] @ pi)
         return np.asarray((sim - meas)[seen].reshape(-1), float)
 
-    x0 = np.concatenate([[res.p, res.zeta, res.delay_s], res.theta0_deg - 0.0, params])
+    x0 = np.concatenate([[res.p, res.zeta, res.delay_s], res.theta0_deg, params])
     lo = np.concatenate([[P_BOUNDS[0], ZETA_BOUNDS[0], 0.0], np.full(3, -np.inf),
                          np.full(params.size - 1, -np.inf), [0.0]])
     hi = np.concatenate([[P_BOUNDS[1], ZETA_BOUNDS[1], DELAY_MAX_S], np.full(3, np.inf),

@@ -25,6 +25,9 @@ from scipy.linalg import expm
 from scipy.optimize import least_squares
 from scipy.signal import lfilter, ss2tf
 
+from spm_console.core.servo.identify import P_BOUNDS, ZETA_BOUNDS
+from spm_console.core.servo.model import Dynamics, continuous
+
 F = NDArray[np.float64]
 
 ASK_RATIO = 0.8
@@ -57,11 +60,13 @@ def _zoh(A: F, B: F, h: float) -> tuple[F, F]:
 
 
 def _system(wn: float, zeta: float, tau: float) -> tuple[F, F]:
-    """States [θ, θ̇] (τ = 0) or [θ, θ̇, θ_f] with τ·θ̇_f = θ* − θ_f driving the second order."""
+    """States [θ, θ̇] of (27) (τ = 0), or [θ, θ̇, θ_f] with τ·θ̇_f = θ* − θ_f driving it."""
+    Ac, Bc = continuous(Dynamics(wn, zeta))
     if tau <= 0.0:
-        return (np.array([[0.0, 1.0], [-wn * wn, -2 * zeta * wn]]), np.array([0.0, wn * wn]))
-    return (np.array([[0.0, 1.0, 0.0], [-wn * wn, -2 * zeta * wn, wn * wn],
-                      [0.0, 0.0, -1.0 / tau]]), np.array([0.0, 0.0, 1.0 / tau]))
+        return Ac, Bc.reshape(2)
+    A = np.zeros((3, 3))
+    A[:2, :2], A[:2, 2], A[2, 2] = Ac, Bc.reshape(2), -1.0 / tau
+    return A, np.array([0.0, 0.0, 1.0 / tau])
 
 
 def simulate(wn: float, zeta: float, tau: float, delay_s: float, ts: float, reference: F,
@@ -110,8 +115,8 @@ def check_order(t: F, reference: F, measured: F, fit_mask: NDArray[np.bool_],
     def fitted(with_tau: bool) -> F:
         head = [wn, zeta] + ([min(0.01, TAU_MAX_S / 2)] if with_tau else [])
         x0 = np.concatenate([head, np.asarray(theta0, float).reshape(J)])
-        lo = [0.5, 0.2] + ([1e-4] if with_tau else []) + [-np.inf] * J
-        hi = [1000.0, 5.0] + ([TAU_MAX_S] if with_tau else []) + [np.inf] * J
+        lo = [P_BOUNDS[0], ZETA_BOUNDS[0]] + ([1e-4] if with_tau else []) + [-np.inf] * J
+        hi = [P_BOUNDS[1], ZETA_BOUNDS[1]] + ([TAU_MAX_S] if with_tau else []) + [np.inf] * J
         sol = least_squares(resid, x0, bounds=(lo, hi), args=(with_tau, fit), x_scale="jac",
                             max_nfev=100)
         return np.asarray(sol.x, float)
