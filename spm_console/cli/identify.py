@@ -25,13 +25,15 @@ import numpy as np
 from spm_console.cli.common import PLOT_SUFFIXES, emit, output_file, profile_of
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.config.checks import PTS_MAX, PTS_MIN
+from spm_console.config.models import servo_limits_deg
 from spm_console.config.schema import Profile, Servo
 from spm_console.core.servo.experiment import ExperimentFit
 from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, IdentifyResult, identify
-from spm_console.core.servo.load_fit import LoadFit, fit_load
+from spm_console.core.servo.load_fit import fit_load
 from spm_console.core.servo.order import OrderCheck
 from spm_console.description.weight import holding_torque_nm
 from spm_console.errors import BadInputError, ExitCode, SolverError, SpmError
+from spm_console.formatting import fmt_deg
 from spm_console.motion.logs.runlog import load_run
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.report.plot_identify import plot_experiment
@@ -47,6 +49,10 @@ from spm_console.services.identify_experiment import (
 #: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
 MAX_CSV_BYTES = 20 * MB
 MAX_IDENTIFY_SAMPLES = 100_000
+#: ``--load``: largest move between two samples (the servo's rated 270 °/s for 37 ms), and
+#: how far past the servo limits a measured pose may lie (a tick's round-off and then some), deg.
+MAX_POSE_JUMP_DEG = 10.0
+LIMIT_SLACK_DEG = 1.0
 
 
 def register(sub: Any) -> None:
@@ -162,10 +168,12 @@ def cmd_identify(args: argparse.Namespace) -> int:
         run = load_run(args.run, args.logs)
         src, named = str(run.path), str(run.path / "samples.csv")
         t, ref, meas, at = _columns(dict(run.columns), named)
+    hold = _holding(profile, ref, meas) if args.load else None  # checked before any fit
     try:
         res = identify(t, ref, meas, fit_delay=args.delay or args.load, at=at,
                        fit_damping=args.damping or args.load)
-        load = _fit_load(profile, t, ref, meas, res) if args.load else None
+        load = (None if hold is None else
+                fit_load(t, ref, meas, hold[:, :, None], np.zeros(len(t), bool), res))
     except SpmError as exc:  # the refusal names the file its sample numbers refer to
         raise type(exc)(f"{named}: {exc.message}") from None
     if load is not None:
@@ -194,19 +202,31 @@ def cmd_identify(args: argparse.Namespace) -> int:
     return int(ExitCode.OK)
 
 
-def _fit_load(profile: Profile, t: np.ndarray, ref: np.ndarray, meas: np.ndarray,
-              start: IdentifyResult) -> LoadFit:
-    """ωn, ζ, delay and load on a record of the three joints: the weight's holding torque at
-    the poses read (a path from home through them, by continuation) from the profile."""
+def _holding(profile: Profile, ref: np.ndarray, meas: np.ndarray) -> np.ndarray:
+    """``--load``: the weight's holding torque (n, 3), N·m, at the poses read of a record of
+    the three joints (a path from home through them, by continuation), from the profile."""
     if ref.ndim != 2 or ref.shape[1] != 3:
         raise BadInputError("--load needs the three joints (ref1..ref3, meas1..meas3): the "
                             "weight's load depends on the whole pose")
+    # the poses' FK is followed row to row (about a millisecond a row): a record of this wrist
+    # lies inside its servo limits and moves little between samples
+    lo, hi = servo_limits_deg(profile)
+    outside = np.flatnonzero(((meas < lo - LIMIT_SLACK_DEG) | (meas > hi + LIMIT_SLACK_DEG)).any(1))
+    if outside.size:
+        k = int(outside[0])
+        raise BadInputError(f"--load: sample {k + 1} (θ = {fmt_deg(meas[k])}) lies outside the "
+                            f"profile's servo limits: not a record of this wrist")
+    jumps = np.flatnonzero(np.abs(np.diff(meas, axis=0)).max(axis=1) > MAX_POSE_JUMP_DEG)
+    if jumps.size:
+        k = int(jumps[0])
+        raise BadInputError(f"--load: the wrist moves more than {MAX_POSE_JUMP_DEG:g}° between "
+                            f"samples {k + 1} and {k + 2}: the weight's load is followed along "
+                            "the poses, record faster or cut the log")
     try:
-        hold = holding_torque_nm(profile, meas)
+        return holding_torque_nm(profile, meas)
     except ValueError as exc:
         raise BadInputError(f"--load: the poses read have no FK from home in the profile's "
                             f"modes ({exc})") from None
-    return fit_load(t, ref, meas, hold[:, :, None], np.zeros(len(t), bool), start)
 
 
 def _experiment(args: argparse.Namespace, profile: Profile) -> int:

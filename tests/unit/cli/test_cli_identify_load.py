@@ -71,3 +71,20 @@ def test_load_needs_three_joints_and_no_other_structure_flag(
     assert code == ExitCode.BAD_INPUT and "three joints" in err
     code, _, err = _run(capsys, "identify", "--csv", str(_csv(tmp_path)), "--load", "--delay")
     assert code == ExitCode.BAD_INPUT and "--load" in err
+
+
+def test_load_refuses_poses_outside_the_servo_limits_and_jumps(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """The load is followed pose by pose: a record beyond the wrist's servo limits, or one that
+    leaps between samples, is refused before any FK (no traceback, no hour-long walk)."""
+    good = _csv(tmp_path).read_text().splitlines()
+    for name, meas in (("far", ["3000", "135", "135"]), ("leap", ["160", "120", "150"])):
+        lines = list(good)
+        cells = lines[300].split(",")
+        lines[300] = ",".join(cells[:4] + meas)  # one measured pose replaced
+        f = tmp_path / f"{name}.csv"
+        f.write_text("\n".join(lines) + "\n")
+        code, _, err = _run(capsys, "identify", "--csv", str(f), "--load")
+        assert code == ExitCode.BAD_INPUT, err
+        assert ("servo limits" if name == "far" else "between samples") in err
+        assert "Traceback" not in err
