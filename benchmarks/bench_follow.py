@@ -35,6 +35,7 @@ from benchmarks.common import Row
 from spm_console.config.load import load_profile
 from spm_console.config.models import model_of, servo_limits_deg, servo_model_of
 from spm_console.core.kinematics.ik import ik_rpy
+from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.planning.follow.solver import FollowResult, FollowSettings, FollowSolver
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import ServoModel, simulate_continuous
@@ -54,6 +55,13 @@ def _region(profile_path: str) -> tuple[Region, str]:
         return ws.region, "workspace region P"
     except SpmError as exc:
         return Region.box(65.0, 155.0), f"grid box (workspace unavailable: {exc})"
+
+
+def roll_targets(spm: SpmModel, ts: float) -> np.ndarray:
+    """θ (n, 3) deg of the 0.5 Hz ±10° roll about home, one row per period of ``ts`` s."""
+    t = np.arange(round(SECONDS / ts)) * ts
+    roll = np.radians(AMPLITUDE_DEG) * np.sin(2 * np.pi * FREQ_HZ * t)
+    return np.array([ik_rpy(spm, float(r), 0.0, 0.0).theta_deg for r in roll])
 
 
 def _step(model: ServoModel, x: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -120,10 +128,8 @@ def run() -> list[Row]:
     home = np.asarray(prof.home.theta_deg, float)
     spm = model_of(prof)
     ts = model.ts
-    n = round(SECONDS / ts)
-    t = np.arange(n) * ts
-    roll = np.radians(AMPLITUDE_DEG) * np.sin(2 * np.pi * FREQ_HZ * t)
-    targets = np.array([ik_rpy(spm, float(r), 0.0, 0.0).theta_deg for r in roll])
+    targets = roll_targets(spm, ts)
+    n = len(targets)
     load = os.getloadavg()
 
     solver = FollowSolver(model, region, vmax, 50, lo, hi)

@@ -24,12 +24,11 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from benchmarks.bench_follow import AMPLITUDE_DEG, FREQ_HZ, SECONDS, _loop, _ms, _region
+from benchmarks.bench_follow import _loop, _ms, _region, roll_targets
 from benchmarks.common import Row, timeit
 from spm_console.config.load import load_profile
 from spm_console.config.models import model_of, servo_limits_deg, servo_model_of
 from spm_console.config.schema import Profile
-from spm_console.core.kinematics.ik import ik_rpy
 from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.solver import FollowSolver
 from spm_console.core.planning.mintime import solve_mintime_problem
@@ -121,10 +120,7 @@ def run() -> list[Row]:
     region, src = _region(PROFILE)
     home = np.asarray(paper.home.theta_deg, float)
     spm = model_of(paper)
-    n = round(SECONDS / model.ts)
-    t = np.arange(n) * model.ts
-    roll = np.radians(AMPLITUDE_DEG) * np.sin(2 * np.pi * FREQ_HZ * t)
-    targets = np.array([ik_rpy(spm, float(r), 0.0, 0.0).theta_deg for r in roll])
+    targets = roll_targets(spm, model.ts)
     vmax = float(paper.limits.vmax_degps)
     solver = FollowSolver(model, region, vmax, 50, lo, hi,
                           lead_max_deg=ident.servo.linear_range_deg)
