@@ -92,6 +92,17 @@ class Execute:
 
 
 @dataclass(frozen=True)
+class Verify:
+    """Verify a plan against this profile's workspace and the runtime's rules exactly as
+    :class:`Execute` will, moving nothing (a front end asks before it homes the wrist for a
+    plan from a file); reply: :class:`~spm_console.motion.plan_check.PlanCheck`, or a
+    refusal (exit 26). Refused while moving."""
+
+    id: int
+    plan: Plan
+
+
+@dataclass(frozen=True)
 class Follow:
     """Follow targets live (:mod:`~spm_console.motion.follow.loop`): a timed list, or live
     targets sent with :class:`SetTarget` from ``initial_deg`` on; reply: FollowOutcome."""
@@ -140,8 +151,8 @@ class Close:
     """Close the bus and end the process."""
 
 
-Request = (Ping | ReadPosition | Status | Torque | Reboot | Query | Home | Execute | Follow | SetTarget
-           | EndFollow | EStop | Heartbeat | Close)
+Request = (Ping | ReadPosition | Status | Torque | Reboot | Query | Home | Execute | Verify | Follow
+           | SetTarget | EndFollow | EStop | Heartbeat | Close)
 
 
 @dataclass(frozen=True)

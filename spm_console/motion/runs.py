@@ -13,18 +13,23 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from spm_console.config.models import servo_limits_deg, servo_model_of
 from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoBus
-from spm_console.errors import InterruptedBySignalError, RefusedError, SpmError
+from spm_console.errors import InterruptedBySignalError, PlanRefusedError, RefusedError, SpmError
 from spm_console.motion.executor import Executor
+from spm_console.motion.goals.load_offsets import load_offsets, sent_references
 from spm_console.motion.homing import HomingResult, home, plan_segments
 from spm_console.motion.logs.mcap_log import mcap_beside
 from spm_console.motion.logs.runlog import RunLog
+from spm_console.motion.plan_check import PlanCheck, PlanVerifier
 from spm_console.motion.plans import plan_summary
 from spm_console.motion.sample import Sample
-from spm_console.motion.segments import ExecutionResult
+from spm_console.motion.segments import ExecutionResult, Segment
 from spm_console.refusals import Refusal
 
 SampleCallback = Callable[[Sample], None]
@@ -123,3 +128,21 @@ def run_execute(profile: Profile, bus: ServoBus, ws: Workspace, plan: Plan, ctx:
                                  | {"phase": s.phase} for s in segments]
         attach(ex)
         return ex.run(segments, theta0_deg=theta0)
+
+
+def verify_before_motion(profile: Profile, ws: Workspace, plan: Plan) -> PlanCheck:
+    """The plan verified as :func:`run_execute` will verify it, before anything is powered: the
+    runtime's rules against this profile's workspace (:mod:`~spm_console.motion.plan_check`)
+    and the identified load's offsets along it from rest at its start. A front end asks this
+    before it homes the wrist for a plan it did not solve; :class:`PlanRefusedError` (exit 26)
+    says that nothing moved. The approach move, built from the pose measured after homing, is
+    verified when the plan runs."""
+    try:
+        check = PlanVerifier(profile, ws).verify([Segment("plan", plan)])
+        lo, hi = servo_limits_deg(profile)
+        refs = np.clip(np.asarray(plan.reference_deg, float), lo, hi)
+        sent_references(refs, load_offsets(profile, servo_model_of(profile), refs, refs[0]),
+                        lo, hi, None)
+    except PlanRefusedError as exc:
+        raise PlanRefusedError(f"{exc.message}; nothing moved", exc.issue) from None
+    return check

@@ -60,8 +60,15 @@ from spm_console.motion.protocol import (
     Status,
     Telemetry,
     Torque,
+    Verify,
 )
-from spm_console.motion.runs import RunContext, SampleCallback, run_execute, run_home
+from spm_console.motion.runs import (
+    RunContext,
+    SampleCallback,
+    run_execute,
+    run_home,
+    verify_before_motion,
+)
 from spm_console.motion.sample import Sample
 from spm_console.motion.servo_query import answer
 from spm_console.refusals import Refusal
@@ -237,16 +244,18 @@ class _Server:
             self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
                                            name="spm-motion")
             self.motion.start()
-        elif isinstance(req, (Ping, ReadPosition, Status, Torque, Reboot, Query)):
+        elif isinstance(req, (Ping, ReadPosition, Status, Torque, Reboot, Query, Verify)):
             if self.moving():  # the loop owns every bus cycle while the wrist moves
                 self.send(self.refused(req.id, RefusedError(Refusal.MOVING)))
                 return
             self._answer(req)
 
-    def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot | Query) -> None:
+    def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot | Query | Verify) -> None:
         try:
-            if isinstance(req, ReadPosition):
-                value: object = read_position_checked(self.bus, 3)
+            if isinstance(req, Verify):  # moves nothing: answered here, the loop is idle
+                value: object = verify_before_motion(self.profile, self.workspace, req.plan)
+            elif isinstance(req, ReadPosition):
+                value = read_position_checked(self.bus, 3)
             elif isinstance(req, Ping):
                 value = self.ping()
             elif isinstance(req, Query):

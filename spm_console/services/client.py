@@ -22,7 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from spm_console.config.schema import Profile
+from spm_console.core.plan import Plan
 from spm_console.errors import MotionProcessLostError, SpmError, error_for
+from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import (
     Close,
     EndFollow,
@@ -42,11 +44,16 @@ from spm_console.motion.protocol import (
     Status,
     Telemetry,
     Torque,
+    Verify,
 )
 from spm_console.motion.runs import RunContext
 from spm_console.motion.sample import Sample
 from spm_console.motion.server import HEARTBEAT_S, REQUEST_TIMEOUT_S, Start
 from spm_console.services.warm_start import MotionProcessHandle, start_motion_process
+
+VERIFY_TIMEOUT_S = 300.0
+"""How long a plan's verification may take: on a cold cache the motion process builds this
+profile's workspace first (a few seconds on a 2-core machine; a fine grid takes longer)."""
 
 
 class MotionClient:
@@ -211,6 +218,13 @@ class MotionClient:
         ``skip_homing`` says why the operator overrides that)."""
         return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg, skip_homing, source),
                             on_sample)
+
+    def verify(self, plan: Plan) -> PlanCheck:
+        """The plan verified by the motion process as :meth:`execute` will verify it, moving
+        nothing (PlanRefusedError, exit 26, when refused); refused while a motion runs."""
+        check = self._call(lambda i: Verify(i, plan), VERIFY_TIMEOUT_S)
+        assert isinstance(check, PlanCheck)
+        return check
 
     def query(self, q: Any) -> Any:
         """A bus diagnostic by servo id (BusQuery -> BusReport); refused while moving."""

@@ -32,7 +32,7 @@ from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.devices.emulator.faults import FaultSpec
-from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
+from spm_console.errors import BadInputError, InterruptedBySignalError, PlanRefusedError, SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.follow.run import FollowOutcome
 from spm_console.motion.homing import HomingResult
@@ -158,22 +158,44 @@ def execute_once(profile: Profile, plan: Plan, req: RunRequest,
     """Home (unless overridden), then execute ``plan`` with an approach move when needed."""
 
     def body(session: Session) -> OneShotResult:
+        try:  # nothing is powered for a plan the runtime would refuse
+            session.verify(plan)
+        except PlanRefusedError as refused:
+            refused_run(profile, "execute", run_context(profile, req), refused)
+            raise
         homing = home_first(session, req)
         if homing is not None and not homing.execution.ok:
             return OneShotResult(homing.execution, homing)
         if not req.approach:  # the wrist must already be at the plan's start
             theta0, start = session.read_position(), plan.reference_deg[0]
             if float(np.abs(theta0 - start).max()) > profile.safety.approach_tolerance_deg:
-                exc = BadInputError(
+                away = BadInputError(
                     f"the wrist is at θ = {fmt_deg(theta0)}, not at the plan's "
                     f"start {fmt_deg(start)} (approach move disabled)")
-                refused_run(profile, "execute", run_context(profile, req), exc)
-                raise exc
+                refused_run(profile, "execute", run_context(profile, req), away)
+                raise away
         session.plan = plan
-        result = session.execute(req.on_sample, skip_homing=req.skip_homing, source=source)
+        try:
+            result = session.execute(req.on_sample, skip_homing=req.skip_homing, source=source)
+        except SpmError as exc:
+            raise _after_homing(exc, homing) from None
         return OneShotResult(result, homing)
 
     return one_shot(profile, "execute", req, body)
+
+
+def _after_homing(exc: SpmError, homing: HomingResult | None) -> SpmError:
+    """A refusal of the plan after this run homed the wrist, saying truthfully what moved: the
+    homing move, and where it ended (the runtime's refusal speaks of the plan's run only)."""
+    if homing is None or homing.execution.final_deg is None:
+        return exc
+    where = f"the homing move ran and ended at θ = {fmt_deg(homing.execution.final_deg)}"
+    if "; nothing moved" in exc.message:
+        exc.message = exc.message.replace("; nothing moved", f"; nothing moved after homing ({where})")
+    else:
+        exc.message = f"{exc.message} ({where})"
+    exc.args = (exc.message,)
+    return exc
 
 
 def home_once(profile: Profile, req: RunRequest) -> HomingResult:

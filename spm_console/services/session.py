@@ -54,6 +54,7 @@ from spm_console.system.cpus import cpu_plan, place_beside_loop
 
 if TYPE_CHECKING:
     from spm_console.motion.homing import HomingResult
+    from spm_console.motion.plan_check import PlanCheck
     from spm_console.motion.segments import ExecutionResult
     from spm_console.services.client import MotionClient
 
@@ -337,6 +338,12 @@ class Session(ServoTools, FollowTools):
         if self.plan_info is not None:
             self.plan_info = replace(self.plan_info, executed=True, executed_ok=result.ok)
         return result
+
+    def verify(self, plan: Plan) -> PlanCheck:
+        """``plan`` verified by the motion process exactly as :meth:`execute` will verify it,
+        moving nothing: before homing for a plan this session did not solve (refused with
+        :class:`~spm_console.errors.PlanRefusedError`, exit 26, saying nothing moved)."""
+        return self.require_bus().verify(plan)
 
     def estop(self, reason: str = "operator E-stop", by_signal: bool = False) -> bool:
         """Stop the running motion at once (any thread, a signal handler); False when nothing
