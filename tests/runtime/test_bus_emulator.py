@@ -118,7 +118,7 @@ def test_wrong_model_and_absent_servo_are_bus_errors(rig: tuple[EmulatorHandle, 
     em, bus = rig
     wrong = bus.profile.model_copy(update={"bus": bus.profile.bus.model_copy(
         update={"model_number": 1030})})
-    other = open_bus(wrong, em.port)
+    other = open_bus(wrong, em.port, exclusive=False)  # beside the rig's own bus
     try:
         with pytest.raises(BusError, match="model"):
             other.ping_all()
@@ -291,8 +291,8 @@ def test_the_profile_names_the_link_and_the_socket_serves_clients_apart(agile: P
         assert em.link == "pty" and em.port.startswith("/dev/")
     with start_emulator(agile) as em:
         assert em.link == "socket" and em.port.startswith("unix:")
-        first = open_bus(relaxed(agile), em.port)
-        second = open_bus(relaxed(agile), em.port)
+        first = open_bus(relaxed(agile), em.port, exclusive=False)  # the emulator's serving;
+        second = open_bus(relaxed(agile), em.port, exclusive=False)  # a product has one owner
         with raw_client(em) as leaving:
             leaving.write(READ_POSITION[:5])
         for _ in range(20):

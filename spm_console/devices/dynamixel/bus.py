@@ -278,6 +278,8 @@ class DynamixelBus:
         return units
 
 
-def open_bus(profile: Profile, port: str) -> DynamixelBus:
-    """Open ``port`` with the profile's baud rate and reply timeout; BusError if impossible."""
-    return DynamixelBus(profile, open_transport(port, profile.bus.baud, profile.bus.timeout_s))
+def open_bus(profile: Profile, port: str, exclusive: bool = True) -> DynamixelBus:
+    """Open ``port`` with the profile's baud rate and reply timeout; BusError if impossible,
+    BadInputError when another process drives it (``exclusive``: see ``open_transport``)."""
+    return DynamixelBus(profile, open_transport(port, profile.bus.baud, profile.bus.timeout_s,
+                                                exclusive))

@@ -35,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import os
 import select
 import socket
 import struct
@@ -47,7 +48,8 @@ from typing import Protocol, TypeVar
 import serial
 
 from spm_console.devices.base import CommError
-from spm_console.errors import BusError
+from spm_console.devices.dynamixel import port_lock
+from spm_console.errors import BadInputError, BusError
 
 P = TypeVar("P")
 
@@ -223,7 +225,8 @@ class Transport:
 class SerialTransport(Transport):
     """A serial port through pyserial (a real adapter or the emulator's pty)."""
 
-    def __init__(self, port: str, baud: int = 1_000_000, timeout_s: float = 0.004) -> None:
+    def __init__(self, port: str, baud: int = 1_000_000, timeout_s: float = 0.004,
+                 exclusive: bool = True) -> None:
         super().__init__(port, timeout_s)
         try:
             self._ser = serial.Serial(port=port, baudrate=baud, timeout=0, write_timeout=1.0)
@@ -231,6 +234,12 @@ class SerialTransport(Transport):
             raise BusError(f"cannot open serial port {port}: {exc}. Check the device path, "
                            "that the adapter is plugged in and that you are in the 'dialout' "
                            "group") from None
+        if exclusive:
+            try:
+                port_lock.take(int(self._ser.fd), port, port)
+            except BadInputError:
+                self._ser.close()
+                raise
         try:
             self._ser.set_low_latency_mode(True)
             self.low_latency = True
@@ -268,15 +277,24 @@ class SocketTransport(Transport):
     them to a kernel worker thread first, which a loaded 2-core machine can leave waiting
     past the 4 ms reply timeout."""
 
-    def __init__(self, port: str, timeout_s: float = 0.004) -> None:
+    def __init__(self, port: str, timeout_s: float = 0.004, exclusive: bool = True) -> None:
         super().__init__(port, timeout_s)
         path = port[len(UNIX_PREFIX):]
+        self._lock_fd = -1
+        if exclusive and os.path.exists(path):  # (a missing socket is reported below)
+            self._lock_fd = port_lock.open_socket_lock(path)
+            try:
+                port_lock.take(self._lock_fd, port, port_lock.lock_file_of_socket(path))
+            except BadInputError:
+                os.close(self._lock_fd)
+                raise
         sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
             sock.settimeout(1.0)
             sock.connect(path)
         except OSError as exc:
             sock.close()
+            self._release_lock()
             raise BusError(f"cannot connect to the bus socket {path}: {exc.strerror or exc}. "
                            "Is the emulated bus (spm-console emulate) still running?") from None
         sock.setblocking(False)
@@ -320,15 +338,27 @@ class SocketTransport(Transport):
             except BlockingIOError:
                 return
 
+    def _release_lock(self) -> None:
+        fd, self._lock_fd = self._lock_fd, -1
+        if fd >= 0:
+            os.close(fd)  # releases the flock
+
     def _close(self) -> None:
-        self._sock.close()
+        try:
+            self._sock.close()
+        finally:
+            self._release_lock()
 
 
-def open_transport(port: str, baud: int = 1_000_000, timeout_s: float = 0.004) -> Transport:
-    """The transport for ``port``: ``unix:PATH`` a socket, anything else a serial device."""
+def open_transport(port: str, baud: int = 1_000_000, timeout_s: float = 0.004,
+                   exclusive: bool = True) -> Transport:
+    """The transport for ``port``: ``unix:PATH`` a socket, anything else a serial device.
+    ``exclusive``: this process alone drives the bus (:mod:`.port_lock`; refused with
+    BadInputError, exit 4, naming the holder, when another one has it). Only tests of the
+    emulator's own serving of several clients open a bus shared."""
     if not port:
         raise BusError("no serial port given (profile bus.port is empty): pass --port DEV "
                        "or use the emulated bus (--sim)")
     if port.startswith(UNIX_PREFIX):
-        return SocketTransport(port, timeout_s)
-    return SerialTransport(port, baud, timeout_s)
+        return SocketTransport(port, timeout_s, exclusive)
+    return SerialTransport(port, baud, timeout_s, exclusive)
