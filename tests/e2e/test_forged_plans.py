@@ -25,9 +25,10 @@ def _line(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
 
 def _forgeries() -> dict[str, np.ndarray]:
     """Self-consistent plans (positions follow the servo model) that break one rule each."""
-    far = HOME + [35.0, 0.0, 0.0]  # legs 1 and 3 collide from θ1 ≈ 163° on this line
+    far = HOME + np.full(3, 24.5)  # legs 2 and 3 collide from θ = 159° on, inside the limits
     out = _line(HOME, far, 120)
-    jump = np.vstack([_line(HOME, HOME + [5.0, 0, 0], 40), np.repeat([HOME + [20.0, 0, 0]], 40, 0)])
+    step = np.array([1.0, 0.0, 0.0])
+    jump = np.vstack([_line(HOME, HOME + 5 * step, 40), np.repeat([HOME + 20 * step], 40, 0)])
     return {"link collision": np.vstack([out, out[::-1], np.repeat(HOME[None], 60, 0)]),
             "15° jump": jump}
 
@@ -46,6 +47,7 @@ def test_a_forged_plan_is_refused_before_anything_is_powered(
     reply = json.loads(out)
     assert reply["exit_code"] == ExitCode.PLAN_REFUSED
     assert "nothing moved" in reply["error"] and "Traceback" not in err
+    assert ("workspace does not certify" if name == "link collision" else "jumps") in reply["error"]
     events = [json.loads(line) for f in logs.rglob("events.jsonl")
               for line in f.read_text().splitlines()]
     assert [e for e in events if e.get("event") in ("torque_on", "start")] == []
