@@ -16,6 +16,7 @@ from spm_console import __version__
 from spm_console.cli.stdout_guard import json_stdout, out
 from spm_console.errors import ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
+from spm_console.system.signals import forget_signals, ignore_stop_signals, note_signal
 
 #: Command name -> the module that registers it (``register(subparsers)`` setting ``func``).
 #: Only the module of the command being run is imported, so start-up stays fast (the TUI,
@@ -81,16 +82,18 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
 
 def _interrupt(signum: int, _frame: FrameType | None) -> None:
-    raise KeyboardInterrupt(signal.Signals(signum).name)
+    if note_signal(signal.Signals(signum)):  # the first decides; a second changes nothing
+        raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 def _interrupt_on_signals() -> None:
     """Until a command installs its own stop handling (a run E-stops; see system/signals.py),
-    SIGTERM, SIGHUP and SIGQUIT end the process like Ctrl-C: exit 130 with a message. A
-    SIGHUP already ignored (``nohup``) stays ignored."""
+    SIGINT (Ctrl-C), SIGTERM, SIGHUP and SIGQUIT end the process: exit 130 with a message. The
+    first one decides; a second one changes nothing. A signal already ignored (``nohup``, a
+    shell's background job) stays ignored."""
     if threading.current_thread() is not threading.main_thread():
         return
-    for sig in (signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT):
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT):
         if signal.getsignal(sig) is not signal.SIG_IGN:
             signal.signal(sig, _interrupt)
 
@@ -106,15 +109,26 @@ def _fail(as_json: bool, code: int, message: str) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The command line ``argv`` (default: the process's, as its entry point); the exit code.
+    As the entry point, once the code is decided a terminating signal no longer changes it."""
+    forget_signals()
     _interrupt_on_signals()
     common = sys.modules.get("spm_console.cli.common")
     if common is not None:  # in-process callers (tests) run main() more than once
         common.EMITTED.clear()
     args_list = list(sys.argv[1:] if argv is None else argv)
-    # with --json, stdout carries the JSON object only, whatever a library prints
-    # (a script's summary is always JSON)
-    with json_stdout(_wants_json(args_list) or args_list[:1] == ["script"]):
-        return _main(args_list)
+    code: int | None = None
+    try:
+        # with --json, stdout carries the JSON object only, whatever a library prints
+        # (a script's summary is always JSON)
+        with json_stdout(_wants_json(args_list) or args_list[:1] == ["script"]):
+            code = _main(args_list)
+    except KeyboardInterrupt:  # the first signal, after the command's own handling
+        pass
+    finally:
+        if argv is None:
+            ignore_stop_signals()
+    return int(ExitCode.INTERRUPTED) if code is None else code
 
 
 def _main(args_list: list[str]) -> int:

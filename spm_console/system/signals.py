@@ -36,6 +36,38 @@ STOP_SIGNALS: tuple[signal.Signals, ...] = (
 
 StopCallback = Callable[[signal.Signals], None]
 
+_received: list[signal.Signals] = []
+"""The terminating signals this process received since :func:`forget_signals`, in order."""
+
+
+def note_signal(sig: signal.Signals) -> bool:
+    """Record a terminating signal; True when it is the first. The first decides the exit code
+    (an E-stop, an interruption): a second one (a double Ctrl-C, ``timeout`` after a group
+    signal) changes nothing, raises nothing and kills nothing. Lock-free (list.append)."""
+    _received.append(sig)
+    return len(_received) == 1
+
+
+def first_signal() -> signal.Signals | None:
+    """The first terminating signal received (None if none)."""
+    return _received[0] if _received else None
+
+
+def forget_signals() -> None:
+    """A new command starts (callers of the CLI's ``main`` in one process, such as tests)."""
+    _received.clear()
+
+
+def ignore_stop_signals() -> None:
+    """The process's result is decided: from here until it exits, a terminating signal is
+    ignored. Python gives the default action back to every signal it handled while it shuts
+    down, so a signal then would kill the process and change its exit status; an ignored one
+    stays ignored. Main thread only (elsewhere nothing is changed)."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+
 
 def install_stop_handler(callback: StopCallback) -> Callable[[], None]:
     """Route every signal of :data:`STOP_SIGNALS` to ``callback(signal)``.
@@ -48,7 +80,8 @@ def install_stop_handler(callback: StopCallback) -> Callable[[], None]:
         return lambda: None
 
     def handler(signum: int, _frame: FrameType | None) -> None:
-        callback(signal.Signals(signum))
+        note_signal(signal.Signals(signum))
+        callback(signal.Signals(signum))  # an E-stop request: asked again, the same stop
 
     nohup = signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
     old = {s: signal.signal(s, handler) for s in STOP_SIGNALS if not (nohup and s == signal.SIGHUP)}

@@ -11,12 +11,14 @@ written within two servo periods of the request, the log closed ``stopped``, no 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -235,3 +237,29 @@ def _descendants(pid: int) -> set[int]:
                     out.add(k)
                     todo.append(k)
     return out
+
+
+@pytest.mark.parametrize(("sig", "after_s"), [(signal.SIGTERM, 0.8), (signal.SIGINT, 1.2),
+                                              (signal.SIGHUP, 1.8), (signal.SIGQUIT, 2.5)])
+def test_a_second_signal_changes_nothing(tmp_path: Path, long_plan: Path, sig: signal.Signals,
+                                         after_s: float) -> None:
+    """A double Ctrl-C (or ``timeout`` after a group signal) during start-up: the first signal
+    decides (exit 130, the JSON says so too), the second one raises nothing and kills nothing."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "spm_console", "execute", "--plan", str(long_plan), "--sim",
+         "--json", "--logs", str(tmp_path / "logs"), *_start_args()],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        time.sleep(after_s)  # start-up under way (the interpreter runs the entry point)
+        os.killpg(proc.pid, sig)
+        time.sleep(0.03)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, sig)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert "Traceback" not in err, err
+    assert proc.returncode == ExitCode.INTERRUPTED, err
+    assert json.loads(out)["exit_code"] == ExitCode.INTERRUPTED
