@@ -21,7 +21,7 @@ from typing import Any
 
 from spm_console.cli.common import output_may_be_gone, profile_of
 from spm_console.cli.follow_source import UdpTargets
-from spm_console.cli.run import _bus_opts, _report, _request
+from spm_console.cli.run import _bus_opts, _report, _request, with_progress
 from spm_console.errors import BadInputError
 from spm_console.input_rules import finite_number
 from spm_console.services.oneshot import follow_once
@@ -58,14 +58,15 @@ def cmd_follow(args: argparse.Namespace) -> int:
             raise BadInputError("--rpy applies to --targets (a UDP message says rpy_deg itself)")
         deadman = 0.5 if args.deadman is None else finite_number(args.deadman, "--deadman", 0.0,
                                                                  60.0, lo_open=True)
-        with UdpTargets(profile, args.udp) as udp:
+        with UdpTargets(profile, args.udp) as udp, with_progress(args, req):
             out = follow_once(profile, req, None, deadman, udp.pump, source=f"udp:{args.udp}")
             extra: dict[str, Any] = {"udp": {"port": args.udp, **udp.counts()}}
     else:
         if args.deadman is not None:
             raise BadInputError("--deadman applies to --udp (timed targets never go silent)")
         timed = read_target_csv(profile, args.targets, args.rpy)
-        out = follow_once(profile, req, timed, source=str(args.targets))
+        with with_progress(args, req):
+            out = follow_once(profile, req, timed, source=str(args.targets))
         extra = {"targets": str(args.targets), "rows": len(timed.t_s)}
     homing = out.homing
     extra["homing"] = ({"skipped": req.skip_homing} if homing is None else

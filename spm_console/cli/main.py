@@ -16,6 +16,7 @@ from spm_console import __version__
 from spm_console.cli.stdout_guard import json_stdout, out
 from spm_console.errors import ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
+from spm_console.services.warm_start import prestart
 from spm_console.system.signals import forget_signals, ignore_stop_signals, note_signal
 
 #: Command name -> the module that registers it (``register(subparsers)`` setting ``func``).
@@ -131,8 +132,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     return int(ExitCode.INTERRUPTED) if code is None else code
 
 
+#: Commands whose first motion process is asked for soon: its warm start begins at once.
+MOVING_COMMANDS = frozenset({"execute", "home", "follow", "script", "tui"})
+
+
 def _main(args_list: list[str]) -> int:
     as_json = _wants_json(args_list)
+    if args_list[:1] and args_list[0] in MOVING_COMMANDS and "--help" not in args_list:
+        prestart()  # its imports overlap this process's own (the command's module, the profile)
     try:
         parser = build_parser(args_list[0] if args_list else None)
         try:

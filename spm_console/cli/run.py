@@ -13,10 +13,12 @@ pose, 9 plan mismatch, 10 bus error).
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
 from spm_console.cli.common import add_common, add_plant, emit, info, output_folder, output_may_be_gone, profile_of
+from spm_console.cli.progress import RunProgress, wanted
 from spm_console.config.schema import Profile
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError
@@ -24,6 +26,7 @@ from spm_console.formatting import fmt_vec
 from spm_console.input_rules import theta_in_servo_limits
 from spm_console.motion.segments import ExecutionResult
 from spm_console.services.oneshot import RunRequest, execute_once, home_once
+from spm_console.services.session import Session
 from spm_console.store.plan_file import load_plan
 
 
@@ -46,6 +49,9 @@ def _bus_opts(p: argparse.ArgumentParser) -> None:
     add_plant(p)
     p.add_argument("--logs", metavar="DIR",
                    help="log root (default: $SPM_CONSOLE_LOGS or logs/)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress display on stderr (shown only when it is a terminal and "
+                        "without --json)")
 
 
 def register(sub: Any) -> None:
@@ -88,6 +94,19 @@ def _request(args: argparse.Namespace, profile: Profile) -> RunRequest:
     return RunRequest(port=args.port, sim=args.sim, faults=faults, sim_start_deg=start,
                       approach=not getattr(args, "no_approach", False), skip_homing=skip,
                       log_root=args.logs, on_late_signal=_late_signal)
+
+
+def with_progress(args: argparse.Namespace, req: RunRequest, verifies: bool = False) -> RunProgress:
+    """The command's progress display (inert unless stderr is a terminal, without --quiet
+    and --json), fed by ``req``'s samples; ``verifies``: a plan is verified after connecting."""
+    prog = RunProgress(wanted(sys.stderr, args.quiet, args.json))
+
+    def connected(session: Session) -> None:
+        prog.total_s = lambda: session.motion_total_s
+        prog.phase("verifying" if verifies else "connected")
+
+    req.on_connected, req.on_sample = connected, prog.on_sample
+    return prog
 
 
 def _late_signal(name: str) -> None:
@@ -136,7 +155,8 @@ def cmd_execute(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     req = _request(args, profile)
     plan = load_plan(args.plan, profile)
-    out = execute_once(profile, plan, req, source=str(args.plan))
+    with with_progress(args, req, verifies=True):
+        out = execute_once(profile, plan, req, source=str(args.plan))
     homing = out.homing
     extra = {"plan": str(args.plan), "kind": plan.kind, "N": plan.N,
              "homing": ({"skipped": req.skip_homing} if homing is None else
@@ -149,7 +169,9 @@ def cmd_execute(args: argparse.Namespace) -> int:
 
 def cmd_home(args: argparse.Namespace) -> int:
     profile = profile_of(args)
-    r = home_once(profile, _request(args, profile))
+    req = _request(args, profile)
+    with with_progress(args, req):
+        r = home_once(profile, req)
     pose = r.pose
     extra = {
         "start_deg": r.start_deg,

@@ -23,7 +23,7 @@ import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,13 +34,15 @@ from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.devices.emulator.faults import FaultSpec
 from spm_console.errors import BadInputError, InterruptedBySignalError, PlanRefusedError, SpmError
 from spm_console.formatting import fmt_deg
-from spm_console.motion.follow.run import FollowOutcome
 from spm_console.motion.homing import HomingResult
 from spm_console.motion.runs import RunContext, refused_run
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult
 from spm_console.services.session import Session
 from spm_console.system.signals import stop_signals
+
+if TYPE_CHECKING:  # the follower loads its QP solver and scipy (about 1 s): not for execute
+    from spm_console.motion.follow.run import FollowOutcome
 
 F = NDArray[np.float64]
 T = TypeVar("T")

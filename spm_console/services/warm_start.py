@@ -149,6 +149,10 @@ class WarmStart:
         self._gone = False
         self._ready = False
         self.unsupported = ""
+
+    def await_ready(self) -> None:
+        """Wait until the warm start has imported what a motion process needs (NotSentError
+        when it cannot be used), then read its messages from a thread of this process."""
         if not self._wait_for(lambda: self._ready or bool(self.unsupported), READY_TIMEOUT_S,
                               first=True) or not self._ready:
             self.close()
@@ -257,15 +261,32 @@ class WarmStart:
 
 
 _starter: WarmStart | None = None
+_pending: WarmStart | None = None
+"""Started by :func:`prestart`, not yet waited for."""
 _starter_failed = ""
 """Why this process's warm start could not be started (then it is not tried again)."""
 _starter_lock = threading.Lock()
 
 
+def prestart() -> None:
+    """Start this process's warm start now and return at once: its imports (about 2 s of one
+    core) overlap the front end's own until a motion process is first asked for. A front end
+    that will move the wrist calls it first thing; nothing is waited for here."""
+    global _pending, _starter_failed
+    if switched_off(ENV_WARM_START):
+        return
+    with _starter_lock:
+        if _starter is None and _pending is None and not _starter_failed:
+            try:
+                _pending = WarmStart()
+            except OSError as exc:
+                _starter_failed = str(exc) or type(exc).__name__
+
+
 def _warm_start() -> WarmStart | None:
-    """This process's warm start (started on first use), or None when it is not to be used
-    or cannot be."""
-    global _starter, _starter_failed
+    """This process's warm start (started on first use, or by :func:`prestart`), or None when
+    it is not to be used or cannot be."""
+    global _starter, _pending, _starter_failed
     if switched_off(ENV_WARM_START):
         return None
     with _starter_lock:
@@ -274,7 +295,9 @@ def _warm_start() -> WarmStart | None:
             _starter = None
         if _starter is None and not _starter_failed:
             try:
-                _starter = WarmStart()
+                started, _pending = _pending or WarmStart(), None
+                started.await_ready()
+                _starter = started
             except OSError as exc:
                 _starter_failed = str(exc) or type(exc).__name__
         return _starter

@@ -83,6 +83,7 @@ def test_the_direct_start_stays_available(agile: Profile, bus: EmulatorHandle,
 
 def test_the_warm_start_ignores_terminating_signals_and_ends_with_its_owner() -> None:
     starter = warm_start.WarmStart()
+    starter.await_ready()  # it ignores them from then on
     pid = starter.process.pid
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT):
         os.kill(pid, sig)
