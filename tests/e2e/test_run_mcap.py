@@ -78,7 +78,7 @@ def test_every_sample_of_the_csv_is_in_the_mcap(run_dir: Path, agile: Profile) -
     js = joint_states(model, meas, rots)
     states = topics["/joint_states"]
     assert len(states) == run.rows
-    assert list(states[0][1].name) == [f"{k}{i}" for k in ("motor", "distal", "platform")
+    assert list(states[0][1].name) == [f"leg{i}_{k}_joint" for k in ("motor", "distal", "platform")
                                        for i in (1, 2, 3)]
     got = np.array([m.position for _, m in states])
     assert np.allclose(got, np.hstack([js.motor, js.distal, js.platform]), atol=1e-12)
@@ -96,7 +96,7 @@ def test_every_sample_of_the_csv_is_in_the_mcap(run_dir: Path, agile: Profile) -
     events = [json.loads(m.data) for _, m in topics["/spm/events"]]
     assert events == [json.loads(json.dumps(e)) for e in run.events]
     (urdf,) = topics["/robot_description"]
-    assert urdf[1].data.startswith("<?xml") and "motor1" in urdf[1].data
+    assert urdf[1].data.startswith("<?xml") and '"leg1_motor_joint"' in urdf[1].data
 
 
 def test_logs_export_writes_the_same_file_again(run_dir: Path, tmp_path: Path,

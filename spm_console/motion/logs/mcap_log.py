@@ -6,16 +6,18 @@ Topics (CDR-encoded ROS 2 messages; angles in rad, as ROS has them; each message
 the run's wall-clock start plus the sample's time):
 
 * ``/joint_states`` (sensor_msgs/msg/JointState): every joint of the URDF that ``spm-console
-  export urdf`` writes, from the measured θ and the unique FK along the run: ``motor1..3``
-  (θ − θ_home), ``distal1..3``, ``platform1..3``; robot_state_publisher and Foxglove draw the
-  whole wrist from it;
+  export urdf`` writes, from the measured θ and the unique FK along the run (names of
+  :mod:`spm_console.description.names`, legs 1..3): ``leg1_motor_joint`` … (θ − θ_home),
+  ``leg1_distal_joint`` …, ``leg1_platform_joint`` …; robot_state_publisher and Foxglove draw
+  the whole wrist from it;
 * ``/spm/reference``, ``/spm/measured``, ``/spm/model``, ``/spm/error`` (JointState, joints
-  ``joint1..3``): θ*, the measured θ with the Kalman velocity, the model's θ and velocity,
-  measured − model;
+  ``joint1..3``, the servos as the console and the CSV number them): θ*, the measured θ with
+  the Kalman velocity, the model's θ and velocity, measured − model (θ as the servos have it,
+  not from home: not the URDF's joints, hence names of their own);
 * ``/spm/platform`` (geometry_msgs/msg/QuaternionStamped) and ``/tf`` (tf2_msgs/msg/TFMessage,
   base_link → ``platform_fk``): the platform's orientation from the FK of the measured θ (a frame
   of its own: robot_state_publisher, fed the URDF and ``/joint_states``, publishes the URDF's
-  ``platform`` link under ``distal0``, and a frame has one parent);
+  ``platform`` link under ``leg1_distal``, and a frame has one parent);
 * ``/spm/events`` (std_msgs/msg/String): each event as one JSON object, so every channel stays
   CDR and ``ros2 bag play`` can replay the whole file;
 * ``/robot_description`` (std_msgs/msg/String, once at the start): the URDF.
@@ -45,6 +47,7 @@ from spm_console.core.kinematics.joint_states import joint_states
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.rotations import matrix_quaternion
 from spm_console.description.for_profile import robot_description
+from spm_console.description.names import JOINT_STATE_NAMES
 from spm_console.jsonutil import to_jsonable
 from spm_console.motion.logs.runlog import RunData, append_events, load_run
 from spm_console.system.realtime import normal_priority
@@ -82,8 +85,7 @@ TF_MESSAGE = _msgdef(
 STRING = "string data\n"
 
 MOTORS = ("joint1", "joint2", "joint3")
-URDF_JOINTS = (*(f"motor{i}" for i in (1, 2, 3)), *(f"distal{i}" for i in (1, 2, 3)),
-               *(f"platform{i}" for i in (1, 2, 3)))
+URDF_JOINTS = JOINT_STATE_NAMES
 
 
 def start_ns(meta: dict[str, Any]) -> int:
