@@ -31,7 +31,6 @@ import datetime as dt
 import json
 import math
 import os
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +49,7 @@ from spm_console.description.for_profile import robot_description
 from spm_console.description.names import JOINT_STATE_NAMES
 from spm_console.jsonutil import to_jsonable
 from spm_console.motion.logs.runlog import RunData, append_events, load_run
+from spm_console.safe_io import atomic_temp
 from spm_console.system.realtime import normal_priority
 
 F = NDArray[np.float64]
@@ -175,8 +175,7 @@ def write_mcap(run: RunData, model: SpmModel, urdf: str, out: Path) -> int:
     of messages written."""
     t0 = start_ns(run.meta)
     rows = _rows(run, model, t0)
-    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", dir=out.parent)
-    tmp = Path(name)
+    fd, tmp = atomic_temp(out)
     try:
         with os.fdopen(fd, "wb") as fh:
             count = _write(fh, run, rows, urdf, t0)
