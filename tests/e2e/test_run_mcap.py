@@ -1,5 +1,6 @@
 """Run logs as MCAP: written beside the CSV when a run ends, read back with the mcap reader and
-its ROS 2 decoder, every sample equal to the CSV's; ``logs export --mcap`` for older runs."""
+its ROS 2 decoder, every sample equal to the CSV's; the run folder a ROS 2 bag (read by
+rosbags); ``logs export --mcap`` for older runs."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from rosbags.interfaces import QosDurability
+from rosbags.rosbag2 import Reader
 
 from spm_console.cli.main import main
 from spm_console.config.models import model_of
@@ -92,6 +95,14 @@ def test_every_sample_of_the_csv_is_in_the_mcap(run_dir: Path, agile: Profile) -
     assert np.allclose(R, rots, atol=1e-12)
     tf = topics["/tf"][0][1].transforms[0]
     assert tf.header.frame_id == "base_link" and tf.child_frame_id == "platform_fk"
+
+    with Reader(run_dir) as bag:  # the folder as rosbag2 opens it: metadata.yaml, the same file
+        assert {c.topic: c.msgcount for c in bag.connections} == {k: len(v) for k, v in
+                                                                  topics.items()}
+        assert sum(1 for _ in bag.messages()) == bag.message_count
+        durable = {c.topic for c in bag.connections
+                   if c.ext.offered_qos_profiles[0].durability == QosDurability.TRANSIENT_LOCAL}
+        assert durable == {"/robot_description"}
 
     events = [json.loads(m.data) for _, m in topics["/spm/events"]]
     assert events == [json.loads(json.dumps(e)) for e in run.events]

@@ -1,6 +1,6 @@
 """Every file the console writes has the permissions the umask gives a new file: 0644 under the
 usual 022, 0600 under 077. Files replaced atomically (a temporary file renamed onto the name:
-run.mcap, meta.json, exported URDF and MJCF, plans, the workspace cache, the console's memory)
+run.mcap and metadata.yaml, meta.json, exported URDF and MJCF, plans, the workspace cache, the console's memory)
 as much as those written in place (samples.csv, events.jsonl)."""
 
 from __future__ import annotations
@@ -64,7 +64,8 @@ def test_a_run_folder(tmp_path: Path, agile: Profile, umask: int) -> None:
     run = _run(tmp_path, agile)
     mcap = write_run_mcap(run, agile)
     files = sorted(run.iterdir())
-    assert {p.name for p in files} >= {"meta.json", "samples.csv", "events.jsonl", mcap.name}
+    assert {p.name for p in files} == {"meta.json", "samples.csv", "events.jsonl", mcap.name,
+                                       "metadata.yaml"}
     _expect(files, umask)
 
 
