@@ -7,15 +7,16 @@ never read whole), decoded
 as UTF-8 (a binary file is refused as such) and, for JSON, parsed with a nesting cap.
 Failures raise the caller's :class:`~spm_console.errors.SpmError` subclass with a
 message naming the file and what was wrong — never a traceback. Files the commands write
-are replaced atomically (:func:`write_text_atomic`).
+are replaced atomically (:func:`write_text_atomic`, :func:`atomic_temp`), with the permissions
+the umask gives any new file (``tempfile.mkstemp``'s are 0600 whatever the umask).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import secrets
 import stat
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -137,17 +138,41 @@ def load_json(path: str | Path, what: str, max_bytes: int, error: type[SpmError]
     return parse_json(text, f"{what} {path}", error, max_depth)
 
 
+#: Permissions asked for a new file; the kernel takes the process's umask off (0644 under the
+#: usual 022), as for any file ``open()`` creates.
+NEW_FILE_MODE = 0o666
+
+
+def atomic_temp(path: str | Path) -> tuple[int, Path]:
+    """A new, empty temporary file beside ``path`` to be renamed onto it: (its descriptor,
+    opened for writing, and its path ``.<name>.<random>.tmp``). Created with
+    :data:`NEW_FILE_MODE`, so the file that replaces ``path`` has the umask's permissions (and
+    a folder's default ACL applies), as ``samples.csv`` and every other file written with
+    ``open()``; the umask is never read (reading it means setting it, for every thread)."""
+    p = Path(path)
+    folder = p.parent
+    for _ in range(100):
+        tmp = folder / f".{p.name}.{secrets.token_hex(4)}.tmp"
+        try:  # O_EXCL: never an existing file, nor through a symbolic link
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, NEW_FILE_MODE)
+        except FileExistsError:
+            continue
+        return fd, tmp
+    raise FileExistsError(f"{folder}: no free temporary name beside {p.name}")
+
+
 def write_text_atomic(path: str | Path, text: str, error: type[SpmError]) -> None:
-    """Write ``text`` to ``path`` atomically (a temporary file beside it, then a rename). Only a
-    regular file (or nothing) may be replaced: a device, pipe or folder there raises ``error``."""
+    """Write ``text`` to ``path`` atomically (a temporary file beside it, then a rename), with
+    the umask's permissions. Only a regular file (or nothing) may be replaced: a device, pipe or
+    folder there raises ``error``."""
     p = Path(path)
     if p.exists() and not p.is_file():
         raise error(f"{p}: exists and is not a regular file; not replaced")
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent) or ".")
+    fd, tmp = atomic_temp(p)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
         os.replace(tmp, p)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise

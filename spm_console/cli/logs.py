@@ -11,6 +11,7 @@ import numpy as np
 
 from spm_console.cli.common import add_common, emit, info, output_file, profile_of
 from spm_console.errors import BadInputError, ExitCode
+from spm_console.motion.logs.bag import METADATA_NAME
 from spm_console.motion.logs.runlog import list_runs, load_run, resolve_run
 
 
@@ -30,8 +31,9 @@ def register(sub: Any) -> None:
     s.add_argument("--plot", type=Path, metavar="FILE.png", help="write the figure here")
     s.set_defaults(func=cmd_show)
     e = lsub.add_parser("export", help="write a run as MCAP with ROS 2 messages (Foxglove, "
-                                       "PlotJuggler, ros2 bag play): runs logged before "
-                                       "MCAP was written beside the CSV")
+                                       "PlotJuggler) and its folder's metadata.yaml (a rosbag2 "
+                                       "bag: ros2 bag info/play RUN): runs logged before MCAP "
+                                       "was written beside the CSV, or whose MCAP was deferred")
     e.add_argument("--profile", default=argparse.SUPPRESS,
                    help="the profile the run was logged with (its name must match; another "
                         "version of it is noted on stderr)")
@@ -42,7 +44,8 @@ def register(sub: Any) -> None:
     e.add_argument("--mcap", action="store_true", required=True, help="MCAP (the one format)")
     e.add_argument("run", metavar="RUN", help="run folder name or path, or 'last'")
     e.add_argument("--out", type=Path, metavar="FILE.mcap",
-                   help="file to write (default: run.mcap in the run's folder)")
+                   help="file to write, the MCAP alone (default: run.mcap and metadata.yaml in "
+                        "the run's folder, which make it a rosbag2 bag)")
     e.set_defaults(func=cmd_export)
     p.set_defaults(func=cmd_list)
 
@@ -103,7 +106,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from spm_console.motion.logs.mcap_log import write_run_mcap
+    from spm_console.motion.logs.mcap_log import MCAP_NAME, write_run_mcap
 
     output_file(args.out, "--out", (".mcap",))
     run_dir = resolve_run(args.run, args.logs)
@@ -120,7 +123,10 @@ def cmd_export(args: argparse.Namespace) -> int:
              f"{str(logged.get('hash'))[:12]}…, now {profile.digest()[:12]}…): its joints are "
              f"drawn with {args.profile} as it is now")
     out = write_run_mcap(run_dir, profile, args.out)
+    meta = out.parent / METADATA_NAME if out == run_dir / MCAP_NAME else None
     emit(args, {"ok": True, "run": run_dir.name, "mcap": str(out), "bytes": out.stat().st_size,
+                "bag_metadata": None if meta is None else str(meta),
                 "profile_digest_matches": same},
-         f"{run_dir.name}: MCAP written to {out}")
+         f"{run_dir.name}: MCAP written to {out}"
+         + ("" if meta is None else f"; {meta.name} beside it: the folder is a ROS 2 bag"))
     return int(ExitCode.OK)

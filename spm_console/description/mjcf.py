@@ -12,10 +12,12 @@ with the world's orientation, in the home configuration (joint angles 0 there):
 
 Masses and the capsules that carry them are the profile's ``[plant]``; joint
 friction (Coulomb ``frictionloss``, viscous ``damping``) and the motor's reflected inertia
-(``armature``) sit on the servos' drive joints. With a gear play (``[plant] backlash_deg``)
-the drive turns a rotor body ``rotor{i}`` (joint ``motor{i}``) and the output shaft (joint
-``theta{i}``, the proximal link) turns against it within ±half the play (a joint limit, so
-MuJoCo's constraint solver takes the impacts); without, the drive is the output joint.
+(``armature``) sit on the servos' drive joints, ``leg<n>_motor_joint`` (names:
+:mod:`spm_console.description.names`, legs numbered 1..3). With a gear play
+(``[plant] backlash_deg``) that joint turns a rotor body ``leg<n>_rotor`` and the output shaft
+(the proximal link, joint ``leg<n>_play_joint``) turns against it within ±half the play (a
+joint limit, so MuJoCo's constraint solver takes the impacts); without, the drive turns the
+proximal link itself.
 
 With a link model, each leg also carries the paper's collision envelope (Sec. IV-B): a
 capsule of radius δ on every checked segment (A_iB_i, B_iC_i on the proximal link, D_iE_i,
@@ -37,6 +39,7 @@ from numpy.typing import NDArray
 from spm_console.config.schema import Plant
 from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
 from spm_console.core.kinematics.model import SpmModel
+from spm_console.description import names
 
 F = NDArray[np.float64]
 
@@ -95,18 +98,20 @@ class Capsule:
 
 
 def body_capsules(model: SpmModel, params: PlantParams) -> dict[str, list[Capsule]]:
-    """The capsules that carry each body's mass, by body name ("proximal0", "distal0", …,
-    "platform"), in the home configuration: the links are arcs of radius
+    """The capsules that carry each body's mass, by body name (:data:`names.LINKS` less the
+    base: "leg1_proximal", "leg1_distal", …, "platform"), in the home configuration: the links are arcs of radius
     ``params.link_radius_m`` about the centre, drawn as chords (u_i→w_i, w_i→v_i, the
     platform's triangle v_a→v_a+1)."""
     u, w, v = model.u, model.geom.w(model.theta_home), model.v_home
     r, c, m = params.link_radius_m, params.capsule_m, params.link_mass_kg
     bodies = {}
     for i in range(3):
-        bodies[f"proximal{i}"] = [Capsule(f"proximal_link{i}", r * u[i], r * w[i], c, m)]
-        bodies[f"distal{i}"] = [Capsule(f"distal_link{i}", r * w[i], r * v[i], c, m)]
-    bodies["platform"] = [Capsule(f"platform{a}", r * v[a], r * v[(a + 1) % 3], c,
-                                  params.platform_mass_kg / 3) for a in range(3)]
+        prox, dist = names.proximal_link(i), names.distal_link(i)
+        bodies[prox] = [Capsule(f"{prox}_capsule", r * u[i], r * w[i], c, m)]
+        bodies[dist] = [Capsule(f"{dist}_capsule", r * w[i], r * v[i], c, m)]
+    bodies[names.PLATFORM] = [Capsule(f"{names.PLATFORM}_edge{a + 1}", r * v[a],
+                                      r * v[(a + 1) % 3], c, params.platform_mass_kg / 3)
+                              for a in range(3)]
     return bodies
 
 
@@ -120,8 +125,9 @@ PROXIMAL_SEGMENTS = ("AB", "BC")
 
 
 def envelope_name(leg: int, segment: str) -> str:
-    """The name of leg ``leg``'s envelope capsule on ``segment`` (e.g. "envelope0_BC")."""
-    return f"envelope{leg}_{segment}"
+    """The name of leg index ``leg``'s envelope capsule on ``segment`` (leg 0:
+    "leg1_envelope_BC")."""
+    return names.envelope_geom(leg, segment)
 
 
 def envelope_segments(model: SpmModel, links: LinkModel, leg: int,
@@ -151,39 +157,42 @@ def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = N
     caps = body_capsules(model, params)
     legs = []
     for i in range(3):
+        prox, dist = names.proximal_link(i), names.distal_link(i)
         platform = ""
         if i == 0:
-            plat_geoms = "\n".join(_capsule(c) for c in caps["platform"])
-            platform = (f'<body name="platform"><joint name="platform_hinge" type="hinge" '
-                        f'axis="{_vec(v[0])}"/>{plat_geoms}</body>')
-        drive = (f'type="hinge" axis="{_vec(-u[i])}" armature="{params.armature_kgm2:.6g}" '
-                 f'damping="{params.viscous_nms:.6g}" frictionloss="{params.backdrive_friction_nm:.6g}" '
+            plat_geoms = "\n".join(_capsule(c) for c in caps[names.PLATFORM])
+            platform = (f'<body name="{names.PLATFORM}"><joint name="{names.platform_joint(0)}" '
+                        f'type="hinge" axis="{_vec(v[0])}"/>{plat_geoms}</body>')
+        drive = (f'name="{names.motor_joint(i)}" type="hinge" axis="{_vec(-u[i])}" '
+                 f'armature="{params.armature_kgm2:.6g}" damping="{params.viscous_nms:.6g}" '
+                 f'frictionloss="{params.backdrive_friction_nm:.6g}" '
                  f'solreffriction="{2 * params.timestep_s:.6g} 1"')
         half = math.degrees(params.backlash_rad) / 2.0
         if half > 0.0:  # the rotor turns the output through the gear's play
-            head = (f'<body name="rotor{i}"><joint name="motor{i}" {drive}/>'
+            head = (f'<body name="{names.rotor_body(i)}"><joint {drive}/>'
                     f'<inertial pos="0 0 0" mass="1e-6" diaginertia="1e-9 1e-9 1e-9"/>'
-                    f'<body name="proximal{i}"><joint name="theta{i}" type="hinge" '
+                    f'<body name="{prox}"><joint name="{names.play_joint(i)}" type="hinge" '
                     f'axis="{_vec(-u[i])}" limited="true" range="{-half:.9g} {half:.9g}" '
                     f'solreflimit="{2 * params.timestep_s:.6g} 1"/>')
             tail = '</body></body>'
         else:
-            head = f'<body name="proximal{i}"><joint name="theta{i}" {drive}/>'
+            head = f'<body name="{prox}"><joint {drive}/>'
             tail = '</body>'
         legs.append(
             f'{head}'
-            f'{_capsule(caps[f"proximal{i}"][0])}'
+            f'{_capsule(caps[prox][0])}'
             f'{_envelopes(model, links, i, True)}'
-            f'<body name="distal{i}"><joint name="distal{i}" type="hinge" axis="{_vec(w[i])}"/>'
-            f'{_capsule(caps[f"distal{i}"][0])}'
+            f'<body name="{dist}"><joint name="{names.distal_joint(i)}" type="hinge" '
+            f'axis="{_vec(w[i])}"/>'
+            f'{_capsule(caps[dist][0])}'
             f'{_envelopes(model, links, i, False)}{platform}</body>'
             f'{tail}')
-    closures = "\n".join(
-        f'<connect body1="distal{j}" body2="platform" anchor="{_vec(r * v[j])}" '
-        f'solref="{2 * params.timestep_s:.6g} 1" solimp="0.99 0.999 0.001"/>' for j in (1, 2))
-    driven = "motor" if params.backlash_rad > 0.0 else "theta"
-    motors = "\n".join(f'<motor name="servo{i}" joint="{driven}{i}" gear="1" ctrllimited="false"/>'
-                       for i in range(3))
+    closures = "\n".join(  # legs 2 and 3 meet the platform on v_2, v_3
+        f'<connect body1="{names.distal_link(j)}" body2="{names.PLATFORM}" '
+        f'anchor="{_vec(r * v[j])}" solref="{2 * params.timestep_s:.6g} 1" '
+        f'solimp="0.99 0.999 0.001"/>' for j in (1, 2))
+    motors = "\n".join(f'<motor name="{names.servo_actuator(i)}" joint="{names.motor_joint(i)}" '
+                        f'gear="1" ctrllimited="false"/>' for i in range(3))
     return f"""<mujoco model="spm_wrist">
   <option timestep="{params.timestep_s:.6g}" gravity="0 0 -9.81" integrator="implicitfast"/>
   <worldbody>

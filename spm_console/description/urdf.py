@@ -2,9 +2,12 @@
 
 A URDF is a tree, the wrist a closed chain: the tree keeps leg 1 whole (motor, distal and
 platform joints) and legs 2 and 3 up to their distal links; the two joints where those meet
-the platform are left out. Every joint's state at a pose comes from the unique FK
-(:mod:`spm_console.core.kinematics.joint_states`), which is what the run logs publish, so
-robot_state_publisher, RViz or Foxglove draw the whole wrist, closed, from a log.
+the platform are left out. Names (:mod:`spm_console.description.names`, legs numbered
+1..3): links ``base_link``, ``leg<n>_proximal``, ``leg<n>_distal``, ``platform``; joints
+``leg<n>_motor_joint``, ``leg<n>_distal_joint``, ``leg1_platform_joint``. Every joint's state
+at a pose comes from the unique FK (:mod:`spm_console.core.kinematics.joint_states`), which is
+what the run logs publish, so robot_state_publisher, RViz or Foxglove draw the whole wrist,
+closed, from a log.
 
 Frames as in the MJCF (:mod:`spm_console.description.mjcf`): every joint at the centre, every
 link's frame the base's in the home configuration, where every joint is 0; motor joint i turns
@@ -22,6 +25,7 @@ from numpy.typing import NDArray
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.rotations import matrix_rpy
+from spm_console.description import names
 from spm_console.description.inertia import MassProperties, capsule, combined
 from spm_console.description.mjcf import PlantParams, body_capsules, envelope_segments, xml_comment
 
@@ -66,7 +70,7 @@ def _envelope(model: SpmModel, links: LinkModel | None, leg: int, proximal: bool
     radius δ (URDF has no capsule)."""
     if links is None:
         return ""
-    return "".join(f"<collision name=\"envelope{leg + 1}_{seg}\">"
+    return "".join(f"<collision name=\"{names.envelope_geom(leg, seg)}\">"
                    f"{_cylinder(a, b, links.delta / 1000.0)}</collision>"
                    for seg, a, b in envelope_segments(model, links, leg, proximal))
 
@@ -83,7 +87,7 @@ def wrist_urdf(model: SpmModel, params: PlantParams, limits_rad: F,
     out = [f'<?xml version="1.0"?>\n<robot name={quoteattr(name)}>']
     if sources:
         out.append(xml_comment(sources))
-    out.append('<link name="base_link"/>')
+    out.append(f'<link name="{names.BASE}"/>')
 
     def link(body: str, proximal_leg: int | None = None, distal_leg: int | None = None) -> str:
         parts = [capsule(c.a, c.b, c.radius_m, c.mass_kg) for c in caps[body]]
@@ -103,16 +107,19 @@ def wrist_urdf(model: SpmModel, params: PlantParams, limits_rad: F,
 
     for i in range(3):
         lo, hi = limits_rad[i]
-        out.append(link(f"proximal{i}", proximal_leg=i))
-        out.append(joint(f"motor{i + 1}", "revolute", "base_link", f"proximal{i}", -u[i],
+        prox, dist = names.proximal_link(i), names.distal_link(i)
+        out.append(link(prox, proximal_leg=i))
+        out.append(joint(names.motor_joint(i), "revolute", names.BASE, prox, -u[i],
                          f'<limit lower="{lo:.12g}" upper="{hi:.12g}" effort="{effort:.6g}" '
                          f'velocity="{speed:.6g}"/><dynamics damping="{params.viscous_nms:.6g}" '
                          f'friction="{params.coulomb_nm:.6g}"/>'))
-        out.append(link(f"distal{i}", distal_leg=i))
-        out.append(joint(f"distal{i + 1}", "continuous", f"proximal{i}", f"distal{i}", w[i]))
-    out.append(link("platform"))
-    out.append(joint("platform1", "continuous", "distal0", "platform", v[0]))
-    out.append("<!-- legs 2 and 3 meet the platform about v2 and v3 (joints platform2 and "
-               "platform3 of the logs); a tree cannot close them, the joint states do -->")
+        out.append(link(dist, distal_leg=i))
+        out.append(joint(names.distal_joint(i), "continuous", prox, dist, w[i]))
+    out.append(link(names.PLATFORM))
+    out.append(joint(names.platform_joint(0), "continuous", names.distal_link(0), names.PLATFORM,
+                     v[0]))
+    out.append(f"<!-- legs 2 and 3 meet the platform about v2 and v3 (joints "
+               f"{names.platform_joint(1)} and {names.platform_joint(2)} of the logs); a tree "
+               f"cannot close them, the joint states do -->")
     out.append("</robot>")
     return "\n".join(out) + "\n"

@@ -17,6 +17,7 @@ from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.loads import BODIES, gravity_regressor, path_rotations
 from spm_console.core.kinematics.model import SpmModel
+from spm_console.description import names
 from spm_console.description.mjcf import PlantParams, body_capsules, plant_params
 
 F = NDArray[np.float64]
@@ -24,7 +25,9 @@ F = NDArray[np.float64]
 GRAVITY_MPS2 = 9.81
 UP = np.array([0.0, 0.0, 1.0])
 """Against gravity, in the base frame."""
-_NAMES = ("proximal0", "proximal1", "proximal2", "distal0", "distal1", "distal2", "platform")
+_NAMES = (*(names.proximal_link(i) for i in range(3)), *(names.distal_link(i) for i in range(3)),
+          names.PLATFORM)
+"""The MJCF's bodies in :data:`BODIES` order."""
 
 
 def first_moments(model: SpmModel, params: PlantParams) -> F:

@@ -12,8 +12,9 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import tempfile
 from pathlib import Path
+
+from spm_console.safe_io import atomic_temp
 
 #: Largest file read, bytes; longest value kept, characters; most profiles kept.
 MAX_BYTES = 64 * 1024
@@ -65,7 +66,7 @@ class FormMemory:
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             text = json.dumps(self.data, indent=1, ensure_ascii=False)
-            fd, tmp = tempfile.mkstemp(prefix=".console.", dir=str(self.path.parent))
+            fd, tmp = atomic_temp(self.path)
             try:
                 with os.fdopen(fd, "w", encoding="utf-8") as fh:
                     fh.write(text + "\n")

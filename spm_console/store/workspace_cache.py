@@ -8,7 +8,8 @@ of an older format is stale by its key (read before anything else). The region c
 (:mod:`spm_console.core.regions.cover`) is stored with the grid, P excluded (it is
 ``region_A``/``region_b``), under the same content digest: only its regions and graph (the
 fine verdicts of its refinement are not stored; the runtime checks fine nodes itself).
-Writes are atomic: a temporary file in the same directory, fsync, ``os.replace``.
+Writes are atomic: a temporary file in the same directory, fsync, ``os.replace``; the file has
+the umask's permissions (:func:`~spm_console.safe_io.atomic_temp`).
 
 Default directory: ``$SPM_CONSOLE_CACHE`` if set, else ``~/.cache/spm_console``.
 """
@@ -20,7 +21,6 @@ import hashlib
 import json
 import math
 import os
-import tempfile
 import time
 import zipfile
 from dataclasses import dataclass
@@ -43,6 +43,7 @@ from spm_console.core.workspace.data import Progress, Workspace
 from spm_console.core.workspace.refine import REFINE, VERDICTS_VERSION
 from spm_console.core.workspace_build import FORMAT_VERSION
 from spm_console.errors import CacheError
+from spm_console.safe_io import atomic_temp
 
 ENV_VAR = "SPM_CONSOLE_CACHE"
 _ARRAYS = ("axis0", "axis1", "axis2", "zeta", "min_link_mm", "closest_pair", "R", "klass",
@@ -158,7 +159,7 @@ def save(ws: Workspace, path: Path, key: str) -> None:
     meta["content"] = content_digest(data)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+        fd, tmp = atomic_temp(path)
     except OSError as exc:
         raise CacheError(f"cannot write workspace cache {path}: {exc.strerror or exc}") from None
     try:

@@ -1,5 +1,6 @@
 """Run logs as MCAP: written beside the CSV when a run ends, read back with the mcap reader and
-its ROS 2 decoder, every sample equal to the CSV's; ``logs export --mcap`` for older runs."""
+its ROS 2 decoder, every sample equal to the CSV's; the run folder a ROS 2 bag (read by
+rosbags); ``logs export --mcap`` for older runs."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from rosbags.interfaces import QosDurability
+from rosbags.rosbag2 import Reader
 
 from spm_console.cli.main import main
 from spm_console.config.models import model_of
@@ -78,7 +81,7 @@ def test_every_sample_of_the_csv_is_in_the_mcap(run_dir: Path, agile: Profile) -
     js = joint_states(model, meas, rots)
     states = topics["/joint_states"]
     assert len(states) == run.rows
-    assert list(states[0][1].name) == [f"{k}{i}" for k in ("motor", "distal", "platform")
+    assert list(states[0][1].name) == [f"leg{i}_{k}_joint" for k in ("motor", "distal", "platform")
                                        for i in (1, 2, 3)]
     got = np.array([m.position for _, m in states])
     assert np.allclose(got, np.hstack([js.motor, js.distal, js.platform]), atol=1e-12)
@@ -93,10 +96,18 @@ def test_every_sample_of_the_csv_is_in_the_mcap(run_dir: Path, agile: Profile) -
     tf = topics["/tf"][0][1].transforms[0]
     assert tf.header.frame_id == "base_link" and tf.child_frame_id == "platform_fk"
 
+    with Reader(run_dir) as bag:  # the folder as rosbag2 opens it: metadata.yaml, the same file
+        assert {c.topic: c.msgcount for c in bag.connections} == {k: len(v) for k, v in
+                                                                  topics.items()}
+        assert sum(1 for _ in bag.messages()) == bag.message_count
+        durable = {c.topic for c in bag.connections
+                   if c.ext.offered_qos_profiles[0].durability == QosDurability.TRANSIENT_LOCAL}
+        assert durable == {"/robot_description"}
+
     events = [json.loads(m.data) for _, m in topics["/spm/events"]]
     assert events == [json.loads(json.dumps(e)) for e in run.events]
     (urdf,) = topics["/robot_description"]
-    assert urdf[1].data.startswith("<?xml") and "motor1" in urdf[1].data
+    assert urdf[1].data.startswith("<?xml") and '"leg1_motor_joint"' in urdf[1].data
 
 
 def test_logs_export_writes_the_same_file_again(run_dir: Path, tmp_path: Path,

@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from spm_console.config.schema import Plant
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
+from spm_console.description import names
 from spm_console.description.mjcf import (
     PlantParams,
     envelope_name,
@@ -179,12 +180,14 @@ class PhysicalWrist:
         self.data = mujoco.MjData(self.mj)
         self.ticks_per_rad = ticks_per_turn / (2.0 * math.pi)
         self.drives = [Drive(self.params, self.ticks_per_rad) for _ in range(3)]
-        self._joint = [self.mj.joint(f"theta{i}").qposadr[0] for i in range(3)]
-        self._dof = [self.mj.joint(f"theta{i}").dofadr[0] for i in range(3)]
         play = self.params.backlash_rad > 0.0
-        self._motor_q = [self.mj.joint(f"motor{i}").qposadr[0] for i in range(3)] if play else []
-        self._motor_dof = ([self.mj.joint(f"motor{i}").dofadr[0] for i in range(3)] if play
-                           else list(self._dof))
+        # the output shaft's joint: against the rotor with a gear play, else the drive's own
+        output = [names.play_joint(i) if play else names.motor_joint(i) for i in range(3)]
+        self._joint = [self.mj.joint(n).qposadr[0] for n in output]
+        self._dof = [self.mj.joint(n).dofadr[0] for n in output]
+        self._motor_q = ([self.mj.joint(names.motor_joint(i)).qposadr[0] for i in range(3)]
+                         if play else [])
+        self._motor_dof = [self.mj.joint(names.motor_joint(i)).dofadr[0] for i in range(3)]
         """The drive's joint per servo: the rotor's with a gear play, else the output's."""
         self.goal = np.array(model.theta_home, float)
         """Goal angle per joint, rad (the servos' Goal Position)."""
@@ -293,7 +296,7 @@ class PhysicalWrist:
 
     def platform_rotation(self) -> F:
         """The platform's rotation from home (3, 3)."""
-        return np.asarray(self.data.xmat[self.mj.body("platform").id].reshape(3, 3), float)
+        return np.asarray(self.data.xmat[self.mj.body(names.PLATFORM).id].reshape(3, 3), float)
 
     def advance(self, t: float) -> None:
         """Step the wrist to time ``t`` (s), the drives sampled every step."""

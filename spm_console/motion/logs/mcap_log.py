@@ -1,21 +1,25 @@
-"""A run log as MCAP with ROS 2 messages, beside its CSV: Foxglove and PlotJuggler open it,
-``ros2 bag play`` replays it.
+"""A run log as MCAP with ROS 2 messages, beside its CSV: Foxglove and PlotJuggler open it;
+with ``metadata.yaml`` beside it the run folder is a rosbag2 bag (``ros2 bag info RUN/``,
+``ros2 bag play RUN/``; :mod:`spm_console.motion.logs.bag`), each channel carrying the QoS
+its topic is offered with.
 
 Written from the finished run's files (:func:`write_mcap`), never from inside the servo loop.
 Topics (CDR-encoded ROS 2 messages; angles in rad, as ROS has them; each message stamped with
 the run's wall-clock start plus the sample's time):
 
 * ``/joint_states`` (sensor_msgs/msg/JointState): every joint of the URDF that ``spm-console
-  export urdf`` writes, from the measured θ and the unique FK along the run: ``motor1..3``
-  (θ − θ_home), ``distal1..3``, ``platform1..3``; robot_state_publisher and Foxglove draw the
-  whole wrist from it;
+  export urdf`` writes, from the measured θ and the unique FK along the run (names of
+  :mod:`spm_console.description.names`, legs 1..3): ``leg1_motor_joint`` … (θ − θ_home),
+  ``leg1_distal_joint`` …, ``leg1_platform_joint`` …; robot_state_publisher and Foxglove draw
+  the whole wrist from it;
 * ``/spm/reference``, ``/spm/measured``, ``/spm/model``, ``/spm/error`` (JointState, joints
-  ``joint1..3``): θ*, the measured θ with the Kalman velocity, the model's θ and velocity,
-  measured − model;
+  ``joint1..3``, the servos as the console and the CSV number them): θ*, the measured θ with
+  the Kalman velocity, the model's θ and velocity, measured − model (θ as the servos have it,
+  not from home: not the URDF's joints, hence names of their own);
 * ``/spm/platform`` (geometry_msgs/msg/QuaternionStamped) and ``/tf`` (tf2_msgs/msg/TFMessage,
   base_link → ``platform_fk``): the platform's orientation from the FK of the measured θ (a frame
   of its own: robot_state_publisher, fed the URDF and ``/joint_states``, publishes the URDF's
-  ``platform`` link under ``distal0``, and a frame has one parent);
+  ``platform`` link under ``leg1_distal``, and a frame has one parent);
 * ``/spm/events`` (std_msgs/msg/String): each event as one JSON object, so every channel stays
   CDR and ``ros2 bag play`` can replay the whole file;
 * ``/robot_description`` (std_msgs/msg/String, once at the start): the URDF.
@@ -29,13 +33,13 @@ import datetime as dt
 import json
 import math
 import os
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
+from mcap.records import Schema
 from mcap_ros2.writer import Writer
 from numpy.typing import NDArray
 
@@ -45,8 +49,11 @@ from spm_console.core.kinematics.joint_states import joint_states
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.rotations import matrix_quaternion
 from spm_console.description.for_profile import robot_description
+from spm_console.description.names import JOINT_STATE_NAMES
 from spm_console.jsonutil import to_jsonable
+from spm_console.motion.logs.bag import BagContents, offered_qos, write_metadata
 from spm_console.motion.logs.runlog import RunData, append_events, load_run
+from spm_console.safe_io import atomic_temp
 from spm_console.system.realtime import normal_priority
 
 F = NDArray[np.float64]
@@ -82,8 +89,7 @@ TF_MESSAGE = _msgdef(
 STRING = "string data\n"
 
 MOTORS = ("joint1", "joint2", "joint3")
-URDF_JOINTS = (*(f"motor{i}" for i in (1, 2, 3)), *(f"distal{i}" for i in (1, 2, 3)),
-               *(f"platform{i}" for i in (1, 2, 3)))
+URDF_JOINTS = JOINT_STATE_NAMES
 
 
 def start_ns(meta: dict[str, Any]) -> int:
@@ -168,25 +174,46 @@ def _rows(run: RunData, model: SpmModel, t0: int) -> _Rows:
                  matrix_quaternion(rots))
 
 
-def write_mcap(run: RunData, model: SpmModel, urdf: str, out: Path) -> int:
-    """Write ``run`` as MCAP to ``out`` (replaced whole, never left half-written); the number
-    of messages written."""
+class _BagWriter(Writer):
+    """mcap_ros2's writer, each channel carrying the QoS its topic is offered with (the channel
+    metadata rosbag2's MCAP storage reads), and counting what it writes for ``metadata.yaml``.
+    mcap_ros2 registers a topic's channel on its first message, without metadata: the channel
+    is registered here first, in the writer's own table (``_writer``, ``_channel_ids``)."""
+
+    def __init__(self, output: IO[bytes]) -> None:
+        super().__init__(output)
+        self.contents = BagContents()
+
+    def write_message(self, topic: str, schema: Schema, message: Any, log_time: int | None = None,
+                      publish_time: int | None = None, sequence: int = 0) -> None:
+        if log_time is None:
+            raise ValueError(f"{topic}: every message of a run log has its time")
+        if topic not in self._channel_ids:
+            self._channel_ids[topic] = self._writer.register_channel(
+                topic=topic, message_encoding="cdr", schema_id=schema.id,
+                metadata={"offered_qos_profiles": offered_qos(topic)})
+        super().write_message(topic, schema, message, log_time, publish_time, sequence)
+        self.contents.add(topic, schema.name, log_time)
+
+
+def write_mcap(run: RunData, model: SpmModel, urdf: str, out: Path) -> BagContents:
+    """Write ``run`` as MCAP to ``out`` (replaced whole, never left half-written); what it
+    holds (topics, message counts, time span)."""
     t0 = start_ns(run.meta)
     rows = _rows(run, model, t0)
-    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", dir=out.parent)
-    tmp = Path(name)
+    fd, tmp = atomic_temp(out)
     try:
         with os.fdopen(fd, "wb") as fh:
-            count = _write(fh, run, rows, urdf, t0)
+            contents = _write(fh, run, rows, urdf, t0)
         tmp.replace(out)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    return count
+    return contents
 
 
-def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int) -> int:
-    w = Writer(fh)
+def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int) -> BagContents:
+    w = _BagWriter(fh)
     js_schema = w.register_msgdef("sensor_msgs/msg/JointState", JOINT_STATE)
     q_schema = w.register_msgdef("geometry_msgs/msg/QuaternionStamped", QUATERNION_STAMPED)
     tf_schema = w.register_msgdef("tf2_msgs/msg/TFMessage", TF_MESSAGE)
@@ -195,7 +222,6 @@ def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int) -> int:
                                    ("run", "kind", "outcome", "exit_code", "start_time")}
                    | {"profile": json.dumps(run.meta.get("profile", {}))})
     w.write_message("/robot_description", str_schema, {"data": urdf}, t0, t0)
-    count = 1
     for k, ns in enumerate(rows.stamp_ns):
         msgs: list[tuple[str, Any, dict[str, Any]]] = [
             ("/spm/reference", js_schema, _joints(ns, MOTORS, rows.ref[k])),
@@ -217,27 +243,39 @@ def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int) -> int:
                          ("/tf", tf_schema, {"transforms": [tf]})]
         for topic, schema, msg in msgs:
             w.write_message(topic, schema, msg, ns, ns, sequence=k)
-        count += len(msgs)
     for ev in run.events:
         ns = t0 + round(_seconds(ev.get("t", 0.0)) * 1e9)
         w.write_message("/spm/events", str_schema, {"data": json.dumps(to_jsonable(ev))}, ns, ns)
-        count += 1
     w.finish()
-    return count
+    return w.contents
+
+
+def write_bag(run_dir: Path, run: RunData, profile: Profile) -> Path:
+    """Write the run folder's ``run.mcap`` and then its ``metadata.yaml``: the folder is a
+    rosbag2 bag (:mod:`spm_console.motion.logs.bag`); the MCAP's path."""
+    out = Path(run_dir) / MCAP_NAME
+    contents = write_mcap(run, model_of(profile), robot_description(profile, "urdf"), out)
+    write_metadata(out, contents)
+    return out
 
 
 def write_run_mcap(run_dir: Path, profile: Profile, out: Path | None = None) -> Path:
-    """Write the run folder's MCAP (``run.mcap`` in it, or ``out``) from its files, with
-    ``profile``'s wrist (the one the run was logged with); the file's path."""
-    target = out if out is not None else Path(run_dir) / MCAP_NAME
-    write_mcap(load_run(run_dir), model_of(profile), robot_description(profile, "urdf"), target)
-    return target
+    """Write the run folder's MCAP from its files, with ``profile``'s wrist (the one the run was
+    logged with): ``run.mcap`` with ``metadata.yaml`` in the folder (a rosbag2 bag), or the
+    MCAP alone to ``out`` elsewhere (a bag is a folder; no ``metadata.yaml`` is put beside a
+    file of another name); the file's path."""
+    default = Path(run_dir) / MCAP_NAME
+    if out is None or Path(out).resolve() == default.resolve():
+        return write_bag(run_dir, load_run(run_dir), profile)
+    write_mcap(load_run(run_dir), model_of(profile), robot_description(profile, "urdf"), out)
+    return out
 
 
 def mcap_beside(profile: Profile) -> Callable[[Path], object]:
     """A :attr:`RunLog.on_finish` that writes the run's MCAP beside its CSV, at normal priority
     whatever thread finishes the log (a stopped servo loop's is real-time). A run longer than
-    :data:`MAX_ROWS_AT_FINISH` rows gets an ``mcap_deferred`` event instead: writing it would
+    :data:`MAX_ROWS_AT_FINISH` rows gets an ``mcap_deferred`` event instead (and no
+    ``metadata.yaml``): writing it would
     hold the run's result back for seconds; ``logs export --mcap`` writes it."""
 
     def write(run_dir: Path) -> None:
@@ -251,7 +289,6 @@ def mcap_beside(profile: Profile) -> Callable[[Path], object]:
                 "message": f"{run.rows} rows: run.mcap not written at the end of the run; "
                            f"`spm-console logs export --mcap {run_dir.name}` writes it"}])
             return
-        write_mcap(run, model_of(profile), robot_description(profile, "urdf"),
-                   Path(run_dir) / MCAP_NAME)
+        write_bag(run_dir, run, profile)
 
     return write

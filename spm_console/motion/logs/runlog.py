@@ -11,7 +11,8 @@ A run folder holds
 * ``events.jsonl`` — faults, retries, stops: one JSON object per line, flushed
   at once;
 * ``run.mcap`` — the same as ROS 2 messages (:mod:`spm_console.motion.logs.mcap_log`),
-  written from the files above once the run has finished (``on_finish``).
+  written from the files above once the run has finished (``on_finish``), and then
+  ``metadata.yaml``, which makes the folder a rosbag2 bag (:mod:`spm_console.motion.logs.bag`).
 
 Readers (:func:`load_run`, :func:`list_runs`) tolerate a truncated last line, and
 report a run still marked ``running`` whose process is gone as ``killed``.

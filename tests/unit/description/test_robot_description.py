@@ -57,23 +57,24 @@ def test_urdf_forward_kinematics_puts_the_platform_where_the_fk_does(
     path.write_text(robot_description(agile, "urdf"))
     robot = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=True)
     assert sorted(robot.actuated_joint_names) == sorted(
-        ["motor1", "motor2", "motor3", "distal1", "distal2", "distal3", "platform1"])
+        ["leg1_motor_joint", "leg2_motor_joint", "leg3_motor_joint", "leg1_distal_joint",
+         "leg2_distal_joint", "leg3_distal_joint", "leg1_platform_joint"])
     model = model_of(agile)
     v_home = model.v_home
     for _theta, R, js in poses:
-        cfg = {f"motor{i + 1}": js.motor[i] for i in range(3)}
-        cfg |= {f"distal{i + 1}": js.distal[i] for i in range(3)}
-        cfg["platform1"] = js.platform[0]
+        cfg = {f"leg{i + 1}_motor_joint": js.motor[i] for i in range(3)}
+        cfg |= {f"leg{i + 1}_distal_joint": js.distal[i] for i in range(3)}
+        cfg["leg1_platform_joint"] = js.platform[0]
         robot.update_cfg(cfg)
         T = robot.get_transform("platform", "base_link")
         assert np.abs(T[:3, :3] - R).max() < 1e-9
         assert np.abs(T[:3, 3]).max() < 1e-12  # every joint at the centre
         v = platform_axes(R, v_home)
         for i in range(3):  # legs 2 and 3 end where the platform's v_i is
-            D = robot.get_transform(f"distal{i}", "base_link")[:3, :3]
+            D = robot.get_transform(f"leg{i + 1}_distal", "base_link")[:3, :3]
             assert np.abs(D @ v_home[i] - v[i]).max() < 1e-9
-    lo_hi = [(robot.joint_map[f"motor{i + 1}"].limit.lower, robot.joint_map[f"motor{i + 1}"].limit.upper)
-             for i in range(3)]
+    motors = [robot.joint_map[f"leg{i + 1}_motor_joint"] for i in range(3)]
+    lo_hi = [(j.limit.lower, j.limit.upper) for j in motors]
     home = np.array(agile.home.theta_deg)
     for i, (lo, hi) in enumerate(lo_hi):
         assert np.isclose(np.degrees(lo), agile.bus.joints[i].min_deg - home[i])
@@ -89,14 +90,16 @@ def test_mjcf_closes_the_chain_at_the_fk_joint_states(
         agile: Profile, poses: list[tuple[np.ndarray, np.ndarray, JointStates]]) -> None:
     mj, data = _mjcf(agile)
     adr = {name: mj.jnt_qposadr[mj.joint(name).id] for name in
-           ("theta0", "theta1", "theta2", "distal0", "distal1", "distal2", "platform_hinge")}
+           (*(f"leg{n}_{k}_joint" for k in ("motor", "play", "distal") for n in (1, 2, 3)),
+            "leg1_platform_joint")}
     assert mj.neq == 2
     worst = 0.0
     for _theta, R, js in poses:
-        for i in range(3):
-            data.qpos[adr[f"theta{i}"]] = js.motor[i]
-            data.qpos[adr[f"distal{i}"]] = js.distal[i]
-        data.qpos[adr["platform_hinge"]] = js.platform[0]
+        for i in range(3):  # the motor's angle is the drive's plus the gear's play (here 0)
+            data.qpos[adr[f"leg{i + 1}_motor_joint"]] = js.motor[i]
+            data.qpos[adr[f"leg{i + 1}_play_joint"]] = 0.0
+            data.qpos[adr[f"leg{i + 1}_distal_joint"]] = js.distal[i]
+        data.qpos[adr["leg1_platform_joint"]] = js.platform[0]
         mujoco.mj_kinematics(mj, data)
         assert np.abs(data.xmat[mj.body("platform").id].reshape(3, 3) - R).max() < 1e-9
         for k in range(mj.neq):
@@ -113,7 +116,7 @@ def test_urdf_masses_and_inertias_are_mujocos(agile: Profile, tmp_path: Path) ->
     path.write_text(robot_description(agile, "urdf"))
     robot = yourdfpy.URDF.load(str(path), load_meshes=False)
     mj, _ = _mjcf(agile)
-    names = [f"proximal{i}" for i in range(3)] + [f"distal{i}" for i in range(3)] + ["platform"]
+    names = [f"leg{n}_{part}" for part in ("proximal", "distal") for n in (1, 2, 3)] + ["platform"]
     for name in names:
         inertial = robot.link_map[name].inertial
         b = mj.body(name).id

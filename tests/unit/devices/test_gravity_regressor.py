@@ -28,7 +28,7 @@ def wrist() -> PhysicalWrist:
 def _moments(w: PhysicalWrist) -> np.ndarray:
     """First moments m·c (kg·m) of the regressor's bodies at home, from MuJoCo's bodies."""
     w.set_theta(w.spm.theta_home)
-    names = [f"proximal{i}" for i in range(3)] + [f"distal{i}" for i in range(3)] + ["platform"]
+    names = [f"leg{n}_{part}" for part in ("proximal", "distal") for n in (1, 2, 3)] + ["platform"]
     assert len(names) == len(BODIES)
     return np.concatenate([w.mj.body(n).mass[0] * w.data.xipos[w.mj.body(n).id] for n in names])
 

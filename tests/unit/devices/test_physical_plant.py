@@ -121,7 +121,7 @@ def test_the_gear_play_is_the_vendors(wrist: PhysicalWrist) -> None:
     for i in range(3):
         wrist.command(i, float(m.theta_home[i]), False, False)
     wrist.t = 0.0
-    dof = wrist.mj.joint("theta0").dofadr[0]
+    dof = wrist.mj.joint("leg1_play_joint").dofadr[0]  # the output shaft, against the rotor
     ends = []
     for torque in (0.4, -0.4, 0.4):
         wrist.data.qfrc_applied[dof] = torque

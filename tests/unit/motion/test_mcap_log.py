@@ -65,9 +65,9 @@ def test_a_long_run_defers_its_mcap_to_logs_export(tmp_path: Path, agile: Profil
     run = _run(tmp_path, agile)
     monkeypatch.setattr(mcap_log, "MAX_ROWS_AT_FINISH", 4)
     mcap_log.mcap_beside(agile)(run)
-    assert not (run / mcap_log.MCAP_NAME).exists()
+    assert not (run / mcap_log.MCAP_NAME).exists() and not (run / "metadata.yaml").exists()
     (ev,) = [e for e in load_run(run).events if e["event"] == "mcap_deferred"]
     assert ev["rows"] == 5 and "logs export --mcap" in ev["message"]
     monkeypatch.setattr(mcap_log, "MAX_ROWS_AT_FINISH", 5)
     mcap_log.mcap_beside(agile)(run)
-    assert (run / mcap_log.MCAP_NAME).is_file()
+    assert (run / mcap_log.MCAP_NAME).is_file() and (run / "metadata.yaml").is_file()
