@@ -79,6 +79,13 @@ class SpmError(Exception):
         self.message = message
         self.issue = issue
 
+    def at(self, where: str) -> SpmError:
+        """This error (its class, exit code and issue kept) with ``where`` (a file, a step and
+        key, a row) before its message: ``raise exc.at(source) from None``."""
+        self.message = f"{where}: {self.message}"
+        self.args = (self.message,)
+        return self
+
 
 class ProfileError(SpmError):
     """A profile file is missing, unreadable or invalid (names file, key, reason)."""

@@ -4,8 +4,10 @@ Python's ``float()`` accepts more than an operator means: ``1_25`` (125), non-AS
 (``١٢٥``), ``nan``, ``inf``, surrounding whitespace; JSON decoders turn a 400-digit integer
 into an ``int`` that overflows when made a float, and ``true`` into a number in lax
 validation. Here a number is plain ASCII decimal notation (optional sign, digits, one
-decimal point, an optional exponent) whose value is finite; in JSON, an ``int`` or
-``float`` that is not a boolean and fits a finite float.
+decimal point, an optional exponent) whose value is finite, and an integer is plain ASCII
+digits; in JSON, an ``int`` or ``float`` that is not a boolean and fits a finite float.
+Command-line options (:func:`spm_console.cli.common.number`), fault specs, target files and
+UDP messages read their numbers here.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from collections.abc import Iterator
 from spm_console.errors import BadInputError
 
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_INTEGER = re.compile(r"[+-]?[0-9]+")
 #: Longest numeral read (digits of a double are 17; room for zeros and an exponent).
 MAX_NUMERAL_CHARS = 64
 
@@ -47,6 +50,18 @@ def parse_number(text: str) -> float:
     if not math.isfinite(v):
         raise NotANumberError(f"{t[:20]} is beyond the range of a number")
     return v
+
+
+def parse_integer(text: str) -> int:
+    """The value of a plain ASCII decimal integer (``12``, ``-3``), at most
+    :data:`MAX_NUMERAL_CHARS` characters; :class:`NotANumberError` for anything else (``1_0``,
+    ``١٠``, ``1e3``, ``2.0``)."""
+    t = text.strip()
+    if len(t) > MAX_NUMERAL_CHARS:
+        raise NotANumberError(f"an integer of more than {MAX_NUMERAL_CHARS} characters")
+    if not _INTEGER.fullmatch(t):
+        raise NotANumberError(f"{t[:20]!r} is not a whole number in decimal digits")
+    return int(t)
 
 
 def json_number(value: object) -> float:

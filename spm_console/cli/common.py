@@ -18,11 +18,35 @@ from spm_console.config.load import load_profile
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError
 from spm_console.jsonutil import to_jsonable
+from spm_console.numbers import NotANumberError, looks_numeric, parse_integer, parse_number
 
 #: The emulated wrists ``--plant`` chooses from (``[plant] model``).
 PLANTS = ("ideal", "physical")
 #: File names a figure may be written to.
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def number(text: str) -> float:
+    """The ``type`` of every number option: :func:`~spm_console.numbers.parse_number`'s rule,
+    the one of CSV files and UDP messages. Text that is no plain ASCII decimal (``1_0``,
+    ``١٠``, ``0x10``) is a usage error naming the option (exit 2, like any word where a number
+    belongs); a numeral whose value is not finite (``nan``, ``1e999``) is passed on for the
+    option's own check to refuse as "must be a finite number" (exit 4)."""
+    try:
+        return parse_number(text)
+    except NotANumberError as exc:
+        if looks_numeric(text):
+            return float(text)
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def integer(text: str) -> int:
+    """The ``type`` of every integer option: plain ASCII digits
+    (:func:`~spm_console.numbers.parse_integer`), else a usage error naming the option."""
+    try:
+        return parse_integer(text)
+    except NotANumberError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def add_common(p: argparse.ArgumentParser) -> None:

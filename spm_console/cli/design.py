@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
-from spm_console.cli.common import PLOT_SUFFIXES, emit, info, output_file, output_folder
+from spm_console.cli.common import PLOT_SUFFIXES, emit, info, integer, output_file, output_folder
 from spm_console.design.ranking import RANKED, best, check_metric, design_profile_text, pareto
 from spm_console.design.spec import DEFAULT_MAX_DESIGNS, load_spec
 from spm_console.design.sweep import allowed_cores, run_sweep
@@ -39,16 +39,16 @@ def register(sub: Any) -> None:
     s.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="an existing Dask scheduler (tcp://HOST:PORT); default: a local "
                         "cluster on the allowed cores")
-    s.add_argument("--workers", type=int, default=None, metavar="N",
+    s.add_argument("--workers", type=integer, default=None, metavar="N",
                    help="worker processes of the local cluster (default: one per allowed core; "
                         "0: in this process, without Dask)")
-    s.add_argument("--max-designs", type=int, default=None, metavar="N",
+    s.add_argument("--max-designs", type=integer, default=None, metavar="N",
                    help="refuse a spec with more designs (default 100000)")
     s.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     s.set_defaults(func=cmd_sweep)
     sh = dsub.add_parser("show", help="the best designs per figure, and a Pareto plot")
     sh.add_argument("folder", type=Path, metavar="DIR")
-    sh.add_argument("--top", type=int, default=3, metavar="K",
+    sh.add_argument("--top", type=integer, default=3, metavar="K",
                     help=f"designs per figure (1..{MAX_TOP}, default 3)")
     sh.add_argument("--metric", action="append", default=None, metavar="NAME",
                     help="rank by this figure only (repeatable)")
@@ -60,7 +60,7 @@ def register(sub: Any) -> None:
     sh.set_defaults(func=cmd_show)
     pr = dsub.add_parser("profile", help="write one design's complete, validated profile")
     pr.add_argument("folder", type=Path, metavar="DIR")
-    pr.add_argument("index", type=int, metavar="K", help="the design's index in the table")
+    pr.add_argument("index", type=integer, metavar="K", help="the design's index in the table")
     pr.add_argument("--out", type=Path, required=True, metavar="NEW.toml")
     pr.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     pr.set_defaults(func=cmd_profile)
@@ -101,7 +101,7 @@ def _duration(s: float) -> str:
 
 def check_scheduler(address: str) -> None:
     """A Dask scheduler's address: ``tcp://HOST:PORT`` (or ``tls://``, or ``HOST:PORT``)."""
-    m = re.fullmatch(r"(?:(tcp|tls)://)?([A-Za-z0-9.\-]+|\[[0-9A-Fa-f:.]+\]):(\d{1,5})", address)
+    m = re.fullmatch(r"(?:(tcp|tls)://)?([A-Za-z0-9.\-]+|\[[0-9A-Fa-f:.]+\]):([0-9]{1,5})", address)
     if m is None or not 1 <= int(m.group(3)) <= 65535:
         raise BadInputError(f"--scheduler {address!r}: expected tcp://HOST:PORT (or tls://HOST:PORT)")
 

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import output_may_be_gone, profile_of
+from spm_console.cli.common import integer, number, output_may_be_gone, profile_of
 from spm_console.cli.follow_source import UdpTargets
 from spm_console.cli.run import _bus_opts, _report, _request, with_progress
 from spm_console.errors import BadInputError
@@ -35,12 +35,12 @@ def register(sub: Any) -> None:
     src.add_argument("--targets", type=Path, metavar="FILE.csv",
                      help="timed targets: t, theta1, theta2, theta3 (or t, roll, pitch, yaw "
                           "with --rpy)")
-    src.add_argument("--udp", type=int, metavar="PORT",
+    src.add_argument("--udp", type=integer, metavar="PORT",
                      help='live targets: JSON lines {"theta_deg": [..]} or {"rpy_deg": [..]} '
                           "on 127.0.0.1:PORT")
     f.add_argument("--rpy", action="store_true",
                    help="the CSV holds roll, pitch, yaw relative to home (deg)")
-    f.add_argument("--deadman", type=float, default=None, metavar="S",
+    f.add_argument("--deadman", type=number, default=None, metavar="S",
                    help="live targets: hold when none arrives for S seconds (default 0.5)")
     f.add_argument("--skip-homing", metavar="REASON", default="",
                    help="follow without homing first; REASON is written to the run log")

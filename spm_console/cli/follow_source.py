@@ -78,7 +78,7 @@ class UdpTargets:
                     arr = np.array([json_number(x) for x in v])
                 except NotANumberError as exc:
                     raise BadInputError(f"{key} must be three finite numbers ({exc})") from None
-                return theta_of_rpy(self.profile, arr) if key == "rpy_deg" else arr
+                return theta_of_rpy(self.profile, arr, key) if key == "rpy_deg" else arr
         raise BadInputError('expected {"theta_deg": [..]}, {"rpy_deg": [..]} or {"end": true}')
 
     def pump(self, session: Session) -> None:

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import PLOT_SUFFIXES, emit, output_file, profile_of
+from spm_console.cli.common import PLOT_SUFFIXES, emit, info, output_file, profile_of
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.models import servo_limits_deg
@@ -34,7 +34,8 @@ from spm_console.core.servo.order import OrderCheck
 from spm_console.description.weight import holding_torque_nm
 from spm_console.errors import BadInputError, ExitCode, SolverError, SpmError
 from spm_console.formatting import fmt_deg
-from spm_console.motion.logs.runlog import load_run
+from spm_console.motion.logs.profile_record import other_wrist
+from spm_console.motion.logs.runlog import RunData, load_run
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.report.plot_identify import plot_experiment
 from spm_console.safe_io import MB, read_text
@@ -166,6 +167,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         src = named = str(args.csv)
     else:
         run = load_run(args.run, args.logs)
+        _same_wrist(run, profile, args.profile)
         src, named = str(run.path), str(run.path / "samples.csv")
         t, ref, meas, at = _columns(dict(run.columns), named)
     hold = _holding(profile, ref, meas) if args.load else None  # checked before any fit
@@ -200,6 +202,30 @@ def cmd_identify(args: argparse.Namespace) -> int:
     emit(args, rec, human)
     sys.stdout.flush()
     return int(ExitCode.OK)
+
+
+def _same_wrist(run: RunData, profile: Profile, path: str) -> None:
+    """``--run``: the run was logged on the wrist ``profile`` describes (its geometry, home and
+    servo wiring: :mod:`spm_console.motion.logs.profile_record`), else exit 4 naming both. A
+    run logged before runs recorded their wrist is checked by its profile's name (the same
+    hash passes; another version of the same name is fitted with a note); a run that records
+    no profile is fitted with a note."""
+    logged = run.meta.get("profile")
+    here = f"profile '{profile.name}' ({path})"
+    if not isinstance(logged, dict):
+        info(f"note: {run.path.name} records no profile: fitted as a record of the wrist of {here}")
+        return
+    theirs = f"profile '{logged.get('name')}'"
+    differ = other_wrist(logged, profile)
+    own = "give the run's own profile with --profile"
+    if differ:
+        raise BadInputError(f"{run.path}: logged on another wrist: its {theirs} differs from {here} "
+                            f"in {', '.join(differ)}; a fit would be another wrist's servos: {own}")
+    if differ is None and logged.get("hash") != profile.digest():
+        if logged.get("name") != profile.name:
+            raise BadInputError(f"{run.path}: logged with {theirs}, not {here}: {own}")
+        info(f"note: {run.path.name} was logged with another version of {here}, before runs "
+             "recorded their wrist: fitted as a record of this wrist")
 
 
 def _holding(profile: Profile, ref: np.ndarray, meas: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import add_common, emit, profile_of
+from spm_console.cli.common import add_common, emit, number, profile_of
 from spm_console.config.models import link_model_of, model_of
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.ik import ik, ik_rpy
@@ -30,9 +30,9 @@ def register(sub: Any) -> None:
     p = sub.add_parser("fk", help="unique forward kinematics (home assembly mode)")
     add_common(p)
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--theta", nargs=3, type=float, metavar=("T1", "T2", "T3"), help="motor angles, deg")
+    g.add_argument("--theta", nargs=3, type=number, metavar=("T1", "T2", "T3"), help="motor angles, deg")
     g.add_argument("--theta-file", type=Path, metavar="CSV", help="one θ (3 columns, deg) per row")
-    p.add_argument("--from", dest="from_theta", nargs=3, type=float, metavar=("T1", "T2", "T3"),
+    p.add_argument("--from", dest="from_theta", nargs=3, type=number, metavar=("T1", "T2", "T3"),
                    help="continue from this known configuration (itself tracked from home)")
     p.add_argument("--all-modes", action="store_true", help="also list every assembly mode")
     p.add_argument("--cache-dir", type=Path, default=None,
@@ -43,8 +43,8 @@ def register(sub: Any) -> None:
     q = sub.add_parser("ik", help="inverse kinematics in the home working modes")
     add_common(q)
     h = q.add_mutually_exclusive_group(required=True)
-    h.add_argument("--v", nargs=9, type=float, metavar="V", help="v1x v1y v1z v2x … v3z")
-    h.add_argument("--rpy", nargs=3, type=float, metavar=("R", "P", "Y"),
+    h.add_argument("--v", nargs=9, type=number, metavar="V", help="v1x v1y v1z v2x … v3z")
+    h.add_argument("--rpy", nargs=3, type=number, metavar=("R", "P", "Y"),
                    help="roll pitch yaw from home, deg: R = Rz(Y) Ry(P) Rx(R)")
     q.set_defaults(func=cmd_ik)
 

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any, Literal
 
-from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output_file, profile_of
+from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, integer, number, output_file, profile_of
 from spm_console.config.schema import Profile
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan import Plan, PlanSummary
@@ -39,16 +39,16 @@ def register(sub: Any) -> None:
 
     m = psub.add_parser("mvn", help="minimum-velocity-norm references in N steps")
     _problem_args(m)
-    m.add_argument("--steps", type=int, default=150, metavar="N",
+    m.add_argument("--steps", type=integer, default=150, metavar="N",
                    help=f"intervals N, {STEPS_MIN}..{N_MAX} (default 150)")
-    m.add_argument("--vmax", type=float, default=None, metavar="V",
+    m.add_argument("--vmax", type=number, default=None, metavar="V",
                    help="speed bound at the samples, deg/s, at most the profile's "
                    "limits.vmax_degps (default: that limit, which the executor enforces)")
     m.set_defaults(func=cmd_mvn)
 
     t = psub.add_parser("mintime", help="minimum-time references under a speed bound")
     _problem_args(t)
-    t.add_argument("--vmax", type=float, default=None, metavar="V",
+    t.add_argument("--vmax", type=number, default=None, metavar="V",
                    help="speed bound, deg/s, in (0, the profile's limits.vmax_degps] "
                    "(default: that limit)")
     t.set_defaults(func=cmd_mintime)
@@ -62,11 +62,11 @@ def register(sub: Any) -> None:
 
 def _problem_args(p: argparse.ArgumentParser) -> None:
     add_common(p)
-    p.add_argument("--start", nargs=3, type=float, required=True, metavar=("T1", "T2", "T3"),
+    p.add_argument("--start", nargs=3, type=number, required=True, metavar=("T1", "T2", "T3"),
                    help="start motor angles, deg")
-    p.add_argument("--goal", nargs=3, type=float, required=True, metavar=("T1", "T2", "T3"),
+    p.add_argument("--goal", nargs=3, type=number, required=True, metavar=("T1", "T2", "T3"),
                    help="goal motor angles, deg")
-    p.add_argument("--intersample", type=int, default=1, metavar="K",
+    p.add_argument("--intersample", type=integer, default=1, metavar="K",
                    help="also enforce speed and region at K−1 instants inside each interval "
                    f"(1..{INTERSAMPLE_MAX}, N·K ≤ {MAX_INSTANTS:,})")
     p.add_argument("--region", type=Path, default=None, metavar="FILE.json",

@@ -17,7 +17,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import add_common, add_plant, emit, info, output_folder, output_may_be_gone, profile_of
+from spm_console.cli.common import (
+    add_common,
+    add_plant,
+    emit,
+    info,
+    number,
+    output_folder,
+    output_may_be_gone,
+    profile_of,
+)
 from spm_console.cli.progress import RunProgress, wanted
 from spm_console.config.schema import Profile
 from spm_console.devices.emulator.faults import parse_fault
@@ -43,7 +52,7 @@ def _bus_opts(p: argparse.ArgumentParser) -> None:
                    help="with --sim: inject a fault, e.g. unplug@1.0, stall:2@0.5, drop:0.05, "
                         "corrupt:0.02, delay:0.03@1.0, hwerror:1@0.5 (repeatable; seconds "
                         "after the run starts)")
-    p.add_argument("--sim-start", nargs=3, type=float, metavar=("T1", "T2", "T3"),
+    p.add_argument("--sim-start", nargs=3, type=number, metavar=("T1", "T2", "T3"),
                    help="with --sim: power-on joint angles of the emulated servos, deg "
                         "(default: the profile's home)")
     add_plant(p)

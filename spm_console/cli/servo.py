@@ -11,7 +11,7 @@ from dataclasses import asdict
 from typing import Any
 
 from spm_console.cli import stdout_guard
-from spm_console.cli.common import add_common, add_plant, emit, info, profile_of, to_jsonable
+from spm_console.cli.common import add_common, add_plant, emit, info, integer, number, profile_of, to_jsonable
 from spm_console.devices.emulator.bus import start_emulator
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError, BusError, ExitCode
@@ -31,7 +31,7 @@ def register(sub: Any) -> None:
         add_common(p)
         p.add_argument("--port", metavar="DEV",
                        help="serial device (default: the profile's bus.port)")
-        p.add_argument("--ids", nargs="+", type=int, metavar="ID",
+        p.add_argument("--ids", nargs="+", type=integer, metavar="ID",
                        help="servo ids (default: the profile's three joints)")
 
     p = ssub.add_parser("ping", help="ping each servo; list ids with their model numbers")
@@ -56,14 +56,14 @@ def register(sub: Any) -> None:
     e.add_argument("--fault", action="append", default=[], metavar="KIND[@SECONDS]",
                    help="inject a fault, e.g. unplug@5, stall:2@1, drop:0.05, corrupt:0.02, "
                         "delay:0.03@1, hwerror:1@2 (repeatable)")
-    e.add_argument("--initial", nargs=3, type=float, metavar=("T1", "T2", "T3"),
+    e.add_argument("--initial", nargs=3, type=number, metavar=("T1", "T2", "T3"),
                    help="power-on joint angles, deg (default: the profile's home)")
     add_plant(e)
     e.add_argument("--link", choices=("pty", "socket"), default="pty",
                    help="pty (default): a serial device any serial tool opens; socket: a "
                         "Unix-domain socket, port unix:PATH, which the spm-console commands "
                         "open (less exposed to a loaded machine's delays)")
-    e.add_argument("--duration", type=float, metavar="S",
+    e.add_argument("--duration", type=number, metavar="S",
                    help=f"stop by itself after S seconds, 0 < S ≤ {MAX_EMULATE_S:g}")
     e.set_defaults(func=cmd_emulate)
 

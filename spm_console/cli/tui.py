@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
-from spm_console.cli.common import add_plant, console_plant, with_plant
+from spm_console.cli.common import add_plant, console_plant, number, with_plant
 from spm_console.config.load import load_profile, with_grid_step
 from spm_console.config.schema import DEFAULT_PROFILE
 from spm_console.input_rules import finite_number
@@ -35,7 +35,7 @@ def register(sub: Any) -> None:
                    "profile's bus.port is set)")
     add_plant(p, "the profile's [plant] model when it names one, else physical")
     p.add_argument("--no-viewer", action="store_true", help="do not start the meshcat 3D view")
-    p.add_argument("--grid-step", type=float, default=None, metavar="DEG",
+    p.add_argument("--grid-step", type=number, default=None, metavar="DEG",
                    help="workspace grid step Δ instead of the profile's (e.g. 1 for the paper's "
                         "minimum-time pair); the workspace, the runtime's plan verification and "
                         "plan files all use it; the console's settings change it too")

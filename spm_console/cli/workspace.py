@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, output_file, profile_of
+from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, integer, number, output_file, profile_of
 from spm_console.config.schema import Profile
 from spm_console.core.regions.choice import region_containing
 from spm_console.core.workspace.build import check_theta
@@ -39,22 +39,22 @@ def register(sub: Any) -> None:
 
     c = wsub.add_parser("check", help="is θ feasible (and inside P)? exit 6 if not feasible")
     _common(c)
-    c.add_argument("--theta", nargs=3, type=float, required=True, metavar=("T1", "T2", "T3"),
+    c.add_argument("--theta", nargs=3, type=number, required=True, metavar=("T1", "T2", "T3"),
                    help="motor angles, deg")
     c.set_defaults(func=cmd_check)
 
     r = wsub.add_parser("region", help="print P, or a region containing two configurations")
     _common(r)
-    r.add_argument("--contain", nargs=6, type=float, metavar="DEG",
+    r.add_argument("--contain", nargs=6, type=number, metavar="DEG",
                    help="θa (3 values) then θb (3 values), deg")
     r.add_argument("--out", type=Path, metavar="FILE.json", help="also write {A, b} to a file")
     r.set_defaults(func=cmd_region)
 
     v = wsub.add_parser("verify", help="sample P uniformly and check every point exactly")
     _common(v)
-    v.add_argument("--samples", type=int, default=100_000,
+    v.add_argument("--samples", type=integer, default=100_000,
                    help=f"number of samples, 1..{MAX_VERIFY_SAMPLES:,} (default 100,000)")
-    v.add_argument("--seed", type=int, default=0, help="random seed, 0..2³²−1")
+    v.add_argument("--seed", type=integer, default=0, help="random seed, 0..2³²−1")
     v.add_argument("--cover", action="store_true",
                    help="verify every region of the cover (--samples each), not only P")
     v.set_defaults(func=cmd_verify)

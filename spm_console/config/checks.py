@@ -23,7 +23,8 @@ from typing import Annotated, Any, Literal, Union, get_args, get_origin
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
-from spm_console.config.schema import ANGLE_LIMIT_DEG, Profile
+from spm_console.config.fields import ANGLE_LIMIT_DEG
+from spm_console.config.schema import Profile
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS
 from spm_console.errors import ProfileError
 
@@ -198,7 +199,7 @@ def validation_message(exc: ValidationError, source: str, root: type[BaseModel])
     for err in exc.errors():
         loc = tuple(err["loc"])
         key = key_of(loc)
-        reason = err["msg"]
+        reason = err["msg"].removeprefix("Value error, ")  # a cross-key rule says it all
         value: object = err.get("input")
         kind = err["type"]
         if kind == "extra_forbidden":

@@ -18,46 +18,18 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, model_validator
-from pydantic_core import PydanticCustomError
+from pydantic import Field, model_validator
 
-#: Largest |angle| of any angle in a profile (θ, grid range, limits, η), deg: one turn
-#: either way covers every configuration; larger values only make grids and limits absurd.
-ANGLE_LIMIT_DEG = 360.0
+from spm_console.config.fields import Angle, Count, Direction, Real, Section, Sign, Vec3
+from spm_console.config.plant import Plant
 
 #: The default profile, relative to the project root / working directory.
 DEFAULT_PROFILE = Path("profiles/agile_wrist.toml")
 
-#: A real number: float or int, never bool or str; finite (``allow_inf_nan=False`` below).
-Real = Annotated[float, Strict()]
-#: An integer: never bool, float or str.
-Count = Annotated[int, Strict()]
-#: An angle within one turn either way, deg.
-Angle = Annotated[float, Strict(), Field(ge=-ANGLE_LIMIT_DEG, le=ANGLE_LIMIT_DEG)]
-#: One entry of the sign seed.
-Sign = Annotated[int, Strict(), Field(ge=-1, le=1)]
-Vec3 = tuple[Angle, Angle, Angle]
 
-
-def _whole(value: object) -> object:
-    """Refuse a bool, float or str before a ``Literal`` of ints (which would accept them)."""
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise PydanticCustomError("int_type", "Input should be a valid integer")
-    return value
-
-
-#: +1 or −1, strictly an int.
-Direction = Annotated[Literal[1, -1], BeforeValidator(_whole)]
-
-
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False,
-                              use_attribute_docstrings=True)
-
-
-class Meta(_Section):
+class Meta(Section):
     """Identification of the prototype."""
 
     name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9][A-Za-z0-9 ._+-]*$")
@@ -68,7 +40,7 @@ class Meta(_Section):
     """Free text: what the prototype is and where its numbers come from."""
 
 
-class Geometry(_Section):
+class Geometry(Section):
     """SPM geometry (paper Sec. II): link arcs and pyramid angles, degrees."""
 
     alpha1_deg: Real = Field(gt=0.0, lt=180.0)
@@ -83,7 +55,7 @@ class Geometry(_Section):
     """Azimuth η_i of each leg's base axis, eq. (1); each finite, within ±360."""
 
 
-class Home(_Section):
+class Home(Section):
     """The known home configuration and assembly mode (paper Sec. III, VI-A)."""
 
     theta_deg: Vec3
@@ -99,7 +71,7 @@ class Home(_Section):
 MAX_RADIUS_MM = 10_000.0
 
 
-class Links(_Section):
+class Links(Section):
     """Segment model of the links for interference checks (paper Sec. IV-B), mm."""
 
     oa_mm: Real = Field(gt=0.0, le=MAX_RADIUS_MM)
@@ -128,7 +100,7 @@ class Links(_Section):
         return self
 
 
-class WorkspaceGrid(_Section):
+class WorkspaceGrid(Section):
     """Grid of motor configurations (paper eq. 25, Sec. VI-D), degrees."""
 
     theta_min_deg: Angle
@@ -157,7 +129,7 @@ class WorkspaceGrid(_Section):
         return [self.theta_min_deg + k * self.step_deg for k in range(n + 1)]
 
 
-class Identified(_Section):
+class Identified(Section):
     """Where an identified ``[servo]`` model came from (``identify`` writes it)."""
 
     date: str = Field(max_length=64)
@@ -174,7 +146,7 @@ class Identified(_Section):
     """Largest |model − measurement| on held-out samples, deg."""
 
 
-class Servo(_Section):
+class Servo(Section):
     """Closed-loop servo model, eq. (27)-(28), or an identified one with the same state."""
 
     p: Real = Field(gt=0.0, le=1000.0)
@@ -219,14 +191,14 @@ class Servo(_Section):
         return self
 
 
-class Limits(_Section):
+class Limits(Section):
     """Motion limits."""
 
     vmax_degps: Real = Field(gt=0.0, le=2000.0)
     """Default joint speed bound θ̇_max, deg/s, eq. (30d), 0 < θ̇_max ≤ 2000."""
 
 
-class JointWiring(_Section):
+class JointWiring(Section):
     """Mapping of one joint angle to its servo's ticks."""
 
     id: Count = Field(ge=0, le=252)
@@ -243,7 +215,7 @@ class JointWiring(_Section):
     its tick must lie in 0..ticks_per_turn−1."""
 
 
-class Bus(_Section):
+class Bus(Section):
     """Dynamixel servo bus."""
 
     protocol: Literal["1.0", "2.0"] = "2.0"
@@ -253,8 +225,9 @@ class Bus(_Section):
     baud: Count = Field(default=1_000_000, ge=7_800, le=10_500_000)
     """Baud rate, bit/s: 7,800..10,500,000 (Dynamixel rates span 7,843 bit/s on protocol 1.0
     to 10.5 Mbit/s on the X series)."""
-    timeout_s: Real = Field(default=0.004, gt=0.0, le=1.0)
-    """Reply timeout for one status packet, s, 0 < timeout ≤ 1."""
+    timeout_s: Real = Field(default=0.004, ge=0.0001, le=1.0)
+    """Reply timeout for one status packet, s, 0.1 ms ≤ timeout ≤ 1 s (no reply crosses a USB
+    serial adapter sooner: a USB 2.0 microframe is 0.125 ms)."""
     model_number: Count = Field(default=321, ge=0, le=65535)
     """Expected model number (MX-106: 321 on protocol 2.0, 320 on 1.0); a 2-byte register."""
     ticks_per_turn: Count = Field(default=4096, ge=256, le=1 << 20)
@@ -271,7 +244,7 @@ class Bus(_Section):
         return self
 
 
-class Safety(_Section):
+class Safety(Section):
     """Thresholds of the executor's safety checks."""
 
     tracking_error_deg: Real = Field(gt=0.0, le=30.0)
@@ -302,7 +275,7 @@ class Safety(_Section):
     front end."""
 
 
-class Settle(_Section):
+class Settle(Section):
     """The goal corrected at rest after a planned motion (MVN, minimum time): the servos' own
     P-only position loop leaves an offset that friction and the links' weight set (a few encoder
     ticks on the MX-106, more under load); the runtime then moves the goal it sends by the
@@ -319,7 +292,7 @@ class Settle(_Section):
     tick, 0.088°, and a little)."""
 
 
-class Estimation(_Section):
+class Estimation(Section):
     """Kalman filter noise levels (per joint, model (28))."""
 
     measurement_noise_deg: Real = Field(ge=1e-6, le=10.0)
@@ -331,7 +304,7 @@ class Estimation(_Section):
     (the filter squares it and divides by Ts)."""
 
 
-class Emulator(_Section):
+class Emulator(Section):
     """Defaults of the emulated servo bus."""
 
     noise_deg: Real = Field(default=0.0, ge=0.0, le=10.0)
@@ -344,41 +317,7 @@ class Emulator(_Section):
     can open (its bytes wait for a kernel worker, which a loaded machine delays)."""
 
 
-class Plant(_Section):
-    """The emulated wrist behind ``--sim``: ``ideal`` servos that are eq. (27) with ``servo.p``,
-    or the ``physical`` wrist (MX-106 drives on the rigid-body closed chain, MuJoCo). Figures
-    at the output shaft, after the 225:1 gear; each names its source."""
-
-    model: Literal["ideal", "physical"] = "ideal"
-    """Which emulated wrist ``--sim`` runs."""
-    supply_v: Real = Field(default=12.0, gt=0.0, le=30.0)
-    """Supply voltage, V: the MX-106 e-manual's 12 V rating."""
-    kt_nm_per_a: Real = Field(default=2.2, gt=0.0, le=20.0)
-    """Torque constant, N·m/A: BAM (arXiv 2410.08650) identified 2.19–2.23 on the MX-106."""
-    resistance_ohm: Real = Field(default=3.14, gt=0.0, le=100.0)
-    """Winding resistance, Ω: kt·V / 8.4 N·m, the e-manual's stall torque at 12 V (BAM: 2–3)."""
-    armature_kgm2: Real = Field(default=0.026, gt=0.0, le=10.0)
-    """Rotor inertia reflected through the gear, kg·m²: BAM, 0.025–0.027."""
-    coulomb_nm: Real = Field(default=0.1, ge=0.0, le=10.0)
-    """Coulomb friction, N·m: BAM, about 0.10."""
-    viscous_nms: Real = Field(default=0.04, ge=0.0, le=10.0)
-    """Viscous friction, N·m·s/rad: BAM, 0.035–0.051."""
-    backlash_deg: Real = Field(default=0.33, ge=0.0, le=5.0)
-    """Play of the gear train at the output, deg: the MX-106 e-manual's 0.33° (20′). The
-    encoder reads the output shaft, so the play sits inside the position loop. 0: none."""
-    backdrive_friction_nm: Real = Field(default=1.0, ge=0.0, le=20.0)
-    """Friction of a joint whose torque is off (the gear driven from the output), N·m:
-    assumed, so that the wrist's own weight (below 0.5 N·m at any joint with the default
-    masses) does not turn a 225:1 gear train, as it does not on the bench."""
-    link_mass_kg: Real = Field(default=0.12, gt=0.0, le=10.0)
-    """Mass of each proximal and distal link, kg: assumed (an aluminium arc of about 10 cm)."""
-    platform_mass_kg: Real = Field(default=0.25, gt=0.0, le=50.0)
-    """Mass of the platform with its load, kg: assumed."""
-    link_radius_mm: Real = Field(default=100.0, gt=0.0, le=1000.0)
-    """Distance from the centre at which the links' mass is carried, mm: assumed."""
-
-
-class Profile(_Section):
+class Profile(Section):
     """One prototype. Load with :func:`load_profile`."""
 
     profile: Meta

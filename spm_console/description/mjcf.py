@@ -36,6 +36,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.config.plant import PLANT_STEP_S
 from spm_console.config.schema import Plant
 from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
 from spm_console.core.kinematics.model import SpmModel
@@ -63,9 +64,10 @@ class PlantParams:
     """Play of the gear between the rotor and the output shaft, rad (0: rigid)."""
     capsule_m: float = 0.008
     """Radius of the capsules that carry the links' mass, m (their inertia only)."""
-    timestep_s: float = 0.00025
+    timestep_s: float = PLANT_STEP_S
     """Integration step, s (4 kHz; the drives are sampled every step). At 0.5 ms the loop
-    closures opened up to 1.2e-5 rad during 5° steps; at 0.25 ms, 2.9e-6 rad."""
+    closures opened up to 1.2e-5 rad during 5° steps; at 0.25 ms, 2.9e-6 rad. The profile's
+    ``plant.armature_kgm2`` is bounded below for this step."""
 
 
 def plant_params(plant: Plant) -> PlantParams:

@@ -25,6 +25,7 @@ from spm_console.motion.executor import Executor
 from spm_console.motion.goals.load_offsets import load_offsets, sent_references
 from spm_console.motion.homing import HomingResult, home, plan_segments
 from spm_console.motion.logs.mcap_log import mcap_beside
+from spm_console.motion.logs.profile_record import wrist_digests
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.plan_check import PlanCheck, PlanVerifier
 from spm_console.motion.plans import plan_summary
@@ -61,7 +62,7 @@ def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,
               plans: list[dict[str, Any]], ctx: RunContext,
               on_sample: SampleCallback | None) -> Executor:
     log = RunLog.create(kind, profile.name, profile.digest(), plans, root=ctx.logs_root,
-                        extra=ctx.meta())
+                        extra=ctx.meta(), wrist=wrist_digests(profile))
     log.on_finish = mcap_beside(profile)
     return Executor(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim)
 
@@ -87,7 +88,7 @@ def refused_run(profile: Profile, kind: str, ctx: RunContext, exc: SpmError) -> 
     """The run folder of a run refused before the runtime could start it (no bus, a signal
     while connecting): the same schema, outcome ``refused`` or ``interrupted``."""
     log = RunLog.create(kind, profile.name, profile.digest(), [], root=ctx.logs_root,
-                        extra=ctx.meta())
+                        extra=ctx.meta(), wrist=wrist_digests(profile))
     log.on_finish = mcap_beside(profile)
     with contextlib.suppress(SpmError), refusals_logged(log):
         raise exc

@@ -1,27 +1,20 @@
 """A script's values under the same input rules as the command line, before anything runs.
 
 The TOML schema (:mod:`spm_console.scripting.steps`) fixes types and fixed bounds; what
-depends on the profile — servo limits, the workspace grid, the planning speed limit — is
-checked here with :mod:`spm_console.input_rules`, the rules the CLI applies to its options.
-A refusal names the step and key (exit 4), before the bus is opened.
+depends on the profile — servo limits, the workspace grid, the planning speed limit, the
+orientations IK places, the rules of timed targets — is checked here with the rules the CLI
+applies to its options (:mod:`spm_console.input_rules`) and to its target files
+(:mod:`spm_console.store.target_file`). A refusal names the script file, the step and the key
+(and a target's row, or a target file's line), before the bus is opened.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from spm_console.config.schema import Profile
-from spm_console.core.planning.follow.timed import TimedTargets
-from spm_console.errors import BadInputError
-from spm_console.input_rules import (
-    rpy_angles,
-    theta_for_fk,
-    theta_in_grid,
-    theta_in_servo_limits,
-    vmax_arg,
-)
+from spm_console.errors import BadInputError, SpmError
+from spm_console.input_rules import theta_for_fk, theta_in_grid, theta_in_servo_limits, vmax_arg
 from spm_console.scripting.steps import (
     AssertStep,
     FkStep,
@@ -33,31 +26,35 @@ from spm_console.scripting.steps import (
     ThetaPose,
     WorkspaceStep,
 )
-from spm_console.store.target_file import read_target_csv
+from spm_console.store.target_file import read_target_csv, theta_of_rpy, timed_targets
+
+
+def _endpoint(theta: list[float], what: str, profile: Profile) -> None:
+    """As ``plan --start/--goal``: inside the servo limits and the grid."""
+    theta_in_servo_limits(theta, what, profile)
+    theta_in_grid(theta, what, profile)
 
 
 def _pose(pose: PoseIn, where: str, key: str, profile: Profile) -> None:
-    if isinstance(pose, ThetaPose):  # as `plan --start/--goal`: servo limits and the grid
-        theta_in_servo_limits(list(pose.theta), f"{where} '{key}.theta'", profile)
-        theta_in_grid(list(pose.theta), f"{where} '{key}.theta'", profile)
-    elif isinstance(pose, RpyPose):
-        rpy_angles(list(pose.rpy), f"{where} '{key}.rpy'")
+    if isinstance(pose, ThetaPose):
+        _endpoint(list(pose.theta), f"{where} '{key}.theta'", profile)
+    elif isinstance(pose, RpyPose):  # the θ the plan will start or end at, found as the step will
+        what = f"{where} '{key}.rpy'"
+        _endpoint([float(x) for x in theta_of_rpy(profile, pose.rpy, what)], what, profile)
 
 
-def _targets(step: FollowStep, where: str) -> None:
-    assert step.targets is not None
-    rows = np.asarray(step.targets, float)
-    if step.rpy:
-        for r in rows[:, 1:]:
-            rpy_angles(list(r), f"{where} 'targets'")
-    try:  # times (and θ, unless orientations) as the runtime will take them
-        TimedTargets(rows[:, 0], np.zeros((len(rows), 3)) if step.rpy else rows[:, 1:])
-    except BadInputError as exc:
-        raise BadInputError(f"{where} 'targets': {exc.message}") from None
+def _follow(step: FollowStep, where: str, profile: Profile) -> None:
+    if step.targets is not None:  # the rows as the step will take them
+        timed_targets(profile, [(f"{where} 'targets' row {k}", r)
+                                for k, r in enumerate(step.targets, 1)], step.rpy)
+    elif step.file is not None:  # read and checked now (as the step will read it)
+        try:
+            read_target_csv(profile, Path(step.file), step.rpy)
+        except SpmError as exc:
+            raise exc.at(f"{where} 'file'") from None
 
 
-def check_script(script: Script, profile: Profile) -> None:
-    """Every profile-dependent input rule of ``script`` (BadInputError naming step and key)."""
+def _check(script: Script, profile: Profile) -> None:
     if script.session.initial_deg is not None:
         theta_in_servo_limits(list(script.session.initial_deg), "[session] key 'initial_deg'",
                               profile)
@@ -68,8 +65,8 @@ def check_script(script: Script, profile: Profile) -> None:
                 raise BadInputError(f"step {i} (fk): give exactly one of theta or rpy")
             if step.theta is not None:
                 theta_for_fk(list(step.theta), f"{where} 'theta'")
-            if step.rpy is not None:
-                rpy_angles(list(step.rpy), f"{where} 'rpy'")
+            if step.rpy is not None:  # as the step will take it: within ±360°, IK places it
+                theta_of_rpy(profile, step.rpy, f"{where} 'rpy'")
         elif isinstance(step, WorkspaceStep) and step.check is not None:
             theta_in_grid(list(step.check), f"{where} 'check'", profile)
         elif isinstance(step, PlanStep):
@@ -79,10 +76,16 @@ def check_script(script: Script, profile: Profile) -> None:
         elif isinstance(step, FollowStep):
             if (step.targets is None) == (step.file is None):
                 raise BadInputError(f"step {i} (follow): give exactly one of targets or file")
-            if step.targets is not None:
-                _targets(step, where)
-            else:  # read and checked now (as the step will read it): nothing moves first
-                assert step.file is not None
-                read_target_csv(profile, Path(step.file), step.rpy)
+            _follow(step, where, profile)
         elif isinstance(step, AssertStep) and step.theta_near is not None:
             theta_for_fk(list(step.theta_near), f"{where} 'theta_near'")
+
+
+def check_script(script: Script, profile: Profile) -> None:
+    """Every profile-dependent input rule of ``script``: a refusal (BadInputError, exit 4;
+    UnreachableError, exit 5, for an orientation IK cannot place) names the script's file,
+    the step and the key."""
+    try:
+        _check(script, profile)
+    except SpmError as exc:
+        raise exc.at(script.source) from None

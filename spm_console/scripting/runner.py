@@ -71,7 +71,6 @@ import numpy as np
 
 from spm_console.config.load import load_profile
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
-from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError, ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
@@ -93,7 +92,7 @@ from spm_console.scripting.steps import (
 )
 from spm_console.services.kin_record import FkRecord
 from spm_console.services.session import PoseSpec, Session
-from spm_console.store.target_file import read_target_csv, theta_of_rpy
+from spm_console.store.target_file import read_target_csv, timed_targets
 from spm_console.system.signals import stop_signals
 
 
@@ -274,12 +273,9 @@ class ScriptRunner:
             raise BadInputError("follow step: give exactly one of targets or file")
         if step.file is not None:
             timed = read_target_csv(self.session.profile, Path(step.file), step.rpy)  # cwd-relative
-        else:
-            rows = np.asarray(step.targets, float)
-            th = rows[:, 1:]
-            if step.rpy:
-                th = np.vstack([theta_of_rpy(self.session.profile, r) for r in th])
-            timed = TimedTargets(rows[:, 0], th)
+        else:  # as the script's check took them (scripting.checks)
+            timed = timed_targets(self.session.profile, [
+                (f"key 'targets' row {k}", r) for k, r in enumerate(step.targets or (), 1)], step.rpy)
         self._ensure_bus()
         out = self.session.follow(timed, source="script")
         rec, text = self._motion(out.execution, step.allow_stop, "following")

@@ -10,7 +10,7 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, Strict, ValidationError, field_validator
 
 from spm_console.config.schema import Count, Real
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
@@ -136,6 +136,12 @@ Step = Annotated[
 class Script(_Model):
     session: SessionSpec = SessionSpec()
     step: tuple[Step, ...] = Field(min_length=1)
+    _source: str = PrivateAttr(default="script")
+
+    @property
+    def source(self) -> str:
+        """The file the script was read from: what its refusals name."""
+        return self._source
 
 
 def _where(loc: tuple[int | str, ...], data: dict[str, Any]) -> str:
@@ -161,7 +167,9 @@ def parse_script(text: str, source: str) -> Script:
     except RecursionError:
         raise BadInputError(f"{source}: not valid TOML: arrays or tables nested too deeply") from None
     try:
-        return Script.model_validate(data)
+        script = Script.model_validate(data)
+        script._source = source
+        return script
     except ValidationError as exc:
         seen: list[str] = []
         for err in exc.errors():

@@ -168,7 +168,10 @@ def test_values_are_never_coerced(text: str, needle: str) -> None:
     ('[[step]]\ndo = "plan"\nstart = {theta = [95, 110, 300]}\ngoal = "home"\n',
      "step 1 (plan) key 'start.theta': θ3 = 300° is outside joint 3's servo limits"),
     ('[[step]]\ndo = "follow"\ntargets = [[0, 130, 130, 130], [1e9, 131, 131, 131]]\n',
-     "step 1 (follow) key 'targets': target times must end by t = 600 s"),
+     "step 1 (follow) key 'targets' row 2: target times must end by t = 600 s"),
+    ('[[step]]\ndo = "home"\n[[step]]\ndo = "follow"\nrpy = true\n'
+     'targets = [[0, 0, 0, 0], [1, 400, 0, 0]]\n',
+     "s.toml: step 2 (follow) key 'targets' row 2: roll must be in [-360, 360] deg, got 400"),
     ('[[step]]\ndo = "home"\n[[step]]\ndo = "follow"\n', "step 2 (follow): give exactly one of"),
     ('[[step]]\ndo = "home"\n[[step]]\ndo = "follow"\nfile = "{typo}"\n',
      "four numbers expected"),  # the file is read before the homing moves anything
@@ -187,6 +190,19 @@ def test_a_script_follows_the_command_lines_input_rules(
     err = capsys.readouterr().err
     assert needle in err, err
     assert not (tmp_path / "logs").exists()  # nothing ran
+
+
+def test_an_orientation_ik_cannot_place_is_refused_before_the_homing(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Exit 5 as ``follow --rpy`` gives the same row, naming the script, step, key and row;
+    nothing runs (no run log)."""
+    f = tmp_path / "s.toml"
+    f.write_text('[[step]]\ndo = "home"\n[[step]]\ndo = "follow"\nrpy = true\n'
+                 'targets = [[0, 0, 0, 0], [1, 180, 0, 0]]\n')
+    assert main(["script", str(f), "--logs", str(tmp_path / "logs")]) == ExitCode.UNREACHABLE
+    err = capsys.readouterr().err
+    assert f"{f}: step 2 (follow) key 'targets' row 2: roll, pitch, yaw = " in err, err
+    assert "orientation out of reach" in err and not (tmp_path / "logs").exists()
 
 
 def test_bad_script_exit_code_and_no_traceback(tmp_path) -> None:

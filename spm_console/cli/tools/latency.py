@@ -7,7 +7,7 @@ import argparse
 from dataclasses import asdict
 from typing import Any
 
-from spm_console.cli.common import add_common, emit, info, profile_of
+from spm_console.cli.common import add_common, emit, info, number, profile_of
 from spm_console.input_rules import finite_number
 from spm_console.system.host_latency import MAX_SECONDS, THRESHOLDS_MS, CpuLatency, measure
 
@@ -25,7 +25,7 @@ def register(sub: Any) -> None:
                                        "(per CPU), against the profile's bus timing (not while "
                                        "the wrist moves: it loads the machine a little)")
     add_common(p)
-    p.add_argument("--seconds", type=float, default=10.0,
+    p.add_argument("--seconds", type=number, default=10.0,
                    help=f"how long to measure, s (0 < s ≤ {MAX_SECONDS:g}; default 10)")
     p.set_defaults(func=cmd_latency)
 

@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 from spm_console.errors import BadInputError
+from spm_console.numbers import NotANumberError, parse_number
 
 KINDS = ("unplug", "stall", "drop", "corrupt", "delay", "hwerror")
 
@@ -64,13 +65,12 @@ class FaultSpec:
 
 
 def _number(text: str, what: str, whole: str) -> float:
+    """A number of the fault's syntax, by the rule of every number typed
+    (:func:`~spm_console.numbers.parse_number`: plain ASCII decimals, finite)."""
     try:
-        value = float(text)
-    except ValueError:
-        raise BadInputError(f"fault {whole!r}: {what} {text!r} is not a number; {_USAGE}") from None
-    if not math.isfinite(value):
-        raise BadInputError(f"fault {whole!r}: {what} must be finite")
-    return value
+        return parse_number(text)
+    except NotANumberError as exc:
+        raise BadInputError(f"fault {whole!r}: {what}: {exc}; {_USAGE}") from None
 
 
 def parse_fault(text: str) -> FaultSpec:

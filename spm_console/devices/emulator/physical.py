@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.config.plant import STALL_DAMPING_NMS
 from spm_console.config.schema import Plant
 from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
@@ -44,9 +45,10 @@ PWM_FULL = 885.0
 OVERLOAD_DUTY = 0.95
 OVERLOAD_RAD_S = 0.05
 OVERLOAD_S = 1.0
-#: A blocked shaft (stall fault): stiffness, N·m/rad, and damping, N·m·s/rad, of the stop.
+#: A blocked shaft (stall fault): stiffness, N·m/rad, and damping, N·m·s/rad, of the stop
+#: (the profile's ``plant.armature_kgm2`` is bounded below for that damping).
 BLOCK_STIFFNESS = 2000.0
-BLOCK_DAMPING = 20.0
+BLOCK_DAMPING = STALL_DAMPING_NMS
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ from spm_console.errors import RefusedError
 from spm_console.motion.follow.loop import Follower, FollowStats
 from spm_console.motion.follow.target_feed import TargetFeed
 from spm_console.motion.logs.mcap_log import mcap_beside
+from spm_console.motion.logs.profile_record import wrist_digests
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.runs import Attach, RunContext, SampleCallback, refusals_logged
 from spm_console.motion.segments import ExecutionResult
@@ -34,7 +35,7 @@ def run_follow(profile: Profile, bus: ServoBus, ws: Workspace, feed: TargetFeed,
     what = {"kind": "follow", "source": source or ("live" if feed.live else "timed"),
             "targets": 0 if feed.timed is None else len(feed.timed.t_s)}
     log = RunLog.create("follow", profile.name, profile.digest(), [what], root=ctx.logs_root,
-                        extra=ctx.meta())
+                        extra=ctx.meta(), wrist=wrist_digests(profile))
     log.on_finish = mcap_beside(profile)
     ex = Follower(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim)
     with refusals_logged(log):

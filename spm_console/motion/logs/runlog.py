@@ -2,7 +2,8 @@
 
 A run folder holds
 
-* ``meta.json`` — profile name and hash, plan summary, package versions, start
+* ``meta.json`` — profile name, hash and wrist (:mod:`spm_console.motion.logs.profile_record`),
+  plan summary, package versions, start
   time, the writing process (:mod:`spm_console.motion.logs.procid`), outcome; written at
   the start (outcome ``"running"``) and rewritten atomically at the end;
 * ``samples.csv`` — one row per executor cycle, appended as the run goes and
@@ -136,8 +137,12 @@ class RunLog:
         root: str | Path | None = None,
         flush_every: int = FLUSH_EVERY,
         extra: dict[str, Any] | None = None,
+        wrist: dict[str, str] | None = None,
     ) -> RunLog:
-        """Make ``<root>/<YYYYmmdd-HHMMSS>-<kind>[-n]/`` and write the initial meta.json."""
+        """Make ``<root>/<YYYYmmdd-HHMMSS>-<kind>[-n]/`` and write the initial meta.json;
+        ``wrist``: the digests of the profile's wrist sections
+        (:func:`~spm_console.motion.logs.profile_record.wrist_digests`), recorded with its
+        name and hash."""
         base = logs_root(root)
         try:
             base.mkdir(parents=True, exist_ok=True)
@@ -157,7 +162,8 @@ class RunLog:
         meta: dict[str, Any] = {
             "run": path.name,
             "kind": kind,
-            "profile": {"name": profile_name, "hash": profile_hash},
+            "profile": {"name": profile_name, "hash": profile_hash,
+                        **({"wrist": wrist} if wrist is not None else {})},
             "plans": plans,
             "versions": package_versions(),
             "argv": sys.argv,

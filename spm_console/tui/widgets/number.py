@@ -29,10 +29,10 @@ from spm_console.tui.widgets.field import TextField
 #: layout.
 FIELD_CHARS = 9
 
-#: A decimal number as an operator writes it: optional sign (ASCII or U+2212 minus), digits
-#: with at most one decimal point, optional exponent. Nothing else (no commas, underscores,
-#: "inf" or "nan").
-_NUMBER = re.compile(r"[+\-\u2212]?(\d+\.?\d*|\.\d+)([eE][+\-]?\d+)?")
+#: A decimal number as an operator writes it: optional sign (ASCII or U+2212 minus), ASCII
+#: digits with at most one decimal point, optional exponent. Nothing else (no commas,
+#: underscores, digits of other scripts, "inf" or "nan"), as on the command line.
+_NUMBER = re.compile(r"[+\-\u2212]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+\-]?[0-9]+)?")
 
 
 @dataclass(frozen=True)

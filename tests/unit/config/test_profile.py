@@ -312,7 +312,7 @@ def test_any_single_mutation_loads_or_raises_profile_error(where: tuple[str | in
 
 
 @pytest.mark.parametrize(("key", "value", "words"), [
-    ("armature_kgm2", -0.026, "greater than 0"),
+    ("armature_kgm2", -0.026, "greater than or equal to 0.005"),
     ("armature_kgm2", math.nan, "finite"),
     ("link_mass_kg", math.inf, "finite"),
     ("resistance_ohm", 1e300, "less than or equal"),

@@ -24,8 +24,35 @@ def check_target_angles(theta_deg: F) -> None:
     th = np.asarray(theta_deg, float)
     if not np.all(np.abs(th) <= MAX_TARGET_ABS_DEG):
         worst = float(th.reshape(-1)[np.argmax(np.abs(th).reshape(-1))])
-        raise BadInputError(f"target angles must lie within ±{MAX_TARGET_ABS_DEG:g}° (one turn "
-                            f"either way), got {worst:.6g}°")
+        raise BadInputError(_angles_beyond(worst))
+
+
+def _angles_beyond(worst: float) -> str:
+    return (f"target angles must lie within ±{MAX_TARGET_ABS_DEG:g}° (one turn either way), "
+            f"got {worst:.6g}°")
+
+
+def target_problem(t_s: F, theta_deg: F) -> tuple[int, str] | None:
+    """The first target (its index) that breaks a rule of timed targets, and the rule in words:
+    finite, angles within ±:data:`MAX_TARGET_ABS_DEG`, times from 0 on, strictly increasing,
+    ending by :data:`MAX_TARGET_TIME_S`; None when every row holds. ``t_s`` (n,), ``theta_deg``
+    (n, 3)."""
+    t = np.asarray(t_s, float).reshape(-1)
+    th = np.asarray(theta_deg, float).reshape(-1, 3)
+    finite = np.isfinite(t) & np.isfinite(th).all(axis=1)
+    order = np.concatenate([[t[0] >= 0], np.diff(t) > 0]) if len(t) else np.ones(0, bool)
+    rules = [(~finite, lambda k: "timed targets must be finite numbers"),
+             (~(np.abs(th) <= MAX_TARGET_ABS_DEG).all(axis=1),
+              lambda k: _angles_beyond(float(th[k][np.argmax(np.abs(th[k]))]))),
+             (~order, lambda k: "target times must start at t ≥ 0 and increase strictly"),
+             (~(t <= MAX_TARGET_TIME_S), lambda k: (
+                 f"target times must end by t = {MAX_TARGET_TIME_S:g} s (10 minutes, like the "
+                 f"longest plan), got t = {t[k]:.10g} s"))]
+    found = [(int(np.flatnonzero(bad)[0]), words) for bad, words in rules if bad.any()]
+    if not found:
+        return None
+    k, words = min(found, key=lambda f: f[0])
+    return k, words(k)
 
 
 @dataclass(frozen=True)
@@ -42,14 +69,9 @@ class TimedTargets:
         th = np.asarray(self.theta_deg, float).reshape(-1, 3)
         if not 1 <= len(t) <= MAX_TIMED_TARGETS or th.shape != (len(t), 3):
             raise BadInputError(f"timed targets: 1..{MAX_TIMED_TARGETS} rows of t and three angles")
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(th))):
-            raise BadInputError("timed targets must be finite numbers")
-        check_target_angles(th)
-        if t[0] < 0 or np.any(np.diff(t) <= 0):
-            raise BadInputError("target times must start at t ≥ 0 and increase strictly")
-        if t[-1] > MAX_TARGET_TIME_S:
-            raise BadInputError(f"target times must end by t = {MAX_TARGET_TIME_S:g} s (10 "
-                                f"minutes, like the longest plan), got t = {t[-1]:.10g} s")
+        problem = target_problem(t, th)
+        if problem is not None:
+            raise BadInputError(f"target {problem[0] + 1}: {problem[1]}")
         object.__setattr__(self, "t_s", t)
         object.__setattr__(self, "theta_deg", th)
 

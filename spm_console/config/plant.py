@@ -1,0 +1,73 @@
+"""The ``[plant]`` section: the emulated wrist behind ``--sim`` (the physical emulator's
+figures, SI units at the output shaft), each key bounded below by the size at which the
+figure still means something physical and the emulated wrist stays stable.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from spm_console.config.fields import Real, Section
+
+#: The physical emulator's integration step, s, and the damping of the stop that holds a
+#: stalled shaft (fault ``stall``), N·m·s/rad: the drive's torque, its back-EMF damping kt²/R
+#: and that stop act on the rotor's inertia once a step, explicitly, which stays stable only
+#: while step × damping / inertia < 2 (the armature's bound keeps half of that).
+PLANT_STEP_S = 0.00025
+STALL_DAMPING_NMS = 20.0
+
+
+class Plant(Section):
+    """The emulated wrist behind ``--sim``: ``ideal`` servos that are eq. (27) with ``servo.p``,
+    or the ``physical`` wrist (MX-106 drives on the rigid-body closed chain, MuJoCo). Figures
+    at the output shaft, after the 225:1 gear; each names its source. Each lower bound is a
+    size below which the figure means nothing physical (or the emulated wrist goes unstable)."""
+
+    model: Literal["ideal", "physical"] = "ideal"
+    """Which emulated wrist ``--sim`` runs."""
+    supply_v: Real = Field(default=12.0, ge=1.0, le=30.0)
+    """Supply voltage, V, 1..30: the MX-106 e-manual's 12 V rating."""
+    kt_nm_per_a: Real = Field(default=2.2, ge=0.01, le=20.0)
+    """Torque constant, N·m/A, 0.01..20: BAM (arXiv 2410.08650) identified 2.19–2.23 on the
+    MX-106."""
+    resistance_ohm: Real = Field(default=3.14, ge=0.01, le=100.0)
+    """Winding resistance, Ω, 0.01..100: kt·V / 8.4 N·m, the e-manual's stall torque at 12 V
+    (BAM: 2–3)."""
+    armature_kgm2: Real = Field(default=0.026, ge=0.005, le=10.0)
+    """Rotor inertia reflected through the gear, kg·m²: BAM, 0.025–0.027. At least
+    PLANT_STEP_S·(kt²/R + STALL_DAMPING_NMS) (0.0054 with the other defaults): below, the
+    emulated wrist is unstable (it read 179.7° before any command at 1e-320)."""
+    coulomb_nm: Real = Field(default=0.1, ge=0.0, le=10.0)
+    """Coulomb friction, N·m: BAM, about 0.10."""
+    viscous_nms: Real = Field(default=0.04, ge=0.0, le=10.0)
+    """Viscous friction, N·m·s/rad: BAM, 0.035–0.051."""
+    backlash_deg: Real = Field(default=0.33, ge=0.0, le=5.0)
+    """Play of the gear train at the output, deg: the MX-106 e-manual's 0.33° (20′). The
+    encoder reads the output shaft, so the play sits inside the position loop. 0: none."""
+    backdrive_friction_nm: Real = Field(default=1.0, ge=0.0, le=20.0)
+    """Friction of a joint whose torque is off (the gear driven from the output), N·m:
+    assumed, so that the wrist's own weight (below 0.5 N·m at any joint with the default
+    masses) does not turn a 225:1 gear train, as it does not on the bench."""
+    link_mass_kg: Real = Field(default=0.12, ge=0.001, le=10.0)
+    """Mass of each proximal and distal link, kg, 0.001..10: assumed (an aluminium arc of
+    about 10 cm). Below a gram the rigid-body model loses its links (a nanogram goes unstable,
+    MuJoCo refuses less)."""
+    platform_mass_kg: Real = Field(default=0.25, ge=0.001, le=50.0)
+    """Mass of the platform with its load, kg, 0.001..50: assumed."""
+    link_radius_mm: Real = Field(default=100.0, ge=1.0, le=1000.0)
+    """Distance from the centre at which the links' mass is carried, mm, 1..1000: assumed."""
+
+    @model_validator(mode="after")
+    def _integrable(self) -> Plant:
+        emf = self.kt_nm_per_a**2 / self.resistance_ohm
+        least = PLANT_STEP_S * (emf + STALL_DAMPING_NMS)
+        if self.armature_kgm2 < least:
+            raise ValueError(
+                f"plant.armature_kgm2 = {self.armature_kgm2:g} kg·m² is below {least:.3g}: the "
+                f"drive's back-EMF damping kt²/R = {emf:.3g} N·m·s/rad (with a stalled shaft's "
+                f"{STALL_DAMPING_NMS:g}) makes the emulated wrist unstable at its "
+                f"{PLANT_STEP_S * 1e3:g} ms step (allowed: armature_kgm2 ≥ {least:.3g} for "
+                "these kt_nm_per_a and resistance_ohm)")
+        return self
