@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli import stdout_guard
+from spm_console.cli.streams import stdout_guard
 from spm_console.config.load import load_profile
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError

@@ -13,7 +13,7 @@ from types import FrameType
 from typing import NoReturn
 
 from spm_console import __version__
-from spm_console.cli.stdout_guard import json_stdout, out
+from spm_console.cli.streams.stdout_guard import json_stdout, out
 from spm_console.errors import ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
 from spm_console.services.warm_start import prestart

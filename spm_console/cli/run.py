@@ -27,7 +27,7 @@ from spm_console.cli.common import (
     output_may_be_gone,
     profile_of,
 )
-from spm_console.cli.progress import RunProgress, wanted
+from spm_console.cli.streams.progress import RunProgress, wanted
 from spm_console.config.schema import Profile
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError

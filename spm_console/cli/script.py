@@ -11,8 +11,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli import stdout_guard
 from spm_console.cli.common import info, output_may_be_gone, to_jsonable
+from spm_console.cli.streams import stdout_guard
 from spm_console.config.load import load_profile
 from spm_console.scripting.steps import load_script
 

@@ -10,8 +10,8 @@ import time
 from dataclasses import asdict
 from typing import Any
 
-from spm_console.cli import stdout_guard
 from spm_console.cli.common import add_common, add_plant, emit, info, integer, number, profile_of, to_jsonable
+from spm_console.cli.streams import stdout_guard
 from spm_console.devices.emulator.bus import start_emulator
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError, BusError, ExitCode

@@ -1,0 +1,2 @@
+"""What the command line does with its streams: stdout kept for the JSON answer, a live progress
+display on a terminal's stderr."""
