@@ -172,14 +172,15 @@ def identified_servo(profile: Profile, fit: ExperimentFit, source: str) -> Servo
     """The identified ``[servo]`` section of ``fit`` (Ts and discretization kept), its
     provenance naming ``source`` and the time now (UTC)."""
     s, a = fit.shared, fit.assessment
+    # a load below the written precision is none (rounded to 0 it is no valid value)
+    load = None if fit.load is None else round(float(fit.load.moments_deg[0]), 4)
     try:
         return Servo(
             p=round(s.p, 4), ts_s=profile.servo.ts_s, discretization=profile.servo.discretization,
             zeta=round(s.zeta, 4), delay_s=round(min(s.delay_s, 0.999 * profile.servo.ts_s), 6),
             linear_range_deg=round(max(a.linear_range_deg, 0.01), 2),
             residual_bound_deg=max(fit.residual_bound_deg, 0.01),
-            load_deg_per_nm=(None if fit.load is None or fit.load.moments_deg[0] <= 0.0
-                             else round(float(fit.load.moments_deg[0]), 4)),
+            load_deg_per_nm=None if load is None or load <= 0.0 else load,
             coulomb_deg=None if fit.load is None else round(fit.load.coulomb_deg, 4),
             identified=Identified(
                 date=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
