@@ -34,6 +34,7 @@ from spm_console.errors import BadInputError, SpmError
 from spm_console.safe_io import FileRefusedError, read_capped
 from spm_console.store.identified_profiles import FitFigures, arrange, family, fit_figures
 from spm_console.tui.host import ConsoleHost
+from spm_console.tui.switch import SwitchRequest
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.footer import ConsoleFooter
 from spm_console.tui.widgets.number import NumberRow, NumberRule
@@ -49,17 +50,6 @@ def grid_step_rule() -> NumberRule:
     steps across the grid range and applies the node cap."""
     return NumberRule("grid step Δ", "a step in degrees", "°", 0.0, GRID_STEP_MAX_DEG,
                       lo_open=True)
-
-
-@dataclass(frozen=True)
-class SwitchRequest:
-    """Restart the console with this profile file and workspace grid step (deg)."""
-
-    profile_path: Path
-    grid_step_deg: float
-
-    def describe(self) -> str:
-        return f"profile {self.profile_path}, grid step {self.grid_step_deg:g}°"
 
 
 @dataclass(frozen=True)
