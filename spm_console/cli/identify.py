@@ -1,6 +1,8 @@
 """``identify``: fit the servo model to a logged response (``--run``, ``--csv``), or run the
 identification experiment on the wrist and write a profile with the model it found
-(``--experiment --out NEW.toml``).
+(``--experiment``: beside the profile, as :mod:`spm_console.store.identified_profiles` lays
+it out; ``--out NEW.toml`` elsewhere; ``--apply`` into the profile itself, kept as it was in a
+backup).
 
 ``--run`` and ``--csv`` fit the paper's p (and with ``--delay`` a pure delay); ``--damping``
 adds the damping ratio ζ; ``--load`` fits the experiment's structure (ωn, ζ, delay and the
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -27,10 +30,8 @@ from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.models import servo_limits_deg
 from spm_console.config.schema import Profile, Servo
-from spm_console.core.servo.experiment import ExperimentFit
-from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, IdentifyResult, identify
+from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, identify
 from spm_console.core.servo.load_fit import fit_load
-from spm_console.core.servo.order import OrderCheck
 from spm_console.description.weight import holding_torque_nm
 from spm_console.errors import BadInputError, ExitCode, SolverError, SpmError
 from spm_console.formatting import fmt_deg
@@ -38,14 +39,14 @@ from spm_console.motion.logs.profile_record import other_wrist
 from spm_console.motion.logs.runlog import RunData, load_run
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.report.plot_identify import plot_experiment
-from spm_console.safe_io import MB, read_text
+from spm_console.safe_io import MB, read_text, write_text_atomic
 from spm_console.services.identify_experiment import (
-    ExperimentRun,
     experiment_once,
     fit_experiment,
-    identified_profile,
     identified_servo,
 )
+from spm_console.services.identify_report import fit_data, fit_lines, identified_text
+from spm_console.store.identified_profiles import apply_in_place, identified_path, write_beside
 
 #: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).
 MAX_CSV_BYTES = 20 * MB
@@ -75,7 +76,11 @@ def register(sub: Any) -> None:
                         "the weight's holding torque from the profile's masses, and Coulomb "
                         "friction), the experiment's structure; needs the three joints")
     i.add_argument("--out", type=Path, metavar="NEW.toml",
-                   help="--experiment: write the profile with the identified [servo] here")
+                   help="--experiment: write the profile with the identified [servo] here "
+                        "(default: beside the profile, as PROFILE.identified-TIME.toml)")
+    i.add_argument("--apply", action="store_true",
+                   help="--experiment: write the identified [servo] into the profile itself, "
+                        "keeping it as it was in PROFILE.toml.bak-TIME")
     i.add_argument("--plot", type=Path, metavar="FILE.png",
                    help="--experiment: save measured against fitted responses")
     i.set_defaults(func=cmd_identify)
@@ -157,7 +162,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         return _experiment(args, profile)
     if args.load and (args.delay or args.damping):
         raise BadInputError("--load fits the delay and ζ too: leave out --delay and --damping")
-    for flag in ("out", "plot", "port", "sim_start"):
+    for flag in ("out", "apply", "plot", "port", "sim_start"):
         if getattr(args, flag) not in (None, False):
             raise BadInputError(f"--{flag.replace('_', '-')} goes with --experiment")
     if args.sim or args.fault or args.plant:
@@ -256,13 +261,9 @@ def _holding(profile: Profile, ref: np.ndarray, meas: np.ndarray) -> np.ndarray:
 
 
 def _experiment(args: argparse.Namespace, profile: Profile) -> int:
-    if args.out is None:
-        raise BadInputError("--experiment writes a profile: give --out NEW.toml")
-    output_file(args.out, "--out", (".toml",))
+    profile_path = Path(args.profile)
+    _where_to_write(args, profile_path)
     output_file(args.plot, "--plot", PLOT_SUFFIXES)
-    if args.out.resolve() == Path(args.profile).resolve():
-        raise BadInputError("--out must name a new file: the profile the experiment runs with "
-                            "stays as it is")
     if args.delay or args.damping or args.load:
         raise BadInputError("--delay, --damping and --load go with --run/--csv (the experiment "
                             "fits all three)")
@@ -279,68 +280,47 @@ def _experiment(args: argparse.Namespace, profile: Profile) -> int:
     except SpmError as exc:
         raise type(exc)(f"{run.execution.log_dir}: {exc.message}") from None
     servo = identified_servo(profile, fit, str(run.execution.log_dir))
-    old = read_text(Path(args.profile), "--profile", 1 * MB, BadInputError)
-    text, _ = identified_profile(old, servo, str(args.out))
-    args.out.write_text(text, encoding="utf-8")
+    written, line = _write(args, profile_path, servo)
     if args.plot is not None:
         plot_experiment(run.excitation, run.t, run.measured_deg, fit, args.plot)
-    return _report_fit(args, run, fit, servo, profile.servo)
-
-
-def _fit_dict(r: IdentifyResult) -> dict[str, float]:
-    return {"wn_radps": r.p, "wn_std": r.p_std, "zeta": r.zeta, "zeta_std": r.zeta_std,
-            "delay_s": r.delay_s, "rms_deg": r.rms_deg}
-
-
-def _report_fit(args: argparse.Namespace, run: ExperimentRun, fit: ExperimentFit,
-                servo: Servo, before: Servo) -> int:
-    a, s = fit.assessment, fit.shared
-    data = {
-        "outcome": run.execution.outcome, "exit_code": 0, "log_dir": str(run.execution.log_dir),
-        "profile_written": str(args.out), "model": _fit_dict(s),
-        "joints": [_fit_dict(j) for j in fit.joints],
-        "fit_rms_deg": a.fit_rms_deg, "held_out_rms_deg": a.held_out_rms_deg,
-        "held_out_max_deg": a.held_out_max_deg, "linear_range_deg": servo.linear_range_deg,
-        "saturated": a.saturated, "residual_bound_deg": servo.residual_bound_deg,
-        "blocks": [{"kind": b.block.kind, "part": b.block.part, "size": b.block.size,
-                    "reached_deg": b.reached_deg, "rms_deg": b.rms_deg, "max_deg": b.max_deg}
-                   for b in a.blocks],
-        "motion_s": run.excitation.duration_s,
-        "load_deg_per_nm": servo.load_deg_per_nm, "coulomb_deg": servo.coulomb_deg,
-        "order": None if fit.order is None else {
-            "third_pole_tau_s": fit.order.tau_s, "asks": fit.order.asks,
-            "held_out_rms_2nd_deg": fit.order.held_out_rms_2nd_deg,
-            "held_out_rms_3rd_deg": fit.order.held_out_rms_3rd_deg},
-    }
-    lines = [
-        f"identified: ωn = {s.p:.2f} ± {s.p_std:.2f} rad/s, ζ = {s.zeta:.3f} ± {s.zeta_std:.3f}, "
-        f"delay {1e3 * s.delay_s:.1f} ms (the profile had p = {_words(before)})",
-        *(f"  joint {i + 1} alone: ωn = {j.p:.2f} rad/s, ζ = {j.zeta:.3f}, delay "
-          f"{1e3 * j.delay_s:.1f} ms, RMS {j.rms_deg:.3f}°" for i, j in enumerate(fit.joints)),
-        f"model against measurement: fitted part RMS {a.fit_rms_deg:.3f}°; held-out part RMS "
-        f"{a.held_out_rms_deg:.3f}°, max {a.held_out_max_deg:.3f}°",
-        (f"load: {servo.load_deg_per_nm} deg per N·m of the weight's holding torque, "
-         f"Coulomb friction {servo.coulomb_deg}°" if servo.load_deg_per_nm is not None
-         else "load: none found"),
-        *([] if fit.order is None else [_order_words(fit.order)]),
-        f"linear range: {servo.linear_range_deg:.2f}° of |θ* − θ|"
-        + ("" if a.saturated else " at least (the experiment never saturated the servo)"),
-        f"{run.excitation.duration_s:.1f} s of motion; log: {run.execution.log_dir}",
-        f"profile written: {args.out}",
-    ]
-    emit(args, data, "\n".join(lines))
+    data = {**fit_data(run, fit, servo), **written}
+    emit(args, data, "\n".join([*fit_lines(run, fit, servo, profile.servo), line]))
     return int(ExitCode.OK)
 
 
-def _order_words(o: OrderCheck) -> str:
-    """The order check in words."""
-    return (f"order: a third pole (lag {1e3 * o.tau_s:.1f} ms) gives held-out RMS "
-            f"{o.held_out_rms_3rd_deg:.3f}° against {o.held_out_rms_2nd_deg:.3f}° (same fit, "
-            f"second order): " + ("the data ask for it (the planner keeps the second order; "
-                                  "the residual bound covers the rest)" if o.asks
-                                  else "the data do not ask for a higher order"))
+def _where_to_write(args: argparse.Namespace, profile_path: Path) -> None:
+    """Refuse, before anything moves, a place the identified profile cannot be written."""
+    if args.out is not None and args.apply:
+        raise BadInputError("--apply writes the identified [servo] into the profile itself, "
+                            "--out into a new file: give one of them")
+    if args.out is not None:
+        output_file(args.out, "--out", (".toml",))
+        if args.out.resolve() == profile_path.resolve():
+            raise BadInputError("--out must name a new file: to change the profile the "
+                                "experiment runs with, use --apply (it keeps a backup)")
+        return
+    if not profile_path.is_file():
+        raise BadInputError(f"--profile {profile_path}: not a file (the identified profile is "
+                            "written beside it)")
+    if not os.access(profile_path.parent, os.W_OK):
+        raise BadInputError(f"the profile's folder {profile_path.parent} is not writable: give "
+                            "--out NEW.toml")
 
 
-def _words(sv: Servo) -> str:
-    """A servo model in words."""
-    return f"{sv.p:g} rad/s" + ("" if sv.zeta == 1.0 else f", ζ = {sv.zeta:g}")
+def _write(args: argparse.Namespace, profile_path: Path, servo: Servo) -> tuple[dict[str, str], str]:
+    """The identified profile written where the options say (never over a file, but --out's):
+    what the JSON and the text say of it."""
+    assert servo.identified is not None
+    date = servo.identified.date
+    if args.out is not None:
+        text, _ = identified_text(profile_path, servo, str(args.out))
+        write_text_atomic(args.out, text, BadInputError)
+        return {"profile_written": str(args.out)}, f"profile written: {args.out}"
+    if args.apply:
+        text, _ = identified_text(profile_path, servo, str(profile_path))
+        backup = apply_in_place(profile_path, text, date)
+        return ({"profile_written": str(profile_path), "backup": str(backup)},
+                f"profile updated: {profile_path} (its [servo] only; as it was: {backup})")
+    text, _ = identified_text(profile_path, servo, str(identified_path(profile_path, date)))
+    out = write_beside(profile_path, text, date)
+    return {"profile_written": str(out)}, f"profile written: {out}"

@@ -1,8 +1,9 @@
 """``tui`` command: the operator console (Textual) on a serial port or the emulated bus.
 
-The console's settings (ctrl+o / F7: profile and workspace grid step) restart it: the app
-exits with a :class:`~spm_console.tui.screens.settings.SwitchRequest` after closing its
-session, and :func:`run_consoles` starts the next console in the same terminal.
+The console's settings (ctrl+o / F7: profile and workspace grid step), and the servo model
+its identification found (step 1, key i), restart it: the app exits with a
+:class:`~spm_console.tui.switch.SwitchRequest` after closing its session, and
+:func:`run_consoles` starts the next console in the same terminal.
 """
 
 from __future__ import annotations
@@ -78,20 +79,22 @@ def end_if_threads_linger(code: int, before: set[threading.Thread],
 
 
 #: Builds the console for a profile file and an optional grid step (deg; None: the
-#: profile's own), with a note to show once it is up.
-ConsoleFactory = Callable[[Path, "float | None", str], ConsoleApp]
+#: profile's own), with a note to show once it is up, and the workspace the console before
+#: kept (a ``KeptWorkspace`` of the console app's module, or None).
+ConsoleFactory = Callable[[Path, "float | None", str, Any], ConsoleApp]
 
 
 def run_consoles(profile_path: Path, grid_step_deg: float | None,
                  factory: ConsoleFactory) -> int:
     """Run consoles until one exits with an exit code: each app is closed (its session
     E-stops any motion and closes the motion process; the viewer closes) before the next
-    one, built for the settings the operator applied, starts in the same terminal."""
+    one, built for the settings the operator applied (or the identified servo model), starts
+    in the same terminal with the workspace the request kept."""
     from spm_console.tui.app import SwitchRequest
 
-    note = ""
+    note, kept = "", None
     while True:
-        app = factory(profile_path, grid_step_deg, note)
+        app = factory(profile_path, grid_step_deg, note, kept)
         try:
             result = app.run()
         finally:
@@ -99,15 +102,14 @@ def run_consoles(profile_path: Path, grid_step_deg: float | None,
         if not isinstance(result, SwitchRequest):
             return int(result or 0)
         profile_path, grid_step_deg = result.profile_path, result.grid_step_deg
-        note = f"Settings applied: {result.describe()} (the console restarted for them)."
+        note, kept = result.note(), result.kept
 
 
-def cmd_tui(args: argparse.Namespace) -> int:
-    grid = args.grid_step
-    if grid is not None:
-        grid = finite_number(grid, "--grid-step", 0.0, 30.0, lo_open=True)
+def console_factory(args: argparse.Namespace) -> ConsoleFactory:
+    """The consoles ``spm-console tui`` runs: the profile file (at a grid step) on the bus
+    and with the views its options name."""
 
-    def factory(path: Path, step_deg: float | None, note: str) -> ConsoleApp:
+    def factory(path: Path, step_deg: float | None, note: str, kept: Any) -> ConsoleApp:
         from spm_console.tui.app import make_app
 
         loaded = load_profile(path)
@@ -117,9 +119,17 @@ def cmd_tui(args: argparse.Namespace) -> int:
         port = args.port or (None if args.sim else (profile.bus.port or None))
         return make_app(profile, port=port, sim=port is None, viewer=not args.no_viewer,
                         logs_root=args.logs, cache_dir=args.cache_dir, profile_path=path,
-                        note=note)
+                        note=note, kept=kept)
+
+    return factory
+
+
+def cmd_tui(args: argparse.Namespace) -> int:
+    grid = args.grid_step
+    if grid is not None:
+        grid = finite_number(grid, "--grid-step", 0.0, 30.0, lo_open=True)
 
     before = set(threading.enumerate())
-    code = run_consoles(Path(args.profile), grid, factory)
+    code = run_consoles(Path(args.profile), grid, console_factory(args))
     end_if_threads_linger(code, before)
     return code

@@ -27,6 +27,7 @@ from spm_console.config.servo_section import with_servo
 from spm_console.core.plan import Plan
 from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
 from spm_console.core.servo.experiment import Excitation, ExperimentFit, excitation, fit_record
+from spm_console.core.workspace.data import Workspace
 from spm_console.description.weight import holding_torque_nm
 from spm_console.errors import BadInputError, PlanRefusedError, ProfileError, RefusedError, SolverError
 from spm_console.motion.homing import HomingResult
@@ -69,10 +70,12 @@ class ExperimentRun:
     """(n, 3) positions read, deg."""
 
 
-def experiment_plan(profile: Profile, cache_dir: Path | None = None) -> tuple[Excitation, Plan]:
+def experiment_plan(profile: Profile, cache_dir: Path | None = None,
+                    workspace: Workspace | None = None) -> tuple[Excitation, Plan]:
     """The largest excitation about the home pose the runtime accepts (PlanRefusedError with
-    the last refusal when none of :data:`MAX_TRIES` does)."""
-    ws, _ = load_or_build(profile, cache_dir)
+    the last refusal when none of :data:`MAX_TRIES` does), verified against ``workspace``
+    (default: the profile's, from the cache)."""
+    ws = workspace if workspace is not None else load_or_build(profile, cache_dir)[0]
     vmax = profile.limits.vmax_degps
     per_deg = servo_model_of(profile).dynamics.step_peak_speed()
     step = min(MAX_REFERENCE_STEP_DEG - STEP_MARGIN_DEG, SPEED_SHARE * vmax / per_deg)
@@ -113,10 +116,11 @@ def experiment_once(profile: Profile, req: RunRequest) -> ExperimentRun:
 def experiment_in_session(session: Session, on_sample: SampleCallback | None = None
                           ) -> ExperimentRun:
     """The experiment on the console's connected session: refused unless the wrist is homed
-    (the session's plan, if any, is left as it was)."""
+    (the session's plan, if any, is left as it was; its workspace is loaded, if it was not,
+    and kept)."""
     if not session.homed:
         raise RefusedError(Refusal.NOT_HOMED)
-    ex, plan = experiment_plan(session.profile, session.cache_dir)
+    ex, plan = experiment_plan(session.profile, session.cache_dir, session.ensure_workspace())
     kept, info = session.plan, session.plan_info
     try:
         return _execute(session, ex, plan, on_sample, None)
@@ -172,14 +176,15 @@ def identified_servo(profile: Profile, fit: ExperimentFit, source: str) -> Servo
     """The identified ``[servo]`` section of ``fit`` (Ts and discretization kept), its
     provenance naming ``source`` and the time now (UTC)."""
     s, a = fit.shared, fit.assessment
+    # a load below the written precision is none (rounded to 0 it is no valid value)
+    load = None if fit.load is None else round(float(fit.load.moments_deg[0]), 4)
     try:
         return Servo(
             p=round(s.p, 4), ts_s=profile.servo.ts_s, discretization=profile.servo.discretization,
             zeta=round(s.zeta, 4), delay_s=round(min(s.delay_s, 0.999 * profile.servo.ts_s), 6),
             linear_range_deg=round(max(a.linear_range_deg, 0.01), 2),
             residual_bound_deg=max(fit.residual_bound_deg, 0.01),
-            load_deg_per_nm=(None if fit.load is None or fit.load.moments_deg[0] <= 0.0
-                             else round(float(fit.load.moments_deg[0]), 4)),
+            load_deg_per_nm=None if load is None or load <= 0.0 else load,
             coulomb_deg=None if fit.load is None else round(fit.load.coulomb_deg, 4),
             identified=Identified(
                 date=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),

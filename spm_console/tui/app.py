@@ -35,8 +35,9 @@ from spm_console.tui.screens.fk import FkScreen
 from spm_console.tui.screens.help import HelpScreen, KeyEntry, key_entries, step_actions
 from spm_console.tui.screens.logs import LogsScreen
 from spm_console.tui.screens.plan import PlanScreen
-from spm_console.tui.screens.settings import SettingsScreen, SwitchRequest
+from spm_console.tui.screens.settings import SettingsScreen
 from spm_console.tui.screens.workspace import WorkspaceScreen
+from spm_console.tui.switch import KeptWorkspace, SwitchRequest
 from spm_console.tui.widgets.confirm import QuitConfirm
 from spm_console.tui.widgets.estop import ESTOP_KEY
 from spm_console.tui.widgets.steps import STEPS
@@ -253,16 +254,20 @@ class SpmConsoleApp(App[int | SwitchRequest]):
                                         float(prof.workspace.step_deg)), self._apply_settings)
 
     def _apply_settings(self, request: SwitchRequest | None) -> None:
-        """Exit with ``request`` (the CLI restarts the console with it), never while the
-        wrist moves."""
+        self.restart_with(request)
+
+    def restart_with(self, request: SwitchRequest | None) -> bool:
+        """Exit with ``request`` (the CLI restarts the console with it: the settings applied,
+        or the identified servo model), never while the wrist moves (False then)."""
         if request is None:
-            return
-        if self.moving:
-            self.notify("The wrist is moving: settings not applied (SPACE stops it).",
+            return False
+        if self._wrist_moving():
+            self.notify("The wrist is moving: the console does not restart (SPACE stops it).",
                         severity="warning")
-            return
+            return False
         self.shutdown()
         self.exit(request)
+        return True
 
     def cancel_build(self) -> bool:
         """Cancel the running workspace load/build (False when none runs)."""
@@ -390,13 +395,17 @@ def make_app(
     initial_deg: Sequence[float] | None = None,
     profile_path: Path | None = None,
     note: str = "",
+    kept: KeptWorkspace | None = None,
 ) -> SpmConsoleApp:
     """The console for ``profile`` (read from ``profile_path``, listed by the settings) on a
     serial ``port`` or the emulated bus (``sim``), with or without the meshcat view; ``note``
-    is said once it is up. Nothing is opened until the app runs."""
+    is said once it is up; ``kept``: the workspace the console before had loaded, used when
+    it is this profile's. Nothing is opened until the app runs."""
     session = Session(profile, port=port, sim=sim and port is None, logs_root=logs_root,
                       cache_dir=cache_dir, faults=faults, initial_deg=initial_deg,
                       emulator_process=True)
+    if kept is not None and kept.fits(profile):
+        session.workspace, session.cache_info = kept.workspace, kept.info
     view: WristView = MeshcatView(profile) if viewer else NullView()
     return SpmConsoleApp(session, view, start_viewer=viewer, profile_path=profile_path,
                          note=note)

@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, Protocol
 
 from textual.screen import Screen
 
 from spm_console.services.session import Session
 from spm_console.store.form_memory import FormMemory
+from spm_console.tui.switch import SwitchRequest
 from spm_console.viewer.view import WristView
 
 
@@ -28,9 +30,13 @@ class ConsoleHost(Protocol):
     fk_done: bool
     form_memory: FormMemory
     live_samples: list[Any]
+    profile_path: Path | None
+    """The profile file in use (None: not from a file)."""
 
     def cancel_build(self) -> bool: ...
 
     def telemetry_sink(self, screen: Screen[Any]) -> Callable[[Any], None]: ...
 
     def after_motion(self, result: Any) -> None: ...
+
+    def restart_with(self, request: SwitchRequest | None) -> bool: ...

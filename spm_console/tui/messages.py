@@ -101,13 +101,15 @@ class RunOpened:
 
 @dataclass(frozen=True)
 class IdentifyDone:
-    """The identification experiment ended: its run, and when it completed the profile and
-    plot written and a summary."""
+    """The identification experiment ended: its run, and when it completed the identified
+    profile and the plot written, a summary (one line) and the whole result (the lines of
+    ``identify --experiment``)."""
 
     result: ExecutionResult
     profile: Path | None
     plot: Path | None
     summary: str
+    lines: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

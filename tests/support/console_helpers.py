@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import html
+import re
+from collections import defaultdict
 from typing import Any
 
 from textual.pilot import Pilot
@@ -35,6 +38,17 @@ def text_of(app: SpmConsoleApp, selector: str) -> str:
 
 def status_of(app: SpmConsoleApp) -> str:
     return text_of(app, "#status")
+
+
+_TEXT = re.compile(r'<text class="[^"]*" x="([\d.]+)" y="([\d.]+)"[^>]*>([^<]*)</text>')
+
+
+def screen_text(app: Any) -> str:
+    """What the terminal shows, one line per row (from the SVG screenshot)."""
+    rows: dict[float, list[tuple[float, str]]] = defaultdict(list)
+    for x, y, text in _TEXT.findall(app.export_screenshot()):
+        rows[float(y)].append((float(x), html.unescape(text).replace("\xa0", " ")))
+    return "\n".join("".join(t for _x, t in sorted(rows[y])) for y in sorted(rows))
 
 
 class MotionSpy:

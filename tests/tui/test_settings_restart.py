@@ -38,7 +38,8 @@ def test_the_loop_restarts_with_each_request_until_an_exit_code() -> None:
     results = [SwitchRequest(COAXIAL, 3.0), SwitchRequest(AGILE, 1.0), 0]
     calls: list[tuple[Path, float | None, str]] = []
 
-    def factory(path: Path, step: float | None, note: str) -> FakeApp:
+    def factory(path: Path, step: float | None, note: str, kept: Any) -> FakeApp:
+        assert kept is None  # the settings keep no workspace
         calls.append((path, step, note))
         events.append(f"build {len(calls)}")
         return FakeApp(events, str(len(calls)), results[len(calls) - 1])
@@ -52,12 +53,26 @@ def test_the_loop_restarts_with_each_request_until_an_exit_code() -> None:
                       "build 3", "run 3", "shutdown 3"]
 
 
+def test_a_request_passes_its_note_and_kept_workspace_to_the_next_console() -> None:
+    """The identification's request: its own note, and the workspace it kept."""
+    kept = object()
+    results = [SwitchRequest(AGILE, 2.0, why="Identified servo model in use", kept=kept), 0]  # type: ignore[arg-type]
+    calls: list[tuple[str, Any]] = []
+
+    def factory(path: Path, step: float | None, note: str, k: Any) -> FakeApp:
+        calls.append((note, k))
+        return FakeApp([], "a", results[len(calls) - 1])
+
+    assert run_consoles(AGILE, None, factory) == 0
+    assert calls == [("", None), ("Identified servo model in use", kept)]
+
+
 def test_the_loop_returns_the_exit_code_and_closes_on_a_crash() -> None:
     events: list[str] = []
-    assert run_consoles(AGILE, 2.0, lambda p, s, n: FakeApp(events, "a", 20)) == 20
+    assert run_consoles(AGILE, 2.0, lambda p, s, n, k: FakeApp(events, "a", 20)) == 20
     events.clear()
     with pytest.raises(RuntimeError):
-        run_consoles(AGILE, 2.0, lambda p, s, n: FakeApp(events, "a", RuntimeError("x")))
+        run_consoles(AGILE, 2.0, lambda p, s, n, k: FakeApp(events, "a", RuntimeError("x")))
     assert events == ["run a", "shutdown a"]
 
 

@@ -3,9 +3,6 @@
 
 from __future__ import annotations
 
-import html
-import re
-from collections import defaultdict
 from collections.abc import AsyncIterator
 from typing import Any
 
@@ -15,18 +12,9 @@ from textual.widgets import Input
 
 from spm_console.tui.widgets.plot import PlotView
 from spm_console.tui.widgets.steps import STEPS
-from tests.support.console_helpers import settle, status_of, text_of
+from tests.support.console_helpers import screen_text, settle, status_of, text_of
 
 SMALL = (80, 24)
-_TEXT = re.compile(r'<text class="[^"]*" x="([\d.]+)" y="([\d.]+)"[^>]*>([^<]*)</text>')
-
-
-def screen_text(app: Any) -> str:
-    """What the terminal shows, one line per row (from the SVG screenshot)."""
-    rows: dict[float, list[tuple[float, str]]] = defaultdict(list)
-    for x, y, text in _TEXT.findall(app.export_screenshot()):
-        rows[float(y)].append((float(x), html.unescape(text).replace("\xa0", " ")))
-    return "\n".join("".join(t for _x, t in sorted(rows[y])) for y in sorted(rows))
 
 
 async def each_step(app: Any, pilot: Any) -> AsyncIterator[Any]:

@@ -34,7 +34,8 @@ from spm_console.tui.messages import (
     ServoToolDone,
     Telemetry,
 )
-from spm_console.tui.screens.base import StepScreen, describe_error
+from spm_console.tui.screens.base import describe_error
+from spm_console.tui.screens.connect_identify import IdentifyStep
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.servo_health import JogStepField, ServoTable
 
@@ -56,11 +57,12 @@ class HealthPolled(Message):
         self.error = error
 
 
-class ConnectScreen(StepScreen):
+class ConnectScreen(IdentifyStep):
     MODE = "connect"
     AUTO_FOCUS = "#servos"  # arrows choose the joint; letters still reach the screen
     DEFAULT_CSS = """
     ConnectScreen #health-info, ConnectScreen #tools-help { height: auto; color: $text-muted; }
+    ConnectScreen #identify-result { height: auto; margin: 1 0 0 0; display: none; }
     """
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("c", "connect", "Connect"),
@@ -78,7 +80,6 @@ class ConnectScreen(StepScreen):
         super().__init__()
         self._polling = False
         self._health_error = ""
-        self._motion_label = "homing"
 
     def compose_body(self) -> ComposeResult:
         with Vertical(classes="body"):
@@ -88,6 +89,7 @@ class ConnectScreen(StepScreen):
             yield Static(id="pose-info", markup=False)
             yield JogStepField(id="jog-row")
             yield Static(TOOLS_HELP, id="tools-help", markup=False)
+            yield Static(id="identify-result", markup=False)
 
     @property
     def table(self) -> ServoTable:
@@ -153,16 +155,6 @@ class ConnectScreen(StepScreen):
         self.run_blocking("read", lambda: PositionRead(self.session.read_position()),
                           "reading the motor angles …")
 
-    def _ready(self, what: str) -> bool:
-        """Connected and idle, or say why not."""
-        if self.session.bus is None:
-            self.status.error(f"{what}: not connected, press c to connect first")
-            return False
-        if self.busy_op or self.console.moving:
-            self.status.error(f"{what}: busy, wait for the current operation")
-            return False
-        return True
-
     def action_home(self) -> None:
         s = self.session
         if not self._ready("home"):
@@ -179,32 +171,6 @@ class ConnectScreen(StepScreen):
             self.status.ok("homing cancelled: nothing moved")
             return
         self._start_motion("home", "homing", lambda on_sample: self.session.home(on_sample))
-
-    def action_identify(self) -> None:
-        if not self._ready("identify"):
-            return
-        if not self.session.homed:
-            self.status.error(f"identify refused: {worded(Refusal.NOT_HOMED, 'console')}")
-            return
-        # scipy's optimizers and matplotlib: loaded when asked for, not before the first screen
-        from spm_console.tui.identify_run import question
-
-        self.app.push_screen(ConfirmScreen("Identify the servos?", question(self.session)),
-                             self._identify_confirmed)
-
-    def _identify_confirmed(self, yes: bool | None) -> None:
-        if not yes:
-            self.status.ok("identification cancelled: nothing moved")
-            return
-        from spm_console.tui.identify_run import identify_blocking
-
-        on_sample = self.console.telemetry_sink(self)
-        self.console.moving = True
-        self._motion_label = "identification experiment"
-        path = getattr(self.app, "profile_path", None)
-        if not self.run_blocking("identify", lambda: identify_blocking(
-                self.session, path, on_sample), "identification experiment …"):
-            self.console.moving = False
 
     def _start_motion(self, kind: Literal["home", "jog"], label: str,
                       fn: Callable[[SampleCallback], ExecutionResult]) -> None:
@@ -319,11 +285,7 @@ class ConnectScreen(StepScreen):
         elif isinstance(outcome, ServoToolDone):
             self._tool_done(outcome)
         elif isinstance(outcome, IdentifyDone):
-            self.console.moving = False
-            self.console.after_motion(outcome.result)
-            self.status.run_result(outcome.summary if outcome.result.ok else
-                                   f"identification stopped: {outcome.result.message}. "
-                                   f"Log: {outcome.result.log_dir}", outcome.result)
+            self.identify_done(outcome)
         elif isinstance(outcome, MotionDone):
             result = outcome.result
             self._health_error = ""

@@ -32,7 +32,9 @@ from spm_console.config.load import MAX_PROFILE_BYTES, load_profile, with_grid_s
 from spm_console.config.schema import DEFAULT_PROFILE
 from spm_console.errors import BadInputError, SpmError
 from spm_console.safe_io import FileRefusedError, read_capped
+from spm_console.store.identified_profiles import FitFigures, arrange, family, fit_figures
 from spm_console.tui.host import ConsoleHost
+from spm_console.tui.switch import SwitchRequest
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.footer import ConsoleFooter
 from spm_console.tui.widgets.number import NumberRow, NumberRule
@@ -51,17 +53,6 @@ def grid_step_rule() -> NumberRule:
 
 
 @dataclass(frozen=True)
-class SwitchRequest:
-    """Restart the console with this profile file and workspace grid step (deg)."""
-
-    profile_path: Path
-    grid_step_deg: float
-
-    def describe(self) -> str:
-        return f"profile {self.profile_path}, grid step {self.grid_step_deg:g}°"
-
-
-@dataclass(frozen=True)
 class ProfileEntry:
     """One profile file as listed: its name and own grid step from the file, or why it
     cannot be read (then it cannot be chosen)."""
@@ -74,12 +65,15 @@ class ProfileEntry:
     range_deg: tuple[float, float] | None = None
     """Its workspace.theta_min_deg, theta_max_deg (None when unreadable): a typed grid step
     is checked against this range at once (whole steps, node cap)."""
+    fit: FitFigures | None = None
+    """Its identified servo model's figures (None: not identified)."""
 
     def label(self) -> str:
         if self.error:
             return f"{self.path}: {self.error}"
         own = "" if self.step_deg is None else f"   (its grid step {self.step_deg:g}°)"
-        return f"{self.name}   {self.path}{own}"
+        fit = "" if self.fit is None else f"\n    {self.fit.words()}"
+        return f"{self.name}   {self.path}{own}{fit}"
 
 
 def profile_dirs() -> list[Path]:
@@ -113,18 +107,20 @@ def read_entry(path: Path) -> ProfileEntry:
         rng = (lo, hi) if math.isfinite(lo) and math.isfinite(hi) else None
     except (KeyError, TypeError, ValueError):
         rng = None  # Apply's whole-profile check says what is wrong
-    return ProfileEntry(path, name, step, range_deg=rng)
+    return ProfileEntry(path, name, step, range_deg=rng, fit=fit_figures(data))
 
 
 def list_profiles(current: Path | None, dirs: Iterable[Path] | None = None) -> list[ProfileEntry]:
-    """Every ``*.toml`` of the profile folders (sorted), then ``current`` if it lives
-    elsewhere."""
+    """Every ``*.toml`` of the profile folders (sorted), then ``current`` with its family
+    (its base profile and their identified profiles) if it lives elsewhere; each base
+    profile followed by its identified profiles, newest first
+    (:func:`~spm_console.store.identified_profiles.arrange`)."""
     paths: list[Path] = []
     for d in profile_dirs() if dirs is None else dirs:
         paths += sorted(d.glob("*.toml"))
-    if current is not None and all(current.resolve() != p.resolve() for p in paths):
-        paths.append(current)
-    return [read_entry(p) for p in paths]
+    if current is not None:
+        paths += [current, *family(current)]
+    return [read_entry(p) for p in arrange(paths)]
 
 
 class SettingsScreen(ModalScreen[SwitchRequest | None]):
@@ -144,7 +140,7 @@ class SettingsScreen(ModalScreen[SwitchRequest | None]):
         border: thick $primary; background: $surface; padding: 0 1;
     }
     #settings-title { text-style: bold; }
-    #settings-profiles { height: auto; max-height: 8; }
+    #settings-profiles { height: auto; max-height: 10; }
     #settings-reason { color: $error; text-style: bold; height: auto; }
     #settings-buttons { height: 3; align: center middle; }
     #settings-buttons Button { margin: 0 2; }

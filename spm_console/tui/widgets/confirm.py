@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+from textual import events
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Button, Static
 
@@ -64,3 +65,47 @@ class QuitConfirm(ConfirmScreen):
             "The session closes: the servos' bus is disconnected, a workspace build under way "
             "is cancelled and the 3D view stops.\nPress q again or y to quit, n or esc to "
             "stay.", yes="Quit (q, y)", no="Stay (n)")
+
+
+#: Rows of a confirmation besides its body (border, padding, title, buttons, the footer).
+CONFIRM_FRAME_ROWS = 11
+
+
+class LongConfirm(ConfirmScreen):
+    """A confirmation whose body may be longer than the terminal: as wide as 100 columns
+    (the terminal's width below that), the body wrapped there and scrolled by ↑ ↓ PgUp PgDn
+    Home End while the buttons stay in view."""
+
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("up", "scroll_body('up')", "Scroll", show=False),
+        Binding("down", "scroll_body('down')", "Scroll", show=False),
+        Binding("pageup", "scroll_body('page_up')", "Scroll", show=False),
+        Binding("pagedown", "scroll_body('page_down')", "Scroll", show=False),
+        Binding("home", "scroll_body('home')", "Scroll", show=False),
+        Binding("end", "scroll_body('end')", "Scroll", show=False),
+    ]
+    def compose(self) -> ComposeResult:
+        with Vertical(id="confirm-box"):
+            yield Static(self._title, id="confirm-title", markup=False)
+            with VerticalScroll(id="confirm-scroll"):
+                yield Static(self._body, id="confirm-body", markup=False)
+            with Horizontal(id="confirm-buttons"):
+                yield Button(self._yes, id="yes", variant="warning")
+                yield Button(self._no, id="no", variant="primary")
+        yield ConsoleFooter()
+
+    def on_mount(self) -> None:
+        super().on_mount()
+        self._fit()
+
+    def on_resize(self, event: events.Resize) -> None:
+        self._fit()
+
+    def _fit(self) -> None:
+        """The body's scroll as high as the terminal leaves beside the rest."""
+        self.query_one("#confirm-scroll").styles.max_height = max(
+            3, self.size.height - CONFIRM_FRAME_ROWS)
+
+    def action_scroll_body(self, how: str) -> None:
+        scroll = self.query_one("#confirm-scroll", VerticalScroll)
+        getattr(scroll, f"scroll_{how}")(animate=False)

@@ -35,3 +35,17 @@ def test_a_model_no_profile_can_hold_is_a_solver_error_not_a_crash() -> None:
     broken = replace(fit, assessment=replace(fit.assessment, held_out_max_deg=12.0))
     with pytest.raises(SolverError, match="residual_bound_deg"):
         identified_servo(prof, broken, "run")
+
+
+def test_a_load_below_the_written_precision_is_no_load_not_a_refusal() -> None:
+    """A fitted load that rounds to zero (a servo with no load to speak of) is written as none;
+    it was refused as an invalid [servo] section (exit 7)."""
+    from spm_console.core.servo.load import LoadModel
+
+    dyn = Dynamics(43.0, 0.79, 0.0035)
+    ex, t, meas = _record(dyn)
+    fit = fit_record(ex, t, ex.reference_deg, meas)
+    prof = load_profile(ROOT / "profiles" / "agile_wrist.toml")
+    tiny = replace(fit, load=LoadModel(np.array([1e-6]), 0.01))
+    servo = identified_servo(prof, tiny, "run")
+    assert servo.load_deg_per_nm is None and servo.coulomb_deg == pytest.approx(0.01)
