@@ -103,7 +103,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from spm_console.motion.logs.mcap_log import write_run_mcap
+    from spm_console.motion.logs.mcap_log import LIMIT_SLACK_DEG, write_run_mcap
 
     output_file(args.out, "--out", (".mcap",))
     run_dir = resolve_run(args.run, args.logs)
@@ -119,8 +119,15 @@ def cmd_export(args: argparse.Namespace) -> int:
         info(f"note: {run_dir.name} was logged with another version of '{profile.name}' (digest "
              f"{str(logged.get('hash'))[:12]}…, now {profile.digest()[:12]}…): its joints are "
              f"drawn with {args.profile} as it is now")
-    out = write_run_mcap(run_dir, profile, args.out)
+    done = write_run_mcap(run_dir, profile, args.out)
+    out = done.path
+    if done.first_beyond is not None:
+        info(f"note: {done.beyond_limits} sample(s) of {run_dir.name}/samples.csv (the first: "
+             f"sample {done.first_beyond}) measure a θ more than {LIMIT_SLACK_DEG:g}° beyond "
+             f"the servo limits of '{profile.name}', no pose of this wrist: their /joint_states, "
+             "/spm/platform and /tf are left out")
     emit(args, {"ok": True, "run": run_dir.name, "mcap": str(out), "bytes": out.stat().st_size,
-                "profile_digest_matches": same},
+                "profile_digest_matches": same, "samples_beyond_limits": done.beyond_limits,
+                "first_beyond_limits": done.first_beyond},
          f"{run_dir.name}: MCAP written to {out}")
     return int(ExitCode.OK)
