@@ -24,6 +24,13 @@ from spm_console.errors import SpmError
 MB = 1024 * 1024
 #: Deepest nesting accepted in a JSON file (a valid plan needs 5 levels).
 MAX_JSON_DEPTH = 32
+#: Longest name of one folder or file, bytes, where the file system does not say (Linux's
+#: NAME_MAX), and longest path (PATH_MAX, with its terminating NUL).
+NAME_MAX = 255
+PATH_MAX = 4096
+#: Bytes of a file's name its temporary (``.NAME.xxxxxxxx`` beside it) keeps: a name up to
+#: NAME_MAX long still leaves room for the temporary's.
+TEMP_NAME_BYTES = 64
 
 
 def _mb(n: int) -> str:
@@ -137,13 +144,49 @@ def load_json(path: str | Path, what: str, max_bytes: int, error: type[SpmError]
     return parse_json(text, f"{what} {path}", error, max_depth)
 
 
+def _name_max(path: Path) -> int:
+    """NAME_MAX of the file system ``path`` (or its nearest existing folder) lies on."""
+    for folder in (path, *path.parents):
+        try:
+            return int(os.pathconf(folder, "PC_NAME_MAX"))
+        except (OSError, ValueError):
+            continue
+    return NAME_MAX
+
+
+def _abbrev(name: str, keep: int = 24) -> str:
+    return name if len(name) <= keep else f"{name[:keep]}…"
+
+
+def check_path_names(path: str | Path, what: str, error: type[SpmError]) -> None:
+    """Refuse a path the system cannot name, before anything opens it (which would fail with
+    ENAMETOOLONG): a folder or file name above NAME_MAX bytes, or the whole above PATH_MAX."""
+    p = Path(path)
+    whole = len(os.fsencode(str(p)))
+    if whole >= PATH_MAX:
+        raise error(f"{what} {_abbrev(str(p), 40)}: the path is {whole:,} bytes long; a path "
+                    f"holds fewer than {PATH_MAX:,} (PATH_MAX)")
+    limit = _name_max(p.parent)
+    for part in p.parts:
+        n = len(os.fsencode(part))
+        if n > limit:
+            raise error(f"{what}: the name '{_abbrev(part)}' in the path is {n} bytes long; a "
+                        f"file or folder name holds at most {limit} bytes here (NAME_MAX)")
+
+
+def temp_prefix(name: str) -> str:
+    """The prefix of a temporary file written beside the file ``name``, then renamed to it:
+    ``.NAME.`` with the name cut to :data:`TEMP_NAME_BYTES` bytes."""
+    return "." + os.fsdecode(os.fsencode(name)[:TEMP_NAME_BYTES]) + "."
+
+
 def write_text_atomic(path: str | Path, text: str, error: type[SpmError]) -> None:
     """Write ``text`` to ``path`` atomically (a temporary file beside it, then a rename). Only a
     regular file (or nothing) may be replaced: a device, pipe or folder there raises ``error``."""
     p = Path(path)
     if p.exists() and not p.is_file():
         raise error(f"{p}: exists and is not a regular file; not replaced")
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=str(p.parent) or ".")
+    fd, tmp = tempfile.mkstemp(prefix=temp_prefix(p.name), dir=str(p.parent) or ".")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)

@@ -51,6 +51,7 @@ from spm_console.core.kinematics.rotations import matrix_quaternion
 from spm_console.description.for_profile import robot_description
 from spm_console.jsonutil import to_jsonable
 from spm_console.motion.logs.runlog import RunData, append_events, load_run
+from spm_console.safe_io import temp_prefix
 from spm_console.system.realtime import normal_priority
 
 F = NDArray[np.float64]
@@ -207,7 +208,7 @@ def write_mcap(run: RunData, model: SpmModel, limits_deg: tuple[F, F], urdf: str
     messages written."""
     t0 = start_ns(run.meta)
     rows = _rows(run, model, limits_deg, t0)
-    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", dir=out.parent)
+    fd, name = tempfile.mkstemp(prefix=temp_prefix(out.name), dir=out.parent)
     tmp = Path(name)
     try:
         with os.fdopen(fd, "wb") as fh:
