@@ -64,9 +64,17 @@ def profile_of(args: argparse.Namespace) -> Profile:
     return with_plant(load_profile(args.profile), getattr(args, "plant", None))
 
 
-def output_file(path: Path | None, what: str, suffixes: tuple[str, ...] = ()) -> None:
+def add_force(p: argparse.ArgumentParser) -> None:
+    """--force: the command's --out may replace an existing file."""
+    p.add_argument("--force", action="store_true",
+                   help="replace the --out file when it exists (otherwise refused)")
+
+
+def output_file(path: Path | None, what: str, suffixes: tuple[str, ...] = (),
+                replace: bool = True) -> None:
     """Refuse, before any work, an output path the system cannot name, whose folder is
-    missing or whose suffix is wrong."""
+    missing or whose suffix is wrong; and, unless ``replace``, one that exists (the command's
+    ``--force`` replaces it)."""
     if path is None:
         return
     check_path_names(path, what, BadInputError)
@@ -79,6 +87,10 @@ def output_file(path: Path | None, what: str, suffixes: tuple[str, ...] = ()) ->
             raise BadInputError(f"{what} {path}: the folder {folder} {why}")
         if path.is_dir():
             raise BadInputError(f"{what} {path}: is a folder; give a file name")
+        if path.exists() and not path.is_file():
+            raise BadInputError(f"{what} {path}: exists and is not a regular file; not replaced")
+        if not replace and (path.exists() or path.is_symlink()):
+            raise BadInputError(f"{what} {path}: the file exists; pass --force to replace it")
     except OSError as exc:
         raise BadInputError(f"{what} {path}: {exc.strerror or exc}") from None
 

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import PLOT_SUFFIXES, emit, output_file, profile_of
+from spm_console.cli.common import PLOT_SUFFIXES, add_force, emit, output_file, profile_of
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.models import servo_limits_deg
@@ -37,7 +37,7 @@ from spm_console.formatting import fmt_deg
 from spm_console.motion.logs.runlog import load_run
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.report.plot_identify import plot_experiment
-from spm_console.safe_io import MB, read_text
+from spm_console.safe_io import MB, read_text, write_text_atomic
 from spm_console.services.identify_experiment import (
     ExperimentRun,
     experiment_once,
@@ -75,6 +75,7 @@ def register(sub: Any) -> None:
                         "friction), the experiment's structure; needs the three joints")
     i.add_argument("--out", type=Path, metavar="NEW.toml",
                    help="--experiment: write the profile with the identified [servo] here")
+    add_force(i)
     i.add_argument("--plot", type=Path, metavar="FILE.png",
                    help="--experiment: save measured against fitted responses")
     i.set_defaults(func=cmd_identify)
@@ -232,11 +233,11 @@ def _holding(profile: Profile, ref: np.ndarray, meas: np.ndarray) -> np.ndarray:
 def _experiment(args: argparse.Namespace, profile: Profile) -> int:
     if args.out is None:
         raise BadInputError("--experiment writes a profile: give --out NEW.toml")
-    output_file(args.out, "--out", (".toml",))
-    output_file(args.plot, "--plot", PLOT_SUFFIXES)
     if args.out.resolve() == Path(args.profile).resolve():
         raise BadInputError("--out must name a new file: the profile the experiment runs with "
                             "stays as it is")
+    output_file(args.out, "--out", (".toml",), replace=args.force)
+    output_file(args.plot, "--plot", PLOT_SUFFIXES)
     if args.delay or args.damping or args.load:
         raise BadInputError("--delay, --damping and --load go with --run/--csv (the experiment "
                             "fits all three)")
@@ -255,7 +256,7 @@ def _experiment(args: argparse.Namespace, profile: Profile) -> int:
     servo = identified_servo(profile, fit, str(run.execution.log_dir))
     old = read_text(Path(args.profile), "--profile", 1 * MB, BadInputError)
     text, _ = identified_profile(old, servo, str(args.out))
-    args.out.write_text(text, encoding="utf-8")
+    write_text_atomic(args.out, text, BadInputError)
     if args.plot is not None:
         plot_experiment(run.excitation, run.t, run.measured_deg, fit, args.plot)
     return _report_fit(args, run, fit, servo, profile.servo)

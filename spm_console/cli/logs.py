@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import add_common, emit, info, output_file, profile_of
+from spm_console.cli.common import add_common, add_force, emit, info, output_file, profile_of
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.motion.logs.runlog import list_runs, load_run, resolve_run
 
@@ -42,7 +42,9 @@ def register(sub: Any) -> None:
     e.add_argument("--mcap", action="store_true", required=True, help="MCAP (the one format)")
     e.add_argument("run", metavar="RUN", help="run folder name or path, or 'last'")
     e.add_argument("--out", type=Path, metavar="FILE.mcap",
-                   help="file to write (default: run.mcap in the run's folder)")
+                   help="file to write (default: run.mcap in the run's folder, written "
+                        "again from the run's files)")
+    add_force(e)
     e.set_defaults(func=cmd_export)
     p.set_defaults(func=cmd_list)
 
@@ -105,7 +107,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 def cmd_export(args: argparse.Namespace) -> int:
     from spm_console.motion.logs.mcap_log import LIMIT_SLACK_DEG, write_run_mcap
 
-    output_file(args.out, "--out", (".mcap",))
+    output_file(args.out, "--out", (".mcap",), replace=args.force)
     run_dir = resolve_run(args.run, args.logs)
     profile = profile_of(args)
     logged = load_run(run_dir).meta.get("profile", {})

@@ -1,5 +1,5 @@
-"""Every ``--out FILE``: a name the system cannot hold is refused (exit 4, no traceback) before
-any work."""
+"""Every ``--out FILE``: a name the system cannot hold is refused (exit 4, no traceback), and an
+existing file is replaced only with ``--force``, both before any work."""
 
 from __future__ import annotations
 
@@ -58,6 +58,26 @@ def test_a_name_of_name_max_bytes_is_written(tmp_path: Path,
     out = tmp_path / ("w" * (NAME_MAX - len(".urdf")) + ".urdf")
     assert main(["export", "urdf", "--out", str(out)]) == 0, capsys.readouterr().err
     assert out.is_file() and [p.name for p in tmp_path.iterdir()] == [out.name]
+
+
+@pytest.mark.parametrize("name", list(COMMANDS))
+def test_an_existing_file_is_kept_without_force(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str) -> None:
+    out = tmp_path / f"kept{COMMANDS[name][1]}"
+    out.write_text("the operator's own file\n")
+    assert main(_argv(name, tmp_path, out)) == ExitCode.BAD_INPUT
+    err = capsys.readouterr().err
+    assert "exists" in err and "--force" in err
+    assert out.read_text() == "the operator's own file\n"
+
+
+@pytest.mark.parametrize("name", ["export", "plan mvn", "workspace region"])
+def test_force_replaces_it(tmp_path: Path, capsys: pytest.CaptureFixture[str], name: str) -> None:
+    out = tmp_path / f"replaced{COMMANDS[name][1]}"
+    out.write_text("old\n")
+    assert main([*_argv(name, tmp_path, out), "--force"]) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    assert out.read_text() != "old\n"
 
 
 @pytest.mark.parametrize(("argv", "code"), [
