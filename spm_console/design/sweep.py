@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from spm_console.design.evaluate import INTERNAL_ERROR, KILLED_WORKER, DesignRow, DesignTask, evaluate
+from spm_console.design.scheduler_probe import probe_scheduler
 from spm_console.design.spec import SweepSpec
 from spm_console.design.table import Journal, SweepInfo, create_folder, read_done, write_table
 from spm_console.errors import BadInputError, ClusterLostError, InterruptedBySignalError
@@ -170,10 +171,12 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
 
 
 def _existing(Client: Any, scheduler: str) -> Iterator[Any]:
-    """A client of an existing scheduler (BadInputError when none answers)."""
+    """A client of an existing scheduler (BadInputError when none answers, or another service
+    does: asked first, by hand, :func:`probe_scheduler`)."""
+    probe_scheduler(scheduler)
     try:
         client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
+    except (OSError, TimeoutError, ValueError, MemoryError) as exc:
         raise BadInputError(f"--scheduler {scheduler}: no Dask scheduler answered "
                             f"({exc})") from None
     try:

@@ -19,6 +19,7 @@ from spm_console.design.spec import load_spec
 from spm_console.design.sweep import SweepProgress, run_sweep
 from spm_console.design.table import JOURNAL, load_table
 from spm_console.errors import ExitCode
+from tests.support.fake_services import tcp_service
 from tests.support.paths import ROOT
 
 AGILE = ROOT / "profiles" / "agile_wrist.toml"
@@ -130,6 +131,20 @@ def test_no_scheduler_at_the_address_is_a_refusal(tmp_path: Path,
     rc = main(["design", "sweep", str(_spec(tmp_path, 2)), "--out", str(tmp_path / "s"),
                "--scheduler", "tcp://127.0.0.1:9", "--json"])
     assert rc == ExitCode.BAD_INPUT
+
+
+@pytest.mark.slow  # a whole command
+def test_a_service_that_is_not_dask_is_refused_without_a_traceback(tmp_path: Path) -> None:
+    """A service at the address that sends garbage (a length no machine holds): refused by the
+    probe, exit 4, and no Dask client is left to fail its closing at exit."""
+    with tcp_service("huge") as port:
+        proc = subprocess.run([sys.executable, "-m", "spm_console", "design", "sweep",
+                               str(_spec(tmp_path, 2)), "--out", str(tmp_path / "s"),
+                               "--scheduler", f"tcp://127.0.0.1:{port}"],
+                              capture_output=True, text=True, timeout=120)
+    assert proc.returncode == ExitCode.BAD_INPUT, proc.stderr
+    assert "not a Dask scheduler" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "s").exists()
 
 
 
