@@ -88,7 +88,7 @@ def mcap_of_a_run(seconds: float = 6.0) -> tuple[int, int, float, int]:
                               bus_s=0.0012, late_s=0.0001, retries=0, read_offset_s=0.0004))
         log.finish("completed", 0, "", {})
         t0 = time.perf_counter()
-        out = write_run_mcap(log.path, profile)
+        out = write_run_mcap(log.path, profile).path
         took = time.perf_counter() - t0
         return out.stat().st_size, (log.path / "samples.csv").stat().st_size, took, n
 

@@ -25,6 +25,13 @@ from spm_console.errors import SpmError
 MB = 1024 * 1024
 #: Deepest nesting accepted in a JSON file (a valid plan needs 5 levels).
 MAX_JSON_DEPTH = 32
+#: Longest name of one folder or file, bytes, where the file system does not say (Linux's
+#: NAME_MAX), and longest path (PATH_MAX, with its terminating NUL).
+NAME_MAX = 255
+PATH_MAX = 4096
+#: Bytes of a file's name its temporary (``.NAME.xxxxxxxx`` beside it) keeps: a name up to
+#: NAME_MAX long still leaves room for the temporary's.
+TEMP_NAME_BYTES = 64
 
 
 def _mb(n: int) -> str:
@@ -138,6 +145,42 @@ def load_json(path: str | Path, what: str, max_bytes: int, error: type[SpmError]
     return parse_json(text, f"{what} {path}", error, max_depth)
 
 
+def _name_max(path: Path) -> int:
+    """NAME_MAX of the file system ``path`` (or its nearest existing folder) lies on."""
+    for folder in (path, *path.parents):
+        try:
+            return int(os.pathconf(folder, "PC_NAME_MAX"))
+        except (OSError, ValueError):
+            continue
+    return NAME_MAX
+
+
+def _abbrev(name: str, keep: int = 24) -> str:
+    return name if len(name) <= keep else f"{name[:keep]}…"
+
+
+def check_path_names(path: str | Path, what: str, error: type[SpmError]) -> None:
+    """Refuse a path the system cannot name, before anything opens it (which would fail with
+    ENAMETOOLONG): a folder or file name above NAME_MAX bytes, or the whole above PATH_MAX."""
+    p = Path(path)
+    whole = len(os.fsencode(str(p)))
+    if whole >= PATH_MAX:
+        raise error(f"{what} {_abbrev(str(p), 40)}: the path is {whole:,} bytes long; a path "
+                    f"holds fewer than {PATH_MAX:,} (PATH_MAX)")
+    limit = _name_max(p.parent)
+    for part in p.parts:
+        n = len(os.fsencode(part))
+        if n > limit:
+            raise error(f"{what}: the name '{_abbrev(part)}' in the path is {n} bytes long; a "
+                        f"file or folder name holds at most {limit} bytes here (NAME_MAX)")
+
+
+def temp_prefix(name: str) -> str:
+    """The prefix of a temporary file written beside the file ``name``, then renamed to it:
+    ``.NAME.`` with the name cut to :data:`TEMP_NAME_BYTES` bytes."""
+    return "." + os.fsdecode(os.fsencode(name)[:TEMP_NAME_BYTES]) + "."
+
+
 #: Permissions asked for a new file; the kernel takes the process's umask off (0644 under the
 #: usual 022), as for any file ``open()`` creates.
 NEW_FILE_MODE = 0o666
@@ -145,14 +188,15 @@ NEW_FILE_MODE = 0o666
 
 def atomic_temp(path: str | Path) -> tuple[int, Path]:
     """A new, empty temporary file beside ``path`` to be renamed onto it: (its descriptor,
-    opened for writing, and its path ``.<name>.<random>.tmp``). Created with
+    opened for writing, and its path ``.<name>.<random>.tmp``, the name cut as
+    :func:`temp_prefix` cuts it). Created with
     :data:`NEW_FILE_MODE`, so the file that replaces ``path`` has the umask's permissions (and
     a folder's default ACL applies), as ``samples.csv`` and every other file written with
     ``open()``; the umask is never read (reading it means setting it, for every thread)."""
     p = Path(path)
     folder = p.parent
     for _ in range(100):
-        tmp = folder / f".{p.name}.{secrets.token_hex(4)}.tmp"
+        tmp = folder / f"{temp_prefix(p.name)}{secrets.token_hex(4)}.tmp"
         try:  # O_EXCL: never an existing file, nor through a symbolic link
             fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, NEW_FILE_MODE)
         except FileExistsError:

@@ -19,6 +19,7 @@ from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError
 from spm_console.jsonutil import to_jsonable
 from spm_console.numbers import NotANumberError, looks_numeric, parse_integer, parse_number
+from spm_console.safe_io import check_path_names
 
 #: The emulated wrists ``--plant`` chooses from (``[plant] model``).
 PLANTS = ("ideal", "physical")
@@ -87,30 +88,52 @@ def profile_of(args: argparse.Namespace) -> Profile:
     return with_plant(load_profile(args.profile), getattr(args, "plant", None))
 
 
-def output_file(path: Path | None, what: str, suffixes: tuple[str, ...] = ()) -> None:
-    """Refuse, before any work, an output path whose folder is missing or whose suffix is wrong."""
+def add_force(p: argparse.ArgumentParser) -> None:
+    """--force: the command's --out may replace an existing file."""
+    p.add_argument("--force", action="store_true",
+                   help="replace the --out file when it exists (otherwise refused)")
+
+
+def output_file(path: Path | None, what: str, suffixes: tuple[str, ...] = (),
+                replace: bool = True) -> None:
+    """Refuse, before any work, an output path the system cannot name, whose folder is
+    missing or whose suffix is wrong; and, unless ``replace``, one that exists (the command's
+    ``--force`` replaces it)."""
     if path is None:
         return
+    check_path_names(path, what, BadInputError)
     if suffixes and path.suffix.lower() not in suffixes:
         raise BadInputError(f"{what} {path}: use a {', '.join(suffixes)} file name")
     folder = path.parent
-    if not folder.is_dir():
-        why = "is not a folder" if folder.exists() else "does not exist"
-        raise BadInputError(f"{what} {path}: the folder {folder} {why}")
-    if path.is_dir():
-        raise BadInputError(f"{what} {path}: is a folder; give a file name")
+    try:
+        if not folder.is_dir():
+            why = "is not a folder" if folder.exists() else "does not exist"
+            raise BadInputError(f"{what} {path}: the folder {folder} {why}")
+        if path.is_dir():
+            raise BadInputError(f"{what} {path}: is a folder; give a file name")
+        if path.exists() and not path.is_file():
+            raise BadInputError(f"{what} {path}: exists and is not a regular file; not replaced")
+        if not replace and (path.exists() or path.is_symlink()):
+            raise BadInputError(f"{what} {path}: the file exists; pass --force to replace it")
+    except OSError as exc:
+        raise BadInputError(f"{what} {path}: {exc.strerror or exc}") from None
 
 
 def output_folder(path: str | Path | None, what: str) -> None:
-    """Refuse, before any work, an output folder that is a file or lies under one."""
+    """Refuse, before any work, an output folder the system cannot name, or that is a file or
+    lies under one."""
     if path is None:
         return
     p = Path(path)
+    check_path_names(p, what, BadInputError)
     anc = p
-    while not anc.exists() and anc != anc.parent:
-        anc = anc.parent
-    if not anc.is_dir():
-        raise BadInputError(f"{what} {p}: {anc} is a file, not a folder")
+    try:
+        while not anc.exists() and anc != anc.parent:
+            anc = anc.parent
+        if not anc.is_dir():
+            raise BadInputError(f"{what} {p}: {anc} is a file, not a folder")
+    except OSError as exc:
+        raise BadInputError(f"{what} {p}: {exc.strerror or exc}") from None
 
 
 #: Set once a command has written its result to stdout (then a later failure adds no JSON).

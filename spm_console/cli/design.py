@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
-from spm_console.cli.common import PLOT_SUFFIXES, emit, info, integer, output_file, output_folder
+from spm_console.cli.common import PLOT_SUFFIXES, add_force, emit, info, integer, output_file, output_folder
 from spm_console.design.ranking import RANKED, best, check_metric, design_profile_text, pareto
 from spm_console.design.spec import DEFAULT_MAX_DESIGNS, load_spec
 from spm_console.design.sweep import allowed_cores, run_sweep
@@ -62,6 +62,7 @@ def register(sub: Any) -> None:
     pr.add_argument("folder", type=Path, metavar="DIR")
     pr.add_argument("index", type=integer, metavar="K", help="the design's index in the table")
     pr.add_argument("--out", type=Path, required=True, metavar="NEW.toml")
+    add_force(pr)
     pr.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     pr.set_defaults(func=cmd_profile)
 
@@ -177,7 +178,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_profile(args: argparse.Namespace) -> int:
-    output_file(args.out, "--out", (".toml",))
+    output_file(args.out, "--out", (".toml",), replace=args.force)
     info_, cols = load_table(args.folder)
     text, prof = design_profile_text(args.folder, read_base_text(args.folder), info_.names, cols,
                                      args.index)

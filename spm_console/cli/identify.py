@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import PLOT_SUFFIXES, emit, info, output_file, profile_of
+from spm_console.cli.common import PLOT_SUFFIXES, add_force, emit, info, output_file, profile_of
 from spm_console.cli.run import _bus_opts, _report, _request
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.models import servo_limits_deg
@@ -81,6 +81,7 @@ def register(sub: Any) -> None:
     i.add_argument("--apply", action="store_true",
                    help="--experiment: write the identified [servo] into the profile itself, "
                         "keeping it as it was in PROFILE.toml.bak-TIME")
+    add_force(i)
     i.add_argument("--plot", type=Path, metavar="FILE.png",
                    help="--experiment: save measured against fitted responses")
     i.set_defaults(func=cmd_identify)
@@ -294,10 +295,10 @@ def _where_to_write(args: argparse.Namespace, profile_path: Path) -> None:
         raise BadInputError("--apply writes the identified [servo] into the profile itself, "
                             "--out into a new file: give one of them")
     if args.out is not None:
-        output_file(args.out, "--out", (".toml",))
         if args.out.resolve() == profile_path.resolve():
             raise BadInputError("--out must name a new file: to change the profile the "
                                 "experiment runs with, use --apply (it keeps a backup)")
+        output_file(args.out, "--out", (".toml",), replace=args.force)
         return
     if not profile_path.is_file():
         raise BadInputError(f"--profile {profile_path}: not a file (the identified profile is "

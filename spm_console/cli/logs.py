@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import add_common, emit, info, output_file, profile_of
+from spm_console.cli.common import add_common, add_force, emit, info, output_file, profile_of
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.motion.logs.bag import METADATA_NAME
 from spm_console.motion.logs.runlog import list_runs, load_run, resolve_run
@@ -46,6 +46,7 @@ def register(sub: Any) -> None:
     e.add_argument("--out", type=Path, metavar="FILE.mcap",
                    help="file to write, the MCAP alone (default: run.mcap and metadata.yaml in "
                         "the run's folder, which make it a rosbag2 bag)")
+    add_force(e)
     e.set_defaults(func=cmd_export)
     p.set_defaults(func=cmd_list)
 
@@ -106,9 +107,9 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from spm_console.motion.logs.mcap_log import MCAP_NAME, write_run_mcap
+    from spm_console.motion.logs.mcap_log import LIMIT_SLACK_DEG, MCAP_NAME, write_run_mcap
 
-    output_file(args.out, "--out", (".mcap",))
+    output_file(args.out, "--out", (".mcap",), replace=args.force)
     run_dir = resolve_run(args.run, args.logs)
     profile = profile_of(args)
     logged = load_run(run_dir).meta.get("profile", {})
@@ -122,11 +123,18 @@ def cmd_export(args: argparse.Namespace) -> int:
         info(f"note: {run_dir.name} was logged with another version of '{profile.name}' (digest "
              f"{str(logged.get('hash'))[:12]}…, now {profile.digest()[:12]}…): its joints are "
              f"drawn with {args.profile} as it is now")
-    out = write_run_mcap(run_dir, profile, args.out)
+    done = write_run_mcap(run_dir, profile, args.out)
+    out = done.path
+    if done.first_beyond is not None:
+        info(f"note: {done.beyond_limits} sample(s) of {run_dir.name}/samples.csv (the first: "
+             f"sample {done.first_beyond}) measure a θ more than {LIMIT_SLACK_DEG:g}° beyond "
+             f"the servo limits of '{profile.name}', no pose of this wrist: their /joint_states, "
+             "/spm/platform and /tf are left out")
     meta = out.parent / METADATA_NAME if out == run_dir / MCAP_NAME else None
     emit(args, {"ok": True, "run": run_dir.name, "mcap": str(out), "bytes": out.stat().st_size,
                 "bag_metadata": None if meta is None else str(meta),
-                "profile_digest_matches": same},
+                "profile_digest_matches": same, "samples_beyond_limits": done.beyond_limits,
+                "first_beyond_limits": done.first_beyond},
          f"{run_dir.name}: MCAP written to {out}"
          + ("" if meta is None else f"; {meta.name} beside it: the folder is a ROS 2 bag"))
     return int(ExitCode.OK)

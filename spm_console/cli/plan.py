@@ -6,7 +6,17 @@ import argparse
 from pathlib import Path
 from typing import Any, Literal
 
-from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, integer, number, output_file, profile_of
+from spm_console.cli.common import (
+    PLOT_SUFFIXES,
+    add_common,
+    add_force,
+    emit,
+    info,
+    integer,
+    number,
+    output_file,
+    profile_of,
+)
 from spm_console.config.schema import Profile
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan import Plan, PlanSummary
@@ -77,6 +87,7 @@ def _problem_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-ref-limits", action="store_true",
                    help="do not bound the references by the servo limits of the profile")
     p.add_argument("--out", type=Path, default=None, metavar="FILE", help="write the plan (JSON)")
+    add_force(p)
     p.add_argument("--plot", type=Path, default=None, metavar="FILE.png", help="save a plot")
 
 
@@ -99,7 +110,7 @@ def _request(args: argparse.Namespace, profile: Profile, method: Literal["mvn", 
              n: int, vmax: float | None) -> PlanRequest:
     """The options as the runtime's plan request (input bounds checked here, in O(1))."""
     k = count_in(args.intersample, "--intersample", INTERSAMPLE)
-    output_file(args.out, "--out")
+    output_file(args.out, "--out", replace=args.force)
     output_file(args.plot, "--plot", PLOT_SUFFIXES)
     if not args.no_ref_limits:
         theta_in_servo_limits(args.start, "--start", profile)

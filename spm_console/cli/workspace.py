@@ -8,7 +8,17 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import PLOT_SUFFIXES, add_common, emit, info, integer, number, output_file, profile_of
+from spm_console.cli.common import (
+    PLOT_SUFFIXES,
+    add_common,
+    add_force,
+    emit,
+    info,
+    integer,
+    number,
+    output_file,
+    profile_of,
+)
 from spm_console.config.schema import Profile
 from spm_console.core.regions.choice import region_containing
 from spm_console.core.workspace.build import check_theta
@@ -17,6 +27,7 @@ from spm_console.core.workspace.verify import verify_cover, verify_region
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.formatting import fmt_vec
 from spm_console.input_rules import bounded_int, theta_in_grid
+from spm_console.safe_io import write_text_atomic
 from spm_console.store.workspace_cache import CacheInfo, load_or_build
 
 #: Most samples ``workspace verify`` checks (about 5 minutes; memory stays bounded).
@@ -48,6 +59,7 @@ def register(sub: Any) -> None:
     r.add_argument("--contain", nargs=6, type=number, metavar="DEG",
                    help="θa (3 values) then θb (3 values), deg")
     r.add_argument("--out", type=Path, metavar="FILE.json", help="also write {A, b} to a file")
+    add_force(r)
     r.set_defaults(func=cmd_region)
 
     v = wsub.add_parser("verify", help="sample P uniformly and check every point exactly")
@@ -186,7 +198,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 def cmd_region(args: argparse.Namespace) -> int:
     profile = profile_of(args)
-    output_file(args.out, "--out")
+    output_file(args.out, "--out", replace=args.force)
     if args.contain is not None:
         a = theta_in_grid(list(args.contain[:3]), "--contain θa", profile)
         b = theta_in_grid(list(args.contain[3:]), "--contain θb", profile)
@@ -204,7 +216,7 @@ def cmd_region(args: argparse.Namespace) -> int:
                 "cached_region": cached, "coverage": cov})
     if args.out is not None:
         try:
-            args.out.write_text(json.dumps(region.to_dict()) + "\n")
+            write_text_atomic(args.out, json.dumps(region.to_dict()) + "\n", BadInputError)
         except OSError as exc:
             raise BadInputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
     human = (f"{'cached P' if cached else 'new region'}: {region.halfspaces} half-spaces, "

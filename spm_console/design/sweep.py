@@ -6,9 +6,9 @@ the spec's digest and the design's index; the driver writes each row to the fold
 journal as it finishes (:mod:`spm_console.design.table`), so a stopped sweep resumes where
 it stopped. Workers hold no state between designs: when a worker dies, the scheduler runs
 its tasks again elsewhere; a design that kills its worker repeatedly (the scheduler's
-``allowed-failures``) is a row with that reason. Ctrl-C (or SIGTERM / SIGHUP) stops the
-sweep: the cluster is closed, the table is written from what is done, and the same
-command resumes.
+``allowed-failures``) is a row with that reason. Ctrl-C (or SIGTERM / SIGHUP / SIGQUIT, to
+this process or its whole group) stops the sweep: the cluster is closed, the table is written
+from what is done, and the same command resumes.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from spm_console.design.evaluate import INTERNAL_ERROR, KILLED_WORKER, DesignRow, DesignTask, evaluate
+from spm_console.design.scheduler_probe import probe_scheduler
 from spm_console.design.spec import SweepSpec
 from spm_console.design.table import Journal, SweepInfo, create_folder, read_done, write_table
 from spm_console.errors import BadInputError, ClusterLostError, InterruptedBySignalError
@@ -100,6 +101,26 @@ def _peak_rss_mb() -> float:
 
 #: The terminal's keys that signal the whole foreground process group (Ctrl-C, Ctrl-\\).
 TERMINAL_SIGNALS = {signal.SIGINT, signal.SIGQUIT}
+#: Signals to a whole process group that would kill multiprocessing's resource tracker (it
+#: ignores SIGINT and SIGTERM itself): closing the terminal, Ctrl-\\, ``kill -HUP -- -PGID``.
+TRACKER_SHIELDED = {signal.SIGHUP, signal.SIGQUIT}
+
+
+def _start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (one process, shared by this one's children:
+    the workers' semaphores are registered with it) with :data:`TRACKER_SHIELDED` blocked,
+    which it inherits and never unblocks, so that a signal to the whole group leaves it alive.
+    Killed, it was started again on the next use knowing none of the names registered before,
+    and printed a ``KeyError`` traceback for each one unregistered later. The standard library
+    blocks SIGINT and SIGTERM around the start and then unblocks them rather than restoring
+    the calling thread's mask: the mask is restored here."""
+    from multiprocessing import resource_tracker
+
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, TRACKER_SHIELDED)
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 @contextlib.contextmanager
@@ -108,11 +129,7 @@ def _terminal_signals_held() -> Iterator[None]:
     threads are made now and keep them blocked, and so does every worker process they start,
     now or when a worker is restarted: the terminal's keys reach only this process, which
     closes the cluster in order. A key pressed meanwhile is delivered when the block ends."""
-    from multiprocessing import resource_tracker
-
-    # started first: starting it unblocks SIGINT in the calling thread (the standard library
-    # blocks it around the start, then unblocks it rather than restoring the mask)
-    resource_tracker.ensure_running()
+    _start_resource_tracker()  # first: it keeps the signals its start blocks
     before = signal.pthread_sigmask(signal.SIG_BLOCK, TERMINAL_SIGNALS)
     try:
         yield
@@ -170,10 +187,12 @@ def dask_client(scheduler: str | None, workers: int | None) -> Iterator[Any]:
 
 
 def _existing(Client: Any, scheduler: str) -> Iterator[Any]:
-    """A client of an existing scheduler (BadInputError when none answers)."""
+    """A client of an existing scheduler (BadInputError when none answers, or another service
+    does: asked first, by hand, :func:`probe_scheduler`)."""
+    probe_scheduler(scheduler)
     try:
         client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
+    except (OSError, TimeoutError, ValueError, MemoryError) as exc:
         raise BadInputError(f"--scheduler {scheduler}: no Dask scheduler answered "
                             f"({exc})") from None
     try:

@@ -43,7 +43,7 @@ from spm_console.core.workspace.data import Progress, Workspace
 from spm_console.core.workspace.refine import REFINE, VERDICTS_VERSION
 from spm_console.core.workspace_build import FORMAT_VERSION
 from spm_console.errors import CacheError
-from spm_console.safe_io import atomic_temp
+from spm_console.safe_io import atomic_temp, check_path_names
 
 ENV_VAR = "SPM_CONSOLE_CACHE"
 _ARRAYS = ("axis0", "axis1", "axis2", "zeta", "min_link_mm", "closest_pair", "R", "klass",
@@ -316,6 +316,7 @@ def load_or_build(
         refined_cover = profile.workspace.refined_cover
     path = cache_path(profile, Path(cache_dir) if cache_dir is not None else None,
                       refined_cover)
+    check_path_names(path, "workspace cache", CacheError)
     if path.parent.exists() and not path.parent.is_dir():
         raise CacheError(f"workspace cache folder {path.parent} is not a folder")
     key = cache_key(profile, refined_cover)

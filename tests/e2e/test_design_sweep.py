@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +20,9 @@ from spm_console.design.spec import load_spec
 from spm_console.design.sweep import SweepProgress, run_sweep
 from spm_console.design.table import JOURNAL, load_table
 from spm_console.errors import ExitCode
+from tests.support.fake_services import tcp_service
 from tests.support.paths import ROOT
+from tests.support.terminal_helpers import wait_until
 
 AGILE = ROOT / "profiles" / "agile_wrist.toml"
 
@@ -121,6 +124,53 @@ def test_ctrl_c_while_the_cluster_starts_is_not_lost(tmp_path: Path) -> None:
     assert "Traceback" not in stderr
 
 
+@pytest.fixture
+def group_signals_default() -> Iterator[None]:
+    """SIGHUP and SIGQUIT at their defaults for the commands a test starts, even when the tests
+    run under ``nohup`` or in a shell's background (which ignore them, and the command leaves
+    an ignored signal ignored)."""
+    old = {sig: signal.signal(sig, signal.SIG_DFL) for sig in (signal.SIGHUP, signal.SIGQUIT)}
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
+@pytest.mark.slow  # a whole command with its cluster
+@pytest.mark.parametrize("sig", [signal.SIGHUP, signal.SIGQUIT], ids=["hup", "quit"])
+@pytest.mark.usefixtures("group_signals_default")
+def test_a_hangup_or_quit_to_the_group_stops_the_sweep_without_tracebacks(
+        tmp_path: Path, sig: signal.Signals) -> None:
+    """The terminal closed (SIGHUP) or Ctrl-\\ (SIGQUIT) reaches every process of the group,
+    multiprocessing's resource tracker too: it must survive them (it ignores only SIGINT and
+    SIGTERM itself), or its restart prints a KeyError traceback for each of the workers'
+    semaphores. The sweep stops with exit 130 and the group is gone."""
+    out = tmp_path / "s"
+    proc = subprocess.Popen([sys.executable, "-m", "spm_console", "design", "sweep",
+                             str(_spec(tmp_path, 10, step=5.0)), "--out", str(out), "--workers",
+                             "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    journal = out / JOURNAL
+    wait_until(lambda: journal.exists() and journal.read_text().count("\n") >= 2,
+               "two designs done", timeout_s=120, proc=proc)  # type: ignore[arg-type]
+    os.killpg(proc.pid, sig)
+    _, stderr = proc.communicate(timeout=60)  # until every process holding stderr is gone
+    assert proc.returncode == ExitCode.INTERRUPTED, stderr
+    assert f"sweep stopped by {sig.name}" in stderr and "the same command resumes" in stderr
+    for noise in ("Traceback", "KeyError", "resource_tracker"):
+        assert noise not in stderr, stderr
+    wait_until(lambda: not _group_alive(proc.pid), "the group gone", timeout_s=30)
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 def test_no_scheduler_at_the_address_is_a_refusal(tmp_path: Path,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     from spm_console.cli.main import main
@@ -130,6 +180,20 @@ def test_no_scheduler_at_the_address_is_a_refusal(tmp_path: Path,
     rc = main(["design", "sweep", str(_spec(tmp_path, 2)), "--out", str(tmp_path / "s"),
                "--scheduler", "tcp://127.0.0.1:9", "--json"])
     assert rc == ExitCode.BAD_INPUT
+
+
+@pytest.mark.slow  # a whole command
+def test_a_service_that_is_not_dask_is_refused_without_a_traceback(tmp_path: Path) -> None:
+    """A service at the address that sends garbage (a length no machine holds): refused by the
+    probe, exit 4, and no Dask client is left to fail its closing at exit."""
+    with tcp_service("huge") as port:
+        proc = subprocess.run([sys.executable, "-m", "spm_console", "design", "sweep",
+                               str(_spec(tmp_path, 2)), "--out", str(tmp_path / "s"),
+                               "--scheduler", f"tcp://127.0.0.1:{port}"],
+                              capture_output=True, text=True, timeout=120)
+    assert proc.returncode == ExitCode.BAD_INPUT, proc.stderr
+    assert "not a Dask scheduler" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "s").exists()
 
 
 

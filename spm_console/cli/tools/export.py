@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import add_common, emit, output_file, profile_of
+from spm_console.cli.common import add_common, add_force, emit, output_file, profile_of
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.safe_io import write_text_atomic
 
@@ -23,13 +23,14 @@ def register(sub: Any) -> None:
     add_common(p)
     p.add_argument("--out", type=Path, required=True, metavar="FILE",
                    help="file to write (.urdf or .xml; .xml or .mjcf)")
+    add_force(p)
     p.set_defaults(func=cmd_export)
 
 
 def cmd_export(args: argparse.Namespace) -> int:
     from spm_console.description.for_profile import robot_description
 
-    output_file(args.out, "--out", SUFFIXES[args.format])
+    output_file(args.out, "--out", SUFFIXES[args.format], replace=args.force)
     profile = profile_of(args)
     text = robot_description(profile, args.format)
     write_text_atomic(args.out, text, BadInputError)

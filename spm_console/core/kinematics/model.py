@@ -28,6 +28,11 @@ from spm_console.core.kinematics.rotations import expm_so3
 
 F = NDArray[np.float64]
 
+#: Farthest θ a continuation is asked to follow, per joint, rad (two turns: every θ the
+#: commands take lies within ±360°). Each step is at most a degree, so a target farther than
+#: this, or not finite, is refused before the first step instead of being walked for hours.
+MAX_TRACK_RAD = 4.0 * math.pi
+
 
 def platform_axes(R: F, v_home: F) -> F:
     """v_i = R v_i⁰: (..., 3, 3) rotations -> (..., 3, 3) rows v1..v3."""
@@ -184,13 +189,20 @@ class SpmModel:
 
         All rows advance together with the same number of steps (each row's step is
         its own distance over that count, ≤ ``max_step`` rad in every joint). Rows
-        whose corrector struggles are retried with 8× finer steps.
+        whose corrector struggles are retried with 8× finer steps. A row not finite, or
+        farther than :data:`MAX_TRACK_RAD` from the start in a joint, is refused unwalked.
         """
         T = np.atleast_2d(np.asarray(theta_targets, float))
         t0 = self.theta_home if theta_from is None else np.asarray(theta_from, float)
         R0 = np.eye(3) if R_from is None else np.asarray(R_from, float)
         out: list[FkResult | None] = [None] * len(T)
-        idx = np.arange(len(T))
+        with np.errstate(invalid="ignore"):
+            far = ~(np.abs(T - t0) <= MAX_TRACK_RAD).all(axis=1)  # NaN compares False
+        for k in np.flatnonzero(far):
+            out[k] = FkResult(ok=False, pose=self.pose(t0, R0), reason=(
+                f"θ = {_fmt(T[k])}° is not within {math.degrees(MAX_TRACK_RAD):g}° of the "
+                "start in every joint (or not a finite angle): not a motion to follow"))
+        idx = np.flatnonzero(~far)
         for refine in (1, 8):
             if len(idx) == 0:
                 break

@@ -24,7 +24,11 @@ the run's wall-clock start plus the sample's time):
   CDR and ``ros2 bag play`` can replay the whole file;
 * ``/robot_description`` (std_msgs/msg/String, once at the start): the URDF.
 
-A row whose read failed (no measured θ) publishes references and the model only.
+A row whose read failed (no measured θ) publishes references and the model only. A measured θ
+that is no pose of this wrist (more than :data:`LIMIT_SLACK_DEG` beyond the profile's servo
+limits: a corrupt or hand-edited log) is published on ``/spm/measured`` as logged, but gets no
+FK: no ``/joint_states``, ``/spm/platform`` or ``/tf`` for that row. That also bounds the FK's
+work: every continuation it runs stays inside the servo range.
 """
 
 from __future__ import annotations
@@ -43,7 +47,7 @@ from mcap.records import Schema
 from mcap_ros2.writer import Writer
 from numpy.typing import NDArray
 
-from spm_console.config.models import model_of
+from spm_console.config.models import model_of, servo_limits_deg
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.joint_states import joint_states
 from spm_console.core.kinematics.model import SpmModel
@@ -62,6 +66,11 @@ MCAP_NAME = "run.mcap"
 #: Longest run (rows) whose MCAP is written as it ends: 5 minutes at Ts = 20 ms, about 6 s of
 #: writing on a 2-core machine (0.4 ms per row); a longer one is deferred to ``logs export``.
 MAX_ROWS_AT_FINISH = 15_000
+
+#: How far beyond the servo limits a measured θ is still a pose of the wrist, deg: a run stopped
+#: for leaving the limits (exit 25) logs the sample that left them, up to a period's move at
+#: the MX-106's rated 270 °/s past the limit (5.4° at Ts = 20 ms), and then some.
+LIMIT_SLACK_DEG = 10.0
 
 _RULE = "=" * 80
 _TIME = "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
@@ -112,8 +121,10 @@ def _joints(ns: int, names: tuple[str, ...], pos: F, vel: F | None = None) -> di
 
 def platform_rotations(model: SpmModel, theta: F) -> F:
     """The platform's rotation at each θ row (rad, (N, 3)) by the unique FK, NaN where it has
-    none: all rows tracked from home at once; a row refused there (a singularity on the
-    straight path) is tracked from the row before it, as the wrist went."""
+    none (a row not finite has none): all rows tracked from home at once; a row refused there
+    (a singularity on the straight path) is tracked from the row before it, as the wrist went.
+    The rows should lie in the servo range (:func:`beyond_limits`): the continuation's work
+    grows with the distance it follows."""
     rots = np.full((len(theta), 3, 3), np.nan)
     ok = np.isfinite(theta).all(axis=1)
     if not ok.any():
@@ -160,11 +171,21 @@ def _seconds(x: object) -> float:
     return v if math.isfinite(v) else 0.0
 
 
-def _rows(run: RunData, model: SpmModel, t0: int) -> _Rows:
+def beyond_limits(theta_deg: F, limits_deg: tuple[F, F]) -> NDArray[np.bool_]:
+    """Rows (N, 3) whose θ is finite but more than :data:`LIMIT_SLACK_DEG` beyond the servo
+    limits (lowest, highest per joint) in some joint: no pose this wrist reached."""
+    lo, hi = limits_deg
+    with np.errstate(invalid="ignore"):
+        out = ((theta_deg < lo - LIMIT_SLACK_DEG) | (theta_deg > hi + LIMIT_SLACK_DEG)).any(1)
+    return np.asarray(out & np.isfinite(theta_deg).all(1))
+
+
+def _rows(run: RunData, model: SpmModel, limits_deg: tuple[F, F], t0: int) -> _Rows:
     rad = math.pi / 180.0
     t = run.columns.get("t", np.zeros(run.rows))
     meas = run.vec("meas") * rad
-    rots = platform_rotations(model, meas)
+    posable = np.where(beyond_limits(run.vec("meas"), limits_deg)[:, None], np.nan, meas)
+    rots = platform_rotations(model, posable)
     posed = ~np.isnan(rots[:, 0, 0])
     rots = np.where(posed[:, None, None], rots, np.eye(3))
     js = joint_states(model, np.where(posed[:, None], meas, model.theta_home), rots)
@@ -196,11 +217,24 @@ class _BagWriter(Writer):
         self.contents.add(topic, schema.name, log_time)
 
 
-def write_mcap(run: RunData, model: SpmModel, urdf: str, out: Path) -> BagContents:
+@dataclass(frozen=True)
+class McapWritten:
+    """What :func:`write_run_mcap` wrote."""
+
+    path: Path
+    messages: int
+    beyond_limits: int
+    """Rows whose measured θ lies beyond the servo limits (:func:`beyond_limits`): no pose."""
+    first_beyond: int | None
+    """The first of them, counted from 1 as the CSV's samples (None when there is none)."""
+
+
+def write_mcap(run: RunData, model: SpmModel, limits_deg: tuple[F, F], urdf: str,
+               out: Path) -> BagContents:
     """Write ``run`` as MCAP to ``out`` (replaced whole, never left half-written); what it
     holds (topics, message counts, time span)."""
     t0 = start_ns(run.meta)
-    rows = _rows(run, model, t0)
+    rows = _rows(run, model, limits_deg, t0)
     fd, tmp = atomic_temp(out)
     try:
         with os.fdopen(fd, "wb") as fh:
@@ -250,25 +284,33 @@ def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int) -> BagC
     return w.contents
 
 
-def write_bag(run_dir: Path, run: RunData, profile: Profile) -> Path:
+def write_bag(run_dir: Path, run: RunData, profile: Profile) -> BagContents:
     """Write the run folder's ``run.mcap`` and then its ``metadata.yaml``: the folder is a
-    rosbag2 bag (:mod:`spm_console.motion.logs.bag`); the MCAP's path."""
+    rosbag2 bag (:mod:`spm_console.motion.logs.bag`); what the MCAP holds."""
     out = Path(run_dir) / MCAP_NAME
-    contents = write_mcap(run, model_of(profile), robot_description(profile, "urdf"), out)
+    contents = write_mcap(run, model_of(profile), servo_limits_deg(profile),
+                          robot_description(profile, "urdf"), out)
     write_metadata(out, contents)
-    return out
+    return contents
 
 
-def write_run_mcap(run_dir: Path, profile: Profile, out: Path | None = None) -> Path:
+def write_run_mcap(run_dir: Path, profile: Profile, out: Path | None = None) -> McapWritten:
     """Write the run folder's MCAP from its files, with ``profile``'s wrist (the one the run was
     logged with): ``run.mcap`` with ``metadata.yaml`` in the folder (a rosbag2 bag), or the
     MCAP alone to ``out`` elsewhere (a bag is a folder; no ``metadata.yaml`` is put beside a
-    file of another name); the file's path."""
+    file of another name)."""
     default = Path(run_dir) / MCAP_NAME
+    run = load_run(run_dir)
+    limits = servo_limits_deg(profile)
     if out is None or Path(out).resolve() == default.resolve():
-        return write_bag(run_dir, load_run(run_dir), profile)
-    write_mcap(load_run(run_dir), model_of(profile), robot_description(profile, "urdf"), out)
-    return out
+        target, contents = default, write_bag(run_dir, run, profile)
+    else:
+        target = Path(out)
+        contents = write_mcap(run, model_of(profile), limits, robot_description(profile, "urdf"),
+                              target)
+    beyond = np.flatnonzero(beyond_limits(run.vec("meas"), limits))
+    return McapWritten(target, contents.message_count, len(beyond),
+                       int(beyond[0]) + 1 if len(beyond) else None)
 
 
 def mcap_beside(profile: Profile) -> Callable[[Path], object]:

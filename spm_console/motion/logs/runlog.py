@@ -44,7 +44,7 @@ from spm_console.jsonutil import to_jsonable
 from spm_console.motion.logs.procid import current_process, writer_alive
 from spm_console.motion.logs.run_info import RunInfo, run_info
 from spm_console.motion.sample import Sample
-from spm_console.safe_io import MB, FileRefusedError, read_capped
+from spm_console.safe_io import MB, FileRefusedError, check_path_names, read_capped
 
 F = NDArray[np.float64]
 
@@ -266,6 +266,8 @@ def resolve_run(run: str | Path, root: str | Path | None = None) -> Path:
     """A run folder from a path, a folder name under the log root, or 'last'."""
     base = logs_root(root)
     p = Path(run)
+    check_path_names(base, "run log folder", BadInputError)
+    check_path_names(p, "run", BadInputError)
     if str(run) == "last":
         runs = list_runs(root)
         if not runs:
@@ -375,6 +377,7 @@ def list_runs(root: str | Path | None = None) -> list[RunSummary]:
     the second), then by the start time in meta.json (runs started within one second, such as
     the homing and the execution of one ``execute``)."""
     base = logs_root(root)
+    check_path_names(base, "run log folder", BadInputError)
     if base.exists() and not base.is_dir():
         raise BadInputError(f"run log folder {base} is not a folder")
     if not base.is_dir():

@@ -139,8 +139,9 @@ def test_show_and_profile_of_a_sweep(write_spec: Callable[..., Path], tmp_path: 
     assert prof.workspace == load_profile(AGILE).workspace  # the base's own grid
     assert f"design {k} of" in new.read_text()
     failed = next(i for i in range(6) if i not in [d["index"] for d in best] and i % 2 == 1)
-    for args, code in ((["profile", str(out), str(failed), "--out", str(new)], ExitCode.BAD_INPUT),
-                       (["profile", str(out), "99", "--out", str(new)], ExitCode.BAD_INPUT),
+    for args, code in ((["profile", str(out), str(failed), "--out", str(new), "--force"],
+                        ExitCode.BAD_INPUT),
+                       (["profile", str(out), "99", "--out", str(new), "--force"], ExitCode.BAD_INPUT),
                        (["show", str(out), "--metric", "beauty"], ExitCode.BAD_INPUT),
                        (["show", str(tmp_path)], ExitCode.BAD_INPUT),
                        (["show", str(out), "--top", "0"], ExitCode.BAD_INPUT)):

@@ -62,7 +62,7 @@ def _run(root: Path, agile: Profile) -> Path:
 
 def test_a_run_folder(tmp_path: Path, agile: Profile, umask: int) -> None:
     run = _run(tmp_path, agile)
-    mcap = write_run_mcap(run, agile)
+    mcap = write_run_mcap(run, agile).path
     files = sorted(run.iterdir())
     assert {p.name for p in files} == {"meta.json", "samples.csv", "events.jsonl", mcap.name,
                                        "metadata.yaml"}
