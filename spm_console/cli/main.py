@@ -17,7 +17,12 @@ from spm_console.cli.streams.stdout_guard import json_stdout, out
 from spm_console.errors import ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
 from spm_console.services.warm_start import prestart
-from spm_console.system.signals import forget_signals, ignore_stop_signals, note_signal
+from spm_console.system.signals import (
+    SignalInterrupt,
+    forget_signals,
+    ignore_stop_signals,
+    note_signal,
+)
 
 #: Command name -> the module that registers it (``register(subparsers)`` setting ``func``).
 #: Only the module of the command being run is imported, so start-up stays fast (the TUI,
@@ -84,7 +89,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
 def _interrupt(signum: int, _frame: FrameType | None) -> None:
     if note_signal(signal.Signals(signum)):  # the first decides; a second changes nothing
-        raise KeyboardInterrupt(signal.Signals(signum).name)
+        raise SignalInterrupt(signal.Signals(signum).name)
 
 
 def _interrupt_on_signals() -> None:

@@ -93,7 +93,7 @@ from spm_console.scripting.steps import (
 from spm_console.services.kin_record import FkRecord
 from spm_console.services.session import PoseSpec, Session
 from spm_console.store.target_file import read_target_csv, timed_targets
-from spm_console.system.signals import stop_signals
+from spm_console.system.signals import SignalInterrupt, stop_signals
 
 
 def _pose(p: PoseIn) -> PoseSpec:
@@ -151,7 +151,7 @@ class ScriptRunner:
         """
         self._interrupted = True
         if not self.session.estop(f"signal {sig.name}", by_signal=True) and self._in_step:
-            raise KeyboardInterrupt
+            raise SignalInterrupt(sig.name)
 
     def run(self) -> int:
         steps = self.script.step

@@ -36,6 +36,16 @@ STOP_SIGNALS: tuple[signal.Signals, ...] = (
 
 StopCallback = Callable[[signal.Signals], None]
 
+
+class SignalInterrupt(KeyboardInterrupt):
+    """What a terminating signal raises in the code it interrupts (its argument: the signal's
+    name). A subclass, so every ``except KeyboardInterrupt`` takes it, but not
+    KeyboardInterrupt itself: CPython notes a KeyboardInterrupt that leaves code run by
+    ``exec`` of a string (dataclasses build their methods so, as modules load) even when a
+    caller catches it, and ``python -m`` then ends by SIGINT whatever its exit code was; it
+    compares the exception's exact type."""
+
+
 _received: list[signal.Signals] = []
 """The terminating signals this process received since :func:`forget_signals`, in order."""
 

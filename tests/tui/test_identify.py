@@ -3,7 +3,7 @@ asked first, then run like any motion (E-stop banner, logged), the model fitted 
 identified profile written beside the profile in use (the plot into the run's folder). The
 whole result is shown, its path whole at 80×24, and "Use the identified servo model now?":
 yes restarts the console on the identified profile with the workspace kept (not loaded or
-built again) and no plan."""
+built again) and no plan; there the operator plans and executes at 80×24 without leaving it."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import re
 from pathlib import Path
 
 import pytest
+from textual.widgets import Input
 
 from spm_console.cli.tui import console_factory
 from spm_console.config.load import load_profile
@@ -106,4 +107,18 @@ async def test_identify_then_use_the_identified_model_with_the_workspace_kept(
         await pilot.press("3")
         await settle(pilot)
         assert "workspace ready" in status_of(second), status_of(second)
+        await pilot.press("4")  # plan on the identified model, by keys, at 80×24
+        await pilot.pause()
+        await pilot.press("tab")
+        steps = second.screen.query_one("#steps", Input)
+        steps.focus()
+        steps.value = ""
+        await pilot.press(*"60", "enter")
+        await settle(pilot)
+        plan = s.plan
+        assert plan is not None and plan.N == 60, status_of(second)
+        await pilot.press("escape", "5", "x", "y")  # and execute it
+        await settle(pilot)
+        res = s.last_run
+        assert res is not None and res.ok, status_of(second)
     assert cached.stat().st_mtime_ns == cached_at  # the cached workspace was not rebuilt
