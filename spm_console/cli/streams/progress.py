@@ -12,6 +12,7 @@ summary. Degrees, seconds.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 import threading
@@ -33,6 +34,40 @@ from spm_console.motion.sample import Sample
 #: What a sample's phase is shown as.
 PHASE_WORDS = {"homing": "homing", "approach": "approach", "plan": "plan",
                "follow": "following"}
+
+
+class _VanishingTerminal:
+    """The terminal's stream as the display writes it: the terminal may close under a running
+    command (SIGHUP; writes then fail with EIO), and a display must never turn the run's
+    outcome into an error. From the first failed write on, nothing more is written."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self._stream = stream
+        self.gone = False
+
+    def write(self, text: str) -> int:
+        if not self.gone:
+            try:
+                self._stream.write(text)
+            except (OSError, ValueError):
+                self.gone = True
+        return len(text)
+
+    def flush(self) -> None:
+        if not self.gone:
+            try:
+                self._stream.flush()
+            except (OSError, ValueError):
+                self.gone = True
+
+    def isatty(self) -> bool:
+        try:
+            return not self.gone and self._stream.isatty()
+        except (OSError, ValueError):
+            return False
+
+    def __getattr__(self, name: str) -> object:  # fileno, encoding, …: the stream's own
+        return getattr(self._stream, name)
 
 
 def wanted(stream: TextIO, quiet: bool, as_json: bool) -> bool:
@@ -62,7 +97,8 @@ class RunProgress:
         self._task: TaskID | None = None
         self._phase = ""
         if enabled:
-            console = Console(file=stream or sys.stderr, stderr=stream is None)
+            self._out = _VanishingTerminal(stream or sys.stderr)
+            console = Console(file=self._out)  # type: ignore[arg-type]  # a text stream
             self._progress = Progress(
                 TextColumn("{task.description:<10}"), BarColumn(bar_width=24),
                 TextColumn("{task.percentage:>3.0f}%"), TimeElapsedColumn(),
@@ -79,7 +115,8 @@ class RunProgress:
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         if self._progress is not None:
-            self._progress.stop()
+            with contextlib.suppress(OSError, ValueError):  # the terminal is gone: nothing to clear
+                self._progress.stop()
 
     def phase(self, words: str) -> None:
         """A phase without a known duration (starting, verifying the plan)."""
