@@ -51,7 +51,7 @@ def test_parse_fault(text: str, spec: FaultSpec) -> None:
 @pytest.mark.parametrize(("text", "why"), [
     ("", "empty"), ("explode@1", "unknown kind"), ("stall@1", "needs an argument"),
     ("stall:4", "joint"), ("stall:1.5", "joint"), ("drop:1.5", "rate"), ("drop:0", "rate"),
-    ("drop:x", "not a number"), ("unplug:3", "no argument"), ("unplug@-1", "≥ 0"),
+    ("drop:x", "not a decimal number"), ("unplug:3", "no argument"), ("unplug@-1", "≥ 0"),
     ("delay:0", "delay"), ("unplug@nan", "finite"), ("hwerror:0@1", "joint"),
 ])
 def test_parse_fault_refuses_bad_text(text: str, why: str) -> None:

@@ -97,3 +97,29 @@ def test_the_emulated_wrist_tells_its_owner_when_two_legs_meet(agile: Profile) -
         assert (0, 2) in legs and all(h["distance_mm"] < 0 for h in hits)
         assert {"DE", "EF"} & {s for h in hits for s in h["segments"]}
         np.testing.assert_allclose(hits[0]["theta_deg"], start, atol=0.5)
+
+
+def test_the_physical_wrist_powers_on_once_it_is_built(agile: Profile,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """Building the wrist (MuJoCo's model, the assembly) takes a tenth of a second or more; the
+    servos' clock starts after it, so the serving thread never begins behind, integrating that
+    time before it answers (its first reply came a quarter of a second late, longer than a
+    client's patience with a servo that has just been powered on)."""
+    from spm_console.devices.emulator import bus as emulator_bus
+
+    built: list[float] = []
+    build = emulator_bus._physical_wrist
+
+    def timed(*args: object) -> object:
+        wrist = build(*args)  # type: ignore[arg-type]
+        built.append(time.perf_counter())
+        return wrist
+
+    monkeypatch.setattr(emulator_bus, "_physical_wrist", timed)
+    physical = agile.model_copy(update={"plant": Plant(model="physical")})
+    em = emulator_bus.start_emulator(physical, record=False)
+    try:
+        assert em.wrist is not None and built
+        assert min(s.t for s in em.servos) >= built[0] and em.wrist.t >= built[0]
+    finally:
+        em.stop()

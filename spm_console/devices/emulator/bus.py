@@ -88,11 +88,16 @@ class EmulatorHandle:
         theta0 = list(initial_deg) if initial_deg is not None else list(profile.home.theta_deg)
         if len(theta0) != 3:
             raise BusError("initial_deg: expected three joint angles")
-        now = time.perf_counter()
         rng = np.random.default_rng(profile.emulator.seed)
         tpd = profile.bus.ticks_per_turn / 360.0
-        self.wrist = _physical_wrist(profile, theta0, now)
+        self.wrist = _physical_wrist(profile, theta0)
         """The rigid-body wrist the servos drive (``[plant] model = "physical"``), or None."""
+        # the servos power on once the wrist is built (MuJoCo's model and the assembly take a
+        # tenth of a second or more): the serving thread never starts behind, integrating
+        # that time before its first reply
+        now = time.perf_counter()
+        if self.wrist is not None:
+            self.wrist.t = now
         self.servos = [
             EmulatedServo(table, m.id, servo_model_of(profile).dynamics, m.to_ticks(theta0[i]), now,
                           profile.emulator.noise_deg * tpd, rng, profile.bus.ticks_per_turn,
@@ -301,8 +306,9 @@ class EmulatorHandle:
             channel.write(raw)
 
 
-def _physical_wrist(profile: Profile, theta0_deg: Sequence[float], now: float) -> PhysicalWrist | None:
-    """The physical wrist at rest at θ0 (deg), its clock at ``now``; None for ideal servos."""
+def _physical_wrist(profile: Profile, theta0_deg: Sequence[float]) -> PhysicalWrist | None:
+    """The physical wrist at rest at θ0 (deg) (its clock set by the caller); None for ideal
+    servos."""
     if profile.plant.model != "physical":
         return None
     from spm_console.devices.emulator.physical import PhysicalWrist  # loads MuJoCo
@@ -310,7 +316,6 @@ def _physical_wrist(profile: Profile, theta0_deg: Sequence[float], now: float) -
     wrist = PhysicalWrist(model_of(profile), plant_params(profile.plant), profile.bus.ticks_per_turn,
                           link_model_of(profile))
     wrist.set_theta(np.radians(np.asarray(theta0_deg, float)))
-    wrist.t = now
     return wrist
 
 
