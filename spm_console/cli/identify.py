@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from spm_console.cli.common import PLOT_SUFFIXES, add_force, emit, info, output_file, profile_of
-from spm_console.cli.run import _bus_opts, _report, _request
+from spm_console.cli.run import _bus_opts, _report, _request, with_progress
 from spm_console.config.checks import PTS_MAX, PTS_MIN
 from spm_console.config.models import servo_limits_deg
 from spm_console.config.schema import Profile, Servo
@@ -268,7 +268,9 @@ def _experiment(args: argparse.Namespace, profile: Profile) -> int:
     if args.delay or args.damping or args.load:
         raise BadInputError("--delay, --damping and --load go with --run/--csv (the experiment "
                             "fits all three)")
-    run = experiment_once(profile, _request(args, profile))
+    req = _request(args, profile)
+    with with_progress(args, req):
+        run = experiment_once(profile, req)
     extra: dict[str, Any] = {"experiment": {"motion_s": run.excitation.duration_s,
                                             "step_deg": run.excitation.step_deg,
                                             "speed_degps": run.excitation.speed_degps}}

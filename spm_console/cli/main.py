@@ -143,7 +143,9 @@ MOVING_COMMANDS = frozenset({"execute", "home", "follow", "script", "tui"})
 
 def _main(args_list: list[str]) -> int:
     as_json = _wants_json(args_list)
-    if args_list[:1] and args_list[0] in MOVING_COMMANDS and "--help" not in args_list:
+    moving = args_list[:1] and (args_list[0] in MOVING_COMMANDS or (
+        args_list[0] == "identify" and "--experiment" in args_list))
+    if moving and "--help" not in args_list:
         prestart()  # its imports overlap this process's own (the command's module, the profile)
     try:
         parser = build_parser(args_list[0] if args_list else None)

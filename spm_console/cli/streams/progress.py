@@ -1,8 +1,8 @@
 """What a moving command is doing, on standard error while it runs (an operator's terminal).
 
-``execute``, ``home`` and ``follow`` take seconds before and while the wrist moves; on a
-terminal they show the phase (starting, verifying, homing, approach, plan, following), a bar
-over the motion's planned duration, the time elapsed since the command started, the time left
+``execute``, ``home``, ``follow`` and ``identify --experiment`` take seconds before and while
+the wrist moves; on a terminal they show the phase (starting, verifying, homing, approach,
+plan, following), a bar over the motion's planned duration, the time elapsed since the command started, the time left
 of the motion under way, and the live tracking error (measured θ against the servo model, the
 safety check's quantity). Drawn with rich's live progress on standard error only, and only
 when it is a terminal: standard output, a ``--json`` answer, a redirected standard error and
