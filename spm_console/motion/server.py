@@ -41,6 +41,7 @@ from spm_console.errors import RefusedError, SpmError
 from spm_console.motion import servo_tools
 from spm_console.motion.executor import Executor
 from spm_console.motion.follow.target_feed import TargetFeed
+from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import (
     Close,
     EndFollow,
@@ -253,7 +254,7 @@ class _Server:
     def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot | Query | Verify) -> None:
         try:
             if isinstance(req, Verify):  # moves nothing: answered here, the loop is idle
-                value: object = verify_before_motion(self.profile, self.workspace, req.plan)
+                value: object = self.verify(req)
             elif isinstance(req, ReadPosition):
                 value = read_position_checked(self.bus, 3)
             elif isinstance(req, Ping):
@@ -267,6 +268,16 @@ class _Server:
             self.send(self.refused(req.id, exc))
         except Exception as exc:  # a bug: say so, keep serving (no motion runs)
             self.send(Failed(req.id, f"internal error in the motion process: {exc!r}", 1))
+
+    def verify(self, req: Verify) -> PlanCheck:
+        """The plan verified as an execution will verify it. At normal priority: the workspace
+        may be loaded or built first (seconds of CPU), which this real-time thread must not
+        take from the emulated servos or the front end."""
+        normal_priority()
+        try:
+            return verify_before_motion(self.profile, self.workspace, req.plan)
+        finally:
+            request_realtime(HELPER_PRIORITY)
 
     def servo_tool(self, req: Status | Torque | Reboot) -> servo_tools.ServoHealth:
         """Torque per joint or a reboot (if asked), then every joint's health (ServoHealth).

@@ -33,11 +33,15 @@ class ConfirmScreen(ModalScreen[bool]):
     def compose(self) -> ComposeResult:
         with Vertical(id="confirm-box"):
             yield Static(self._title, id="confirm-title", markup=False)
-            yield Static(self._body, id="confirm-body", markup=False)
+            yield from self.compose_body()
             with Horizontal(id="confirm-buttons"):
                 yield Button(self._yes, id="yes", variant="warning")
                 yield Button(self._no, id="no", variant="primary")
         yield ConsoleFooter()
+
+    def compose_body(self) -> ComposeResult:
+        """The question's text, between the title and the buttons."""
+        yield Static(self._body, id="confirm-body", markup=False)
 
     def on_mount(self) -> None:
         self.query_one("#no", Button).focus()
@@ -84,15 +88,10 @@ class LongConfirm(ConfirmScreen):
         Binding("home", "scroll_body('home')", "Scroll", show=False),
         Binding("end", "scroll_body('end')", "Scroll", show=False),
     ]
-    def compose(self) -> ComposeResult:
-        with Vertical(id="confirm-box"):
-            yield Static(self._title, id="confirm-title", markup=False)
-            with VerticalScroll(id="confirm-scroll"):
-                yield Static(self._body, id="confirm-body", markup=False)
-            with Horizontal(id="confirm-buttons"):
-                yield Button(self._yes, id="yes", variant="warning")
-                yield Button(self._no, id="no", variant="primary")
-        yield ConsoleFooter()
+
+    def compose_body(self) -> ComposeResult:
+        with VerticalScroll(id="confirm-scroll"):
+            yield Static(self._body, id="confirm-body", markup=False)
 
     def on_mount(self) -> None:
         super().on_mount()
