@@ -43,6 +43,9 @@ def _no_process_no_terminal(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
         real_init(self, args, *a, **k)
 
     monkeypatch.setattr(forked, "fork_useful", lambda: False)
+    # a moving command starts the motion process's warm start as it begins; the tests here
+    # call such commands only for what they refuse before any process would serve them
+    monkeypatch.setenv("SPM_CONSOLE_WARM_START", "0")
     monkeypatch.setattr(subprocess.Popen, "__init__", popen)
     monkeypatch.setattr(os, "fork", _refuse("a fork"))
     monkeypatch.setattr(os, "openpty", _refuse("a pseudo-terminal"))
