@@ -95,7 +95,6 @@ class RunProgress:
         self._lock = threading.Lock()
         self._progress: Progress | None = None
         self._task: TaskID | None = None
-        self._phase = ""
         if enabled:
             self._out = _VanishingTerminal(stream or sys.stderr)
             console = Console(file=self._out)  # type: ignore[arg-type]  # a text stream
@@ -123,7 +122,6 @@ class RunProgress:
         if self._progress is None or self._task is None:
             return
         with self._lock:
-            self._phase = words
             self._progress.update(self._task, description=words, total=None, completed=0,
                                   left="", err="")
 
@@ -139,7 +137,5 @@ class RunProgress:
         done = min(max(sample.t, 0.0), total)
         left = f"{total - done:4.1f} s left" if total else ""
         with self._lock:
-            if words != self._phase:
-                self._phase = words
             self._progress.update(self._task, description=words, completed=done,
                                   total=total or None, left=left, err=shown)
