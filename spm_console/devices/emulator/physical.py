@@ -177,6 +177,8 @@ class PhysicalWrist:
         self.params = params or plant_params(Plant())
         self.spm = model
         self.mj = mujoco.MjModel.from_xml_string(wrist_mjcf(model, self.params, links))
+        if self.mj.nu != 3:
+            raise ValueError(f"the wrist's model has {self.mj.nu} actuators, not 3")
         self.contacts = LegContacts(self.mj, links)
         """The legs' collision envelopes (none without a link model)."""
         self.data = mujoco.MjData(self.mj)
@@ -301,27 +303,51 @@ class PhysicalWrist:
         return np.asarray(self.data.xmat[self.mj.body(names.PLATFORM).id].reshape(3, 3), float)
 
     def advance(self, t: float) -> None:
-        """Step the wrist to time ``t`` (s), the drives sampled every step."""
+        """Step the wrist to time ``t`` (s), the drives sampled every step.
+
+        The inner loop works on Python floats read once per step (``tolist``): MuJoCo's step
+        takes about 15 µs here, and NumPy's per-element indexing and rounding of its scalars
+        took five times that, so the emulated servos answered late under load."""
         dt = self.params.timestep_s
+        if self.t + dt > t + 1e-12:
+            return
+        mj, data = self.mj, self.data
+        qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
+        out_q, motor_q, motor_dof = self._joint, self._motor_q, self._motor_dof
+        # the angle the drive turns: the rotor's with a gear play, else the output's
+        drive_q = motor_q if motor_q else out_q
+        home = [float(x) for x in self.spm.theta_home]
+        goal = [float(x) * self.ticks_per_rad for x in self.goal]
+        tpr = self.ticks_per_rad
+        drives, enabled, blocked = self.drives, self.enabled, self.blocked
+        duty = [0.0, 0.0, 0.0]
+        torque = [0.0, 0.0, 0.0]
+        strain = [float(x) for x in self.strain_s]
         while self.t + dt <= t + 1e-12:
-            th = self.theta()
-            om = self.motor_omega()
-            phi = self.motor_angle()
-            for i, d in enumerate(self.drives):
-                torque = 0.0
-                self.duty[i] = 0.0
-                if self.enabled[i]:
-                    present = round(th[i] * self.ticks_per_rad)
-                    self.duty[i] = d.duty(self.goal[i] * self.ticks_per_rad, present)
-                    torque = d.torque(float(self.duty[i]), om[i])
-                lock = self.blocked[i]
+            qp = qpos.tolist()
+            qv = qvel.tolist()
+            om = [qv[k] for k in motor_dof]
+            for i in range(3):
+                tau = 0.0
+                du = 0.0
+                if enabled[i]:
+                    q = qp[out_q[i]] + qp[motor_q[i]] if motor_q else qp[out_q[i]]
+                    present = round((home[i] + q) * tpr)
+                    du = drives[i].duty(goal[i], present)
+                    tau = drives[i].torque(du, om[i])
+                lock = blocked[i]
                 if lock is not None:  # a blocked shaft: a stiff, damped stop where it stuck
-                    torque += -BLOCK_STIFFNESS * (phi[i] - lock) - BLOCK_DAMPING * om[i]
-                self.data.ctrl[i] = torque
-            mujoco.mj_step(self.mj, self.data)
+                    tau += -BLOCK_STIFFNESS * (qp[drive_q[i]] - lock) - BLOCK_DAMPING * om[i]
+                duty[i] = du
+                torque[i] = tau
+            ctrl[:] = torque
+            mujoco.mj_step(mj, data)
             self.t += dt
-            straining = (np.abs(self.duty) >= OVERLOAD_DUTY) & (np.abs(om) < OVERLOAD_RAD_S)
-            self.strain_s = np.where(straining, self.strain_s + dt, 0.0)
+            for i in range(3):
+                straining = abs(duty[i]) >= OVERLOAD_DUTY and abs(om[i]) < OVERLOAD_RAD_S
+                strain[i] = strain[i] + dt if straining else 0.0
             if self.t >= self._next_contact_check:
                 self._next_contact_check = self.t + CONTACT_CHECK_S
                 self.contacts.check(self.data, self.t, self.theta())
+        self.duty = np.array(duty)
+        self.strain_s = np.array(strain)
