@@ -29,7 +29,8 @@ F = NDArray[np.float64]
 
 def geometry_of(profile: Profile) -> SpmGeometry:
     g = profile.geometry
-    return SpmGeometry.from_degrees(g.alpha1_deg, g.alpha2_deg, g.beta_deg, g.gamma_deg, g.eta_deg)
+    return SpmGeometry.from_degrees(g.alpha1_deg, g.alpha2_deg, g.beta_deg, g.gamma_deg, g.eta_deg,
+                                    g.alpha1_leg_offset_deg, g.alpha2_leg_offset_deg)
 
 
 @functools.lru_cache(maxsize=16)

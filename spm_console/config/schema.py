@@ -18,7 +18,7 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
@@ -40,6 +40,13 @@ class Meta(Section):
     """Free text: what the prototype is and where its numbers come from."""
 
 
+#: Largest per-leg deviation of a link arc from the nominal one, deg (a wrist built that far
+#: off is another design, not a tolerance).
+MAX_LEG_OFFSET_DEG = 5.0
+LegOffset = Annotated[Real, Field(ge=-MAX_LEG_OFFSET_DEG, le=MAX_LEG_OFFSET_DEG)]
+LegOffsets = tuple[LegOffset, LegOffset, LegOffset]
+
+
 class Geometry(Section):
     """SPM geometry (paper Sec. II): link arcs and pyramid angles, degrees."""
 
@@ -53,6 +60,11 @@ class Geometry(Section):
     """Base pyramid angle γ (angle between −u_i and the z axis), 0 ≤ γ < 90; 0 = coaxial shafts."""
     eta_deg: Vec3 = (0.0, 120.0, 240.0)
     """Azimuth η_i of each leg's base axis, eq. (1); each finite, within ±360."""
+    alpha1_leg_offset_deg: LegOffsets = (0.0, 0.0, 0.0)
+    """Per-leg deviation of each proximal arc from ``alpha1_deg`` as built (commissioning
+    fits it), each within ±5°: leg i's arc is α1 + offset[i]."""
+    alpha2_leg_offset_deg: LegOffsets = (0.0, 0.0, 0.0)
+    """Per-leg deviation of each distal arc from ``alpha2_deg`` as built, each within ±5°."""
 
 
 class Home(Section):
@@ -340,13 +352,14 @@ class Profile(Section):
 
     def digest(self) -> str:
         """SHA-256 of the canonical JSON of every field (the profile's hash)."""
-        blob = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        blob = json.dumps(_digested(self.model_dump(mode="json")), sort_keys=True,
+                          separators=(",", ":"))
         return hashlib.sha256(blob.encode()).hexdigest()
 
     def section_digest(self, *sections: str) -> str:
         """SHA-256 over the named sections only (for cache keys)."""
-        data = {s: getattr(self, s).model_dump(mode="json", exclude=_NOT_DIGESTED.get(s))
-                for s in sections}
+        data = _digested({s: getattr(self, s).model_dump(mode="json", exclude=_NOT_DIGESTED.get(s))
+                          for s in sections})
         blob = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -356,3 +369,21 @@ class Profile(Section):
 #: workspace cache key adds ``refined_cover`` itself, and the runtime verifies every plan
 #: against its own certified set whatever cover planned it).
 _NOT_DIGESTED: dict[str, set[str]] = {"workspace": {"refined_cover"}}
+#: Keys added after profiles were hashed, digested only when not at their default (a profile
+#: that does not use them keeps its hash, and its caches and plans stay valid).
+_DIGESTED_UNLESS_DEFAULT: dict[str, dict[str, object]] = {
+    "geometry": {"alpha1_leg_offset_deg": [0.0, 0.0, 0.0],
+                 "alpha2_leg_offset_deg": [0.0, 0.0, 0.0]},
+}
+
+
+def _digested(dump: dict[str, object]) -> dict[str, object]:
+    """``dump`` (sections by name) without the keys of :data:`_DIGESTED_UNLESS_DEFAULT` that
+    hold their default."""
+    out = dict(dump)
+    for section, defaults in _DIGESTED_UNLESS_DEFAULT.items():
+        body = out.get(section)
+        if isinstance(body, dict):
+            out[section] = {k: v for k, v in body.items()
+                            if not (k in defaults and v == defaults[k])}
+    return out

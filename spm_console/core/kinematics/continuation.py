@@ -186,7 +186,7 @@ class Kernel:
         self.P, self.Q, self.S = P.tolist(), Q.tolist(), S.tolist()
         self.u = np.asarray(model.u, float).tolist()
         self.vh = np.asarray(model.v_home, float).tolist()
-        self.cos_a2 = float(model.geom.cos_alpha2)
+        self.cos_a2 = np.asarray(model.geom.cos_alpha2, float).tolist()
         self.det_sign = float(model.det_j1_sign)
         self.signs = np.asarray(model.working_signs, float).tolist()
 
@@ -215,7 +215,7 @@ class Kernel:
         return out
 
     def _residual(self, v: list[Vec], w: list[Vec]) -> tuple[Vec, F]:
-        f = [_dot(w[i], v[i]) - self.cos_a2 for i in range(3)]
+        f = [_dot(w[i], v[i]) - self.cos_a2[i] for i in range(3)]
         return f, np.maximum(np.maximum(np.abs(f[0]), np.abs(f[1])), np.abs(f[2]))
 
     def newton(self, w: list[Vec], R: Mat) -> tuple[Mat, F]:

@@ -29,6 +29,11 @@ class SpmGeometry:
     """Base pyramid angle γ, rad."""
     eta: tuple[float, float, float]
     """Leg azimuths η_i, rad."""
+    d_alpha1: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Per-leg deviation of the proximal arc from α1 (a wrist as built), rad: leg i's arc is
+    α1 + d_alpha1[i]. Zero for the paper's symmetric SPM."""
+    d_alpha2: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Per-leg deviation of the distal arc from α2, rad (leg i's: α2 + d_alpha2[i])."""
 
     @classmethod
     def from_degrees(
@@ -38,11 +43,15 @@ class SpmGeometry:
         beta_deg: float,
         gamma_deg: float,
         eta_deg: tuple[float, float, float] = (0.0, 120.0, 240.0),
+        d_alpha1_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        d_alpha2_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
     ) -> SpmGeometry:
         r = math.radians
         return cls(
             r(alpha1_deg), r(alpha2_deg), r(beta_deg), r(gamma_deg),
             (r(eta_deg[0]), r(eta_deg[1]), r(eta_deg[2])),
+            (r(d_alpha1_deg[0]), r(d_alpha1_deg[1]), r(d_alpha1_deg[2])),
+            (r(d_alpha2_deg[0]), r(d_alpha2_deg[1]), r(d_alpha2_deg[2])),
         )
 
     @property
@@ -51,8 +60,24 @@ class SpmGeometry:
         return 2.0 * math.asin(math.sin(self.beta) * math.cos(math.pi / 6.0))
 
     @property
-    def cos_alpha2(self) -> float:
-        return math.cos(self.alpha2)
+    def symmetric(self) -> bool:
+        """Whether the three legs' arcs are equal (no per-leg deviation)."""
+        return not any(self.d_alpha1) and not any(self.d_alpha2)
+
+    @property
+    def alpha1_legs(self) -> F:
+        """Each leg's proximal arc, rad: (3,)."""
+        return np.array([self.alpha1 + d for d in self.d_alpha1])
+
+    @property
+    def alpha2_legs(self) -> F:
+        """Each leg's distal arc, rad: (3,)."""
+        return np.array([self.alpha2 + d for d in self.d_alpha2])
+
+    @property
+    def cos_alpha2(self) -> F:
+        """cos of each leg's distal arc: (3,), broadcast over the legs' axis of (4)."""
+        return np.array([math.cos(self.alpha2 + d) for d in self.d_alpha2])
 
     @property
     def cos_alpha3(self) -> float:
@@ -70,9 +95,11 @@ class SpmGeometry:
         e = np.asarray(self.eta)
         se, ce = np.sin(e), np.cos(e)
         sg, cg = math.sin(self.gamma), math.cos(self.gamma)
-        sa, ca = math.sin(self.alpha1), math.cos(self.alpha1)
-        P = np.stack([se * sg * ca, ce * sg * ca, -cg * ca * np.ones(3)], -1)
-        Q = np.stack([se * cg * sa, ce * cg * sa, sg * sa * np.ones(3)], -1)
+        # each leg's arc (math.sin per leg: the symmetric wrist's figures are unchanged)
+        sa = np.array([math.sin(self.alpha1 + d) for d in self.d_alpha1])
+        ca = np.array([math.cos(self.alpha1 + d) for d in self.d_alpha1])
+        P = np.stack([se * sg * ca, ce * sg * ca, -cg * ca], -1)
+        Q = np.stack([se * cg * sa, ce * cg * sa, sg * sa], -1)
         S = np.stack([-ce * sa, se * sa, np.zeros(3)], -1)
         return P, Q, S
 
