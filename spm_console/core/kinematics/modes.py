@@ -141,7 +141,7 @@ def home_model(geom: SpmGeometry, theta_home_rad: F, sign_seed: F) -> SpmModel:
     )
 
 
-def _seeded_equations(geom: SpmGeometry, theta: F) -> tuple[F, float, float]:
+def _seeded_equations(geom: SpmGeometry, theta: F) -> tuple[F, F, float]:
     return geom.w(np.asarray(theta, float)), geom.cos_alpha2, geom.cos_alpha3
 
 
