@@ -103,6 +103,19 @@ class Verify:
 
 
 @dataclass(frozen=True)
+class Nudge:
+    """Commissioning: move servos by id to small offsets from their rest (deg of their own
+    counting, each within :data:`~spm_console.motion.nudge.BALL_DEG`), slowly and with their
+    effort limited, the others holding (:mod:`~spm_console.motion.nudge`); reply:
+    NudgeResult. ``release``: end the nudging instead (torque off, PWM Limits restored)."""
+
+    id: int
+    moves: tuple[tuple[int, float], ...] = ()
+    speed_degps: float = 2.0
+    release: bool = False
+
+
+@dataclass(frozen=True)
 class Follow:
     """Follow targets live (:mod:`~spm_console.motion.follow.loop`): a timed list, or live
     targets sent with :class:`SetTarget` from ``initial_deg`` on; reply: FollowOutcome."""
@@ -152,7 +165,7 @@ class Close:
 
 
 Request = (Ping | ReadPosition | Status | Torque | Reboot | Query | Home | Execute | Verify | Follow
-           | SetTarget | EndFollow | EStop | Heartbeat | Close)
+           | Nudge | SetTarget | EndFollow | EStop | Heartbeat | Close)
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,7 @@ from spm_console.errors import RefusedError, SpmError
 from spm_console.motion import servo_tools
 from spm_console.motion.executor import Executor
 from spm_console.motion.follow.target_feed import TargetFeed
+from spm_console.motion.nudge import NudgeState, release, run_nudge
 from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import (
     Close,
@@ -51,6 +52,7 @@ from spm_console.motion.protocol import (
     Follow,
     Heartbeat,
     Home,
+    Nudge,
     Ping,
     Query,
     ReadPosition,
@@ -203,6 +205,8 @@ class _Server:
         """Terminating signals to this process not yet acted on (left by its handler)."""
         self.feed: TargetFeed | None = None
         """The target feed of the following under way (None otherwise)."""
+        self.nudging = NudgeState()
+        """Commissioning's nudges: each servo's rest and saved PWM Limit."""
 
     def send(self, msg: object) -> None:
         if isinstance(msg, (Reply, Failed)):  # every answer says whether the wrist is homed
@@ -244,6 +248,16 @@ class _Server:
             self.busy.set()
             self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
                                            name="spm-motion")
+            self.motion.start()
+        elif isinstance(req, Nudge):
+            if self.moving():
+                self.send(self.refused(req.id, RefusedError(Refusal.MOVING)))
+                return
+            self.homed = False  # the wrist leaves where homing put it (or it never was)
+            self.last_heartbeat = time.monotonic()
+            self.busy.set()
+            self.motion = threading.Thread(target=self._nudge, args=(req,), daemon=True,
+                                           name="spm-nudge")
             self.motion.start()
         elif isinstance(req, (Ping, ReadPosition, Status, Torque, Reboot, Query, Verify)):
             if self.moving():  # the loop owns every bus cycle while the wrist moves
@@ -359,6 +373,27 @@ class _Server:
             out.close()
             self.executor = None
             self.feed = None
+            self.pending_estop, self.pending_clock, self.pending_by_signal = "", None, False
+            self.busy.clear()
+        self.send(result)
+
+    def _nudge(self, req: Nudge) -> None:
+        """A commissioning nudge (or its release) in the motion thread: E-stops reach it."""
+        result: Reply | Failed
+        try:
+            if req.release:
+                release(self.bus, self.nudging)
+                result = Reply(req.id, None)
+            else:
+                result = Reply(req.id, run_nudge(self.bus, self.nudging, req.moves,
+                                                 req.speed_degps, lambda: self.pending_estop))
+        except SpmError as exc:
+            result = self.refused(req.id, exc)
+        except Exception as exc:  # a bug: hold where the servos are if the bus answers
+            with contextlib.suppress(Exception):
+                self.bus.hold()
+            result = Failed(req.id, f"internal error in the motion process: {exc!r}", 1)
+        finally:
             self.pending_estop, self.pending_clock, self.pending_by_signal = "", None, False
             self.busy.clear()
         self.send(result)

@@ -24,6 +24,7 @@ from typing import Any
 from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.errors import MotionProcessLostError, SpmError, error_for
+from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import (
     Close,
@@ -34,6 +35,7 @@ from spm_console.motion.protocol import (
     Follow,
     Heartbeat,
     Home,
+    Nudge,
     Ping,
     Query,
     ReadPosition,
@@ -225,6 +227,17 @@ class MotionClient:
         check = self._call(lambda i: Verify(i, plan), VERIFY_TIMEOUT_S)
         assert isinstance(check, PlanCheck)
         return check
+
+    def nudge(self, moves: tuple[tuple[int, float], ...], speed_degps: float) -> NudgeResult:
+        """Commissioning: servos by id to small offsets from their rest (deg), the others
+        holding (:mod:`~spm_console.motion.nudge`); E-stops reach it."""
+        result = self._motion(lambda i: Nudge(i, moves, speed_degps), None)
+        assert isinstance(result, NudgeResult)
+        return result
+
+    def end_nudging(self) -> None:
+        """Torque off and the servos' PWM Limits restored after commissioning's nudges."""
+        self._motion(lambda i: Nudge(i, release=True), None)
 
     def query(self, q: Any) -> Any:
         """A bus diagnostic by servo id (BusQuery -> BusReport); refused while moving."""

@@ -1,0 +1,163 @@
+"""Small, slow, effort-limited moves of a wrist not yet commissioned (run by the motion
+process that owns the bus, like every motion).
+
+While the servos' legs, directions and horn offsets are unknown nothing may be planned: the
+profile's tick map may be off by tens of degrees. What is allowed is this: each servo, by id,
+moved to at most :data:`BALL_DEG` from where it rested when the first nudge began (its *rest*,
+read here, never taken from the client), at most :data:`MAX_SPEED_DEGPS`, with its PWM Limit
+lowered to :data:`PWM_LIMIT` (an EEPROM register: written with torque off; Position Control
+mode's effort bound). Every cycle the commanded and present positions are compared; a servo
+that does not follow (stalled, blocked, reversed against another leg) stops the nudge where it
+is, holding. Ticks and degrees of the servo's own counting (not joint angles: those need the
+map this stage is finding).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+from spm_console.devices.base import CommError
+from spm_console.devices.dynamixel.bus import DynamixelBus
+from spm_console.errors import BadInputError, BusError
+
+#: Farthest any servo is moved from its rest, deg (the issue's ball before map and zero).
+BALL_DEG = 2.0
+#: Fastest a nudge moves a servo, deg/s.
+MAX_SPEED_DEGPS = 5.0
+#: PWM Limit during commissioning, of 885 (a third of the drive's full effort).
+PWM_LIMIT = 300
+#: Largest lag of a servo behind its commanded ramp before the nudge is stopped, deg.
+TRACK_TOL_DEG = 1.0
+#: Wait at the end of a nudge for the servos to settle, s.
+SETTLE_S = 0.3
+#: Cycle of a nudge's ramp, s.
+CYCLE_S = 0.02
+
+
+@dataclass
+class NudgeState:
+    """What the motion process remembers between nudges: each servo's rest and saved PWM
+    Limit (restored when the nudging ends)."""
+
+    rest_ticks: dict[int, int] = field(default_factory=dict)
+    saved_pwm: dict[int, int] = field(default_factory=dict)
+    goal_ticks: dict[int, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class NudgeResult:
+    """One nudge's outcome (ticks by servo id, in the servos' own counting)."""
+
+    ids: tuple[int, ...]
+    rest_ticks: tuple[int, ...]
+    """Where each servo rested when the first nudge began."""
+    goal_ticks: tuple[int, ...]
+    reached_ticks: tuple[int, ...]
+    """Present Position after the settling wait."""
+    max_lag_deg: float
+    """Largest lag of a servo behind the commanded ramp."""
+    stopped: str = ""
+    """Why the nudge stopped early (empty: it completed)."""
+    duration_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return not self.stopped
+
+
+def check_moves(moves: Sequence[tuple[int, float]], ids: Sequence[int], speed_degps: float) -> None:
+    """Refuse what no nudge may do (BadInputError): an unknown id, an offset beyond the ball
+    or not finite, a speed above the bound."""
+    if not moves:
+        raise BadInputError("nudge: no servo to move")
+    if not (math.isfinite(speed_degps) and 0.0 < speed_degps <= MAX_SPEED_DEGPS):
+        raise BadInputError(f"nudge: speed {speed_degps:g}°/s must be in (0, {MAX_SPEED_DEGPS:g}]")
+    seen: set[int] = set()
+    for ident, offset in moves:
+        if ident not in ids:
+            raise BadInputError(f"nudge: servo id {ident} is not on this bus's joints {list(ids)}")
+        if ident in seen:
+            raise BadInputError(f"nudge: servo id {ident} given twice")
+        seen.add(ident)
+        if not (math.isfinite(offset) and abs(offset) <= BALL_DEG):
+            raise BadInputError(f"nudge: servo {ident}: {offset:g}° from its rest is beyond the "
+                                f"{BALL_DEG:g}° allowed before the wrist is commissioned")
+
+
+def _begin(bus: DynamixelBus, state: NudgeState) -> None:
+    """First nudge: torque off, PWM Limit saved and lowered, the rest read, hold, torque on."""
+    ids = list(bus.ids)
+    bus.set_torque(False, ids)
+    for ident in ids:
+        state.saved_pwm[ident] = int(bus.read(ident, "pwm_limit"))
+        bus.write(ident, "pwm_limit", min(PWM_LIMIT, state.saved_pwm[ident]))
+    ticks = bus.read_ticks()
+    state.rest_ticks = dict(zip(ids, ticks, strict=True))
+    state.goal_ticks = dict(state.rest_ticks)
+    bus.sync_write("goal_position", state.goal_ticks)
+    bus.set_torque(True, ids)
+
+
+def release(bus: DynamixelBus, state: NudgeState) -> None:
+    """End the nudging: torque off (the wrist rests as it was found), PWM Limits restored."""
+    ids = list(bus.ids)
+    bus.set_torque(False, ids)
+    for ident, pwm in state.saved_pwm.items():
+        bus.write(ident, "pwm_limit", pwm)
+    state.saved_pwm.clear()
+    state.goal_ticks.clear()
+
+
+def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, float]],
+              speed_degps: float, stop_asked: Callable[[], str]) -> NudgeResult:
+    """Move each listed servo to ``offset`` deg from its rest (0: back to it), the others
+    holding, on a ramp at ``speed_degps``; ``stop_asked()`` returns a reason to stop (an E-stop)."""
+    ids = list(bus.ids)
+    check_moves(moves, ids, speed_degps)
+    tpd = bus.maps[0].ticks_per_turn / 360.0
+    t0 = time.monotonic()
+    try:
+        if not state.saved_pwm:
+            _begin(bus, state)
+        start = dict(state.goal_ticks)
+        target = dict(start)
+        for ident, offset in moves:
+            target[ident] = round(state.rest_ticks[ident] + offset * tpd)
+        span_deg = max(abs(target[i] - start[i]) / tpd for i in ids)
+        ramp_s = span_deg / speed_degps
+        lag = 0.0
+        stopped = ""
+        t_start = time.monotonic()
+        while True:
+            reason = stop_asked()
+            if reason:
+                stopped = f"stopped: {reason}"
+                break
+            s = 1.0 if ramp_s <= 0 else min(1.0, (time.monotonic() - t_start) / ramp_s)
+            goal = {i: round(start[i] + s * (target[i] - start[i])) for i in ids}
+            bus.sync_write("goal_position", goal)
+            state.goal_ticks = goal
+            present = dict(zip(ids, bus.read_ticks(), strict=True))
+            lag = max(lag, max(abs(goal[i] - present[i]) / tpd for i in ids))
+            if lag > TRACK_TOL_DEG:
+                stopped = (f"a servo lags {lag:.2f}° behind the nudge (more than "
+                           f"{TRACK_TOL_DEG:g}°): stalled, blocked or pushed by another leg")
+                break
+            if s >= 1.0:
+                break
+            time.sleep(CYCLE_S)
+        if stopped:  # hold where the servos are
+            present = dict(zip(ids, bus.read_ticks(), strict=True))
+            bus.sync_write("goal_position", present)
+            state.goal_ticks = present
+        else:
+            time.sleep(SETTLE_S)
+        reached = bus.read_ticks()
+    except CommError as exc:
+        raise BusError(f"nudge on {bus.port}: {exc}") from None
+    return NudgeResult(tuple(ids), tuple(state.rest_ticks[i] for i in ids),
+                       tuple(state.goal_ticks[i] for i in ids), tuple(reached), lag, stopped,
+                       time.monotonic() - t0)

@@ -1,0 +1,96 @@
+"""Commissioning's nudges on the emulated bus: a servo moved by id within the ball around its
+rest, slowly, its PWM Limit lowered and restored; what no nudge may do is refused before
+anything moves; a blocked servo stops the nudge."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+from spm_console.config.schema import Profile
+from spm_console.devices.dynamixel.bus import DynamixelBus, open_bus
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.devices.emulator.faults import parse_fault
+from spm_console.errors import BadInputError
+from spm_console.motion.nudge import BALL_DEG, PWM_LIMIT, NudgeState, release, run_nudge
+from tests.runtime.test_bus_emulator import relaxed
+
+START = (128.0, 141.0, 133.0)
+
+
+@pytest.fixture
+def rig(agile: Profile) -> Iterator[tuple[EmulatorHandle, DynamixelBus]]:
+    em = start_emulator(agile, record=False, initial_deg=START)
+    bus = open_bus(relaxed(agile), em.port)
+    yield em, bus
+    bus.close()
+    em.stop()
+
+
+def _never() -> str:
+    return ""
+
+
+def test_a_nudge_moves_one_servo_by_its_own_ticks_and_the_others_hold(
+        rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    _em, bus = rig
+    state = NudgeState()
+    ident = bus.ids[1]
+    r = run_nudge(bus, state, ((ident, 1.5),), 5.0, _never)
+    assert r.ok, r.stopped
+    tpd = bus.maps[0].ticks_per_turn / 360.0
+    moved = [(b - a) / tpd for a, b in zip(r.rest_ticks, r.reached_ticks, strict=True)]
+    assert moved[1] == pytest.approx(1.5, abs=0.1)
+    assert abs(moved[0]) < 0.1 and abs(moved[2]) < 0.1
+    assert r.duration_s >= 1.5 / 5.0  # no faster than the bound
+    assert all(bus.read(i, "pwm_limit") == PWM_LIMIT for i in bus.ids)
+    back = run_nudge(bus, state, ((ident, 0.0),), 5.0, _never)
+    assert back.ok and abs(back.reached_ticks[1] - back.rest_ticks[1]) <= 2
+    release(bus, state)
+    assert all(bus.read(i, "pwm_limit") == 885 for i in bus.ids)
+    assert bus.torque() == [False, False, False]
+
+
+@pytest.mark.parametrize(("moves", "speed", "match"), [
+    (((1, BALL_DEG + 0.1),), 5.0, "beyond"),
+    (((1, float("nan")),), 5.0, "beyond"),
+    (((99, 1.0),), 5.0, "not on this bus"),
+    (((1, 1.0), (1, -1.0)), 5.0, "twice"),
+    (((1, 1.0),), 5.5, "speed"),
+    ((), 5.0, "no servo"),
+])
+def test_what_no_nudge_may_do_is_refused_before_anything_moves(
+        rig: tuple[EmulatorHandle, DynamixelBus], moves: tuple[tuple[int, float], ...],
+        speed: float, match: str) -> None:
+    _em, bus = rig
+    state = NudgeState()
+    with pytest.raises(BadInputError, match=match):
+        run_nudge(bus, state, moves, speed, _never)
+    assert state.saved_pwm == {} and bus.torque() == [False, False, False]
+
+
+def test_a_blocked_servo_stops_the_nudge_holding(agile: Profile) -> None:
+    em = start_emulator(agile, [parse_fault("stall:1@0")], record=False, initial_deg=START)
+    bus = open_bus(relaxed(agile), em.port)
+    try:
+        state = NudgeState()
+        r = run_nudge(bus, state, ((bus.ids[0], 2.0),), 5.0, _never)
+        assert not r.ok and "lags" in r.stopped
+        release(bus, state)
+    finally:
+        bus.close()
+        em.stop()
+
+
+def test_an_estop_stops_the_nudge(rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    _em, bus = rig
+    state = NudgeState()
+    asked = threading.Event()
+    threading.Timer(0.1, asked.set).start()
+    r = run_nudge(bus, state, ((bus.ids[2], 2.0),), 2.0, lambda: "E-stop" if asked.is_set() else "")
+    assert not r.ok and "E-stop" in r.stopped
+    tpd = bus.maps[0].ticks_per_turn / 360.0
+    assert abs(r.reached_ticks[2] - r.rest_ticks[2]) / tpd < 1.0
+    release(bus, state)
