@@ -14,7 +14,7 @@ from typing import Literal
 from spm_console.devices.base import CommError
 from spm_console.errors import BadInputError, BusError
 
-Action = Literal["ping", "joints", "register", "torque"]
+Action = Literal["ping", "scan", "joints", "register", "torque"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,29 @@ def check_ids(ids: list[int]) -> list[int]:
     return ids
 
 
+#: Reply timeout of one scan ping, s (a servo answers a ping within its Return Delay Time,
+#: 0.5 ms by default; an absent id costs this much).
+SCAN_TIMEOUT_S = 0.004
+
+
+def _scan(bus: object, ids: tuple[int, ...]) -> BusReport:
+    """One ping per id, any model (a scan lists what is on the bus; ``ping`` checks the
+    profile's servos with retries): about a second for every id on an empty bus."""
+    from spm_console.devices.dynamixel.bus import DynamixelBus
+
+    assert isinstance(bus, DynamixelBus)
+    found = []
+    for ident in ids:
+        try:
+            with bus.transport.patience(SCAN_TIMEOUT_S):
+                model, fw, _r = bus.link.ping(ident)
+        except CommError:
+            bus.drain_input(0.002)  # a late reply is not the next id's
+            continue
+        found.append(PingedServo(ident, int(model), fw))
+    return BusReport(bus.port, bus.protocol, ids, found=tuple(found))
+
+
 def answer(bus: object, q: BusQuery) -> BusReport:
     """Run ``q`` on ``bus`` (a DynamixelBus)."""
     from spm_console.devices.dynamixel.bus import DynamixelBus
@@ -77,6 +100,8 @@ def answer(bus: object, q: BusQuery) -> BusReport:
     assert isinstance(bus, DynamixelBus)
     ids = tuple(check_ids(list(q.ids) if q.ids else list(bus.ids)))
     try:
+        if q.action == "scan":
+            return _scan(bus, ids if q.ids else tuple(range(253)))
         if q.action == "ping":
             found, missing = [], []
             for ident in ids:

@@ -94,3 +94,13 @@ def test_an_estop_stops_the_nudge(rig: tuple[EmulatorHandle, DynamixelBus]) -> N
     tpd = bus.maps[0].ticks_per_turn / 360.0
     assert abs(r.reached_ticks[2] - r.rest_ticks[2]) / tpd < 1.0
     release(bus, state)
+
+
+def test_a_scan_lists_every_servo_on_the_bus_in_about_a_second(
+        rig: tuple[EmulatorHandle, DynamixelBus]) -> None:
+    from spm_console.motion.servo_query import BusQuery, answer
+
+    _em, bus = rig
+    report = answer(bus, BusQuery("scan"))
+    assert [(f.id, f.model_number) for f in report.found] == [(i, 321) for i in sorted(bus.ids)]
+    assert len(report.ids) == 253
