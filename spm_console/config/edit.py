@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from collections.abc import Sequence
 
 from spm_console.config.load import parse_profile_text
 from spm_console.config.schema import Profile
@@ -113,3 +114,57 @@ def _flush(out: list[str], section: str, todo: dict[tuple[str, str], Value], not
     while at > 0 and not out[at - 1].strip():
         at -= 1
     out[at:at] = [key_line(key, todo.pop((s, key)), note) for s, key in mine]
+
+
+def with_joints(text: str, joints: Sequence[dict[str, Value]], note: str,
+                source: str) -> tuple[str, Profile]:
+    """``text`` with keys of its ``[[bus.joints]]`` tables set, the k-th table from
+    ``joints[k]`` (commented ``note``); the new text and the profile it parses to. ProfileError
+    when the text has another number of joint tables or a value reads back otherwise."""
+    lines = text.splitlines()
+    out: list[str] = []
+    table = -1
+    in_joints = False
+    todo: dict[str, Value] = {}
+    k = 0
+    while k < len(lines):
+        line = lines[k]
+        m = HEADER.match(line)
+        if m:
+            _flush_keys(out, todo, note)
+            in_joints = line.lstrip().startswith("[[") and re.sub(r"\s+", "", m.group(1)) == "bus.joints"
+            if in_joints:
+                table += 1
+                todo = dict(joints[table]) if table < len(joints) else {}
+            out.append(line)
+            k += 1
+            continue
+        key = _key_of(line)
+        if in_joints and key is not None and key in todo:
+            out.append(key_line(key, todo.pop(key), note))
+            k = _value_end(lines, k)
+            continue
+        out.append(line)
+        k += 1
+    _flush_keys(out, todo, note)
+    if table + 1 != len(joints):
+        raise ProfileError(f"{source}: {table + 1} [[bus.joints]] tables, expected {len(joints)}")
+    new = "\n".join(out).rstrip("\n") + "\n"
+    prof = parse_profile_text(new, source)
+    for j, want in zip(prof.bus.joints, joints, strict=True):
+        for key, v in want.items():
+            if getattr(j, key) != v:
+                raise ProfileError(f"{source}: [[bus.joints]] {key} reads back as "
+                                   f"{getattr(j, key)!r}, not {v!r}")
+    return new, prof
+
+
+def _flush_keys(out: list[str], todo: dict[str, Value], note: str) -> None:
+    """Add the keys still to set at the end of the current table (before blank lines)."""
+    if not todo:
+        return
+    at = len(out)
+    while at > 0 and not out[at - 1].strip():
+        at -= 1
+    out[at:at] = [key_line(key, v, note) for key, v in todo.items()]
+    todo.clear()
