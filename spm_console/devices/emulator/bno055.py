@@ -7,7 +7,7 @@ register file and the sensors, usable without a pty (tests give it their own clo
 
 What the chip does (datasheet section, or our choice where it says nothing):
 
-- Page 0 with the reset values of §4.2 (``bno055_protocol.REGISTERS``); page 1 is not emulated
+- Page 0 with the reset values of §4.2 (``bno055_registers.REGISTERS``); page 1 is not emulated
   (PAGE_ID ≠ 0 → WRITE_FAIL). Read-only and reserved bytes refuse writes (WRITE_DISABLED), so do
   CONFIGMODE-only registers in another mode (§3.3.1); a refused write changes nothing.
 - OPR_MODE: every mode of Table 3-5. A switch takes Table 3-6's time (7 ms out of CONFIGMODE,
@@ -30,11 +30,13 @@ What the chip does (datasheet section, or our choice where it says nothing):
 The sensor model: the truth (:class:`ImuTruth`) plus white noise of the datasheet's densities
 (accelerometer 150 µg/√Hz, gyroscope 0.014 °/s/√Hz) over the default bandwidths of Table 3-4
 (62.5 Hz, 32 Hz) taken as ideal: σ = density·√bandwidth per sample, 0.0116 m/s² and 0.079 °/s
-(about one LSB each); then range saturation (±4 g, ±2000 °/s) and quantisation to the LSB.
-No bias, drift, scale error or magnetometer noise. The fusion: the true orientation turned by
-a small random rotation (σ :data:`FUSION_SIGMA_DEG` per axis); in relative modes (IMU, M4G)
-with the heading at the mode's first sample zeroed; gravity (GRV) is that orientation's view
-of +g along world z (the accelerometer's sign: +9.81 m/s² up at rest), LIA = ACC − GRV.
+(about one LSB each), independent from sample to sample; then range saturation (±4 g,
+±2000 °/s) and quantisation to the LSB. No bias, drift or scale error. The magnetometer sees a
+fixed field (:data:`MAG_WORLD_UT`) through the true orientation, without noise. The fusion:
+the true orientation turned by a small random rotation (σ :data:`FUSION_SIGMA_DEG` per
+axis); in relative modes (IMU, M4G) with the heading at the mode's first sample zeroed; gravity
+(GRV) is that orientation's view of +g along world z (the accelerometer's sign: +9.81 m/s² up
+at rest), LIA = ACC − GRV.
 EUL_DATA: heading = −yaw (clockwise seen from above, 0..360°), roll = the Z-Y-X decomposition's
 rotation about y (±90°), pitch = about x (±180°), the ranges of Table 3-13; the chip's own signs
 are not emulated: use the quaternion (world ← sensor, w, x, y, z, w ≥ 0).
@@ -126,8 +128,10 @@ Truth = Callable[[], ImuTruth]
 class Bno055Chip:
     """The register file and sensors of one BNO055 (module docstring); answers whole requests.
 
-    ``clock()`` is seconds on any monotonic clock; ``seed`` seeds the noise (numpy Generator):
-    the same requests at the same clock readings get the same bytes."""
+    ``clock()`` is seconds on any monotonic clock; ``seed`` seeds the noise (numpy Generator).
+    Each sample draws a fixed number of values for its mode, so the n-th sample of a mode carries
+    the same noise however the reads were timed; the same requests at the same clock readings
+    get the same bytes. ``noise=False``: the truth, saturated and quantised only."""
 
     def __init__(self, truth: Truth, seed: int = 0, clock: Callable[[], float] = time.monotonic, *,
                  noise: bool = True, fusion_sigma_deg: float = FUSION_SIGMA_DEG,
