@@ -135,6 +135,15 @@ class BusError(SpmError):
     exit_code = ExitCode.BUS_ERROR
 
 
+class ImuError(SpmError):
+    """The IMU cannot be opened, does not answer, is not the chip expected, or refused a
+    request. Exit 10 like the servo bus (a device on a serial port missing or of the wrong
+    model: an input or hardware problem, not a bug); a class of its own, so that the servo
+    bus's handlers never take it for theirs."""
+
+    exit_code = ExitCode.BUS_ERROR
+
+
 class PlanRefusedError(SpmError):
     """The runtime's own verification refused a plan before torque-on (the motion would
     leave the certified feasible set, or exceed a speed, step or servo limit)."""

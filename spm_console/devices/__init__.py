@@ -1,1 +1,2 @@
-"""Devices: Dynamixel protocol codec (pure), serial transport, servo bus, emulated bus."""
+"""Devices: Dynamixel protocol codec (pure), serial transport, servo bus, emulated bus; the BNO055
+IMU (pure codec, serial driver) and its emulator."""
