@@ -45,6 +45,7 @@ COMMANDS: dict[str, str] = {
     "latency": "spm_console.cli.tools.latency",
     "export": "spm_console.cli.tools.export",
     "design": "spm_console.cli.design",
+    "commission": "spm_console.cli.commission",
 }
 COMMAND_MODULES = list(dict.fromkeys(COMMANDS.values()))
 

@@ -1,0 +1,78 @@
+"""``commission``: find the wrist's servos, map them to legs with the IMU on the platform,
+zero them on the home jig and write the profile of the wrist as built
+(:mod:`spm_console.services.commission`)."""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+from pathlib import Path
+from typing import Any
+
+from spm_console.cli.common import add_common, add_force, emit, info, output_file, profile_of
+from spm_console.errors import BadInputError, ExitCode
+from spm_console.safe_io import read_text, write_text_atomic
+from spm_console.store.identified_profiles import write_new
+
+#: Largest profile text read, bytes.
+MAX_PROFILE_BYTES = 1 << 20
+
+
+def register(sub: Any) -> None:
+    c = sub.add_parser("commission", help="find the servos, map them to legs (IMU), zero them "
+                                          "(home jig) and write the profile of the wrist as built")
+    add_common(c)
+    c.add_argument("--port", metavar="DEV", help="the servo bus (default: the profile's "
+                   "bus.port; 'spm-console emulate' prints an emulated one)")
+    c.add_argument("--imu-port", metavar="DEV", required=True,
+                   help="the BNO055 on the platform, UART mode (115200 baud)")
+    c.add_argument("--jig", action="store_true",
+                   help="the wrist rests on its home jig, torque off: zero the servos there")
+    c.add_argument("--out", type=Path, metavar="FILE.toml",
+                   help="where to write the commissioned profile (default: beside the "
+                        "profile, NAME.commissioned-TIME.toml, never over a file)")
+    add_force(c)
+    c.set_defaults(func=cmd_commission)
+
+
+def cmd_commission(args: argparse.Namespace) -> int:
+    from spm_console.services.commission import Bno055Source, commission, commissioned_text
+
+    profile = profile_of(args)
+    port = args.port or profile.bus.port
+    if not port:
+        raise BadInputError("no serial port: pass --port DEV (the profile's bus.port is empty); "
+                            "'spm-console emulate' serves an emulated bus and prints its port")
+    output_file(args.out, "--out", (".toml",), replace=args.force)
+    profile_path = Path(args.profile)
+    base = read_text(profile_path, "--profile", MAX_PROFILE_BYTES, BadInputError)
+    imu = Bno055Source(args.imu_port)
+    try:
+        result = commission(profile, port, imu, args.jig, info)
+    finally:
+        imu.close()
+    when = dt.datetime.now(dt.UTC)
+    stamp = when.strftime("%Y%m%dT%H%M%SZ")
+    target = args.out or profile_path.with_name(f"{profile_path.stem}.commissioned-{stamp}.toml")
+    text, _prof = commissioned_text(base, result, str(target), when)
+    if args.out is not None:
+        write_text_atomic(args.out, text, BadInputError)
+        written = Path(args.out)
+    else:
+        written = write_new(target, text)
+    legs = [{"leg": m.leg, "id": m.id, "direction": m.direction,
+             "rotation_deg": m.rotation_deg, "cos": m.cos} for m in result.legs]
+    data = {"protocol": result.discovery.protocol,
+            "found": [{"id": f.id, "model_number": f.model_number, "firmware": f.firmware}
+                      for f in result.discovery.found],
+            "legs": legs, "jig_ticks": result.jig_ticks, "tick_offsets": result.tick_offsets,
+            "zeroed": result.tick_offsets is not None, "profile_written": str(written)}
+    human = "\n".join(
+        [f"leg {m.leg}: servo id {m.id}, direction {m.direction:+d} "
+         f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})" for m in result.legs]
+        + ([f"tick offsets from the jig: {list(result.tick_offsets)}"]
+           if result.tick_offsets is not None else
+           ["not zeroed: give --jig (the wrist on its home jig, torque off)"])
+        + [f"profile written: {written}"])
+    emit(args, data, human)
+    return int(ExitCode.OK)

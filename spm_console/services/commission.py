@@ -1,0 +1,288 @@
+"""Commissioning a wrist as built: find its servos, map them to legs, zero them, write the
+profile that matches the wrist (``spm-console commission``).
+
+Stages, each through the motion process that owns the bus (nothing here writes to it):
+
+1. **Discover**: scan ids 0..252 on the profile's protocol, then on the other one; refuse a
+   bus without three servos of the profile's model, naming what answered.
+2. **Jig** (``--jig``): the wrist rests on its home jig, torque off: each servo's ticks are
+   averaged there (before anything moves; the jig is released when torque goes on).
+3. **Map**: each servo alone nudged by 2° at 4 °/s (:mod:`~spm_console.motion.nudge`), the
+   others holding; the platform rotation the IMU measures names its leg and the way it counts
+   (:mod:`~spm_console.services.commission_map`). Nothing else moves before the map is known.
+4. **Zero** from the jig: true θ at the jig = the profile's home, so each tick offset is the
+   jig's ticks less the home angle in ticks (rounded to a tick: 0.088° on the MX-106).
+5. **Write**: a profile with the found ids, directions and tick offsets, and a comment block
+   of provenance; the product's profile is never overwritten.
+
+Degrees at the interface.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.edit import with_joints
+from spm_console.config.models import model_of
+from spm_console.config.schema import Profile
+from spm_console.errors import BadInputError, BusError, ImuError, SpmError
+from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
+from spm_console.services.commission_map import LegMatch, leg_axes, match_leg, rotation_vector
+from spm_console.services.session import Session
+
+if TYPE_CHECKING:
+    from spm_console.services.client import MotionClient
+
+F = NDArray[np.float64]
+
+#: The nudge of the map stage, deg of the servo's own counting, and its speed, deg/s.
+MAP_NUDGE_DEG = 2.0
+MAP_SPEED_DEGPS = 4.0
+#: Reads averaged at the jig.
+JIG_READS = 20
+#: IMU samples averaged for one orientation (at the BNO055's 100 Hz: 0.2 s).
+IMU_SAMPLES = 20
+#: The BNO055's output period in its fusion modes, s.
+IMU_PERIOD_S = 0.01
+#: Model numbers of the MX-106 on protocol 2.0 and 1.0.
+MX106_MODELS = {"2.0": 321, "1.0": 320}
+
+
+class ImuSource(Protocol):
+    """What the map stage needs of an IMU: its orientation, a unit quaternion (w, x, y, z),
+    world ← sensor (a relative heading is enough: only changes are used)."""
+
+    def quaternion(self) -> F: ...
+
+
+class Bno055Source:
+    """A BNO055 on ``port`` in its IMU fusion mode (accelerometer and gyroscope: a relative
+    heading, no magnetometer near the servos' motors), read at its 100 Hz output rate."""
+
+    def __init__(self, port: str) -> None:
+        from spm_console.devices.imu.bno055 import Bno055
+        from spm_console.devices.imu.bno055_registers import OprMode
+
+        self.device = Bno055.open(port)
+        try:
+            self.device.set_mode(OprMode.IMU)
+        except SpmError:
+            self.device.close()
+            raise
+
+    def quaternion(self) -> F:
+        sample = self.device.read_sample()
+        time.sleep(IMU_PERIOD_S)  # the next read finds the next sample
+        if sample.quat_wxyz is None:
+            raise ImuError(f"the IMU on {self.device.port} gave no orientation")
+        return np.asarray(sample.quat_wxyz, float)
+
+    def close(self) -> None:
+        self.device.close()
+
+
+@dataclass(frozen=True)
+class Discovery:
+    """What answered on the bus."""
+
+    protocol: str
+    found: tuple[PingedServo, ...]
+    ids: tuple[int, int, int]
+    """The three MX-106 ids, ascending (their legs are not known yet)."""
+
+
+@dataclass(frozen=True)
+class Commissioned:
+    """The result: the wiring as built and where it came from."""
+
+    discovery: Discovery
+    legs: tuple[LegMatch, LegMatch, LegMatch]
+    """Per leg 1..3: the servo id driving it and the way it counts."""
+    jig_ticks: tuple[float, float, float] | None
+    """Each leg's servo's averaged ticks at the jig (None without a jig)."""
+    tick_offsets: tuple[int, int, int] | None
+    """Tick offsets from the jig (None without one: the zero stage needs the jig here)."""
+    profile: Profile
+    """The commissioned profile (the input's, with ``[bus]`` as built)."""
+
+
+def discover(profile: Profile, port: str, on_stage: Callable[[str], None]) -> tuple[Profile, Discovery]:
+    """Scan the bus on the profile's protocol, then the other; the profile with the found
+    protocol and ids (legs still unknown)."""
+    tried: list[str] = []
+    for protocol in (profile.bus.protocol, "1.0" if profile.bus.protocol == "2.0" else "2.0"):
+        variant = _with_bus(profile, protocol=protocol, model_number=MX106_MODELS[protocol])
+        on_stage(f"discover: scanning ids 0..252 on protocol {protocol} ({port})")
+        report = _scan(variant, port)
+        mx = [f for f in report.found if f.model_number == MX106_MODELS[protocol]]
+        tried.append(f"protocol {protocol}: " + (", ".join(
+            f"id {f.id} model {f.model_number}" for f in report.found) or "nothing"))
+        if len(mx) == 3:
+            ids = (mx[0].id, mx[1].id, mx[2].id)
+            found = _with_bus(variant, ids=ids)
+            return found, Discovery(protocol, tuple(report.found), ids)
+    raise BusError("commission: a wrist needs exactly three MX-106 servos on its bus; found "
+                   + "; ".join(tried))
+
+
+def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
+               on_stage: Callable[[str], None]) -> Commissioned:
+    """Discover, (jig), map and zero the wrist on ``port``; the commissioned profile."""
+    found_profile, disc = discover(profile, port, on_stage)
+    session = Session(found_profile, port=port, sim=False)
+    try:
+        session.connect(check=False)
+        client = session.require_bus()
+        jig_by_id: dict[int, float] | None = None
+        if jig:
+            on_stage("jig: torque off, averaging each servo's ticks at the home jig")
+            client.query(BusQuery("torque", on=False))
+            jig_by_id = _jig_ticks(client, disc.ids)
+        axes = leg_axes(model_of(profile), np.asarray(profile.home.theta_deg, float))
+        matches: list[LegMatch] = []
+        try:
+            for ident in disc.ids:
+                on_stage(f"map: nudging servo id {ident} by {MAP_NUDGE_DEG:g}°")
+                q0 = _mean_quaternion(imu)
+                r = client.nudge(((ident, MAP_NUDGE_DEG),), MAP_SPEED_DEGPS)
+                if not r.ok:
+                    raise BusError(f"commission: the nudge of servo id {ident} stopped ({r.stopped}); "
+                                   "nothing else moved. Check the wrist moves freely")
+                q1 = _mean_quaternion(imu)
+                back = client.nudge(((ident, 0.0),), MAP_SPEED_DEGPS)
+                if not back.ok:
+                    raise BusError(f"commission: servo id {ident} did not return ({back.stopped})")
+                try:
+                    matches.append(match_leg(axes, ident, rotation_vector(q0, q1), MAP_NUDGE_DEG))
+                except ValueError as exc:
+                    raise BusError(f"commission: {exc}") from None
+        finally:
+            client.end_nudging()
+    finally:
+        session.close()
+    legs = sorted(matches, key=lambda m: m.leg)
+    if [m.leg for m in legs] != [1, 2, 3]:
+        raise BusError("commission: two servos drive the same leg by the IMU ("
+                       + ", ".join(f"id {m.id} → leg {m.leg}" for m in matches)
+                       + "): repeat with the wrist free to move")
+    on_stage("map: " + ", ".join(f"leg {m.leg} = id {m.id} ({'+' if m.direction > 0 else '−'})"
+                                 for m in legs))
+    offsets = None
+    jig_ticks = None
+    if jig_by_id is not None:
+        jig_ticks = (jig_by_id[legs[0].id], jig_by_id[legs[1].id], jig_by_id[legs[2].id])
+        offsets = zero_from_jig(profile, [m.direction for m in legs], jig_ticks)
+    built = _with_wiring(found_profile, legs, offsets)
+    return Commissioned(disc, (legs[0], legs[1], legs[2]), jig_ticks, offsets, built)
+
+
+def _jig_ticks(client: MotionClient, ids: Sequence[int]) -> dict[int, float]:
+    """Each servo's ticks averaged over :data:`JIG_READS` reads (a lost reply is read again,
+    up to :data:`JIG_READS` times in all)."""
+    sums = dict.fromkeys(ids, 0.0)
+    done = lost = 0
+    while done < JIG_READS:
+        try:
+            joints = client.query(BusQuery("joints")).joints
+        except BusError:
+            lost += 1
+            if lost >= JIG_READS:
+                raise
+            continue
+        for j in joints:
+            sums[j.id] += j.ticks
+        done += 1
+    return {i: v / JIG_READS for i, v in sums.items()}
+
+
+def zero_from_jig(profile: Profile, directions: Sequence[int],
+                  jig_ticks: Sequence[float]) -> tuple[int, int, int]:
+    """Tick offsets that read the profile's home at the jig: tick_offset = ticks − d·θ_home
+    in ticks, modulo one turn, rounded to a tick."""
+    tpt = profile.bus.ticks_per_turn
+    out = []
+    for d, ticks, home in zip(directions, jig_ticks, profile.home.theta_deg, strict=True):
+        out.append(round(ticks - d * home * tpt / 360.0) % tpt)
+    return (out[0], out[1], out[2])
+
+
+def _mean_quaternion(imu: ImuSource, n: int = IMU_SAMPLES) -> F:
+    qs = np.array([imu.quaternion() for _ in range(n)], float)
+    qs *= np.where(qs @ qs[0] < 0, -1.0, 1.0)[:, None]  # one hemisphere
+    q = qs.mean(axis=0)
+    norm = float(np.linalg.norm(q))
+    if not math.isfinite(norm) or norm < 0.5:
+        raise BusError("commission: the IMU's quaternion is not a rotation (is it fused, "
+                       "IMU mode?)")
+    return np.asarray(q / norm, float)
+
+
+def _scan(profile: Profile, port: str) -> BusReport:
+    """Every id 0..252 pinged once, by a motion process on ``profile``'s protocol."""
+    session = Session(profile, port=port, sim=False)
+    try:
+        session.connect(check=False)
+        report = session.require_bus().query(BusQuery("scan"))
+        assert isinstance(report, BusReport)
+        return report
+    finally:
+        session.close()
+
+
+def _with_bus(profile: Profile, protocol: str | None = None, model_number: int | None = None,
+              ids: Sequence[int] | None = None) -> Profile:
+    changes: dict[str, object] = {}
+    if protocol is not None:
+        changes["protocol"] = protocol
+    if model_number is not None:
+        changes["model_number"] = model_number
+    bus = profile.bus.model_copy(update=changes)
+    if ids is not None:
+        joints = tuple(j.model_copy(update={"id": i}) for j, i in zip(bus.joints, ids, strict=True))
+        bus = bus.model_copy(update={"joints": joints})
+    return _validated(profile.model_copy(update={"bus": bus}))
+
+
+def _with_wiring(profile: Profile, legs: Sequence[LegMatch],
+                 offsets: Sequence[int] | None) -> Profile:
+    joints = []
+    for k, (j, m) in enumerate(zip(profile.bus.joints, legs, strict=True)):
+        update: dict[str, object] = {"id": m.id, "direction": m.direction}
+        if offsets is not None:
+            update["tick_offset"] = offsets[k]
+        joints.append(j.model_copy(update=update))
+    bus = profile.bus.model_copy(update={"joints": tuple(joints)})
+    return _validated(profile.model_copy(update={"bus": bus}))
+
+
+def _validated(profile: Profile) -> Profile:
+    """The profile checked as a file would be (limits' ticks inside the servo's range...)."""
+    try:
+        return Profile.model_validate(profile.model_dump(mode="python"))
+    except ValueError as exc:
+        raise BadInputError(f"commission: the profile as built does not validate: {exc}") from None
+
+
+def commissioned_text(base_text: str, result: Commissioned, source: str,
+                      when: dt.datetime | None = None) -> tuple[str, Profile]:
+    """The base profile's text with ``[[bus.joints]]`` as built (ids, directions and, from the
+    jig, tick offsets), each changed key commented with its provenance; parsed and read back."""
+    stamp = (when or dt.datetime.now(dt.UTC)).strftime("%Y-%m-%dT%H:%M:%SZ")
+    joints: list[dict[str, object]] = []
+    for k, m in enumerate(result.legs):
+        values: dict[str, object] = {"id": m.id, "direction": m.direction}
+        if result.tick_offsets is not None:
+            values["tick_offset"] = result.tick_offsets[k]
+        joints.append(values)
+    how = "map: IMU" + (", zero: jig" if result.tick_offsets is not None else "")
+    text, prof = with_joints(base_text, joints,  # type: ignore[arg-type]
+                             f"commissioned {stamp} ({how})", source)
+    return text, prof

@@ -1,0 +1,118 @@
+"""``commission`` against a wrist wired otherwise than its profile says: the emulated bus
+serves the wrist as built (ids permuted, a servo counting the other way, horn offsets), a real
+emulated BNO055 on a pty reads its platform (the unique FK of the true joint angles, through a
+mounting rotation); the command maps each servo to its leg, zeroes it on the home jig and writes
+a profile that reads the true joint angles. Nothing moves more than the nudges' ball."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.cli.main import main
+from spm_console.config.load import load_profile
+from spm_console.config.models import model_of
+from spm_console.config.schema import Profile
+from spm_console.core.kinematics.model import newton
+from spm_console.core.kinematics.rotations import expm_so3
+from spm_console.devices.dynamixel.tick_map import joint_maps
+from spm_console.devices.emulator.bno055 import EmulatedBno055, ImuTruth
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.motion.nudge import BALL_DEG
+from tests.support.paths import ROOT
+
+AGILE = ROOT / "profiles" / "agile_wrist.toml"
+#: The wrist as built: leg 1 driven by id 3, leg 2 by id 1 (counting the other way), leg 3
+#: by id 2; true θ at each servo's profile tick offset: these horn offsets, deg.
+IDS = (3, 1, 2)
+REVERSED = (1, -1, 1)
+HORN_DEG = (4.0, -7.0, 11.0)
+
+
+def as_built(agile: Profile) -> Profile:
+    """The profile the emulated servos follow (the truth): at the tick where the profile reads
+    home, the true joint angle is home + the horn offset, the servo counting as built (whole
+    ticks here)."""
+    tpd = agile.bus.ticks_per_turn / 360.0
+    joints = []
+    for j, ident, d, horn, home in zip(agile.bus.joints, IDS, REVERSED, HORN_DEG,
+                                       agile.home.theta_deg, strict=True):
+        direction = j.direction * d
+        home_tick = j.tick_offset + j.direction * home * tpd
+        offset = round(home_tick - direction * (home + horn) * tpd) % agile.bus.ticks_per_turn
+        joints.append(j.model_copy(update={"id": ident, "direction": direction,
+                                           "tick_offset": offset}))
+    bus = agile.bus.model_copy(update={"joints": tuple(joints)})
+    return agile.model_copy(update={"bus": bus})
+
+
+@pytest.fixture
+def wrist(agile: Profile) -> Iterator[tuple[EmulatorHandle, EmulatedBno055, Profile]]:
+    truth_profile = as_built(agile)
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(0.0005)  # three threads of this process answer serial lines
+    em = start_emulator(truth_profile, record=False, link="socket")  # at home: the jig
+    model = model_of(agile)
+    mount = expm_so3(np.radians([6.0, -4.0, 8.0]))
+    last = [np.eye(3)]  # the platform's rotation from home at the last sample
+
+    def truth() -> ImuTruth:  # (4) solved by Newton from the last pose: the moves are small
+        th = np.radians(em.joint_deg())
+        R, res = newton(model.geom, model.geom.w(th[None]), last[0][None], model.v_home)
+        assert res[0] < 1e-9
+        last[0] = R[0]
+        return ImuTruth.at_rest(R[0] @ mount)
+
+    imu = EmulatedBno055(truth, seed=5)
+    yield em, imu, truth_profile
+    imu.stop()
+    em.stop()
+    sys.setswitchinterval(switch)
+
+
+def test_commission_maps_zeroes_and_writes_the_wrist_as_built(
+        wrist: tuple[EmulatorHandle, EmulatedBno055, Profile], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    em, imu, truth = wrist
+    start = em.joint_deg()
+    out = tmp_path / "built.toml"
+    rc = main(["commission", "--profile", str(AGILE), "--port", em.port, "--imu-port", imu.port,
+               "--jig", "--out", str(out), "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0, d
+    assert d["zeroed"] and d["protocol"] == "2.0"
+    assert sorted(f["id"] for f in d["found"]) == [1, 2, 3]
+    assert [(leg["leg"], leg["id"], leg["direction"]) for leg in d["legs"]] == [
+        (1, 3, 1), (2, 1, -1), (3, 2, 1)]
+    built = load_profile(out)
+    assert [j.id for j in built.bus.joints] == list(IDS)
+    # the written profile reads the true joint angles from the servos' ticks
+    maps = joint_maps(built)
+    truth_maps = joint_maps(truth)
+    for theta in (np.asarray(built.home.theta_deg), np.array([120.0, 140.0, 125.0])):
+        for m, tm, th in zip(maps, truth_maps, theta, strict=True):
+            assert m.id == tm.id
+            assert m.to_deg(tm.to_ticks(th)) == pytest.approx(th, abs=360.0 / 4096)
+    assert math.dist(em.joint_deg(), start) < BALL_DEG  # the nudges came back
+
+
+def test_an_imu_port_where_no_imu_answers_is_refused_before_anything_moves(
+        agile: Profile, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    em = start_emulator(agile, record=False, link="socket")
+    other = start_emulator(agile, record=False, link="pty")  # Dynamixel servos, not an IMU
+    try:
+        rc = main(["commission", "--profile", str(AGILE), "--port", em.port, "--imu-port",
+                   other.port, "--jig", "--out", str(tmp_path / "x.toml"), "--json"])
+        d = json.loads(capsys.readouterr().out)
+        assert rc == 10 and "no reply from an IMU" in d["error"], d
+        assert not (tmp_path / "x.toml").exists()
+        assert em.stats.instructions == 0  # the servo bus was never touched
+    finally:
+        other.stop()
+        em.stop()
