@@ -6,7 +6,8 @@ the base's tilt and each leg's arcs, through the unique FK of (4). The fit is Le
 Jacobian (implicit differentiation of (4) with J1 (11) and J2 (12)), from a start p0, with some
 parameters (or the horns' common mode) held at given values, and only along the directions
 :mod:`~spm_console.core.commissioning.observability`'s rule lets the data decide: the others keep
-p0's values. The split is made at p0, then again at the solution until it no longer changes.
+p0's values. The split is made at p0, then again at the solution until it holds as many
+directions as the fit did.
 
 Standard errors: s² (JᵀJ)⁻¹ on the fitted subspace, s² the residual variance per component
 (a direction has two degrees of freedom: 2K − m of them for K poses and m fitted directions);
@@ -58,8 +59,8 @@ class CommissioningFit:
     """The fitted values (the prior along held directions)."""
     parameters: tuple[FittedParameter, ...]
     singular_values: tuple[float, ...]
-    """Singular values of the scaled identification Jacobian Js over the free parameters,
-    largest first (1/σ_k: the standard error along v_k in prior spreads)."""
+    """Singular values of the scaled identification Jacobian Js over the free parameters at the
+    solution, largest first (1/σ_k: the standard error along v_k in prior spreads)."""
     held: tuple[obs.Direction, ...]
     """Directions the data do not determine (σ_k < 1), held at the prior, weakest first."""
     imprecise: tuple[obs.Direction, ...]
@@ -166,8 +167,7 @@ def fit_as_built(
     for _ in range(MAX_SPLITS):
         new = obs.split(m.jac_deg(x), N_q, sp_deg, noise_deg)
         if split is not None and new.fitted.shape == split.fitted.shape:
-            split = new
-            break
+            break  # the solution splits the parameters as the fit did
         split = new
         B = sp_deg[:, None] * split.fitted  # fitted directions, deg per unit
         q = (x - x0) / sp_deg
@@ -189,11 +189,15 @@ def fit_as_built(
     for name, value in (fixed or {}).items():  # exactly the given values
         if name in PARAMETERS:
             x[PARAMETERS.index(name)] = value
-    return _result(m, x, g_meas, split, sp_deg, noise_deg, resolution_deg, sol)
+    at_x = obs.split(m.jac_deg(x), N_q, sp_deg, noise_deg)
+    return _result(m, x, g_meas, split, at_x.singular_values, sp_deg, noise_deg, resolution_deg,
+                   sol)
 
 
-def _result(m: _Model, x: F, g_meas: F, split: obs.Split, sp_deg: F, noise_deg: float,
+def _result(m: _Model, x: F, g_meas: F, split: obs.Split, sv: F, sp_deg: F, noise_deg: float,
             resolution_deg: float, sol: object) -> CommissioningFit:
+    """The fit's report: ``split`` is the one the last round fitted along (so the held
+    directions kept the prior exactly), ``sv`` the singular values at the solution."""
     ev, J = m.at(x), m.jac_deg(x)
     K, n_fit = len(g_meas), split.fitted.shape[1]
     r = ev.gravity - g_meas
@@ -218,7 +222,7 @@ def _result(m: _Model, x: F, g_meas: F, split: obs.Split, sp_deg: F, noise_deg: 
     ang = angles_deg(ev.gravity, g_meas)
     return CommissioningFit(
         as_built=AsBuilt.from_vector_rad(np.radians(x)), parameters=tuple(params),
-        singular_values=tuple(float(v) for v in split.singular_values),
+        singular_values=tuple(float(v) for v in sv),
         held=obs.held_directions(split, sp_deg),
         imprecise=obs.imprecise_directions(cov_exp, resolution_deg),
         undetermined_named=obs.undetermined_named(split, sp_deg, cov_exp, resolution_deg),

@@ -143,7 +143,9 @@ class Direction:
     label: str
     """A name from :data:`NAMED` when it is (nearly) that combination, else its formula."""
     weights: tuple[tuple[str, float], ...]
-    """Components of magnitude ≥ 0.05, largest first."""
+    """Components of magnitude ≥ 0.05, largest first (rounded)."""
+    vector: tuple[float, ...]
+    """The unit vector itself, in the order of :data:`PARAMETERS`."""
     std_deg: float
     """Standard error along it at the stated noise, deg (inf: held at the prior)."""
 
@@ -167,7 +169,8 @@ def direction(v: F, std_deg: float) -> Direction:
             label = name
     order = np.argsort(-np.abs(v))
     weights = tuple((PARAMETERS[j], round(float(v[j]), 4)) for j in order if abs(v[j]) >= 0.05)
-    return Direction(label or " ".join(f"{w:+.2f}·{n}" for n, w in weights), weights, std_deg)
+    return Direction(label or " ".join(f"{w:+.2f}·{n}" for n, w in weights), weights,
+                     tuple(float(c) for c in v), std_deg)
 
 
 def held_directions(sp: Split, spread: F) -> tuple[Direction, ...]:

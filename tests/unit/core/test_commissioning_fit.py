@@ -17,6 +17,7 @@ from spm_console.core.commissioning.gravity import (
     gravity_jacobian,
     predict_gravity,
 )
+from spm_console.core.commissioning.observability import DEFAULT_SPREAD
 from spm_console.core.kinematics.geometry import SpmGeometry
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.modes import home_model
@@ -110,6 +111,26 @@ def test_a_level_base_leaves_the_common_horn_offset_undetermined_unless_a_jig_fi
                                                 **dict.fromkeys(PARAMETERS[8:], 0.0)})
     assert np.abs(_errors(arcs, level)).max() < 1e-6
     assert {arcs.parameter(f"horn{i}").status for i in (1, 2, 3)} == {"determined"}
+
+
+def test_what_the_data_do_not_determine_keeps_the_prior_not_a_guess(
+        model: SpmModel, near: PoseDesign) -> None:
+    """Near home with every parameter free the fit holds some directions: along each, the
+    fitted values are the start's, exactly (in prior spreads, where the directions are
+    orthogonal)."""
+    start = AsBuilt(horn_deg=(3.0, 1.0, 2.0), mount_rpy_deg=(0.0, 0.0, 5.0))
+    theta = np.array(near.theta_deg)
+    fit = fit_as_built(model, theta, predict_gravity(model, TRUTH, theta), start=start)
+    assert len(fit.held) == 3
+    spread = np.degrees(DEFAULT_SPREAD.vector_rad())
+    moved = (fit.as_built.vector_rad() - start.vector_rad()) / np.radians(spread)
+    assert np.abs(moved).max() > 0.1  # it did fit something
+    for d in fit.held:
+        along = np.asarray(d.vector) / spread
+        assert abs(moved @ along) / np.linalg.norm(along) < 1e-9
+        assert d.std_deg == np.inf
+    undetermined = [p for p in fit.parameters if p.status == "undetermined"]
+    assert undetermined and all(np.isnan(p.std_deg) for p in undetermined)
 
 
 def test_a_tilted_base_does_not_determine_it_either(model: SpmModel, near: PoseDesign) -> None:
