@@ -2,9 +2,10 @@
 
 Candidates are θ_home + r·d for each radius r and each of the 26 directions d of the cube
 {−1, 0, 1}³ \\ {0} (so every joint moves by 0 or ±r): the joint offsets grow with r. Each
-candidate's rows of the scaled identification Jacobian (per degree of the free parameters, over
-the noise; :mod:`~spm_console.core.commissioning.fit`) are computed once at the prior through the
-unique FK of (4) and the implicit derivatives of (11), (12). Poses are then added one at a time:
+candidate's rows of the identification Jacobian — per degree of the free parameters, over the
+noise: unlike the fit's rule it is not scaled by the prior spreads, since a design aims at the
+worst standard error in degrees — are computed once at the prior through the unique FK of (4)
+and the implicit derivatives of (11), (12). Poses are then added one at a time:
 while the information matrix Σ Js_kᵀ Js_k is singular, the candidate that most increases
 log det(M + εI) (D-optimal, regularized); once it is regular, the one that most increases its
 smallest eigenvalue (E-optimal: the smallest singular value of Js, whose inverse is the largest

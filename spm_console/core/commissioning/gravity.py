@@ -12,7 +12,8 @@ Measurement model of a static pose k (degrees at the interface, radians inside):
   R = I at θ_home: the platform frame is the base frame at home (as in the physical twin).
 - R_tilt = Ry(tilt_y) · Rx(tilt_x): the base's orientation in the world (turned about the world
   x by tilt_x, then about the world y by tilt_y). Its yaw is no parameter: gravity cannot see it.
-- R_mount = Rz(yaw) · Ry(pitch) · Rx(roll) (:func:`rpy_matrix`): the IMU's axes in the platform
+- R_mount = Rz(yaw) · Ry(pitch) · Rx(roll) (the convention of
+  :func:`~spm_console.core.kinematics.rotations.rpy_matrix`): the IMU's axes in the platform
   frame (sensor → platform). Map the sensor's axes onto the platform's nominal axes first
   (the BNO055's AXIS_MAP registers) so that the mount stays far from pitch ±90°.
 - e_z: the specific force at rest points up; only its direction is used (unit vectors).

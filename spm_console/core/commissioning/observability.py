@@ -15,6 +15,20 @@ share in those directions (the norm of its row of their orthonormal basis, in sp
 :data:`SHARE_TOL` is undetermined. The others are fitted; one whose standard error at the stated
 noise exceeds the resolution is *imprecise* (the data move it, not to the resolution), the rest
 *determined*. Named combinations (:data:`NAMED`) are checked the same way.
+
+What gravity cannot tell apart. A pose gives two numbers (a direction). At home on a level base
+a common horn offset and the mount's yaw are turns about the vertical, invisible; for the
+symmetric wrist so is the common offset at every θ1 = θ2 = θ3 (the platform only yaws there).
+Off that line a common offset also tilts the platform (0.14° to 0.19° per degree 10° from home),
+so gravity sees it at first order in the distance from the line, like most of the rest near
+home. A tilted base does not help: at home the offset turns the platform about the base's axis,
+which turning the (fitted) tilt's azimuth, or the mount's yaw, mimics exactly. Each leg's horn
+offset and two arcs enter only through that leg's f_i of (4): at every pose they turn the
+platform along the same J1⁻¹ e_i (11), weighted by J2_ii(θ) (12), ∂f_i/∂α1_i(θ) and sin α2_i,
+and the arcs' shift of the home pose is a constant turn the mount absorbs; only the change of
+those weights from pose to pose separates them (the arcs at second order in the distance from
+home). Near home, mixtures of arcs, horns and mount are held unless the arcs are known; poses
+20° to 30° out determine all.
 """
 
 from __future__ import annotations

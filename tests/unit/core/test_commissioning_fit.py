@@ -134,8 +134,8 @@ def test_what_the_data_do_not_determine_keeps_the_prior_not_a_guess(
 
 
 def test_a_tilted_base_does_not_determine_it_either(model: SpmModel, near: PoseDesign) -> None:
-    """At home a common horn offset and the mount's yaw are both a turn about the platform's
-    axis: a tilt makes their sum visible, not each."""
+    """At home a common horn offset turns the platform about the base's axis: on a tilted base
+    turning the tilt's azimuth, or the mount's yaw, does the same to gravity."""
     theta = np.array(near.theta_deg)
     fit = fit_as_built(model, theta, predict_gravity(model, TRUTH, theta))
     assert COMMON in fit.undetermined_named
