@@ -28,6 +28,9 @@ def register(sub: Any) -> None:
                    help="the BNO055 on the platform, UART mode (115200 baud)")
     c.add_argument("--jig", action="store_true",
                    help="the wrist rests on its home jig, torque off: zero the servos there")
+    c.add_argument("--no-imu-fit", action="store_true",
+                   help="after the jig's zero, skip the IMU stage (poses within 10° of home, "
+                        "the fit of horn offsets, IMU mounting and base tilt, its verification)")
     c.add_argument("--out", type=Path, metavar="FILE.toml",
                    help="where to write the commissioned profile (default: beside the "
                         "profile, NAME.commissioned-TIME.toml, never over a file)")
@@ -36,7 +39,8 @@ def register(sub: Any) -> None:
 
 
 def cmd_commission(args: argparse.Namespace) -> int:
-    from spm_console.services.commission import Bno055Source, commission, commissioned_text
+    from spm_console.services.commission import Bno055Source, commission, commissioned_text, refined
+    from spm_console.services.commission_fit import refine_with_imu
 
     profile = profile_of(args)
     port = args.port or profile.bus.port
@@ -49,6 +53,8 @@ def cmd_commission(args: argparse.Namespace) -> int:
     imu = Bno055Source(args.imu_port)
     try:
         result = commission(profile, port, imu, args.jig, info)
+        if args.jig and not args.no_imu_fit:
+            result = refined(result, refine_with_imu(result.profile, port, imu, info))
     finally:
         imu.close()
     when = dt.datetime.now(dt.UTC)
@@ -66,13 +72,38 @@ def cmd_commission(args: argparse.Namespace) -> int:
             "found": [{"id": f.id, "model_number": f.model_number, "firmware": f.firmware}
                       for f in result.discovery.found],
             "legs": legs, "jig_ticks": result.jig_ticks, "tick_offsets": result.tick_offsets,
-            "zeroed": result.tick_offsets is not None, "profile_written": str(written)}
+            "zeroed": result.tick_offsets is not None, "profile_written": str(written),
+            "imu_fit": None if result.refinement is None else _fit_json(result.refinement)}
     human = "\n".join(
         [f"leg {m.leg}: servo id {m.id}, direction {m.direction:+d} "
          f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})" for m in result.legs]
         + ([f"tick offsets from the jig: {list(result.tick_offsets)}"]
            if result.tick_offsets is not None else
            ["not zeroed: give --jig (the wrist on its home jig, torque off)"])
+        + ([] if result.refinement is None else [
+            f"IMU stage: horn offsets beyond the jig {[round(h, 3) for h in result.refinement.horn_deg]}°, "
+            f"held-out gravity residual {result.refinement.verification.gravity_max_deg:.3f}° at most, "
+            f"{result.refinement.motion_s:.1f} s of motion"]
+           + [f"  {p.name}: {p.value_deg:+.3f}° ± {p.std_expected_deg:.3f}° ({p.status})"
+              for p in result.refinement.fit.parameters])
         + [f"profile written: {written}"])
     emit(args, data, human)
     return int(ExitCode.OK)
+
+
+def _fit_json(r: Any) -> dict[str, Any]:
+    """The IMU stage for ``--json``: each parameter with its standard error and status, the
+    Jacobian's singular values, what the data leave undetermined, the residuals."""
+    fit = r.fit
+    return {
+        "horn_beyond_jig_deg": list(r.horn_deg), "motion_s": r.motion_s,
+        "poses_deg": [list(p) for p in r.poses_deg],
+        "parameters": [{"name": p.name, "value_deg": p.value_deg, "std_deg": p.std_deg,
+                        "std_expected_deg": p.std_expected_deg, "status": p.status}
+                       for p in fit.parameters],
+        "singular_values": list(fit.singular_values),
+        "undetermined": list(fit.undetermined_named),
+        "residual_rms_deg": fit.residual_rms_deg,
+        "held_out_gravity_max_deg": r.verification.gravity_max_deg,
+        "held_out_gravity_rms_deg": r.verification.gravity_rms_deg,
+    }

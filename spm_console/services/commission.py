@@ -24,7 +24,7 @@ import datetime as dt
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -33,8 +33,11 @@ from numpy.typing import NDArray
 from spm_console.config.edit import with_joints
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
+from spm_console.devices.imu.bno055 import Bno055
+from spm_console.devices.imu.bno055_registers import OprMode
 from spm_console.errors import BadInputError, BusError, ImuError, SpmError
 from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
+from spm_console.services.commission_fit import Refinement
 from spm_console.services.commission_map import LegMatch, leg_axes, match_leg, rotation_vector
 from spm_console.services.session import Session
 
@@ -68,9 +71,6 @@ class Bno055Source:
     heading, no magnetometer near the servos' motors), read at its 100 Hz output rate."""
 
     def __init__(self, port: str) -> None:
-        from spm_console.devices.imu.bno055 import Bno055
-        from spm_console.devices.imu.bno055_registers import OprMode
-
         self.device = Bno055.open(port)
         try:
             self.device.set_mode(OprMode.IMU)
@@ -84,6 +84,14 @@ class Bno055Source:
         if sample.quat_wxyz is None:
             raise ImuError(f"the IMU on {self.device.port} gave no orientation")
         return np.asarray(sample.quat_wxyz, float)
+
+    def specific_force(self) -> F:
+        """The accelerometer's reading, m/s² (the sensor's axes)."""
+        sample = self.device.read_sample()
+        time.sleep(IMU_PERIOD_S)
+        if sample.accel_mps2 is None:
+            raise ImuError(f"the IMU on {self.device.port} gave no acceleration")
+        return np.asarray(sample.accel_mps2, float)
 
     def close(self) -> None:
         self.device.close()
@@ -112,6 +120,8 @@ class Commissioned:
     """Tick offsets from the jig (None without one: the zero stage needs the jig here)."""
     profile: Profile
     """The commissioned profile (the input's, with ``[bus]`` as built)."""
+    refinement: Refinement | None = None
+    """The IMU stage's fit and verification (None when it did not run)."""
 
 
 def discover(profile: Profile, port: str, on_stage: Callable[[str], None]) -> tuple[Profile, Discovery]:
@@ -182,6 +192,19 @@ def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
         offsets = zero_from_jig(profile, [m.direction for m in legs], jig_ticks)
     built = _with_wiring(found_profile, legs, offsets)
     return Commissioned(disc, (legs[0], legs[1], legs[2]), jig_ticks, offsets, built)
+
+
+def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
+    """``result`` with each tick offset moved by the horn offset the IMU stage found beyond
+    the jig's zero (true θ = θ read + δ, so tick_offset − d·δ in ticks)."""
+    if result.tick_offsets is None:
+        raise BadInputError("commission: the IMU stage refines the jig's zero; there is none")
+    tpt = result.profile.bus.ticks_per_turn
+    offsets = tuple(round(off - m.direction * d * tpt / 360.0) % tpt for off, m, d in
+                    zip(result.tick_offsets, result.legs, refinement.horn_deg, strict=True))
+    new = (offsets[0], offsets[1], offsets[2])
+    return replace(result, tick_offsets=new, refinement=refinement,
+                   profile=_with_wiring(result.profile, result.legs, new))
 
 
 def _jig_ticks(client: MotionClient, ids: Sequence[int]) -> dict[int, float]:
@@ -282,7 +305,8 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
         if result.tick_offsets is not None:
             values["tick_offset"] = result.tick_offsets[k]
         joints.append(values)
-    how = "map: IMU" + (", zero: jig" if result.tick_offsets is not None else "")
+    how = "map: IMU" + (", zero: jig" if result.tick_offsets is not None else "") + (
+        " and IMU" if result.refinement is not None else "")
     text, prof = with_joints(base_text, joints,  # type: ignore[arg-type]
                              f"commissioned {stamp} ({how})", source)
     return text, prof

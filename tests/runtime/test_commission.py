@@ -52,14 +52,25 @@ def as_built(agile: Profile) -> Profile:
     return agile.model_copy(update={"bus": bus})
 
 
+#: The IMU's mounting on the platform (rotation vector, deg), the base's tilt (about x, then
+#: y, deg) and each leg's arcs as built (deg from 90°).
+MOUNT_DEG = (6.0, -4.0, 8.0)
+TILT_DEG = (2.0, -1.5)
+ARC1_DEG = (0.3, -0.2, 0.1)
+ARC2_DEG = (-0.1, 0.25, -0.3)
+
+
 @pytest.fixture
 def wrist(agile: Profile) -> Iterator[tuple[EmulatorHandle, EmulatedBno055, Profile]]:
     truth_profile = as_built(agile)
     switch = sys.getswitchinterval()
     sys.setswitchinterval(0.0005)  # three threads of this process answer serial lines
     em = start_emulator(truth_profile, record=False, link="socket")  # at home: the jig
-    model = model_of(agile)
-    mount = expm_so3(np.radians([6.0, -4.0, 8.0]))
+    geometry = agile.geometry.model_copy(update={"alpha1_leg_offset_deg": ARC1_DEG,
+                                                 "alpha2_leg_offset_deg": ARC2_DEG})
+    model = model_of(agile.model_copy(update={"geometry": geometry}))  # the arcs as built
+    mount = expm_so3(np.radians(MOUNT_DEG))
+    tilt = expm_so3(np.radians([0.0, TILT_DEG[1], 0.0])) @ expm_so3(np.radians([TILT_DEG[0], 0.0, 0.0]))
     last = [np.eye(3)]  # the platform's rotation from home at the last sample
 
     def truth() -> ImuTruth:  # (4) solved by Newton from the last pose: the moves are small
@@ -67,7 +78,7 @@ def wrist(agile: Profile) -> Iterator[tuple[EmulatorHandle, EmulatedBno055, Prof
         R, res = newton(model.geom, model.geom.w(th[None]), last[0][None], model.v_home)
         assert res[0] < 1e-9
         last[0] = R[0]
-        return ImuTruth.at_rest(R[0] @ mount)
+        return ImuTruth.at_rest(tilt @ R[0] @ mount)
 
     imu = EmulatedBno055(truth, seed=5)
     yield em, imu, truth_profile
@@ -83,10 +94,10 @@ def test_commission_maps_zeroes_and_writes_the_wrist_as_built(
     start = em.joint_deg()
     out = tmp_path / "built.toml"
     rc = main(["commission", "--profile", str(AGILE), "--port", em.port, "--imu-port", imu.port,
-               "--jig", "--out", str(out), "--json"])
+               "--jig", "--no-imu-fit", "--out", str(out), "--json"])
     d = json.loads(capsys.readouterr().out)
     assert rc == 0, d
-    assert d["zeroed"] and d["protocol"] == "2.0"
+    assert d["zeroed"] and d["protocol"] == "2.0" and d["imu_fit"] is None
     assert sorted(f["id"] for f in d["found"]) == [1, 2, 3]
     assert [(leg["leg"], leg["id"], leg["direction"]) for leg in d["legs"]] == [
         (1, 3, 1), (2, 1, -1), (3, 2, 1)]
@@ -116,3 +127,26 @@ def test_an_imu_port_where_no_imu_answers_is_refused_before_anything_moves(
     finally:
         other.stop()
         em.stop()
+
+
+@pytest.mark.slow  # 16 poses visited (about a minute of motion and settling)
+def test_the_imu_stage_refines_the_jig_zero_and_verifies_it_on_held_out_poses(
+        wrist: tuple[EmulatorHandle, EmulatedBno055, Profile], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    em, imu, truth = wrist
+    out = tmp_path / "built.toml"
+    rc = main(["commission", "--profile", str(AGILE), "--port", em.port, "--imu-port", imu.port,
+               "--jig", "--out", str(out), "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0, d
+    fit = d["imu_fit"]
+    assert fit["held_out_gravity_max_deg"] < 0.15 and fit["motion_s"] <= 60.0
+    by_name = {p["name"]: p for p in fit["parameters"]}
+    for k, want in enumerate(MOUNT_DEG):  # the mounting is found (rpy of a small rotation)
+        got = by_name[("mount_roll", "mount_pitch", "mount_yaw")[k]]
+        if got["status"] == "determined":
+            assert got["value_deg"] == pytest.approx(want, abs=0.5)
+    built = load_profile(out)
+    for m, tm in zip(joint_maps(built), joint_maps(truth), strict=True):
+        for th in (built.home.theta_deg[0] - 10.0, built.home.theta_deg[0] + 10.0):
+            assert m.to_deg(tm.to_ticks(th)) == pytest.approx(th, abs=0.1)

@@ -1,0 +1,135 @@
+"""Commissioning's IMU stage: once the map and the jig's zero are known, the wrist visits a set
+of verified poses near home, the IMU measuring gravity at each; the fit of
+:mod:`spm_console.core.commissioning` then refines each horn offset (the jig's common offset
+held: gravity near home hardly sees it), the IMU's mounting and the base's tilt (and each leg's
+arcs where the data determine them); held-out poses verify the result.
+
+Every move is an ordinary motion of the motion process on the jig-zeroed profile: homed,
+planned (minimum time at :data:`POSE_SPEED_DEGPS`), verified against its certified workspace,
+logged. Degrees at the interface.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.config.models import model_of
+from spm_console.config.schema import Profile
+from spm_console.core.commissioning.design import design_poses
+from spm_console.core.commissioning.fit import CommissioningFit, fit_as_built
+from spm_console.core.commissioning.verify import Verification, verify_as_built
+from spm_console.errors import BusError
+from spm_console.services.session import PoseSpec, Session
+
+F = NDArray[np.float64]
+
+#: Poses the fit uses, and the held-out poses that verify it (every fourth visited).
+FIT_POSES = 12
+HELD_OUT = 4
+#: Distances of the candidate poses from home, deg.
+RADII_DEG = (3.0, 6.0, 10.0)
+#: Speed bound of the moves between poses, deg/s.
+POSE_SPEED_DEGPS = 15.0
+#: Wait at each pose before measuring, s (the platform still).
+SETTLE_S = 0.4
+#: Reads of the joint angles averaged at a pose, and IMU samples.
+THETA_READS = 10
+IMU_SAMPLES = 40
+#: How well a home jig zeroes a servo, deg (a tick is 0.088°; the jig's own seat more):
+#: a horn offset the IMU determines to better than this replaces the jig's.
+JIG_ACCURACY_DEG = 0.25
+#: Largest held-out gravity-direction residual a commissioned profile may have, deg.
+VERIFY_BOUND_DEG = 0.15
+
+
+class GravitySource(Protocol):
+    """The IMU's accelerometer: the specific force at rest in its own axes, m/s²."""
+
+    def specific_force(self) -> F: ...
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """The IMU stage's result."""
+
+    fit: CommissioningFit
+    verification: Verification
+    """On the held-out poses."""
+    poses_deg: tuple[tuple[float, float, float], ...]
+    """The poses visited, as commanded on the jig-zeroed profile."""
+    horn_deg: tuple[float, float, float]
+    """Each leg's horn offset beyond the jig's zero, deg (0 where not determined)."""
+    motion_s: float
+    """Time spent moving, s."""
+
+
+def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
+                    on_stage: Callable[[str], None]) -> Refinement:
+    """Visit the designed poses on ``profile`` (mapped and jig-zeroed), fit and verify."""
+    model = model_of(profile)
+    session = Session(profile, port=port, sim=False)
+    poses: list[tuple[float, float, float]] = []
+    thetas: list[F] = []
+    gravity: list[F] = []
+    moving = 0.0
+    try:
+        session.connect()
+        on_stage("imu: loading the workspace the poses are verified against")
+        session.load_workspace()
+        design = design_poses(model, FIT_POSES + HELD_OUT, RADII_DEG,
+                              is_allowed=lambda th: bool(session.check_theta(th).in_region),
+                              fixed={"horn_common": 0.0})
+        on_stage(f"imu: homing, then {len(design.theta_deg)} poses within "
+                 f"{max(RADII_DEG):g}° of home")
+        t0 = time.monotonic()
+        _ok(session.home(), "homing")
+        moving += time.monotonic() - t0
+        for k, theta in enumerate(design.theta_deg):
+            if np.abs(np.asarray(theta) - session.read_position()).max() > 0.05:
+                session.solve_plan("mintime", PoseSpec("current"), PoseSpec("theta", theta),
+                                   vmax_degps=POSE_SPEED_DEGPS)
+                t0 = time.monotonic()
+                _ok(session.execute(), f"the move to pose {k + 1}")
+                moving += time.monotonic() - t0
+            time.sleep(SETTLE_S)
+            thetas.append(np.mean([session.read_position() for _ in range(THETA_READS)], axis=0))
+            gravity.append(np.mean([imu.specific_force() for _ in range(IMU_SAMPLES)], axis=0))
+            poses.append(theta)
+            on_stage(f"imu: pose {k + 1}/{len(design.theta_deg)} θ = "
+                     f"{', '.join(f'{x:.2f}' for x in thetas[-1])}°")
+        session.solve_plan("mintime", PoseSpec("current"), PoseSpec("home"),
+                           vmax_degps=POSE_SPEED_DEGPS)
+        t0 = time.monotonic()
+        _ok(session.execute(), "the move back home")
+        moving += time.monotonic() - t0
+    finally:
+        session.close()
+    held = np.zeros(len(poses), bool)
+    held[3::4] = True  # every fourth pose verifies, the others fit
+    th, g = np.asarray(thetas), np.asarray(gravity)
+    fit = fit_as_built(model, th[~held], g[~held], fixed={"horn_common": 0.0})
+    check = verify_as_built(model, fit.as_built, th[held], g[held])
+    on_stage(f"verify: held-out gravity residual {check.gravity_max_deg:.3f}° at most "
+             f"(bound {VERIFY_BOUND_DEG:g}°), fit residual {fit.residual_rms_deg:.3f}° RMS")
+    if not math.isfinite(check.gravity_max_deg) or check.gravity_max_deg > VERIFY_BOUND_DEG:
+        raise BusError(f"commission: verify refused: the held-out poses' gravity is "
+                       f"{check.gravity_max_deg:.3f}° from the fitted wrist's (bound "
+                       f"{VERIFY_BOUND_DEG:g}°); redo the jig stage (is the wrist on its jig, "
+                       "the IMU fixed to the platform?). Nothing was written")
+    # a horn the data determine to better than the jig replaces the jig's zero
+    horn = tuple(p.value_deg if p.status in ("determined", "imprecise")
+                 and p.std_expected_deg < JIG_ACCURACY_DEG else 0.0 for p in fit.parameters[:3])
+    return Refinement(fit, check, tuple(poses), (horn[0], horn[1], horn[2]), moving)
+
+
+def _ok(result: object, what: str) -> None:
+    if not getattr(result, "ok", False):
+        raise BusError(f"commission: {what} did not complete: "
+                       f"{getattr(result, 'message', '') or 'stopped'}")
