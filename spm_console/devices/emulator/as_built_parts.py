@@ -1,0 +1,85 @@
+"""The parts a wrist as built adds to the physical emulated wrist's MuJoCo model
+(:class:`~spm_console.description.mjcf.AsBuiltBody`): the IMU's sensors, read on demand, and
+the home jig.
+
+The IMU's sensors (MuJoCo's ``accelerometer``, ``gyro``, ``framequat`` on the platform's IMU
+site) are switched off while the wrist steps (``mjDSBL_SENSOR``: an accelerometer costs a
+constraint-force pass every step) and computed when asked, by one ``mj_forward`` at the state
+reached. That pass writes only quantities derived from the state (not the state, nor the
+solver's warm start, which only a step's integration sets), so reading the truth leaves the
+motion bit-identical.
+
+The jig holds each output shaft at home (a ``joint`` equality per leg, inactive in the model):
+an operator's home jig, fitted while torque is off and taken off when torque first goes on.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from spm_console.description import names
+from spm_console.description.mjcf import AsBuiltBody
+from spm_console.devices.emulator.imu_truth import ImuTruth, canonical, quat_multiply
+
+F = NDArray[np.float64]
+
+_SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+
+
+def _quat_wxyz(R: F) -> F:
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, float).reshape(9))
+    return q
+
+
+class AsBuiltParts:
+    """The IMU's sensors and the jig of one MuJoCo model built with an :class:`AsBuiltBody`."""
+
+    def __init__(self, mj: mujoco.MjModel, body: AsBuiltBody) -> None:
+        self.body = body
+        self.base_quat = _quat_wxyz(body.base_rotation)
+        """World ← base (w, x, y, z)."""
+        self._acc = int(mj.sensor(names.IMU_ACCELEROMETER).adr[0])
+        self._gyro = int(mj.sensor(names.IMU_GYRO).adr[0])
+        self._quat = int(mj.sensor(names.IMU_FRAMEQUAT).adr[0])
+        self._platform = int(mj.body(names.PLATFORM).id)
+        self._jigs = [int(mj.equality(names.jig_equality(i)).id) for i in range(3)]
+        mj.opt.disableflags |= _SENSOR_OFF  # computed on demand (read)
+
+    # --- the jig ---------------------------------------------------------------------------
+
+    def held(self, data: mujoco.MjData) -> bool:
+        """Whether the jig holds the output shafts."""
+        return bool(data.eq_active[self._jigs].any())
+
+    def hold(self, data: mujoco.MjData) -> None:
+        """Fit the jig: each output shaft held at home (θ = θ_home) from the next step."""
+        data.eq_active[self._jigs] = 1
+
+    def release(self, data: mujoco.MjData) -> None:
+        """Take the jig off."""
+        data.eq_active[self._jigs] = 0
+
+    # --- the IMU ---------------------------------------------------------------------------
+
+    def read(self, mj: mujoco.MjModel, data: mujoco.MjData, t: float, theta_rad: F) -> ImuTruth:
+        """The IMU's truth at the state reached (time ``t``, s; joint angles θ, rad)."""
+        flags = mj.opt.disableflags
+        mj.opt.disableflags = flags & ~_SENSOR_OFF
+        try:
+            mujoco.mj_forward(mj, data)
+        finally:
+            mj.opt.disableflags = flags
+        s = data.sensordata
+        acc = s[self._acc:self._acc + 3]
+        gyro = s[self._gyro:self._gyro + 3]
+        sensor = quat_multiply(self.base_quat, s[self._quat:self._quat + 4])
+        platform = quat_multiply(self.base_quat, data.xquat[self._platform])
+        th = [math.degrees(float(x)) for x in theta_rad]
+        return ImuTruth(float(t), (float(acc[0]), float(acc[1]), float(acc[2])),
+                        (float(gyro[0]), float(gyro[1]), float(gyro[2])),
+                        canonical(sensor), canonical(platform), (th[0], th[1], th[2]))
