@@ -70,11 +70,12 @@ class AsBuilt(Section):
     profile's ``bus.joints[*].id``)."""
     direction: tuple[Direction, Direction, Direction] = (1, 1, 1)
     """Per leg, −1 when its servo has the Drive Mode reverse bit (address 10, bit 0) set: its
-    Present Position counts the other way than the profile's ``direction`` says (+1: as the
-    profile says). Protocol 2.0 only."""
+    Present Position counts the other way than the profile's ``direction`` says, mirrored
+    within one turn (+1: as the profile says). Protocol 2.0 only."""
     horn_offset_deg: tuple[HornOffset, HornOffset, HornOffset] = (0.0, 0.0, 0.0)
-    """Per leg, the true joint angle θ (deg) when the servo reads the profile's
-    ``tick_offset`` (where the profile puts θ = 0): a horn mounted off, each within ±30°."""
+    """Per leg, the true joint angle θ (deg) when the servo, counting as the profile says
+    (Drive Mode 0), reads the profile's ``tick_offset`` (where the profile puts θ = 0): a horn
+    mounted off, each within ±30°. Mechanical: a reverse bit mirrors the count, not the horn."""
     alpha1_error_deg: tuple[ArcError, ArcError, ArcError] = (0.0, 0.0, 0.0)
     """Per leg, the true proximal arc minus the profile's (α1 plus its
     ``alpha1_leg_offset_deg``), deg, each within ±2."""
