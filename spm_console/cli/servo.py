@@ -190,7 +190,7 @@ def cmd_emulate(args: argparse.Namespace) -> int:
     stop = threading.Event()
     log = _truth_log(args.truth_log)
     try:
-        # an emulated IMU reads the wrist's truth from em.imu_truth()
+        # an emulated IMU's truth: em.imu_truth (EmulatedBno055(em.imu_truth))
         em = start_emulator(profile, faults, record=False, initial_deg=initial, link=args.link,
                             truth=truth, jig=args.jig, truth_log=log)
     except BaseException:

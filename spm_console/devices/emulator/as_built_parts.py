@@ -23,7 +23,8 @@ from numpy.typing import NDArray
 
 from spm_console.description import names
 from spm_console.description.mjcf import AsBuiltBody
-from spm_console.devices.emulator.imu_truth import ImuTruth, canonical, quat_multiply
+from spm_console.devices.emulator.bno055 import ImuTruth
+from spm_console.devices.emulator.wrist_truth import WristTruth, canonical, quat_matrix, quat_multiply
 
 F = NDArray[np.float64]
 
@@ -66,8 +67,8 @@ class AsBuiltParts:
 
     # --- the IMU ---------------------------------------------------------------------------
 
-    def read(self, mj: mujoco.MjModel, data: mujoco.MjData, t: float, theta_rad: F) -> ImuTruth:
-        """The IMU's truth at the state reached (time ``t``, s; joint angles θ, rad)."""
+    def read(self, mj: mujoco.MjModel, data: mujoco.MjData, t: float, theta_rad: F) -> WristTruth:
+        """The truth at the state reached (time ``t``, s; joint angles θ, rad)."""
         flags = mj.opt.disableflags
         mj.opt.disableflags = flags & ~_SENSOR_OFF
         try:
@@ -75,11 +76,9 @@ class AsBuiltParts:
         finally:
             mj.opt.disableflags = flags
         s = data.sensordata
-        acc = s[self._acc:self._acc + 3]
-        gyro = s[self._gyro:self._gyro + 3]
-        sensor = quat_multiply(self.base_quat, s[self._quat:self._quat + 4])
-        platform = quat_multiply(self.base_quat, data.xquat[self._platform])
+        sensor = canonical(quat_multiply(self.base_quat, s[self._quat:self._quat + 4]))
+        platform = canonical(quat_multiply(self.base_quat, data.xquat[self._platform]))
+        imu = ImuTruth(quat_matrix(sensor), np.array(s[self._acc:self._acc + 3], float),
+                       np.array(s[self._gyro:self._gyro + 3], float), float(t))
         th = [math.degrees(float(x)) for x in theta_rad]
-        return ImuTruth(float(t), (float(acc[0]), float(acc[1]), float(acc[2])),
-                        (float(gyro[0]), float(gyro[1]), float(gyro[2])),
-                        canonical(sensor), canonical(platform), (th[0], th[1], th[2]))
+        return WristTruth(float(t), imu, sensor, platform, (th[0], th[1], th[2]))

@@ -13,9 +13,9 @@ to the clock start together with the true joint angles and velocities (deg, deg/
 Given a :class:`~spm_console.devices.emulator.twin.TrueWrist` (a profile and an as-built file),
 the bus serves the wrist as built instead of the one the profile describes: its servos' ids,
 Drive Modes and horn offsets, its link arcs, tilt, payload and IMU (whose truth
-:meth:`EmulatorHandle.imu_truth` reads); it can power on in an operator's home jig (held at
-the true home until the first torque-on) and write its truth at 100 Hz
-(:mod:`~spm_console.devices.emulator.truth_log`).
+:meth:`EmulatorHandle.truth` and :meth:`EmulatorHandle.imu_truth` read); it can power on in an
+operator's home jig (held at the true home until the first torque-on) and write its truth at
+100 Hz (:mod:`~spm_console.devices.emulator.truth_log`).
 """
 
 from __future__ import annotations
@@ -41,7 +41,6 @@ from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
 from spm_console.devices.emulator.dispatch import dispatch1, dispatch2
 from spm_console.devices.emulator.endpoint import Channel, Link, open_endpoint
 from spm_console.devices.emulator.faults import FaultSpec
-from spm_console.devices.emulator.imu_truth import ImuTruth
 from spm_console.devices.emulator.plant_joint import PlantJoint
 from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
 from spm_console.devices.emulator.truth_log import TruthLog
@@ -50,7 +49,9 @@ from spm_console.errors import BusError
 from spm_console.system.realtime import EMULATOR_PRIORITY, RtGrant, request_realtime
 
 if TYPE_CHECKING:  # the physical wrist loads MuJoCo: only a physical plant needs it
+    from spm_console.devices.emulator.bno055 import ImuTruth
     from spm_console.devices.emulator.physical import PhysicalWrist
+    from spm_console.devices.emulator.wrist_truth import WristTruth
 
 F = NDArray[np.float64]
 
@@ -90,7 +91,7 @@ class EmulatorHandle:
                  truth_log: TruthLog | None = None) -> None:
         self.profile = profile
         self.protocol = profile.bus.protocol
-        self.truth = truth
+        self.true_wrist = truth
         """The wrist as built the bus serves (None: the profile's)."""
         self.maps: list[JointMap] = joint_maps(profile) if truth is None else truth.encoder_maps()
         """Per joint, the servo's id and its count ↔ true θ (deg)."""
@@ -207,19 +208,19 @@ class EmulatorHandle:
                 s.place(m.to_ticks(th))
             self._sample()
 
-    def imu_truth(self) -> ImuTruth:
-        """The IMU's truth now, the wrist stepped to this instant (a wrist as built on the
-        physical plant only; an emulated IMU reads it)."""
+    def truth(self) -> WristTruth:
+        """The wrist's truth now, stepped to this instant (the physical wrist as built only):
+        what its IMU senses, the platform's orientation, θ."""
         with self._lock:
             if self.wrist is None or self.wrist.parts is None:
                 raise BusError("only the physical wrist as built carries an IMU")
             self._advance(time.perf_counter())
-            return self.wrist.imu_truth()
+            return self.wrist.truth()
 
-    @property
-    def truth_log(self) -> TruthLog | None:
-        """The truth log being written (None: none)."""
-        return self._truth_log
+    def imu_truth(self) -> ImuTruth:
+        """What an ideal IMU on the platform senses now: an emulated IMU's truth
+        (``EmulatedBno055(handle.imu_truth)``)."""
+        return self.truth().imu
 
     def stop(self) -> None:
         """Stop serving, close the link and the truth log."""
@@ -280,7 +281,7 @@ class EmulatorHandle:
             return
         while log.open and self.t_power_on + log.next_s <= now:
             wrist.advance(self.t_power_on + log.next_s)
-            truth = wrist.imu_truth()
+            truth = wrist.truth()
             log.write(truth.t_s - self.t_power_on, truth.platform_quat_wxyz, truth.theta_deg)
 
     def _active(self, kind: str, now: float) -> list[FaultSpec]:

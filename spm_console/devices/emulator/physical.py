@@ -11,7 +11,7 @@ Each servo is its firmware's position loop driving a DC motor (Protocol 2.0 e-ma
 The joints drive :func:`~spm_console.description.mjcf.wrist_mjcf`'s closed chain
 under gravity. Angles are the joints' θ in radians (θ_home at the model's rest pose). A wrist
 as built (an :class:`~spm_console.description.mjcf.AsBuiltBody`) also stands tilted, carries a
-payload, an IMU whose truth :meth:`PhysicalWrist.imu_truth` reads, and a home jig
+payload, an IMU whose truth :meth:`PhysicalWrist.truth` reads, and a home jig
 (:mod:`spm_console.devices.emulator.as_built_parts`).
 """
 
@@ -39,7 +39,8 @@ from spm_console.description.mjcf import (
 )
 from spm_console.devices.dynamixel.control_table import table_for
 from spm_console.devices.emulator.as_built_parts import AsBuiltParts
-from spm_console.devices.emulator.imu_truth import ImuTruth
+from spm_console.devices.emulator.bno055 import ImuTruth
+from spm_console.devices.emulator.wrist_truth import WristTruth
 
 F = NDArray[np.float64]
 
@@ -285,13 +286,17 @@ class PhysicalWrist:
     def jig_held(self) -> bool:
         return self.parts is not None and self.parts.held(self.data)
 
-    def imu_truth(self) -> ImuTruth:
-        """The IMU's truth now (a wrist as built only): specific force and angular rate in the
-        sensor frame, the sensor's and the platform's orientation in the world, θ. Leaves the
-        motion unchanged (:mod:`~spm_console.devices.emulator.as_built_parts`)."""
+    def truth(self) -> WristTruth:
+        """The truth now (a wrist as built only): what the IMU senses, the sensor's and the
+        platform's orientation in the world, θ. Leaves the motion unchanged
+        (:mod:`~spm_console.devices.emulator.as_built_parts`)."""
         if self.parts is None:
             raise ValueError("only a wrist as built (an AsBuiltBody) carries an IMU")
         return self.parts.read(self.mj, self.data, self.t, self.theta())
+
+    def imu_truth(self) -> ImuTruth:
+        """What an ideal IMU on the platform senses now (an emulated IMU's truth)."""
+        return self.truth().imu
 
     def set_theta(self, theta: F) -> None:
         """Place the wrist at rest at θ (rad): the chain is assembled by the solver from θ (a

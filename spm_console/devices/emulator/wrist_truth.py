@@ -1,12 +1,13 @@
-"""What an IMU on the emulated wrist's platform would sense, exactly (no noise, no bias): the
-truth an emulated IMU adds its errors to, and the truth commissioning is tested against.
+"""The emulated wrist's truth at one instant: what an ideal IMU on its platform senses (no
+noise, no bias: :class:`~spm_console.devices.emulator.bno055.ImuTruth`, which an emulated IMU
+adds its errors to), the platform's orientation and the joint angles: the truth commissioning
+is tested against.
 
 Frames: the world's z axis points up (gravity is −9.81 m/s² along it); the base may be tilted
 in it (an as-built ``base_tilt_deg``); the platform frame is the base's at home; the sensor
 frame is the IMU's, turned on the platform by its mount (``imu_mount_rpy_deg``). Quaternions
 are (w, x, y, z), unit, w ≥ 0, and rotate the second frame named into the first (world ←
-sensor: a vector's sensor coordinates to its world coordinates). No MuJoCo here: this module is
-light to import.
+sensor: a vector's sensor coordinates to its world coordinates). No MuJoCo here.
 """
 
 from __future__ import annotations
@@ -17,24 +18,26 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.devices.emulator.bno055 import ImuTruth
+
 F = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 
 
 @dataclass(frozen=True)
-class ImuTruth:
-    """One instant of the emulated wrist's truth, as an ideal IMU on its platform reads it."""
+class WristTruth:
+    """One instant of the emulated wrist's truth."""
 
     t_s: float
     """The emulator's clock, s (``time.perf_counter()``'s scale, shared by the processes)."""
-    specific_force_mps2: Vec3
-    """What an accelerometer reads, in the sensor frame, m/s²: acceleration minus gravity
-    (+9.81 along the sensor's up axis at rest). MuJoCo's ``accelerometer`` sensor."""
-    angular_rate_radps: Vec3
-    """The sensor's angular velocity in the sensor frame, rad/s (MuJoCo's ``gyro``)."""
+    imu: ImuTruth
+    """What an ideal IMU on the platform senses: world ← sensor rotation, specific force (what
+    an accelerometer reads: +9.81 m/s² along the sensor's up axis at rest; MuJoCo's
+    ``accelerometer``) and angular rate (MuJoCo's ``gyro``), both in the sensor frame; its
+    ``t_s`` is this one's."""
     sensor_quat_wxyz: Quat
-    """The sensor's orientation, world ← sensor."""
+    """The sensor's orientation, world ← sensor (``imu.rotation`` as a quaternion)."""
     platform_quat_wxyz: Quat
     """The platform's orientation, world ← platform (with a level base, the forward
     kinematics' R: base ← platform)."""
