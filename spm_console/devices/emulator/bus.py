@@ -49,9 +49,9 @@ from spm_console.errors import BusError
 from spm_console.system.realtime import EMULATOR_PRIORITY, RtGrant, request_realtime
 
 if TYPE_CHECKING:  # the physical wrist loads MuJoCo: only a physical plant needs it
+    from spm_console.devices.emulator.as_built_parts import WristTruth
     from spm_console.devices.emulator.bno055 import ImuTruth
     from spm_console.devices.emulator.physical import PhysicalWrist
-    from spm_console.devices.emulator.wrist_truth import WristTruth
 
 F = NDArray[np.float64]
 

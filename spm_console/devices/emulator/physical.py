@@ -38,9 +38,8 @@ from spm_console.description.mjcf import (
     wrist_mjcf,
 )
 from spm_console.devices.dynamixel.control_table import table_for
-from spm_console.devices.emulator.as_built_parts import AsBuiltParts
+from spm_console.devices.emulator.as_built_parts import AsBuiltParts, WristTruth
 from spm_console.devices.emulator.bno055 import ImuTruth
-from spm_console.devices.emulator.wrist_truth import WristTruth
 
 F = NDArray[np.float64]
 

@@ -14,9 +14,9 @@ from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.rotations import rpy_matrix
 from spm_console.description.mjcf import plant_params
+from spm_console.devices.emulator.as_built_parts import quat_matrix
 from spm_console.devices.emulator.physical import PhysicalWrist
 from spm_console.devices.emulator.twin import true_wrist
-from spm_console.devices.emulator.wrist_truth import quat_matrix
 
 G = np.array([0.0, 0.0, 9.81])
 HEAVY = AsBuilt(payload_kg=2.0, payload_com_mm=(150.0, 0.0, 150.0))
