@@ -102,8 +102,8 @@ class AsBuilt(Section):
 
     @property
     def neutral(self) -> bool:
-        """Whether nothing differs from the profile but (perhaps) the ids."""
-        return self.model_dump(exclude={"ids"}) == AsBuilt().model_dump(exclude={"ids"})
+        """Whether every key holds its default: the wrist is the profile's."""
+        return self == AsBuilt()
 
 
 class AsBuiltFile(Section):

@@ -56,6 +56,19 @@ def test_a_tilted_base_shows_in_the_imu_truth_at_rest(agile: Profile) -> None:
     assert tr.theta_deg == pytest.approx(tuple(agile.home.theta_deg), abs=0.01)
 
 
+def test_a_neutral_as_built_moves_bit_identically_to_the_profiles_wrist(agile: Profile) -> None:
+    """Its IMU site, switched-off sensors and inactive jigs change nothing in the motion."""
+    runs = []
+    for body in (None, true_wrist(agile, AsBuilt()).body):
+        w = PhysicalWrist(model_of(agile), plant_params(agile.plant), 4096, None, body)
+        w.set_theta(w.spm.theta_home)
+        for i in range(3):
+            w.command(i, w.spm.theta_home[i] + math.radians(5.0 * (i + 1)), True, False)
+        w.advance(0.3)
+        runs.append(w.data.qpos.copy())
+    assert np.array_equal(runs[0], runs[1])
+
+
 def test_reading_the_truth_leaves_the_motion_bit_identical(agile: Profile) -> None:
     ab = AsBuilt(base_tilt_deg=(2.0, 1.0), payload_kg=0.5, payload_com_mm=(40.0, 0.0, 100.0))
     runs = []
