@@ -99,6 +99,13 @@ class BadInputError(SpmError):
     exit_code = ExitCode.BAD_INPUT
 
 
+class OptionConflictError(SpmError):
+    """Options given together that do not go together, which the parser cannot tell alone
+    (one needs another's value): a bad command line, exit 2 as the parser's own."""
+
+    exit_code = ExitCode.USAGE
+
+
 class UnreachableError(SpmError):
     """No solution in the home assembly/working mode (e.g. the path crosses a singularity)."""
 

@@ -8,13 +8,28 @@ import json
 import threading
 import time
 from dataclasses import asdict
+from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import add_common, add_plant, emit, info, integer, number, profile_of, to_jsonable
+from spm_console.cli.common import (
+    add_common,
+    add_plant,
+    emit,
+    info,
+    integer,
+    number,
+    output_file,
+    profile_of,
+    to_jsonable,
+)
 from spm_console.cli.streams import stdout_guard
+from spm_console.config.as_built import AsBuilt, load_as_built
+from spm_console.config.schema import Profile
 from spm_console.devices.emulator.bus import start_emulator
 from spm_console.devices.emulator.faults import parse_fault
-from spm_console.errors import BadInputError, BusError, ExitCode
+from spm_console.devices.emulator.truth_log import MAX_TRUTH_LOG_S, TruthLog
+from spm_console.devices.emulator.twin import TrueWrist, true_wrist
+from spm_console.errors import BadInputError, BusError, ExitCode, OptionConflictError
 from spm_console.input_rules import finite_number, theta_in_servo_limits
 from spm_console.motion.servo_query import BusQuery, BusReport, check_ids
 from spm_console.system.signals import install_stop_handler
@@ -65,6 +80,17 @@ def register(sub: Any) -> None:
                         "open (less exposed to a loaded machine's delays)")
     e.add_argument("--duration", type=number, metavar="S",
                    help=f"stop by itself after S seconds, 0 < S ≤ {MAX_EMULATE_S:g}")
+    e.add_argument("--as-built", type=Path, metavar="FILE.toml",
+                   help="with --plant physical: emulate the wrist as it was built (servo ids, "
+                        "Drive Mode reverse bits, horn offsets, link arcs, base tilt, IMU "
+                        "mount, payload), not as the profile describes it")
+    e.add_argument("--jig", action="store_true",
+                   help="with --plant physical: power on, torque off, held at the true home by "
+                        "an operator's jig; the jig comes off at the first torque-on")
+    e.add_argument("--truth-log", type=Path, metavar="FILE.csv",
+                   help="with --plant physical: write the true platform quaternion and joint "
+                        f"angles at 100 Hz (at most {MAX_TRUTH_LOG_S / 3600:g} h; replaced if "
+                        "it exists), for tests and benchmarks")
     e.set_defaults(func=cmd_emulate)
 
 
@@ -126,20 +152,58 @@ def cmd_torque(args: argparse.Namespace) -> int:
     return int(ExitCode.OK)
 
 
+def _truth(args: argparse.Namespace, profile: Profile) -> TrueWrist | None:
+    """The wrist as built that ``--as-built``, ``--jig`` or ``--truth-log`` asks for (without
+    --as-built: the profile's wrist, with the IMU and jig of a wrist as built); None when none
+    of them is given."""
+    wanted = [o for o, v in (("--as-built", args.as_built), ("--jig", args.jig),
+                             ("--truth-log", args.truth_log)) if v]
+    if not wanted:
+        return None
+    if profile.plant.model != "physical":
+        raise OptionConflictError(f"{', '.join(wanted)}: only with --plant physical (the "
+                                  f"rigid-body wrist; this one is {profile.plant.model})")
+    if args.jig and args.initial is not None:
+        raise OptionConflictError("--jig holds the wrist at home: not with --initial")
+    as_built = AsBuilt() if args.as_built is None else load_as_built(args.as_built)
+    return true_wrist(profile, as_built, str(args.as_built or "as-built"))
+
+
+def _truth_log(path: Path | None) -> TruthLog | None:
+    if path is None:
+        return None
+    output_file(path, "--truth-log", (".csv",))
+    try:
+        return TruthLog(path)
+    except OSError as exc:
+        raise BadInputError(f"--truth-log {path}: {exc.strerror or exc}") from None
+
+
 def cmd_emulate(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     faults = [parse_fault(f) for f in args.fault]
+    truth = _truth(args, profile)
     initial = None if args.initial is None else \
         [float(x) for x in theta_in_servo_limits(args.initial, "--initial", profile)]
     if args.duration is not None:
         finite_number(args.duration, "--duration", 0.0, MAX_EMULATE_S, lo_open=True, unit="s")
     stop = threading.Event()
-    em = start_emulator(profile, faults, record=False, initial_deg=initial, link=args.link)
+    log = _truth_log(args.truth_log)
+    try:
+        # an emulated IMU's truth: em.imu_truth (EmulatedBno055(em.imu_truth))
+        em = start_emulator(profile, faults, record=False, initial_deg=initial, link=args.link,
+                            truth=truth, jig=args.jig, truth_log=log)
+    except BaseException:
+        if log is not None:
+            log.close()
+        raise
     restore = install_stop_handler(lambda _sig: stop.set())
     try:
         head = {"port": em.port, "link": em.link, "protocol": em.protocol,
                 "ids": [m.id for m in em.maps], "model_number": profile.bus.model_number,
-                "faults": [str(f) for f in faults], "profile": profile.name}
+                "faults": [str(f) for f in faults], "profile": profile.name,
+                "as_built": args.as_built is not None, "jig": bool(args.jig),
+                "truth_log": None if log is None else str(log.path)}
         stream = stdout_guard.out()
         stream.write(json.dumps(to_jsonable(head)) + "\n" if args.json else f"{em.port}\n")
         stream.flush()
@@ -154,9 +218,12 @@ def cmd_emulate(args: argparse.Namespace) -> int:
         em.stop()
         restore()
     st = em.stats
-    summary = {"stopped": True, "instructions": st.instructions, "replies": st.replies,
-               "dropped": st.dropped, "corrupted": st.corrupted, "delayed": st.delayed,
-               "silenced": st.silenced, "faults_fired": st.faults_fired}
+    summary: dict[str, Any] = {
+        "stopped": True, "instructions": st.instructions, "replies": st.replies,
+        "dropped": st.dropped, "corrupted": st.corrupted, "delayed": st.delayed,
+        "silenced": st.silenced, "faults_fired": st.faults_fired}
+    if log is not None:
+        summary["truth_log"] = {"path": str(log.path), "rows": log.rows, "full": log.full}
     if args.json:
         stdout_guard.out().write(json.dumps(summary) + "\n")
         stdout_guard.out().flush()

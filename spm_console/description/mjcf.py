@@ -19,6 +19,13 @@ friction (Coulomb ``frictionloss``, viscous ``damping``) and the motor's reflect
 joint limit, so MuJoCo's constraint solver takes the impacts); without, the drive turns the
 proximal link itself.
 
+A wrist as built (:class:`AsBuiltBody`, from an as-built file) adds, and only then: gravity
+turned into the base's frame (a tilted base; the MJCF's frame is the base's), a payload welded
+to the platform, the IMU's site on the platform with MuJoCo's own ``accelerometer``, ``gyro``
+and ``framequat`` sensors on it, and a home jig per leg (a ``joint`` equality holding the
+output shaft at home, inactive until the emulator engages it). Without one the text is the
+same as ever.
+
 With a link model, each leg also carries the paper's collision envelope (Sec. IV-B): a
 capsule of radius δ on every checked segment (A_iB_i, B_iC_i on the proximal link, D_iE_i,
 E_iF_i on the distal one, eqs. 18–23), massless and without contact forces (the envelope is a
@@ -40,9 +47,46 @@ from spm_console.config.plant import PLANT_STEP_S
 from spm_console.config.schema import Plant
 from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
 from spm_console.core.kinematics.model import SpmModel
+from spm_console.core.kinematics.rotations import matrix_quaternion
 from spm_console.description import names
 
 F = NDArray[np.float64]
+
+#: Standard gravity, m/s² (along the world's −z).
+GRAVITY_MPS2 = 9.81
+#: Radius of the solid sphere whose inertia a payload gets, m (its mass is what matters).
+PAYLOAD_RADIUS_M = 0.02
+
+
+@dataclass(frozen=True)
+class AsBuiltBody:
+    """How the wrist stands and what it carries as built, SI units (from an as-built file)."""
+
+    base_rotation: F
+    """World ← base (3, 3): the base turned from level. The MJCF's frame is the base's, so its
+    gravity is g_base = Rᵀ·(0, 0, −9.81)."""
+    imu_rotation: F
+    """Platform ← sensor (3, 3): the IMU's mount."""
+    payload_kg: float = 0.0
+    """Mass welded to the platform, kg (0: none)."""
+    payload_com_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """The payload's centre of mass in the platform frame (the base's at home), m."""
+
+    @property
+    def gravity_mps2(self) -> F:
+        """Gravity in the base's frame, m/s²."""
+        return np.asarray(self.base_rotation.T @ np.array([0.0, 0.0, -GRAVITY_MPS2]), float)
+
+
+def imu_position(model: SpmModel, params: PlantParams) -> F:
+    """Where the IMU sits on the platform, m (platform frame): the centroid of the platform's
+    triangle, r·(v1 + v2 + v3)/3 at home."""
+    return np.asarray(params.link_radius_m * model.v_home.mean(axis=0), float)
+
+
+def _quat_wxyz(R: F) -> F:
+    x, y, z, w = matrix_quaternion(np.asarray(R, float))
+    return np.array([w, x, y, z])
 
 
 @dataclass(frozen=True)
@@ -149,9 +193,52 @@ def _envelopes(model: SpmModel, links: LinkModel | None, leg: int, proximal: boo
                    for seg, a, b in envelope_segments(model, links, leg, proximal))
 
 
-def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = None) -> str:
+def _platform_extras(model: SpmModel, params: PlantParams, body: AsBuiltBody | None) -> str:
+    """The IMU's site and a payload, inside the platform's body."""
+    if body is None:
+        return ""
+    out = (f'<site name="{names.IMU_SITE}" pos="{_vec(imu_position(model, params))}" '
+           f'quat="{_vec(_quat_wxyz(body.imu_rotation))}" size="0.005"/>')
+    if body.payload_kg > 0.0:
+        inertia = 0.4 * body.payload_kg * PAYLOAD_RADIUS_M**2  # a solid sphere's
+        out += (f'<body name="{names.PAYLOAD}" pos="{_vec(np.asarray(body.payload_com_m))}">'
+                f'<inertial pos="0 0 0" mass="{body.payload_kg:.12g}" '
+                f'diaginertia="{inertia:.6g} {inertia:.6g} {inertia:.6g}"/></body>')
+    return out
+
+
+def _jigs(params: PlantParams, body: AsBuiltBody | None) -> str:
+    """One inactive ``joint`` equality per leg holding its output shaft at home (with a gear
+    play: the play joint against the rotor, q_play = −q_motor; else the drive joint at 0)."""
+    if body is None:
+        return ""
+    play = params.backlash_rad > 0.0
+    out = []
+    for i in range(3):
+        pair = (f'joint1="{names.play_joint(i)}" joint2="{names.motor_joint(i)}" '
+                f'polycoef="0 -1 0 0 0"' if play else
+                f'joint1="{names.motor_joint(i)}" polycoef="0 0 0 0 0"')
+        out.append(f'<joint name="{names.jig_equality(i)}" {pair} active="false" '
+                   f'solref="{2 * params.timestep_s:.6g} 1"/>')
+    return "\n    " + "\n    ".join(out)
+
+
+def _sensors(body: AsBuiltBody | None) -> str:
+    if body is None:
+        return ""
+    site = names.IMU_SITE
+    return f"""
+  <sensor>
+    <accelerometer name="{names.IMU_ACCELEROMETER}" site="{site}"/>
+    <gyro name="{names.IMU_GYRO}" site="{site}"/>
+    <framequat name="{names.IMU_FRAMEQUAT}" objtype="site" objname="{site}"/>
+  </sensor>"""
+
+
+def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = None,
+               body: AsBuiltBody | None = None) -> str:
     """The MJCF text of the wrist in its home configuration (with ``links``, the legs'
-    collision envelopes)."""
+    collision envelopes; with ``body``, the wrist as built: tilt, payload, IMU, jigs)."""
     u = model.u
     w = model.geom.w(model.theta_home)
     v = model.v_home
@@ -163,6 +250,7 @@ def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = N
         platform = ""
         if i == 0:
             plat_geoms = "\n".join(_capsule(c) for c in caps[names.PLATFORM])
+            plat_geoms += _platform_extras(model, params, body)
             platform = (f'<body name="{names.PLATFORM}"><joint name="{names.platform_joint(0)}" '
                         f'type="hinge" axis="{_vec(v[0])}"/>{plat_geoms}</body>')
         drive = (f'name="{names.motor_joint(i)}" type="hinge" axis="{_vec(-u[i])}" '
@@ -195,15 +283,16 @@ def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = N
         f'solimp="0.99 0.999 0.001"/>' for j in (1, 2))
     motors = "\n".join(f'<motor name="{names.servo_actuator(i)}" joint="{names.motor_joint(i)}" '
                         f'gear="1" ctrllimited="false"/>' for i in range(3))
+    gravity = "0 0 -9.81" if body is None else _vec(body.gravity_mps2)
     return f"""<mujoco model="spm_wrist">
-  <option timestep="{params.timestep_s:.6g}" gravity="0 0 -9.81" integrator="implicitfast"/>
+  <option timestep="{params.timestep_s:.6g}" gravity="{gravity}" integrator="implicitfast"/>
   <worldbody>
     {"".join(legs)}
   </worldbody>
   <equality>
-    {closures}
+    {closures}{_jigs(params, body)}
   </equality>
   <actuator>
     {motors}
-  </actuator>
+  </actuator>{_sensors(body)}
 </mujoco>"""

@@ -19,6 +19,13 @@ from __future__ import annotations
 LEGS = 3
 BASE = "base_link"
 PLATFORM = "platform"
+PAYLOAD = "payload"
+"""A payload welded to the platform (MJCF of a wrist as built only)."""
+IMU_SITE = "imu"
+"""The IMU's site on the platform, and the prefix of its sensors (MJCF of a wrist as built)."""
+IMU_ACCELEROMETER = "imu_accelerometer"
+IMU_GYRO = "imu_gyro"
+IMU_FRAMEQUAT = "imu_framequat"
 
 
 def leg(i: int) -> str:
@@ -61,6 +68,11 @@ def platform_joint(i: int) -> str:
 def servo_actuator(i: int) -> str:
     """The MJCF actuator of leg ``i``'s servo."""
     return f"{leg(i)}_servo"
+
+
+def jig_equality(i: int) -> str:
+    """The home jig's hold on leg ``i``'s output shaft (MJCF of a wrist as built only)."""
+    return f"{leg(i)}_jig"
 
 
 def envelope_geom(i: int, segment: str) -> str:

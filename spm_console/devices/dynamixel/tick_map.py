@@ -21,7 +21,9 @@ class JointMap:
     """1-based joint number."""
     id: int
     """Servo id."""
-    tick_offset: int
+    tick_offset: float
+    """Ticks at θ = 0: a whole tick from a profile; the emulator's truth of a wrist as built
+    has a fractional one (a horn's offset is continuous)."""
     direction: int
     min_deg: float
     max_deg: float

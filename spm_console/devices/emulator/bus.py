@@ -9,6 +9,13 @@ servo sends, and applies the injected faults to the replies. The thread sleeps i
 ``select`` on the link (no busy wait), so it answers as soon as a packet is
 complete. Time is ``time.perf_counter()``; ``true_state()`` reports it relative
 to the clock start together with the true joint angles and velocities (deg, deg/s).
+
+Given a :class:`~spm_console.devices.emulator.twin.TrueWrist` (a profile and an as-built file),
+the bus serves the wrist as built instead of the one the profile describes: its servos' ids,
+Drive Modes and horn offsets, its link arcs, tilt, payload and IMU (whose truth
+:meth:`EmulatorHandle.truth` and :meth:`EmulatorHandle.imu_truth` read); it can power on in an
+operator's home jig (held at the true home until the first torque-on) and write its truth at
+100 Hz (:mod:`~spm_console.devices.emulator.truth_log`).
 """
 
 from __future__ import annotations
@@ -36,10 +43,14 @@ from spm_console.devices.emulator.endpoint import Channel, Link, open_endpoint
 from spm_console.devices.emulator.faults import FaultSpec
 from spm_console.devices.emulator.plant_joint import PlantJoint
 from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
+from spm_console.devices.emulator.truth_log import TruthLog
+from spm_console.devices.emulator.twin import TrueWrist
 from spm_console.errors import BusError
 from spm_console.system.realtime import EMULATOR_PRIORITY, RtGrant, request_realtime
 
 if TYPE_CHECKING:  # the physical wrist loads MuJoCo: only a physical plant needs it
+    from spm_console.devices.emulator.as_built_parts import WristTruth
+    from spm_console.devices.emulator.bno055 import ImuTruth
     from spm_console.devices.emulator.physical import PhysicalWrist
 
 F = NDArray[np.float64]
@@ -75,36 +86,54 @@ class EmulatorHandle:
     """A running emulated bus. Use :func:`start_emulator`; ``stop()`` when done."""
 
     def __init__(self, profile: Profile, faults: Sequence[FaultSpec] = (), record: bool = True,
-                 initial_deg: Sequence[float] | None = None, link: Link | None = None) -> None:
+                 initial_deg: Sequence[float] | None = None, link: Link | None = None, *,
+                 truth: TrueWrist | None = None, jig: bool = False,
+                 truth_log: TruthLog | None = None) -> None:
         self.profile = profile
         self.protocol = profile.bus.protocol
-        self.maps: list[JointMap] = joint_maps(profile)
+        self.true_wrist = truth
+        """The wrist as built the bus serves (None: the profile's)."""
+        self.maps: list[JointMap] = joint_maps(profile) if truth is None else truth.encoder_maps()
+        """Per joint, the servo's id and its count ↔ true θ (deg)."""
         table = table_for(self.protocol)
         if profile.bus.model_number != table.model_number:
             raise BusError(
                 f"the emulator serves MX-106 (model {table.model_number} on protocol "
                 f"{self.protocol}); the profile expects model {profile.bus.model_number}"
             )
-        theta0 = list(initial_deg) if initial_deg is not None else list(profile.home.theta_deg)
+        home = list(profile.home.theta_deg) if truth is None else truth.home_deg
+        if (jig or truth_log is not None) and (truth is None or profile.plant.model != "physical"):
+            raise BusError("a home jig and a truth log need the physical wrist as built "
+                           "([plant] model = \"physical\" and a TrueWrist)")
+        if jig and initial_deg is not None:
+            raise BusError("a home jig holds the wrist at home: no other power-on angles")
+        theta0 = list(initial_deg) if initial_deg is not None else home
         if len(theta0) != 3:
             raise BusError("initial_deg: expected three joint angles")
         rng = np.random.default_rng(profile.emulator.seed)
         tpd = profile.bus.ticks_per_turn / 360.0
-        self.wrist = _physical_wrist(profile, theta0)
+        self.wrist = _physical_wrist(profile, theta0, truth)
         """The rigid-body wrist the servos drive (``[plant] model = "physical"``), or None."""
+        if jig and self.wrist is not None:
+            self.wrist.hold_jig()
         # the servos power on once the wrist is built (MuJoCo's model and the assembly take a
         # tenth of a second or more): the serving thread never starts behind, integrating
         # that time before its first reply
         now = time.perf_counter()
         if self.wrist is not None:
             self.wrist.t = now
+        self.t_power_on = now
+        """When the servos powered on (``time.perf_counter()``), s: the truth log's zero."""
+        modes = [0, 0, 0] if truth is None else [j.drive_mode for j in truth.joints]
         self.servos = [
             EmulatedServo(table, m.id, servo_model_of(profile).dynamics, m.to_ticks(theta0[i]), now,
                           profile.emulator.noise_deg * tpd, rng, profile.bus.ticks_per_turn,
-                          None if self.wrist is None else PlantJoint(self.wrist, i, m))
+                          None if self.wrist is None else PlantJoint(self.wrist, i, m),
+                          drive_mode=modes[i])
             for i, m in enumerate(self.maps)
         ]
         self._by_id = {s.id: s for s in self.servos}
+        self._truth_log = truth_log
         self._record = record
         self._t: list[float] = []
         self._pos: list[list[float]] = []
@@ -179,12 +208,29 @@ class EmulatorHandle:
                 s.place(m.to_ticks(th))
             self._sample()
 
+    def truth(self) -> WristTruth:
+        """The wrist's truth now, stepped to this instant (the physical wrist as built only):
+        what its IMU senses, the platform's orientation, θ."""
+        with self._lock:
+            if self.wrist is None or self.wrist.parts is None:
+                raise BusError("only the physical wrist as built carries an IMU")
+            self._advance(time.perf_counter())
+            return self.wrist.truth()
+
+    def imu_truth(self) -> ImuTruth:
+        """What an ideal IMU on the platform senses now: an emulated IMU's truth
+        (``EmulatedBno055(handle.imu_truth)``)."""
+        return self.truth().imu
+
     def stop(self) -> None:
-        """Stop serving and close the link."""
+        """Stop serving, close the link and the truth log."""
         self._stop.set()
         if self._thread.is_alive() and self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
         self._endpoint.close()
+        if self._truth_log is not None:
+            with self._lock:
+                self._truth_log.close()
 
     def __enter__(self) -> EmulatorHandle:
         return self
@@ -222,9 +268,21 @@ class EmulatorHandle:
                     s.stall()
                 else:
                     s.raise_hardware_error(OVERLOAD)
+        if self._truth_log is not None:
+            self._log_truth(now)
         for s in self.servos:
             s.advance(now)
         self._sample()
+
+    def _log_truth(self, now: float) -> None:
+        """The truth log's rows due by ``now``, each at its instant (the wrist stepped there)."""
+        log, wrist = self._truth_log, self.wrist
+        if log is None or wrist is None:
+            return
+        while log.open and self.t_power_on + log.next_s <= now:
+            wrist.advance(self.t_power_on + log.next_s)
+            truth = wrist.truth()
+            log.write(truth.t_s - self.t_power_on, truth.platform_quat_wxyz, truth.theta_deg)
 
     def _active(self, kind: str, now: float) -> list[FaultSpec]:
         return [f for f in self._faults if f.kind == kind and now >= self.t0 + f.at_s
@@ -280,6 +338,8 @@ class EmulatorHandle:
                 self._reads.append(len(self._t) - 1)  # the record _advance(now) just took
             for _ident, raw in replies:
                 self._emit(channel, raw, now)
+            if any(k != sv.id for k, sv in self._by_id.items()):  # an ID written
+                self._by_id = {sv.id: sv for sv in self.servos}
 
     def _emit(self, channel: Channel, raw: bytes, now: float) -> None:
         for f in self._active("drop", now):
@@ -306,22 +366,25 @@ class EmulatorHandle:
             channel.write(raw)
 
 
-def _physical_wrist(profile: Profile, theta0_deg: Sequence[float]) -> PhysicalWrist | None:
-    """The physical wrist at rest at θ0 (deg) (its clock set by the caller); None for ideal
-    servos."""
+def _physical_wrist(profile: Profile, theta0_deg: Sequence[float],
+                    truth: TrueWrist | None = None) -> PhysicalWrist | None:
+    """The physical wrist (the profile's, or ``truth``'s) at rest at θ0 (deg) (its clock set by
+    the caller); None for ideal servos."""
     if profile.plant.model != "physical":
         return None
     from spm_console.devices.emulator.physical import PhysicalWrist  # loads MuJoCo
 
-    wrist = PhysicalWrist(model_of(profile), plant_params(profile.plant), profile.bus.ticks_per_turn,
-                          link_model_of(profile))
+    model = model_of(profile) if truth is None else truth.model
+    wrist = PhysicalWrist(model, plant_params(profile.plant), profile.bus.ticks_per_turn,
+                          link_model_of(profile), None if truth is None else truth.body)
     wrist.set_theta(np.radians(np.asarray(theta0_deg, float)))
     return wrist
 
 
 def start_emulator(profile: Profile, faults: Sequence[FaultSpec] = (), record: bool = True,
                    initial_deg: Sequence[float] | None = None,
-                   link: Link | None = None) -> EmulatorHandle:
+                   link: Link | None = None, *, truth: TrueWrist | None = None,
+                   jig: bool = False, truth_log: TruthLog | None = None) -> EmulatorHandle:
     """Start an emulated bus for ``profile`` in a background thread; open ``handle.port``
     (``link``: a Unix-domain socket, ``unix:PATH``, or a pseudo-terminal; default the
     profile's ``emulator.link``).
@@ -330,5 +393,10 @@ def start_emulator(profile: Profile, faults: Sequence[FaultSpec] = (), record: b
     equal to their position. Fault times count from the clock start: the first torque-on
     (the first motion, whichever process drives it) or an earlier
     :meth:`EmulatorHandle.start_clock`; until then only faults at t = 0 act.
+
+    With ``truth`` (:func:`~spm_console.devices.emulator.twin.true_wrist`) the bus serves that
+    wrist as built; on the physical plant, ``jig`` powers it on held at the true home until the
+    first torque-on, and ``truth_log`` (closed by ``stop()``) receives its truth at 100 Hz.
     """
-    return EmulatorHandle(profile, faults, record, initial_deg, link)
+    return EmulatorHandle(profile, faults, record, initial_deg, link, truth=truth, jig=jig,
+                          truth_log=truth_log)

@@ -9,7 +9,10 @@ Each servo is its firmware's position loop driving a DC motor (Protocol 2.0 e-ma
 * Coulomb and viscous friction and the rotor's reflected inertia act on the output joint.
 
 The joints drive :func:`~spm_console.description.mjcf.wrist_mjcf`'s closed chain
-under gravity. Angles are the joints' θ in radians (θ_home at the model's rest pose).
+under gravity. Angles are the joints' θ in radians (θ_home at the model's rest pose). A wrist
+as built (an :class:`~spm_console.description.mjcf.AsBuiltBody`) also stands tilted, carries a
+payload, an IMU whose truth :meth:`PhysicalWrist.truth` reads, and a home jig
+(:mod:`spm_console.devices.emulator.as_built_parts`).
 """
 
 from __future__ import annotations
@@ -28,12 +31,15 @@ from spm_console.core.kinematics.links import LinkModel
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.description import names
 from spm_console.description.mjcf import (
+    AsBuiltBody,
     PlantParams,
     envelope_name,
     plant_params,
     wrist_mjcf,
 )
 from spm_console.devices.dynamixel.control_table import table_for
+from spm_console.devices.emulator.as_built_parts import AsBuiltParts, WristTruth
+from spm_console.devices.emulator.bno055 import ImuTruth
 
 F = NDArray[np.float64]
 
@@ -173,12 +179,15 @@ class PhysicalWrist:
     """The wrist's rigid bodies and its three drives, stepped to a time on demand."""
 
     def __init__(self, model: SpmModel, params: PlantParams | None = None,
-                 ticks_per_turn: int = 4096, links: LinkModel | None = None) -> None:
+                 ticks_per_turn: int = 4096, links: LinkModel | None = None,
+                 body: AsBuiltBody | None = None) -> None:
         self.params = params or plant_params(Plant())
         self.spm = model
-        self.mj = mujoco.MjModel.from_xml_string(wrist_mjcf(model, self.params, links))
+        self.mj = mujoco.MjModel.from_xml_string(wrist_mjcf(model, self.params, links, body))
         if self.mj.nu != 3:
             raise ValueError(f"the wrist's model has {self.mj.nu} actuators, not 3")
+        self.parts = None if body is None else AsBuiltParts(self.mj, body)
+        """The IMU and the jig of a wrist as built (None: the profile's wrist, neither)."""
         self.contacts = LegContacts(self.mj, links)
         """The legs' collision envelopes (none without a link model)."""
         self.data = mujoco.MjData(self.mj)
@@ -221,6 +230,7 @@ class PhysicalWrist:
         if enabled and not self.enabled[index]:
             self.drives[index].reset()
             self.strain_s[index] = 0.0
+            self.release_jig()  # the operator takes the jig off as torque goes on
         self.enabled[index] = enabled
         # torque on: the motor drives the gear (Coulomb friction); off: the gear is driven
         # from the output, and holds
@@ -259,8 +269,37 @@ class PhysicalWrist:
         """The drives' speeds at the output's scale, rad/s (back-EMF and current)."""
         return np.asarray(self.data.qvel[self._motor_dof], float)
 
+    def hold_jig(self) -> None:
+        """Fit the home jig (a wrist as built only): every output shaft held at θ_home, whatever
+        its drive does, until :meth:`release_jig` or the first torque-on of any joint."""
+        if self.parts is None:
+            raise ValueError("only a wrist as built (an AsBuiltBody) has a home jig")
+        self.parts.hold(self.data)
+
+    def release_jig(self) -> None:
+        """Take the home jig off (nothing without one)."""
+        if self.parts is not None:
+            self.parts.release(self.data)
+
+    @property
+    def jig_held(self) -> bool:
+        return self.parts is not None and self.parts.held(self.data)
+
+    def truth(self) -> WristTruth:
+        """The truth now (a wrist as built only): what the IMU senses, the sensor's and the
+        platform's orientation in the world, θ. Leaves the motion unchanged
+        (:mod:`~spm_console.devices.emulator.as_built_parts`)."""
+        if self.parts is None:
+            raise ValueError("only a wrist as built (an AsBuiltBody) carries an IMU")
+        return self.parts.read(self.mj, self.data, self.t, self.theta())
+
+    def imu_truth(self) -> ImuTruth:
+        """What an ideal IMU on the platform senses now (an emulated IMU's truth)."""
+        return self.truth().imu
+
     def set_theta(self, theta: F) -> None:
-        """Place the wrist at rest at θ (rad): the chain is assembled by the solver from θ."""
+        """Place the wrist at rest at θ (rad): the chain is assembled by the solver from θ (a
+        jig is taken off)."""
         q = np.asarray(theta, float) - self.spm.theta_home
         mujoco.mj_resetData(self.mj, self.data)
         held = self._motor_q if self._motor_q else self._joint  # the output in mid-play

@@ -7,6 +7,15 @@ in closed form. Present Position is the true position (plus optional noise)
 rounded to a whole tick. Torque off, a stall or a hardware-error shutdown freeze
 the shaft. Protocol-independent: the dispatch modules turn packets into
 :meth:`read` / :meth:`write` calls and error numbers into status bits.
+
+The state is the encoder's own count (Drive Mode 0, Homing Offset 0); on the Protocol 2.0
+firmware the registers hold it as the e-manual's MX-106(2.0) control table says: Drive Mode
+(address 10) bit 0 set reverses the direction, and Homing Offset (address 20) is added to
+Present Position (Goal Position is in the same frame), so
+register = s·count + base + homing_offset, with s = −1 and base = ticks_per_turn − 1 when
+reversed (the e-manual does not say where the reversed count's zero lies: mirrored within one
+turn here, 0 ↔ 4095, so a position in the servo's range stays in it), s = 1 and base = 0
+otherwise. Both are EEPROM: written with torque off only.
 """
 
 from __future__ import annotations
@@ -26,6 +35,16 @@ if TYPE_CHECKING:  # the physical wrist loads MuJoCo: only a servo on it needs i
 
 #: Hardware Error Status bit 5 (overload) — what a stalled, overloaded servo reports.
 OVERLOAD = 0x20
+#: Drive Mode (address 10) bit 0: reverse mode, the servo counts the other way.
+DRIVE_MODE_REVERSE = 0x01
+#: Largest |Homing Offset| the MX-106(2.0) accepts, ticks (e-manual: ±1,044,479).
+MAX_HOMING_OFFSET = 1_044_479
+
+
+def reversed_zero(ticks_per_turn: int) -> int:
+    """In reverse mode (Homing Offset 0), a count plus its register value: the count mirrored
+    within one turn (assumed; the e-manual does not say where the reversed count's zero lies)."""
+    return ticks_per_turn - 1
 
 
 class EmulatedServo:
@@ -33,7 +52,10 @@ class EmulatedServo:
 
     def __init__(self, table: ControlTable, ident: int, p: Pole, position_ticks: float,
                  t: float, noise_ticks: float = 0.0, rng: np.random.Generator | None = None,
-                 ticks_per_turn: int = 4096, joint: PlantJoint | None = None) -> None:
+                 ticks_per_turn: int = 4096, joint: PlantJoint | None = None,
+                 drive_mode: int = 0) -> None:
+        """``position_ticks``: the encoder's count (Drive Mode 0, Homing Offset 0);
+        ``drive_mode``: the Drive Mode register at power-on (Protocol 2.0; bit 0: reverse)."""
         self.table = table
         self.joint = joint
         """The physical wrist's joint this servo drives (None: eq. (27) in closed form)."""
@@ -49,13 +71,21 @@ class EmulatedServo:
                 self._set(name, reg.initial)
         self._set("id", ident)
         self._set("return_delay_time", 0)  # [lab setting] the project sets Return Delay Time 0
+        self._sign = 1
+        self._base = 0
+        """The register frame: register = _sign·count + _base (Homing Offset included)."""
+        if table.protocol == "2.0":
+            self._set("drive_mode", drive_mode)
+        self._frame()
         self.pos = float(position_ticks)
+        """The encoder's count, ticks (the register frame of Drive Mode 0, Homing Offset 0)."""
         self.vel = 0.0
+        """Its rate, ticks/s."""
         self.t = t
         self.stalled = False
         self.hw_error = 0
         self.last_rx = t
-        self._set("goal_position", round(self.pos))
+        self._set("goal_position", round(self.register(self.pos)))
         self._command()
 
     # --- memory -----------------------------------------------------------------------
@@ -67,6 +97,30 @@ class EmulatedServo:
     def get(self, name: str) -> int:
         reg = self.table[name]
         return reg.decode(bytes(self.mem[reg.address : reg.address + reg.size]))
+
+    # --- the register frame (Drive Mode, Homing Offset) ---------------------------------
+
+    def _frame(self) -> None:
+        """The register frame from Drive Mode and Homing Offset (Protocol 2.0; 1.0: the count)."""
+        if self.table.protocol != "2.0":
+            return
+        reverse = bool(self.get("drive_mode") & DRIVE_MODE_REVERSE)
+        self._sign = -1 if reverse else 1
+        self._base = ((reversed_zero(self.ticks_per_turn) if reverse else 0)
+                      + self.get("homing_offset"))
+
+    def register(self, count: float) -> float:
+        """The register value (Present/Goal Position) of an encoder count, ticks."""
+        return self._sign * count + self._base if self._sign < 0 or self._base else count
+
+    def count(self, register: float) -> float:
+        """The encoder count of a register value (Present/Goal Position), ticks."""
+        return self._sign * (register - self._base) if self._sign < 0 or self._base else register
+
+    @property
+    def reversed(self) -> bool:
+        """Whether Drive Mode's reverse bit is set (the registers count the other way)."""
+        return self._sign < 0
 
     @property
     def id(self) -> int:
@@ -98,7 +152,7 @@ class EmulatedServo:
         if not self.moving_freely:
             self.vel = 0.0
             return
-        u = float(self.get("goal_position"))
+        u = self.count(float(self.get("goal_position")))
         if self.dynamics.zeta != 1.0:
             Phi, Gam = exact_step(self.dynamics, dt)
             self.pos, self.vel = (Phi[0, 0] * self.pos + Phi[0, 1] * self.vel + Gam[0] * u,
@@ -121,7 +175,7 @@ class EmulatedServo:
         if t > trip:
             self.advance(trip)  # move with the old goal up to the trip time
             self._set("bus_watchdog", -1)
-            self._set("goal_position", round(self.pos))
+            self._set("goal_position", round(self.register(self.pos)))
             self._command()
 
     def stall(self) -> None:
@@ -147,15 +201,16 @@ class EmulatedServo:
         self._set("torque_enable", 0)
         if "bus_watchdog" in self.table.registers:
             self._set("bus_watchdog", 0)
-        self._set("goal_position", round(self.pos))
+        self._set("goal_position", round(self.register(self.pos)))
         self.vel = 0.0
         self._command()
 
     def place(self, position_ticks: float) -> None:
-        """Put the shaft somewhere (at rest); the goal follows so torque-on does not lunge."""
+        """Put the shaft somewhere (at rest; an encoder count, ticks); the goal follows so
+        torque-on does not lunge."""
         self.pos = float(position_ticks)
         self.vel = 0.0
-        self._set("goal_position", round(self.pos))
+        self._set("goal_position", round(self.register(self.pos)))
         self._command()
 
     def _command(self) -> None:
@@ -164,8 +219,8 @@ class EmulatedServo:
             # a blocked shaft still feels its drive (and overloads it); torque off or a
             # hardware error leave the drive off
             drive_on = self.torque and not self.hw_error
-            self.joint.command(float(self.get("goal_position")), drive_on, self.stalled,
-                               self._gains())
+            self.joint.command(self.count(float(self.get("goal_position"))), drive_on,
+                               self.stalled, self._gains())
 
     def _gains(self) -> DriveGains | None:
         """The position loop's gains as the driver wrote them (Protocol 2.0 registers); None on
@@ -178,12 +233,13 @@ class EmulatedServo:
                           self.get("position_d_gain"), self.get("pwm_limit"))
 
     def present_ticks(self) -> int:
+        """Present Position: the count (plus noise) in the register frame, a whole tick."""
         noise = self.rng.normal(0.0, self.noise_ticks) if self.noise_ticks > 0 else 0.0
-        return round(self.pos + noise)
+        return round(self.register(self.pos + noise))
 
     def _refresh(self) -> None:
         """Live registers from the state (before a read)."""
-        rpm = self.vel / self.ticks_per_turn * 60.0
+        rpm = self._sign * self.vel / self.ticks_per_turn * 60.0
         moving = abs(rpm) > 10 * 0.229
         if self.table.protocol == "2.0":
             self._set("present_position", self.present_ticks())
@@ -258,12 +314,16 @@ class EmulatedServo:
             return ErrorNumber.DATA_RANGE
         if name == "id" and not 0 <= value <= 252:
             return ErrorNumber.DATA_RANGE
+        if name == "homing_offset" and not -MAX_HOMING_OFFSET <= value <= MAX_HOMING_OFFSET:
+            return ErrorNumber.DATA_RANGE
         return ErrorNumber.NONE
 
     def _apply(self, name: str, value: int) -> None:
         if name == "torque_enable" and bool(value) != self.torque and self.joint is None:
             self.vel = 0.0
         self._set(name, value)
+        if name in ("drive_mode", "homing_offset"):
+            self._frame()  # the goal register now means another count: the wrist is told
         if name in ("goal_position", "torque_enable", "position_p_gain", "position_i_gain",
-                    "position_d_gain", "pwm_limit"):
+                    "position_d_gain", "pwm_limit", "drive_mode", "homing_offset"):
             self._command()
