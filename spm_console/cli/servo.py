@@ -25,6 +25,7 @@ from spm_console.cli.common import (
 from spm_console.cli.streams import stdout_guard
 from spm_console.config.as_built import AsBuilt, load_as_built
 from spm_console.config.schema import Profile
+from spm_console.devices.emulator.bno055 import EmulatedBno055
 from spm_console.devices.emulator.bus import start_emulator
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.devices.emulator.truth_log import MAX_TRUTH_LOG_S, TruthLog
@@ -32,6 +33,7 @@ from spm_console.devices.emulator.twin import TrueWrist, true_wrist
 from spm_console.errors import BadInputError, BusError, ExitCode, OptionConflictError
 from spm_console.input_rules import finite_number, theta_in_servo_limits
 from spm_console.motion.servo_query import BusQuery, BusReport, check_ids
+from spm_console.system.realtime import quick_gil_handoff
 from spm_console.system.signals import install_stop_handler
 
 #: Longest ``emulate --duration`` (one day; without --duration it runs until stopped).
@@ -87,6 +89,10 @@ def register(sub: Any) -> None:
     e.add_argument("--jig", action="store_true",
                    help="with --plant physical: power on, torque off, held at the true home by "
                         "an operator's jig; the jig comes off at the first torque-on")
+    e.add_argument("--imu", action="store_true",
+                   help="with --plant physical: a BNO055 on the platform (UART mode) on a "
+                        "pseudo-terminal of its own, fed by MuJoCo's accelerometer and gyroscope "
+                        "(its port: imu_port in the first JSON line)")
     e.add_argument("--truth-log", type=Path, metavar="FILE.csv",
                    help="with --plant physical: write the true platform quaternion and joint "
                         f"angles at 100 Hz (at most {MAX_TRUTH_LOG_S / 3600:g} h; replaced if "
@@ -157,7 +163,7 @@ def _truth(args: argparse.Namespace, profile: Profile) -> TrueWrist | None:
     --as-built: the profile's wrist, with the IMU and jig of a wrist as built); None when none
     of them is given."""
     wanted = [o for o, v in (("--as-built", args.as_built), ("--jig", args.jig),
-                             ("--truth-log", args.truth_log)) if v]
+                             ("--imu", args.imu), ("--truth-log", args.truth_log)) if v]
     if not wanted:
         return None
     if profile.plant.model != "physical":
@@ -189,10 +195,17 @@ def cmd_emulate(args: argparse.Namespace) -> int:
         finite_number(args.duration, "--duration", 0.0, MAX_EMULATE_S, lo_open=True, unit="s")
     stop = threading.Event()
     log = _truth_log(args.truth_log)
+    imu: EmulatedBno055 | None = None
     try:
-        # an emulated IMU's truth: em.imu_truth (EmulatedBno055(em.imu_truth))
         em = start_emulator(profile, faults, record=False, initial_deg=initial, link=args.link,
                             truth=truth, jig=args.jig, truth_log=log)
+        if args.imu:
+            quick_gil_handoff()  # the servos' and the IMU's threads answer serial lines
+            try:
+                imu = EmulatedBno055(em.imu_truth, seed=profile.emulator.seed)
+            except BaseException:
+                em.stop()
+                raise
     except BaseException:
         if log is not None:
             log.close()
@@ -203,6 +216,7 @@ def cmd_emulate(args: argparse.Namespace) -> int:
                 "ids": [m.id for m in em.maps], "model_number": profile.bus.model_number,
                 "faults": [str(f) for f in faults], "profile": profile.name,
                 "as_built": args.as_built is not None, "jig": bool(args.jig),
+                "imu_port": None if imu is None else imu.port,
                 "truth_log": None if log is None else str(log.path)}
         stream = stdout_guard.out()
         stream.write(json.dumps(to_jsonable(head)) + "\n" if args.json else f"{em.port}\n")
@@ -215,6 +229,8 @@ def cmd_emulate(args: argparse.Namespace) -> int:
             if t_end is not None and time.monotonic() >= t_end:
                 break
     finally:
+        if imu is not None:
+            imu.stop()
         em.stop()
         restore()
     st = em.stats

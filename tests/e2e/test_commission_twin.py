@@ -1,0 +1,67 @@
+"""``commission`` on the physical twin as built (tests/data/as_built/twin.toml: ids permuted,
+a reversed servo, horn offsets up to 12°, arcs 0.4° off, the base tilted, the IMU mounted 20°
+off, a payload): ``emulate --as-built --imu --jig`` in its own process, ``commission`` reading
+nothing of the as-built file; the written profile reads the true joint angles."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.cli.main import main
+from spm_console.config.as_built import load_as_built
+from spm_console.config.load import load_profile
+from spm_console.devices.dynamixel.tick_map import joint_maps
+from spm_console.devices.emulator.twin import true_wrist
+from tests.support.paths import ROOT
+
+AGILE = ROOT / "profiles" / "agile_wrist.toml"
+TWIN = ROOT / "tests" / "data" / "as_built" / "twin.toml"
+
+
+@pytest.fixture
+def twin(tmp_path: Path) -> Iterator[dict[str, object]]:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "spm_console", "emulate", "--plant", "physical", "--as-built",
+         str(TWIN), "--imu", "--jig", "--link", "socket", "--truth-log",
+         str(tmp_path / "truth.csv"), "--duration", "600", "--json"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
+    assert proc.stdout is not None
+    head = json.loads(proc.stdout.readline())
+    yield head
+    proc.send_signal(2)
+    proc.communicate(timeout=30)
+
+
+def _errors_deg(written: Path) -> list[float]:
+    """How far the written profile reads each leg's true angle, deg, over its range."""
+    built = load_profile(written)
+    truth = true_wrist(load_profile(AGILE), load_as_built(TWIN))
+    out = []
+    for m, tj in zip(joint_maps(built), truth.joints, strict=True):
+        assert m.id == tj.id
+        for th in np.linspace(m.min_deg + 5.0, m.max_deg - 5.0, 7):
+            out.append(abs(m.to_deg(tj.present_ticks(float(th))) - float(th)))
+    return out
+
+
+@pytest.mark.slow  # the physical twin: the map, then 16 poses of the IMU stage
+def test_commission_finds_the_twin_as_built(twin: dict[str, object], tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    assert twin["imu_port"] and twin["as_built"]
+    out = tmp_path / "built.toml"
+    rc = main(["commission", "--profile", str(AGILE), "--port", str(twin["port"]),
+               "--imu-port", str(twin["imu_port"]), "--jig", "--out", str(out), "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0, d
+    assert [(leg["leg"], leg["id"], leg["direction"]) for leg in d["legs"]] == [
+        (1, 3, 1), (2, 1, -1), (3, 2, 1)]
+    assert max(_errors_deg(out)) < 0.25  # the jig's target; the IMU stage refines within it
+    assert d["imu_fit"]["held_out_gravity_max_deg"] < 0.15
