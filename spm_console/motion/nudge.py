@@ -35,6 +35,9 @@ TRACK_TOL_DEG = 1.0
 SETTLE_S = 0.3
 #: Cycle of a nudge's ramp, s.
 CYCLE_S = 0.02
+#: Reads of the servos' positions tried before the nudge gives up on the bus (a lost reply
+#: is read again, as the servo loop tolerates isolated losses).
+READ_TRIES = 3
 
 
 @dataclass
@@ -87,6 +90,18 @@ def check_moves(moves: Sequence[tuple[int, float]], ids: Sequence[int], speed_de
                                 f"{BALL_DEG:g}° allowed before the wrist is commissioned")
 
 
+def _ticks(bus: DynamixelBus) -> list[int]:
+    """Present Position of the joints' servos, a lost reply read again (:data:`READ_TRIES`)."""
+    for k in range(READ_TRIES):
+        try:
+            return bus.read_ticks()
+        except CommError:
+            if k == READ_TRIES - 1:
+                raise
+            bus.drain_input(0.002)
+    raise AssertionError("unreachable")
+
+
 def _begin(bus: DynamixelBus, state: NudgeState) -> None:
     """First nudge: torque off, PWM Limit saved and lowered, the rest read, hold, torque on."""
     ids = list(bus.ids)
@@ -94,7 +109,7 @@ def _begin(bus: DynamixelBus, state: NudgeState) -> None:
     for ident in ids:
         state.saved_pwm[ident] = int(bus.read(ident, "pwm_limit"))
         bus.write(ident, "pwm_limit", min(PWM_LIMIT, state.saved_pwm[ident]))
-    ticks = bus.read_ticks()
+    ticks = _ticks(bus)
     state.rest_ticks = dict(zip(ids, ticks, strict=True))
     state.goal_ticks = dict(state.rest_ticks)
     bus.sync_write("goal_position", state.goal_ticks)
@@ -140,7 +155,7 @@ def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, f
             goal = {i: round(start[i] + s * (target[i] - start[i])) for i in ids}
             bus.sync_write("goal_position", goal)
             state.goal_ticks = goal
-            present = dict(zip(ids, bus.read_ticks(), strict=True))
+            present = dict(zip(ids, _ticks(bus), strict=True))
             lag = max(lag, max(abs(goal[i] - present[i]) / tpd for i in ids))
             if lag > TRACK_TOL_DEG:
                 stopped = (f"a servo lags {lag:.2f}° behind the nudge (more than "
@@ -150,12 +165,12 @@ def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, f
                 break
             time.sleep(CYCLE_S)
         if stopped:  # hold where the servos are
-            present = dict(zip(ids, bus.read_ticks(), strict=True))
+            present = dict(zip(ids, _ticks(bus), strict=True))
             bus.sync_write("goal_position", present)
             state.goal_ticks = present
         else:
             time.sleep(SETTLE_S)
-        reached = bus.read_ticks()
+        reached = _ticks(bus)
     except CommError as exc:
         raise BusError(f"nudge on {bus.port}: {exc}") from None
     return NudgeResult(tuple(ids), tuple(state.rest_ticks[i] for i in ids),

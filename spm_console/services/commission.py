@@ -7,8 +7,9 @@ Stages, each through the motion process that owns the bus (nothing here writes t
    bus without three servos of the profile's model, naming what answered.
 2. **Jig** (``--jig``): the wrist rests on its home jig, torque off: each servo's ticks are
    averaged there (before anything moves; the jig is released when torque goes on).
-3. **Map**: each servo alone nudged by 2° at 4 °/s (:mod:`~spm_console.motion.nudge`), the
-   others holding; the platform rotation the IMU measures names its leg and the way it counts
+3. **Map**: each servo alone nudged by 1.8° at 4 °/s (:mod:`~spm_console.motion.nudge`; a tick
+   and its overshoot stay inside the 2° ball), the others holding; the platform rotation the
+   IMU measures names its leg and the way it counts
    (:mod:`~spm_console.services.commission_map`). Nothing else moves before the map is known.
 4. **Zero** from the jig: true θ at the jig = the profile's home, so each tick offset is the
    jig's ticks less the home angle in ticks (rounded to a tick: 0.088° on the MX-106).
@@ -36,6 +37,7 @@ from spm_console.config.schema import Profile
 from spm_console.devices.imu.bno055 import Bno055
 from spm_console.devices.imu.bno055_registers import OprMode
 from spm_console.errors import BadInputError, BusError, ImuError, SpmError
+from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
 from spm_console.services.commission_fit import Refinement
 from spm_console.services.commission_map import LegMatch, leg_axes, match_leg, rotation_vector
@@ -47,7 +49,7 @@ if TYPE_CHECKING:
 F = NDArray[np.float64]
 
 #: The nudge of the map stage, deg of the servo's own counting, and its speed, deg/s.
-MAP_NUDGE_DEG = 2.0
+MAP_NUDGE_DEG = 1.8
 MAP_SPEED_DEGPS = 4.0
 #: Reads averaged at the jig.
 JIG_READS = 20
@@ -122,6 +124,10 @@ class Commissioned:
     """The commissioned profile (the input's, with ``[bus]`` as built)."""
     refinement: Refinement | None = None
     """The IMU stage's fit and verification (None when it did not run)."""
+    nudge_s: float = 0.0
+    """Time the map stage's nudges took, s."""
+    max_nudge_deg: float = 0.0
+    """The farthest any servo was from its rest during the map stage, deg (at most 2°)."""
 
 
 def discover(profile: Profile, port: str, on_stage: Callable[[str], None]) -> tuple[Profile, Discovery]:
@@ -158,16 +164,19 @@ def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
             jig_by_id = _jig_ticks(client, disc.ids)
         axes = leg_axes(model_of(profile), np.asarray(profile.home.theta_deg, float))
         matches: list[LegMatch] = []
+        nudges: list[NudgeResult] = []
         try:
             for ident in disc.ids:
                 on_stage(f"map: nudging servo id {ident} by {MAP_NUDGE_DEG:g}°")
                 q0 = _mean_quaternion(imu)
                 r = client.nudge(((ident, MAP_NUDGE_DEG),), MAP_SPEED_DEGPS)
+                nudges.append(r)
                 if not r.ok:
                     raise BusError(f"commission: the nudge of servo id {ident} stopped ({r.stopped}); "
                                    "nothing else moved. Check the wrist moves freely")
                 q1 = _mean_quaternion(imu)
                 back = client.nudge(((ident, 0.0),), MAP_SPEED_DEGPS)
+                nudges.append(back)
                 if not back.ok:
                     raise BusError(f"commission: servo id {ident} did not return ({back.stopped})")
                 try:
@@ -191,7 +200,11 @@ def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
         jig_ticks = (jig_by_id[legs[0].id], jig_by_id[legs[1].id], jig_by_id[legs[2].id])
         offsets = zero_from_jig(profile, [m.direction for m in legs], jig_ticks)
     built = _with_wiring(found_profile, legs, offsets)
-    return Commissioned(disc, (legs[0], legs[1], legs[2]), jig_ticks, offsets, built)
+    tpd = profile.bus.ticks_per_turn / 360.0
+    farthest = max((abs(b - a) / tpd for r in nudges
+                    for a, b in zip(r.rest_ticks, r.reached_ticks, strict=True)), default=0.0)
+    return Commissioned(disc, (legs[0], legs[1], legs[2]), jig_ticks, offsets, built,
+                        nudge_s=sum(r.duration_s for r in nudges), max_nudge_deg=farthest)
 
 
 def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
