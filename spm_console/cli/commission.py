@@ -84,8 +84,12 @@ def cmd_commission(args: argparse.Namespace) -> int:
             f"IMU stage: horn offsets beyond the jig {[round(h, 3) for h in result.refinement.horn_deg]}°, "
             f"held-out gravity residual {result.refinement.verification.gravity_max_deg:.3f}° at most, "
             f"{result.refinement.motion_s:.1f} s of motion"]
-           + [f"  {p.name}: {p.value_deg:+.3f}° ± {p.std_expected_deg:.3f}° ({p.status})"
-              for p in result.refinement.fit.parameters])
+           + [f"  {p.name}: {p.value_deg:+.3f}°"
+              + ("" if p.std_expected_deg is None else f" ± {p.std_expected_deg:.3f}°")
+              + f" ({p.status})" for p in result.refinement.fit.parameters]
+           + ([] if result.refinement.arcs_deg is None else [
+               "link arcs as fitted written to [geometry]: the workspace is rebuilt for them "
+               "on its first use"]))
         + [f"profile written: {written}"])
     emit(args, data, human)
     return int(ExitCode.OK)

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.edit import with_joints
+from spm_console.config.edit import with_joints, with_values
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.devices.imu.bno055 import Bno055
@@ -216,8 +216,14 @@ def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
     offsets = tuple(round(off - m.direction * d * tpt / 360.0) % tpt for off, m, d in
                     zip(result.tick_offsets, result.legs, refinement.horn_deg, strict=True))
     new = (offsets[0], offsets[1], offsets[2])
-    return replace(result, tick_offsets=new, refinement=refinement,
-                   profile=_with_wiring(result.profile, result.legs, new))
+    profile = _with_wiring(result.profile, result.legs, new)
+    if refinement.arcs_deg is not None:
+        a1, a2 = refinement.arcs_deg
+        geometry = profile.geometry.model_copy(update={
+            "alpha1_leg_offset_deg": tuple(round(x, 3) for x in a1),
+            "alpha2_leg_offset_deg": tuple(round(x, 3) for x in a2)})
+        profile = _validated(profile.model_copy(update={"geometry": geometry}))
+    return replace(result, tick_offsets=new, refinement=refinement, profile=profile)
 
 
 def _jig_ticks(client: MotionClient, ids: Sequence[int]) -> dict[int, float]:
@@ -320,6 +326,12 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
         joints.append(values)
     how = "map: IMU" + (", zero: jig" if result.tick_offsets is not None else "") + (
         " and IMU" if result.refinement is not None else "")
-    text, prof = with_joints(base_text, joints,  # type: ignore[arg-type]
-                             f"commissioned {stamp} ({how})", source)
+    note = f"commissioned {stamp} ({how})"
+    text, prof = with_joints(base_text, joints, note, source)  # type: ignore[arg-type]
+    if result.refinement is not None and result.refinement.arcs_deg is not None:
+        g = result.profile.geometry
+        text, prof = with_values(text, {
+            ("geometry", "alpha1_leg_offset_deg"): list(g.alpha1_leg_offset_deg),
+            ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg)},
+            f"commissioned {stamp} (IMU fit)", source)
     return text, prof

@@ -23,31 +23,33 @@ from numpy.typing import NDArray
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.core.commissioning.design import design_poses
-from spm_console.core.commissioning.fit import CommissioningFit, fit_as_built
+from spm_console.core.commissioning.fit import CommissioningFit, FittedParameter, fit_as_built
 from spm_console.core.commissioning.verify import Verification, verify_as_built
-from spm_console.errors import BusError
+from spm_console.errors import BusError, SolverError
 from spm_console.services.session import PoseSpec, Session
 
 F = NDArray[np.float64]
 
 #: Poses the fit uses, and the held-out poses that verify it (every fourth visited).
-FIT_POSES = 12
-HELD_OUT = 4
+FIT_POSES = 24
+HELD_OUT = 8
 #: Distances of the candidate poses from home, deg. On the physical twin (payload, gear play)
-#: neither these nor 8, 15 and 22° determined the horns beyond the jig's zero (their fit stayed
-#: undetermined or imprecise, and the jig's zero is kept); the wider set met the region's edge
-#: more often and verified worse (0.12° against 0.04° held-out), so the stage stays near home.
-RADII_DEG = (3.0, 6.0, 10.0)
+#: 16 poses within 10° left every parameter undetermined; 32 within 30° determine the mounting,
+#: the tilt and the arcs to 0.1–0.3° (the horns to 0.2°, less well than the jig's tick).
+RADII_DEG = (10.0, 20.0, 30.0)
 #: Speed bound of the moves between poses, deg/s.
-POSE_SPEED_DEGPS = 15.0
+POSE_SPEED_DEGPS = 25.0
 #: Wait at each pose before measuring, s (the platform still).
 SETTLE_S = 0.4
 #: Reads of the joint angles averaged at a pose, and IMU samples.
 THETA_READS = 10
 IMU_SAMPLES = 40
-#: How well a home jig zeroes a servo, deg (a tick is 0.088°; the jig's own seat more):
-#: a horn offset the IMU determines to better than this replaces the jig's.
-JIG_ACCURACY_DEG = 0.25
+#: How well a home jig zeroes a servo, deg (one encoder tick; the twin's jig reads within
+#: 0.04°): a horn offset the IMU determines to better than this replaces the jig's.
+JIG_ACCURACY_DEG = 360.0 / 4096
+#: Largest standard error of a link arc the profile takes from the fit, deg (the arcs are
+#: nominal otherwise: 0.5° off moves the platform up to 2° near the boundary).
+ARC_STD_DEG = 0.25
 #: Largest held-out gravity-direction residual a commissioned profile may have, deg.
 VERIFY_BOUND_DEG = 0.15
 
@@ -69,6 +71,9 @@ class Refinement:
     """The poses visited, as commanded on the jig-zeroed profile."""
     horn_deg: tuple[float, float, float]
     """Each leg's horn offset beyond the jig's zero, deg (0 where not determined)."""
+    arcs_deg: tuple[tuple[float, float, float], tuple[float, float, float]] | None
+    """Each leg's proximal and distal arc offsets as fitted, deg (None: not determined to
+    :data:`ARC_STD_DEG`; the profile keeps its own)."""
     motion_s: float
     """Time spent moving, s."""
 
@@ -117,7 +122,12 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
     held = np.zeros(len(poses), bool)
     held[3::4] = True  # every fourth pose verifies, the others fit
     th, g = np.asarray(thetas), np.asarray(gravity)
-    fit = fit_as_built(model, th[~held], g[~held], fixed={"horn_common": 0.0})
+    try:
+        fit = fit_as_built(model, th[~held], g[~held], fixed={"horn_common": 0.0})
+    except SolverError as exc:
+        raise BusError(f"commission: the IMU fit found no wrist that explains the poses "
+                       f"({exc.message}); redo the jig stage (is the IMU fixed to the "
+                       "platform?). Nothing was written") from None
     check = verify_as_built(model, fit.as_built, th[held], g[held])
     on_stage(f"verify: held-out gravity residual {check.gravity_max_deg:.3f}° at most "
              f"(bound {VERIFY_BOUND_DEG:g}°), fit residual {fit.residual_rms_deg:.3f}° RMS")
@@ -127,9 +137,19 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
                        f"{VERIFY_BOUND_DEG:g}°); redo the jig stage (is the wrist on its jig, "
                        "the IMU fixed to the platform?). Nothing was written")
     # a horn the data determine to better than the jig replaces the jig's zero
-    horn = tuple(p.value_deg if p.status in ("determined", "imprecise")
-                 and p.std_expected_deg < JIG_ACCURACY_DEG else 0.0 for p in fit.parameters[:3])
-    return Refinement(fit, check, tuple(poses), (horn[0], horn[1], horn[2]), moving)
+    horn = tuple(p.value_deg if _known(p, JIG_ACCURACY_DEG) else 0.0 for p in fit.parameters[:3])
+    arcs = fit.parameters[8:14]
+    fitted = None
+    if all(_known(p, ARC_STD_DEG) for p in arcs):
+        v = [p.value_deg for p in arcs]
+        fitted = ((v[0], v[1], v[2]), (v[3], v[4], v[5]))
+    return Refinement(fit, check, tuple(poses), (horn[0], horn[1], horn[2]), fitted, moving)
+
+
+def _known(p: FittedParameter, std_deg: float) -> bool:
+    """Whether the data determine ``p`` to better than ``std_deg``."""
+    return (p.status in ("determined", "imprecise") and p.std_expected_deg is not None
+            and p.std_expected_deg < std_deg)
 
 
 #: How far inside the certified region a pose must lie in every joint, deg: the measured

@@ -73,12 +73,19 @@ def wrist(agile: Profile) -> Iterator[tuple[EmulatorHandle, EmulatedBno055, Prof
     tilt = expm_so3(np.radians([0.0, TILT_DEG[1], 0.0])) @ expm_so3(np.radians([TILT_DEG[0], 0.0, 0.0]))
     last = [np.eye(3)]  # the platform's rotation from home at the last sample
 
-    def truth() -> ImuTruth:  # (4) solved by Newton from the last pose: the moves are small
+    last_theta = [model.theta_home.copy()]
+
+    def truth() -> ImuTruth:  # (4) by Newton, continued from the last sample in steps ≤ 2°
         th = np.radians(em.joint_deg())
-        R, res = newton(model.geom, model.geom.w(th[None]), last[0][None], model.v_home)
-        assert res[0] < 1e-9
-        last[0] = R[0]
-        return ImuTruth.at_rest(tilt @ R[0] @ mount)
+        steps = max(1, math.ceil(np.degrees(np.abs(th - last_theta[0]).max()) / 2.0))
+        R = last[0]
+        for k in range(1, steps + 1):
+            at = last_theta[0] + (th - last_theta[0]) * k / steps
+            Rs, res = newton(model.geom, model.geom.w(at[None]), R[None], model.v_home)
+            assert res[0] < 1e-9
+            R = Rs[0]
+        last[0], last_theta[0] = R, th
+        return ImuTruth.at_rest(tilt @ R @ mount)
 
     imu = EmulatedBno055(truth, seed=5)
     yield em, imu, truth_profile
