@@ -123,12 +123,15 @@ def next_hint(session: Session, fk_done: bool = False, current: str = "") -> str
 
 
 def step_labels(current: str, done: set[str], width: int) -> Content:
-    """The steps in one line of at most ``width`` cells: full titles if they fit, else
-    short ones, else short ones but step 0's (unless current), else only the keys (and the
-    current step's short title)."""
-    def line(title_of: dict[str, str]) -> Content:
+    """The steps in one line of at most ``width`` cells: full titles if they fit, else short
+    ones; else step 0 (commissioning, once per wrist) by its key alone, else left out (unless
+    current), so that the six operating steps keep their titles at 80 columns; else only the
+    keys (and the current step's short title)."""
+    zero = STEPS[0].mode
+
+    def line(title_of: dict[str, str], steps: tuple[Step, ...] = STEPS) -> Content:
         parts = []
-        for s in STEPS:
+        for s in steps:
             title = title_of.get(s.mode, "")
             mark = "✔" if s.mode in done else ""
             text = " ".join(p for p in (s.fkey_display, mark, title) if p)
@@ -142,18 +145,17 @@ def step_labels(current: str, done: set[str], width: int) -> Content:
         return Content("│").join(parts)
 
     short = {s.mode: s.short for s in STEPS}
+    untitled_zero = {m: t for m, t in short.items() if m != zero}
     candidates = (
-        {s.mode: s.title for s in STEPS},
-        short,
-        # step 0 (once per wrist) by its key alone, unless it is the current one
-        {m: t for m, t in short.items() if m != STEPS[0].mode or m == current},
-        {current: _BY_MODE[current].short} if current in _BY_MODE else {},
+        line({s.mode: s.title for s in STEPS}),
+        line(short),
+        line(untitled_zero),
+        line(untitled_zero, tuple(s for s in STEPS if s.mode != zero or s.mode == current)),
     )
-    for titles in candidates:
-        out = line(titles)
+    for out in candidates:
         if out.cell_length <= width:
             return out
-    return out
+    return line({current: _BY_MODE[current].short} if current in _BY_MODE else {})
 
 
 class StepBar(Vertical):
