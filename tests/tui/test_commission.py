@@ -7,6 +7,7 @@ with the workspace kept. SPACE reaches commissioning's own motion process."""
 
 from __future__ import annotations
 
+import asyncio
 import json
 import os
 import re
@@ -135,3 +136,62 @@ async def test_commission_the_twin_from_step_0_and_use_the_profile(
     request = app.return_value
     assert isinstance(request, SwitchRequest) and request.profile_path == written[0]
     assert not app.moving and app.stop_elsewhere is None
+
+
+class _Client:
+    """Stands in for a stage's motion process: records the E-stops it is sent."""
+
+    def __init__(self) -> None:
+        self.estops: list[tuple[str, bool]] = []
+
+    def estop(self, reason: str, by_signal: bool = False) -> None:
+        self.estops.append((reason, by_signal))
+
+
+async def test_space_stops_commissioning_in_its_motion_process_and_the_console_lives_on(
+        console, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
+    import threading
+
+    from spm_console.tui.screens import commission as step0
+
+    client = _Client()
+    attached = threading.Event()
+
+    def fake(profile, profile_path, form, stop, on_stage):  # type: ignore[no-untyped-def]
+        on_stage("map: nudging servo id 1 by 2°")
+        stop.attach(client)  # type: ignore[arg-type]
+        attached.set()
+        for _ in range(500):  # a nudge under way until the E-stop comes
+            if client.estops:
+                break
+            threading.Event().wait(0.01)
+        stop.detach()
+        stop.check()  # the stage refuses to go on
+        raise AssertionError("not stopped")
+
+    monkeypatch.setattr(step0, "commission_blocking", fake)
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        await pilot.press("0")
+        await settle(pilot)
+        _fill(app, "unix:/tmp/no-such-bus", "/dev/pts/99")
+        app.screen.query_one("#jig", TickBox).value = True
+        await pilot.press("s")
+        await pilot.pause()
+        await pilot.press("y")
+        await pilot.pause()
+        assert app.moving and app.stop_elsewhere is not None
+        await asyncio.to_thread(attached.wait, 5)
+        await pilot.press("1")  # steps are locked while it runs
+        assert isinstance(app.screen, CommissionScreen)
+        await pilot.press("space")
+        await settle(pilot)
+        assert client.estops == [("operator E-stop (SPACE)", False)]
+        assert "commission stopped: operator E-stop (SPACE)" in status_of(app), status_of(app)
+        assert not app.moving and app.stop_elsewhere is None
+        log = "\n".join(line.text for line in app.screen.query_one("#stages", RichLog).lines)
+        assert "map: nudging servo id 1" in log and "stopped: commission stopped" in log, log
+        await pilot.press("1")  # the console goes on
+        await settle(pilot)
+        assert app.current_mode == "connect"
