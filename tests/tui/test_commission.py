@@ -66,6 +66,28 @@ async def test_bad_ports_are_refused_with_the_reason_and_nothing_starts(
         assert not app.screen.query_one("#stages", RichLog).lines
 
 
+async def test_an_imu_port_that_does_not_open_is_shown_on_the_step(
+        console, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        await pilot.press("0")
+        await settle(pilot)
+        _fill(app, f"unix:{tmp_path}/no-bus", f"{tmp_path}/no-imu")
+        app.screen.query_one("#jig", TickBox).value = True
+        await pilot.press("s")
+        await pilot.pause()
+        await pilot.press("y")
+        await settle(pilot)
+        assert isinstance(app.screen, CommissionScreen)
+        assert "no-imu" in status_of(app) and "internal error" not in status_of(app), (
+            status_of(app))
+        log = "\n".join(line.text for line in app.screen.query_one("#stages", RichLog).lines)
+        assert "ended:" in log, log
+        assert not app.moving and app.stop_elsewhere is None
+        assert not list(tmp_path.glob("*.commissioned-*.toml"))
+
+
 async def test_step_0_is_listed_and_reached_by_f10(console) -> None:  # type: ignore[no-untyped-def]
     app = console()
     async with app.run_test(size=(160, 48)) as pilot:
@@ -191,7 +213,7 @@ async def test_space_stops_commissioning_in_its_motion_process_and_the_console_l
         assert "commission stopped: operator E-stop (SPACE)" in status_of(app), status_of(app)
         assert not app.moving and app.stop_elsewhere is None
         log = "\n".join(line.text for line in app.screen.query_one("#stages", RichLog).lines)
-        assert "map: nudging servo id 1" in log and "stopped: commission stopped" in log, log
+        assert "map: nudging servo id 1" in log and "ended: commission stopped" in log, log
         await pilot.press("1")  # the console goes on
         await settle(pilot)
         assert app.current_mode == "connect"

@@ -255,7 +255,7 @@ class CommissionScreen(StepScreen):
     def handle_failed(self, op: str, message: str) -> None:
         if op == "commission":
             self._finished()
-            self.log_view.write(f"stopped: {message}")
+            self.log_view.write(f"ended: {message}")
 
     def _use_question(self, done: CommissionDone) -> str:
         step = float(self.session.profile.workspace.step_deg)
