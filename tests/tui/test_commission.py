@@ -122,29 +122,36 @@ async def test_commission_the_twin_from_step_0_and_use_the_profile(
     folder.mkdir()
     in_use = folder / "agile_wrist.toml"
     in_use.write_bytes((ROOT / "profiles" / "agile_wrist.toml").read_bytes())
-    app = console(profile_path=in_use)
+    # the console itself on the twin's bus: commissioning releases it first, reconnects after
+    app = console(profile_path=in_use, port=str(twin["port"]))
     async with app.run_test(size=SMALL) as pilot:
         await settle(pilot)
+        assert app.session.bus is not None and not app.session.sim
         await pilot.press("0")
         await settle(pilot)
-        _fill(app, str(twin["port"]), str(twin["imu_port"]))
+        assert app.screen.query_one("#bus-port", TextField).value == str(twin["port"])
+        app.screen.query_one("#imu-port", TextField).value = str(twin["imu_port"])
         app.screen.query_one("#jig", TickBox).value = True
         await pilot.press("s")
         await pilot.pause()
         assert isinstance(app.screen, LongConfirm)
         assert "nudged" in text_of(app, "#confirm-body")
+        assert "closed first and opened again after" in text_of(app, "#confirm-body")
         await pilot.press("y")
         await pilot.pause()
         assert app.moving  # steps locked, SPACE armed
         await settle(pilot, timeout_s=240)
-        assert isinstance(app.screen, LongConfirm), status_of(app)
+        assert isinstance(app.screen, LongConfirm), (status_of(app), "\n".join(
+            line.text for line in app.screen.query_one("#stages", RichLog).lines))
         assert "Use the commissioned profile now?" in screen_text(app)
         step = app.screen_stack[-2]
         assert isinstance(step, CommissionScreen)
         log = "\n".join(line.text for line in step.query_one("#stages", RichLog).lines)
-        for stage in ("discover:", "jig:", "map: nudging", "map: leg 1 = id 3", "imu: pose 16/16",
-                      "verify: held-out", "written:"):
+        for stage in ("console: closing its own connection", "discover:", "jig:", "map: nudging",
+                      "map: leg 1 = id 3", "imu: pose 16/16", "verify: held-out",
+                      "console: connecting to", "written:"):
             assert stage in log, log
+        assert app.session.bus is not None  # connected again
         result = str(step.query_one("#commission-result").render())
         assert "leg 1: servo id 3" in result and "tick offsets from the jig" in result, result
         written = sorted(folder.glob("agile_wrist.commissioned-*.toml"))
