@@ -39,9 +39,9 @@ from spm_console.devices.imu.bno055_registers import OprMode
 from spm_console.errors import BadInputError, BusError, ImuError, SpmError
 from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
 from spm_console.safe_io import read_text, write_text_atomic
+from spm_console.services.client import EstopRelay
 from spm_console.services.commission_fit import Refinement
 from spm_console.services.commission_map import LegMatch, leg_axes, match_leg, rotation_vector
-from spm_console.services.commission_stop import CommissionStop
 from spm_console.services.session import Session
 from spm_console.store.identified_profiles import write_new
 
@@ -129,10 +129,10 @@ class Commissioned:
 
 
 def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
-             stop: CommissionStop | None = None) -> tuple[Profile, Discovery]:
+             stop: EstopRelay | None = None) -> tuple[Profile, Discovery]:
     """Scan the bus on the profile's protocol, then the other; the profile with the found
     protocol and ids (legs still unknown). ``stop``: the run's E-stop (see
-    :class:`~spm_console.services.commission_stop.CommissionStop`)."""
+    :class:`~spm_console.services.client.EstopRelay`)."""
     tried: list[str] = []
     for protocol in (profile.bus.protocol, "1.0" if profile.bus.protocol == "2.0" else "2.0"):
         variant = _with_bus(profile, protocol=protocol, model_number=MX106_MODELS[protocol])
@@ -151,7 +151,7 @@ def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
 
 def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
                on_stage: Callable[[str], None],
-               stop: CommissionStop | None = None) -> Commissioned:
+               stop: EstopRelay | None = None) -> Commissioned:
     """Discover, (jig), map and zero the wrist on ``port``; the commissioned profile.
     ``stop``: the run's E-stop, attached to each motion process in turn."""
     found_profile, disc = discover(profile, port, on_stage, stop)
@@ -260,7 +260,7 @@ def _mean_quaternion(imu: ImuSource, n: int = IMU_SAMPLES) -> F:
     return np.asarray(q / norm, float)
 
 
-def _scan(profile: Profile, port: str, stop: CommissionStop | None = None) -> BusReport:
+def _scan(profile: Profile, port: str, stop: EstopRelay | None = None) -> BusReport:
     """Every id 0..252 pinged once, by a motion process on ``profile``'s protocol."""
     if stop is not None:
         stop.check()

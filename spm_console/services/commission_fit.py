@@ -26,7 +26,7 @@ from spm_console.core.commissioning.design import design_poses
 from spm_console.core.commissioning.fit import CommissioningFit, fit_as_built
 from spm_console.core.commissioning.verify import Verification, verify_as_built
 from spm_console.errors import BusError
-from spm_console.services.commission_stop import CommissionStop
+from spm_console.services.client import EstopRelay
 from spm_console.services.session import PoseSpec, Session
 
 F = NDArray[np.float64]
@@ -76,7 +76,7 @@ class Refinement:
 
 def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
                     on_stage: Callable[[str], None],
-                    stop: CommissionStop | None = None) -> Refinement:
+                    stop: EstopRelay | None = None) -> Refinement:
     """Visit the designed poses on ``profile`` (mapped and jig-zeroed), fit and verify.
     ``stop``: the run's E-stop, attached to this stage's motion process."""
     model = model_of(profile)

@@ -12,7 +12,7 @@ workspace kept (the bus is not part of the workspace's cache key).
 Commissioning opens a motion process of its own for each stage: when the console's session
 holds the same port, it is disconnected first and connected again after. SPACE (and a
 terminating signal) reaches the stage's motion process through a
-:class:`~spm_console.services.commission_stop.CommissionStop`.
+:class:`~spm_console.services.client.EstopRelay`.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from spm_console.tui.widgets.confirm import LongConfirm
 from spm_console.tui.widgets.field import TextField
 
 if TYPE_CHECKING:
-    from spm_console.services.commission_stop import CommissionStop
+    from spm_console.services.client import EstopRelay
 
 #: Longest port name accepted, characters (a device path, or ``unix:`` and a socket path,
 #: which Linux bounds at 107 bytes).
@@ -97,7 +97,7 @@ class CommissionScreen(StepScreen):
 
     def __init__(self) -> None:
         super().__init__()
-        self._stop: CommissionStop | None = None
+        self._stop: EstopRelay | None = None
 
     def compose_body(self) -> ComposeResult:
         s = self.session
@@ -193,9 +193,9 @@ class CommissionScreen(StepScreen):
         if not yes:
             self.status.ok("commissioning cancelled: nothing moved")
             return
-        from spm_console.services.commission_stop import CommissionStop
+        from spm_console.services.client import EstopRelay
 
-        stop = CommissionStop()
+        stop = EstopRelay("commission")
         self._stop = stop
         self.console.stop_elsewhere = stop.estop
         self.set_focus(None)
@@ -206,7 +206,7 @@ class CommissionScreen(StepScreen):
                                  "commissioning … (SPACE stops it)"):
             self._finished()
 
-    def _run(self, f: CommissionForm, stop: CommissionStop) -> Outcome:
+    def _run(self, f: CommissionForm, stop: EstopRelay) -> Outcome:
         """The worker: release the console's bus if it is the same port, commission, write
         the profile, connect again."""
         s = self.session
@@ -282,7 +282,7 @@ class CommissionScreen(StepScreen):
 
 
 def commission_blocking(profile: Profile, profile_path: Path | None, f: CommissionForm,
-                        stop: CommissionStop, on_stage: Callable[[str], None]) -> CommissionDone:
+                        stop: EstopRelay, on_stage: Callable[[str], None]) -> CommissionDone:
     """Commission (and refine with the IMU when asked), then write the profile beside
     ``profile_path`` (the default profile when the console has no file) as the CLI does."""
     from spm_console.services.commission import (

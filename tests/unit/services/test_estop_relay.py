@@ -1,12 +1,12 @@
-"""Commissioning's E-stop reaches the motion process attached now and refuses every stage
-after it."""
+"""The E-stop relay (commissioning's E-stop) reaches the motion process attached now and refuses every
+stage after it."""
 
 from __future__ import annotations
 
 import pytest
 
 from spm_console.errors import BusError
-from spm_console.services.commission_stop import CommissionStop
+from spm_console.services.client import EstopRelay
 
 
 class _Client:
@@ -18,7 +18,7 @@ class _Client:
 
 
 def test_the_stop_reaches_the_attached_process_and_refuses_the_next_stage() -> None:
-    stop = CommissionStop()
+    stop = EstopRelay("commission")
     stop.check()  # not pressed: nothing refused
     first, second = _Client(), _Client()
     stop.attach(first)  # type: ignore[arg-type]
@@ -32,7 +32,7 @@ def test_the_stop_reaches_the_attached_process_and_refuses_the_next_stage() -> N
 
 
 def test_a_stop_between_stages_reaches_no_process_and_is_kept() -> None:
-    stop = CommissionStop()
+    stop = EstopRelay("commission")
     assert stop.estop("console closing")
     with pytest.raises(BusError, match="Nothing was written"):
         stop.check()
