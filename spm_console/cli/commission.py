@@ -5,17 +5,11 @@ zero them on the home jig and write the profile of the wrist as built
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 from pathlib import Path
 from typing import Any
 
 from spm_console.cli.common import add_common, add_force, emit, info, output_file, profile_of
 from spm_console.errors import BadInputError, ExitCode
-from spm_console.safe_io import read_text, write_text_atomic
-from spm_console.store.identified_profiles import write_new
-
-#: Largest profile text read, bytes.
-MAX_PROFILE_BYTES = 1 << 20
 
 
 def register(sub: Any) -> None:
@@ -29,7 +23,7 @@ def register(sub: Any) -> None:
     c.add_argument("--jig", action="store_true",
                    help="the wrist rests on its home jig, torque off: zero the servos there")
     c.add_argument("--no-imu-fit", action="store_true",
-                   help="after the jig's zero, skip the IMU stage (poses within 10° of home, "
+                   help="after the jig's zero, skip the IMU stage (poses within 30° of home, "
                         "the fit of horn offsets, IMU mounting and base tilt, its verification)")
     c.add_argument("--out", type=Path, metavar="FILE.toml",
                    help="where to write the commissioned profile (default: beside the "
@@ -39,7 +33,13 @@ def register(sub: Any) -> None:
 
 
 def cmd_commission(args: argparse.Namespace) -> int:
-    from spm_console.services.commission import Bno055Source, commission, commissioned_text, refined
+    from spm_console.services.commission import (
+        Bno055Source,
+        commission,
+        commissioned_lines,
+        refined,
+        write_commissioned,
+    )
     from spm_console.services.commission_fit import refine_with_imu
 
     profile = profile_of(args)
@@ -49,7 +49,6 @@ def cmd_commission(args: argparse.Namespace) -> int:
                             "'spm-console emulate' serves an emulated bus and prints its port")
     output_file(args.out, "--out", (".toml",), replace=args.force)
     profile_path = Path(args.profile)
-    base = read_text(profile_path, "--profile", MAX_PROFILE_BYTES, BadInputError)
     imu = Bno055Source(args.imu_port)
     try:
         result = commission(profile, port, imu, args.jig, info)
@@ -57,15 +56,7 @@ def cmd_commission(args: argparse.Namespace) -> int:
             result = refined(result, refine_with_imu(result.profile, port, imu, info))
     finally:
         imu.close()
-    when = dt.datetime.now(dt.UTC)
-    stamp = when.strftime("%Y%m%dT%H%M%SZ")
-    target = args.out or profile_path.with_name(f"{profile_path.stem}.commissioned-{stamp}.toml")
-    text, _prof = commissioned_text(base, result, str(target), when)
-    if args.out is not None:
-        write_text_atomic(args.out, text, BadInputError)
-        written = Path(args.out)
-    else:
-        written = write_new(target, text)
+    written = write_commissioned(profile_path, result, args.out)
     legs = [{"leg": m.leg, "id": m.id, "direction": m.direction,
              "rotation_deg": m.rotation_deg, "cos": m.cos} for m in result.legs]
     data = {"protocol": result.discovery.protocol,
@@ -74,23 +65,7 @@ def cmd_commission(args: argparse.Namespace) -> int:
             "legs": legs, "jig_ticks": result.jig_ticks, "tick_offsets": result.tick_offsets,
             "zeroed": result.tick_offsets is not None, "profile_written": str(written),
             "imu_fit": None if result.refinement is None else _fit_json(result.refinement)}
-    human = "\n".join(
-        [f"leg {m.leg}: servo id {m.id}, direction {m.direction:+d} "
-         f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})" for m in result.legs]
-        + ([f"tick offsets from the jig: {list(result.tick_offsets)}"]
-           if result.tick_offsets is not None else
-           ["not zeroed: give --jig (the wrist on its home jig, torque off)"])
-        + ([] if result.refinement is None else [
-            f"IMU stage: horn offsets beyond the jig {[round(h, 3) for h in result.refinement.horn_deg]}°, "
-            f"held-out gravity residual {result.refinement.verification.gravity_max_deg:.3f}° at most, "
-            f"{result.refinement.motion_s:.1f} s of motion"]
-           + [f"  {p.name}: {p.value_deg:+.3f}°"
-              + ("" if p.std_expected_deg is None else f" ± {p.std_expected_deg:.3f}°")
-              + f" ({p.status})" for p in result.refinement.fit.parameters]
-           + ([] if result.refinement.arcs_deg is None else [
-               "link arcs as fitted written to [geometry]: the workspace is rebuilt for them "
-               "on its first use"]))
-        + [f"profile written: {written}"])
+    human = "\n".join([*commissioned_lines(result), f"profile written: {written}"])
     emit(args, data, human)
     return int(ExitCode.OK)
 

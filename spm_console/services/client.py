@@ -23,7 +23,7 @@ from typing import Any
 
 from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
-from spm_console.errors import MotionProcessLostError, SpmError, error_for
+from spm_console.errors import BusError, MotionProcessLostError, SpmError, error_for
 from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import (
@@ -306,3 +306,43 @@ class MotionClient:
 
 def _error(msg: Failed) -> SpmError:
     return error_for(msg.exit_code, msg.message, msg.reason)
+
+
+class EstopRelay:
+    """An E-stop for work that opens motion processes one after another (commissioning: one
+    per stage), held by a front end instead of a session. Pressed from any thread (a key, a
+    signal handler: plain attribute writes, no lock), it stops the nudge or move running in
+    the process attached now, and every later :meth:`attach` or :meth:`check` refuses."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+        """The work's name, for the refusal ("commission")."""
+        self.reason = ""
+        """Why it was pressed ("" until then)."""
+        self._client: MotionClient | None = None
+
+    def attach(self, client: MotionClient) -> None:
+        """The motion process the next stage runs in; refused with
+        :class:`~spm_console.errors.BusError` when the switch was pressed already."""
+        self._client = client
+        self.check()
+
+    def detach(self) -> None:
+        """That motion process is closing."""
+        self._client = None
+
+    def estop(self, reason: str, by_signal: bool = False) -> bool:
+        """Stop the running nudge or move (the motion process keeps an E-stop that comes
+        between two of them for the next one); True."""
+        if not self.reason:
+            self.reason = reason
+        client = self._client
+        if client is not None:
+            client.estop(reason, by_signal)
+        return True
+
+    def check(self) -> None:
+        """Raise :class:`~spm_console.errors.BusError` once the switch was pressed."""
+        if self.reason:
+            raise BusError(f"{self.what} stopped: {self.reason}; the wrist holds or is "
+                           "torque off. Nothing was written")

@@ -26,6 +26,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -39,9 +40,12 @@ from spm_console.devices.imu.bno055_registers import OprMode
 from spm_console.errors import BadInputError, BusError, ImuError, SpmError
 from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
+from spm_console.safe_io import read_text, write_text_atomic
+from spm_console.services.client import EstopRelay
 from spm_console.services.commission_fit import Refinement
 from spm_console.services.commission_map import LegMatch, leg_axes, match_leg, rotation_vector
 from spm_console.services.session import Session
+from spm_console.store.identified_profiles import write_new
 
 if TYPE_CHECKING:
     from spm_console.services.client import MotionClient
@@ -130,14 +134,16 @@ class Commissioned:
     """The farthest any servo was from its rest during the map stage, deg (at most 2°)."""
 
 
-def discover(profile: Profile, port: str, on_stage: Callable[[str], None]) -> tuple[Profile, Discovery]:
+def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
+             stop: EstopRelay | None = None) -> tuple[Profile, Discovery]:
     """Scan the bus on the profile's protocol, then the other; the profile with the found
-    protocol and ids (legs still unknown)."""
+    protocol and ids (legs still unknown). ``stop``: the run's E-stop (see
+    :class:`~spm_console.services.client.EstopRelay`)."""
     tried: list[str] = []
     for protocol in (profile.bus.protocol, "1.0" if profile.bus.protocol == "2.0" else "2.0"):
         variant = _with_bus(profile, protocol=protocol, model_number=MX106_MODELS[protocol])
         on_stage(f"discover: scanning ids 0..252 on protocol {protocol} ({port})")
-        report = _scan(variant, port)
+        report = _scan(variant, port, stop)
         mx = [f for f in report.found if f.model_number == MX106_MODELS[protocol]]
         tried.append(f"protocol {protocol}: " + (", ".join(
             f"id {f.id} model {f.model_number}" for f in report.found) or "nothing"))
@@ -150,13 +156,17 @@ def discover(profile: Profile, port: str, on_stage: Callable[[str], None]) -> tu
 
 
 def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
-               on_stage: Callable[[str], None]) -> Commissioned:
-    """Discover, (jig), map and zero the wrist on ``port``; the commissioned profile."""
-    found_profile, disc = discover(profile, port, on_stage)
+               on_stage: Callable[[str], None],
+               stop: EstopRelay | None = None) -> Commissioned:
+    """Discover, (jig), map and zero the wrist on ``port``; the commissioned profile.
+    ``stop``: the run's E-stop, attached to each motion process in turn."""
+    found_profile, disc = discover(profile, port, on_stage, stop)
     session = Session(found_profile, port=port, sim=False)
     try:
         session.connect(check=False)
         client = session.require_bus()
+        if stop is not None:
+            stop.attach(client)
         jig_by_id: dict[int, float] | None = None
         if jig:
             on_stage("jig: torque off, averaging each servo's ticks at the home jig")
@@ -186,6 +196,8 @@ def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
         finally:
             client.end_nudging()
     finally:
+        if stop is not None:
+            stop.detach()
         session.close()
     legs = sorted(matches, key=lambda m: m.leg)
     if [m.leg for m in legs] != [1, 2, 3]:
@@ -267,8 +279,10 @@ def _mean_quaternion(imu: ImuSource, n: int = IMU_SAMPLES) -> F:
     return np.asarray(q / norm, float)
 
 
-def _scan(profile: Profile, port: str) -> BusReport:
+def _scan(profile: Profile, port: str, stop: EstopRelay | None = None) -> BusReport:
     """Every id 0..252 pinged once, by a motion process on ``profile``'s protocol."""
+    if stop is not None:
+        stop.check()
     session = Session(profile, port=port, sim=False)
     try:
         session.connect(check=False)
@@ -335,3 +349,56 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
             ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg)},
             f"commissioned {stamp} (IMU fit)", source)
     return text, prof
+
+
+#: Largest profile text read, bytes.
+MAX_PROFILE_BYTES = 1 << 20
+
+
+def commissioned_path(profile_path: Path, when: dt.datetime) -> Path:
+    """Where the commissioning of ``profile_path`` at ``when`` goes by default (before a taken
+    name's ``-2`` …): ``NAME.commissioned-YYYYmmddTHHMMSSZ.toml`` beside it."""
+    stamp = when.astimezone(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    return profile_path.with_name(f"{profile_path.stem}.commissioned-{stamp}.toml")
+
+
+def write_commissioned(profile_path: Path, result: Commissioned, out: Path | None = None,
+                       when: dt.datetime | None = None) -> Path:
+    """Write the commissioned profile: ``profile_path``'s text with ``[[bus.joints]]`` as
+    built, to ``out`` (replaced atomically: the caller decided it may be) or beside the
+    profile (:func:`commissioned_path`, never over a file); the path written. The CLI and the
+    console both write through here."""
+    when = when or dt.datetime.now(dt.UTC)
+    base = read_text(profile_path, "--profile", MAX_PROFILE_BYTES, BadInputError)
+    target = out or commissioned_path(profile_path, when)
+    text, _prof = commissioned_text(base, result, str(target), when)
+    if out is not None:
+        write_text_atomic(out, text, BadInputError)
+        return Path(out)
+    return write_new(target, text)
+
+
+def commissioned_lines(result: Commissioned) -> list[str]:
+    """The result in words, one line each: legs, ids and directions, the jig's tick offsets,
+    the IMU stage's residuals and every fitted parameter with its status."""
+    lines = [f"leg {m.leg}: servo id {m.id}, direction {m.direction:+d} "
+             f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})" for m in result.legs]
+    if result.tick_offsets is not None:
+        lines.append(f"tick offsets from the jig: {list(result.tick_offsets)}")
+    else:
+        lines.append("not zeroed: give --jig (the wrist on its home jig, torque off)")
+    r = result.refinement
+    if r is not None:
+        lines.append(f"IMU stage: horn offsets beyond the jig {[round(h, 3) for h in r.horn_deg]}°, "
+                     f"held-out gravity residual {r.verification.gravity_max_deg:.3f}° at most, "
+                     f"{r.motion_s:.1f} s of motion")
+        lines += [f"  {p.name}: {p.value_deg:+.3f}°"
+                  + ("" if p.std_expected_deg is None else f" ± {p.std_expected_deg:.3f}°")
+                  + f" ({p.status})" for p in r.fit.parameters]
+        undetermined = list(r.fit.undetermined_named)
+        if undetermined:
+            lines.append("  undetermined by the data: " + ", ".join(map(str, undetermined)))
+        if r.arcs_deg is not None:
+            lines.append("link arcs as fitted written to [geometry]: the workspace is rebuilt "
+                         "for them on its first use")
+    return lines

@@ -26,6 +26,7 @@ from spm_console.core.commissioning.design import design_poses
 from spm_console.core.commissioning.fit import CommissioningFit, FittedParameter, fit_as_built
 from spm_console.core.commissioning.verify import Verification, verify_as_built
 from spm_console.errors import BusError, SolverError
+from spm_console.services.client import EstopRelay
 from spm_console.services.session import PoseSpec, Session
 
 F = NDArray[np.float64]
@@ -79,9 +80,13 @@ class Refinement:
 
 
 def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
-                    on_stage: Callable[[str], None]) -> Refinement:
-    """Visit the designed poses on ``profile`` (mapped and jig-zeroed), fit and verify."""
+                    on_stage: Callable[[str], None],
+                    stop: EstopRelay | None = None) -> Refinement:
+    """Visit the designed poses on ``profile`` (mapped and jig-zeroed), fit and verify.
+    ``stop``: the run's E-stop, attached to this stage's motion process."""
     model = model_of(profile)
+    if stop is not None:
+        stop.check()
     session = Session(profile, port=port, sim=False)
     poses: list[tuple[float, float, float]] = []
     thetas: list[F] = []
@@ -89,6 +94,8 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
     moving = 0.0
     try:
         session.connect()
+        if stop is not None:
+            stop.attach(session.require_bus())
         on_stage("imu: loading the workspace the poses are verified against")
         session.load_workspace()
         design = design_poses(model, FIT_POSES + HELD_OUT, RADII_DEG,
@@ -118,6 +125,8 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
         _ok(session.execute(), "the move back home")
         moving += time.monotonic() - t0
     finally:
+        if stop is not None:
+            stop.detach()
         session.close()
     held = np.zeros(len(poses), bool)
     held[3::4] = True  # every fourth pose verifies, the others fit

@@ -29,6 +29,7 @@ from spm_console.store.form_memory import FormMemory
 from spm_console.system.signals import install_stop_handler
 from spm_console.tui.messages import Telemetry
 from spm_console.tui.screens.base import COMPACT_BELOW_COLUMNS, COMPACT_BELOW_ROWS, StepScreen
+from spm_console.tui.screens.commission import CommissionScreen
 from spm_console.tui.screens.connect import ConnectScreen
 from spm_console.tui.screens.execute import ExecuteScreen
 from spm_console.tui.screens.fk import FkScreen
@@ -54,7 +55,7 @@ TELEMETRY_EVERY_S = 0.1
 
 
 def _step_bindings() -> list[Binding]:
-    """F1…F6 and ctrl+1…6 (where the terminal sends them) switch steps from anywhere,
+    """F10 and F1…F6, ctrl+0…6 (where the terminal sends them) switch steps from anywhere,
     even inside a field; the digits only while no field or dropdown has focus (the step
     screens keep typed characters away from bindings). The step bar shows the keys."""
     out = []
@@ -69,7 +70,7 @@ def _step_bindings() -> list[Binding]:
 
 
 class SpmConsoleApp(App[int | SwitchRequest]):
-    """Six step screens (Textual modes) over one :class:`Session`. It exits with a process
+    """Seven step screens (Textual modes, step 0 commissioning) over one :class:`Session`. It exits with a process
     exit code, or with a :class:`SwitchRequest` when the operator applied other settings
     (``spm-console tui`` then starts a new console for them)."""
 
@@ -82,6 +83,7 @@ class SpmConsoleApp(App[int | SwitchRequest]):
     HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (COMPACT_BELOW_COLUMNS, "-wide")]  # noqa: RUF012
     VERTICAL_BREAKPOINTS = [(0, "-short"), (COMPACT_BELOW_ROWS, "-tall")]  # noqa: RUF012
     MODES: ClassVar[dict[str, str | Callable[[], Screen[Any]]]] = {
+        "commission": CommissionScreen,
         "connect": ConnectScreen,
         "fk": FkScreen,
         "workspace": WorkspaceScreen,
@@ -128,6 +130,9 @@ class SpmConsoleApp(App[int | SwitchRequest]):
         self.form_memory = FormMemory()
         """Typed form values per profile, kept between sessions ($SPM_CONSOLE_CONFIG)."""
         self.live_samples: list[Any] = []
+        self.stop_elsewhere: Callable[[str, bool], bool] | None = None
+        """The E-stop of motions the session does not run (commissioning's own motion
+        processes); None when none runs."""
         self._closed = False
         self._restore_signals: Callable[[], None] = lambda: None
         self._exit_code_on_signal: int | None = None
@@ -149,6 +154,7 @@ class SpmConsoleApp(App[int | SwitchRequest]):
         signal handler leaves Textual hanging in its shutdown). Exit 20 when a motion was
         stopped, 130 otherwise (docs/cli-reference.md, "Exit codes")."""
         moving = self.session.estop(f"signal {sig.name}", by_signal=True)
+        moving = self._estop_elsewhere(f"signal {sig.name}", True) or moving
         code = int(ExitCode.STOP_ESTOP if moving else ExitCode.INTERRUPTED)
         if self._exit_code_on_signal is None and self._loop is not None:
             self._exit_code_on_signal = code
@@ -183,6 +189,7 @@ class SpmConsoleApp(App[int | SwitchRequest]):
             return
         self._closed = True
         self.cancel_build()  # the app's exit waits for its worker threads
+        self._estop_elsewhere("console closing", False)
         self.session.close()
         self.view.close()
 
@@ -284,8 +291,13 @@ class SpmConsoleApp(App[int | SwitchRequest]):
             return
         self.push_screen(HelpScreen(self.screen))
 
+    def _estop_elsewhere(self, reason: str, by_signal: bool) -> bool:
+        stop = self.stop_elsewhere
+        return stop is not None and stop(reason, by_signal)
+
     def action_estop(self) -> None:
-        if not self.session.estop("operator E-stop (SPACE)"):
+        sent = self.session.estop("operator E-stop (SPACE)")
+        if not (self._estop_elsewhere("operator E-stop (SPACE)", False) or sent):
             raise SkipAction()
         self.notify("E-STOP sent: the wrist holds still.", severity="error", timeout=6)
 

@@ -32,6 +32,9 @@ class ConsoleHost(Protocol):
     live_samples: list[Any]
     profile_path: Path | None
     """The profile file in use (None: not from a file)."""
+    stop_elsewhere: Callable[[str, bool], bool] | None
+    """The E-stop of motions the session does not run (commissioning's own motion
+    processes): called with the reason and whether a signal asked; None when none runs."""
 
     def cancel_build(self) -> bool: ...
 

@@ -113,6 +113,16 @@ class IdentifyDone:
 
 
 @dataclass(frozen=True)
+class CommissionDone:
+    """Commissioning (step 0) completed: the profile written, the result in words (the lines
+    of ``commission``) and each leg's servo id and direction in short."""
+
+    written: Path
+    lines: tuple[str, ...]
+    ids_text: str
+
+
+@dataclass(frozen=True)
 class BenchmarkDone:
     """Benchmarks' own blocking work (no screen shows it)."""
 
@@ -121,7 +131,7 @@ class BenchmarkDone:
 
 Outcome = (Connected | PositionRead | MotionDone | FkSolved | WorkspaceLoaded | ThetaChecked
            | PlanSolved | PlanSaved | PlanLoaded | RunOpened | BenchmarkDone | ServoToolDone
-           | FollowDone | IdentifyDone)
+           | FollowDone | IdentifyDone | CommissionDone)
 
 
 class Done(Message):

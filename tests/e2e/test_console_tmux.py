@@ -277,4 +277,9 @@ def test_walk_the_new_tools_in_a_real_terminal(tmux_console) -> None:  # type: i
     assert "Traceback" not in t.screen()
     t.keys("Escape")
     t.wait_for(r"^(?![\s\S]*esc or \? closes)[\s\S]*Motor angles θ")  # help closed: step 2
+    t.keys("0")  # step 0, commissioning: an empty port is refused, nothing starts
+    t.wait_for(r"Servo bus")
+    t.keys("s")
+    t.wait_for(r"servo bus: empty")
+    assert "Commission the wrist?" not in t.screen()
     t.quit()

@@ -17,6 +17,7 @@ SIZE = (120, 40)
 
 #: What each step offers (its own keys), by the words the operator reads in its footer.
 OPERATIONS = {
+    "commission": {"Start"},
     "connect": {"Connect", "Home", "Read", "Torque", "Jog−", "Jog+", "Reboot", "Identify"},
     "fk": {"FK", "IK", "Modes", "Current"},
     "workspace": {"Load", "Rebuild", "Cancel build", "Check"},

@@ -32,9 +32,9 @@ ACTION_WIDTH = 16
 
 TYPING_RULE = (
     "While a text field or a dropdown has focus, letters, digits and '?' go to it and never "
-    "act: F1…F6 switch steps, ctrl+p opens the palette, ctrl+o or F7 the settings (profile, "
+    "act: F10 and F1…F6 switch steps, ctrl+p opens the palette, ctrl+o or F7 the settings (profile, "
     "grid step), esc leaves the field, and SPACE stops the wrist while it moves. Outside "
-    "fields the digits 1…6 switch steps too."
+    "fields the digits 0…6 switch steps too."
 )
 
 

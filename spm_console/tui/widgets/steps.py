@@ -1,6 +1,6 @@
 """The step bar on top of every screen: where you are, what is done, what to do next.
 
-Each step has a function key (F1…F6, always), a digit (1…6, only while no text field or
+Each step has a function key (F10 for step 0, F1…F6, always), a digit (0…6, only while no text field or
 dropdown has focus) and ctrl+digit where the terminal delivers it; the bar names the
 F-keys and shortens its labels to fit the width (80 columns and up show every step).
 """
@@ -29,16 +29,23 @@ class Step:
     """The title at narrow widths."""
 
     @property
+    def fnumber(self) -> str:
+        """The function key's number: the digit's, F10 for step 0 (as on the keyboard's
+        top row, where 0 follows 9)."""
+        return "10" if self.key == "0" else self.key
+
+    @property
     def fkey(self) -> str:
         """Textual's name of the function key ("f1" …)."""
-        return f"f{self.key}"
+        return f"f{self.fnumber}"
 
     @property
     def fkey_display(self) -> str:
-        return f"F{self.key}"
+        return f"F{self.fnumber}"
 
 
 STEPS: tuple[Step, ...] = (
+    Step("0", "commission", "Commission", "Commission"),
     Step("1", "connect", "Connect/home", "Connect"),
     Step("2", "fk", "FK check", "FK"),
     Step("3", "workspace", "Workspace", "Workspace"),
@@ -76,6 +83,7 @@ def done_steps(session: Session) -> set[str]:
 #: What to do on a step to get its work done: the hint says this on that step itself
 #: ("press 2 (F2) for an FK check" read oddly on step 2).
 HERE = {
+    "commission": "type the ports and press s to commission the wrist",
     "fk": "type θ and press f for an FK check",
     "workspace": "press l to load the workspace",
     "plan": "choose start and goal, then press s to plan a motion",
@@ -115,11 +123,15 @@ def next_hint(session: Session, fk_done: bool = False, current: str = "") -> str
 
 
 def step_labels(current: str, done: set[str], width: int) -> Content:
-    """The six steps in one line of at most ``width`` cells: full titles if they fit, else
-    short ones, else only the keys (and the current step's short title)."""
-    def line(title_of: dict[str, str]) -> Content:
+    """The steps in one line of at most ``width`` cells: full titles if they fit, else short
+    ones; else step 0 (commissioning, once per wrist) by its key alone, else left out (unless
+    current), so that the six operating steps keep their titles at 80 columns; else only the
+    keys (and the current step's short title)."""
+    zero = STEPS[0].mode
+
+    def line(title_of: dict[str, str], steps: tuple[Step, ...] = STEPS) -> Content:
         parts = []
-        for s in STEPS:
+        for s in steps:
             title = title_of.get(s.mode, "")
             mark = "✔" if s.mode in done else ""
             text = " ".join(p for p in (s.fkey_display, mark, title) if p)
@@ -132,20 +144,22 @@ def step_labels(current: str, done: set[str], width: int) -> Content:
                 parts.append(Content(text))
         return Content("│").join(parts)
 
+    short = {s.mode: s.short for s in STEPS}
+    untitled_zero = {m: t for m, t in short.items() if m != zero}
     candidates = (
-        {s.mode: s.title for s in STEPS},
-        {s.mode: s.short for s in STEPS},
-        {current: _BY_MODE[current].short} if current in _BY_MODE else {},
+        line({s.mode: s.title for s in STEPS}),
+        line(short),
+        line(untitled_zero),
+        line(untitled_zero, tuple(s for s in STEPS if s.mode != zero or s.mode == current)),
     )
-    for titles in candidates:
-        out = line(titles)
+    for out in candidates:
         if out.cell_length <= width:
             return out
-    return out
+    return line({current: _BY_MODE[current].short} if current in _BY_MODE else {})
 
 
 class StepBar(Vertical):
-    """The six steps (current one highlighted, done ones ticked), the hint, the 3D view URL."""
+    """The steps (current one highlighted, done ones ticked), the hint, the 3D view URL."""
 
     DEFAULT_CLASSES = "step-bar"
 

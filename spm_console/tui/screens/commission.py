@@ -1,0 +1,308 @@
+"""Step 0: commission the wrist as built (``spm-console commission`` in the console).
+
+The operator names the servo bus and the IMU's port, says whether the wrist rests on its home
+jig and whether the IMU stage runs, and starts (``s``, after a yes/no that says what moves).
+The stages run in a worker thread (:mod:`spm_console.services.commission`), each stage's line
+streamed into the log on this step; the result (legs, ids, directions, tick offsets, the IMU
+stage's residuals and what it leaves undetermined) stays here, the commissioned profile is
+written beside the profile in use (``NAME.commissioned-TIME.toml``, as the CLI writes it) and
+the console asks "Use the commissioned profile now?": yes restarts it on that profile with the
+workspace kept (the bus is not part of the workspace's cache key).
+
+Commissioning opens a motion process of its own for each stage: when the console's session
+holds the same port, it is disconnected first and connected again after. SPACE (and a
+terminating signal) reaches the stage's motion process through a
+:class:`~spm_console.services.client.EstopRelay`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, ClassVar
+
+from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Horizontal, Vertical
+from textual.content import Content
+from textual.message import Message
+from textual.widgets import Label, RichLog, Static
+
+from spm_console.config.schema import DEFAULT_PROFILE, Profile
+from spm_console.errors import SpmError
+from spm_console.tui.messages import CommissionDone, Outcome
+from spm_console.tui.screens.base import StepScreen
+from spm_console.tui.switch import KeptWorkspace, SwitchRequest
+from spm_console.tui.widgets.checkbox import TickBox
+from spm_console.tui.widgets.confirm import LongConfirm
+from spm_console.tui.widgets.field import TextField
+
+if TYPE_CHECKING:
+    from spm_console.services.client import EstopRelay
+
+#: Longest port name accepted, characters (a device path, or ``unix:`` and a socket path,
+#: which Linux bounds at 107 bytes).
+MAX_PORT_CHARS = 120
+#: Lines the stage log keeps.
+LOG_LINES = 500
+START_TITLE = "Commission the wrist?"
+USE_TITLE = "Use the commissioned profile now?"
+HELP_LINE = ("s starts (after a yes/no) · SPACE stops it · tab moves between the fields, esc "
+             "leaves a field")
+
+
+def port_problem(text: str, what: str) -> str:
+    """Why ``text`` is no port name ("" when it is one)."""
+    if not text.strip():
+        return f"{what}: empty; type its port (e.g. /dev/ttyUSB0)"
+    if len(text) > MAX_PORT_CHARS:
+        return f"{what}: {len(text)} characters; at most {MAX_PORT_CHARS}"
+    if text != text.strip() or any(c.isspace() or not c.isprintable() for c in text):
+        return f"{what}: no spaces or control characters in a port name"
+    return ""
+
+
+@dataclass(frozen=True)
+class CommissionForm:
+    """What the operator asked for."""
+
+    bus: str
+    imu: str
+    jig: bool
+    imu_stage: bool
+
+
+class CommissionStage(Message):
+    """A stage's line from the worker (every one is shown: they never coalesce)."""
+
+    def __init__(self, line: str) -> None:
+        super().__init__()
+        self.line = line
+
+
+class CommissionScreen(StepScreen):
+    MODE = "commission"
+    DEFAULT_CSS = """
+    CommissionScreen #commission-help { height: auto; color: $text-muted; }
+    CommissionScreen #commission-reason { height: auto; color: $error; }
+    CommissionScreen #stages { height: 1fr; min-height: 6; border: round $panel; }
+    CommissionScreen #commission-result { height: auto; margin: 1 0 0 0; display: none; }
+    CommissionScreen .param-label { width: 16; }
+    """
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("s", "start", "Start", tooltip="find the servos, map them to legs with the IMU, "
+                "zero them on the jig, refine with the IMU; writes a profile (asks first)"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._stop: EstopRelay | None = None
+
+    def compose_body(self) -> ComposeResult:
+        s = self.session
+        bus = "" if s.sim else (s.port or "")
+        with Vertical(classes="body"):
+            yield Static("Find the servos of the wrist as built, map them to legs with the IMU "
+                         "on the platform, zero them on the home jig and write a profile for "
+                         "it beside the profile in use.", markup=False)
+            with Horizontal(classes="param"):
+                yield Label("Servo bus", classes="param-label", markup=False)
+                yield TextField(bus, placeholder="/dev/ttyUSB0 or unix:…", id="bus-port")
+            with Horizontal(classes="param"):
+                yield Label("IMU (BNO055)", classes="param-label", markup=False)
+                yield TextField("", placeholder="/dev/ttyUSB1", id="imu-port")
+            yield TickBox("the wrist rests on its home jig, torque off (zero the servos there)",
+                          False, id="jig")
+            yield TickBox("IMU stage: verified poses within 30° of home, fit and verify",
+                          True, id="imu-stage")
+            yield Static(id="commission-reason", markup=False)
+            yield Static(HELP_LINE, id="commission-help", markup=False)
+            yield RichLog(id="stages", markup=False, highlight=False, wrap=True,
+                          max_lines=LOG_LINES)
+            yield Static(id="commission-result", markup=False)
+
+    @property
+    def log_view(self) -> RichLog:
+        return self.query_one("#stages", RichLog)
+
+    def form(self) -> CommissionForm:
+        return CommissionForm(self.query_one("#bus-port", TextField).value,
+                              self.query_one("#imu-port", TextField).value,
+                              self.query_one("#jig", TickBox).value,
+                              self.query_one("#imu-stage", TickBox).value)
+
+    def form_problem(self, f: CommissionForm) -> str:
+        """Why ``f`` cannot start ("" when it can)."""
+        why = port_problem(f.bus, "servo bus") or port_problem(f.imu, "IMU port")
+        if why:
+            return why
+        if f.bus == f.imu:
+            return "the servo bus and the IMU need ports of their own"
+        if f.imu_stage and not f.jig:
+            return ("the IMU stage refines the jig's zero: tick the home jig, or untick the IMU "
+                    "stage")
+        return ""
+
+    # ------------------------------------------------------------------ start
+    def action_start(self) -> None:
+        if self.busy_op or self.console.moving or self.session.moving.is_set():
+            self.status.error("commission: busy, wait for the current operation")
+            return
+        f = self.form()
+        why = self.form_problem(f)
+        self.query_one("#commission-reason", Static).update(Content(why))
+        if why:
+            self.status.refused(f"commission refused: {why}; nothing started")
+            return
+        self.app.push_screen(LongConfirm(START_TITLE, self._question(f)),
+                             lambda yes: self._confirmed(yes, f))
+
+    def _question(self, f: CommissionForm) -> str:
+        from spm_console.services.commission import MAP_NUDGE_DEG, MAP_SPEED_DEGPS
+        from spm_console.services.commission_fit import (
+            FIT_POSES,
+            HELD_OUT,
+            POSE_SPEED_DEGPS,
+            RADII_DEG,
+        )
+
+        lines = [f"Servo bus {f.bus}, IMU on {f.imu}.",
+                 "1. Discover: every id 0..252 pinged on both protocols (nothing moves)."]
+        if f.jig:
+            lines.append("2. Jig: torque off, each servo's ticks averaged at the home jig.")
+        lines.append(f"3. Map: each servo alone nudged {MAP_NUDGE_DEG:g}° at "
+                     f"{MAP_SPEED_DEGPS:g}°/s and back, the others holding.")
+        if f.imu_stage:
+            lines.append(f"4. IMU stage: homing, then {FIT_POSES + HELD_OUT} verified poses "
+                         f"within {max(RADII_DEG):g}° of home at up to {POSE_SPEED_DEGPS:g}°/s; "
+                         "fit and held-out verification.")
+        if self._release_needed(f.bus):
+            lines.append(f"The console's own connection to {f.bus} is closed first and opened "
+                         "again after.")
+        lines += ["The wrist moves: press SPACE at any time to stop it.",
+                  "Then the commissioned profile is written beside the profile in use "
+                  "(NAME.commissioned-TIME.toml); you are then asked whether to use it."]
+        return "\n".join(lines)
+
+    def _release_needed(self, bus: str) -> bool:
+        s = self.session
+        return s.bus is not None and not s.sim and s.port == bus
+
+    def _confirmed(self, yes: bool | None, f: CommissionForm) -> None:
+        if not yes:
+            self.status.ok("commissioning cancelled: nothing moved")
+            return
+        from spm_console.services.client import EstopRelay
+
+        stop = EstopRelay("commission")
+        self._stop = stop
+        self.console.stop_elsewhere = stop.estop
+        self.set_focus(None)
+        self.log_view.clear()
+        self.query_one("#commission-result", Static).display = False
+        self.console.moving = True
+        if not self.run_blocking("commission", lambda: self._run(f, stop),
+                                 "commissioning … (SPACE stops it)"):
+            self._finished()
+
+    def _run(self, f: CommissionForm, stop: EstopRelay) -> Outcome:
+        """The worker: release the console's bus if it is the same port, commission, write
+        the profile, connect again."""
+        s = self.session
+        release = self._release_needed(f.bus)
+        if release:
+            self._stage(f"console: closing its own connection to {f.bus}")
+            s.disconnect()
+        try:
+            return commission_blocking(s.profile, self.console.profile_path, f, stop,
+                                       self._stage)
+        finally:
+            if release:
+                self._stage(f"console: connecting to {f.bus} again")
+                try:
+                    s.connect(check=False)
+                except SpmError as exc:
+                    self._stage(f"console: not connected again ({exc.message}); press 1, "
+                                "then c")
+
+    def _stage(self, line: str) -> None:
+        self.post_message(CommissionStage(line))
+
+    def on_commission_stage(self, message: CommissionStage) -> None:
+        message.stop()
+        self.log_view.write(message.line)
+
+    def _finished(self) -> None:
+        self.console.moving = False
+        self.console.stop_elsewhere = None
+        self._stop = None
+
+    # ------------------------------------------------------------------ result
+    def handle_done(self, outcome: Outcome) -> None:
+        if not isinstance(outcome, CommissionDone):
+            return
+        self._finished()
+        self.log_view.write(f"written: {outcome.written}")
+        self.status.ok(f"commissioned: legs {outcome.ids_text}; profile written: "
+                       f"{outcome.written}")
+        panel = self.query_one("#commission-result", Static)
+        panel.update(Content("\n".join(outcome.lines)))
+        panel.display = True
+        self.app.push_screen(LongConfirm(USE_TITLE, self._use_question(outcome)),
+                             lambda yes: self._use_answered(yes, outcome))
+
+    def handle_failed(self, op: str, message: str) -> None:
+        if op == "commission":
+            self._finished()
+            self.log_view.write(f"ended: {message}")
+
+    def _use_question(self, done: CommissionDone) -> str:
+        step = float(self.session.profile.workspace.step_deg)
+        return "\n".join([
+            f"Commissioned profile written: {done.written}",
+            f"Yes: the console restarts on it at grid step {step:g}° (as the settings do): "
+            "the servos are disconnected (home again), the workspace is kept (the bus is not "
+            "part of it).",
+            "No: the profile in use stays.", "", *done.lines])
+
+    def _use_answered(self, yes: bool | None, done: CommissionDone) -> None:
+        s = self.session
+        if not yes:
+            self.status.ok(f"the profile in use stays {s.profile.name}; the commissioned one "
+                           f"is {done.written}")
+            return
+        kept = (None if s.workspace is None or s.cache_info is None
+                else KeptWorkspace(s.workspace, s.cache_info))
+        why = (f"Commissioned profile in use: {done.written} (the console restarted on it; the "
+               "workspace was kept). Home the wrist again (h).")
+        request = SwitchRequest(done.written, float(s.profile.workspace.step_deg), why, kept)
+        if not self.console.restart_with(request):
+            self.status.error("the console did not restart: the wrist is moving")
+
+
+def commission_blocking(profile: Profile, profile_path: Path | None, f: CommissionForm,
+                        stop: EstopRelay, on_stage: Callable[[str], None]) -> CommissionDone:
+    """Commission (and refine with the IMU when asked), then write the profile beside
+    ``profile_path`` (the default profile when the console has no file) as the CLI does."""
+    from spm_console.services.commission import (
+        Bno055Source,
+        commission,
+        commissioned_lines,
+        refined,
+        write_commissioned,
+    )
+    from spm_console.services.commission_fit import refine_with_imu
+
+    imu = Bno055Source(f.imu)
+    try:
+        result = commission(profile, f.bus, imu, f.jig, on_stage, stop)
+        if f.jig and f.imu_stage:
+            result = refined(result, refine_with_imu(result.profile, f.bus, imu, on_stage, stop))
+    finally:
+        imu.close()
+    stop.check()
+    written = write_commissioned(profile_path or DEFAULT_PROFILE, result)
+    ids = ", ".join(f"{m.leg}: id {m.id} ({'+' if m.direction > 0 else '−'})"
+                    for m in result.legs)
+    return CommissionDone(written, tuple(commissioned_lines(result)), ids)
