@@ -27,7 +27,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,14 +41,11 @@ from spm_console.errors import BadInputError, BusError, ImuError, SpmError
 from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
 from spm_console.safe_io import read_text, write_text_atomic
-from spm_console.services.client import EstopRelay
+from spm_console.services.client import EstopRelay, MotionClient
 from spm_console.services.commission_fit import Refinement
 from spm_console.services.commission_map import LegMatch, leg_axes, match_leg, rotation_vector
 from spm_console.services.session import Session
 from spm_console.store.identified_profiles import write_new
-
-if TYPE_CHECKING:
-    from spm_console.services.client import MotionClient
 
 F = NDArray[np.float64]
 
