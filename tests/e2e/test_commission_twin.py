@@ -52,7 +52,7 @@ def _errors_deg(written: Path) -> list[float]:
     return out
 
 
-@pytest.mark.slow  # the physical twin: the map, then 16 poses of the IMU stage
+@pytest.mark.slow  # the physical twin: the map, then 32 poses of the IMU stage
 def test_commission_finds_the_twin_as_built(twin: dict[str, object], tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     assert twin["imu_port"] and twin["as_built"]

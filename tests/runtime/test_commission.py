@@ -136,7 +136,7 @@ def test_an_imu_port_where_no_imu_answers_is_refused_before_anything_moves(
         em.stop()
 
 
-@pytest.mark.slow  # 16 poses visited (about a minute of motion and settling)
+@pytest.mark.slow  # 32 poses visited (about a minute of motion and settling)
 def test_the_imu_stage_refines_the_jig_zero_and_verifies_it_on_held_out_poses(
         wrist: tuple[EmulatorHandle, EmulatedBno055, Profile], tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:

@@ -20,6 +20,7 @@ import pytest
 from textual.widgets import RichLog
 
 from spm_console.config.load import load_profile
+from spm_console.services.commission_fit import FIT_POSES, HELD_OUT
 from spm_console.tui.screens.commission import MAX_PORT_CHARS, CommissionScreen
 from spm_console.tui.switch import SwitchRequest
 from spm_console.tui.widgets.checkbox import TickBox
@@ -27,6 +28,8 @@ from spm_console.tui.widgets.confirm import LongConfirm
 from spm_console.tui.widgets.field import TextField
 from tests.conftest import ROOT
 from tests.support.console_helpers import screen_text, settle, status_of, text_of
+
+POSES = FIT_POSES + HELD_OUT
 
 SMALL = (80, 24)
 TWIN = ROOT / "tests" / "data" / "as_built" / "twin.toml"
@@ -115,7 +118,7 @@ def twin() -> Iterator[dict[str, object]]:
     proc.communicate(timeout=30)
 
 
-@pytest.mark.slow  # the physical twin: discovery, the map, 16 poses of the IMU stage
+@pytest.mark.slow  # the physical twin: discovery, the map, 32 poses of the IMU stage
 async def test_commission_the_twin_from_step_0_and_use_the_profile(
         console, twin: dict[str, object], tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     folder = tmp_path / "profiles"
@@ -148,7 +151,7 @@ async def test_commission_the_twin_from_step_0_and_use_the_profile(
         assert isinstance(step, CommissionScreen)
         log = "\n".join(line.text for line in step.query_one("#stages", RichLog).lines)
         for stage in ("console: closing its own connection", "discover:", "jig:", "map: nudging",
-                      "map: leg 1 = id 3", "imu: pose 16/16", "verify: held-out",
+                      "map: leg 1 = id 3", f"imu: pose {POSES}/{POSES}", "verify: held-out",
                       "console: connecting to", "written:"):
             assert stage in log, log
         assert app.session.bus is not None  # connected again
