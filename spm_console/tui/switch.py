@@ -42,6 +42,15 @@ class SwitchRequest:
     kept: KeptWorkspace | None = field(default=None, compare=False, repr=False)
     """The workspace the next console starts with when it fits its profile."""
 
+    @classmethod
+    def keeping(cls, profile_path: Path, profile: Profile, workspace: Workspace | None,
+                info: CacheInfo | None, why: str) -> SwitchRequest:
+        """Restart on ``profile_path`` with the grid step of ``profile`` (the one in use) and
+        its loaded workspace kept, if any (a new servo model or wiring: the workspace's
+        sections are unchanged, so the next console takes it when it fits)."""
+        kept = None if workspace is None or info is None else KeptWorkspace(workspace, info)
+        return cls(profile_path, float(profile.workspace.step_deg), why, kept)
+
     def describe(self) -> str:
         return f"profile {self.profile_path}, grid step {self.grid_step_deg:g}°"
 

@@ -33,7 +33,7 @@ from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import SpmError
 from spm_console.tui.messages import CommissionDone, Outcome
 from spm_console.tui.screens.base import StepScreen
-from spm_console.tui.switch import KeptWorkspace, SwitchRequest
+from spm_console.tui.switch import SwitchRequest
 from spm_console.tui.widgets.checkbox import TickBox
 from spm_console.tui.widgets.confirm import LongConfirm
 from spm_console.tui.widgets.field import TextField
@@ -272,11 +272,9 @@ class CommissionScreen(StepScreen):
             self.status.ok(f"the profile in use stays {s.profile.name}; the commissioned one "
                            f"is {done.written}")
             return
-        kept = (None if s.workspace is None or s.cache_info is None
-                else KeptWorkspace(s.workspace, s.cache_info))
         why = (f"Commissioned profile in use: {done.written} (the console restarted on it; the "
                "workspace was kept). Home the wrist again (h).")
-        request = SwitchRequest(done.written, float(s.profile.workspace.step_deg), why, kept)
+        request = SwitchRequest.keeping(done.written, s.profile, s.workspace, s.cache_info, why)
         if not self.console.restart_with(request):
             self.status.error("the console did not restart: the wrist is moving")
 

@@ -13,7 +13,7 @@ from textual.widgets import Static
 from spm_console.refusals import Refusal, worded
 from spm_console.tui.messages import IdentifyDone
 from spm_console.tui.screens.base import StepScreen
-from spm_console.tui.switch import KeptWorkspace, SwitchRequest
+from spm_console.tui.switch import SwitchRequest
 from spm_console.tui.widgets.confirm import ConfirmScreen, LongConfirm
 
 USE_TITLE = "Use the identified servo model now?"
@@ -96,10 +96,8 @@ class IdentifyStep(StepScreen):
             self.status.ok(f"the profile in use stays {s.profile.name}; the identified one "
                            "is listed in the settings (ctrl+o)")
             return
-        kept = (None if s.workspace is None or s.cache_info is None
-                else KeptWorkspace(s.workspace, s.cache_info))
         why = (f"Identified servo model in use: {done.profile} (the console restarted on it; "
                "the workspace was kept, the plan dropped). Home the wrist again (h).")
-        request = SwitchRequest(done.profile, float(s.profile.workspace.step_deg), why, kept)
+        request = SwitchRequest.keeping(done.profile, s.profile, s.workspace, s.cache_info, why)
         if not self.console.restart_with(request):
             self.status.error("the console did not restart: the wrist is moving")
