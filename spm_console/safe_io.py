@@ -17,6 +17,7 @@ import json
 import os
 import secrets
 import stat
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -136,6 +137,17 @@ def parse_json(text: str, what: str, error: type[SpmError], max_depth: int = MAX
     if json_depth(obj) > max_depth:
         raise error(f"{what}: JSON nested too deeply (more than {max_depth} levels)")
     return obj
+
+
+def parse_toml(text: str, what: str, error: type[SpmError], too_deep: str) -> dict[str, Any]:
+    """Decode TOML text; malformed text is ``"{what}: not valid TOML: …"`` and nesting deeper
+    than the decoder recurses ``"{what}: {too_deep}"``, both ``error``."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{what}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise error(f"{what}: {too_deep}") from None
 
 
 def load_json(path: str | Path, what: str, max_bytes: int, error: type[SpmError],

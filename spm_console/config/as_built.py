@@ -22,7 +22,6 @@ the key, the value and the allowed range (:class:`AsBuiltError`, exit 4)::
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 from typing import Annotated
 
@@ -31,7 +30,7 @@ from pydantic import Field, ValidationError, model_validator
 from spm_console.config.checks import validation_message
 from spm_console.config.fields import Count, Direction, Real, Section
 from spm_console.errors import BadInputError
-from spm_console.safe_io import read_text
+from spm_console.safe_io import parse_toml, read_text
 
 #: Largest as-built file read (a complete one is under 1 kB).
 MAX_AS_BUILT_BYTES = 64 * 1024
@@ -124,12 +123,8 @@ def parse_as_built(data: dict[str, object], source: str) -> AsBuilt:
 
 def parse_as_built_text(text: str, source: str) -> AsBuilt:
     """An as-built file's TOML text, validated as :func:`load_as_built` validates a file."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise AsBuiltError(f"{source}: not valid TOML: {exc}") from None
-    except RecursionError:
-        raise AsBuiltError(f"{source}: not an as-built file: values nested too deeply") from None
+    data = parse_toml(text, source, AsBuiltError,
+                      "not an as-built file: values nested too deeply")
     return parse_as_built(data, source)
 
 

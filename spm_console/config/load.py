@@ -9,7 +9,6 @@ profile's schema (:mod:`spm_console.config.schema`).
 from __future__ import annotations
 
 import itertools
-import tomllib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -22,7 +21,7 @@ from spm_console.config.models import link_model_of, model_of
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.core.kinematics.assess import assess
 from spm_console.errors import ProfileError
-from spm_console.safe_io import MB, FileRefusedError, read_capped
+from spm_console.safe_io import MB, FileRefusedError, parse_toml, read_capped
 
 #: A component of v at home this close to 0 matches any seed sign.
 SIGN_ZERO_TOL = 1e-6
@@ -62,12 +61,7 @@ def load_profile(path: str | Path = DEFAULT_PROFILE) -> Profile:
 
 def parse_profile_text(text: str, source: str) -> Profile:
     """A profile's TOML text, validated as :func:`load_profile` validates a file."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ProfileError(f"{source}: not valid TOML: {exc}") from None
-    except RecursionError:
-        raise ProfileError(f"{source}: not a profile: values nested too deeply") from None
+    data = parse_toml(text, source, ProfileError, "not a profile: values nested too deeply")
     prof = parse_profile(data, source)
     check_home_mode(prof, source)
     return prof

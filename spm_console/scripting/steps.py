@@ -6,7 +6,6 @@ See :mod:`spm_console.scripting.runner` for the format's documentation and the r
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -16,7 +15,7 @@ from spm_console.config.schema import Count, Real
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
 from spm_console.errors import BadInputError, ExitCode, SpmError
 from spm_console.input_rules import STEPS_MIN
-from spm_console.safe_io import MB, read_text
+from spm_console.safe_io import MB, parse_toml, read_text
 
 #: Largest script file read.
 MAX_SCRIPT_BYTES = 1 * MB
@@ -160,12 +159,8 @@ def _where(loc: tuple[int | str, ...], data: dict[str, Any]) -> str:
 
 def parse_script(text: str, source: str) -> Script:
     """Validate a script; errors name the file, the step and the key."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise BadInputError(f"{source}: not valid TOML: {exc}") from None
-    except RecursionError:
-        raise BadInputError(f"{source}: not valid TOML: arrays or tables nested too deeply") from None
+    data = parse_toml(text, source, BadInputError,
+                      "not valid TOML: arrays or tables nested too deeply")
     try:
         script = Script.model_validate(data)
         script._source = source
