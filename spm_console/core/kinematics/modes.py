@@ -29,10 +29,15 @@ from spm_console.core.kinematics.rotations import expm_so3, random_rotations
 F = NDArray[np.float64]
 
 _N_STARTS = 512
+#: Levenberg-Marquardt: a start whose squared residual is below this has converged, and one
+#: whose damping rose above this makes no more progress.
+_CONVERGED = 1e-20
+_STALLED = 1e6
 
 
 def _lm_solve(geom: SpmGeometry, w: F, v_ref: F, starts: F, iters: int = 80) -> tuple[F, F]:
-    """Levenberg-Marquardt on (4) from many rotations; returns (R, residual)."""
+    """Levenberg-Marquardt on (4) from many rotations (at most ``iters`` steps, fewer once
+    every start has converged or stalled); returns (R, residual)."""
     R = starts.copy()
     lam = np.full(len(R), 1e-2)
     v = platform_axes(R, v_ref)
@@ -52,6 +57,8 @@ def _lm_solve(geom: SpmGeometry, w: F, v_ref: F, starts: F, iters: int = 80) -> 
         better = cn < cost
         R[better], v[better], f[better], cost[better] = Rn[better], vn[better], fn[better], cn[better]
         lam = np.where(better, np.maximum(lam / 5.0, 1e-12), lam * 4.0)
+        if ((cost < _CONVERGED) | (lam > _STALLED)).all():
+            break  # every start has converged (Newton polishes it) or stopped moving
     R, res = newton(geom, np.broadcast_to(w, R.shape), R, v_ref)
     return R, res
 

@@ -42,7 +42,7 @@ def test_a_bare_p_is_the_papers_double_pole() -> None:
     assert discretize(p, 0.02).dynamics == Dynamics(p)
 
 
-@pytest.mark.parametrize("zeta", [0.3, 0.79, 1.0, 2.0])
+@pytest.mark.parametrize("zeta", [0.3, 0.79, 1.0, 1.3, 2.0, 5.0])
 def test_step_figures_match_a_fine_simulation(zeta: float) -> None:
     """Peak speed, overshoot and the slowest decay rate against a 1e-5 s matrix-exponential
     march and the eigenvalues of Ac."""
