@@ -20,6 +20,10 @@ os.environ.setdefault("SPM_CONSOLE_CACHE", str(_SCRATCH / "cache"))
 os.environ.setdefault("SPM_CONSOLE_LOGS", str(_SCRATCH / "logs"))
 # the console remembers form values per profile: never in the tester's own ~/.config
 os.environ["SPM_CONSOLE_CONFIG"] = str(_SCRATCH / "config")
+# Motion processes fork from a warm start of each front end's own, which ends with it: the
+# resident one would outlive the suite (tests/runtime/test_resident.py starts its own, in a
+# private folder, and ends it).
+os.environ.setdefault("SPM_CONSOLE_WARM_START", "command")
 
 # Property tests draw the same examples on every run and machine (a failure found once is
 # found again, and CI cannot fail on a draw the last run did not make); set

@@ -17,6 +17,8 @@ from spm_console.cli.streams.stdout_guard import json_stdout, out
 from spm_console.errors import ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
 from spm_console.services.warm_start import prestart
+from spm_console.system.childproc import prespawn
+from spm_console.system.cpus import cpu_plan
 from spm_console.system.signals import (
     SignalInterrupt,
     forget_signals,
@@ -46,6 +48,7 @@ COMMANDS: dict[str, str] = {
     "export": "spm_console.cli.tools.export",
     "design": "spm_console.cli.design",
     "commission": "spm_console.cli.commission",
+    "warm-start": "spm_console.cli.warm",
 }
 COMMAND_MODULES = list(dict.fromkeys(COMMANDS.values()))
 
@@ -142,6 +145,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 #: the console: its first screen comes first (the warm start's imports beside its own put the
 #: screen off by half a second on two cores).
 MOVING_COMMANDS = frozenset({"execute", "home", "follow", "script"})
+#: The emulated bus's process (:class:`spm_console.devices.emulator.child.EmulatorChild`).
+EMULATOR_CHILD = "spm_console.devices.emulator.child"
 
 
 def _main(args_list: list[str]) -> int:
@@ -150,6 +155,9 @@ def _main(args_list: list[str]) -> int:
         args_list[0] == "identify" and "--experiment" in args_list))
     if moving and "--help" not in args_list:
         prestart()  # its imports overlap this process's own (the command's module, the profile)
+        if "--sim" in args_list:  # the emulated bus's child too: it imports, then waits
+            cpu_plan()  # fixed before any child starts (see spm_console.system.cpus)
+            prespawn(EMULATOR_CHILD)
     try:
         parser = build_parser(args_list[0] if args_list else None)
         try:

@@ -1,16 +1,22 @@
 """Starting the motion process: forked from a warm start (:mod:`.zygote`), or directly.
 
 :func:`start_motion_process` hands the motion process its end of the socket pair and
-returns a :class:`MotionProcessHandle` (poll, wait, signal), whichever way it was started:
+returns a :class:`MotionProcessHandle` (poll, wait, signal), whichever way it was started
+(``SPM_CONSOLE_WARM_START``):
 
-* **warm** (the default): the first call starts one warm-start process for this front end
-  (it imports what a motion process needs, about 2 s, once); each motion process is then
-  forked from it in milliseconds, with this process's environment and working directory of
-  the moment. If the warm start cannot be used (it failed to start, or died before it was
-  asked), the motion process is started directly instead; once it has been handed the
-  socket, a failure is an error (never two processes on one socket);
-* **direct** (``SPM_CONSOLE_WARM_START=0``): ``python -m spm_console.motion.server`` is
-  started for each motion process, in a session of its own.
+* **resident** (the default): the front end connects to this user's resident warm start
+  for this installation (:mod:`.resident`), starting it when there is none. It outlives the
+  command, so from the second command on the motion process is forked in milliseconds
+  instead of importing for about 2 s. It retires by itself when idle, on SIGTERM
+  (``spm-console warm-start --stop``), and when the code it imported changed on disk;
+* **command**: the first call starts one warm-start process for this front end alone (its
+  imports overlap the front end's own when :func:`prestart` started it); it ends with it;
+* **direct** (``0``): ``python -m spm_console.motion.server`` is started for each motion
+  process, in a session of its own.
+
+When a warm start cannot be used (it failed to start, died, or refused the request) before
+it was handed the socket, the motion process is started directly instead; once it has been
+handed the socket, a failure is an error (never two processes on one socket).
 
 Either way the motion process runs in a session of its own: a signal to the front end's
 process group or terminal never reaches the servo loop (:mod:`spm_console.motion.server`).
@@ -30,10 +36,14 @@ import threading
 from collections.abc import Callable
 from typing import Protocol
 
+from spm_console.services import resident
 from spm_console.system.env import switched_off
 
-#: Environment variable: ``0`` starts every motion process directly.
+#: Environment variable: ``0`` starts every motion process directly, ``command`` from a warm
+#: start of this front end's own; anything else from the resident warm start.
 ENV_WARM_START = "SPM_CONSOLE_WARM_START"
+#: The value of :data:`ENV_WARM_START` for a warm start per front end.
+PER_COMMAND = "command"
 #: Seconds to wait for the warm start to be ready (it imports numpy, scipy, the solvers).
 READY_TIMEOUT_S = 60.0
 #: Seconds to wait for a fork's pid once the warm start is ready.
@@ -55,6 +65,24 @@ class MotionProcessHandle(Protocol):
     def send_signal(self, sig: int) -> None: ...
 
     def terminate(self) -> None: ...
+
+
+def _umask() -> int:
+    """This process's umask, read without changing it (``/proc``; Linux 4.7)."""
+    with contextlib.suppress(OSError, ValueError), open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    mask = os.umask(0o022)  # no /proc: the one reading that sets it
+    os.umask(mask)
+    return mask
+
+
+def _has_fd(stream: object) -> bool:
+    try:
+        return isinstance(stream.fileno(), int)  # type: ignore[attr-defined]
+    except (AttributeError, OSError, ValueError):
+        return False
 
 
 #: The exit code reported for a fork whose end the warm start never reported (it died).
@@ -127,18 +155,12 @@ class NotSentError(OSError):
 
 
 class WarmStart:
-    """This front end's warm-start process (one per process; started on first use)."""
+    """A connection to a warm start: this front end's own (``process`` is it) or the
+    resident one (``process`` is None)."""
 
-    def __init__(self) -> None:
-        mine, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "spm_console.services.zygote", "--fd", str(theirs.fileno())],
-            pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
-            # stdout belongs to the front end (a --json answer); a motion process has nothing
-            # to say there (a bug's traceback goes to stderr)
-            stdout=subprocess.DEVNULL, start_new_session=True)
-        theirs.close()
-        self._sock = mine
+    def __init__(self, sock: socket.socket, process: subprocess.Popen[bytes] | None) -> None:
+        self.process = process
+        self._sock = sock
         self._owner = os.getpid()
         self._lock = threading.Lock()
         self._cond = threading.Condition()
@@ -148,15 +170,36 @@ class WarmStart:
         self._next_id = 1
         self._gone = False
         self._ready = False
+        self.pid = 0
         self.unsupported = ""
+        self.stale = ""
+
+    @classmethod
+    def own(cls) -> WarmStart:
+        """A warm start for this front end alone, started now."""
+        mine, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        with theirs:
+            process = subprocess.Popen(
+                [sys.executable, "-m", "spm_console.services.zygote",
+                 "--fd", str(theirs.fileno())],
+                pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
+                # stdout belongs to the front end (a --json answer); a motion process has
+                # nothing to say there (a bug's traceback goes to stderr)
+                stdout=subprocess.DEVNULL, start_new_session=True)
+        return cls(mine, process)
+
+    @classmethod
+    def resident(cls, path: str) -> WarmStart:
+        """A connection to the resident warm start at ``path`` (started when there is none)."""
+        return cls(resident.connect(path), None)
 
     def await_ready(self) -> None:
         """Wait until the warm start has imported what a motion process needs (NotSentError
         when it cannot be used), then read its messages from a thread of this process."""
-        if not self._wait_for(lambda: self._ready or bool(self.unsupported), READY_TIMEOUT_S,
-                              first=True) or not self._ready:
+        if not self._wait_for(lambda: self._ready or bool(self.unsupported or self.stale),
+                              READY_TIMEOUT_S, first=True) or not self._ready:
             self.close()
-            raise NotSentError(self.unsupported
+            raise NotSentError(self.unsupported or self.stale
                                or "the warm start of the motion process did not become ready")
         threading.Thread(target=self._read, daemon=True, name="spm-warm-start").start()
 
@@ -166,6 +209,9 @@ class WarmStart:
         with self._cond:
             if "ready" in msg:
                 self._ready = True
+                self.pid = int(msg["ready"])
+            elif "stale" in msg:
+                self.stale = f"the resident warm start retired: {msg['stale']}"
             elif "unsupported" in msg:
                 self.unsupported = str(msg["unsupported"])
             elif "id" in msg:
@@ -217,7 +263,8 @@ class WarmStart:
 
     @property
     def alive(self) -> bool:
-        return not self._gone and os.getpid() == self._owner and self.process.poll() is None
+        return not self._gone and os.getpid() == self._owner and (
+            self.process is None or self.process.poll() is None)
 
     def fork(self, theirs: socket.socket) -> ForkedProcess:
         """A motion process serving ``theirs``. :class:`NotSentError` when the warm start
@@ -227,11 +274,14 @@ class WarmStart:
             ident = self._next_id
             self._next_id += 1
             self._waiting.add(ident)
-        req = json.dumps({"id": ident, "env": dict(os.environ), "cwd": os.getcwd()}).encode()
+        req = json.dumps({"id": ident, "env": dict(os.environ), "cwd": os.getcwd(),
+                          "umask": _umask(), "cpus": sorted(os.sched_getaffinity(0)),
+                          "nice": os.getpriority(os.PRIO_PROCESS, 0)}).encode()
         try:
             with self._lock:
                 try:
-                    socket.send_fds(self._sock, [req], [theirs.fileno()])
+                    socket.send_fds(self._sock, [req], [theirs.fileno(), sys.stderr.fileno()
+                                                        if _has_fd(sys.stderr) else 2])
                 except OSError as exc:
                     raise NotSentError(str(exc)) from None
             got = self._wait_for(lambda: ident in self._answers, FORK_TIMEOUT_S)
@@ -256,38 +306,87 @@ class WarmStart:
             self._sock.shutdown(socket.SHUT_RDWR)
         with contextlib.suppress(OSError):
             self._sock.close()
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            self.process.wait(2.0)
+        if self.process is not None:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self.process.wait(2.0)
 
 
 _starter: WarmStart | None = None
 _pending: WarmStart | None = None
-"""Started by :func:`prestart`, not yet waited for."""
+"""Started or connected by :func:`prestart`, not yet waited for."""
+_spawned: subprocess.Popen[bytes] | None = None
+"""The resident warm start :func:`prestart` started (it connects to it later)."""
 _starter_failed = ""
 """Why this process's warm start could not be started (then it is not tried again)."""
 _starter_lock = threading.Lock()
 
 
-def prestart() -> None:
-    """Start this process's warm start now and return at once: its imports (about 2 s of one
-    core) overlap the front end's own until a motion process is first asked for. A front end
-    that will move the wrist calls it first thing; nothing is waited for here."""
-    global _pending, _starter_failed
+def mode() -> str:
+    """How motion processes start here: ``direct``, ``command`` or ``resident`` (see the
+    module docstring)."""
     if switched_off(ENV_WARM_START):
+        return "direct"
+    return ("command" if os.environ.get(ENV_WARM_START, "").strip().lower() == PER_COMMAND
+            else "resident")
+
+
+def prestart() -> None:
+    """Get the warm start going now and return at once. For this front end's own, its imports
+    (about 2 s of one core) overlap the front end's own until a motion process is first asked
+    for; the resident one is connected to, or started when there is none. A front end that
+    will move the wrist calls it first thing; nothing is waited for here."""
+    global _pending, _spawned, _starter_failed
+    how = mode()
+    if how == "direct":
         return
     with _starter_lock:
-        if _starter is None and _pending is None and not _starter_failed:
-            try:
-                _pending = WarmStart()
-            except OSError as exc:
-                _starter_failed = str(exc) or type(exc).__name__
+        if _starter is not None or _pending is not None or _spawned is not None \
+                or _starter_failed:
+            return
+        try:
+            path = resident.socket_path() if how == "resident" else None
+            if path is None:
+                _pending = WarmStart.own()
+                return
+            sock = resident.try_connect(path)
+            if sock is not None:
+                _pending = WarmStart(sock, None)
+            else:
+                _spawned = resident.spawn(path)
+        except OSError as exc:
+            _starter_failed = str(exc) or type(exc).__name__
+
+
+def _resident_or_own(how: str) -> WarmStart:
+    """The warm start to use now, ready: the one :func:`prestart` got going, else the
+    resident (a fresh one when it was stale), else this front end's own."""
+    global _pending, _spawned
+    started, spawned, _pending, _spawned = _pending, _spawned, None, None
+    path = resident.socket_path() if how == "resident" else None
+    for _ in range(2):  # the second time: the resident found stale has freed its path
+        if started is None and path is not None:
+            with contextlib.suppress(OSError):
+                started = WarmStart(resident.connect(path, spawned), None)
+        if started is None:
+            break
+        try:
+            started.await_ready()
+            return started
+        except NotSentError:
+            if not started.stale:
+                break
+            started, spawned = None, None
+    own = WarmStart.own()
+    own.await_ready()
+    return own
 
 
 def _warm_start() -> WarmStart | None:
     """This process's warm start (started on first use, or by :func:`prestart`), or None when
     it is not to be used or cannot be."""
-    global _starter, _pending, _starter_failed
-    if switched_off(ENV_WARM_START):
+    global _starter, _starter_failed
+    how = mode()
+    if how == "direct":
         return None
     with _starter_lock:
         if _starter is not None and not _starter.alive:
@@ -295,9 +394,7 @@ def _warm_start() -> WarmStart | None:
             _starter = None
         if _starter is None and not _starter_failed:
             try:
-                started, _pending = _pending or WarmStart(), None
-                started.await_ready()
-                _starter = started
+                _starter = _resident_or_own(how)
             except OSError as exc:
                 _starter_failed = str(exc) or type(exc).__name__
         return _starter

@@ -2,36 +2,46 @@
 motion process needs, and forks one on request.
 
 A motion process started from scratch spends about 2 s importing (numpy, scipy, the Kalman
-filters' scipy.stats, the follower's QP solver) before it answers. A front end that starts
-several in its life (the console restarts it when the profile changes; scripted sessions
-and test suites connect many times) starts this process once, with
-``python -m spm_console.services.zygote --fd N``; each motion process is then a fork of it,
-ready in milliseconds (:mod:`spm_console.services.warm_start` is the front end's side).
+filters' scipy.stats, the follower's QP solver) before it answers. This process imports all
+that once; each motion process is then a fork of it, ready in milliseconds
+(:mod:`spm_console.services.warm_start` is the front end's side). It runs in one of two ways:
+
+* **for one front end** (``python -m spm_console.services.zygote --fd N``): started by that
+  front end on a socket pair, it ends when its owner closes the socket (or exits);
+* **resident** (``--listen PATH``, :mod:`spm_console.services.resident`): one per user and
+  installation, shared by the front ends that connect to ``PATH``. It outlives the command
+  that started it, so a command's motion process is ready at once from the second command
+  on. Its lifetime: it ends after an idle time with no connection and no motion process,
+  on SIGTERM, and as soon as the code it imported has changed on disk (the stale-code rule,
+  checked on every connection: that front end is told, and starts a fresh one). Once
+  retired it accepts nothing new and ends when its last motion process has ended.
 
 What a fork gets, and what it does not:
 
 * it runs in a session of its own (``setsid``), like a motion process started directly: a
   signal to the front end's process group or terminal never reaches the servo loop;
-* the front end's environment and working directory *of the moment it asks* (sent with the
-  request): the CPU plan, the cache and log folders are read from them;
-* the default disposition of the terminating signals and SIGCHLD; this process's socket is
-  closed in it; it starts only once its owner holds its pid and pidfd (a failure before
-  that kills it before it has read anything);
+* the asking front end's environment, working directory, umask, CPU affinity and standard
+  error *of the moment it asks* (sent with the request): the CPU plan, the cache and log
+  folders are read from them; a front end niced below this process is refused (its motion
+  process is then started directly);
+* the default disposition of the terminating signals and SIGCHLD; every socket of this
+  process is closed in it; it starts only once its asker holds its pid and pidfd (a failure
+  before that kills it before it has read anything);
 * this process starts no thread (numpy's BLAS may: its own fork handler stops them).
 
 What the fork does *not* get anew: what Python fixed when this process started (``sys.path``,
-the interpreter's ``PYTHON*`` settings, locale, time zone), and its scheduling and limits.
+the interpreter's ``PYTHON*`` settings, locale, time zone), and its limits.
 
-This process ignores the terminating signals: its owner ends it by closing the socket (or
-by exiting, which closes it). It reaps its forks and reports each one's exit status.
+It ignores SIGINT, SIGHUP and SIGQUIT; for one front end, SIGTERM too (its owner ends it).
+It reaps its forks and reports each one's exit status to the front end that asked.
 
-Messages (``SOCK_SEQPACKET``, one JSON object each): the owner sends
-``{"id": K, "env": {...}, "cwd": "..."}`` with the motion process's end of its socket pair
-attached; this process answers ``{"id": K, "pid": N}`` with a pidfd of the fork attached
-(race-free waiting and signalling for the owner, who is not the fork's parent) or
-``{"id": K, "error": "..."}``, and later ``{"exit": N, "code": C}`` when the fork has ended.
-On a kernel without pidfds it answers ``{"unsupported": "..."}`` instead of ``{"ready": PID}``
-and ends (its owner then starts motion processes directly).
+Messages (``SOCK_SEQPACKET``, one JSON object each): on connection this process says
+``{"ready": PID}`` (or ``{"stale": "why"}`` / ``{"unsupported": "why"}`` and closes); a front
+end sends ``{"id": K, "env": {...}, "cwd": "...", "umask": U, "cpus": [...], "nice": N}``
+with the motion process's end of its socket pair and its standard error attached; this
+process answers ``{"id": K, "pid": N}`` with a pidfd of the fork attached (race-free waiting
+and signalling for the front end, which is not the fork's parent) or ``{"id": K, "error":
+"..."}``, and later ``{"exit": N, "code": C}`` when the fork has ended.
 """
 
 from __future__ import annotations
@@ -46,9 +56,12 @@ import select
 import signal
 import socket
 import sys
+import time
 import traceback
 from collections.abc import Sequence
+from dataclasses import dataclass
 
+from spm_console.services import resident
 from spm_console.system.signals import STOP_SIGNALS
 
 #: What a motion process imports before it answers, and what only a motion needs.
@@ -57,106 +70,230 @@ PRELOAD = ("spm_console.motion.server", "filterpy.kalman", "spm_console.motion.f
 MAX_MESSAGE = 1 << 20
 #: How often finished forks are reaped when no request comes, s.
 REAP_PERIOD_S = 0.1
+#: Most front ends connected to a resident warm start at once.
+MAX_CONNECTIONS = 64
 
 
 def _send(sock: socket.socket, msg: dict[str, object], fds: Sequence[int] = ()) -> None:
     socket.send_fds(sock, [json.dumps(msg).encode()], list(fds))
 
 
-def _fork_motion_process(sock: socket.socket, fd: int, env: dict[str, str], cwd: str,
-                         go: int, go_w: int) -> int:
-    """Fork; the child waits for one byte on ``go`` (the parent has told the owner its pid and
-    pidfd), then runs the motion process on ``fd``; it never returns. Without that byte it
-    leaves at once, having touched nothing."""
-    pid = os.fork()
-    if pid:
-        return pid
-    code = 1
-    try:
-        try:
-            sock.close()
-            os.close(go_w)  # the parent's end: closed without a byte, the read below ends
-            if os.read(go, 1) == b"g":
-                os.close(go)
-                os.setsid()
-                for sig in (*STOP_SIGNALS, signal.SIGCHLD):
-                    signal.signal(sig, signal.SIG_DFL)
-                os.environ.clear()
-                os.environ.update(env)
-                os.chdir(cwd)
-                from spm_console.motion import server
+@dataclass(frozen=True)
+class Request:
+    """One fork request, checked: what the motion process takes from its front end."""
 
-                sys.argv = [server.__file__, "--fd", str(fd)]  # what the run logs record
-                code = server.main(["--fd", str(fd)])
-        except BaseException:  # a bug: say so on stderr, then leave like a crashed process
-            with contextlib.suppress(BaseException):
-                traceback.print_exc()
-        finally:
-            with contextlib.suppress(BaseException):
-                sys.stdout.flush()
-                sys.stderr.flush()
-    finally:
-        os._exit(code)
+    ident: object
+    env: dict[str, str]
+    cwd: str
+    umask: int
+    cpus: frozenset[int]
+    nice: int
+
+    @classmethod
+    def parse(cls, data: bytes) -> Request:
+        """ValueError when the request is not one (its id, if any, is kept for the answer)."""
+        msg = json.loads(data)
+        if not isinstance(msg, dict):
+            raise ValueError("not a request")
+        env, cwd = msg.get("env"), msg.get("cwd")
+        if not isinstance(env, dict) or not isinstance(cwd, str):
+            raise ValueError("a request without environment or working directory")
+        umask = msg.get("umask", 0o022)
+        cpus = msg.get("cpus", sorted(os.sched_getaffinity(0)))
+        nice = msg.get("nice", os.getpriority(os.PRIO_PROCESS, 0))
+        if not (isinstance(umask, int) and 0 <= umask <= 0o777 and isinstance(nice, int)
+                and isinstance(cpus, list) and cpus
+                and all(isinstance(c, int) and 0 <= c < 4096 for c in cpus)):
+            raise ValueError("a request with a bad umask, CPU set or niceness")
+        return cls(msg.get("id"), {str(k): str(v) for k, v in env.items()}, cwd, umask,
+                   frozenset(cpus), nice)
 
 
-def _reap(sock: socket.socket) -> None:
-    while True:
-        try:
-            pid, status = os.waitpid(-1, os.WNOHANG)
-        except ChildProcessError:
-            return
-        if pid == 0:
-            return
-        _send(sock, {"exit": pid, "code": os.waitstatus_to_exitcode(status)})
+def _run_motion_process(fd: int, err: int, req: Request) -> int:
+    """In the fork, once released: become the asker's motion process on ``fd``."""
+    os.setsid()
+    for sig in (*STOP_SIGNALS, signal.SIGCHLD):
+        signal.signal(sig, signal.SIG_DFL)
+    if err >= 0:
+        os.dup2(err, 2)
+        os.close(err)
+    os.environ.clear()
+    os.environ.update(req.env)
+    os.chdir(req.cwd)
+    os.umask(req.umask)
+    os.setpriority(os.PRIO_PROCESS, 0, req.nice)
+    os.sched_setaffinity(0, req.cpus)
+    from spm_console.motion import server
+
+    sys.argv = [server.__file__, "--fd", str(fd)]  # what the run logs record
+    return server.main(["--fd", str(fd)])
 
 
-def _answer(sock: socket.socket, req: dict[str, object], fd: int) -> None:
-    """Fork one motion process for request ``req`` and tell the owner (id, pid, pidfd); on
-    any failure the fork is killed before it has read anything, and the owner told why."""
-    ident = req.get("id")
-    go_r, go_w = os.pipe()
-    pid = 0
-    try:
-        env = req["env"]
-        assert isinstance(env, dict)
-        pid = _fork_motion_process(sock, fd, {str(k): str(v) for k, v in env.items()},
-                                   str(req["cwd"]), go_r, go_w)
-        pidfd = os.pidfd_open(pid)  # before any reaping: race-free
-        try:
-            _send(sock, {"id": ident, "pid": pid}, [pidfd])
-        finally:
-            os.close(pidfd)
-        os.write(go_w, b"g")
-    except Exception as exc:  # the owner is told, and the fork never runs
+class Zygote:
+    """The serving loop: the owner's connection (for one front end), or a listening socket
+    and the front ends connected to it (resident)."""
+
+    def __init__(self, *, owner: socket.socket | None = None,
+                 listener: resident.Listener | None = None, idle_s: float = 0.0) -> None:
+        self.listener = listener
+        self.idle_s = idle_s
+        self.conns: list[socket.socket] = [owner] if owner is not None else []
+        self.forks: dict[int, socket.socket] = {}  # pid → the connection that asked
+        self.retired = listener is None
+        self.stamp: resident.CodeStamp | None = None  # set once the preload is done
+        self.terminated = False  # SIGTERM (resident): retire at the next turn of the loop
+        self.last_active = time.monotonic()
+
+    # -- forks -------------------------------------------------------------------------
+    def _fork(self, fd: int, err: int, req: Request, go: int, go_w: int) -> int:
+        """Fork; the child waits for one byte on ``go`` (the parent has told the asker its pid
+        and pidfd), then runs the motion process on ``fd``; it never returns. Without that
+        byte it leaves at once, having touched nothing."""
+        pid = os.fork()
         if pid:
-            with contextlib.suppress(OSError):
-                os.kill(pid, signal.SIGKILL)
-        with contextlib.suppress(OSError):
-            _send(sock, {"id": ident, "error": f"{type(exc).__name__}: {exc}"})
-    finally:
-        os.close(go_r)
-        os.close(go_w)
-        os.close(fd)
-
-
-def serve(sock: socket.socket) -> None:
-    """Answer fork requests until the owner closes the socket."""
-    while True:
-        ready, _, _ = select.select([sock], [], [], REAP_PERIOD_S)
+            return pid
+        code = 1
         try:
-            _reap(sock)
-            if not ready:
-                continue
-            data, fds, _, _ = socket.recv_fds(sock, MAX_MESSAGE, 1)
-        except OSError:  # the owner is gone
+            try:
+                for s in self.conns:
+                    s.close()
+                if self.listener is not None:
+                    self.listener.close_in_fork()
+                os.close(go_w)  # the parent's end: closed without a byte, the read below ends
+                if os.read(go, 1) == b"g":
+                    os.close(go)
+                    code = _run_motion_process(fd, err, req)
+            except BaseException:  # a bug: say so on stderr, then leave like a crashed process
+                with contextlib.suppress(BaseException):
+                    traceback.print_exc()
+            finally:
+                with contextlib.suppress(BaseException):
+                    sys.stdout.flush()
+                    sys.stderr.flush()
+        finally:
+            os._exit(code)
+
+    def _answer(self, sock: socket.socket, data: bytes, fds: list[int]) -> None:
+        """Fork one motion process for a request and tell its asker (id, pid, pidfd); on any
+        failure the fork is killed before it has read anything, and the asker told why."""
+        fd, err = fds[0], (fds[1] if len(fds) > 1 else -1)
+        go_r, go_w = os.pipe()
+        pid, ident = 0, None
+        try:
+            with contextlib.suppress(ValueError, AttributeError):
+                ident = json.loads(data).get("id")
+            req = Request.parse(data)
+            if self.retired and self.listener is not None:
+                raise OSError("this warm start is retired: it forks nothing new")
+            if req.nice < os.getpriority(os.PRIO_PROCESS, 0):
+                raise OSError("the front end runs at a higher priority than this warm start")
+            pid = self._fork(fd, err, req, go_r, go_w)
+            pidfd = os.pidfd_open(pid)  # before any reaping: race-free
+            try:
+                _send(sock, {"id": ident, "pid": pid}, [pidfd])
+            finally:
+                os.close(pidfd)
+            self.forks[pid] = sock
+            os.write(go_w, b"g")
+        except Exception as exc:  # the asker is told, and the fork never runs
+            if pid:
+                self.forks.pop(pid, None)
+                with contextlib.suppress(OSError):
+                    os.kill(pid, signal.SIGKILL)
+            with contextlib.suppress(OSError):
+                _send(sock, {"id": ident, "error": f"{type(exc).__name__}: {exc}"})
+        finally:
+            for f in (go_r, go_w, *fds):
+                os.close(f)
+
+    def _reap(self) -> None:
+        while True:
+            try:
+                pid, status = os.waitpid(-1, os.WNOHANG)
+            except ChildProcessError:
+                return
+            if pid == 0:
+                return
+            asker = self.forks.pop(pid, None)
+            if asker is not None and asker in self.conns:
+                with contextlib.suppress(OSError):
+                    _send(asker, {"exit": pid, "code": os.waitstatus_to_exitcode(status)})
+
+    # -- connections -------------------------------------------------------------------
+    def _accept(self) -> None:
+        assert self.listener is not None and self.stamp is not None
+        conn = self.listener.accept()
+        if conn is None:
             return
+        if len(self.conns) >= MAX_CONNECTIONS:
+            conn.close()
+            return
+        changed = self.stamp.changed()
+        if changed:
+            self.retire()  # first: the front end told may start a fresh one at once
+            with contextlib.suppress(OSError):
+                _send(conn, {"stale": f"its code changed on disk ({changed})"})
+            conn.close()
+            return
+        try:
+            _send(conn, {"ready": os.getpid()})
+        except OSError:
+            conn.close()
+            return
+        self.conns.append(conn)
+
+    def _read(self, sock: socket.socket) -> None:
+        try:
+            data, fds, _, _ = socket.recv_fds(sock, MAX_MESSAGE, 2)
+        except OSError:
+            data, fds = b"", []
         if not data:
-            return
-        if len(fds) != 1:
             for f in fds:
                 os.close(f)
-            continue
-        _answer(sock, json.loads(data), fds[0])
+            self.conns.remove(sock)
+            sock.close()
+            return
+        if not 1 <= len(fds) <= 2:
+            for f in fds:
+                os.close(f)
+            return
+        self._answer(sock, data, fds)
+
+    def retire(self) -> None:
+        """Accept nothing new (resident): the path is freed for a fresh warm start."""
+        self.retired = True
+        if self.listener is not None:
+            self.listener.release()
+
+    def _done(self) -> bool:
+        if self.listener is None:
+            return not self.conns  # the owner closed its socket
+        if self.terminated and not self.retired:
+            self.retire()
+        if self.conns or self.forks:
+            self.last_active = time.monotonic()
+        elif time.monotonic() - self.last_active > self.idle_s:
+            self.retire()
+        return self.retired and not self.forks
+
+    def serve(self) -> None:
+        """Answer until done: the owner gone (for one front end); retired with no motion
+        process left (resident)."""
+        self.last_active = time.monotonic()  # idle from now, not from before the imports
+        while not self._done():
+            waiting = list(self.conns)
+            if self.listener is not None and not self.retired:
+                waiting.append(self.listener.sock)
+            try:
+                ready, _, _ = select.select(waiting, [], [], REAP_PERIOD_S)
+            except InterruptedError:
+                ready = []
+            self._reap()
+            for s in ready:
+                if self.listener is not None and s is self.listener.sock:
+                    self._accept()
+                elif s in self.conns:
+                    self._read(s)
 
 
 def _pidfd_support() -> str:
@@ -168,30 +305,64 @@ def _pidfd_support() -> str:
     return ""
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description="spm_console warm start of motion processes "
-                                                 "(started by a front end)")
-    parser.add_argument("--fd", type=int, required=True)
-    args = parser.parse_args(argv)
+def _preload() -> None:
+    for name in PRELOAD:
+        importlib.import_module(name)
+    gc.collect()
+    gc.freeze()  # the forks share the preloaded objects' pages instead of copying them
+
+
+def _serve_owner(fd: int) -> int:
     for sig in STOP_SIGNALS:  # its owner ends it by closing the socket
         signal.signal(sig, signal.SIG_IGN)
-    signal.signal(signal.SIGCHLD, signal.SIG_DFL)  # reaped here, whatever the launcher ignored
-    sock = socket.socket(fileno=args.fd)
+    sock = socket.socket(fileno=fd)
     why_not = _pidfd_support()
     if why_not:
         with contextlib.suppress(OSError):
             _send(sock, {"unsupported": why_not})
         return 0
-    for name in PRELOAD:
-        importlib.import_module(name)
-    gc.collect()
-    gc.freeze()  # the forks share the preloaded objects' pages instead of copying them
+    _preload()
     try:
         _send(sock, {"ready": os.getpid()})
     except OSError:
         return 0
-    serve(sock)
+    Zygote(owner=sock).serve()
     return 0
+
+
+def _serve_resident(path: str, idle_s: float) -> int:
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+    if _pidfd_support():
+        return 0  # its front ends find no socket and start their motion processes otherwise
+    listener = resident.Listener.bind(path)
+    if listener is None:
+        return 0  # another one holds this path
+    zygote = Zygote(listener=listener, idle_s=idle_s)
+
+    def _terminate(_sig: int, _frame: object) -> None:
+        zygote.terminated = True
+
+    signal.signal(signal.SIGTERM, _terminate)
+    _preload()
+    zygote.stamp = resident.CodeStamp.now()  # what was imported, as it is on disk now
+    zygote.serve()
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="spm_console warm start of motion processes "
+                                                 "(started by a front end)")
+    how = parser.add_mutually_exclusive_group(required=True)
+    how.add_argument("--fd", type=int, help="serve the owner on this socket")
+    how.add_argument("--listen", metavar="PATH", help="serve as the resident warm start")
+    parser.add_argument("--idle", type=float, default=resident.IDLE_DEFAULT_S,
+                        help="resident: seconds without use before it ends")
+    args = parser.parse_args(argv)
+    signal.signal(signal.SIGCHLD, signal.SIG_DFL)  # reaped here, whatever the launcher ignored
+    if args.fd is not None:
+        return _serve_owner(args.fd)
+    return _serve_resident(args.listen, resident.bounded_idle(args.idle))
 
 
 if __name__ == "__main__":

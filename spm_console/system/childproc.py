@@ -9,6 +9,7 @@ killed console.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import json
 import os
 import signal
@@ -22,6 +23,65 @@ from spm_console.errors import SpmError
 
 #: Seconds to wait for a child to report that it is ready.
 START_TIMEOUT_S = 15.0
+
+_spares: dict[str, subprocess.Popen[bytes]] = {}
+"""Children started ahead by :func:`prespawn`, by module, waiting for their request."""
+_spares_lock = threading.Lock()
+
+
+def _spawn(module: str, args: Sequence[str]) -> subprocess.Popen[bytes]:
+    cmd = [sys.executable, "-u", "-m", module, "--parent", str(os.getpid()), *args]
+    return subprocess.Popen(
+        cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+        start_new_session=True,  # Ctrl-C in the terminal does not reach it; we stop it
+    )
+
+
+def _kill_spares() -> None:
+    with _spares_lock:
+        spares = list(_spares.values())
+        _spares.clear()
+    for proc in spares:
+        _discard(proc)
+
+
+def _discard(proc: subprocess.Popen[bytes]) -> None:
+    """End a spare that was never used (it reads EOF as its request, then leaves; killed if
+    it lingers)."""
+    for stream in (proc.stdin, proc.stdout):
+        if stream is not None:
+            with contextlib.suppress(OSError):
+                stream.close()
+    try:
+        proc.wait(2.0)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(2.0)
+
+
+def prespawn(module: str) -> None:
+    """Start the child ``python -m module`` (no extra arguments) now, so that its imports
+    overlap this process's own; the next :meth:`ChildProcess.start` of that module takes it.
+    One spare per module; an unused spare is ended when this process exits."""
+    with _spares_lock:
+        if module in _spares:
+            return
+        try:
+            _spares[module] = _spawn(module, ())
+        except OSError:
+            return  # started when it is needed, as without a spare
+    atexit.register(_kill_spares)
+
+
+def _take_spare(module: str, args: Sequence[str]) -> subprocess.Popen[bytes] | None:
+    if args:
+        return None
+    with _spares_lock:
+        proc = _spares.pop(module, None)
+    if proc is not None and proc.poll() is not None:
+        _discard(proc)
+        return None
+    return proc
 
 
 class HelperProcessError(SpmError):
@@ -50,12 +110,9 @@ class ChildProcess:
         return self._proc is not None and self._proc.poll() is None
 
     def start(self, stdin: bytes = b"", timeout_s: float = START_TIMEOUT_S) -> dict[str, Any]:
-        """Spawn the child, send ``stdin``, wait for its JSON line (blocking)."""
-        cmd = [sys.executable, "-u", "-m", self.module, "--parent", str(os.getpid()), *self.args]
-        self._proc = subprocess.Popen(
-            cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-            start_new_session=True,  # Ctrl-C in the terminal does not reach it; we stop it
-        )
+        """Spawn the child (or take the one :func:`prespawn` started), send ``stdin``, wait for
+        its JSON line (blocking)."""
+        self._proc = _take_spare(self.module, self.args) or _spawn(self.module, self.args)
         atexit.register(self.stop)
         assert self._proc.stdin is not None
         try:

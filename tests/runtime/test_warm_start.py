@@ -1,4 +1,5 @@
-"""The warm start of the motion process (spm_console.services.warm_start / .zygote): each
+"""The warm start of the motion process (spm_console.services.warm_start / .zygote), per front
+end (the suite's default; the resident one is tests/runtime/test_resident.py): each
 motion process is a fork of one warm process per front end, in a session of its own, with
 the front end's environment of the moment; the direct start stays available."""
 
@@ -82,7 +83,7 @@ def test_the_direct_start_stays_available(agile: Profile, bus: EmulatorHandle,
 
 
 def test_the_warm_start_ignores_terminating_signals_and_ends_with_its_owner() -> None:
-    starter = warm_start.WarmStart()
+    starter = warm_start.WarmStart.own()
     starter.await_ready()  # it ignores them from then on
     pid = starter.process.pid
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT):
