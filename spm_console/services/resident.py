@@ -1,8 +1,8 @@
 """The resident warm start: where it listens, when it is stale, how a front end reaches it.
 
 One resident warm start (:mod:`spm_console.services.zygote` ``--listen``) serves each user
-and installation: its socket is ``warm-KEY.sock`` in a private folder (``$XDG_RUNTIME_DIR/
-spm-console``, else ``/tmp/spm-console-UID``; mode 0700, owned by the user, checked), where
+and installation: its socket is ``warm-KEY.sock`` in a private folder
+(:func:`spm_console.system.rundir.private_dir`), where
 KEY digests the interpreter, its flags, ``sys.path`` and this package's folder, so two
 installations (or two checkouts) never share one. The first front end that finds none starts
 it, detached (its own session, the same ``sys.path``); an exclusive lock on ``warm-KEY.lock``
@@ -28,17 +28,16 @@ import math
 import os
 import signal
 import socket
-import stat
 import struct
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import spm_console
+from spm_console.system.rundir import private_dir
 
 #: Environment variable: seconds a resident warm start stays without use.
 ENV_IDLE = "SPM_CONSOLE_WARM_START_IDLE_S"
@@ -69,22 +68,6 @@ def idle_from_env() -> float:
         return IDLE_DEFAULT_S
 
 
-def _private_dir() -> Path | None:
-    """This user's folder for the resident's socket (created 0700), or None when it is not
-    private (owned by another user, a link, open to others): the resident is then not used."""
-    base = os.environ.get("XDG_RUNTIME_DIR", "")
-    folder = (Path(base) / "spm-console" if base and os.path.isabs(base) and os.path.isdir(base)
-              else Path(tempfile.gettempdir()) / f"spm-console-{os.getuid()}")
-    try:
-        folder.mkdir(mode=0o700, exist_ok=True)
-        st = os.lstat(folder)
-    except OSError:
-        return None
-    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid() or st.st_mode & 0o077:
-        return None
-    return folder
-
-
 def installation_key() -> str:
     """What makes two front ends able to share a resident: interpreter, flags, path, package."""
     ident = json.dumps([sys.executable, repr(sys.flags), sys.path, str(PACKAGE_DIR)])
@@ -93,7 +76,7 @@ def installation_key() -> str:
 
 def socket_path() -> str | None:
     """The resident's socket for this installation, or None when none can be used."""
-    folder = _private_dir()
+    folder = private_dir()
     if folder is None:
         return None
     path = str(folder / f"warm-{installation_key()}.sock")
@@ -142,6 +125,7 @@ class Listener:
 
     def __init__(self, path: str, sock: socket.socket, lock_fd: int) -> None:
         self.path = path
+        self.folder = Path(path).parent
         self.sock = sock
         self._lock_fd = lock_fd
         self._ino = os.stat(path).st_ino
@@ -183,6 +167,12 @@ class Listener:
             conn.close()
             return None
         return conn
+
+    @staticmethod
+    def peer_pid(conn: socket.socket) -> int:
+        """The pid of the front end at the other end of ``conn`` (when it connected)."""
+        return int(struct.unpack("3i", conn.getsockopt(
+            socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i")))[0])
 
     def release(self) -> None:
         """Stop listening, free the path (if still ours) and the lock: a fresh resident may

@@ -62,6 +62,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from spm_console.services import resident
+from spm_console.system import rundir
 from spm_console.system.signals import STOP_SIGNALS
 
 #: What a motion process imports before it answers, and what only a motion needs.
@@ -194,6 +195,8 @@ class Zygote:
             finally:
                 os.close(pidfd)
             self.forks[pid] = sock
+            if self.listener is not None:  # who asked: the bus's lock names it
+                rundir.note_front_end(self.listener.folder, pid, self.listener.peer_pid(sock))
             os.write(go_w, b"g")
         except Exception as exc:  # the asker is told, and the fork never runs
             if pid:
@@ -215,6 +218,8 @@ class Zygote:
             if pid == 0:
                 return
             asker = self.forks.pop(pid, None)
+            if self.listener is not None:
+                rundir.forget_front_end(self.listener.folder, pid)
             if asker is not None and asker in self.conns:
                 with contextlib.suppress(OSError):
                     _send(asker, {"exit": pid, "code": os.waitstatus_to_exitcode(status)})

@@ -20,6 +20,7 @@ import pytest
 
 from spm_console.config.schema import Profile
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.errors import SpmError
 from spm_console.services import resident, warm_start
 from spm_console.services.client import MotionClient
 from tests.support.terminal_helpers import wait_until
@@ -200,3 +201,26 @@ def test_commands_share_it_until_its_code_changes_on_disk(tmp_path: Path, run_di
     assert stopped["stopped"] is True
     wait_until(lambda: not _alive(int(second["pid"])), "the stopped resident ends", 10.0)  # type: ignore[call-overload]
     assert _cli(copy, env, "warm-start")["pid"] is None
+
+
+def test_a_second_front_end_is_told_which_front_end_holds_the_bus(
+        agile: Profile, bus: EmulatorHandle, run_dir: str) -> None:
+    """The holder of the bus is a fork of the resident, whose parent is no front end (a
+    command that has ended started it): the refusal names the front end that asked for it,
+    as the resident noted."""
+    path = resident.socket_path()
+    assert path is not None
+    code = ("import json, sys; sys.path[:] = json.loads(sys.argv[1]); "
+            "from spm_console.services import resident; resident.spawn(sys.argv[2])")
+    subprocess.run([sys.executable, "-c", code, json.dumps(sys.path), path], check=True,
+                   timeout=30)
+    wait_until(lambda: resident.running(path) is not None, "the resident listens", 10.0)
+    first = MotionClient(agile, bus.port)
+    assert warm_start._starter is not None
+    assert _ppid(warm_start._starter.pid) != os.getpid()
+    try:
+        assert len(first.ping_all()) == 3
+        with pytest.raises(SpmError, match=f"in use by process {os.getpid()} "):
+            MotionClient(agile, bus.port)
+    finally:
+        first.close()

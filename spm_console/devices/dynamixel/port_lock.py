@@ -13,7 +13,8 @@ it ends, and a serial device is locked the way serial tools lock it (pyserial's
 A second opener is refused (:class:`~spm_console.errors.BadInputError`, exit 4) before it sends
 anything, with the holder named: the process that holds the lock is found in ``/proc/locks``
 by the file's device and inode, and when it is a motion process (a fork of the warm start)
-the front end that started it is named instead.
+the front end that started it is named instead (its parent, or for a fork of the resident warm
+start, the front end noted in :mod:`spm_console.system.rundir`).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import os
 from pathlib import Path
 
 from spm_console.errors import BadInputError
+from spm_console.system.rundir import front_end_of
 
 #: Command lines of this product's internal processes: the holder named is the front end above.
 _INTERNAL = ("spm_console.services.zygote", "spm_console.motion.server")
@@ -69,6 +71,10 @@ def holder_of(path: str) -> str:
     shown = pid
     for _ in range(_MAX_PARENTS):  # a motion process: name the front end that started it
         if not any(mark in _cmdline(shown) for mark in _INTERNAL):
+            break
+        front_end = front_end_of(shown)  # forked by the resident warm start: noted there
+        if front_end is not None:
+            shown = front_end
             break
         parent = _ppid(shown)
         if parent is None or parent <= 1:
