@@ -16,7 +16,7 @@ from spm_console import __version__
 from spm_console.cli.streams.stdout_guard import json_stdout, out
 from spm_console.errors import ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
-from spm_console.services.warm_start import prestart
+from spm_console.services.warm_start import mode, prestart
 from spm_console.system.childproc import prespawn
 from spm_console.system.cpus import cpu_plan
 from spm_console.system.signals import (
@@ -48,7 +48,7 @@ COMMANDS: dict[str, str] = {
     "export": "spm_console.cli.tools.export",
     "design": "spm_console.cli.design",
     "commission": "spm_console.cli.commission",
-    "warm-start": "spm_console.cli.warm",
+    "warm-start": "spm_console.cli.tools.warm",
 }
 COMMAND_MODULES = list(dict.fromkeys(COMMANDS.values()))
 
@@ -155,7 +155,8 @@ def _main(args_list: list[str]) -> int:
         args_list[0] == "identify" and "--experiment" in args_list))
     if moving and "--help" not in args_list:
         prestart()  # its imports overlap this process's own (the command's module, the profile)
-        if "--sim" in args_list:  # the emulated bus's child too: it imports, then waits
+        if "--sim" in args_list and mode() != "direct":  # the emulated bus's child too: it
+            # imports, then waits (SPM_CONSOLE_WARM_START=0: nothing is started ahead)
             cpu_plan()  # fixed before any child starts (see spm_console.system.cpus)
             prespawn(EMULATOR_CHILD)
     try:

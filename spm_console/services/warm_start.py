@@ -5,7 +5,7 @@ returns a :class:`MotionProcessHandle` (poll, wait, signal), whichever way it wa
 (``SPM_CONSOLE_WARM_START``):
 
 * **resident** (the default): the front end connects to this user's resident warm start
-  for this installation (:mod:`.resident`), starting it when there is none. It outlives the
+  for this installation (:mod:`spm_console.system.resident`), starting it when there is none. It outlives the
   command, so from the second command on the motion process is forked in milliseconds
   instead of importing for about 2 s. It retires by itself when idle, on SIGTERM
   (``spm-console warm-start --stop``), and when the code it imported changed on disk;
@@ -36,7 +36,7 @@ import threading
 from collections.abc import Callable
 from typing import Protocol
 
-from spm_console.services import resident
+from spm_console.system import resident
 from spm_console.system.env import switched_off
 
 #: Environment variable: ``0`` starts every motion process directly, ``command`` from a warm

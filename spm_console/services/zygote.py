@@ -8,7 +8,7 @@ that once; each motion process is then a fork of it, ready in milliseconds
 
 * **for one front end** (``python -m spm_console.services.zygote --fd N``): started by that
   front end on a socket pair, it ends when its owner closes the socket (or exits);
-* **resident** (``--listen PATH``, :mod:`spm_console.services.resident`): one per user and
+* **resident** (``--listen PATH``, :mod:`spm_console.system.resident`): one per user and
   installation, shared by the front ends that connect to ``PATH``. It outlives the command
   that started it, so a command's motion process is ready at once from the second command
   on. Its lifetime: it ends after an idle time with no connection and no motion process,
@@ -61,8 +61,7 @@ import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from spm_console.services import resident
-from spm_console.system import rundir
+from spm_console.system import resident, rundir
 from spm_console.system.signals import STOP_SIGNALS
 
 #: What a motion process imports before it answers, and what only a motion needs.

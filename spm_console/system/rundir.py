@@ -1,6 +1,6 @@
 """This user's private runtime folder, and who asked for a motion process forked there.
 
-The resident warm start (:mod:`spm_console.services.resident`) listens in this folder:
+The resident warm start (:mod:`spm_console.system.resident`) listens in this folder:
 ``$XDG_RUNTIME_DIR/spm-console`` when that is set, else ``/tmp/spm-console-UID``; created with
 mode 0700 and used only while it is a real folder of this user that nobody else can open.
 

@@ -1,4 +1,4 @@
-"""The resident warm start (spm_console.services.resident / .zygote ``--listen``): one per user
+"""The resident warm start (spm_console.system.resident, spm_console.services.zygote ``--listen``): one per user
 and installation, it outlives the command that started it, forks each motion process with
 the asking front end's environment, umask and CPU set, and ends when idle, on SIGTERM once
 its motion processes have ended, and when the code it imported changed on disk."""
@@ -21,8 +21,9 @@ import pytest
 from spm_console.config.schema import Profile
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
 from spm_console.errors import SpmError
-from spm_console.services import resident, warm_start
+from spm_console.services import warm_start
 from spm_console.services.client import MotionClient
+from spm_console.system import resident
 from tests.support.terminal_helpers import wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -211,7 +212,7 @@ def test_a_second_front_end_is_told_which_front_end_holds_the_bus(
     path = resident.socket_path()
     assert path is not None
     code = ("import json, sys; sys.path[:] = json.loads(sys.argv[1]); "
-            "from spm_console.services import resident; resident.spawn(sys.argv[2])")
+            "from spm_console.system import resident; resident.spawn(sys.argv[2])")
     subprocess.run([sys.executable, "-c", code, json.dumps(sys.path), path], check=True,
                    timeout=30)
     wait_until(lambda: resident.running(path) is not None, "the resident listens", 10.0)

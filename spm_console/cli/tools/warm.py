@@ -1,6 +1,6 @@
 """``spm-console warm-start``: the resident warm start of the motion process, shown or ended.
 
-The resident (:mod:`spm_console.services.resident`) keeps what a motion process imports
+The resident (:mod:`spm_console.system.resident`) keeps what a motion process imports
 loaded between commands, so a moving command's motion process is ready in milliseconds. It
 ends by itself when idle; ``--stop`` ends it now (once its motion processes have ended).
 """
@@ -13,8 +13,8 @@ from typing import Any
 
 from spm_console.cli.common import emit
 from spm_console.errors import ExitCode
-from spm_console.services import resident
 from spm_console.services.warm_start import ENV_WARM_START, mode
+from spm_console.system import resident
 
 
 def register(sub: Any) -> None:
