@@ -36,8 +36,8 @@ from spm_console.config.schema import Profile
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
 from spm_console.devices.emulator.twin import TrueWrist, true_wrist
-from spm_console.services.commission import Bno055Source, Commissioned, commission, refined
-from spm_console.services.commission_fit import refine_with_imu
+from spm_console.services.commissioning.imu_stage import refine_with_imu
+from spm_console.services.commissioning.stages import Bno055Source, Commissioned, commission, refined
 from spm_console.store.workspace_cache import load_or_build
 
 PROFILE = Path("profiles/agile_wrist.toml")

@@ -1,6 +1,6 @@
 """``commission``: find the wrist's servos, map them to legs with the IMU on the platform,
 zero them on the home jig and write the profile of the wrist as built
-(:mod:`spm_console.services.commission`)."""
+(:mod:`spm_console.services.commissioning.stages`)."""
 
 from __future__ import annotations
 
@@ -33,14 +33,14 @@ def register(sub: Any) -> None:
 
 
 def cmd_commission(args: argparse.Namespace) -> int:
-    from spm_console.services.commission import (
+    from spm_console.services.commissioning.imu_stage import refine_with_imu
+    from spm_console.services.commissioning.stages import (
         Bno055Source,
         commission,
         commissioned_lines,
         refined,
         write_commissioned,
     )
-    from spm_console.services.commission_fit import refine_with_imu
 
     profile = profile_of(args)
     port = args.port or profile.bus.port

@@ -20,7 +20,7 @@ import pytest
 from textual.widgets import RichLog
 
 from spm_console.config.load import load_profile
-from spm_console.services.commission_fit import FIT_POSES, HELD_OUT
+from spm_console.services.commissioning.imu_stage import FIT_POSES, HELD_OUT
 from spm_console.tui.screens.commission import MAX_PORT_CHARS, CommissionScreen
 from spm_console.tui.switch import SwitchRequest
 from spm_console.tui.widgets.checkbox import TickBox

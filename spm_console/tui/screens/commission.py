@@ -2,7 +2,7 @@
 
 The operator names the servo bus and the IMU's port, says whether the wrist rests on its home
 jig and whether the IMU stage runs, and starts (``s``, after a yes/no that says what moves).
-The stages run in a worker thread (:mod:`spm_console.services.commission`), each stage's line
+The stages run in a worker thread (:mod:`spm_console.services.commissioning.stages`), each stage's line
 streamed into the log on this step; the result (legs, ids, directions, tick offsets, the IMU
 stage's residuals and what it leaves undetermined) stays here, the commissioned profile is
 written beside the profile in use (``NAME.commissioned-TIME.toml``, as the CLI writes it) and
@@ -159,13 +159,13 @@ class CommissionScreen(StepScreen):
                              lambda yes: self._confirmed(yes, f))
 
     def _question(self, f: CommissionForm) -> str:
-        from spm_console.services.commission import MAP_NUDGE_DEG, MAP_SPEED_DEGPS
-        from spm_console.services.commission_fit import (
+        from spm_console.services.commissioning.imu_stage import (
             FIT_POSES,
             HELD_OUT,
             POSE_SPEED_DEGPS,
             RADII_DEG,
         )
+        from spm_console.services.commissioning.stages import MAP_NUDGE_DEG, MAP_SPEED_DEGPS
 
         lines = [f"Servo bus {f.bus}, IMU on {f.imu}.",
                  "1. Discover: every id 0..252 pinged on both protocols (nothing moves)."]
@@ -283,14 +283,14 @@ def commission_blocking(profile: Profile, profile_path: Path | None, f: Commissi
                         stop: EstopRelay, on_stage: Callable[[str], None]) -> CommissionDone:
     """Commission (and refine with the IMU when asked), then write the profile beside
     ``profile_path`` (the default profile when the console has no file) as the CLI does."""
-    from spm_console.services.commission import (
+    from spm_console.services.commissioning.imu_stage import refine_with_imu
+    from spm_console.services.commissioning.stages import (
         Bno055Source,
         commission,
         commissioned_lines,
         refined,
         write_commissioned,
     )
-    from spm_console.services.commission_fit import refine_with_imu
 
     imu = Bno055Source(f.imu)
     try:

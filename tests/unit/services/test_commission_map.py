@@ -12,7 +12,7 @@ import pytest
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.rotations import expm_so3
-from spm_console.services.commission_map import leg_axes, match_leg, rotation_vector
+from spm_console.services.commissioning.leg_map import leg_axes, match_leg, rotation_vector
 
 
 def _quat(R: np.ndarray) -> np.ndarray:

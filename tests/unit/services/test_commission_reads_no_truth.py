@@ -8,9 +8,7 @@ import ast
 from tests.support.paths import ROOT
 
 COMMISSIONING = [
-    ROOT / "spm_console" / "services" / "commission.py",
-    ROOT / "spm_console" / "services" / "commission_fit.py",
-    ROOT / "spm_console" / "services" / "commission_map.py",
+    *sorted((ROOT / "spm_console" / "services" / "commissioning").glob("*.py")),
     ROOT / "spm_console" / "cli" / "commission.py",
     *sorted((ROOT / "spm_console" / "core" / "commissioning").glob("*.py")),
 ]

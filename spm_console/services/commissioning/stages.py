@@ -10,7 +10,7 @@ Stages, each through the motion process that owns the bus (nothing here writes t
 3. **Map**: each servo alone nudged by 1.8° at 4 °/s (:mod:`~spm_console.motion.nudge`; a tick
    and its overshoot stay inside the 2° ball), the others holding; the platform rotation the
    IMU measures names its leg and the way it counts
-   (:mod:`~spm_console.services.commission_map`). Nothing else moves before the map is known.
+   (:mod:`~spm_console.services.commissioning.leg_map`). Nothing else moves before the map is known.
 4. **Zero** from the jig: true θ at the jig = the profile's home, so each tick offset is the
    jig's ticks less the home angle in ticks (rounded to a tick: 0.088° on the MX-106).
 5. **Write**: a profile with the found ids, directions and tick offsets, and a comment block
@@ -42,8 +42,13 @@ from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
 from spm_console.safe_io import read_text, write_text_atomic
 from spm_console.services.client import EstopRelay, MotionClient
-from spm_console.services.commission_fit import Refinement
-from spm_console.services.commission_map import LegMatch, leg_axes, match_leg, rotation_vector
+from spm_console.services.commissioning.imu_stage import Refinement
+from spm_console.services.commissioning.leg_map import (
+    LegMatch,
+    leg_axes,
+    match_leg,
+    rotation_vector,
+)
 from spm_console.services.session import Session
 from spm_console.store.identified_profiles import write_new
 
