@@ -173,6 +173,13 @@ class InterruptedBySignalError(SpmError):
     exit_code = ExitCode.INTERRUPTED
 
 
+class EStopError(SpmError):
+    """The operator's E-stop (a key, a terminating signal) ended work that had moved the
+    wrist; the wrist holds where it stopped."""
+
+    exit_code = ExitCode.STOP_ESTOP
+
+
 class ClusterLostError(SpmError):
     """The Dask cluster of a design sweep went away (scheduler lost, tasks cancelled): the
     designs done are kept and the same command resumes."""

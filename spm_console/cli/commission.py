@@ -5,11 +5,21 @@ zero them on the home jig and write the profile of the wrist as built
 from __future__ import annotations
 
 import argparse
+import signal
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import add_common, add_force, emit, info, output_file, profile_of
+from spm_console.cli.common import (
+    add_common,
+    add_force,
+    emit,
+    info,
+    output_file,
+    output_folder,
+    profile_of,
+)
 from spm_console.errors import BadInputError, ExitCode
+from spm_console.system.signals import stop_signals
 
 
 def register(sub: Any) -> None:
@@ -28,19 +38,17 @@ def register(sub: Any) -> None:
     c.add_argument("--out", type=Path, metavar="FILE.toml",
                    help="where to write the commissioned profile (default: beside the "
                         "profile, NAME.commissioned-TIME.toml, never over a file)")
+    c.add_argument("--logs", type=Path, metavar="DIR",
+                   help="run log root (default $SPM_CONSOLE_LOGS or logs/): the "
+                        "commissioning's folder, with its nudges and IMU readings")
     add_force(c)
     c.set_defaults(func=cmd_commission)
 
 
 def cmd_commission(args: argparse.Namespace) -> int:
-    from spm_console.services.commissioning.imu_stage import refine_with_imu
-    from spm_console.services.commissioning.stages import (
-        Bno055Source,
-        commission,
-        commissioned_lines,
-        refined,
-        write_commissioned,
-    )
+    from spm_console.services.client import EstopRelay
+    from spm_console.services.commissioning.profile_out import commissioned_lines
+    from spm_console.services.commissioning.run import CommissionRequest, run_commissioning
 
     profile = profile_of(args)
     port = args.port or profile.bus.port
@@ -48,24 +56,30 @@ def cmd_commission(args: argparse.Namespace) -> int:
         raise BadInputError("no serial port: pass --port DEV (the profile's bus.port is empty); "
                             "'spm-console emulate' serves an emulated bus and prints its port")
     output_file(args.out, "--out", (".toml",), replace=args.force)
-    profile_path = Path(args.profile)
-    imu = Bno055Source(args.imu_port)
-    try:
-        result = commission(profile, port, imu, args.jig, info)
-        if args.jig and not args.no_imu_fit:
-            result = refined(result, refine_with_imu(result.profile, port, imu, info))
-    finally:
-        imu.close()
-    written = write_commissioned(profile_path, result, args.out)
+    output_folder(args.logs, "--logs")
+    req = CommissionRequest(port, args.imu_port, args.jig, not args.no_imu_fit, args.out,
+                            args.logs)
+    relay = EstopRelay("commission")
+
+    def on_signal(sig: signal.Signals) -> None:
+        """A stop signal is the E-stop: the nudge or move running stops, the wrist holds,
+        the run log is closed (spm_console.services.commissioning.run)."""
+        relay.estop(f"signal {sig.name}", by_signal=True)
+
+    with stop_signals(on_signal):
+        done = run_commissioning(profile, Path(args.profile), req, info, relay)
+    result = done.result
     legs = [{"leg": m.leg, "id": m.id, "direction": m.direction,
              "rotation_deg": m.rotation_deg, "cos": m.cos} for m in result.legs]
     data = {"protocol": result.discovery.protocol,
             "found": [{"id": f.id, "model_number": f.model_number, "firmware": f.firmware}
                       for f in result.discovery.found],
             "legs": legs, "jig_ticks": result.jig_ticks, "tick_offsets": result.tick_offsets,
-            "zeroed": result.tick_offsets is not None, "profile_written": str(written),
+            "zeroed": result.tick_offsets is not None, "profile_written": str(done.written),
+            "log_dir": str(done.log_dir),
             "imu_fit": None if result.refinement is None else _fit_json(result.refinement)}
-    human = "\n".join([*commissioned_lines(result), f"profile written: {written}"])
+    human = "\n".join([*commissioned_lines(result), f"profile written: {done.written}",
+                       f"run log: {done.log_dir}"])
     emit(args, data, human)
     return int(ExitCode.OK)
 

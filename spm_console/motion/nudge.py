@@ -116,14 +116,21 @@ def _begin(bus: DynamixelBus, state: NudgeState) -> None:
     bus.set_torque(True, ids)
 
 
-def release(bus: DynamixelBus, state: NudgeState) -> None:
-    """End the nudging: torque off (the wrist rests as it was found), PWM Limits restored."""
+def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
+    """End the nudging: torque off, PWM Limits restored (an EEPROM register: torque off to
+    write it); then, with ``hold``, torque on again holding where each servo is (after an
+    E-stop: the wrist holds, at its full effort), else left off (the wrist rests as it was
+    found). Torque is off for the few milliseconds of the writes."""
     ids = list(bus.ids)
     bus.set_torque(False, ids)
     for ident, pwm in state.saved_pwm.items():
         bus.write(ident, "pwm_limit", pwm)
     state.saved_pwm.clear()
     state.goal_ticks.clear()
+    if hold:
+        ticks = _ticks(bus)
+        bus.sync_write("goal_position", dict(zip(ids, ticks, strict=True)))
+        bus.set_torque(True, ids)
 
 
 def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, float]],

@@ -107,12 +107,14 @@ class Nudge:
     """Commissioning: move servos by id to small offsets from their rest (deg of their own
     counting, each within :data:`~spm_console.motion.nudge.BALL_DEG`), slowly and with their
     effort limited, the others holding (:mod:`~spm_console.motion.nudge`); reply:
-    NudgeResult. ``release``: end the nudging instead (torque off, PWM Limits restored)."""
+    NudgeResult. ``release``: end the nudging instead (PWM Limits restored; torque off, or
+    with ``hold`` on again holding where the servos are)."""
 
     id: int
     moves: tuple[tuple[int, float], ...] = ()
     speed_degps: float = 2.0
     release: bool = False
+    hold: bool = False
 
 
 @dataclass(frozen=True)

@@ -382,7 +382,7 @@ class _Server:
         result: Reply | Failed
         try:
             if req.release:
-                release(self.bus, self.nudging)
+                release(self.bus, self.nudging, req.hold)
                 result = Reply(req.id, None)
             else:
                 result = Reply(req.id, run_nudge(self.bus, self.nudging, req.moves,
@@ -502,6 +502,9 @@ def serve(conn: Connection, start: Start) -> None:
         if server.motion is not None:
             server.estop("motion process closing")
             server.motion.join(timeout=5.0)
+        if server.nudging.saved_pwm:  # its front end left mid-commissioning: PWM Limits back,
+            with contextlib.suppress(OSError, SpmError):  # the wrist holding where it is
+                release(server.bus, server.nudging, hold=True)
         with contextlib.suppress(OSError, SpmError):
             server.bus.close()
 

@@ -235,9 +235,10 @@ class MotionClient:
         assert isinstance(result, NudgeResult)
         return result
 
-    def end_nudging(self) -> None:
-        """Torque off and the servos' PWM Limits restored after commissioning's nudges."""
-        self._motion(lambda i: Nudge(i, release=True), None)
+    def end_nudging(self, hold: bool = False) -> None:
+        """The servos' PWM Limits restored after commissioning's nudges; torque off, or with
+        ``hold`` (after an E-stop) on again, holding where they are."""
+        self._motion(lambda i: Nudge(i, release=True, hold=hold), None)
 
     def query(self, q: Any) -> Any:
         """A bus diagnostic by servo id (BusQuery -> BusReport); refused while moving."""

@@ -22,7 +22,9 @@ the run's wall-clock start plus the sample's time):
   ``platform`` link under ``leg1_distal``, and a frame has one parent);
 * ``/spm/events`` (std_msgs/msg/String): each event as one JSON object, so every channel stays
   CDR and ``ros2 bag play`` can replay the whole file;
-* ``/robot_description`` (std_msgs/msg/String, once at the start): the URDF.
+* ``/robot_description`` (std_msgs/msg/String, once at the start): the URDF;
+* ``/imu`` (sensor_msgs/msg/Imu), when the run read an IMU (commissioning): each reading of
+  its ``imu.csv`` (:mod:`spm_console.motion.logs.imu_log`), frame ``imu``.
 
 A row whose read failed (no measured θ) publishes references and the model only. A measured θ
 that is no pose of this wrist (more than :data:`LIMIT_SLACK_DEG` beyond the profile's servo
@@ -37,7 +39,7 @@ import datetime as dt
 import json
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -56,6 +58,7 @@ from spm_console.description.for_profile import robot_description
 from spm_console.description.names import JOINT_STATE_NAMES
 from spm_console.jsonutil import to_jsonable
 from spm_console.motion.logs.bag import BagContents, offered_qos, write_metadata
+from spm_console.motion.logs.imu_log import IMU_MSGDEF, ImuRow, imu_message, read_imu
 from spm_console.motion.logs.runlog import RunData, append_events, load_run
 from spm_console.safe_io import atomic_temp
 from spm_console.system.realtime import normal_priority
@@ -230,15 +233,15 @@ class McapWritten:
 
 
 def write_mcap(run: RunData, model: SpmModel, limits_deg: tuple[F, F], urdf: str,
-               out: Path) -> BagContents:
-    """Write ``run`` as MCAP to ``out`` (replaced whole, never left half-written); what it
-    holds (topics, message counts, time span)."""
+               out: Path, imu: Sequence[ImuRow] = ()) -> BagContents:
+    """Write ``run`` (and its IMU readings) as MCAP to ``out`` (replaced whole, never left
+    half-written); what it holds (topics, message counts, time span)."""
     t0 = start_ns(run.meta)
     rows = _rows(run, model, limits_deg, t0)
     fd, tmp = atomic_temp(out)
     try:
         with os.fdopen(fd, "wb") as fh:
-            contents = _write(fh, run, rows, urdf, t0)
+            contents = _write(fh, run, rows, urdf, t0, imu)
         tmp.replace(out)
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -246,7 +249,8 @@ def write_mcap(run: RunData, model: SpmModel, limits_deg: tuple[F, F], urdf: str
     return contents
 
 
-def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int) -> BagContents:
+def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int,
+           imu: Sequence[ImuRow]) -> BagContents:
     w = _BagWriter(fh)
     js_schema = w.register_msgdef("sensor_msgs/msg/JointState", JOINT_STATE)
     q_schema = w.register_msgdef("geometry_msgs/msg/QuaternionStamped", QUATERNION_STAMPED)
@@ -280,6 +284,12 @@ def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int) -> BagC
     for ev in run.events:
         ns = t0 + round(_seconds(ev.get("t", 0.0)) * 1e9)
         w.write_message("/spm/events", str_schema, {"data": json.dumps(to_jsonable(ev))}, ns, ns)
+    if imu:
+        imu_schema = w.register_msgdef("sensor_msgs/msg/Imu", IMU_MSGDEF)
+        for k, row in enumerate(imu):
+            ns = t0 + round(row.t_s * 1e9)
+            w.write_message("/imu", imu_schema, imu_message(_stamp(ns, "imu"), row), ns, ns,
+                            sequence=k)
     w.finish()
     return w.contents
 
@@ -289,7 +299,7 @@ def write_bag(run_dir: Path, run: RunData, profile: Profile) -> BagContents:
     rosbag2 bag (:mod:`spm_console.motion.logs.bag`); what the MCAP holds."""
     out = Path(run_dir) / MCAP_NAME
     contents = write_mcap(run, model_of(profile), servo_limits_deg(profile),
-                          robot_description(profile, "urdf"), out)
+                          robot_description(profile, "urdf"), out, read_imu(run_dir))
     write_metadata(out, contents)
     return contents
 
@@ -307,7 +317,7 @@ def write_run_mcap(run_dir: Path, profile: Profile, out: Path | None = None) -> 
     else:
         target = Path(out)
         contents = write_mcap(run, model_of(profile), limits, robot_description(profile, "urdf"),
-                              target)
+                              target, read_imu(run_dir))
     beyond = np.flatnonzero(beyond_limits(run.vec("meas"), limits))
     return McapWritten(target, contents.message_count, len(beyond),
                        int(beyond[0]) + 1 if len(beyond) else None)

@@ -21,26 +21,22 @@ Degrees at the interface.
 
 from __future__ import annotations
 
-import datetime as dt
 import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.edit import with_joints, with_values
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
-from spm_console.devices.imu.bno055 import Bno055
+from spm_console.devices.imu.bno055 import Bno055, ImuSample
 from spm_console.devices.imu.bno055_registers import OprMode
 from spm_console.errors import BadInputError, BusError, ImuError, SpmError
 from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
-from spm_console.safe_io import read_text, write_text_atomic
 from spm_console.services.client import EstopRelay, MotionClient
 from spm_console.services.commissioning.imu_stage import Refinement
 from spm_console.services.commissioning.leg_map import (
@@ -50,7 +46,6 @@ from spm_console.services.commissioning.leg_map import (
     rotation_vector,
 )
 from spm_console.services.session import Session
-from spm_console.store.identified_profiles import write_new
 
 F = NDArray[np.float64]
 
@@ -78,7 +73,9 @@ class Bno055Source:
     """A BNO055 on ``port`` in its IMU fusion mode (accelerometer and gyroscope: a relative
     heading, no magnetometer near the servos' motors), read at its 100 Hz output rate."""
 
-    def __init__(self, port: str) -> None:
+    def __init__(self, port: str, on_sample: Callable[[ImuSample], None] | None = None) -> None:
+        self.on_sample = on_sample
+        """Called with every reading taken (the run log's ``imu.csv``)."""
         self.device = Bno055.open(port)
         try:
             self.device.set_mode(OprMode.IMU)
@@ -86,17 +83,22 @@ class Bno055Source:
             self.device.close()
             raise
 
-    def quaternion(self) -> F:
+    def _read(self) -> ImuSample:
         sample = self.device.read_sample()
+        if self.on_sample is not None:
+            self.on_sample(sample)
         time.sleep(IMU_PERIOD_S)  # the next read finds the next sample
+        return sample
+
+    def quaternion(self) -> F:
+        sample = self._read()
         if sample.quat_wxyz is None:
             raise ImuError(f"the IMU on {self.device.port} gave no orientation")
         return np.asarray(sample.quat_wxyz, float)
 
     def specific_force(self) -> F:
         """The accelerometer's reading, m/s² (the sensor's axes)."""
-        sample = self.device.read_sample()
-        time.sleep(IMU_PERIOD_S)
+        sample = self._read()
         if sample.accel_mps2 is None:
             raise ImuError(f"the IMU on {self.device.port} gave no acceleration")
         return np.asarray(sample.accel_mps2, float)
@@ -159,9 +161,12 @@ def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
 
 def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
                on_stage: Callable[[str], None],
-               stop: EstopRelay | None = None) -> Commissioned:
+               stop: EstopRelay | None = None,
+               on_nudge: Callable[[NudgeResult], None] | None = None) -> Commissioned:
     """Discover, (jig), map and zero the wrist on ``port``; the commissioned profile.
-    ``stop``: the run's E-stop, attached to each motion process in turn."""
+    ``stop``: the run's E-stop, attached to each motion process in turn (once pressed, the
+    nudging ends with the wrist holding where it stopped); ``on_nudge``: each nudge's
+    outcome, as it comes (the run log)."""
     found_profile, disc = discover(profile, port, on_stage, stop)
     session = Session(found_profile, port=port, sim=False)
     try:
@@ -183,20 +188,24 @@ def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
                 q0 = _mean_quaternion(imu)
                 r = client.nudge(((ident, MAP_NUDGE_DEG),), MAP_SPEED_DEGPS)
                 nudges.append(r)
+                if on_nudge is not None:
+                    on_nudge(r)
                 if not r.ok:
                     raise BusError(f"commission: the nudge of servo id {ident} stopped ({r.stopped}); "
                                    "nothing else moved. Check the wrist moves freely")
                 q1 = _mean_quaternion(imu)
                 back = client.nudge(((ident, 0.0),), MAP_SPEED_DEGPS)
                 nudges.append(back)
+                if on_nudge is not None:
+                    on_nudge(back)
                 if not back.ok:
                     raise BusError(f"commission: servo id {ident} did not return ({back.stopped})")
                 try:
                     matches.append(match_leg(axes, ident, rotation_vector(q0, q1), MAP_NUDGE_DEG))
                 except ValueError as exc:
                     raise BusError(f"commission: {exc}") from None
-        finally:
-            client.end_nudging()
+        finally:  # after an E-stop the wrist holds where it stopped; else it rests as found
+            client.end_nudging(hold=stop is not None and bool(stop.reason))
     finally:
         if stop is not None:
             stop.detach()
@@ -327,80 +336,3 @@ def _validated(profile: Profile) -> Profile:
         return Profile.model_validate(profile.model_dump(mode="python"))
     except ValueError as exc:
         raise BadInputError(f"commission: the profile as built does not validate: {exc}") from None
-
-
-def commissioned_text(base_text: str, result: Commissioned, source: str,
-                      when: dt.datetime | None = None) -> tuple[str, Profile]:
-    """The base profile's text with ``[[bus.joints]]`` as built (ids, directions and, from the
-    jig, tick offsets), each changed key commented with its provenance; parsed and read back."""
-    stamp = (when or dt.datetime.now(dt.UTC)).strftime("%Y-%m-%dT%H:%M:%SZ")
-    joints: list[dict[str, object]] = []
-    for k, m in enumerate(result.legs):
-        values: dict[str, object] = {"id": m.id, "direction": m.direction}
-        if result.tick_offsets is not None:
-            values["tick_offset"] = result.tick_offsets[k]
-        joints.append(values)
-    how = "map: IMU" + (", zero: jig" if result.tick_offsets is not None else "") + (
-        " and IMU" if result.refinement is not None else "")
-    note = f"commissioned {stamp} ({how})"
-    text, prof = with_joints(base_text, joints, note, source)  # type: ignore[arg-type]
-    if result.refinement is not None and result.refinement.arcs_deg is not None:
-        g = result.profile.geometry
-        text, prof = with_values(text, {
-            ("geometry", "alpha1_leg_offset_deg"): list(g.alpha1_leg_offset_deg),
-            ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg)},
-            f"commissioned {stamp} (IMU fit)", source)
-    return text, prof
-
-
-#: Largest profile text read, bytes.
-MAX_PROFILE_BYTES = 1 << 20
-
-
-def commissioned_path(profile_path: Path, when: dt.datetime) -> Path:
-    """Where the commissioning of ``profile_path`` at ``when`` goes by default (before a taken
-    name's ``-2`` …): ``NAME.commissioned-YYYYmmddTHHMMSSZ.toml`` beside it."""
-    stamp = when.astimezone(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
-    return profile_path.with_name(f"{profile_path.stem}.commissioned-{stamp}.toml")
-
-
-def write_commissioned(profile_path: Path, result: Commissioned, out: Path | None = None,
-                       when: dt.datetime | None = None) -> Path:
-    """Write the commissioned profile: ``profile_path``'s text with ``[[bus.joints]]`` as
-    built, to ``out`` (replaced atomically: the caller decided it may be) or beside the
-    profile (:func:`commissioned_path`, never over a file); the path written. The CLI and the
-    console both write through here."""
-    when = when or dt.datetime.now(dt.UTC)
-    base = read_text(profile_path, "--profile", MAX_PROFILE_BYTES, BadInputError)
-    target = out or commissioned_path(profile_path, when)
-    text, _prof = commissioned_text(base, result, str(target), when)
-    if out is not None:
-        write_text_atomic(out, text, BadInputError)
-        return Path(out)
-    return write_new(target, text)
-
-
-def commissioned_lines(result: Commissioned) -> list[str]:
-    """The result in words, one line each: legs, ids and directions, the jig's tick offsets,
-    the IMU stage's residuals and every fitted parameter with its status."""
-    lines = [f"leg {m.leg}: servo id {m.id}, direction {m.direction:+d} "
-             f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})" for m in result.legs]
-    if result.tick_offsets is not None:
-        lines.append(f"tick offsets from the jig: {list(result.tick_offsets)}")
-    else:
-        lines.append("not zeroed: give --jig (the wrist on its home jig, torque off)")
-    r = result.refinement
-    if r is not None:
-        lines.append(f"IMU stage: horn offsets beyond the jig {[round(h, 3) for h in r.horn_deg]}°, "
-                     f"held-out gravity residual {r.verification.gravity_max_deg:.3f}° at most, "
-                     f"{r.motion_s:.1f} s of motion")
-        lines += [f"  {p.name}: {p.value_deg:+.3f}°"
-                  + ("" if p.std_expected_deg is None else f" ± {p.std_expected_deg:.3f}°")
-                  + f" ({p.status})" for p in r.fit.parameters]
-        undetermined = list(r.fit.undetermined_named)
-        if undetermined:
-            lines.append("  undetermined by the data: " + ", ".join(map(str, undetermined)))
-        if r.arcs_deg is not None:
-            lines.append("link arcs as fitted written to [geometry]: the workspace is rebuilt "
-                         "for them on its first use")
-    return lines

@@ -283,24 +283,12 @@ def commission_blocking(profile: Profile, profile_path: Path | None, f: Commissi
                         stop: EstopRelay, on_stage: Callable[[str], None]) -> CommissionDone:
     """Commission (and refine with the IMU when asked), then write the profile beside
     ``profile_path`` (the default profile when the console has no file) as the CLI does."""
-    from spm_console.services.commissioning.imu_stage import refine_with_imu
-    from spm_console.services.commissioning.stages import (
-        Bno055Source,
-        commission,
-        commissioned_lines,
-        refined,
-        write_commissioned,
-    )
+    from spm_console.services.commissioning.profile_out import commissioned_lines
+    from spm_console.services.commissioning.run import CommissionRequest, run_commissioning
 
-    imu = Bno055Source(f.imu)
-    try:
-        result = commission(profile, f.bus, imu, f.jig, on_stage, stop)
-        if f.jig and f.imu_stage:
-            result = refined(result, refine_with_imu(result.profile, f.bus, imu, on_stage, stop))
-    finally:
-        imu.close()
-    stop.check()
-    written = write_commissioned(profile_path or DEFAULT_PROFILE, result)
+    req = CommissionRequest(f.bus, f.imu, f.jig, f.imu_stage)
+    done = run_commissioning(profile, profile_path or DEFAULT_PROFILE, req, on_stage, stop)
+    result, written = done.result, done.written
     ids = ", ".join(f"{m.leg}: id {m.id} ({'+' if m.direction > 0 else '−'})"
                     for m in result.legs)
     return CommissionDone(written, tuple(commissioned_lines(result)), ids)

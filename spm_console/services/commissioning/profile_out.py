@@ -1,0 +1,94 @@
+"""The commissioned profile: the base profile's text with what commissioning found, each
+changed key commented with its provenance (date, how it was found, the commissioning's run
+folder), written beside the profile or where the operator asked; and the result in words."""
+
+from __future__ import annotations
+
+import datetime as dt
+from pathlib import Path
+
+from spm_console.config.edit import with_joints, with_values
+from spm_console.config.schema import Profile
+from spm_console.errors import BadInputError
+from spm_console.safe_io import read_text, write_text_atomic
+from spm_console.services.commissioning.stages import Commissioned
+from spm_console.store.identified_profiles import write_new
+
+
+def commissioned_text(base_text: str, result: Commissioned, source: str,
+                      when: dt.datetime | None = None, run: str = "") -> tuple[str, Profile]:
+    """The base profile's text with ``[[bus.joints]]`` as built (ids, directions and, from the
+    jig, tick offsets), each changed key commented with its provenance (``run``: the
+    commissioning's run folder); parsed and read back."""
+    stamp = (when or dt.datetime.now(dt.UTC)).strftime("%Y-%m-%dT%H:%M:%SZ")
+    joints: list[dict[str, object]] = []
+    for k, m in enumerate(result.legs):
+        values: dict[str, object] = {"id": m.id, "direction": m.direction}
+        if result.tick_offsets is not None:
+            values["tick_offset"] = result.tick_offsets[k]
+        joints.append(values)
+    how = "map: IMU" + (", zero: jig" if result.tick_offsets is not None else "") + (
+        " and IMU" if result.refinement is not None else "")
+    where = f", run {run}" if run else ""
+    note = f"commissioned {stamp} ({how}{where})"
+    text, prof = with_joints(base_text, joints, note, source)  # type: ignore[arg-type]
+    if result.refinement is not None and result.refinement.arcs_deg is not None:
+        g = result.profile.geometry
+        text, prof = with_values(text, {
+            ("geometry", "alpha1_leg_offset_deg"): list(g.alpha1_leg_offset_deg),
+            ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg)},
+            f"commissioned {stamp} (IMU fit{where})", source)
+    return text, prof
+
+
+#: Largest profile text read, bytes.
+MAX_PROFILE_BYTES = 1 << 20
+
+
+def commissioned_path(profile_path: Path, when: dt.datetime) -> Path:
+    """Where the commissioning of ``profile_path`` at ``when`` goes by default (before a taken
+    name's ``-2`` …): ``NAME.commissioned-YYYYmmddTHHMMSSZ.toml`` beside it."""
+    stamp = when.astimezone(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    return profile_path.with_name(f"{profile_path.stem}.commissioned-{stamp}.toml")
+
+
+def write_commissioned(profile_path: Path, result: Commissioned, out: Path | None = None,
+                       when: dt.datetime | None = None, run: str = "") -> Path:
+    """Write the commissioned profile: ``profile_path``'s text with ``[[bus.joints]]`` as
+    built, to ``out`` (replaced atomically: the caller decided it may be) or beside the
+    profile (:func:`commissioned_path`, never over a file); the path written. The CLI and the
+    console both write through here."""
+    when = when or dt.datetime.now(dt.UTC)
+    base = read_text(profile_path, "--profile", MAX_PROFILE_BYTES, BadInputError)
+    target = out or commissioned_path(profile_path, when)
+    text, _prof = commissioned_text(base, result, str(target), when, run)
+    if out is not None:
+        write_text_atomic(out, text, BadInputError)
+        return Path(out)
+    return write_new(target, text)
+
+
+def commissioned_lines(result: Commissioned) -> list[str]:
+    """The result in words, one line each: legs, ids and directions, the jig's tick offsets,
+    the IMU stage's residuals and every fitted parameter with its status."""
+    lines = [f"leg {m.leg}: servo id {m.id}, direction {m.direction:+d} "
+             f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})" for m in result.legs]
+    if result.tick_offsets is not None:
+        lines.append(f"tick offsets from the jig: {list(result.tick_offsets)}")
+    else:
+        lines.append("not zeroed: give --jig (the wrist on its home jig, torque off)")
+    r = result.refinement
+    if r is not None:
+        lines.append(f"IMU stage: horn offsets beyond the jig {[round(h, 3) for h in r.horn_deg]}°, "
+                     f"held-out gravity residual {r.verification.gravity_max_deg:.3f}° at most, "
+                     f"{r.motion_s:.1f} s of motion")
+        lines += [f"  {p.name}: {p.value_deg:+.3f}°"
+                  + ("" if p.std_expected_deg is None else f" ± {p.std_expected_deg:.3f}°")
+                  + f" ({p.status})" for p in r.fit.parameters]
+        undetermined = list(r.fit.undetermined_named)
+        if undetermined:
+            lines.append("  undetermined by the data: " + ", ".join(map(str, undetermined)))
+        if r.arcs_deg is not None:
+            lines.append("link arcs as fitted written to [geometry]: the workspace is rebuilt "
+                         "for them on its first use")
+    return lines

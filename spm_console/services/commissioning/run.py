@@ -1,0 +1,104 @@
+"""One commissioning as the CLI and the console run it: the IMU opened, the stages in order
+(:func:`~.stages.commission`, then the IMU stage when the jig zeroed the wrist), the profile
+written, everything in the commissioning's run log (:mod:`.log`), closed however it ends.
+
+A stop (the E-stop of :class:`~spm_console.services.client.EstopRelay`: a key, a signal)
+ends it with the wrist holding where it stopped: exit 20 once anything moved (an E-stop), 130
+before (an interruption); nothing is written."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from spm_console.config.schema import Profile
+from spm_console.errors import EStopError, InterruptedBySignalError, SpmError
+from spm_console.motion.nudge import NudgeResult
+from spm_console.services.client import EstopRelay
+from spm_console.services.commissioning.imu_stage import refine_with_imu
+from spm_console.services.commissioning.log import CommissionLog
+from spm_console.services.commissioning.profile_out import write_commissioned
+from spm_console.services.commissioning.stages import (
+    Bno055Source,
+    Commissioned,
+    commission,
+    refined,
+)
+
+
+@dataclass(frozen=True)
+class CommissionRequest:
+    """What the operator asked for."""
+
+    port: str
+    """The servo bus."""
+    imu_port: str
+    """The BNO055 on the platform (UART)."""
+    jig: bool
+    """The wrist rests on its home jig, torque off: zero the servos there."""
+    imu_stage: bool = True
+    """After the jig's zero, the IMU stage (poses, fit, verification)."""
+    out: Path | None = None
+    """Where to write the profile (None: beside the profile, never over a file)."""
+    logs_root: str | Path | None = None
+    """The run logs' root (None: ``$SPM_CONSOLE_LOGS`` or ``logs/``)."""
+
+
+@dataclass(frozen=True)
+class CommissionOutcome:
+    result: Commissioned
+    written: Path
+    """The commissioned profile."""
+    log_dir: Path
+    """The commissioning's run folder."""
+
+
+def run_commissioning(profile: Profile, profile_path: Path, req: CommissionRequest,
+                      on_stage: Callable[[str], None], stop: EstopRelay) -> CommissionOutcome:
+    """Commission the wrist on ``req.port`` (see the module docstring); ``profile_path``: the
+    profile's file, whose text the commissioned profile keeps."""
+    log = CommissionLog.create(profile, req.logs_root, port=req.port, imu_port=req.imu_port,
+                               jig=req.jig, imu_stage=req.jig and req.imu_stage)
+    staged = log.staged(on_stage)
+    moved = [False]
+
+    def nudged(r: NudgeResult) -> None:
+        moved[0] = True
+        log.nudge(r)
+
+    try:
+        imu = Bno055Source(req.imu_port, on_sample=log.imu)
+        try:
+            result = commission(profile, req.port, imu, req.jig, staged, stop, nudged)
+            if req.jig and req.imu_stage:
+                result = refined(result, refine_with_imu(result.profile, req.port, imu,
+                                                         staged, stop))
+        finally:
+            imu.close()
+        stop.check()
+        written = write_commissioned(profile_path, result, req.out, run=log.path.name)
+    except BaseException as exc:
+        raised = _stopped(exc, stop, moved[0])
+        log.failed(raised, stop.reason)
+        if raised is not exc:
+            raise raised from None
+        raise
+    log.event("commissioned", profile_written=str(written),
+              legs=[{"leg": m.leg, "id": m.id, "direction": m.direction} for m in result.legs],
+              tick_offsets=result.tick_offsets, jig_ticks=result.jig_ticks,
+              imu_stage=result.refinement is not None)
+    log.finish("completed", 0, f"profile written: {written}")
+    return CommissionOutcome(result, written, log.path)
+
+
+def _stopped(exc: BaseException, stop: EstopRelay, moved: bool) -> BaseException:
+    """What a stop made of ``exc``: the E-stop's error (20) once anything moved, an
+    interruption (130) before; ``exc`` itself when nothing was pressed."""
+    if not stop.reason or not isinstance(exc, SpmError):
+        return exc
+    if moved:
+        return EStopError(f"commission stopped: E-stop: {stop.reason}; the wrist holds where it "
+                          "stopped (its PWM Limits restored). Nothing was written")
+    return InterruptedBySignalError(f"commission interrupted: {stop.reason}; nothing moved and "
+                                    "nothing was written")
