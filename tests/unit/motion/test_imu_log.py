@@ -41,8 +41,8 @@ def test_readings_round_trip_and_a_broken_row_is_skipped(tmp_path: Path) -> None
 
 
 def test_the_run_mcap_carries_the_imu(tmp_path: Path, agile: Profile) -> None:
-    from mcap_ros2.decoder import DecoderFactory
     from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
 
     run = RunLog.create("commission", agile.name, agile.digest(), [], root=tmp_path)
     imu = ImuCsv(run.path, t0_s=0.0)
