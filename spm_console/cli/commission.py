@@ -5,7 +5,10 @@ zero them on the home jig and write the profile of the wrist as built
 from __future__ import annotations
 
 import argparse
+import select
 import signal
+import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -28,8 +31,10 @@ def register(sub: Any) -> None:
     add_common(c)
     c.add_argument("--port", metavar="DEV", help="the servo bus (default: the profile's "
                    "bus.port; 'spm-console emulate' prints an emulated one)")
-    c.add_argument("--imu-port", metavar="DEV", required=True,
-                   help="the BNO055 on the platform, UART mode (115200 baud)")
+    c.add_argument("--imu-port", metavar="DEV",
+                   help="the BNO055 on the platform, UART mode (115200 baud); without it you "
+                        "are asked on the terminal which leg each nudge moved, and which way "
+                        "(and the IMU stage is skipped)")
     c.add_argument("--jig", action="store_true",
                    help="the wrist rests on its home jig, torque off: zero the servos there")
     c.add_argument("--no-imu-fit", action="store_true",
@@ -67,9 +72,10 @@ def cmd_commission(args: argparse.Namespace) -> int:
         relay.estop(f"signal {sig.name}", by_signal=True)
 
     with stop_signals(on_signal):
-        done = run_commissioning(profile, Path(args.profile), req, info, relay)
+        done = run_commissioning(profile, Path(args.profile), req, info, relay,
+                                 None if args.imu_port else ask_on_terminal)
     result = done.result
-    legs = [{"leg": m.leg, "id": m.id, "direction": m.direction,
+    legs = [{"leg": m.leg, "id": m.id, "direction": m.direction, "source": m.source,
              "rotation_deg": m.rotation_deg, "cos": m.cos} for m in result.legs]
     data = {"protocol": result.discovery.protocol,
             "found": [{"id": f.id, "model_number": f.model_number, "firmware": f.firmware}
@@ -82,6 +88,38 @@ def cmd_commission(args: argparse.Namespace) -> int:
                        f"run log: {done.log_dir}"])
     emit(args, data, human)
     return int(ExitCode.OK)
+
+
+#: Seconds the operator has to answer one question (the nudged servo holds meanwhile).
+ANSWER_TIMEOUT_S = 600.0
+#: Unrecognised answers to one question before commissioning gives up.
+MAX_TRIES = 5
+#: Longest answer line read, characters.
+MAX_ANSWER = 200
+
+
+def ask_on_terminal(question: str, answers: Sequence[str]) -> str:
+    """Ask on stderr, read the answer from stdin: one of ``answers`` (any case; a unique
+    prefix will do). BadInputError when stdin closes, nobody answers within
+    :data:`ANSWER_TIMEOUT_S` or :data:`MAX_TRIES` answers are not one of them."""
+    for _ in range(MAX_TRIES):
+        sys.stderr.write(f"{question} [{'/'.join(answers)}]: ")
+        sys.stderr.flush()
+        ready, _, _ = select.select([sys.stdin], [], [], ANSWER_TIMEOUT_S)
+        if not ready:
+            raise BadInputError(f"commission: no answer within {ANSWER_TIMEOUT_S:g} s to "
+                                f"{question!r}")
+        line = sys.stdin.readline(MAX_ANSWER)
+        if not line:
+            raise BadInputError(f"commission: stdin closed before an answer to {question!r} "
+                                "(without --imu-port the operator answers on the terminal)")
+        said = line.strip().lower()
+        picked = [a for a in answers if a == said] or [a for a in answers if said and
+                                                        a.startswith(said)]
+        if len(picked) == 1:
+            return picked[0]
+        sys.stderr.write(f"  answer one of: {', '.join(answers)}\n")
+    raise BadInputError(f"commission: no valid answer to {question!r} in {MAX_TRIES} tries")
 
 
 def _fit_json(r: Any) -> dict[str, Any]:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import math
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +24,7 @@ from spm_console.core.kinematics.rotations import expm_so3
 from spm_console.devices.dynamixel.tick_map import joint_maps
 from spm_console.devices.emulator.bno055 import EmulatedBno055, ImuTruth
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.motion.logs.runlog import load_run
 from spm_console.motion.nudge import BALL_DEG
 from tests.support.paths import ROOT
 
@@ -157,3 +158,70 @@ def test_the_imu_stage_refines_the_jig_zero_and_verifies_it_on_held_out_poses(
     for m, tm in zip(joint_maps(built), joint_maps(truth), strict=True):
         for th in (built.home.theta_deg[0] - 10.0, built.home.theta_deg[0] + 10.0):
             assert m.to_deg(tm.to_ticks(th)) == pytest.approx(th, abs=0.1)
+
+
+class _Operator:
+    """An operator at the wrist: watches the true joint angles (the emulator's) and says which
+    leg's arm moved and which way its elbow went (the elbow sits on w_i, eq. 2: its height is
+    read from the geometry at the angles before and after, not from the product's rule)."""
+
+    def __init__(self, em: EmulatorHandle, agile: Profile) -> None:
+        self.em = em
+        self.geom = model_of(agile).geom
+        self.rest = np.asarray(em.joint_deg(), float)
+        self.questions: list[str] = []
+
+    def __call__(self, question: str, answers: Sequence[str]) -> str:
+        self.questions.append(question)
+        now = np.asarray(self.em.joint_deg(), float)
+        moved = int(np.argmax(np.abs(now - self.rest)))
+        if "which leg" in question:
+            return str(moved + 1)
+        before = self.geom.w(np.radians(self.rest))[moved]
+        after = self.geom.w(np.radians(now))[moved]
+        assert "up or down" in question  # the Agile Wrist's elbows rise and fall
+        return "up" if after[2] > before[2] else "down"
+
+
+def test_without_an_imu_the_operator_names_each_leg_and_its_way(
+        wrist: tuple[EmulatorHandle, EmulatedBno055, Profile], agile: Profile,
+        tmp_path: Path) -> None:
+    """The map from the operator's answers: the same legs and directions as the IMU finds, a
+    profile that reads the true joint angles, every question and answer in the run log."""
+    from spm_console.services.client import EstopRelay
+    from spm_console.services.commissioning.run import CommissionRequest, run_commissioning
+
+    em, _imu, truth = wrist
+    operator = _Operator(em, agile)
+    req = CommissionRequest(em.port, None, jig=True, out=tmp_path / "built.toml",
+                            logs_root=tmp_path / "logs")
+    done = run_commissioning(agile, AGILE, req, lambda _line: None, EstopRelay("commission"),
+                             operator)
+    assert [(m.leg, m.id, m.direction, m.source) for m in done.result.legs] == [
+        (1, 3, 1, "operator"), (2, 1, -1, "operator"), (3, 2, 1, "operator")]
+    assert len(operator.questions) == 6 and done.result.refinement is None
+    built = load_profile(done.written)
+    for m, tm in zip(joint_maps(built), joint_maps(truth), strict=True):
+        for th in (built.home.theta_deg[0], 120.0):
+            assert m.to_deg(tm.to_ticks(th)) == pytest.approx(th, abs=360.0 / 4096)
+    asked = [e for e in load_run(done.log_dir).events if e["event"] == "asked"]
+    assert [e["question"] for e in asked] == operator.questions
+    assert "map: operator" in done.written.read_text()
+
+
+def test_answers_naming_one_leg_twice_are_refused_and_nothing_is_written(
+        wrist: tuple[EmulatorHandle, EmulatedBno055, Profile], agile: Profile,
+        tmp_path: Path) -> None:
+    from spm_console.errors import BusError
+    from spm_console.services.client import EstopRelay
+    from spm_console.services.commissioning.run import CommissionRequest, run_commissioning
+
+    em, _imu, _truth = wrist
+    req = CommissionRequest(em.port, None, jig=True, out=tmp_path / "built.toml",
+                            logs_root=tmp_path / "logs")
+    with pytest.raises(BusError, match="two servos drive the same leg by the answers"):
+        run_commissioning(agile, AGILE, req, lambda _line: None, EstopRelay("commission"),
+                          lambda q, _a: "1" if "which leg" in q else "up")
+    assert not (tmp_path / "built.toml").exists()
+    (run_dir,) = (tmp_path / "logs").iterdir()
+    assert load_run(run_dir).meta["outcome"] == "refused"

@@ -43,6 +43,55 @@ class LegMatch:
     """|cos| between the measured axis and the leg's predicted one."""
     runner_up_cos: float
     """The best |cos| of another leg (how clear the choice was)."""
+    source: str = "imu"
+    """"imu" (matched by the measured rotation), or "operator" (confirmed by the operator:
+    the rotation and cosines are then 0)."""
+
+
+#: Below this |vertical component| of the elbow's motion per radian, the operator is asked
+#: about its turn seen from above instead of up or down.
+MIN_RISE = 0.3
+
+
+@dataclass(frozen=True)
+class ElbowMotion:
+    """How leg i's elbow (the end of its proximal link) moves as its joint angle grows, in
+    the words an operator watching the wrist uses (the base level, its axis up)."""
+
+    question: str
+    """The question asked: "up or down" or "clockwise or counter-clockwise seen from above"."""
+    answers: tuple[str, str]
+    """The two answers, the first the one a growing joint angle gives."""
+
+
+def elbow_motions(model: SpmModel, theta_deg: F) -> list[ElbowMotion]:
+    """Per leg, how its elbow moves for a growing θ_i at θ (deg): the elbow sits on w_i
+    (eq. 2), so it moves along dw_i/dθ_i; up or down when that has a clear vertical part, else
+    its turn about the vertical."""
+    theta = np.radians(np.asarray(theta_deg, float))
+    _p, Q, S = model.geom.ik_coeffs()
+    w = model.geom.w(theta)
+    dw = -Q * np.sin(theta)[:, None] + S * np.cos(theta)[:, None]
+    out = []
+    for i in range(3):
+        rise = float(dw[i, 2]) / max(float(np.linalg.norm(dw[i])), 1e-12)
+        if abs(rise) >= MIN_RISE:
+            out.append(ElbowMotion("up or down", ("up", "down") if rise > 0 else ("down", "up")))
+        else:
+            turn = float(np.cross(w[i], dw[i])[2])
+            ccw = ("counter-clockwise", "clockwise")
+            out.append(ElbowMotion("clockwise or counter-clockwise seen from above",
+                                   ccw if turn > 0 else (ccw[1], ccw[0])))
+    return out
+
+
+def operator_match(ident: int, leg: int, seen: str, motion: ElbowMotion,
+                   counted_deg: float) -> LegMatch:
+    """The servo ``ident`` drives ``leg`` (1..3), whose elbow the operator saw move ``seen``
+    (one of ``motion.answers``) for a nudge of ``counted_deg`` in the servo's counting."""
+    grows = seen == motion.answers[0]
+    direction = 1 if grows == (counted_deg > 0) else -1
+    return LegMatch(ident, leg, direction, 0.0, 0.0, 0.0, source="operator")
 
 
 def leg_axes(model: SpmModel, theta_deg: F) -> F:

@@ -12,7 +12,7 @@ signal), ``refused`` (an operator error, a stage that failed), ``error`` (a bug)
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +62,16 @@ class CommissionLog:
             on_stage(line)
 
         return both
+
+    def asking(self, ask: Callable[[str, Sequence[str]], str]) -> Callable[[str, Sequence[str]], str]:
+        """``ask``, each question and its answer logged (event ``asked``)."""
+
+        def logged(question: str, answers: Sequence[str]) -> str:
+            answer = ask(question, answers)
+            self.event("asked", question=question, answers=list(answers), answer=answer)
+            return answer
+
+        return logged
 
     def nudge(self, r: NudgeResult) -> None:
         self.event("nudge", ids=list(r.ids), rest_ticks=list(r.rest_ticks),

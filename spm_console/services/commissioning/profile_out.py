@@ -27,7 +27,8 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
         if result.tick_offsets is not None:
             values["tick_offset"] = result.tick_offsets[k]
         joints.append(values)
-    how = "map: IMU" + (", zero: jig" if result.tick_offsets is not None else "") + (
+    mapped = "IMU" if result.legs[0].source == "imu" else "operator"
+    how = f"map: {mapped}" + (", zero: jig" if result.tick_offsets is not None else "") + (
         " and IMU" if result.refinement is not None else "")
     where = f", run {run}" if run else ""
     note = f"commissioned {stamp} ({how}{where})"
@@ -72,7 +73,8 @@ def commissioned_lines(result: Commissioned) -> list[str]:
     """The result in words, one line each: legs, ids and directions, the jig's tick offsets,
     the IMU stage's residuals and every fitted parameter with its status."""
     lines = [f"leg {m.leg}: servo id {m.id}, direction {m.direction:+d} "
-             f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})" for m in result.legs]
+             + (f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})"
+                if m.source == "imu" else "(confirmed by the operator)") for m in result.legs]
     if result.tick_offsets is not None:
         lines.append(f"tick offsets from the jig: {list(result.tick_offsets)}")
     else:

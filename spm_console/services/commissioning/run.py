@@ -20,6 +20,7 @@ from spm_console.services.commissioning.imu_stage import refine_with_imu
 from spm_console.services.commissioning.log import CommissionLog
 from spm_console.services.commissioning.profile_out import write_commissioned
 from spm_console.services.commissioning.stages import (
+    Ask,
     Bno055Source,
     Commissioned,
     commission,
@@ -33,8 +34,9 @@ class CommissionRequest:
 
     port: str
     """The servo bus."""
-    imu_port: str
-    """The BNO055 on the platform (UART)."""
+    imu_port: str | None
+    """The BNO055 on the platform (UART); None: the operator says which leg each nudge moved
+    (the IMU stage needs the IMU)."""
     jig: bool
     """The wrist rests on its home jig, torque off: zero the servos there."""
     imu_stage: bool = True
@@ -55,11 +57,15 @@ class CommissionOutcome:
 
 
 def run_commissioning(profile: Profile, profile_path: Path, req: CommissionRequest,
-                      on_stage: Callable[[str], None], stop: EstopRelay) -> CommissionOutcome:
+                      on_stage: Callable[[str], None], stop: EstopRelay,
+                      ask: Ask | None = None) -> CommissionOutcome:
     """Commission the wrist on ``req.port`` (see the module docstring); ``profile_path``: the
-    profile's file, whose text the commissioned profile keeps."""
+    profile's file, whose text the commissioned profile keeps; ``ask``: the operator, asked
+    which leg each nudge moved when there is no IMU (each question and answer is logged)."""
+    with_imu_stage = req.jig and req.imu_stage and req.imu_port is not None
     log = CommissionLog.create(profile, req.logs_root, port=req.port, imu_port=req.imu_port,
-                               jig=req.jig, imu_stage=req.jig and req.imu_stage)
+                               jig=req.jig, imu_stage=with_imu_stage)
+    asked = None if ask is None else log.asking(ask)
     staged = log.staged(on_stage)
     moved = [False]
 
@@ -68,14 +74,15 @@ def run_commissioning(profile: Profile, profile_path: Path, req: CommissionReque
         log.nudge(r)
 
     try:
-        imu = Bno055Source(req.imu_port, on_sample=log.imu)
+        imu = None if req.imu_port is None else Bno055Source(req.imu_port, on_sample=log.imu)
         try:
-            result = commission(profile, req.port, imu, req.jig, staged, stop, nudged)
-            if req.jig and req.imu_stage:
+            result = commission(profile, req.port, imu, req.jig, staged, stop, nudged, asked)
+            if with_imu_stage and imu is not None:
                 result = refined(result, refine_with_imu(result.profile, req.port, imu,
                                                          staged, stop))
         finally:
-            imu.close()
+            if imu is not None:
+                imu.close()
         stop.check()
         written = write_commissioned(profile_path, result, req.out, run=log.path.name)
     except BaseException as exc:

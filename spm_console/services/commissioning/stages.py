@@ -40,9 +40,12 @@ from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
 from spm_console.services.client import EstopRelay, MotionClient
 from spm_console.services.commissioning.imu_stage import Refinement
 from spm_console.services.commissioning.leg_map import (
+    ElbowMotion,
     LegMatch,
+    elbow_motions,
     leg_axes,
     match_leg,
+    operator_match,
     rotation_vector,
 )
 from spm_console.services.session import Session
@@ -159,14 +162,19 @@ def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
                    + "; ".join(tried))
 
 
-def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
+def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
                on_stage: Callable[[str], None],
                stop: EstopRelay | None = None,
-               on_nudge: Callable[[NudgeResult], None] | None = None) -> Commissioned:
+               on_nudge: Callable[[NudgeResult], None] | None = None,
+               ask: Ask | None = None) -> Commissioned:
     """Discover, (jig), map and zero the wrist on ``port``; the commissioned profile.
     ``stop``: the run's E-stop, attached to each motion process in turn (once pressed, the
     nudging ends with the wrist holding where it stopped); ``on_nudge``: each nudge's
-    outcome, as it comes (the run log)."""
+    outcome, as it comes (the run log). Without an IMU the operator says which leg each
+    nudge moved, and which way (``ask``)."""
+    if imu is None and ask is None:
+        raise BadInputError("commission: without an IMU the operator must be asked which leg "
+                            "each nudge moved")
     found_profile, disc = discover(profile, port, on_stage, stop)
     session = Session(found_profile, port=port, sim=False)
     try:
@@ -179,27 +187,32 @@ def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
             on_stage("jig: torque off, averaging each servo's ticks at the home jig")
             client.query(BusQuery("torque", on=False))
             jig_by_id = _jig_ticks(client, disc.ids)
-        axes = leg_axes(model_of(profile), np.asarray(profile.home.theta_deg, float))
+        home = np.asarray(profile.home.theta_deg, float)
+        axes = leg_axes(model_of(profile), home)
+        elbows = elbow_motions(model_of(profile), home)
         matches: list[LegMatch] = []
         nudges: list[NudgeResult] = []
+
+        def nudge(ident: int, offset: float) -> None:
+            r = client.nudge(((ident, offset),), MAP_SPEED_DEGPS)
+            nudges.append(r)
+            if on_nudge is not None:
+                on_nudge(r)
+            if not r.ok:
+                raise BusError(f"commission: the nudge of servo id {ident} stopped "
+                               f"({r.stopped}); nothing else moved. Check the wrist moves freely")
+
         try:
             for ident in disc.ids:
                 on_stage(f"map: nudging servo id {ident} by {MAP_NUDGE_DEG:g}°")
+                if imu is None:
+                    assert ask is not None
+                    matches.append(_asked(ident, nudge, ask, elbows))
+                    continue
                 q0 = _mean_quaternion(imu)
-                r = client.nudge(((ident, MAP_NUDGE_DEG),), MAP_SPEED_DEGPS)
-                nudges.append(r)
-                if on_nudge is not None:
-                    on_nudge(r)
-                if not r.ok:
-                    raise BusError(f"commission: the nudge of servo id {ident} stopped ({r.stopped}); "
-                                   "nothing else moved. Check the wrist moves freely")
+                nudge(ident, MAP_NUDGE_DEG)
                 q1 = _mean_quaternion(imu)
-                back = client.nudge(((ident, 0.0),), MAP_SPEED_DEGPS)
-                nudges.append(back)
-                if on_nudge is not None:
-                    on_nudge(back)
-                if not back.ok:
-                    raise BusError(f"commission: servo id {ident} did not return ({back.stopped})")
+                nudge(ident, 0.0)
                 try:
                     matches.append(match_leg(axes, ident, rotation_vector(q0, q1), MAP_NUDGE_DEG))
                 except ValueError as exc:
@@ -212,7 +225,8 @@ def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
         session.close()
     legs = sorted(matches, key=lambda m: m.leg)
     if [m.leg for m in legs] != [1, 2, 3]:
-        raise BusError("commission: two servos drive the same leg by the IMU ("
+        by = "the IMU" if imu is not None else "the answers"
+        raise BusError(f"commission: two servos drive the same leg by {by} ("
                        + ", ".join(f"id {m.id} → leg {m.leg}" for m in matches)
                        + "): repeat with the wrist free to move")
     on_stage("map: " + ", ".join(f"leg {m.leg} = id {m.id} ({'+' if m.direction > 0 else '−'})"
@@ -228,6 +242,33 @@ def commission(profile: Profile, port: str, imu: ImuSource, jig: bool,
                     for a, b in zip(r.rest_ticks, r.reached_ticks, strict=True)), default=0.0)
     return Commissioned(disc, (legs[0], legs[1], legs[2]), jig_ticks, offsets, built,
                         nudge_s=sum(r.duration_s for r in nudges), max_nudge_deg=farthest)
+
+
+#: How the operator is asked (question, allowed answers) -> the answer given.
+Ask = Callable[[str, Sequence[str]], str]
+#: Answers the operator may give to see the nudge again.
+AGAIN = "again"
+
+
+def _asked(ident: int, nudge: Callable[[int, float], None], ask: Ask,
+           elbows: Sequence[ElbowMotion]) -> LegMatch:
+    """Nudge ``ident`` out, ask which leg's elbow moved and which way, bring it back (as often
+    as the operator asks to see it again)."""
+    while True:
+        nudge(ident, MAP_NUDGE_DEG)
+        try:
+            leg = ask(f"servo id {ident} turned {MAP_NUDGE_DEG:g}°: which leg's arm moved?",
+                      ("1", "2", "3", AGAIN))
+            seen = AGAIN
+            if leg != AGAIN:
+                motion = elbows[int(leg) - 1]
+                seen = ask(f"which way did leg {leg}'s elbow move: {motion.question}?",
+                           (*motion.answers, AGAIN))
+        finally:
+            nudge(ident, 0.0)
+        if seen != AGAIN:
+            # it was seen going out: the answers describe the +nudge
+            return operator_match(ident, int(leg), seen, motion, MAP_NUDGE_DEG)
 
 
 def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
