@@ -137,4 +137,11 @@ def _fit_json(r: Any) -> dict[str, Any]:
         "residual_rms_deg": fit.residual_rms_deg,
         "held_out_gravity_max_deg": r.verification.gravity_max_deg,
         "held_out_gravity_rms_deg": r.verification.gravity_rms_deg,
+        "payload": None if r.payload is None else {
+            "first_moment_kgmm": list(r.payload.fit.first_moment_kgm * 1e3),
+            "first_moment_std_kgmm": list(r.payload.fit.first_moment_std_kgm * 1e3),
+            "compliance_deg_per_nm": r.payload.fit.compliance_deg_per_nm,
+            "residual_rms_deg": r.payload.fit.residual_rms_deg,
+            "held_out_rms_deg": r.payload.held_out_rms_deg,
+            "singular_values": list(r.payload.fit.singular_values)},
     }

@@ -121,8 +121,9 @@ def _run_motion_process(fd: int, err: int, req: Request) -> int:
     os.environ.update(req.env)
     os.chdir(req.cwd)
     os.umask(req.umask)
-    os.setpriority(os.PRIO_PROCESS, 0, req.nice)
-    os.sched_setaffinity(0, req.cpus)
+    os.setpriority(os.PRIO_PROCESS, 0, req.nice)  # never below this process's: checked
+    with contextlib.suppress(OSError):  # CPUs this process may not use: its own set stays
+        os.sched_setaffinity(0, req.cpus)
     from spm_console.motion import server
 
     sys.argv = [server.__file__, "--fd", str(fd)]  # what the run logs record

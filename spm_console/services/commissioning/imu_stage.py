@@ -27,6 +27,7 @@ from spm_console.core.commissioning.fit import CommissioningFit, FittedParameter
 from spm_console.core.commissioning.verify import Verification, verify_as_built
 from spm_console.errors import BusError, SolverError
 from spm_console.services.client import EstopRelay
+from spm_console.services.commissioning.payload_stage import PayloadReport, payload_from_holding
 from spm_console.services.session import PoseSpec, Session
 
 F = NDArray[np.float64]
@@ -77,6 +78,9 @@ class Refinement:
     :data:`ARC_STD_DEG`; the profile keeps its own)."""
     motion_s: float
     """Time spent moving, s."""
+    payload: PayloadReport | None = None
+    """The payload's first moment from the offsets the poses were held at (None: the data
+    did not determine it)."""
 
 
 def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
@@ -152,7 +156,18 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
     if all(_known(p, ARC_STD_DEG) for p in arcs):
         v = [p.value_deg for p in arcs]
         fitted = ((v[0], v[1], v[2]), (v[3], v[4], v[5]))
-    return Refinement(fit, check, tuple(poses), (horn[0], horn[1], horn[2]), fitted, moving)
+    payload = None
+    try:
+        payload = payload_from_holding(profile, np.asarray(poses, float), th, held)
+        s, e = payload.fit.first_moment_kgm * 1e3, payload.fit.first_moment_std_kgm * 1e3
+        on_stage("payload: first moment m·c = [" + ", ".join(
+            f"{x:.1f} ± {d:.1f}" for x, d in zip(s, e, strict=True)) + "] kg·mm (platform "
+            f"frame), drive compliance {payload.fit.compliance_deg_per_nm:.3f} deg/(N·m), "
+            f"held-out offsets {payload.held_out_rms_deg:.3f}° RMS")
+    except ValueError as exc:
+        on_stage(f"payload: not determined ({exc})")
+    return Refinement(fit, check, tuple(poses), (horn[0], horn[1], horn[2]), fitted, moving,
+                      payload)
 
 
 def _known(p: FittedParameter, std_deg: float) -> bool:

@@ -93,4 +93,12 @@ def commissioned_lines(result: Commissioned) -> list[str]:
         if r.arcs_deg is not None:
             lines.append("link arcs as fitted written to [geometry]: the workspace is rebuilt "
                          "for them on its first use")
+        if r.payload is not None:
+            f = r.payload.fit
+            lines.append("payload first moment m·c [" + ", ".join(
+                f"{x * 1e3:.1f} ± {d * 1e3:.1f}" for x, d in
+                zip(f.first_moment_kgm, f.first_moment_std_kgm, strict=True))
+                + "] kg·mm in the platform's frame (reported, not written: its mass alone "
+                f"is not seen by statics); held-out offsets {r.payload.held_out_rms_deg:.3f}° "
+                "RMS")
     return lines
