@@ -13,7 +13,10 @@ Figures per wrist, against the twin's truth (:func:`~spm_console.devices.emulato
   true one (the as-built geometry's FK of the true angles), both from their own home, at 50
   random poses of the certified set P′; baseline: the profile as typed (the same figure);
 * motion time (nudges and the IMU stage's moves) and the farthest any servo went from its rest
-  before the map and zero were known.
+  before the map and zero were known;
+* the payload's first moment m·c the IMU stage reports against the as-built payload's
+  (``payload_kg`` × ``payload_com_mm``), as a share of the true one (its mass alone is not
+  observable from statics).
 """
 
 from __future__ import annotations
@@ -76,6 +79,8 @@ class Outcome:
     baseline_deg: float
     motion_s: float
     max_nudge_deg: float
+    payload_pct: float
+    """|m·c fitted − true| / |true m·c|, % (inf: not determined)."""
 
 
 def _reading_error(maps: list[JointMap], truth: TrueWrist) -> float:
@@ -129,11 +134,17 @@ def _one(profile: Profile, table: dict[str, object], thetas: np.ndarray, folder:
     mapped = [(m.id, m.direction) for m in done.legs] == [(tj.id, tj.direction)
                                                           for tj in truth.joints]
     assert done.refinement is not None
+    payload = done.refinement.payload
+    asb = table["as_built"]
+    assert isinstance(asb, dict)
+    true_moment = float(asb["payload_kg"]) * np.asarray(asb["payload_com_mm"], float)  # kg·mm
+    payload_pct = (float("inf") if payload is None else 100.0 * float(np.linalg.norm(
+        payload.fit.first_moment_kgm * 1e3 - true_moment) / np.linalg.norm(true_moment)))
     return Outcome(mapped, _reading_error(joint_maps(jig.profile), truth),
                    _reading_error(joint_maps(done.profile), truth),
                    _orientation_error(done.profile, truth, thetas),
                    _orientation_error(profile, truth, thetas),
-                   done.nudge_s + done.refinement.motion_s, done.max_nudge_deg)
+                   done.nudge_s + done.refinement.motion_s, done.max_nudge_deg, payload_pct)
 
 
 def run() -> list[Row]:
@@ -151,7 +162,8 @@ def run() -> list[Row]:
             outcomes.append(_one(profile, draw(rng, profile), thetas, Path(tmp)))
     n = len(outcomes)
     worst = {k: max(getattr(o, k) for o in outcomes) for k in
-             ("jig_deg", "imu_deg", "orient_deg", "baseline_deg", "motion_s", "max_nudge_deg")}
+             ("jig_deg", "imu_deg", "orient_deg", "baseline_deg", "motion_s", "max_nudge_deg",
+              "payload_pct")}
     right = sum(o.mapped for o in outcomes)
     note = f"{n} wrists drawn with seed {SEED}; worst of them"
     return [
@@ -167,4 +179,8 @@ def run() -> list[Row]:
         Row("commission: motion", worst["motion_s"], "s", "<= 60", None, worst["motion_s"] <= 60.0),
         Row("commission: farthest nudge before map+zero", worst["max_nudge_deg"], "°", "<= 2",
             None, worst["max_nudge_deg"] <= 2.0),
+        Row("commission: payload first moment m·c (err)", worst["payload_pct"], "%", "<= 10",
+            None, worst["payload_pct"] <= 10.0,
+            note="of the true m·c; the mass alone is not observable from statics (not met: "
+                 "the issue asks for mass within 10 % and centre within 5 mm)"),
     ]
