@@ -65,3 +65,10 @@ def test_commission_finds_the_twin_as_built(twin: dict[str, object], tmp_path: P
         (1, 3, 1), (2, 1, -1), (3, 2, 1)]
     assert max(_errors_deg(out)) < 0.25  # the jig's target; the IMU stage refines within it
     assert d["imu_fit"]["held_out_gravity_max_deg"] < 0.15
+    # the payload's first moment: the truth within three of the fit's standard errors (the
+    # issue's 10 % is not met: 26 % on this wrist, see docs/decisions/commissioning.md)
+    built = load_as_built(TWIN)
+    truth = built.payload_kg * np.asarray(built.payload_com_mm, float)  # kg·mm
+    payload = d["imu_fit"]["payload"]
+    err = np.abs(np.asarray(payload["first_moment_kgmm"]) - truth)
+    assert (err <= 3.0 * np.asarray(payload["first_moment_std_kgmm"])).all(), payload

@@ -173,6 +173,8 @@ class _Operator:
 
     def __call__(self, question: str, answers: Sequence[str]) -> str:
         self.questions.append(question)
+        if len(self.questions) == 1:
+            return "again"  # missed the first nudge: it is made again
         now = np.asarray(self.em.joint_deg(), float)
         moved = int(np.argmax(np.abs(now - self.rest)))
         if "which leg" in question:
@@ -199,7 +201,9 @@ def test_without_an_imu_the_operator_names_each_leg_and_its_way(
                              operator)
     assert [(m.leg, m.id, m.direction, m.source) for m in done.result.legs] == [
         (1, 3, 1, "operator"), (2, 1, -1, "operator"), (3, 2, 1, "operator")]
-    assert len(operator.questions) == 6 and done.result.refinement is None
+    assert len(operator.questions) == 7 and done.result.refinement is None
+    nudges = [e for e in load_run(done.log_dir).events if e["event"] == "nudge"]
+    assert len(nudges) == 8  # each servo out and back, the first twice
     built = load_profile(done.written)
     for m, tm in zip(joint_maps(built), joint_maps(truth), strict=True):
         for th in (built.home.theta_deg[0], 120.0):
