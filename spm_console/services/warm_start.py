@@ -150,8 +150,8 @@ class ForkedProcess:
 
 
 class NotSentError(OSError):
-    """The warm start could not be asked: the motion process's socket is still unused (a
-    direct start may serve it)."""
+    """The warm start could not be asked, or refused the request: the motion process's
+    socket is still unused (a direct start may serve it)."""
 
 
 class WarmStart:
@@ -268,8 +268,10 @@ class WarmStart:
 
     def fork(self, theirs: socket.socket) -> ForkedProcess:
         """A motion process serving ``theirs``. :class:`NotSentError` when the warm start
-        could not be asked; OSError when it was asked but gave no motion process (``theirs``
-        has been handed over: it must not be served by another process)."""
+        could not be asked, or refused before any fork of it touched ``theirs`` (a front end
+        niced below it, a bad request): another process may serve it; OSError when it was
+        asked and gave no answer (``theirs`` may have been handed over: it must not be served
+        by another process)."""
         with self._cond:
             ident = self._next_id
             self._next_id += 1
@@ -291,8 +293,8 @@ class WarmStart:
                 answer = self._answers.pop(ident, None)
         if not got or answer is None:
             raise OSError("the warm start of the motion process did not fork in time")
-        if isinstance(answer, str):
-            raise OSError(f"the warm start of the motion process failed: {answer}")
+        if isinstance(answer, str):  # it says so only when no fork of it touched ``theirs``
+            raise NotSentError(f"the warm start of the motion process refused: {answer}")
         return ForkedProcess(answer[0], answer[1], self)
 
     def exit_code(self, pid: int, timeout_s: float) -> int | None:

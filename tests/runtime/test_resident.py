@@ -225,3 +225,27 @@ def test_a_second_front_end_is_told_which_front_end_holds_the_bus(
             MotionClient(agile, bus.port)
     finally:
         first.close()
+
+
+def test_a_refused_request_starts_the_motion_process_directly(
+        agile: Profile, bus: EmulatorHandle, run_dir: str) -> None:
+    """A retired resident (SIGTERM, its motion process still running) refuses new forks
+    before any touches the socket: the front end starts that motion process itself."""
+    first = MotionClient(agile, bus.port)
+    other = start_emulator(agile, record=False)
+    try:
+        assert warm_start._starter is not None
+        os.kill(warm_start._starter.pid, signal.SIGTERM)
+        path = resident.socket_path()
+        assert path is not None
+        wait_until(lambda: not os.path.exists(path), "the resident retires", 5.0)
+        second = MotionClient(agile, other.port)
+        try:
+            assert isinstance(second.process, subprocess.Popen)  # started directly
+            assert _ppid(second.process.pid) == os.getpid()
+            assert len(second.ping_all()) == 3
+        finally:
+            second.close()
+    finally:
+        first.close()
+        other.stop()
