@@ -370,16 +370,17 @@ def wiring_problems(prof: Profile) -> list[Problem]:
                                f"(allowed: 0 ≤ tick_offset ≤ {tpt - 1})"))
             continue
         per_deg = tpt / 360.0
-        # θ range whose ticks tick_offset + direction·θ·per_deg lie in [0, tpt − 1]
-        a, b = -j.tick_offset / per_deg, (tpt - 1 - j.tick_offset) / per_deg
+        zero = j.tick_offset + j.tick_trim
+        # θ range whose ticks tick_offset + tick_trim + direction·θ·per_deg lie in [0, tpt − 1]
+        a, b = -zero / per_deg, (tpt - 1 - zero) / per_deg
         lo_ok, hi_ok = (a, b) if j.direction == 1 else (-b, -a)
         for name, value in (("min_deg", j.min_deg), ("max_deg", j.max_deg)):
-            ticks = j.tick_offset + j.direction * value * per_deg
+            ticks = zero + j.direction * value * per_deg
             if not 0 <= ticks <= tpt - 1:
                 out.append(Problem(
                     f"{key}.{name}", value,
                     f"maps to tick {ticks:.1f}, outside the servo's 0..{tpt - 1} (ticks = tick_offset "
-                    f"+ direction·θ·ticks_per_turn/360 = {j.tick_offset} {'+' if j.direction > 0 else '−'} "
+                    f"+ direction·θ·ticks_per_turn/360 = {num(zero)} {'+' if j.direction > 0 else '−'} "
                     f"θ·{per_deg:.5g}) (allowed: {lo_ok:.2f} ≤ {name} ≤ {hi_ok:.2f} for this wiring)"))
         h = prof.home.theta_deg[i]
         if not j.min_deg <= h <= j.max_deg:

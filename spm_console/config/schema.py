@@ -217,6 +217,9 @@ class JointWiring(Section):
     """Dynamixel ID of the servo driving this joint, 0..252."""
     tick_offset: Count = Field(ge=0, le=4095)
     """Tick value at θ = 0°, modulo one turn: 0..4095 and below ``bus.ticks_per_turn``."""
+    tick_trim: Real = Field(default=0.0, ge=-0.5, le=0.5)
+    """A fraction of a tick added to ``tick_offset`` (−0.5..0.5): the zero commissioning finds
+    between two ticks (a horn's offset is continuous, the servo counts whole ticks)."""
     direction: Direction = 1
     """+1 when ticks grow with θ, −1 otherwise."""
     min_deg: Angle

@@ -1,4 +1,6 @@
-"""Static poses for the gravity identification: greedy E-optimal selection near home.
+"""Static poses for the gravity identification: greedy E-optimal selection near home
+(:func:`design_poses`), or I-optimal for the platform's orientation across the region the wrist
+will work in (:func:`design_for_orientation`), and a short tour through them (:func:`tour`).
 
 Candidates are θ_home + r·d for each radius r and each of the 26 directions d of the cube
 {−1, 0, 1}³ \\ {0} (so every joint moves by 0 or ±r): the joint offsets grow with r. Each
@@ -23,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.commissioning.gravity import AsBuilt, evaluate
+from spm_console.core.commissioning.gravity import AsBuilt, evaluate, orientation_jacobian
 from spm_console.core.commissioning.observability import DEFAULT_NOISE_DEG, free_basis
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.errors import BadInputError, SolverError
@@ -53,6 +55,9 @@ class PoseDesign:
     """Candidates ``is_allowed`` refused."""
     unreachable: int
     """Candidates without a unique FK at the prior."""
+    orientation_std_deg: float | None = None
+    """The largest predicted standard error of the platform's orientation over the reference
+    poses (the worst direction), deg, at the stated noise (None: not a design for it)."""
 
 
 def candidate_poses(theta_home_deg: F, radii_deg: tuple[float, ...]) -> F:
@@ -143,3 +148,72 @@ def _greedy(blocks: F, count: int, first: int | None) -> list[int]:
         chosen.append(int(best))
         M = M + info[best]
     return chosen
+
+
+def design_for_orientation(
+    model: SpmModel,
+    count: int,
+    candidates_deg: F,
+    reference_deg: F,
+    prior: AsBuilt | None = None,
+    fixed: Mapping[str, float] | None = None,
+    noise_deg: float = DEFAULT_NOISE_DEG,
+) -> PoseDesign:
+    """Choose ``count`` of ``candidates_deg`` (the first one always: e.g. home) that best
+    predict the platform's orientation at ``reference_deg`` (poses the wrist will work at, deg).
+
+    I-optimal: with C = (Σ Js_kᵀ Js_k + εI)⁻¹ the covariance of the free parameters and W the
+    mean of J_ωᵀ J_ω over the reference poses (J_ω: the platform's rotation per parameter, from
+    (4) and (11), (12)), each step adds the candidate that most lowers tr(W C), the mean squared
+    orientation error the fitted wrist will predict. Near the boundary a link arc moves the
+    platform most, and there gravity sees it most too: the candidates should span the region,
+    not a ball around home. The caller draws them inside it (the core knows no workspace)."""
+    cand = np.asarray(candidates_deg, float).reshape(-1, 3)
+    ref = np.asarray(reference_deg, float).reshape(-1, 3)
+    if count < 1 or len(cand) == 0 or len(ref) == 0 or noise_deg <= 0.0:
+        raise BadInputError("design: count ≥ 1, candidates, reference poses and a positive "
+                            "noise are needed")
+    ab = prior or AsBuilt.of_model(model)
+    fixed = fixed or {}
+    rows, unreachable = _rows(model, ab.vector_rad(), cand, noise_deg, fixed)
+    ok = np.asarray(np.isfinite(rows).all(axis=(1, 2)), bool)
+    if not ok[0]:
+        raise BadInputError("design: the first candidate has no unique FK at the prior")
+    keep, blocks = np.flatnonzero(ok), rows[ok]
+    N = free_basis(fixed)
+    Jw = orientation_jacobian(model, ab, ref) @ N * (math.pi / 180.0)  # rad per deg of q
+    W = np.einsum("kai,kaj->ij", Jw, Jw) / len(ref)
+    info = np.einsum("kri,krj->kij", blocks, blocks)
+    eps = D_REGULARIZATION * float(np.einsum("kii->i", info).max() or 1.0)
+    eye = np.eye(info.shape[1])
+    chosen = [0]
+    M = info[0].copy()
+    while len(chosen) < min(count, len(blocks)):
+        rest = np.setdiff1d(np.arange(len(blocks)), chosen)
+        C = np.linalg.inv(M[None] + info[rest] + eps * eye)
+        best = rest[int(np.argmin(np.einsum("ij,kji->k", W, C)))]
+        chosen.append(int(best))
+        M = M + info[best]
+    sv = np.sqrt(np.clip(np.linalg.eigvalsh(M), 0.0, None))[::-1]
+    worst = 1.0 / sv[-1] if len(sv) and sv[-1] > 0 else math.inf
+    C = np.linalg.pinv(M)
+    per_pose = np.linalg.eigvalsh(np.einsum("kai,ij,kbj->kab", Jw, C, Jw))[:, -1]
+    orient = math.degrees(math.sqrt(max(float(per_pose.max()), 0.0)))
+    theta = tuple((float(t[0]), float(t[1]), float(t[2])) for t in cand[keep[chosen]])
+    return PoseDesign(theta, tuple(float(s) for s in sv), float(worst), len(cand), 0,
+                      unreachable, orient)
+
+
+def tour(poses_deg: F, start_deg: F) -> list[int]:
+    """An order of ``poses_deg`` (K, 3) that keeps the moves short: from ``start_deg``, always
+    the nearest pose not yet visited (the largest joint move, deg; ties to the first)."""
+    left = list(range(len(np.asarray(poses_deg).reshape(-1, 3))))
+    pts = np.asarray(poses_deg, float).reshape(-1, 3)
+    here = np.asarray(start_deg, float).reshape(3)
+    order: list[int] = []
+    while left:
+        d = np.abs(pts[left] - here).max(axis=1)
+        nxt = left.pop(int(np.argmin(d)))
+        order.append(nxt)
+        here = pts[nxt]
+    return order

@@ -215,23 +215,7 @@ def evaluate(model: SpmModel, p: F, theta_meas: F, jacobian: bool = True,
         return Evaluation(p, built, theta, R, g, None)
     K = len(theta)
     J = np.empty((K, 3, 14))
-    # ω per unit of (δ, dα1, dα2) from (4), at θ_k and at home
-    geom = built.geom
-    w = geom.w(theta)
-    v = platform_axes(R, built.v_home)
-    rhs = np.zeros((K, 3, 9))
-    idx = np.arange(3)
-    rhs[:, idx, idx] = j2_diag(geom.u, v, w)
-    rhs[:, idx, 3 + idx] = -_dfd_alpha1(geom, theta, v)
-    rhs[:, idx, 6 + idx] = -np.sin(geom.alpha2_legs)
-    om = np.linalg.solve(j1_matrix(v, w), rhs)
-    th_h = built.theta_home[None]
-    vh = built.v_home[None]
-    rh = np.zeros((1, 3, 6))
-    rh[:, idx, idx] = -_dfd_alpha1(geom, th_h, vh)
-    rh[:, idx, 3 + idx] = -np.sin(geom.alpha2_legs)
-    om_h = np.linalg.solve(j1_matrix(vh, geom.w(th_h)), rh)[0]
-    om[:, :, 3:] -= R @ om_h
+    om = _omega(built, theta, R)
     # g changes by R_mᵀ Rᵀ [a]× ω for a platform rotation ω
     Ga = np.einsum("ba,kcb,cd->kad", Rm, R, _skew(a))
     J[:, :, 0:3] = Ga @ om[:, :, :3]
@@ -247,6 +231,28 @@ def evaluate(model: SpmModel, p: F, theta_meas: F, jacobian: bool = True,
     J[:, :, 6] = RmR @ da_x
     J[:, :, 7] = RmR @ da_y
     return Evaluation(p, built, theta, R, g, J)
+
+
+def _omega(built: SpmModel, theta: F, R: F) -> F:
+    """The platform's rotation ω (R ← exp([ω]×) R, base frame) per unit of (δ, dα1, dα2)
+    (K, 3, 9), rad per rad, from (4) at the true θ (K, 3) and at home (R is relative to it)."""
+    geom = built.geom
+    w = geom.w(theta)
+    v = platform_axes(R, built.v_home)
+    rhs = np.zeros((len(theta), 3, 9))
+    idx = np.arange(3)
+    rhs[:, idx, idx] = j2_diag(geom.u, v, w)
+    rhs[:, idx, 3 + idx] = -_dfd_alpha1(geom, theta, v)
+    rhs[:, idx, 6 + idx] = -np.sin(geom.alpha2_legs)
+    om = np.linalg.solve(j1_matrix(v, w), rhs)
+    th_h = built.theta_home[None]
+    vh = built.v_home[None]
+    rh = np.zeros((1, 3, 6))
+    rh[:, idx, idx] = -_dfd_alpha1(geom, th_h, vh)
+    rh[:, idx, 3 + idx] = -np.sin(geom.alpha2_legs)
+    om_h = np.linalg.solve(j1_matrix(vh, geom.w(th_h)), rh)[0]
+    om[:, :, 3:] -= R @ om_h
+    return np.asarray(om)
 
 
 def _skew(x: F) -> F:
@@ -279,3 +285,15 @@ def platform_orientation(model: SpmModel, as_built: AsBuilt, theta_meas_deg: F) 
     """The platform's rotation from home (K, 3, 3) the as-built wrist takes at the reported
     joint angles (its horn offsets and arcs; tilt and mount play no part)."""
     return evaluate(model, as_built.vector_rad(), _theta(theta_meas_deg), jacobian=False).R
+
+
+def orientation_jacobian(model: SpmModel, as_built: AsBuilt, theta_meas_deg: F) -> F:
+    """∂ω/∂p (K, 3, 14), rad per rad: the platform's rotation from home (base frame) per unit
+    of each parameter at the reported joint angles (K, 3) deg; zero for the mounting and the
+    tilt, which move no link."""
+    ev = evaluate(model, as_built.vector_rad(), _theta(theta_meas_deg), jacobian=False)
+    J = np.zeros((len(ev.theta), 3, 14))
+    om = _omega(ev.built, ev.theta, ev.R)
+    J[:, :, 0:3] = om[:, :, :3]
+    J[:, :, 8:14] = om[:, :, 3:]
+    return J

@@ -22,8 +22,8 @@ class JointMap:
     id: int
     """Servo id."""
     tick_offset: float
-    """Ticks at θ = 0: a whole tick from a profile; the emulator's truth of a wrist as built
-    has a fractional one (a horn's offset is continuous)."""
+    """Ticks at θ = 0: a profile's ``tick_offset`` plus its ``tick_trim`` (a horn's offset is
+    continuous; so is the emulator's truth of a wrist as built)."""
     direction: int
     min_deg: float
     max_deg: float
@@ -60,6 +60,6 @@ def joint_maps(profile: Profile) -> list[JointMap]:
     """The three joints' mappings, in joint order."""
     tpt = profile.bus.ticks_per_turn
     return [
-        JointMap(i + 1, j.id, j.tick_offset, j.direction, j.min_deg, j.max_deg, tpt)
+        JointMap(i + 1, j.id, j.tick_offset + j.tick_trim, j.direction, j.min_deg, j.max_deg, tpt)
         for i, j in enumerate(profile.bus.joints)
     ]

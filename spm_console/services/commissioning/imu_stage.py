@@ -1,5 +1,5 @@
 """Commissioning's IMU stage: once the map and the jig's zero are known, the wrist visits a set
-of verified poses near home, the IMU measuring gravity at each; the fit of
+of verified poses across the region P, the IMU measuring gravity at each; the fit of
 :mod:`spm_console.core.commissioning` then refines each horn offset (the jig's common offset
 held: gravity near home hardly sees it), the IMU's mounting and the base's tilt (and each leg's
 arcs where the data determine them); held-out poses verify the result.
@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -22,9 +22,11 @@ from numpy.typing import NDArray
 
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
-from spm_console.core.commissioning.design import design_poses
+from spm_console.core.commissioning.design import PoseDesign, design_for_orientation, tour
 from spm_console.core.commissioning.fit import CommissioningFit, FittedParameter, fit_as_built
+from spm_console.core.commissioning.observability import DEFAULT_NOISE_DEG
 from spm_console.core.commissioning.verify import Verification, verify_as_built
+from spm_console.core.kinematics.model import SpmModel
 from spm_console.errors import BusError, SolverError
 from spm_console.services.client import EstopRelay
 from spm_console.services.commissioning.payload_stage import PayloadReport, payload_from_holding
@@ -32,13 +34,17 @@ from spm_console.services.session import PoseSpec, Session
 
 F = NDArray[np.float64]
 
-#: Poses the fit uses, and the held-out poses that verify it (every fourth visited).
+#: Poses the fit uses (home and the I-optimal design's), and held-out poses that verify it
+#: (drawn at random among the candidates).
 FIT_POSES = 24
 HELD_OUT = 8
-#: Distances of the candidate poses from home, deg. On the physical twin (payload, gear play)
-#: 16 poses within 10° left every parameter undetermined; 32 within 30° determine the mounting,
-#: the tilt and the arcs to 0.1–0.3° (the horns to 0.2°, less well than the jig's tick).
-RADII_DEG = (10.0, 20.0, 30.0)
+#: Candidate poses drawn inside P (with :data:`POSE_MARGIN_DEG`), and reference poses of P whose
+#: platform orientation the design predicts best. 24 poses within 30° of home (E-optimal)
+#: predicted the orientation over P to 0.34° (1σ, worst pose); drawn across P, to 0.05°.
+CANDIDATES = 400
+REFERENCE = 150
+#: The draw's seed: the same profile and workspace give the same poses.
+DESIGN_SEED = 38
 #: Speed bound of the moves between poses, deg/s.
 POSE_SPEED_DEGPS = 25.0
 #: Wait at each pose before measuring, s (the platform still).
@@ -47,7 +53,8 @@ SETTLE_S = 0.4
 THETA_READS = 10
 IMU_SAMPLES = 40
 #: How well a home jig zeroes a servo, deg (one encoder tick; the twin's jig reads within
-#: 0.04°): a horn offset the IMU determines to better than this replaces the jig's.
+#: 0.04°): a horn offset the IMU determines to better than this moves the jig's zero
+#: (:func:`_horn`), by a fraction of a tick where it must (the profile's ``tick_trim``).
 JIG_ACCURACY_DEG = 360.0 / 4096
 #: Largest standard error of a link arc the profile takes from the fit, deg (the arcs are
 #: nominal otherwise: 0.5° off moves the platform up to 2° near the boundary).
@@ -102,11 +109,10 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
             stop.attach(session.require_bus())
         on_stage("imu: loading the workspace the poses are verified against")
         session.load_workspace()
-        design = design_poses(model, FIT_POSES + HELD_OUT, RADII_DEG,
-                              is_allowed=lambda th: _inside(session, th),
-                              fixed={"horn_common": 0.0})
-        on_stage(f"imu: homing, then {len(design.theta_deg)} poses within "
-                 f"{max(RADII_DEG):g}° of home")
+        design, held_flags = _design(model, profile, session)
+        on_stage(f"imu: homing, then {len(design.theta_deg)} poses across the region P "
+                 f"(orientation predicted to {design.orientation_std_deg or math.inf:.3f}° "
+                 f"at {DEFAULT_NOISE_DEG:g}° of noise)")
         t0 = time.monotonic()
         _ok(session.home(), "homing")
         moving += time.monotonic() - t0
@@ -132,8 +138,7 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
         if stop is not None:
             stop.detach()
         session.close()
-    held = np.zeros(len(poses), bool)
-    held[3::4] = True  # every fourth pose verifies, the others fit
+    held = np.asarray(held_flags[:len(poses)], bool)
     th, g = np.asarray(thetas), np.asarray(gravity)
     try:
         fit = fit_as_built(model, th[~held], g[~held], fixed={"horn_common": 0.0})
@@ -149,8 +154,7 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
                        f"{check.gravity_max_deg:.3f}° from the fitted wrist's (bound "
                        f"{VERIFY_BOUND_DEG:g}°); redo the jig stage (is the wrist on its jig, "
                        "the IMU fixed to the platform?). Nothing was written")
-    # a horn the data determine to better than the jig replaces the jig's zero
-    horn = tuple(p.value_deg if _known(p, JIG_ACCURACY_DEG) else 0.0 for p in fit.parameters[:3])
+    horn = tuple(_horn(p) for p in fit.parameters[:3])
     arcs = fit.parameters[8:14]
     fitted = None
     if all(_known(p, ARC_STD_DEG) for p in arcs):
@@ -170,6 +174,47 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
                       payload)
 
 
+def _design(model: SpmModel, profile: Profile, session: Session) -> tuple[PoseDesign, list[bool]]:
+    """The poses to visit in the order of a short tour from home, and which ones are held out.
+
+    Candidates and reference poses are drawn uniformly (seeded) in the servos' range and kept
+    inside the workspace's region P (the candidates with every corner of the box
+    ±:data:`POSE_MARGIN_DEG` around them): P is convex, so every move between two of them
+    stays in it."""
+    region = session.ensure_workspace().region
+    rng = np.random.default_rng(DESIGN_SEED)
+    lo = np.array([j.min_deg for j in profile.bus.joints], float)
+    hi = np.array([j.max_deg for j in profile.bus.joints], float)
+    draw = rng.uniform(lo, hi, (40 * (CANDIDATES + REFERENCE), 3))
+    slack = region.b[None] - draw @ region.A.T
+    margin = POSE_MARGIN_DEG * np.abs(region.A).sum(axis=1)[None]
+    cand = draw[(slack >= margin).all(axis=1)][:CANDIDATES + HELD_OUT]
+    ref = draw[(slack >= 0.0).all(axis=1)][-REFERENCE:]
+    if len(cand) < FIT_POSES + HELD_OUT or len(ref) < REFERENCE // 2:
+        raise BusError("commission: the workspace's region P is too small for the IMU stage's "
+                       f"poses ({len(cand)} drawn inside it {POSE_MARGIN_DEG:g}° from its faces)")
+    home = np.degrees(model.theta_home)
+    spare, held_out = cand[HELD_OUT:], cand[:HELD_OUT]
+    design = design_for_orientation(model, FIT_POSES, np.vstack([home, spare]), ref,
+                                    fixed={"horn_common": 0.0})
+    poses = np.vstack([np.asarray(design.theta_deg), held_out])
+    order = tour(poses, home)
+    fit_n = len(design.theta_deg)
+    visited = tuple((float(poses[k][0]), float(poses[k][1]), float(poses[k][2])) for k in order)
+    return replace(design, theta_deg=visited), [k >= fit_n for k in order]
+
+
+def _horn(p: FittedParameter) -> float:
+    """A horn offset beyond the jig's zero, deg: the fit's where it knows it to better than the
+    jig (:data:`JIG_ACCURACY_DEG`), weighed against the jig's own zero (the nearest tick: an
+    error uniform over one tick, variance tick²/12) by inverse variances; else 0."""
+    if not _known(p, JIG_ACCURACY_DEG):
+        return 0.0
+    assert p.std_expected_deg is not None
+    jig_var = JIG_ACCURACY_DEG**2 / 12.0
+    return p.value_deg * jig_var / (jig_var + p.std_expected_deg**2)
+
+
 def _known(p: FittedParameter, std_deg: float) -> bool:
     """Whether the data determine ``p`` to better than ``std_deg``."""
     return (p.status in ("determined", "imprecise") and p.std_expected_deg is not None
@@ -179,13 +224,6 @@ def _known(p: FittedParameter, std_deg: float) -> bool:
 #: How far inside the certified region a pose must lie in every joint, deg: the measured
 #: position at rest (tracking, the gear's play, the load) stays certified around it.
 POSE_MARGIN_DEG = 2.0
-
-
-def _inside(session: Session, theta_deg: F) -> bool:
-    """θ and every corner of the box ±:data:`POSE_MARGIN_DEG` around it in the region P."""
-    corners = np.array(np.meshgrid(*[[-1.0, 1.0]] * 3)).reshape(3, -1).T * POSE_MARGIN_DEG
-    return all(bool(session.check_theta(theta_deg + c).in_region)
-               for c in np.vstack([np.zeros(3), corners]))
 
 
 def _ok(result: object, what: str) -> None:

@@ -26,6 +26,8 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
         values: dict[str, object] = {"id": m.id, "direction": m.direction}
         if result.tick_offsets is not None:
             values["tick_offset"] = result.tick_offsets[k]
+            if result.tick_trims[k] != 0.0 or "tick_trim" in base_text:  # none left stale
+                values["tick_trim"] = result.tick_trims[k]
         joints.append(values)
     mapped = "IMU" if result.legs[0].source == "imu" else "operator"
     how = f"map: {mapped}" + (", zero: jig" if result.tick_offsets is not None else "") + (
@@ -37,7 +39,8 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
         g = result.profile.geometry
         text, prof = with_values(text, {
             ("geometry", "alpha1_leg_offset_deg"): list(g.alpha1_leg_offset_deg),
-            ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg)},
+            ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg),
+            ("home", "sign_seed"): list(result.profile.home.sign_seed)},
             f"commissioned {stamp} (IMU fit{where})", source)
     return text, prof
 
@@ -81,7 +84,8 @@ def commissioned_lines(result: Commissioned) -> list[str]:
         lines.append("not zeroed: give --jig (the wrist on its home jig, torque off)")
     r = result.refinement
     if r is not None:
-        lines.append(f"IMU stage: horn offsets beyond the jig {[round(h, 3) for h in r.horn_deg]}°, "
+        lines.append(f"IMU stage: horn offsets beyond the jig {[round(h, 3) for h in r.horn_deg]}°"
+                     f" (tick trims {list(result.tick_trims)}), "
                      f"held-out gravity residual {r.verification.gravity_max_deg:.3f}° at most, "
                      f"{r.motion_s:.1f} s of motion")
         lines += [f"  {p.name}: {p.value_deg:+.3f}°"

@@ -30,11 +30,13 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.config.load import home_signs
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
+from spm_console.core.commissioning.gravity import built_model
 from spm_console.devices.imu.bno055 import Bno055, ImuSample
 from spm_console.devices.imu.bno055_registers import OprMode
-from spm_console.errors import BadInputError, BusError, ImuError, SpmError
+from spm_console.errors import BadInputError, BusError, ImuError, SolverError, SpmError
 from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
 from spm_console.services.client import EstopRelay, MotionClient
@@ -139,6 +141,8 @@ class Commissioned:
     """Time the map stage's nudges took, s."""
     max_nudge_deg: float = 0.0
     """The farthest any servo was from its rest during the map stage, deg (at most 2°)."""
+    tick_trims: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Each leg's fraction of a tick beyond its offset, from the IMU stage (−0.5..0.5)."""
 
 
 def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
@@ -273,21 +277,44 @@ def _asked(ident: int, nudge: Callable[[int, float], None], ask: Ask,
 
 def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
     """``result`` with each tick offset moved by the horn offset the IMU stage found beyond
-    the jig's zero (true θ = θ read + δ, so tick_offset − d·δ in ticks)."""
+    the jig's zero (true θ = θ read + δ, so the zero moves by −d·δ ticks): the nearest whole
+    tick, and the rest as the joint's ``tick_trim``."""
     if result.tick_offsets is None:
         raise BadInputError("commission: the IMU stage refines the jig's zero; there is none")
     tpt = result.profile.bus.ticks_per_turn
-    offsets = tuple(round(off - m.direction * d * tpt / 360.0) % tpt for off, m, d in
-                    zip(result.tick_offsets, result.legs, refinement.horn_deg, strict=True))
-    new = (offsets[0], offsets[1], offsets[2])
-    profile = _with_wiring(result.profile, result.legs, new)
+    zeros = [off - m.direction * d * tpt / 360.0 for off, m, d in
+             zip(result.tick_offsets, result.legs, refinement.horn_deg, strict=True)]
+    whole = [round(z) for z in zeros]
+    new = (whole[0] % tpt, whole[1] % tpt, whole[2] % tpt)
+    trims = (round(zeros[0] - whole[0], 3), round(zeros[1] - whole[1], 3),
+             round(zeros[2] - whole[2], 3))
+    profile = _with_wiring(result.profile, result.legs, new, trims)
     if refinement.arcs_deg is not None:
-        a1, a2 = refinement.arcs_deg
-        geometry = profile.geometry.model_copy(update={
-            "alpha1_leg_offset_deg": tuple(round(x, 3) for x in a1),
-            "alpha2_leg_offset_deg": tuple(round(x, 3) for x in a2)})
-        profile = _validated(profile.model_copy(update={"geometry": geometry}))
-    return replace(result, tick_offsets=new, refinement=refinement, profile=profile)
+        profile = with_arcs(profile, *refinement.arcs_deg)
+    return replace(result, tick_offsets=new, tick_trims=trims, refinement=refinement,
+                   profile=profile)
+
+
+def with_arcs(profile: Profile, a1: Sequence[float], a2: Sequence[float]) -> Profile:
+    """``profile`` with each leg's arcs as fitted (deg from its nominal), its home sign seed
+    that of the home pose continued from the profile's own onto those arcs (same assembly and
+    working modes, :func:`~spm_console.core.commissioning.gravity.built_model`)."""
+    geometry = profile.geometry.model_copy(update={
+        "alpha1_leg_offset_deg": tuple(round(float(x), 3) for x in a1),
+        "alpha2_leg_offset_deg": tuple(round(float(x), 3) for x in a2)})
+    arcs = np.radians([geometry.alpha1_leg_offset_deg, geometry.alpha2_leg_offset_deg])
+    try:
+        v = built_model(model_of(profile), arcs[0], arcs[1]).v_home
+    except SolverError as exc:
+        raise BadInputError(f"commission: the arcs as fitted leave no home pose in the profile's "
+                            f"modes ({exc.message}); redo the IMU stage") from None
+    seed = tuple(home_signs(v.tolist()))  # a component near 0 may cross it with the arcs
+    home = profile.home.model_copy(update={"sign_seed": seed})
+    out = _validated(profile.model_copy(update={"geometry": geometry, "home": home}))
+    if not np.allclose(model_of(out).v_home, v, atol=1e-9):
+        raise BadInputError("commission: the arcs as fitted make the profile's home another "
+                            "assembly mode; redo the IMU stage")
+    return out
 
 
 def _jig_ticks(client: MotionClient, ids: Sequence[int]) -> dict[int, float]:
@@ -359,13 +386,14 @@ def _with_bus(profile: Profile, protocol: str | None = None, model_number: int |
     return _validated(profile.model_copy(update={"bus": bus}))
 
 
-def _with_wiring(profile: Profile, legs: Sequence[LegMatch],
-                 offsets: Sequence[int] | None) -> Profile:
+def _with_wiring(profile: Profile, legs: Sequence[LegMatch], offsets: Sequence[int] | None,
+                 trims: Sequence[float] = (0.0, 0.0, 0.0)) -> Profile:
     joints = []
     for k, (j, m) in enumerate(zip(profile.bus.joints, legs, strict=True)):
         update: dict[str, object] = {"id": m.id, "direction": m.direction}
         if offsets is not None:
             update["tick_offset"] = offsets[k]
+            update["tick_trim"] = float(trims[k])
         joints.append(j.model_copy(update=update))
     bus = profile.bus.model_copy(update={"joints": tuple(joints)})
     return _validated(profile.model_copy(update={"bus": bus}))

@@ -163,7 +163,6 @@ class CommissionScreen(StepScreen):
             FIT_POSES,
             HELD_OUT,
             POSE_SPEED_DEGPS,
-            RADII_DEG,
         )
         from spm_console.services.commissioning.stages import MAP_NUDGE_DEG, MAP_SPEED_DEGPS
 
@@ -175,7 +174,7 @@ class CommissionScreen(StepScreen):
                      f"{MAP_SPEED_DEGPS:g}°/s and back, the others holding.")
         if f.imu_stage:
             lines.append(f"4. IMU stage: homing, then {FIT_POSES + HELD_OUT} verified poses "
-                         f"within {max(RADII_DEG):g}° of home at up to {POSE_SPEED_DEGPS:g}°/s; "
+                         f"across the workspace's region P at up to {POSE_SPEED_DEGPS:g}°/s; "
                          "fit and held-out verification.")
         if self._release_needed(f.bus):
             lines.append(f"The console's own connection to {f.bus} is closed first and opened "
