@@ -21,6 +21,7 @@ import pytest
 from spm_console.motion.logs.runlog import list_runs
 from tests.support.net_helpers import listening
 from tests.support.paths import ROOT as PROJECT_ROOT
+from tests.support.procfs import alive
 from tests.support.terminal_helpers import assert_estopped
 
 ROOT = PROJECT_ROOT
@@ -211,9 +212,9 @@ def test_a_signal_to_its_group_mid_motion_stops_the_wrist_the_console_and_its_vi
     os.killpg(pid, sig)
     _wait_gone(port)
     t0 = time.monotonic()
-    while _alive(pid) and time.monotonic() - t0 < 10:
+    while alive(pid) and time.monotonic() - t0 < 10:
         time.sleep(0.1)
-    assert not _alive(pid)
+    assert not alive(pid)
     runs = list_runs(tmp_path / "logs")
     assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
     assert_estopped(tmp_path / "logs", runs[-1].path, sig, agile.servo.ts_s, loop_pid)
@@ -230,22 +231,15 @@ def test_closing_the_terminal_mid_motion_stops_the_wrist_and_closes_the_log(  # 
     pid = t.pane_pid()
     t.kill()  # the terminal closes under the console
     t0 = time.monotonic()
-    while _alive(pid) and time.monotonic() - t0 < 10:
+    while alive(pid) and time.monotonic() - t0 < 10:
         time.sleep(0.1)
-    assert not _alive(pid), "the console outlived its terminal"
+    assert not alive(pid), "the console outlived its terminal"
     runs = list_runs(tmp_path / "logs")
     assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
     assert runs[-1].meta["exit_code"] == 20 and runs[-1].meta["message"] == "E-stop: signal SIGHUP"
     assert_estopped(tmp_path / "logs", runs[-1].path, signal.SIGHUP, agile.servo.ts_s,
                     int(runs[-1].meta["process"]["pid"]))
 
-
-def _alive(pid: int) -> bool:
-    """The process exists and is not a zombie."""
-    try:
-        return not Path(f"/proc/{pid}/stat").read_text().rsplit(") ", 1)[1].startswith("Z")
-    except OSError:
-        return False
 
 
 def test_walk_the_new_tools_in_a_real_terminal(tmux_console) -> None:  # type: ignore[no-untyped-def]

@@ -24,37 +24,18 @@ from spm_console.errors import SpmError
 from spm_console.services import warm_start
 from spm_console.services.client import MotionClient
 from spm_console.system import resident
+from tests.support.procfs import alive, parent_pid
 from tests.support.terminal_helpers import wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
 PROFILE = str(ROOT / "profiles" / "agile_wrist.toml")
 
 
-def _ppid(pid: int) -> int:
-    with open(f"/proc/{pid}/stat") as f:
-        return int(f.read().rsplit(")", 1)[1].split()[1])
-
-
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False
 
 
 def _umask_of(pid: int) -> int:
     with open(f"/proc/{pid}/status") as f:
         return next(int(line.split()[1], 8) for line in f if line.startswith("Umask:"))
-
-
-@pytest.fixture
-def bus(agile: Profile) -> Iterator[EmulatorHandle]:
-    em = start_emulator(agile, record=False)
-    try:
-        yield em
-    finally:
-        em.stop()
 
 
 @pytest.fixture
@@ -76,7 +57,7 @@ def run_dir(monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
         assert path is not None
         pid = resident.stop(path)
         if pid is not None:
-            wait_until(lambda: not _alive(pid), "the resident ends on SIGTERM", 10.0)
+            wait_until(lambda: not alive(pid), "the resident ends on SIGTERM", 10.0)
         shutil.rmtree(folder, ignore_errors=True)
 
 
@@ -95,7 +76,7 @@ def test_motion_processes_fork_from_one_resident_that_outlives_its_front_end(
     assert starter is not None and starter.process is None  # not this front end's own
     first = starter.pid
     try:
-        assert _ppid(client.process.pid) == first
+        assert parent_pid(client.process.pid) == first
         assert os.getsid(client.process.pid) == client.process.pid
         assert len(client.ping_all()) == 3
     finally:
@@ -103,11 +84,11 @@ def test_motion_processes_fork_from_one_resident_that_outlives_its_front_end(
     assert client.process.poll() == 0  # the resident reports its fork's exit to its asker
     _forget_front_end()
     time.sleep(0.3)
-    assert _alive(first)  # it outlives the front end that started it
+    assert alive(first)  # it outlives the front end that started it
     client = MotionClient(agile, bus.port)  # "the next command"
     try:
         assert warm_start._starter is not None and warm_start._starter.pid == first
-        assert _ppid(client.process.pid) == first
+        assert parent_pid(client.process.pid) == first
         assert len(client.ping_all()) == 3
     finally:
         client.close()
@@ -141,9 +122,9 @@ def test_the_resident_ends_when_idle(agile: Profile, bus: EmulatorHandle, run_di
     path = resident.socket_path()
     assert path is not None and os.path.exists(path)
     time.sleep(1.5)
-    assert _alive(pid)  # a connected front end keeps it
+    assert alive(pid)  # a connected front end keeps it
     _forget_front_end()
-    wait_until(lambda: not _alive(pid), "the idle resident ends", 10.0)
+    wait_until(lambda: not alive(pid), "the idle resident ends", 10.0)
     assert not os.path.exists(path)
 
 
@@ -156,16 +137,16 @@ def test_sigterm_retires_it_but_its_running_motion_process_finishes(
         for sig in (signal.SIGINT, signal.SIGHUP, signal.SIGQUIT):
             os.kill(pid, sig)
         time.sleep(0.3)
-        assert _alive(pid)
+        assert alive(pid)
         path = resident.socket_path()
         assert path is not None
         os.kill(pid, signal.SIGTERM)
         wait_until(lambda: not os.path.exists(path), "the retired resident frees its path", 5.0)
-        assert _alive(pid) and len(client.ping_all()) == 3  # its motion process still serves
+        assert alive(pid) and len(client.ping_all()) == 3  # its motion process still serves
     finally:
         client.close()
     assert client.process.poll() == 0
-    wait_until(lambda: not _alive(pid), "the retired resident ends after its last fork", 10.0)
+    wait_until(lambda: not alive(pid), "the retired resident ends after its last fork", 10.0)
 
 
 def _cli(cwd: Path, env: dict[str, str], *argv: str) -> dict[str, object]:
@@ -195,12 +176,12 @@ def test_commands_share_it_until_its_code_changes_on_disk(tmp_path: Path, run_di
     edited = copy / "spm_console" / "motion" / "executor.py"
     edited.write_text(edited.read_text() + "\n# edited after the resident started\n")
     _cli(copy, env, *home)
-    wait_until(lambda: not _alive(int(first["pid"])), "the stale resident ends", 10.0)  # type: ignore[call-overload]
+    wait_until(lambda: not alive(int(first["pid"])), "the stale resident ends", 10.0)  # type: ignore[call-overload]
     second = _cli(copy, env, "warm-start")
     assert isinstance(second["pid"], int) and second["pid"] != first["pid"]
     stopped = _cli(copy, env, "warm-start", "--stop")
     assert stopped["stopped"] is True
-    wait_until(lambda: not _alive(int(second["pid"])), "the stopped resident ends", 10.0)  # type: ignore[call-overload]
+    wait_until(lambda: not alive(int(second["pid"])), "the stopped resident ends", 10.0)  # type: ignore[call-overload]
     assert _cli(copy, env, "warm-start")["pid"] is None
 
 
@@ -218,7 +199,7 @@ def test_a_second_front_end_is_told_which_front_end_holds_the_bus(
     wait_until(lambda: resident.running(path) is not None, "the resident listens", 10.0)
     first = MotionClient(agile, bus.port)
     assert warm_start._starter is not None
-    assert _ppid(warm_start._starter.pid) != os.getpid()
+    assert parent_pid(warm_start._starter.pid) != os.getpid()
     try:
         assert len(first.ping_all()) == 3
         with pytest.raises(SpmError, match=f"in use by process {os.getpid()} "):
@@ -242,7 +223,7 @@ def test_a_refused_request_starts_the_motion_process_directly(
         second = MotionClient(agile, other.port)
         try:
             assert isinstance(second.process, subprocess.Popen)  # started directly
-            assert _ppid(second.process.pid) == os.getpid()
+            assert parent_pid(second.process.pid) == os.getpid()
             assert len(second.ping_all()) == 3
         finally:
             second.close()

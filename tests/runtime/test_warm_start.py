@@ -9,29 +9,15 @@ import os
 import signal
 import subprocess
 import time
-from collections.abc import Iterator
 
 import pytest
 
 from spm_console.config.schema import Profile
-from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.devices.emulator.bus import EmulatorHandle
 from spm_console.services import warm_start
 from spm_console.services.client import MotionClient
+from tests.support.procfs import parent_pid
 from tests.support.terminal_helpers import wait_until
-
-
-def _ppid(pid: int) -> int:
-    with open(f"/proc/{pid}/stat") as f:
-        return int(f.read().rsplit(")", 1)[1].split()[1])
-
-
-@pytest.fixture
-def bus(agile: Profile) -> Iterator[EmulatorHandle]:
-    em = start_emulator(agile, record=False)
-    try:
-        yield em
-    finally:
-        em.stop()
 
 
 def test_motion_processes_are_forks_of_one_warm_start_each_in_a_session_of_its_own(
@@ -42,7 +28,7 @@ def test_motion_processes_are_forks_of_one_warm_start_each_in_a_session_of_its_o
         try:
             pid = client.process.pid
             pids.append(pid)
-            parents.add(_ppid(pid))
+            parents.add(parent_pid(pid))
             assert os.getsid(pid) == pid  # signals to our group or terminal never reach it
             assert len(client.ping_all()) == 3
         finally:
@@ -75,7 +61,7 @@ def test_the_direct_start_stays_available(agile: Profile, bus: EmulatorHandle,
     client = MotionClient(agile, bus.port)
     try:
         assert isinstance(client.process, subprocess.Popen)
-        assert _ppid(client.process.pid) == os.getpid()
+        assert parent_pid(client.process.pid) == os.getpid()
         assert os.getsid(client.process.pid) == client.process.pid
         assert len(client.ping_all()) == 3
     finally:
@@ -105,6 +91,6 @@ def test_a_dead_warm_start_is_replaced(agile: Profile, bus: EmulatorHandle) -> N
     try:
         assert len(client.ping_all()) == 3
         new = warm_start._starter
-        assert new is not None and new is not old and _ppid(client.process.pid) == new.process.pid
+        assert new is not None and new is not old and parent_pid(client.process.pid) == new.process.pid
     finally:
         client.close()
