@@ -20,12 +20,13 @@ from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoBus
-from spm_console.errors import InterruptedBySignalError, PlanRefusedError, RefusedError, SpmError
+from spm_console.errors import PlanRefusedError, RefusedError, SpmError
 from spm_console.motion.executor import Executor
 from spm_console.motion.goals.load_offsets import load_offsets, sent_references
 from spm_console.motion.homing import HomingResult, home, plan_segments
 from spm_console.motion.logs.mcap_log import mcap_beside
 from spm_console.motion.logs.profile_record import wrist_digests
+from spm_console.motion.logs.run_end import run_end
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.plan_check import PlanCheck, PlanVerifier
 from spm_console.motion.plans import plan_summary
@@ -73,15 +74,13 @@ def refusals_logged(log: RunLog | None) -> Iterator[None]:
     reason and exit code: outcome ``interrupted`` for a signal, ``refused`` otherwise."""
     try:
         yield
-    except SpmError as exc:
-        if log is not None and not log.finished:
-            outcome = "interrupted" if isinstance(exc, InterruptedBySignalError) else "refused"
-            log.event(outcome, 0.0, message=exc.message, exit_code=int(exc.exit_code))
-            log.finish(outcome, int(exc.exit_code), exc.message, {})
+    except BaseException as exc:
+        if log is not None and not log.finished:  # an internal error too: keep what we have
+            end = run_end(exc)
+            if isinstance(exc, SpmError):
+                log.event(end.outcome, 0.0, message=end.message, exit_code=end.exit_code)
+            log.finish(end.outcome, end.exit_code, end.message, {})
         raise
-    finally:
-        if log is not None and not log.finished:  # an internal error escaped: keep what we have
-            log.finish("error", 1, "internal error (see the motion process's stderr)", {})
 
 
 def refused_run(profile: Profile, kind: str, ctx: RunContext, exc: SpmError) -> None:

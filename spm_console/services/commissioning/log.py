@@ -18,10 +18,10 @@ from typing import Any
 
 from spm_console.config.schema import Profile
 from spm_console.devices.imu.bno055 import ImuSample
-from spm_console.errors import SpmError
 from spm_console.motion.logs.imu_log import ImuCsv
 from spm_console.motion.logs.mcap_log import mcap_beside
 from spm_console.motion.logs.profile_record import wrist_digests
+from spm_console.motion.logs.run_end import run_end
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.nudge import NudgeResult
 
@@ -91,10 +91,7 @@ class CommissionLog:
         self.run.finish(outcome, exit_code, message, {"imu_rows": self.imu_rows.rows,
                                                       **(stats or {})})
 
-    def failed(self, exc: BaseException, stopped: str) -> None:
-        """Close the log for ``exc`` (``stopped``: the E-stop's reason, if one was pressed)."""
-        if isinstance(exc, SpmError):
-            outcome = "stopped" if stopped else "refused"
-            self.finish(outcome, int(exc.exit_code), exc.message)
-        else:
-            self.finish("error", 1, f"internal error: {type(exc).__name__}")
+    def failed(self, exc: BaseException) -> None:
+        """Close the log for ``exc`` (:func:`~spm_console.motion.logs.run_end.run_end`)."""
+        end = run_end(exc)
+        self.finish(end.outcome, end.exit_code, end.message)

@@ -87,7 +87,7 @@ def run_commissioning(profile: Profile, profile_path: Path, req: CommissionReque
         written = write_commissioned(profile_path, result, req.out, run=log.path.name)
     except BaseException as exc:
         raised = _stopped(exc, stop, moved[0])
-        log.failed(raised, stop.reason)
+        log.failed(raised)
         if raised is not exc:
             raise raised from None
         raise
