@@ -105,7 +105,8 @@ def true_wrist(profile: Profile, as_built: AsBuilt, source: str = "as-built") ->
         reverse = as_built.direction[i] < 0
         horn = float(as_built.horn_offset_deg[i])
         per_deg = tpt / 360.0
-        count0 = wiring.tick_offset - wiring.direction * horn * per_deg  # at true θ = 0
+        # at true θ = 0 (the profile's zero, its trim included, moved by the horn)
+        count0 = wiring.tick_offset + wiring.tick_trim - wiring.direction * horn * per_deg
         register0 = reversed_zero(tpt) - count0 if reverse else count0
         encoder = JointMap(i + 1, ids[i], count0, wiring.direction, wiring.min_deg,
                            wiring.max_deg, tpt)
