@@ -38,7 +38,7 @@ def register(sub: Any) -> None:
     c.add_argument("--jig", action="store_true",
                    help="the wrist rests on its home jig, torque off: zero the servos there")
     c.add_argument("--no-imu-fit", action="store_true",
-                   help="after the jig's zero, skip the IMU stage (poses within 30° of home, "
+                   help="after the jig's zero, skip the IMU stage (poses across the region P, "
                         "the fit of horn offsets, IMU mounting and base tilt, its verification)")
     c.add_argument("--out", type=Path, metavar="FILE.toml",
                    help="where to write the commissioned profile (default: beside the "

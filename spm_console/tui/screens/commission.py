@@ -114,7 +114,7 @@ class CommissionScreen(StepScreen):
                 yield TextField("", placeholder="/dev/ttyUSB1", id="imu-port")
             yield TickBox("the wrist rests on its home jig, torque off (zero the servos there)",
                           False, id="jig")
-            yield TickBox("IMU stage: verified poses within 30° of home, fit and verify",
+            yield TickBox("IMU stage: verified poses across the region P, fit and verify",
                           True, id="imu-stage")
             yield Static(id="commission-reason", markup=False)
             yield Static(HELP_LINE, id="commission-help", markup=False)
