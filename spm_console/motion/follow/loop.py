@@ -40,13 +40,13 @@ from spm_console.config.models import servo_tick_deg
 from spm_console.core.plan_rules import FOLLOW_RULES, MotionCheck, check_motion
 from spm_console.core.planning.follow.solver import TARGET_REFUSED, FollowResult, FollowSettings, FollowSolver
 from spm_console.core.planning.follow.target import TargetProjector
+from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import exact_step
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.executor import Executor, _LoopState
 from spm_console.motion.follow.regions import (
-    FOLLOW_TOL_DEG,
     MOVE_IN,
     RegionHopper,
     follow_regions,

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
 from spm_console.core.polytope.graph import RegionGraph
 from spm_console.core.regions.cover import connected_graph
 from spm_console.errors import BadInputError, InfeasibleError
@@ -35,13 +36,6 @@ if TYPE_CHECKING:
 
 F = NDArray[np.float64]
 
-#: A state or target lies in a region when it violates no half-space by more than this, deg:
-#: not the membership tolerance (:data:`~spm_console.core.polytope.region.INSIDE_TOL_DEG`) but
-#: the follow solver's final check (``CHECK_TOL`` of :mod:`spm_console.core.planning.follow.solver`,
-#: not imported here: it loads osqp). The solver keeps plans whose samples lie up to that far
-#: outside the region (OSQP meets its rows only to its tolerance), so the state a plan leads to
-#: counts as inside, and the follower plans from, and heads for, exactly what the solver accepts.
-FOLLOW_TOL_DEG = 1e-6
 #: Weight of one region change against the way between overlap centres (deg) in the path.
 HOP_COST_DEG = 1000.0
 

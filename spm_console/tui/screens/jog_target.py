@@ -15,6 +15,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
 
@@ -33,8 +34,8 @@ RPY_AXES = (2, 1, 0)
 JOINT_AXES = (0, 1, 2)
 RPY_NAMES = ("roll", "pitch", "yaw")
 #: A target farther than this outside every region or the servo limits is projected by the follower
-#: (reported as clamped), deg (the follow solver's own check tolerance).
-OUTSIDE_TOL_DEG = 1e-6
+#: (reported as clamped), deg: the follower's own tolerance.
+OUTSIDE_TOL_DEG = FOLLOW_TOL_DEG
 
 
 def axis_name(mode: JogMode, slot: int) -> str:

@@ -57,6 +57,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.planning.follow.qp import FollowLayout, build, fill_bounds, linear_cost, predict
 from spm_console.core.planning.follow.target import ProjectionError, TargetProjector
+from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
 from spm_console.core.planning.qp_build import PLAN_STEP_DEG
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import ServoModel
@@ -72,7 +73,7 @@ TARGET_REFUSED = "target refused"
 #: θ(H) within this of the terminal target counts as reached, deg (a tenth of a servo tick).
 REACH_TOL_DEG = 1e-2
 #: Tolerance of the final check against the true region and speed bound (deg, deg/s).
-CHECK_TOL = 1e-6
+CHECK_TOL = FOLLOW_TOL_DEG
 RULE_MARGIN_DEG = 0.01
 """The QP holds the runtime's reference step and lead this far inside their bounds: its
 loosest pass answers to 1e-3, and an answer over a bound by that is one the runtime refuses."""
