@@ -186,7 +186,7 @@ def _design(model: SpmModel, profile: Profile, session: Session) -> tuple[PoseDe
     lo = np.array([j.min_deg for j in profile.bus.joints], float)
     hi = np.array([j.max_deg for j in profile.bus.joints], float)
     draw = rng.uniform(lo, hi, (40 * (CANDIDATES + REFERENCE), 3))
-    slack = region.b[None] - draw @ region.A.T
+    slack = region.slack(draw)
     margin = POSE_MARGIN_DEG * np.abs(region.A).sum(axis=1)[None]
     cand = draw[(slack >= margin).all(axis=1)][:CANDIDATES + HELD_OUT]
     ref = draw[(slack >= 0.0).all(axis=1)][-REFERENCE:]
