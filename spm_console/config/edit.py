@@ -1,7 +1,8 @@
 """Set keys of a profile's TOML text, everything else kept (sections, order, comments).
 
 Each ``key = value`` line named is replaced by the new value with a comment saying where it
-came from (a key missing from its section is added under the section's header). The result
+came from (a key missing from its section is added under the section's header, a section
+missing from the text is added at its end). The result
 is parsed and validated as a profile, and the values it holds are compared with the values
 asked for, before anyone writes it.
 """
@@ -86,6 +87,11 @@ def with_values(text: str, values: dict[tuple[str, str], Value], note: str,
         out.append(line)
         k += 1
     _flush(out, section, todo, note)
+    headers = {re.sub(r"\s+", "", m.group(1)) for ln in lines if (m := HEADER.match(ln))}
+    for sec in dict.fromkeys(s for s, _key in todo):
+        if sec in Profile.model_fields and sec not in headers:  # an optional section, absent
+            out += ["", f"[{sec}]"]
+            _flush(out, sec, todo, note)
     if todo:
         missing = ", ".join(f"[{s}] {key}" for s, key in todo)
         raise ProfileError(f"{source}: the base profile has no section for {missing}")

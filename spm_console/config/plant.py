@@ -5,7 +5,7 @@ figure still means something physical and the emulated wrist stays stable.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
@@ -17,6 +17,10 @@ from spm_console.config.fields import Real, Section
 #: while step × damping / inertia < 2 (the armature's bound keeps half of that).
 PLANT_STEP_S = 0.00025
 STALL_DAMPING_NMS = 20.0
+#: Largest component of a payload's first moment, kg·mm (5 kg a metre from the centre: far
+#: beyond what an MX-106 wrist holds, small enough to stay a load and not another machine).
+MAX_PAYLOAD_MOMENT_KGMM = 5000.0
+Moment = Annotated[Real, Field(ge=-MAX_PAYLOAD_MOMENT_KGMM, le=MAX_PAYLOAD_MOMENT_KGMM)]
 
 
 class Plant(Section):
@@ -58,6 +62,12 @@ class Plant(Section):
     """Mass of the platform with its load, kg, 0.001..50: assumed."""
     link_radius_mm: Real = Field(default=100.0, ge=1.0, le=1000.0)
     """Distance from the centre at which the links' mass is carried, mm, 1..1000: assumed."""
+    payload_moment_kgmm: tuple[Moment, Moment, Moment] | None = None
+    """First moment m·c of what sits on the platform beyond ``platform_mass_kg``, kg·mm, in
+    the platform's frame at home, each component within ±5000 (commissioning fits it from the
+    offsets the servos hold the wrist at; statics see m·c, not the mass). The load model adds
+    it to the platform's weight (the torque that holds the wrist); the emulated wrist and the
+    exported descriptions, which need a mass, do not carry it. None: no payload."""
 
     @model_validator(mode="after")
     def _integrable(self) -> Plant:

@@ -1,7 +1,8 @@
 """The torque the motors give to hold the wrist's weight, from the profile's mass model.
 
 The bodies' first moments of mass come from the same capsules as the MJCF and URDF
-(``[plant]``'s link and platform masses); the regressor from the kinematics
+(``[plant]``'s link and platform masses), the platform's with the payload's first moment
+(``[plant] payload_moment_kgmm``, which commissioning fits) added; the regressor from the kinematics
 (:mod:`spm_console.core.kinematics.loads`). The base's z axis points up, as in the emulated
 wrist and the exported descriptions. Degrees at the interface, N·m.
 """
@@ -25,6 +26,8 @@ F = NDArray[np.float64]
 GRAVITY_MPS2 = 9.81
 UP = np.array([0.0, 0.0, 1.0])
 """Against gravity, in the base frame."""
+#: The platform's three entries among the bodies' first moments (:data:`BODIES` order).
+PLATFORM = slice(3 * BODIES.index("platform"), 3 * BODIES.index("platform") + 3)
 _NAMES = (*(names.proximal_link(i) for i in range(3)), *(names.distal_link(i) for i in range(3)),
           names.PLATFORM)
 """The MJCF's bodies in :data:`BODIES` order."""
@@ -48,9 +51,14 @@ class Weight:
     """(21,) first moments of the bodies at home, kg·m (:func:`first_moments`)."""
 
     @classmethod
-    def of(cls, profile: Profile) -> Weight:
+    def of(cls, profile: Profile, payload: bool = True) -> Weight:
+        """The profile's wrist; with its payload's first moment unless ``payload`` is False
+        (the bodies alone)."""
         model = model_of(profile)
-        return cls(model, first_moments(model, plant_params(profile.plant)))
+        moments = first_moments(model, plant_params(profile.plant))
+        if payload:
+            moments[PLATFORM] += payload_moment_kgm(profile)
+        return cls(model, moments)
 
     def torque_nm(self, theta_rad: F, R: F) -> F:
         """∂U/∂θ (n, 3), N·m, at poses θ (n, 3) rad with platform rotations R (n, 3, 3)."""
@@ -63,6 +71,13 @@ class Weight:
         singularity."""
         th = np.radians(np.asarray(theta_deg, float).reshape(-1, 3))
         return self.torque_nm(th, path_rotations(self.model, th))
+
+
+def payload_moment_kgm(profile: Profile) -> F:
+    """The payload's first moment m·c (3,), kg·m, in the platform's frame at home (zero
+    without one)."""
+    m = profile.plant.payload_moment_kgmm
+    return np.zeros(3) if m is None else np.asarray(m, float) * 1e-3
 
 
 def holding_torque_nm(profile: Profile, theta_deg: F) -> F:

@@ -18,9 +18,12 @@ poses about home.
 
 What statics cannot see: the payload's mass alone. A point mass at the centre of rotation
 loads no joint; only m·c is observable (the mass needs the payload's inertia, from a dynamic
-experiment). The offsets also carry the gear's Coulomb friction (its sign set by the direction
-the joint last moved) and a tick's quantization: the fit's standard errors say how well the
-data determine each component.
+experiment). The offsets also carry the gear's Coulomb friction: a joint that came to rest
+moving up stops short by the friction's offset f, one that came down overshoots by it. Given
+the direction each joint approached its pose from, f is a fifth unknown (its column the
+approach signs, which a tour visiting poses on both sides of each other varies); without,
+it is left in the residual. A tick's quantization remains: the fit's standard errors say how
+well the data determine each component.
 
 Pure: degrees, N·m, kg·m; the regressors come from the caller.
 """
@@ -52,27 +55,38 @@ class HoldingFit:
     residual_rms_deg: float
     """RMS of the offsets the fit leaves unexplained, deg (friction, quantization)."""
     singular_values: F
-    """Of the least-squares matrix with unit-norm columns (wrist, payload x, y, z): how
-    independently the data see each unknown."""
+    """Of the least-squares matrix with unit-norm columns (wrist, payload x, y, z and, with
+    the approach directions, friction): how independently the data see each unknown."""
     poses: int
+    friction_deg: float | None = None
+    """f, deg: the offset the gear's friction leaves against the approach (None: not
+    fitted, no approach directions given)."""
 
 
 def fit_holding(offsets_deg: F, wrist_torque_nm: F, payload_regressor: F,
-                compensated_deg_per_nm: float = 0.0) -> HoldingFit:
+                compensated_deg_per_nm: float = 0.0, approach: F | None = None) -> HoldingFit:
     """Fit a and b (see the module docstring) to the offsets θ* − θ (n, 3) deg held at n
     poses, given there the wrist's holding torque τ_w (n, 3) N·m and the platform's columns
     of the regressor Y_p (n, 3, 3) per kg·m (without g); ``compensated_deg_per_nm``: the
-    runtime's k_c (0 when the profile has no load model). ValueError with fewer than two
-    poses or data that do not determine k."""
+    runtime's k_c (0 when the profile has no load model); ``approach``: the sign (n, 3) of
+    each joint's last motion before it came to rest there (−1, 0, 1), which adds the
+    friction's offset f. ValueError with fewer than two poses (three with friction) or data
+    that do not determine k."""
     r = np.asarray(offsets_deg, float).reshape(-1)
     tw = np.asarray(wrist_torque_nm, float).reshape(-1)
     yp = GRAVITY_MPS2 * np.asarray(payload_regressor, float).reshape(-1, 3)
     n = len(r) // 3
-    if n < 2 or not (len(tw) == len(r) == len(yp)):
+    cols = [tw[:, None], yp]
+    if approach is not None:
+        sg = np.sign(np.asarray(approach, float)).reshape(-1)
+        if len(sg) != len(r):
+            raise ValueError("fit_holding: one approach direction per joint and pose")
+        cols.append(sg[:, None])
+    if n < (3 if approach is not None else 2) or not (len(tw) == len(r) == len(yp)):
         raise ValueError("fit_holding: at least two poses, with a torque and regressor each")
     if not (np.isfinite(r).all() and np.isfinite(tw).all() and np.isfinite(yp).all()):
         raise ValueError("fit_holding: the offsets, torques and regressors must be finite")
-    A = np.column_stack([tw, yp])
+    A = np.column_stack(cols)
     scale = np.linalg.norm(A, axis=0)
     if (scale == 0).any():
         raise ValueError("fit_holding: a column of the fit is zero (no pose loads it)")
@@ -80,10 +94,12 @@ def fit_holding(offsets_deg: F, wrist_torque_nm: F, payload_regressor: F,
     x_n, *_ = np.linalg.lstsq(An, r, rcond=None)
     x = x_n / scale
     resid = r - A @ x
-    dof = max(1, len(r) - 4)
+    dof = max(1, len(r) - A.shape[1])
     sigma2 = float(resid @ resid) / dof
-    cov = sigma2 * np.linalg.inv(An.T @ An) / np.outer(scale, scale)
-    a, b = float(x[0]), x[1:]
+    cov_all = sigma2 * np.linalg.inv(An.T @ An) / np.outer(scale, scale)
+    cov = cov_all[:4, :4]
+    a, b = float(x[0]), x[1:4]
+    friction = float(x[4]) if approach is not None else None
     k = a + compensated_deg_per_nm
     if not (math.isfinite(k) and k > 0.0):
         raise ValueError(f"fit_holding: the data give no positive compliance (k = {k:.4g} "
@@ -95,14 +111,18 @@ def fit_holding(offsets_deg: F, wrist_torque_nm: F, payload_regressor: F,
     sv = np.linalg.svd(An, compute_uv=False)
     return HoldingFit(np.asarray(s, float), np.sqrt(np.clip(np.diag(cov_s), 0.0, None)), k,
                       math.sqrt(max(float(cov[0, 0]), 0.0)),
-                      math.sqrt(float(resid @ resid) / len(r)), np.asarray(sv, float), n)
+                      math.sqrt(float(resid @ resid) / len(r)), np.asarray(sv, float), n,
+                      friction)
 
 
 def predicted_offsets_deg(fit: HoldingFit, wrist_torque_nm: F, payload_regressor: F,
-                          compensated_deg_per_nm: float = 0.0) -> F:
-    """The offsets (n, 3) deg ``fit`` predicts at poses with these τ_w and Y_p."""
+                          compensated_deg_per_nm: float = 0.0, approach: F | None = None) -> F:
+    """The offsets (n, 3) deg ``fit`` predicts at poses with these τ_w and Y_p (and, when
+    the fit has friction, the approach directions (n, 3))."""
     tw = np.asarray(wrist_torque_nm, float)
     yp = GRAVITY_MPS2 * np.asarray(payload_regressor, float)
     k = fit.compliance_deg_per_nm
-    return np.asarray((k - compensated_deg_per_nm) * tw + k * (yp @ fit.first_moment_kgm),
-                      float)
+    out = (k - compensated_deg_per_nm) * tw + k * (yp @ fit.first_moment_kgm)
+    if fit.friction_deg is not None and approach is not None:
+        out = out + fit.friction_deg * np.sign(np.asarray(approach, float))
+    return np.asarray(out, float)

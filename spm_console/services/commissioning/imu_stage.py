@@ -162,12 +162,15 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
         fitted = ((v[0], v[1], v[2]), (v[3], v[4], v[5]))
     payload = None
     try:
-        payload = payload_from_holding(profile, np.asarray(poses, float), th, held)
+        payload = payload_from_holding(profile, np.asarray(poses, float), th, held,
+                                       np.asarray(profile.home.theta_deg, float))
         s, e = payload.fit.first_moment_kgm * 1e3, payload.fit.first_moment_std_kgm * 1e3
         on_stage("payload: first moment m·c = [" + ", ".join(
             f"{x:.1f} ± {d:.1f}" for x, d in zip(s, e, strict=True)) + "] kg·mm (platform "
             f"frame), drive compliance {payload.fit.compliance_deg_per_nm:.3f} deg/(N·m), "
-            f"held-out offsets {payload.held_out_rms_deg:.3f}° RMS")
+            + ("" if payload.fit.friction_deg is None else
+               f"gear friction {payload.fit.friction_deg:.3f}°, ")
+            + f"held-out offsets {payload.held_out_rms_deg:.3f}° RMS")
     except ValueError as exc:
         on_stage(f"payload: not determined ({exc})")
     return Refinement(fit, check, tuple(poses), (horn[0], horn[1], horn[2]), fitted, moving,

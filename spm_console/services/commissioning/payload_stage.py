@@ -1,8 +1,9 @@
 """The payload, from the IMU stage's poses: each was held after a verified move, so the offset
 between the pose commanded and the one the servos hold is the load's (:mod:`spm_console.core.
-commissioning.payload`). Fitted on the stage's fit poses, checked on its held-out ones;
-reported, never written to the profile: statics give the payload's first moment m·c, not its
-mass, and the profile's mass model needs both. Degrees, N·m, kg·m."""
+commissioning.payload`). Fitted on the stage's fit poses, checked on its held-out ones.
+Statics give the payload's first moment m·c, not its mass: the commissioned profile's load
+model takes m·c (``[plant] payload_moment_kgmm``) and the fitted compliance. Degrees, N·m,
+kg·m."""
 
 from __future__ import annotations
 
@@ -14,17 +15,15 @@ from numpy.typing import NDArray
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.core.commissioning.payload import (
+    GRAVITY_MPS2,
     HoldingFit,
     fit_holding,
     predicted_offsets_deg,
 )
-from spm_console.core.kinematics.loads import BODIES, gravity_regressor
-from spm_console.description.weight import UP, Weight
+from spm_console.core.kinematics.loads import gravity_regressor
+from spm_console.description.weight import PLATFORM, UP, Weight, payload_moment_kgm
 
 F = NDArray[np.float64]
-
-#: The platform's columns in the regressor of the bodies' first moments.
-_PLATFORM = slice(3 * BODIES.index("platform"), 3 * BODIES.index("platform") + 3)
 
 
 @dataclass(frozen=True)
@@ -35,28 +34,108 @@ class PayloadReport:
 
 
 def _loads(profile: Profile, theta_deg: F) -> tuple[F, F]:
-    """The wrist's holding torque (n, 3) N·m and the platform's regressor (n, 3, 3) at the
-    poses θ (deg) (NaN rows where the FK finds no pose)."""
+    """The holding torque of the wrist's bodies, without a payload (n, 3) N·m, and the
+    platform's regressor (n, 3, 3) at the poses θ (deg) (NaN rows where the FK finds no
+    pose)."""
     model = model_of(profile)
     th = np.radians(np.asarray(theta_deg, float).reshape(-1, 3))
     R = np.empty((len(th), 3, 3))
     for i, t in enumerate(th):
         r = model.track(t)
         R[i] = r.pose.R if r.ok and r.pose is not None else np.nan
-    tw = Weight.of(profile).torque_nm(th, R)
-    yp = gravity_regressor(model, th, R, UP)[:, :, _PLATFORM]
+    tw = Weight.of(profile, payload=False).torque_nm(th, R)
+    yp = gravity_regressor(model, th, R, UP)[:, :, PLATFORM]
     return np.asarray(tw, float), np.asarray(yp, float)
 
 
+#: A joint commanded less than this from where it was, deg, did not move: it keeps the
+#: direction it came to rest from before.
+STILL_DEG = 0.05
+
+
+def approach_signs(start_deg: F, commanded_deg: F) -> F:
+    """The sign (n, 3) of each joint's last motion before it rested at each of the poses
+    ``commanded_deg`` (n, 3), visited in turn from ``start_deg`` (3,) (0: never moved)."""
+    out = np.zeros((len(commanded_deg), 3))
+    last, prev = np.zeros(3), np.asarray(start_deg, float)
+    for k, th in enumerate(np.asarray(commanded_deg, float)):
+        step = th - prev
+        last = np.where(np.abs(step) > STILL_DEG, np.sign(step), last)
+        out[k], prev = last, th
+    return out
+
+
 def payload_from_holding(profile: Profile, commanded_deg: F, measured_deg: F,
-                         held_out: NDArray[np.bool_]) -> PayloadReport:
+                         held_out: NDArray[np.bool_], start_deg: F | None = None
+                         ) -> PayloadReport:
     """Fit the payload to the offsets commanded − measured (n, 3) deg at the poses not
-    ``held_out``; check it on those. ValueError when the data do not determine it."""
+    ``held_out``; check it on those. ``start_deg``: where the wrist was before the first
+    pose (the poses visited in their order from there): the fit then takes the gear
+    friction's offset against each joint's approach. ValueError when the data do not
+    determine it.
+
+    The first moment fitted is the whole payload's: a profile that has one already
+    (``[plant] payload_moment_kgmm``, its load model compensating k_c·g·Y_p·s₀) has that
+    compensation added back to the offsets, which are then those of the bodies alone."""
     measured = np.asarray(measured_deg, float)
     offsets = np.asarray(commanded_deg, float) - measured
     tw, yp = _loads(profile, measured)
     comp = float(profile.servo.load_deg_per_nm or 0.0)
-    fit = fit_holding(offsets[~held_out], tw[~held_out], yp[~held_out], comp)
-    pred = predicted_offsets_deg(fit, tw[held_out], yp[held_out], comp)
+    offsets = offsets + comp * GRAVITY_MPS2 * yp @ payload_moment_kgm(profile)
+    sg = None if start_deg is None else approach_signs(start_deg, commanded_deg)
+    fit = fit_holding(offsets[~held_out], tw[~held_out], yp[~held_out], comp,
+                      None if sg is None else sg[~held_out])
+    pred = predicted_offsets_deg(fit, tw[held_out], yp[held_out], comp,
+                                 None if sg is None else sg[held_out])
     rms = float(np.sqrt(np.mean((pred - offsets[held_out]) ** 2))) if held_out.any() else 0.0
     return PayloadReport(fit, rms)
+
+
+#: A first moment is written when its norm is at least this many times its standard error's
+#: (the fit sees a payload); below, the profile keeps its own (none: the bodies alone).
+PAYLOAD_SIGNIFICANCE = 3.0
+#: A compliance is written when its standard error is at most this share of it.
+COMPLIANCE_REL_STD_MAX = 0.1
+#: Friction's offset at rest above which the commissioned profile settles at its goals, deg
+#: (half an MX-106 encoder tick: the drive rests a tick or more off its goal), and for how
+#: long at most, s.
+SETTLE_FRICTION_DEG = 0.044
+SETTLE_S = 2.0
+
+
+def payload_seen(report: PayloadReport) -> bool:
+    """Whether the fit determines a payload (:data:`PAYLOAD_SIGNIFICANCE`)."""
+    f = report.fit
+    return bool(np.linalg.norm(f.first_moment_kgm)
+                >= PAYLOAD_SIGNIFICANCE * np.linalg.norm(f.first_moment_std_kgm))
+
+
+def compliance_known(report: PayloadReport) -> bool:
+    """Whether the fit determines the drive's compliance (:data:`COMPLIANCE_REL_STD_MAX`)."""
+    f = report.fit
+    return f.compliance_std <= COMPLIANCE_REL_STD_MAX * f.compliance_deg_per_nm
+
+
+def friction_seen(report: PayloadReport) -> bool:
+    """Whether the fit finds the drives resting farther than half an encoder tick from their
+    goals against their approach (:data:`SETTLE_FRICTION_DEG`): what settling takes up."""
+    f = report.fit.friction_deg
+    return f is not None and f >= SETTLE_FRICTION_DEG
+
+
+def with_load_model(profile: Profile, report: PayloadReport) -> Profile:
+    """``profile`` with the load model the fit determines: ``[plant] payload_moment_kgmm``
+    (kg·mm, 0.1) when a payload is seen, ``[servo] load_deg_per_nm`` (0.0001) when the
+    compliance is known, and settling at the goal (``[settle] duration_s``,
+    :data:`SETTLE_S`) when the friction leaves the drives off their goals and the profile
+    does not settle; what is not determined is kept as the profile has it."""
+    plant, servo, settle = profile.plant, profile.servo, profile.settle
+    if payload_seen(report):
+        moment = tuple(round(float(x) * 1e3, 1) for x in report.fit.first_moment_kgm)
+        plant = plant.model_copy(update={"payload_moment_kgmm": moment})
+    if compliance_known(report):
+        servo = servo.model_copy(update={
+            "load_deg_per_nm": round(report.fit.compliance_deg_per_nm, 4)})
+    if friction_seen(report) and settle.duration_s == 0.0:
+        settle = settle.model_copy(update={"duration_s": SETTLE_S})
+    return profile.model_copy(update={"plant": plant, "servo": servo, "settle": settle})

@@ -7,10 +7,15 @@ from __future__ import annotations
 import datetime as dt
 from pathlib import Path
 
-from spm_console.config.edit import with_joints, with_values
+from spm_console.config.edit import Value, with_joints, with_values
 from spm_console.config.schema import Profile
 from spm_console.errors import BadInputError
 from spm_console.safe_io import read_text, write_text_atomic
+from spm_console.services.commissioning.payload_stage import (
+    compliance_known,
+    friction_seen,
+    payload_seen,
+)
 from spm_console.services.commissioning.stages import Commissioned
 from spm_console.store.identified_profiles import write_new
 
@@ -42,7 +47,27 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
             ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg),
             ("home", "sign_seed"): list(result.profile.home.sign_seed)},
             f"commissioned {stamp} (IMU fit{where})", source)
+    load = _load_values(result)
+    if load:
+        text, prof = with_values(text, load, f"commissioned {stamp} (holding offsets{where})",
+                                 source)
     return text, prof
+
+
+def _load_values(result: Commissioned) -> dict[tuple[str, str], Value]:
+    """The load model's keys the IMU stage determined (the payload's first moment, the
+    drive's compliance) that the commissioned profile holds."""
+    r = result.refinement
+    if r is None or r.payload is None:
+        return {}
+    out: dict[tuple[str, str], Value] = {}
+    if payload_seen(r.payload) and result.profile.plant.payload_moment_kgmm is not None:
+        out[("plant", "payload_moment_kgmm")] = list(result.profile.plant.payload_moment_kgmm)
+    if compliance_known(r.payload) and result.profile.servo.load_deg_per_nm is not None:
+        out[("servo", "load_deg_per_nm")] = result.profile.servo.load_deg_per_nm
+    if friction_seen(r.payload) and result.profile.settle.duration_s > 0.0:
+        out[("settle", "duration_s")] = result.profile.settle.duration_s
+    return out
 
 
 #: Largest profile text read, bytes.
@@ -102,7 +127,19 @@ def commissioned_lines(result: Commissioned) -> list[str]:
             lines.append("payload first moment m·c [" + ", ".join(
                 f"{x * 1e3:.1f} ± {d * 1e3:.1f}" for x, d in
                 zip(f.first_moment_kgm, f.first_moment_std_kgm, strict=True))
-                + "] kg·mm in the platform's frame (reported, not written: its mass alone "
-                f"is not seen by statics); held-out offsets {r.payload.held_out_rms_deg:.3f}° "
-                "RMS")
+                + f"] kg·mm in the platform's frame, drive compliance "
+                f"{f.compliance_deg_per_nm:.3f} ± {f.compliance_std:.3f} deg/(N·m); held-out "
+                f"offsets {r.payload.held_out_rms_deg:.3f}° RMS")
+            if f.friction_deg is not None:
+                lines.append(f"  gear friction: the drives rest {f.friction_deg:.3f}° short of "
+                             "their goals against their approach")
+            written = [w for w, ok in (("[plant] payload_moment_kgmm", payload_seen(r.payload)),
+                                       ("[servo] load_deg_per_nm", compliance_known(r.payload)),
+                                       ("[settle] duration_s", friction_seen(r.payload)))
+                       if ok]
+            lines.append("  load model written: " + ", ".join(written) if written else
+                         "  load model not written: the offsets do not determine it (the "
+                         "profile's own kept)")
+            lines.append("  the payload's mass alone is not seen by statics: [plant] keeps "
+                         "its masses, the emulated wrist carries no payload")
     return lines

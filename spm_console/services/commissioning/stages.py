@@ -50,6 +50,7 @@ from spm_console.services.commissioning.leg_map import (
     operator_match,
     rotation_vector,
 )
+from spm_console.services.commissioning.payload_stage import with_load_model
 from spm_console.services.session import Session
 
 F = NDArray[np.float64]
@@ -278,7 +279,8 @@ def _asked(ident: int, nudge: Callable[[int, float], None], ask: Ask,
 def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
     """``result`` with each tick offset moved by the horn offset the IMU stage found beyond
     the jig's zero (true θ = θ read + δ, so the zero moves by −d·δ ticks): the nearest whole
-    tick, and the rest as the joint's ``tick_trim``."""
+    tick, and the rest as the joint's ``tick_trim``; the link arcs and the load model (the
+    payload's first moment, the drive's compliance) where the stage determined them."""
     if result.tick_offsets is None:
         raise BadInputError("commission: the IMU stage refines the jig's zero; there is none")
     tpt = result.profile.bus.ticks_per_turn
@@ -291,6 +293,8 @@ def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
     profile = _with_wiring(result.profile, result.legs, new, trims)
     if refinement.arcs_deg is not None:
         profile = with_arcs(profile, *refinement.arcs_deg)
+    if refinement.payload is not None:
+        profile = _validated(with_load_model(profile, refinement.payload))
     return replace(result, tick_offsets=new, tick_trims=trims, refinement=refinement,
                    profile=profile)
 

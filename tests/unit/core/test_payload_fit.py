@@ -77,3 +77,23 @@ def test_bad_data_are_refused(agile: Profile) -> None:
         fit_holding(np.zeros((1, 3)), tw[:1], yp[:1])
     with pytest.raises(ValueError, match="finite"):
         fit_holding(np.full(tw.shape, np.nan), tw, yp)
+
+
+def test_the_friction_against_each_joints_approach_is_fitted_exactly(agile: Profile) -> None:
+    """Poses held after approaches from either side: the offset f against the approach is a
+    fifth unknown, recovered with the payload from noise-free offsets (and left in the
+    residual, biasing nothing only on average, without the approach)."""
+    _th, tw, yp = _poses(agile, 24, 5)
+    approach = np.random.default_rng(6).choice([-1.0, 1.0], tw.shape)
+    offsets = _offsets(tw, yp, 0.0) + 0.09 * approach
+    fit = fit_holding(offsets, tw, yp, 0.0, approach)
+    np.testing.assert_allclose(fit.first_moment_kgm, S_TRUE, atol=1e-10)
+    assert fit.compliance_deg_per_nm == pytest.approx(K_TRUE, abs=1e-9)
+    assert fit.friction_deg == pytest.approx(0.09, abs=1e-10)
+    assert fit.residual_rms_deg < 1e-10
+    np.testing.assert_allclose(predicted_offsets_deg(fit, tw, yp, 0.0, approach), offsets,
+                               atol=1e-10)
+    blind = fit_holding(offsets, tw, yp)
+    assert blind.friction_deg is None and blind.residual_rms_deg > 0.05
+    with pytest.raises(ValueError, match="approach direction"):
+        fit_holding(offsets, tw, yp, 0.0, approach[:-1])

@@ -1,0 +1,126 @@
+"""The payload commissioning finds, in the load model: the platform's weight with the
+payload's first moment (``[plant] payload_moment_kgmm``), the fit of a profile that already
+has one giving the whole payload again, and the commissioned profile's text holding it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.config.edit import with_values
+from spm_console.config.models import model_of
+from spm_console.config.schema import Profile
+from spm_console.core.commissioning.payload import GRAVITY_MPS2, HoldingFit
+from spm_console.core.kinematics.loads import gravity_regressor
+from spm_console.description.weight import PLATFORM, UP, Weight
+from spm_console.services.commissioning.payload_stage import (
+    PayloadReport,
+    approach_signs,
+    payload_from_holding,
+    payload_seen,
+    with_load_model,
+)
+
+AGILE = Path(__file__).resolve().parents[3] / "profiles" / "agile_wrist.toml"
+S_KGMM = (3.0, -1.5, 36.0)  # 0.3 kg at (10, −5, 120) mm
+K_TRUE = 1.4  # deg/(N·m)
+
+
+def _with(agile: Profile, moment: tuple[float, float, float] | None,
+          load: float | None = None) -> Profile:
+    plant = agile.plant.model_copy(update={"payload_moment_kgmm": moment})
+    servo = agile.servo.model_copy(update={"load_deg_per_nm": load})
+    return Profile.model_validate(agile.model_copy(update={"plant": plant, "servo": servo})
+                                  .model_dump(mode="python"))
+
+
+def _poses(agile: Profile, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """n poses within 20° of home (deg) and their platform rotations."""
+    model = model_of(agile)
+    rng = np.random.default_rng(7)
+    th = np.asarray(agile.home.theta_deg) + rng.uniform(-20, 20, (n, 3))
+    R = np.array([model.track(np.radians(t)).pose.R for t in th])  # type: ignore[union-attr]
+    return th, R
+
+
+def test_the_payload_adds_its_first_moment_to_the_platforms_weight(agile: Profile) -> None:
+    loaded = _with(agile, S_KGMM)
+    th, R = _poses(agile, 12)
+    rad = np.radians(th)
+    extra = Weight.of(loaded).torque_nm(rad, R) - Weight.of(agile).torque_nm(rad, R)
+    yp = gravity_regressor(model_of(agile), rad, R, UP)[:, :, PLATFORM]
+    np.testing.assert_allclose(extra, GRAVITY_MPS2 * yp @ (np.array(S_KGMM) * 1e-3), atol=1e-12)
+    assert np.abs(extra).max() > 0.05  # N·m: a load the servos feel
+    np.testing.assert_array_equal(Weight.of(loaded, payload=False).moments_kgm,
+                                  Weight.of(agile).moments_kgm)
+
+
+def test_a_profile_without_a_payload_keeps_its_hash(agile: Profile) -> None:
+    assert _with(agile, None).digest() == agile.digest()
+    assert _with(agile, S_KGMM).digest() != agile.digest()
+
+
+@pytest.mark.parametrize("before", [None, (1.0, 2.0, 20.0)])
+def test_the_fit_gives_the_whole_payload_whatever_the_profile_compensated(
+        agile: Profile, before: tuple[float, float, float] | None) -> None:
+    """The servos hold θ = θ* + k_c·τ_model − k·τ_true: the profile's load model (k_c, its
+    payload s₀) sent, the wrist's true one (k, the payload S) held; the torques at the pose
+    held (as the stage takes them)."""
+    k_c = None if before is None else 1.1
+    profile = _with(agile, before, k_c)
+    measured, R = _poses(agile, 24)
+    rad = np.radians(measured)
+    true_tau = Weight.of(_with(agile, S_KGMM)).torque_nm(rad, R)
+    sent = (k_c or 0.0) * Weight.of(profile).torque_nm(rad, R)
+    commanded = measured - sent + K_TRUE * true_tau
+    held = np.zeros(len(measured), bool)
+    held[-4:] = True
+    report = payload_from_holding(profile, commanded, measured, held)
+    np.testing.assert_allclose(report.fit.first_moment_kgm * 1e3, S_KGMM, atol=1e-6)
+    assert report.fit.compliance_deg_per_nm == pytest.approx(K_TRUE, abs=1e-8)
+    assert report.held_out_rms_deg < 1e-8
+    built = with_load_model(profile, report)
+    assert built.plant.payload_moment_kgmm == pytest.approx(S_KGMM, abs=0.05)
+    assert built.servo.load_deg_per_nm == pytest.approx(K_TRUE, abs=1e-4)
+
+
+def _report(s_kgm: tuple[float, float, float], std_kgm: float, k_std: float,
+            friction_deg: float | None = None) -> PayloadReport:
+    fit = HoldingFit(np.array(s_kgm), np.full(3, std_kgm), K_TRUE, k_std, 0.05,
+                     np.ones(4), 24, friction_deg)
+    return PayloadReport(fit, 0.05)
+
+
+def test_what_the_fit_does_not_determine_is_not_written(agile: Profile) -> None:
+    unclear = _report((0.001, 0.0, 0.002), 0.002, 0.5)
+    assert not payload_seen(unclear)
+    assert with_load_model(agile, unclear) == agile
+    clear = _report((0.003, -0.0015, 0.036), 0.001, 0.05)
+    built = with_load_model(agile, clear)
+    assert built.plant.payload_moment_kgmm == (3.0, -1.5, 36.0)
+    assert built.servo.load_deg_per_nm == K_TRUE
+    assert built.settle.duration_s == 0.0  # friction not fitted: no settling asked for
+    rough = with_load_model(agile, _report((0.003, -0.0015, 0.036), 0.001, 0.05, 0.09))
+    assert rough.settle.duration_s > 0.0
+    smooth = with_load_model(agile, _report((0.003, -0.0015, 0.036), 0.001, 0.05, 0.01))
+    assert smooth.settle.duration_s == 0.0
+
+
+def test_the_commissioned_text_gains_a_plant_section_it_lacked(agile: Profile) -> None:
+    text = AGILE.read_text()
+    assert "[plant]" not in text
+    new, back = with_values(text, {("plant", "payload_moment_kgmm"): list(S_KGMM),
+                                   ("servo", "load_deg_per_nm"): K_TRUE}, "commissioned", "test")
+    assert back.plant.payload_moment_kgmm == S_KGMM and back.servo.load_deg_per_nm == K_TRUE
+    assert new.count("[plant]") == 1 and back.bus == agile.bus
+    again, back2 = with_values(new, {("plant", "payload_moment_kgmm"): [1.0, 1.0, 1.0]},
+                               "again", "test")
+    assert again.count("[plant]") == 1 and back2.plant.payload_moment_kgmm == (1.0, 1.0, 1.0)
+
+
+def test_each_joints_approach_is_the_sign_of_its_last_move() -> None:
+    poses = np.array([[10.0, 0.0, 5.0], [12.0, 0.0, 4.0], [11.0, 0.02, 4.0]])
+    np.testing.assert_array_equal(approach_signs(np.zeros(3), poses),
+                                  [[1, 0, 1], [1, 0, -1], [-1, 0, -1]])
