@@ -141,6 +141,8 @@ def _fit_json(r: Any) -> dict[str, Any]:
             "first_moment_kgmm": list(r.payload.fit.first_moment_kgm * 1e3),
             "first_moment_std_kgmm": list(r.payload.fit.first_moment_std_kgm * 1e3),
             "compliance_deg_per_nm": r.payload.fit.compliance_deg_per_nm,
+            "compliance_std_deg_per_nm": r.payload.fit.compliance_std,
+            "rest_offset_deg": r.payload.fit.friction_deg,
             "residual_rms_deg": r.payload.fit.residual_rms_deg,
             "held_out_rms_deg": r.payload.held_out_rms_deg,
             "singular_values": list(r.payload.fit.singular_values)},

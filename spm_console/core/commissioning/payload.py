@@ -59,8 +59,9 @@ class HoldingFit:
     the approach directions, friction): how independently the data see each unknown."""
     poses: int
     friction_deg: float | None = None
-    """f, deg: the offset the gear's friction leaves against the approach (None: not
-    fitted, no approach directions given)."""
+    """f, deg: the offset θ* − θ at rest per unit of the approach's sign: positive, the drive
+    stops short of its goal (friction); negative, past it (the gear's play, the drive's
+    overshoot). None: not fitted (no approach directions given)."""
 
 
 def fit_holding(offsets_deg: F, wrist_torque_nm: F, payload_regressor: F,

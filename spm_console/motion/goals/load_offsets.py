@@ -4,7 +4,8 @@ With an identified load (``[servo] load_deg_per_nm``, ``coulomb_deg``) the servo
 model of θ* − d, d its load's offset (:mod:`spm_console.core.servo.load`). The runtime sends
 θ* + d, with d taken where the model of the verified references will be at the end of each
 period (the weight's holding torque at that pose, the friction against the model's speed
-there): the loaded servo then follows the model the plan was verified on. The references as
+there): the loaded servo then follows the model the plan was verified on. The last reference,
+which the servos keep once the run ends, carries the offset at rest at the goal. The references as
 sent are checked again here: finite, inside the servo limits (clipped onto them), steps
 within the runtime's bound, every offset within :data:`MAX_OFFSET_DEG`.
 Degrees, deg/s.
@@ -48,7 +49,11 @@ def load_offsets(profile: Profile, model: ServoModel, refs: F, theta0: F) -> F |
     refs = np.asarray(refs, float)
     x0 = np.stack([np.asarray(theta0, float), np.zeros(3)], axis=1)
     states = simulate(model, x0, np.vstack([refs, refs[-1:]]))[1:]  # end of each period
-    pos, vel = states[:, :, 0], states[:, :, 1]
+    pos, vel = states[:, :, 0].copy(), states[:, :, 1].copy()
+    # the last reference stays with the servos after the run: its offset is the one at rest
+    # at the goal (the weight's alone), not the friction of a model still arriving
+    if len(refs):
+        pos[-1], vel[-1] = refs[-1], 0.0
     if load.moments_deg[0] != 0.0:
         try:
             hold = holding_torque_nm(profile, pos)

@@ -6,8 +6,9 @@ ticks from the goal, on either side depending on the approach and the pose. The 
 that offset and shifts the goal it sends by a fraction of it every period (a slow integral
 outside the servo, active only at rest, after the plan): c ← c + κ·(goal − θ), each joint's
 shift bounded by ``max_correction_deg``. A shifted goal is sent only inside the workspace's
-certified set, like every position the runtime sends; when a shift would leave it, the previous
-one stays. Settled once every joint is within ``tolerance_deg`` of the goal for
+certified set, like every position the runtime sends; when a shift would leave it, the joints
+whose new shift keeps it inside take theirs (as many as can), the others keep the previous
+one. Settled once every joint is within ``tolerance_deg`` of the goal for
 :data:`SETTLED_PERIODS` periods; otherwise the settling ends after ``duration_s``. Degrees.
 """
 
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 from numpy.typing import NDArray
@@ -71,10 +73,24 @@ class Settling:
         self.within = 0
         bound = self.law.max_correction_deg
         shift = np.clip(self.shift + GAIN * error, -bound, bound)
-        if self.allowed(self.goal + shift):
-            self.shift = shift
-        else:
+        taken = self._allowed_part(shift)
+        if taken is None or not np.array_equal(taken, shift):
             self.refused += 1
+        if taken is not None:
+            self.shift = taken
+
+    def _allowed_part(self, shift: F) -> F | None:
+        """``shift``, or where the goal it moves is not allowed, the most of its joints' new
+        components with which it is (the others keep their previous shift: a joint at a face
+        of the certified set leaves the others free to settle); None when none is."""
+        assert self.shift is not None
+        for size in (3, 2, 1):
+            for joints in combinations(range(3), size):
+                take = np.isin(np.arange(3), joints)
+                cand = np.where(take, shift, self.shift)
+                if self.allowed(self.goal + cand):
+                    return np.asarray(cand, float)
+        return None
 
 
 def settle_periods(law: Settle, ts_s: float) -> int:

@@ -117,10 +117,11 @@ def compliance_known(report: PayloadReport) -> bool:
 
 
 def friction_seen(report: PayloadReport) -> bool:
-    """Whether the fit finds the drives resting farther than half an encoder tick from their
-    goals against their approach (:data:`SETTLE_FRICTION_DEG`): what settling takes up."""
+    """Whether the fit finds the drives resting half an encoder tick or more from their goals,
+    short of them or past them, by the direction they came from (:data:`SETTLE_FRICTION_DEG`;
+    the gear's friction and play): what settling takes up."""
     f = report.fit.friction_deg
-    return f is not None and f >= SETTLE_FRICTION_DEG
+    return f is not None and abs(f) >= SETTLE_FRICTION_DEG
 
 
 def with_load_model(profile: Profile, report: PayloadReport) -> Profile:

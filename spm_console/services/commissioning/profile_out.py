@@ -131,8 +131,9 @@ def commissioned_lines(result: Commissioned) -> list[str]:
                 f"{f.compliance_deg_per_nm:.3f} ± {f.compliance_std:.3f} deg/(N·m); held-out "
                 f"offsets {r.payload.held_out_rms_deg:.3f}° RMS")
             if f.friction_deg is not None:
-                lines.append(f"  gear friction: the drives rest {f.friction_deg:.3f}° short of "
-                             "their goals against their approach")
+                lines.append(f"  at rest the drives stop {abs(f.friction_deg):.3f}° "
+                             + ("short of" if f.friction_deg >= 0 else "past")
+                             + " their goals in the direction they came from (friction, play)")
             written = [w for w, ok in (("[plant] payload_moment_kgmm", payload_seen(r.payload)),
                                        ("[servo] load_deg_per_nm", compliance_known(r.payload)),
                                        ("[settle] duration_s", friction_seen(r.payload)))

@@ -95,3 +95,24 @@ def test_a_refused_shift_keeps_the_previous_one() -> None:
     s = Settling(Settle(duration_s=1.0), goal, lambda theta: False)
     s.update(goal + 0.5)
     assert np.array_equal(s.reference, goal) and s.refused == 1
+
+
+def test_a_joint_at_a_face_leaves_the_others_free_to_settle() -> None:
+    """The goal on the grid's 155° face: joint 2 rests below it and may not be sent past it,
+    joints 1 and 3 still take their offsets up."""
+    goal = np.array([66.8, 155.0, 131.48])
+    law = Settle(duration_s=1.0, max_correction_deg=0.5, tolerance_deg=0.1)
+    servo = StickyServo(goal, band=0.0, bias=np.array([-0.3, -0.2, 0.25]))
+
+    def allowed(theta: np.ndarray) -> bool:
+        return bool(theta[1] <= 155.0)
+
+    s = Settling(law, goal, allowed)
+    sent = []
+    for _ in range(settle_periods(law, 0.02)):
+        sent.append(s.reference.copy())
+        read = servo.step(s.reference)
+        s.update(read)
+    assert all(allowed(t) for t in sent) and s.refused > 0
+    assert abs(read[0] - goal[0]) <= TICK and abs(read[2] - goal[2]) <= TICK
+    assert s.shift[1] == 0.0 and np.isclose(read[1] - goal[1], -0.2, atol=TICK)

@@ -102,7 +102,7 @@ def test_what_the_fit_does_not_determine_is_not_written(agile: Profile) -> None:
     assert built.plant.payload_moment_kgmm == (3.0, -1.5, 36.0)
     assert built.servo.load_deg_per_nm == K_TRUE
     assert built.settle.duration_s == 0.0  # friction not fitted: no settling asked for
-    rough = with_load_model(agile, _report((0.003, -0.0015, 0.036), 0.001, 0.05, 0.09))
+    rough = with_load_model(agile, _report((0.003, -0.0015, 0.036), 0.001, 0.05, -0.06))
     assert rough.settle.duration_s > 0.0
     smooth = with_load_model(agile, _report((0.003, -0.0015, 0.036), 0.001, 0.05, 0.01))
     assert smooth.settle.duration_s == 0.0
