@@ -196,7 +196,10 @@ def solve_mintime_problem(problem: PlanProblem) -> MintimeResult:
         if out.status == "solved":
             best = finish(pb, eq, out, t1)
             hi_feas = n
-        elif out.status == "infeasible":
+        elif out.status == "infeasible" or out.certificate is not None:
+            # a claim of infeasibility whose certificate does not check out is searched as
+            # one (a larger N is tried) and kept as not valid: the plan says it is not
+            # proven fastest, and the plan at N* is verified like any
             lo_inf, cert = n, out.certificate
         else:
             raise SolverError(f"minimum time: the solve at N = {n} failed ({out.detail})")

@@ -73,3 +73,30 @@ def test_bad_requests() -> None:
         solve_mintime_problem(pb)
     with pytest.raises(InfeasibleError, match="outside the region"):
         solve_mintime(MODEL, START_MT, GOAL, Region.box(80.0, 150.0), 50.0)
+
+
+def test_an_infeasibility_whose_certificate_does_not_check_out_is_searched_past(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The interior-point solver says N* − 1 is infeasible but its Farkas vector does not
+    verify (status 'failed' with a certificate not valid): the search takes it as infeasible,
+    finds the same N*, and the plan keeps the certificate as not valid (not proven
+    fastest) instead of failing the whole plan."""
+    import spm_console.core.planning.mintime as mt
+
+    honest = solve_mintime(MODEL, START_MT, GOAL, BOX, 50.0)
+    real = mt._decide
+
+    def shaky(problem: PlanProblem, guess: np.ndarray):  # type: ignore[no-untyped-def]
+        out, eq = real(problem, guess)
+        if out.status == "infeasible":
+            assert out.certificate is not None
+            forged = type(out.certificate)(out.certificate.residual_l1, 1.0, 0.0,
+                                           out.certificate.rows, False)
+            out = type(out)(**{**out.__dict__, "status": "failed", "certificate": forged,
+                               "detail": "AlmostPrimalInfeasible"})
+        return out, eq
+
+    monkeypatch.setattr(mt, "_decide", shaky)
+    res = solve_mintime(MODEL, START_MT, GOAL, BOX, 50.0)
+    assert res.N == honest.N and res.plan.check.ok
+    assert res.certificate is not None and not res.certificate.valid
