@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.config.models import model_of
-from spm_console.config.schema import Profile
+from spm_console.config.schema import Profile, Settle
 from spm_console.core.commissioning.design import PoseDesign, design_for_orientation, tour
 from spm_console.core.commissioning.fit import CommissioningFit, FittedParameter, fit_as_built
 from spm_console.core.commissioning.observability import DEFAULT_NOISE_DEG
@@ -98,7 +98,9 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
     model = model_of(profile)
     if stop is not None:
         stop.check()
-    session = Session(profile, port=port, sim=False)
+    # the poses are held where the servos come to rest: settling would take up the offsets
+    # the payload is fitted to (a profile commissioned before may settle)
+    session = Session(profile.model_copy(update={"settle": Settle()}), port=port, sim=False)
     poses: list[tuple[float, float, float]] = []
     thetas: list[F] = []
     gravity: list[F] = []

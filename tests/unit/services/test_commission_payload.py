@@ -124,3 +124,31 @@ def test_each_joints_approach_is_the_sign_of_its_last_move() -> None:
     poses = np.array([[10.0, 0.0, 5.0], [12.0, 0.0, 4.0], [11.0, 0.02, 4.0]])
     np.testing.assert_array_equal(approach_signs(np.zeros(3), poses),
                                   [[1, 0, 1], [1, 0, -1], [-1, 0, -1]])
+
+
+def test_the_imu_stage_holds_its_poses_without_settling(
+        agile: Profile, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A profile commissioned before settles at its goals: the stage's own session does not,
+    or the offsets the payload is fitted to would be taken up."""
+    import spm_console.services.commissioning.imu_stage as stage
+    from spm_console.errors import BusError
+
+    seen: list[Profile] = []
+
+    class Refused:
+        def __init__(self, profile: Profile, **_kw: object) -> None:
+            seen.append(profile)
+
+        def connect(self) -> None:
+            raise BusError("no bus in this test")
+
+        def close(self) -> None:
+            pass
+
+    settles = agile.model_copy(update={"settle": agile.settle.model_copy(
+        update={"duration_s": 2.0})})
+    monkeypatch.setattr(stage, "Session", Refused)
+    with pytest.raises(BusError):
+        stage.refine_with_imu(settles, "/dev/null", object(), lambda _m: None)  # type: ignore[arg-type]
+    assert len(seen) == 1 and seen[0].settle.duration_s == 0.0
+    assert seen[0].bus == agile.bus and seen[0].servo == agile.servo
