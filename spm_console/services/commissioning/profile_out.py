@@ -47,26 +47,29 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
             ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg),
             ("home", "sign_seed"): list(result.profile.home.sign_seed)},
             f"commissioned {stamp} (IMU fit{where})", source)
-    load = _load_values(result)
+    load = _load_values(result, prof)
     if load:
         text, prof = with_values(text, load, f"commissioned {stamp} (holding offsets{where})",
                                  source)
     return text, prof
 
 
-def _load_values(result: Commissioned) -> dict[tuple[str, str], Value]:
+def _load_values(result: Commissioned, base: Profile) -> dict[tuple[str, str], Value]:
     """The load model's keys the IMU stage determined (the payload's first moment, the
-    drive's compliance) that the commissioned profile holds."""
+    drive's compliance, settling) where the commissioned profile differs from ``base``."""
     r = result.refinement
     if r is None or r.payload is None:
         return {}
     out: dict[tuple[str, str], Value] = {}
-    if payload_seen(r.payload) and result.profile.plant.payload_moment_kgmm is not None:
-        out[("plant", "payload_moment_kgmm")] = list(result.profile.plant.payload_moment_kgmm)
-    if compliance_known(r.payload) and result.profile.servo.load_deg_per_nm is not None:
-        out[("servo", "load_deg_per_nm")] = result.profile.servo.load_deg_per_nm
-    if friction_seen(r.payload) and result.profile.settle.duration_s > 0.0:
-        out[("settle", "duration_s")] = result.profile.settle.duration_s
+    built = result.profile
+    moment = built.plant.payload_moment_kgmm
+    if payload_seen(r.payload) and moment is not None and moment != base.plant.payload_moment_kgmm:
+        out[("plant", "payload_moment_kgmm")] = list(moment)
+    load = built.servo.load_deg_per_nm
+    if compliance_known(r.payload) and load is not None and load != base.servo.load_deg_per_nm:
+        out[("servo", "load_deg_per_nm")] = load
+    if friction_seen(r.payload) and built.settle.duration_s != base.settle.duration_s:
+        out[("settle", "duration_s")] = built.settle.duration_s
     return out
 
 
