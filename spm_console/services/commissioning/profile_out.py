@@ -55,20 +55,18 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
 
 
 def _load_values(result: Commissioned, base: Profile) -> dict[tuple[str, str], Value]:
-    """The load model's keys the IMU stage determined (the payload's first moment, the
-    drive's compliance, settling) where the commissioned profile differs from ``base``."""
-    r = result.refinement
-    if r is None or r.payload is None:
-        return {}
-    out: dict[tuple[str, str], Value] = {}
+    """The load model's keys (the payload's first moment, the drive's compliance, settling)
+    where the commissioned profile differs from ``base``: what the IMU stage determined
+    (:func:`~spm_console.services.commissioning.payload_stage.with_load_model` decides)."""
     built = result.profile
+    out: dict[tuple[str, str], Value] = {}
     moment = built.plant.payload_moment_kgmm
-    if payload_seen(r.payload) and moment is not None and moment != base.plant.payload_moment_kgmm:
+    if moment is not None and moment != base.plant.payload_moment_kgmm:
         out[("plant", "payload_moment_kgmm")] = list(moment)
     load = built.servo.load_deg_per_nm
-    if compliance_known(r.payload) and load is not None and load != base.servo.load_deg_per_nm:
+    if load is not None and load != base.servo.load_deg_per_nm:
         out[("servo", "load_deg_per_nm")] = load
-    if friction_seen(r.payload) and built.settle.duration_s != base.settle.duration_s:
+    if built.settle.duration_s != base.settle.duration_s:
         out[("settle", "duration_s")] = built.settle.duration_s
     return out
 
