@@ -330,6 +330,10 @@ class Emulator(Section):
     """How ``--sim`` runs and the console reach the emulated bus: a Unix-domain ``socket``
     (the bytes cross in the sender's system call) or a ``pty``, a serial device any serial tool
     can open (its bytes wait for a kernel worker, which a loaded machine delays)."""
+    clock: Literal["real", "simulated"] = "real"
+    """Time on the emulated bus: ``real``, the wall clock (motions take as long as on the
+    wrist); ``simulated``, the servo loop, the bus and the emulated wrist in lockstep on a
+    shared simulated clock (as fast as the machine computes them, the same every run)."""
 
 
 class Profile(Section):
@@ -378,6 +382,7 @@ _DIGESTED_UNLESS_DEFAULT: dict[str, dict[str, object]] = {
     "geometry": {"alpha1_leg_offset_deg": [0.0, 0.0, 0.0],
                  "alpha2_leg_offset_deg": [0.0, 0.0, 0.0]},
     "plant": {"payload_moment_kgmm": None},
+    "emulator": {"clock": "real"},
 }
 
 

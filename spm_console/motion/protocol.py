@@ -150,7 +150,8 @@ class EStop:
     reason: str
     sent_clock: float | None = None
     """``time.perf_counter()`` when the client sent it (CLOCK_MONOTONIC: the same clock in
-    every process on Linux), so the log measures the E-stop from the client's request."""
+    every process on Linux; the simulated clock in lockstep), so the log measures the E-stop
+    from the client's request."""
     by_signal: bool = False
     """A terminating signal asked for it: with nothing moved yet, the run is an interruption
     (exit 130), not a stop (20)."""

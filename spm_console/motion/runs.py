@@ -33,6 +33,7 @@ from spm_console.motion.plans import plan_summary
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult, Segment
 from spm_console.refusals import Refusal
+from spm_console.system.simclock import SimClock, attached
 
 SampleCallback = Callable[[Sample], None]
 Attach = Callable[[Executor], None]
@@ -49,6 +50,9 @@ class RunContext:
     faults: tuple[str, ...] = ()
     """Faults injected into the emulated bus."""
     logs_root: str | None = None
+    sim_clock: str | None = None
+    """The emulated bus runs in simulated time on the clock at this path
+    (:mod:`spm_console.system.simclock`); None: the wall clock."""
 
     @property
     def bus_label(self) -> str:
@@ -56,7 +60,17 @@ class RunContext:
 
     def meta(self) -> dict[str, Any]:
         return {"bus": self.bus_label, "port": self.port, "sim": self.sim,
-                "faults": list(self.faults)}
+                "faults": list(self.faults),
+                "clock": "real" if self.sim_clock is None else "simulated"}
+
+    def clock(self) -> SimClock | None:
+        """The simulated clock of this run's bus (None: the wall clock)."""
+        return None if self.sim_clock is None else attached(self.sim_clock)
+
+    def timing(self) -> dict[str, Any]:
+        """The executor's ``clock`` and ``sleep`` (none: the wall clock's)."""
+        sim = self.clock()
+        return {} if sim is None else {"clock": sim.now, "sleep": sim.sleep}
 
 
 def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,
@@ -65,7 +79,8 @@ def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,
     log = RunLog.create(kind, profile.name, profile.digest(), plans, root=ctx.logs_root,
                         extra=ctx.meta(), wrist=wrist_digests(profile))
     log.on_finish = mcap_beside(profile)
-    return Executor(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim)
+    return Executor(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim,
+                    **ctx.timing())
 
 
 @contextlib.contextmanager

@@ -188,7 +188,7 @@ class _Server:
         self.ctx = ctx
         self.cache_dir = cache_dir
         self._workspace: Workspace | None = None
-        self.bus = open_bus(profile, ctx.port)
+        self.bus = open_bus(profile, ctx.port, sim=ctx.clock())
         self.send_lock = threading.Lock()
         self.executor: Executor | None = None
         self.motion: threading.Thread | None = None

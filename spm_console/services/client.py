@@ -52,6 +52,7 @@ from spm_console.motion.runs import RunContext
 from spm_console.motion.sample import Sample
 from spm_console.motion.server import HEARTBEAT_S, REQUEST_TIMEOUT_S, Start
 from spm_console.services.warm_start import MotionProcessHandle, start_motion_process
+from spm_console.system.simclock import SimClock
 
 VERIFY_TIMEOUT_S = 300.0
 """How long a plan's verification may take: on a cold cache the motion process builds this
@@ -63,12 +64,16 @@ class MotionClient:
 
     def __init__(self, profile: Profile, port: str, *, cache_dir: str | Path | None = None,
                  logs_root: str | Path | None = None, sim: bool = False,
-                 faults: Sequence[str] = (), start_timeout_s: float = 60.0) -> None:
+                 faults: Sequence[str] = (), start_timeout_s: float = 60.0,
+                 sim_clock: SimClock | None = None) -> None:
         mine, theirs = socket.socketpair()
         self.process: MotionProcessHandle = start_motion_process(theirs)
         theirs.close()
         self.conn = Connection(mine.detach())
-        ctx = RunContext(port, sim, tuple(faults), None if logs_root is None else str(logs_root))
+        self._clock: Callable[[], float] = time.perf_counter if sim_clock is None else sim_clock.now
+        """The motion process's clock (E-stops are stamped on it)."""
+        ctx = RunContext(port, sim, tuple(faults), None if logs_root is None else str(logs_root),
+                         None if sim_clock is None else sim_clock.path)
         self.conn.send(Start(profile, ctx, None if cache_dir is None else str(cache_dir)))
         self._lock = threading.Lock()
         self._replies: dict[int, Reply | Failed] = {}
@@ -270,7 +275,7 @@ class MotionClient:
 
         Safe in a signal handler: when the handler interrupted this thread in the middle of
         a send, the E-stop goes out from a helper thread as soon as that send is done."""
-        msg = EStop(reason, time.perf_counter(), by_signal)
+        msg = EStop(reason, self._clock(), by_signal)
         if self._lock.acquire(blocking=False):
             self._lock.release()
             self._send_estop(msg)

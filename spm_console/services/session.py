@@ -51,6 +51,7 @@ from spm_console.services.session_tools import ServoTools
 from spm_console.store.plan_file import load_plan
 from spm_console.store.workspace_cache import CacheInfo, load_or_build
 from spm_console.system.cpus import cpu_plan, place_beside_loop
+from spm_console.system.simclock import SimClock
 
 if TYPE_CHECKING:
     from spm_console.motion.homing import HomingResult
@@ -121,6 +122,7 @@ class Session(ServoTools, FollowTools):
         faults: Sequence[FaultSpec] = (),
         initial_deg: Sequence[float] | None = None,
         emulator_process: bool = False,
+        sim_time: bool | None = None,
     ) -> None:
         self.profile = profile
         self.model = model_of(profile)
@@ -134,6 +136,12 @@ class Session(ServoTools, FollowTools):
         self.cache_dir = cache_dir
         self.faults = tuple(faults)
         self.initial_deg = initial_deg
+        self.sim_time = self.sim and (profile.emulator.clock == "simulated" if sim_time is None
+                                      else sim_time)
+        """The emulated bus runs in simulated time (:mod:`spm_console.system.simclock`; default
+        the profile's ``[emulator] clock``)."""
+        self.sim_clock: SimClock | None = None
+        """The simulated clock while connected in simulated time."""
         self.emulator_process = emulator_process
         """Run the emulated bus in a child process (the console: its UI thread must not
         delay the emulator's replies) rather than in a thread of this process."""
@@ -167,6 +175,10 @@ class Session(ServoTools, FollowTools):
         """Set while a motion (homing or execution) runs."""
 
     # ------------------------------------------------------------------ bus
+    def clock(self) -> float:
+        """Now on the motion's clock: ``time.perf_counter()``, or the simulated time."""
+        return time.perf_counter() if self.sim_clock is None else self.sim_clock.now()
+
     @property
     def homed(self) -> bool:
         """Whether the motion process has the wrist homed (its own flag, from its latest
@@ -190,8 +202,11 @@ class Session(ServoTools, FollowTools):
         cpu_plan()  # the CPU set is fixed before any child starts (see spm_console.system.cpus)
         # the physical wrist always in a process of its own: its physics would share this
         # interpreter's lock with the front end
+        if self.sim_time:
+            self.sim_clock = SimClock.create()
+        sim = self.sim_clock
         if self.sim and (self.emulator_process or self.profile.plant.model == "physical"):
-            child = EmulatorChild(self.profile, self.faults, self.initial_deg)
+            child = EmulatorChild(self.profile, self.faults, self.initial_deg, sim)
             self.emulator = child
             try:
                 port = child.launch()
@@ -200,7 +215,7 @@ class Session(ServoTools, FollowTools):
                 raise BusError(exc.message) from None
         elif self.sim:
             self.emulator = start_emulator(self.profile, self.faults, record=False,
-                                           initial_deg=self.initial_deg)
+                                           initial_deg=self.initial_deg, sim=sim)
             port = self.emulator.port
         assert port is not None
         try:
@@ -208,7 +223,8 @@ class Session(ServoTools, FollowTools):
 
             client = MotionClient(self.profile, port, cache_dir=self.cache_dir,
                                   logs_root=None if self.logs_root is None else str(self.logs_root),
-                                  sim=self.sim, faults=[str(f) for f in self.faults])
+                                  sim=self.sim, faults=[str(f) for f in self.faults],
+                                  sim_clock=sim)
             self.bus = client
             placed = place_beside_loop()  # the loop's children started: off their CPU
             rt, granted = self._emulator_realtime()
@@ -254,6 +270,9 @@ class Session(ServoTools, FollowTools):
         emu, self.emulator = self.emulator, None
         if emu is not None:
             emu.stop()
+        clock, self.sim_clock = self.sim_clock, None
+        if clock is not None:
+            clock.close()
         self.bus_state = None
         self.health = None
 
@@ -263,7 +282,7 @@ class Session(ServoTools, FollowTools):
             raise BadInputError("a motion is already running")
         self._estop_sent = False
         self.moving.set()
-        began = time.perf_counter()
+        began = self.clock()
         try:
             if self.before_motion is not None:
                 self.before_motion()
@@ -286,7 +305,7 @@ class Session(ServoTools, FollowTools):
         emu = self.emulator
         if not isinstance(emu, EmulatorChild) or not emu.physical or result.log_dir is None:
             return
-        until = time.perf_counter()
+        until = self.clock()
         if not emu.flush():  # the child did not answer: take what it told so far
             time.sleep(COLLISION_REPORT_S)
         hits = emu.collisions(began, until)

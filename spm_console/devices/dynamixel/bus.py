@@ -17,7 +17,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,6 +34,9 @@ from spm_console.devices.dynamixel.protocol2 import describe_error
 from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
 from spm_console.devices.dynamixel.transport import Transport, open_transport
 from spm_console.errors import BadInputError, BusError
+
+if TYPE_CHECKING:
+    from spm_console.system.simclock import SimClock
 
 T = TypeVar("T")
 
@@ -278,8 +281,16 @@ class DynamixelBus:
         return units
 
 
-def open_bus(profile: Profile, port: str, exclusive: bool = True) -> DynamixelBus:
+def open_bus(profile: Profile, port: str, exclusive: bool = True,
+             sim: SimClock | None = None) -> DynamixelBus:
     """Open ``port`` with the profile's baud rate and reply timeout; BusError if impossible,
-    BadInputError when another process drives it (``exclusive``: see ``open_transport``)."""
-    return DynamixelBus(profile, open_transport(port, profile.bus.baud, profile.bus.timeout_s,
-                                                exclusive))
+    BadInputError when another process drives it (``exclusive``: see ``open_transport``).
+    ``sim``: an emulated bus in simulated time (its timeouts and the bytes' time on the wire
+    are simulated seconds, see :mod:`spm_console.system.simclock`)."""
+    transport = open_transport(port, profile.bus.baud, profile.bus.timeout_s, exclusive)
+    if sim is not None:
+        transport.simulate(sim, profile.bus.baud)
+    bus = DynamixelBus(profile, transport)
+    if sim is not None:
+        bus.link.clock = sim.now
+    return bus

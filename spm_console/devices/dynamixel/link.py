@@ -52,6 +52,8 @@ class Reply:
 
 class Link(Protocol):
     protocol: str
+    clock: Callable[[], float]
+    """The clock replies are aged by, s (``time.perf_counter``; simulated time in lockstep)."""
 
     @property
     def stale_replies(self) -> int: ...

@@ -43,13 +43,17 @@ import termios
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import serial
 
 from spm_console.devices.base import CommError
 from spm_console.devices.dynamixel import port_lock
 from spm_console.errors import BadInputError, BusError
+from spm_console.system.simclock import CATCH_UP_S
+
+if TYPE_CHECKING:
+    from spm_console.system.simclock import SimClock
 
 P = TypeVar("P")
 
@@ -81,6 +85,17 @@ class Transport:
         self.bytes_in = 0
         self.bytes_flushed = 0
         """Input discarded unread before a request (replies that came too late)."""
+        self.sim: SimClock | None = None
+        """Simulated time (an emulated bus in lockstep, :meth:`simulate`); None: the wall
+        clock."""
+        self._byte_s = 0.0
+
+    def simulate(self, clock: SimClock, baud: int) -> None:
+        """Wait on ``clock``'s simulated time from now on: each reply within the timeout in
+        simulated seconds, each transaction taking its bytes' time on the wire at ``baud``
+        (10 bits a byte)."""
+        self.sim = clock
+        self._byte_s = 10.0 / baud
 
     # --- the byte stream (OSError on failure) --------------------------------------
 
@@ -118,6 +133,8 @@ class Transport:
 
     def _send(self, packet: bytes, on_late: Callable[[bytes], object] | None = None) -> None:
         try:
+            if self.sim is not None:  # the emulator's replies due by now are all here
+                self.sim.catch_up()
             waiting = self._waiting()
             if waiting and on_late is not None:  # came after the last transaction: late
                 late = self._read(waiting)
@@ -130,6 +147,8 @@ class Transport:
         except OSError as exc:  # serial.SerialException is an OSError
             raise CommError(f"write to {self.port} failed: {exc}") from None
         self.bytes_out += len(packet)
+        if self.sim is not None:
+            self.sim.sent(len(packet))
 
     @contextlib.contextmanager
     def patience(self, timeout_s: float) -> Iterator[None]:
@@ -159,7 +178,11 @@ class Transport:
             decoder.reset()
             self._send(packet, on_late)
             if not count:
+                self._on_wire(len(packet))
                 return []
+            if self.sim is not None:
+                return self._collect_sim(self.sim, len(packet), decoder, count,
+                                         timeout_s or self.timeout_s, check)
             return self._collect(decoder, count, timeout_s or self.timeout_s, check)
 
     def send(self, packet: bytes, on_late: Callable[[bytes], object] | None = None) -> None:
@@ -167,6 +190,13 @@ class Transport:
         :meth:`transact`."""
         with self._lock:
             self._send(packet, on_late)
+            self._on_wire(len(packet))
+
+    def _on_wire(self, n: int) -> None:
+        """In simulated time: ``n`` bytes took their time on the wire (once the emulator has
+        taken them, at the instant they were sent)."""
+        if self.sim is not None:
+            self.sim.advance_to(self.sim.now() + n * self._byte_s)
 
     def drain(self, quiet_s: float, max_s: float = 0.25,
               on_late: Callable[[bytes], object] | None = None) -> int:
@@ -179,6 +209,10 @@ class Transport:
         chunks: list[bytes] = []
         with self._lock:
             fd = self.fileno()
+            if self.sim is not None:  # what the emulator holds back comes when it is due
+                sim = self.sim
+                sim.catch_up()
+                sim.advance_to(sim.due if sim.due <= sim.now() + max_s else sim.now() + quiet_s)
             end = time.perf_counter() + max_s
             while (left := end - time.perf_counter()) > 0:
                 try:
@@ -193,6 +227,50 @@ class Transport:
                 on_late(data)
         self.bytes_in += len(data)
         return len(data)
+
+    def _collect_sim(self, sim: SimClock, sent: int, decoder: StreamDecoder[P], count: int,
+                     timeout_s: float, check: Callable[[P], int] | None) -> list[P]:
+        """:meth:`_collect` in simulated time: once the emulator has answered the request
+        (:meth:`SimClock.catch_up`), what it wrote is there to read; a reply it holds back
+        (a delay fault) comes when the clock reaches it, within the timeout, or the
+        transaction fails with the clock at the timeout. The transaction then took its bytes'
+        time on the wire."""
+        got: list[P] = []
+        settled = 0
+        received = 0
+        fd = self.fileno()
+        deadline = sim.now() + timeout_s
+        while settled < count:
+            try:
+                if not select.select([fd], [], [], 0)[0]:
+                    if not sim.catch_up():
+                        raise CommError(f"the emulated bus did not answer {self.port} "
+                                        "(simulated time)")
+                    if not select.select([fd], [], [], 0)[0]:
+                        if sim.due > deadline:
+                            sim.advance_to(deadline)
+                            raise CommError(
+                                f"no status packet within {timeout_s * 1e3:.1f} ms of simulated "
+                                f"time ({len(got)} of {count} received, {decoder.rejected} "
+                                "corrupt)")
+                        sim.advance_to(sim.due)
+                        sim.catch_up()
+                        if not select.select([fd], [], [], CATCH_UP_S)[0]:
+                            raise CommError(f"the emulated bus did not send its reply on "
+                                            f"{self.port} (simulated time)")
+                data = self._read(self._waiting() or 1)
+            except OSError as exc:
+                raise CommError(f"read from {self.port} failed: {exc}") from None
+            self.bytes_in += len(data)
+            received += len(data)
+            for pkt in decoder.feed(data):
+                n = 1 if check is None else check(pkt)
+                if n > 0:
+                    got.append(pkt)
+                    settled += n
+                    deadline = sim.now() + timeout_s
+        self._on_wire(sent + received)
+        return got
 
     def _collect(self, decoder: StreamDecoder[P], count: int, timeout_s: float,
                  check: Callable[[P], int] | None) -> list[P]:

@@ -10,6 +10,12 @@ servo sends, and applies the injected faults to the replies. The thread sleeps i
 complete. Time is ``time.perf_counter()``; ``true_state()`` reports it relative
 to the clock start together with the true joint angles and velocities (deg, deg/s).
 
+In simulated time (a :class:`~spm_console.system.simclock.SimClock`), time is the shared
+clock's: the bus integrates its servos and wrist only when a request comes in, up to the
+instant the clock says, tells the clock when it has answered each request's bytes and when
+a held-back reply is due, and writes that reply once the clock reaches it. It never steps on
+its own: the same requests at the same simulated instants give the same replies.
+
 Given a :class:`~spm_console.devices.emulator.twin.TrueWrist` (a profile and an as-built file),
 the bus serves the wrist as built instead of the one the profile describes: its servos' ids,
 Drive Modes and horn offsets, its link arcs, tilt, payload and IMU (whose truth
@@ -20,11 +26,12 @@ operator's home jig (held at the true home until the first torque-on) and write 
 
 from __future__ import annotations
 
+import math
 import random
 import select
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -52,6 +59,7 @@ if TYPE_CHECKING:  # the physical wrist loads MuJoCo: only a physical plant need
     from spm_console.devices.emulator.as_built_parts import WristTruth
     from spm_console.devices.emulator.bno055 import ImuTruth
     from spm_console.devices.emulator.physical import PhysicalWrist
+    from spm_console.system.simclock import SimClock
 
 F = NDArray[np.float64]
 
@@ -60,6 +68,9 @@ IDLE_S = 0.005
 #: The same with a physical wrist, which steps while idle: a request then finds at most
 #: this much of its motion left to integrate before the reply (a few steps, ~0.1 ms).
 PHYSICAL_IDLE_S = 0.001
+#: How often the serving thread looks at the simulated clock while a reply is held back, s
+#: (wall clock).
+SIM_POLL_S = 0.0001
 #: A partial packet older than this when new bytes arrive is dropped (like the firmware's
 #: byte-to-byte timeout), so a garbage header with a huge length cannot hold the line.
 GAP_S = 0.01
@@ -88,8 +99,11 @@ class EmulatorHandle:
     def __init__(self, profile: Profile, faults: Sequence[FaultSpec] = (), record: bool = True,
                  initial_deg: Sequence[float] | None = None, link: Link | None = None, *,
                  truth: TrueWrist | None = None, jig: bool = False,
-                 truth_log: TruthLog | None = None) -> None:
+                 truth_log: TruthLog | None = None, sim: SimClock | None = None) -> None:
         self.profile = profile
+        self.sim = sim
+        """Simulated time (see the module docstring); None: the wall clock."""
+        self._clock: Callable[[], float] = time.perf_counter if sim is None else sim.now
         self.protocol = profile.bus.protocol
         self.true_wrist = truth
         """The wrist as built the bus serves (None: the profile's)."""
@@ -119,11 +133,12 @@ class EmulatorHandle:
         # the servos power on once the wrist is built (MuJoCo's model and the assembly take a
         # tenth of a second or more): the serving thread never starts behind, integrating
         # that time before its first reply
-        now = time.perf_counter()
+        now = self._clock()
         if self.wrist is not None:
             self.wrist.t = now
         self.t_power_on = now
-        """When the servos powered on (``time.perf_counter()``), s: the truth log's zero."""
+        """When the servos powered on (``time.perf_counter()`` or the simulated clock), s: the
+        truth log's zero."""
         modes = [0, 0, 0] if truth is None else [j.drive_mode for j in truth.joints]
         self.servos = [
             EmulatedServo(table, m.id, servo_model_of(profile).dynamics, m.to_ticks(theta0[i]), now,
@@ -167,7 +182,7 @@ class EmulatorHandle:
     def start_clock(self) -> None:
         """t = 0 now: fault times (and true_state times) are relative to this instant."""
         with self._lock:
-            now = time.perf_counter()
+            now = self._clock()
             self._advance(now)
             self.t0 = now
             self.clock_started = True
@@ -181,7 +196,7 @@ class EmulatorHandle:
         """Recorded truth: 't' (n,) s from clock start, 'position_deg' and 'velocity_degps' (n, 3),
         'read' (n,): the records whose state answered a read instruction."""
         with self._lock:
-            self._advance(time.perf_counter())
+            self._advance(self._clock())
             t = np.asarray(self._t, float) - self.t0
             pos = np.asarray(self._pos, float).reshape(-1, 3)
             vel = np.asarray(self._vel, float).reshape(-1, 3)
@@ -192,7 +207,7 @@ class EmulatorHandle:
     def joint_deg(self) -> F:
         """True joint angles now, deg."""
         with self._lock:
-            self._advance(time.perf_counter())
+            self._advance(self._clock())
             return np.array([m.to_deg(s.pos) for m, s in zip(self.maps, self.servos, strict=True)])
 
     def set_joint_deg(self, theta_deg: Sequence[float] | F) -> None:
@@ -201,7 +216,7 @@ class EmulatorHandle:
         if len(theta) != 3:
             raise BusError("set_joint_deg: expected three joint angles")
         with self._lock:
-            self._advance(time.perf_counter())
+            self._advance(self._clock())
             if self.wrist is not None:
                 self.wrist.set_theta(np.radians(theta))
             for m, s, th in zip(self.maps, self.servos, theta, strict=True):
@@ -214,7 +229,7 @@ class EmulatorHandle:
         with self._lock:
             if self.wrist is None or self.wrist.parts is None:
                 raise BusError("only the physical wrist as built carries an IMU")
-            self._advance(time.perf_counter())
+            self._advance(self._clock())
             return self.wrist.truth()
 
     def imu_truth(self) -> ImuTruth:
@@ -293,6 +308,9 @@ class EmulatorHandle:
     def _serve(self) -> None:
         self.realtime = request_realtime(EMULATOR_PRIORITY)
         try:
+            if self.sim is not None:
+                self._serve_sim(self.sim)
+                return
             idle = IDLE_S if self.wrist is None else PHYSICAL_IDLE_S
             while not self._stop.is_set():
                 timeout = idle
@@ -306,13 +324,35 @@ class EmulatorHandle:
                 with self._lock:
                     now = time.perf_counter()
                     self._advance(now)
-                    for channel, data in received:
-                        self._handle(channel, data, now)
-                    if received and not self.clock_started and any(sv.torque for sv in self.servos):
-                        self.start_clock()  # the first torque-on: the motion starts
+                    self._receive(received, now)
                     self._flush(now)
         finally:
             self._stop.set()
+
+    def _receive(self, received: list[tuple[Channel, bytes]], now: float) -> None:
+        for channel, data in received:
+            self._handle(channel, data, now)
+        if received and not self.clock_started and any(sv.torque for sv in self.servos):
+            self.start_clock()  # the first torque-on: the motion starts
+
+    def _serve_sim(self, sim: SimClock) -> None:
+        """The serving loop in simulated time: nothing moves between requests; a reply held
+        back is written once the clock reaches it (polled while one is)."""
+        while not self._stop.is_set():
+            timeout = SIM_POLL_S if self._pending else IDLE_S
+            try:
+                ready, _, _ = select.select(self._endpoint.fds(), [], [], timeout)
+            except (OSError, ValueError):
+                return
+            received = self._endpoint.receive(ready) if ready else []
+            with self._lock:
+                now = sim.now()
+                if received:
+                    self._advance(now)
+                    self._receive(received, now)
+                self._flush(now)
+                sim.due = self._pending[0][0] if self._pending else math.inf
+                sim.answered(sum(len(data) for _, data in received))
 
     def _handle(self, channel: Channel, data: bytes, now: float) -> None:
         decoder = channel.decoder
@@ -384,7 +424,8 @@ def _physical_wrist(profile: Profile, theta0_deg: Sequence[float],
 def start_emulator(profile: Profile, faults: Sequence[FaultSpec] = (), record: bool = True,
                    initial_deg: Sequence[float] | None = None,
                    link: Link | None = None, *, truth: TrueWrist | None = None,
-                   jig: bool = False, truth_log: TruthLog | None = None) -> EmulatorHandle:
+                   jig: bool = False, truth_log: TruthLog | None = None,
+                   sim: SimClock | None = None) -> EmulatorHandle:
     """Start an emulated bus for ``profile`` in a background thread; open ``handle.port``
     (``link``: a Unix-domain socket, ``unix:PATH``, or a pseudo-terminal; default the
     profile's ``emulator.link``).
@@ -397,6 +438,7 @@ def start_emulator(profile: Profile, faults: Sequence[FaultSpec] = (), record: b
     With ``truth`` (:func:`~spm_console.devices.emulator.twin.true_wrist`) the bus serves that
     wrist as built; on the physical plant, ``jig`` powers it on held at the true home until the
     first torque-on, and ``truth_log`` (closed by ``stop()``) receives its truth at 100 Hz.
+    ``sim``: serve in simulated time (the module docstring).
     """
     return EmulatorHandle(profile, faults, record, initial_deg, link, truth=truth, jig=jig,
-                          truth_log=truth_log)
+                          truth_log=truth_log, sim=sim)

@@ -27,9 +27,9 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from spm_console.config.schema import Profile
 from spm_console.devices.emulator.faults import parse_fault
@@ -38,6 +38,9 @@ from spm_console.system.childproc import ChildProcess
 from spm_console.system.cpus import place_on_loop_cpu
 from spm_console.system.realtime import HELPER_PRIORITY, quick_gil_handoff, request_realtime
 from spm_console.system.signals import STOP_SIGNALS
+
+if TYPE_CHECKING:
+    from spm_console.system.simclock import SimClock
 
 #: How often the child checks that its parent is alive, s.
 PARENT_POLL_S = 0.5
@@ -56,13 +59,17 @@ class EmulatorChild(ChildProcess):
     stop_signal = signal.SIGUSR1
 
     def __init__(self, profile: Profile, faults: Sequence[Any] = (),
-                 initial_deg: Sequence[float] | None = None) -> None:
+                 initial_deg: Sequence[float] | None = None,
+                 sim: SimClock | None = None) -> None:
         super().__init__("spm_console.devices.emulator.child", what="emulated servo bus")
         self.request = {
             "profile": profile.model_dump(mode="json"),
             "faults": [str(f) for f in faults],
             "initial_deg": None if initial_deg is None else [float(x) for x in initial_deg],
+            "sim_clock": None if sim is None else sim.path,
         }
+        self.clock: Callable[[], float] = time.perf_counter if sim is None else sim.now
+        """The clock the child serves on (contacts and flushes are told in its time)."""
         self.port = ""
         self.realtime = ""
         self.realtime_granted = False
@@ -76,7 +83,8 @@ class EmulatorChild(ChildProcess):
 
     def collisions(self, since: float, until: float) -> list[dict[str, Any]]:
         """The physical wrist's leg contacts that began between the monotonic instants
-        ``since`` and ``until`` (``time.perf_counter()``, shared by the processes)."""
+        ``since`` and ``until`` (:attr:`clock`: ``time.perf_counter()``, shared by the processes,
+        or the simulated clock)."""
         with self._lock:
             return [c for c in self._collisions if since <= float(c["t"]) <= until]
 
@@ -86,7 +94,7 @@ class EmulatorChild(ChildProcess):
         proc = self._proc
         if proc is None or proc.poll() is not None:
             return False
-        asked = time.perf_counter()
+        asked = self.clock()
         try:
             proc.send_signal(signal.SIGUSR2)
         except OSError:
@@ -129,6 +137,7 @@ class EmulatorChild(ChildProcess):
 def main(argv: Sequence[str] | None = None) -> int:
     from spm_console.config.load import parse_profile
     from spm_console.devices.emulator.bus import start_emulator
+    from spm_console.system.simclock import attached
 
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--parent", type=int, default=0, help="exit when this process is gone")
@@ -156,7 +165,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         req = json.loads(sys.stdin.read())
         profile = parse_profile(req["profile"], "profile")
         faults = [parse_fault(f) for f in req.get("faults", [])]
-        em = start_emulator(profile, faults, record=False, initial_deg=req.get("initial_deg"))
+        path = req.get("sim_clock")
+        sim = None if path is None else attached(str(path))
+        em = start_emulator(profile, faults, record=False, initial_deg=req.get("initial_deg"),
+                            sim=sim)
     except (SpmError, ValueError, KeyError) as exc:
         msg = getattr(exc, "message", str(exc))
         sys.stdout.write(json.dumps({"error": msg}) + "\n")
@@ -177,7 +189,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if asked["stop"] or (args.parent and os.getppid() != args.parent):
                 break
             flushes = asked["flush"]  # one read: a later request finds its byte in the pipe
-            now = time.perf_counter()
+            now = time.perf_counter() if em.sim is None else em.sim.now()
             if em.wrist is not None:  # the legs' contacts, told to the owner as they begin
                 if flushes > told:
                     em.joint_deg()  # steps the wrist up to now first (the serving thread waits)

@@ -1,0 +1,150 @@
+"""Simulated time shared by the processes of one emulated session: the servo loop, its bus and
+the emulated wrist step in lockstep instead of waiting on the wall clock.
+
+One small file mapped into every process that takes part (:class:`SimClock`; the session
+creates it, the motion process and the emulator attach to it by path) holds:
+
+* ``now``: the simulated time, s. It only moves forward, and only when someone waits: the
+  servo loop's wait for its next period, the transport's wait for a reply (the bytes' time on
+  the wire, or a timeout), a stop action's repeated hold. Nothing else advances it.
+* ``tx`` and ``rx``: the bytes the bus's client has written and the bytes the emulated bus has
+  read and answered. :meth:`SimClock.advance_to` first waits (on the wall clock, bounded)
+  until the emulator has answered everything sent: every instruction is applied at the
+  simulated instant it was sent, whatever the machine's load, so runs are deterministic.
+* ``due``: the simulated time of the emulator's earliest reply held back by a ``delay``
+  fault (+inf: none), so a client waiting for it moves the clock there instead of waiting;
+  the emulator writes it after each reply it sends, so ``due > now`` once every reply due by
+  now is on its way.
+
+The emulator integrates its physics up to the clock's value when it handles a request
+(never on its own schedule): the twin steps exactly to the instant each request asks about.
+
+Limits, stated plainly: one bus client at a time counts its bytes (the motion process owns the
+port exclusively); values are aligned 8-byte words, written by one process each (``now`` by the
+client's side, ``rx`` and ``due`` by the emulator). Seconds throughout.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import mmap
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+#: Longest wall-clock wait for the emulator to answer what was sent before time moves on, s
+#: (it answers within a millisecond; longer, it is gone or stopped: time moves on anyway and
+#: the bus's own timeouts report it).
+CATCH_UP_S = 2.0
+#: Wall-clock poll of that wait, s.
+POLL_S = 0.0001
+_SIZE = 64
+_NOW, _DUE = 0, 1  # float64 words
+_TX, _RX = 2, 3  # uint64 words
+
+
+class SimClock:
+    """A simulated clock in a shared file (see the module docstring). Create one with
+    :meth:`create`, attach to it elsewhere with :meth:`attach`."""
+
+    def __init__(self, path: str, owner: bool = False) -> None:
+        self.path = path
+        self._owner = owner
+        fd = os.open(path, os.O_RDWR)
+        try:
+            self._mm = mmap.mmap(fd, _SIZE)
+        finally:
+            os.close(fd)
+        self._f = np.ndarray((4,), np.float64, buffer=self._mm)
+        self._u = np.ndarray((4,), np.uint64, buffer=self._mm)
+
+    @classmethod
+    def create(cls, start_s: float = 0.0) -> SimClock:
+        """A new clock at ``start_s``, in a file of its own (removed by :meth:`close`)."""
+        shm = Path("/dev/shm")
+        fd, path = tempfile.mkstemp(prefix="spm-simclock-",
+                                    dir=str(shm) if shm.is_dir() else None)
+        try:
+            os.write(fd, bytes(_SIZE))
+        finally:
+            os.close(fd)
+        clock = cls(path, owner=True)
+        clock._f[_NOW] = float(start_s)
+        clock._f[_DUE] = math.inf
+        return clock
+
+    @classmethod
+    def attach(cls, path: str) -> SimClock:
+        """The clock another process created at ``path``."""
+        return cls(path)
+
+    def close(self) -> None:
+        """Unmap (and, for the creator, remove the file)."""
+        if self._owner:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)
+
+    # --- time -------------------------------------------------------------------------
+    def now(self) -> float:
+        """The simulated time, s."""
+        return float(self._f[_NOW])
+
+    def advance_to(self, t: float) -> None:
+        """Move the clock to ``t`` (never back), once the emulator has answered everything
+        sent."""
+        self.catch_up()
+        if t > self._f[_NOW]:
+            self._f[_NOW] = float(t)
+
+    def sleep(self, dt: float) -> None:
+        """Wait ``dt`` s of simulated time (at once on the wall clock)."""
+        self.advance_to(self.now() + max(0.0, float(dt)))
+
+    # --- the bus's bytes ----------------------------------------------------------------
+    def sent(self, n: int) -> None:
+        """The bus client wrote ``n`` bytes."""
+        self._u[_TX] += np.uint64(n)
+
+    def answered(self, n: int) -> None:
+        """The emulator read ``n`` bytes and wrote every reply due for them."""
+        self._u[_RX] += np.uint64(n)
+
+    def caught_up(self) -> bool:
+        """Whether the emulator has answered every byte the client sent and written every
+        held-back reply due by now."""
+        return int(self._u[_RX]) >= int(self._u[_TX]) and float(self._f[_DUE]) > self.now()
+
+    def catch_up(self, wait_s: float = CATCH_UP_S) -> bool:
+        """Wait (wall clock, at most ``wait_s``) until :meth:`caught_up`; whether it was."""
+        if self.caught_up():
+            return True
+        end = time.perf_counter() + wait_s
+        while time.perf_counter() < end:
+            time.sleep(POLL_S)
+            if self.caught_up():
+                return True
+        return False
+
+    @property
+    def due(self) -> float:
+        """The simulated time of the emulator's earliest held-back reply (+inf: none)."""
+        return float(self._f[_DUE])
+
+    @due.setter
+    def due(self, t: float) -> None:
+        self._f[_DUE] = float(t)
+
+
+_ATTACHED: dict[str, SimClock] = {}
+
+
+def attached(path: str) -> SimClock:
+    """The clock at ``path``, attached once per process."""
+    clock = _ATTACHED.get(path)
+    if clock is None:
+        clock = _ATTACHED[path] = SimClock.attach(path)
+    return clock
