@@ -334,6 +334,10 @@ class Emulator(Section):
     """Time on the emulated bus: ``real``, the wall clock (motions take as long as on the
     wrist); ``simulated``, the servo loop, the bus and the emulated wrist in lockstep on a
     shared simulated clock (as fast as the machine computes them, the same every run)."""
+    clock_rate: Real = Field(default=0.0, ge=0.0, le=1000.0)
+    """With the simulated clock: simulated seconds per wall-clock second, 0..1000 (0: as fast
+    as computed; 1: real time, to watch the emulated wrist move). Live following runs at
+    real time when 0 (an operator's input comes in real time)."""
 
 
 class Profile(Section):
@@ -382,7 +386,7 @@ _DIGESTED_UNLESS_DEFAULT: dict[str, dict[str, object]] = {
     "geometry": {"alpha1_leg_offset_deg": [0.0, 0.0, 0.0],
                  "alpha2_leg_offset_deg": [0.0, 0.0, 0.0]},
     "plant": {"payload_moment_kgmm": None},
-    "emulator": {"clock": "real"},
+    "emulator": {"clock": "real", "clock_rate": 0.0},
 }
 
 

@@ -134,13 +134,16 @@ def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
 
 
 def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, float]],
-              speed_degps: float, stop_asked: Callable[[], str]) -> NudgeResult:
+              speed_degps: float, stop_asked: Callable[[], str],
+              clock: Callable[[], float] = time.monotonic,
+              sleep: Callable[[float], None] = time.sleep) -> NudgeResult:
     """Move each listed servo to ``offset`` deg from its rest (0: back to it), the others
-    holding, on a ramp at ``speed_degps``; ``stop_asked()`` returns a reason to stop (an E-stop)."""
+    holding, on a ramp at ``speed_degps``; ``stop_asked()`` returns a reason to stop (an E-stop).
+    ``clock`` and ``sleep``: the wall clock's, or a simulated clock's in lockstep."""
     ids = list(bus.ids)
     check_moves(moves, ids, speed_degps)
     tpd = bus.maps[0].ticks_per_turn / 360.0
-    t0 = time.monotonic()
+    t0 = clock()
     try:
         if not state.saved_pwm:
             _begin(bus, state)
@@ -152,13 +155,13 @@ def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, f
         ramp_s = span_deg / speed_degps
         lag = 0.0
         stopped = ""
-        t_start = time.monotonic()
+        t_start = clock()
         while True:
             reason = stop_asked()
             if reason:
                 stopped = f"stopped: {reason}"
                 break
-            s = 1.0 if ramp_s <= 0 else min(1.0, (time.monotonic() - t_start) / ramp_s)
+            s = 1.0 if ramp_s <= 0 else min(1.0, (clock() - t_start) / ramp_s)
             goal = {i: round(start[i] + s * (target[i] - start[i])) for i in ids}
             bus.sync_write("goal_position", goal)
             state.goal_ticks = goal
@@ -170,16 +173,16 @@ def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, f
                 break
             if s >= 1.0:
                 break
-            time.sleep(CYCLE_S)
+            sleep(CYCLE_S)
         if stopped:  # hold where the servos are
             present = dict(zip(ids, _ticks(bus), strict=True))
             bus.sync_write("goal_position", present)
             state.goal_ticks = present
         else:
-            time.sleep(SETTLE_S)
+            sleep(SETTLE_S)
         reached = _ticks(bus)
     except CommError as exc:
         raise BusError(f"nudge on {bus.port}: {exc}") from None
     return NudgeResult(tuple(ids), tuple(state.rest_ticks[i] for i in ids),
                        tuple(state.goal_ticks[i] for i in ids), tuple(reached), lag, stopped,
-                       time.monotonic() - t0)
+                       clock() - t0)

@@ -67,10 +67,15 @@ class RunContext:
         """The simulated clock of this run's bus (None: the wall clock)."""
         return None if self.sim_clock is None else attached(self.sim_clock)
 
-    def timing(self) -> dict[str, Any]:
-        """The executor's ``clock`` and ``sleep`` (none: the wall clock's)."""
+    def timing(self, live: bool = False) -> dict[str, Any]:
+        """The executor's ``clock`` and ``sleep`` (none: the wall clock's). ``live``: the run
+        follows an operator's input as it comes, so simulated time runs no faster than
+        real time (at the clock's own pace when it has one)."""
         sim = self.clock()
-        return {} if sim is None else {"clock": sim.now, "sleep": sim.sleep}
+        if sim is None:
+            return {}
+        rate = (sim.rate or 1.0) if live else sim.rate
+        return {"clock": sim.now, "sleep": lambda dt: sim.sleep(dt, rate)}
 
 
 def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,

@@ -304,7 +304,7 @@ class _Server:
             if isinstance(req, Torque):
                 servo_tools.set_joint_torque(self.bus, req.joint, req.on)
             else:
-                servo_tools.reboot_joint(self.bus, req.joint)
+                servo_tools.reboot_joint(self.bus, req.joint, **self.ctx.timing())
         return servo_tools.read_health(self.bus)
 
     def ping(self) -> list[ServoStatus]:
@@ -386,7 +386,8 @@ class _Server:
                 result = Reply(req.id, None)
             else:
                 result = Reply(req.id, run_nudge(self.bus, self.nudging, req.moves,
-                                                 req.speed_degps, lambda: self.pending_estop))
+                                                 req.speed_degps, lambda: self.pending_estop,
+                                                 **self.ctx.timing()))
         except SpmError as exc:
             result = self.refused(req.id, exc)
         except Exception as exc:  # a bug: hold where the servos are if the bus answers

@@ -214,23 +214,25 @@ def set_joint_torque(bus: DynamixelBus, joint: int, on: bool) -> None:
         raise BusError(exc.message + hint) from None
 
 
-def reboot_joint(bus: DynamixelBus, joint: int) -> None:
-    """REBOOT one joint's servo (Protocol 2.0) and wait until it answers a ping again."""
+def reboot_joint(bus: DynamixelBus, joint: int, clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+    """REBOOT one joint's servo (Protocol 2.0) and wait until it answers a ping again
+    (``clock`` and ``sleep``: the wall clock's, or a simulated clock's in lockstep)."""
     ident = bus.maps[joint_index(bus, joint)].id
     try:
         _settled(bus, lambda: bus.reboot([ident]))
     except (CommError, OSError) as exc:
         raise BusError(f"joint {joint} (servo id {ident}): no answer to REBOOT ({exc})") from None
-    t_end = time.monotonic() + REBOOT_WAIT_S
+    t_end = clock() + REBOOT_WAIT_S
     while True:
         try:
             bus.ping(ident)
             return
         except BusError:
-            if time.monotonic() > t_end:
+            if clock() > t_end:
                 raise BusError(f"joint {joint} (servo id {ident}) did not answer within "
                                f"{REBOOT_WAIT_S:g} s of its reboot") from None
-            time.sleep(0.05)
+            sleep(0.05)
 
 
 def jog_target(theta_deg: Sequence[float] | F, joint: int, step_deg: float,

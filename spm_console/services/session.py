@@ -51,6 +51,7 @@ from spm_console.services.session_tools import ServoTools
 from spm_console.store.plan_file import load_plan
 from spm_console.store.workspace_cache import CacheInfo, load_or_build
 from spm_console.system.cpus import cpu_plan, place_beside_loop
+from spm_console.system.env import clock_override
 from spm_console.system.simclock import SimClock
 
 if TYPE_CHECKING:
@@ -107,6 +108,18 @@ class BusState:
     """Where the servo loop and the console run (see :mod:`spm_console.system.cpus`)."""
 
 
+def _clock_default(profile: Profile) -> tuple[bool, float]:
+    """Whether an emulated bus runs in simulated time unless told, and at what pace (0: as
+    fast as computed): ``SPM_CONSOLE_CLOCK``, else the profile's ``[emulator]`` clock."""
+    try:
+        override = clock_override()
+    except ValueError as exc:
+        raise BadInputError(str(exc)) from None
+    if override is not None:
+        return override[0] == "simulated", override[1]
+    return profile.emulator.clock == "simulated", profile.emulator.clock_rate
+
+
 class Session(ServoTools, FollowTools):
     """Profile, bus, workspace, plan and runs of one operator session (thread-safe enough:
     one motion at a time, E-stop from any thread). Servo health and tools (status, torque
@@ -136,10 +149,11 @@ class Session(ServoTools, FollowTools):
         self.cache_dir = cache_dir
         self.faults = tuple(faults)
         self.initial_deg = initial_deg
-        self.sim_time = self.sim and (profile.emulator.clock == "simulated" if sim_time is None
-                                      else sim_time)
+        simulated, self.sim_rate = _clock_default(profile)
+        self.sim_time = self.sim and (simulated if sim_time is None else sim_time)
         """The emulated bus runs in simulated time (:mod:`spm_console.system.simclock`; default
-        the profile's ``[emulator] clock``)."""
+        ``SPM_CONSOLE_CLOCK``, else the profile's ``[emulator] clock``), at ``sim_rate``
+        simulated seconds per wall-clock second (0: as fast as computed)."""
         self.sim_clock: SimClock | None = None
         """The simulated clock while connected in simulated time."""
         self.emulator_process = emulator_process
@@ -203,7 +217,7 @@ class Session(ServoTools, FollowTools):
         # the physical wrist always in a process of its own: its physics would share this
         # interpreter's lock with the front end
         if self.sim_time:
-            self.sim_clock = SimClock.create()
+            self.sim_clock = SimClock.create(rate=self.sim_rate)
         sim = self.sim_clock
         if self.sim and (self.emulator_process or self.profile.plant.model == "physical"):
             child = EmulatorChild(self.profile, self.faults, self.initial_deg, sim)

@@ -42,8 +42,11 @@ import numpy as np
 CATCH_UP_S = 2.0
 #: Wall-clock poll of that wait, s.
 POLL_S = 0.0001
+#: A wait that starts this long (wall clock) after the last paced one starts a new run of
+#: paced waits: time spent idle between motions is not made up for, s.
+PACE_GAP_S = 0.25
 _SIZE = 64
-_NOW, _DUE = 0, 1  # float64 words
+_NOW, _DUE, _RATE = 0, 1, 4  # float64 words
 _TX, _RX = 2, 3  # uint64 words
 
 
@@ -59,12 +62,18 @@ class SimClock:
             self._mm = mmap.mmap(fd, _SIZE)
         finally:
             os.close(fd)
-        self._f = np.ndarray((4,), np.float64, buffer=self._mm)
+        self._f = np.ndarray((5,), np.float64, buffer=self._mm)
         self._u = np.ndarray((4,), np.uint64, buffer=self._mm)
+        self._paced: tuple[float, float] | None = None
+        """(simulated, wall-clock) instants of this process's last paced wait."""
 
     @classmethod
-    def create(cls, start_s: float = 0.0) -> SimClock:
-        """A new clock at ``start_s``, in a file of its own (removed by :meth:`close`)."""
+    def create(cls, start_s: float = 0.0, rate: float = 0.0) -> SimClock:
+        """A new clock at ``start_s``, in a file of its own (removed by :meth:`close`);
+        ``rate``: the simulated seconds its waits take per wall-clock second (0: no pacing, as
+        fast as the processes compute; 1: real time)."""
+        if not (math.isfinite(rate) and rate >= 0.0):
+            raise ValueError(f"SimClock: rate must be finite and ≥ 0, not {rate}")
         shm = Path("/dev/shm")
         fd, path = tempfile.mkstemp(prefix="spm-simclock-",
                                     dir=str(shm) if shm.is_dir() else None)
@@ -75,6 +84,7 @@ class SimClock:
         clock = cls(path, owner=True)
         clock._f[_NOW] = float(start_s)
         clock._f[_DUE] = math.inf
+        clock._f[_RATE] = float(rate)
         return clock
 
     @classmethod
@@ -100,9 +110,28 @@ class SimClock:
         if t > self._f[_NOW]:
             self._f[_NOW] = float(t)
 
-    def sleep(self, dt: float) -> None:
-        """Wait ``dt`` s of simulated time (at once on the wall clock)."""
-        self.advance_to(self.now() + max(0.0, float(dt)))
+    @property
+    def rate(self) -> float:
+        """Simulated seconds per wall-clock second of :meth:`sleep` (0: not paced)."""
+        return float(self._f[_RATE])
+
+    def sleep(self, dt: float, rate: float | None = None) -> None:
+        """Wait ``dt`` s of simulated time: at once on the wall clock, or paced at ``rate``
+        (default :attr:`rate`; 0: not paced) simulated seconds per wall-clock second. Paced
+        waits keep their own schedule (no drift), from the first after an idle gap
+        (:data:`PACE_GAP_S`)."""
+        target = self.now() + max(0.0, float(dt))
+        rate = self.rate if rate is None else rate
+        if rate > 0.0:
+            wall = time.perf_counter()
+            last = self._paced
+            if last is None or wall - last[1] > PACE_GAP_S + (target - last[0]) / rate:
+                last = (self.now(), wall)
+            due = last[1] + (target - last[0]) / rate
+            if due > wall:
+                time.sleep(due - wall)
+            self._paced = (target, max(due, wall))
+        self.advance_to(target)
 
     # --- the bus's bytes ----------------------------------------------------------------
     def sent(self, n: int) -> None:
