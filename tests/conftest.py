@@ -24,6 +24,11 @@ os.environ["SPM_CONSOLE_CONFIG"] = str(_SCRATCH / "config")
 # resident one would outlive the suite (tests/runtime/test_resident.py starts its own, in a
 # private folder, and ends it).
 os.environ.setdefault("SPM_CONSOLE_WARM_START", "command")
+# Motions on the emulated bus run in simulated time (spm_console.system.simclock): the servo
+# loop, the bus and the emulated wrist in lockstep, as fast as computed and the same every
+# run. Tests about real time take the wall clock (``real_clock``, marked ``realtime``); tests
+# that act while a motion runs pace it at real time (``paced_clock``).
+os.environ.setdefault("SPM_CONSOLE_CLOCK", "simulated")
 
 # Property tests draw the same examples on every run and machine (a failure found once is
 # found again, and CI cannot fail on a draw the last run did not make); set
@@ -54,25 +59,32 @@ def pytest_configure(config: pytest.Config) -> None:
     stalls.start()
 
 
-#: Console test modules whose motions are long real-time runs (the identification
-#: experiment's 18 s and its fit): beside another real-time run on two cores, one of the two
-#: lost the bus now and then, so they run in the real-time group, one at a time (when a
-#: parallel run includes them: they are in the slow set, which runs on its own).
-LONG_CONSOLE_RUNS = frozenset({"test_identify.py"})
-
-
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """For a parallel run (``--dist loadgroup``): the tests that run the servo loop in real
-    time or whole commands (tests/runtime, tests/e2e) all go to one worker, one at a time, so
-    two real-time runs never compete; each console test module (tests/tui) is a group of its
-    own, run beside them, except those of :data:`LONG_CONSOLE_RUNS`, which join the first."""
+    """For a parallel run (``--dist loadgroup``): each test module is a group of its own (its
+    module-scoped fixtures are built once); the tests about real time (marked ``realtime``)
+    all go to one group, one at a time, so two real-time runs never compete (``make test``
+    leaves them out: ``make test-realtime`` runs them on their own)."""
     for item in items:
         parts = Path(str(item.fspath)).relative_to(ROOT).parts
-        if len(parts) > 2 and (parts[1] in ("runtime", "e2e") or parts[-1] in LONG_CONSOLE_RUNS):
+        if item.get_closest_marker("realtime") is not None:
             item.add_marker(pytest.mark.xdist_group("realtime"))
-        elif len(parts) > 2 and parts[1] == "tui":
+        elif len(parts) > 2 and parts[1] in ("runtime", "e2e", "tui"):
             item.add_marker(pytest.mark.xdist_group(parts[-1]))
+
+
+@pytest.fixture
+def real_clock(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Motions on the emulated bus in real time (the wall clock), for this test and the
+    processes it starts."""
+    monkeypatch.setenv("SPM_CONSOLE_CLOCK", "real")
+
+
+@pytest.fixture
+def paced_clock(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Motions on the emulated bus in simulated time paced at real time: a test that acts
+    while the wrist moves (a key, a signal) finds it moving."""
+    monkeypatch.setenv("SPM_CONSOLE_CLOCK", "simulated:1")
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

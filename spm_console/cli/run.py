@@ -27,6 +27,7 @@ from spm_console.cli.common import (
     output_may_be_gone,
     profile_of,
 )
+from spm_console.cli.preview import preview_of, report_preview
 from spm_console.cli.streams.progress import RunProgress, wanted
 from spm_console.config.schema import Profile
 from spm_console.devices.emulator.faults import parse_fault
@@ -76,6 +77,10 @@ def register(sub: Any) -> None:
     e.add_argument("--skip-homing", metavar="REASON", default="",
                    help="execute without homing first (the wrist's pose is trusted as read); "
                         "REASON is written to the run log")
+    e.add_argument("--preview", action="store_true",
+                   help="do not move the wrist: run the whole command on its twin in simulated "
+                        "time from where the wrist rests, and print the predicted run (exit "
+                        "code: the predicted run's)")
     e.set_defaults(func=cmd_execute)
 
 
@@ -164,6 +169,8 @@ def cmd_execute(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     req = _request(args, profile)
     plan = load_plan(args.plan, profile)
+    if args.preview:
+        return report_preview(args, preview_of(args, plan, req))
     with with_progress(args, req, verifies=True):
         out = execute_once(profile, plan, req, source=str(args.plan))
     homing = out.homing

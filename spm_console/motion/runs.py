@@ -53,6 +53,8 @@ class RunContext:
     sim_clock: str | None = None
     """The emulated bus runs in simulated time on the clock at this path
     (:mod:`spm_console.system.simclock`); None: the wall clock."""
+    preview: bool = False
+    """A preview: the run the wrist is about to make, on its twin (said in the run logs)."""
 
     @property
     def bus_label(self) -> str:
@@ -61,7 +63,8 @@ class RunContext:
     def meta(self) -> dict[str, Any]:
         return {"bus": self.bus_label, "port": self.port, "sim": self.sim,
                 "faults": list(self.faults),
-                "clock": "real" if self.sim_clock is None else "simulated"}
+                "clock": "real" if self.sim_clock is None else "simulated",
+                **({"preview": True} if self.preview else {})}
 
     def clock(self) -> SimClock | None:
         """The simulated clock of this run's bus (None: the wall clock)."""

@@ -65,7 +65,7 @@ class MotionClient:
     def __init__(self, profile: Profile, port: str, *, cache_dir: str | Path | None = None,
                  logs_root: str | Path | None = None, sim: bool = False,
                  faults: Sequence[str] = (), start_timeout_s: float = 60.0,
-                 sim_clock: SimClock | None = None) -> None:
+                 sim_clock: SimClock | None = None, preview: bool = False) -> None:
         mine, theirs = socket.socketpair()
         self.process: MotionProcessHandle = start_motion_process(theirs)
         theirs.close()
@@ -73,7 +73,7 @@ class MotionClient:
         self._clock: Callable[[], float] = time.perf_counter if sim_clock is None else sim_clock.now
         """The motion process's clock (E-stops are stamped on it)."""
         ctx = RunContext(port, sim, tuple(faults), None if logs_root is None else str(logs_root),
-                         None if sim_clock is None else sim_clock.path)
+                         None if sim_clock is None else sim_clock.path, preview)
         self.conn.send(Start(profile, ctx, None if cache_dir is None else str(cache_dir)))
         self._lock = threading.Lock()
         self._replies: dict[int, Reply | Failed] = {}

@@ -72,6 +72,10 @@ class RunRequest:
     on_late_signal: Callable[[str], None] | None = None
     """Told the signal's name when one arrived after the motion had ended (nothing to stop;
     the run's result stands)."""
+    sim_time: bool | None = None
+    """The emulated bus in simulated time (None: as the environment or profile says)."""
+    preview: bool = False
+    """A preview on the wrist's twin (the run logs say so)."""
 
 
 @dataclass(frozen=True)
@@ -107,7 +111,7 @@ class _SignalStop:
 def run_context(profile: Profile, req: RunRequest) -> RunContext:
     sim = req.sim or not (req.port or profile.bus.port)
     return RunContext(req.port or profile.bus.port or "", sim, tuple(str(f) for f in req.faults),
-                      None if req.log_root is None else str(req.log_root))
+                      None if req.log_root is None else str(req.log_root), preview=req.preview)
 
 
 def one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Session], T]) -> T:
@@ -119,7 +123,8 @@ def one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Sessi
                       logs_root=None if req.log_root is None else Path(req.log_root),
                       cache_dir=None if req.cache_dir is None else Path(req.cache_dir),
                       faults=req.faults, emulator_process=True,
-                      initial_deg=None if req.sim_start_deg is None else list(req.sim_start_deg))
+                      initial_deg=None if req.sim_start_deg is None else list(req.sim_start_deg),
+                      sim_time=req.sim_time, preview=req.preview)
     on_signal = _SignalStop(session)
     session.before_motion = on_signal.check
     with stop_signals(on_signal) if req.handle_signals else contextlib.nullcontext():

@@ -136,6 +136,7 @@ class Session(ServoTools, FollowTools):
         initial_deg: Sequence[float] | None = None,
         emulator_process: bool = False,
         sim_time: bool | None = None,
+        preview: bool = False,
     ) -> None:
         self.profile = profile
         self.model = model_of(profile)
@@ -156,6 +157,8 @@ class Session(ServoTools, FollowTools):
         simulated seconds per wall-clock second (0: as fast as computed)."""
         self.sim_clock: SimClock | None = None
         """The simulated clock while connected in simulated time."""
+        self.preview = preview
+        """The session previews a run on the wrist's twin (its run logs say so)."""
         self.emulator_process = emulator_process
         """Run the emulated bus in a child process (the console: its UI thread must not
         delay the emulator's replies) rather than in a thread of this process."""
@@ -238,7 +241,7 @@ class Session(ServoTools, FollowTools):
             client = MotionClient(self.profile, port, cache_dir=self.cache_dir,
                                   logs_root=None if self.logs_root is None else str(self.logs_root),
                                   sim=self.sim, faults=[str(f) for f in self.faults],
-                                  sim_clock=sim)
+                                  sim_clock=sim, preview=self.preview)
             self.bus = client
             placed = place_beside_loop()  # the loop's children started: off their CPU
             rt, granted = self._emulator_realtime()

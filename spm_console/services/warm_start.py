@@ -79,8 +79,14 @@ def _umask() -> int:
 
 
 def _has_fd(stream: object) -> bool:
+    """Whether ``stream`` is backed by an open file descriptor (a console's captured stderr
+    says -1: the process's own fd 2 is handed over instead)."""
     try:
-        return isinstance(stream.fileno(), int)  # type: ignore[attr-defined]
+        fd = stream.fileno()  # type: ignore[attr-defined]
+        if not isinstance(fd, int) or fd < 0:
+            return False
+        os.fstat(fd)
+        return True
     except (AttributeError, OSError, ValueError):
         return False
 

@@ -41,7 +41,8 @@ from tests.support.terminal_helpers import (
 )
 
 GOAL = np.array([100.0, 120.0, 110.0])
-pytestmark = pytest.mark.usefixtures("sighup_default")
+# paced: the signals land while the wrist moves
+pytestmark = pytest.mark.usefixtures("sighup_default", "paced_clock")
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,8 @@ import pytest
 
 from spm_console.system.cpus import ENV_CHOICE, ENV_SET, cpu_plan
 
+pytestmark = pytest.mark.realtime  # about the wall clock (see tests/conftest.py)
+
 
 @pytest.mark.parametrize(("allowed", "choice", "loop", "rest"), [
     ("0,1", "auto", {1}, {0}),

@@ -19,6 +19,8 @@ from spm_console.cli.tools.latency import VERDICTS, verdict
 from spm_console.errors import ExitCode
 from spm_console.system.host_latency import THRESHOLDS_MS, measured_meanwhile, summarize
 
+pytestmark = pytest.mark.realtime  # about the wall clock (see tests/conftest.py)
+
 
 def test_summary_counts_each_threshold_and_the_percentiles() -> None:
     late = np.array([0.0] * 96 + [1.0, 2.5, 4.0, 30.0])

@@ -33,7 +33,8 @@ from tests.support.exec_helpers import PAPER_START
 from tests.support.terminal_helpers import last_measured
 
 GOAL = np.array([100.0, 120.0, 110.0])
-pytestmark = pytest.mark.usefixtures("sighup_default")
+# paced: the signals land while the wrist moves
+pytestmark = pytest.mark.usefixtures("sighup_default", "paced_clock")
 
 
 def test_one_handler_for_every_stop_signal_then_the_old_ones_back() -> None:

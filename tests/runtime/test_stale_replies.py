@@ -30,6 +30,8 @@ from spm_console.motion.executor import Segment
 from spm_console.motion.plans import synthetic_plan
 from tests.support.exec_helpers import PAPER_START, run_on_emulator
 
+pytestmark = pytest.mark.realtime  # about the wall clock (see tests/conftest.py)
+
 TS = 0.02
 NEAR = PAPER_START + np.array([-6.0, 8.0, 5.0])  # a short plan's goal
 ONSET_K = 5

@@ -17,6 +17,8 @@ from spm_console.tui.screens.execute import NO_REPLY, LiveTiming, LoopTiming
 from tests.support.console_helpers import settle, status_of, text_of
 from tests.support.runlog_helpers import TS, sample
 
+pytestmark = pytest.mark.usefixtures("paced_clock")  # acts while the wrist moves
+
 SIZE = (130, 42)
 
 

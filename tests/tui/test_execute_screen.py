@@ -5,12 +5,15 @@ from __future__ import annotations
 import asyncio
 
 import numpy as np
+import pytest
 from textual.widgets import DataTable
 
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import ExitCode
 from spm_console.motion.logs.runlog import list_runs, load_run
 from tests.support.console_helpers import MotionSpy, settle, status_of, text_of
+
+pytestmark = pytest.mark.usefixtures("paced_clock")  # acts while the wrist moves
 
 SIZE = (130, 42)
 

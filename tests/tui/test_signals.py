@@ -16,7 +16,8 @@ from spm_console.system.signals import STOP_SIGNALS
 from tests.support.console_helpers import settle, status_of
 
 SIZE = (130, 42)
-pytestmark = pytest.mark.usefixtures("sighup_default")
+# paced: the signals land while the wrist moves
+pytestmark = pytest.mark.usefixtures("sighup_default", "paced_clock")
 
 
 def _send(app, sig: signal.Signals) -> None:  # type: ignore[no-untyped-def]

@@ -1,0 +1,80 @@
+"""``execute --preview``: the run on the wrist's twin in simulated time, from where the wrist
+rests; deterministic, logged as a preview, its exit code the predicted run's, and the same
+figures as the run itself on the same emulated wrist."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spm_console.cli.main import main
+from spm_console.config.schema import Profile
+from spm_console.errors import ExitCode
+from spm_console.motion.logs.runlog import load_run
+from spm_console.motion.plans import synthetic_plan
+from spm_console.store.plan_file import save_plan
+from tests.support.exec_helpers import PAPER_START
+
+GOAL = np.array([100.0, 120.0, 110.0])
+
+
+@pytest.fixture(scope="module")
+def plan_file(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
+    path = tmp_path_factory.mktemp("plans") / "short.json"
+    save_plan(synthetic_plan(agile, PAPER_START, GOAL, 1.5), path)
+    return path
+
+
+def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict]:  # type: ignore[type-arg]
+    code = main(list(argv))
+    out = capsys.readouterr().out.strip().splitlines()
+    assert len(out) == 1, out
+    return code, json.loads(out[0])
+
+
+def test_a_preview_predicts_the_run_and_says_it_is_one(
+        plan_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    argv = ("execute", "--plan", str(plan_file), "--sim", "--plant", "ideal", "--json")
+    code, d = _run(capsys, *argv, "--preview", "--logs", str(tmp_path / "a"))
+    assert code == 0 and d["preview"] is True and d["outcome"] == "completed"
+    assert d["plant"] == "ideal" and d["homing"]["outcome"] == "completed"
+    np.testing.assert_allclose(d["final_error_deg"], np.asarray(d["final_deg"]) - GOAL,
+                               atol=1e-9)
+    assert max(abs(x) for x in d["final_error_deg"]) < 0.15
+    assert 0.0 < d["min_margin_deg"] and d["min_link_mm"] > d["link_limit_mm"]
+    assert d["simulated_s"] > 1.5
+    run, homing = load_run(d["log_dir"]), load_run(d["homing"]["log_dir"])
+    for r in (run, homing):
+        assert r.meta["preview"] is True and r.meta["clock"] == "simulated"
+    # the same preview again: the same samples, byte for byte
+    _, d2 = _run(capsys, *argv, "--preview", "--logs", str(tmp_path / "b"))
+    assert (Path(d["log_dir"]) / "samples.csv").read_bytes() == \
+        (Path(d2["log_dir"]) / "samples.csv").read_bytes()
+    # the run itself on the same emulated wrist, in simulated time: what the preview said
+    code, real = _run(capsys, *argv, "--logs", str(tmp_path / "c"))
+    assert code == 0 and "preview" not in load_run(real["log_dir"]).meta
+    assert real["final_deg"] == d["final_deg"]
+    np.testing.assert_allclose(real["stats"]["tracking_rms_per_joint_deg"],
+                               d["tracking_rms_per_joint_deg"], atol=0.02)
+
+
+def test_a_preview_that_stops_exits_with_the_predicted_stop(
+        plan_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, d = _run(capsys, "execute", "--plan", str(plan_file), "--sim", "--plant", "ideal",
+                   "--json", "--preview", "--fault", "stall:2@0.5", "--logs", str(tmp_path))
+    assert code == int(ExitCode.STOP_TRACKING) == d["exit_code"]
+    assert d["preview"] is True and d["outcome"] == "stopped"
+    assert "preview" in capsys.readouterr().err
+
+
+def test_a_preview_starts_where_the_emulated_wrist_rests(
+        plan_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    start = [float(x) for x in PAPER_START]
+    code, d = _run(capsys, "execute", "--plan", str(plan_file), "--sim", "--plant", "ideal",
+                   "--json", "--preview", "--skip-homing", "a preview from the plan's start",
+                   "--sim-start", *(f"{x:g}" for x in start), "--logs", str(tmp_path))
+    assert code == 0 and d["homing"] is None and d["start_deg"] == start
+    assert load_run(d["log_dir"]).meta["homing"].startswith("skipped")
