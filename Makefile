@@ -12,7 +12,7 @@ STAMP := $(VENV)/.installed
 UV_ENV := UV_PROJECT_ENVIRONMENT=$(VENV) UV_PYTHON_DOWNLOADS=never UV_PYTHON=$(PY)
 PROFILE ?=
 
-.PHONY: run test test-unit test-runtime test-all test-slow test-newest lint bench clean venv lock
+.PHONY: run test test-unit test-runtime test-realtime test-all test-slow test-newest lint bench clean venv lock
 
 # uv itself, pinned, in its own small environment (pip from PyPI).
 $(UV):
@@ -38,17 +38,25 @@ run: $(STAMP)
 	$(BIN)/spm-console tui $(if $(PROFILE),--profile $(PROFILE)) $(if $(GRID),--grid-step $(GRID))
 
 # The unit tests (no process, no terminal: tests/unit) on every core, then the rest on two
-# workers: one runs the tests of the real-time servo loop and whole commands (tests/runtime,
-# tests/e2e) one at a time, the other the console's tests (tests/tui) beside them (groups
-# set in tests/conftest.py): two real-time runs never compete. The unit tests are not run
-# beside the rest: docs/decisions/test-suite-time.md says what that did.
+# workers, each test module a group: their motions run in simulated time (tests/conftest.py
+# sets SPM_CONSOLE_CLOCK=simulated), so nothing waits on the wall clock and two runs beside
+# each other do not disturb one another. The unit tests are not run beside the rest:
+# docs/decisions/test-suite-time.md says what that did. The tests about real time (marked
+# realtime) are left to test-realtime.
 test: test-unit test-runtime
 
 test-unit: $(STAMP)
 	SPM_TESTS_HOST_STALLS=0 $(BIN)/python -m pytest tests/unit -n auto
 
 test-runtime: $(STAMP)
-	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e -n 2 --dist loadgroup --durations=25
+	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e -m 'not slow and not realtime' \
+		-n 2 --dist loadgroup --durations=25
+
+# The tests about real time (marked realtime: jitter, scheduling, reply timing, runs on the
+# wall clock), one at a time with nothing beside them.
+test-realtime: $(STAMP)
+	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e -m 'realtime and not slow' \
+		--durations=15
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -m ''

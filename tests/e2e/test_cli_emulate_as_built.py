@@ -13,6 +13,8 @@ from spm_console.cli.main import main
 from spm_console.errors import ExitCode
 from tests.support.paths import ROOT
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 TWIN = ROOT / "tests" / "data" / "as_built" / "twin.toml"
 
 

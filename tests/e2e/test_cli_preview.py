@@ -30,9 +30,10 @@ def plan_file(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
 
 def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict]:  # type: ignore[type-arg]
     code = main(list(argv))
-    out = capsys.readouterr().out.strip().splitlines()
+    got = capsys.readouterr()
+    out = got.out.strip().splitlines()
     assert len(out) == 1, out
-    return code, json.loads(out[0])
+    return code, {**json.loads(out[0]), "_stderr": got.err}
 
 
 def test_a_preview_predicts_the_run_and_says_it_is_one(
@@ -44,7 +45,7 @@ def test_a_preview_predicts_the_run_and_says_it_is_one(
     np.testing.assert_allclose(d["final_error_deg"], np.asarray(d["final_deg"]) - GOAL,
                                atol=1e-9)
     assert max(abs(x) for x in d["final_error_deg"]) < 0.15
-    assert 0.0 < d["min_margin_deg"] and d["min_link_mm"] > d["link_limit_mm"]
+    assert d["min_margin_deg"] > 0.0 and d["min_link_mm"] > d["link_limit_mm"]
     assert d["simulated_s"] > 1.5
     run, homing = load_run(d["log_dir"]), load_run(d["homing"]["log_dir"])
     for r in (run, homing):
@@ -67,7 +68,7 @@ def test_a_preview_that_stops_exits_with_the_predicted_stop(
                    "--json", "--preview", "--fault", "stall:2@0.5", "--logs", str(tmp_path))
     assert code == int(ExitCode.STOP_TRACKING) == d["exit_code"]
     assert d["preview"] is True and d["outcome"] == "stopped"
-    assert "preview" in capsys.readouterr().err
+    assert "the preview stopped" in d["_stderr"]
 
 
 def test_a_preview_starts_where_the_emulated_wrist_rests(

@@ -17,6 +17,8 @@ from spm_console.config.schema import Profile
 from spm_console.devices.emulator.bus import start_emulator
 from spm_console.errors import ExitCode
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 
 @pytest.fixture(scope="module")
 def relaxed(tmp_path_factory: pytest.TempPathFactory, root: Path) -> str:

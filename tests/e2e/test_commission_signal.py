@@ -21,6 +21,8 @@ from spm_console.errors import ExitCode
 from spm_console.motion.logs.runlog import load_run
 from tests.support.paths import ROOT
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 AGILE = ROOT / "profiles" / "agile_wrist.toml"
 TWIN = ROOT / "tests" / "data" / "as_built" / "twin.toml"
 

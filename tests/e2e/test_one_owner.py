@@ -16,6 +16,8 @@ import pytest
 from spm_console.cli.main import main
 from spm_console.errors import ExitCode
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 START = ["127.53", "83.23", "85.25"]
 GOAL = ["66.80", "155.00", "131.48"]
 

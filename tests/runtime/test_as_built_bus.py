@@ -22,6 +22,8 @@ from spm_console.devices.emulator.twin import true_wrist
 from spm_console.errors import BusError
 from tests.support.paths import ROOT
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 TWIN = ROOT / "tests" / "data" / "as_built" / "twin.toml"
 TPD = 4096 / 360
 

@@ -20,6 +20,8 @@ from spm_console.devices.dynamixel.bus import DynamixelBus, LimitError, open_bus
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
 from spm_console.errors import BusError
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 
 def relaxed(profile: Profile, timeout_s: float = 0.03) -> Profile:
     """The profile with a 30 ms reply timeout: a loaded 2-core test machine can delay the

@@ -28,6 +28,8 @@ from spm_console.motion.logs.runlog import load_run
 from spm_console.motion.nudge import BALL_DEG
 from tests.support.paths import ROOT
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 AGILE = ROOT / "profiles" / "agile_wrist.toml"
 #: The wrist as built: leg 1 driven by id 3, leg 2 by id 1 (counting the other way), leg 3
 #: by id 2; true θ at each servo's profile tick offset: these horn offsets, deg.

@@ -16,6 +16,8 @@ from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
 from spm_console.devices.emulator.faults import FaultSpec, parse_fault
 from spm_console.errors import BadInputError, BusError
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 
 @contextmanager
 def rig(profile: Profile, *faults: str,

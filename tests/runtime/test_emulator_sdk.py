@@ -12,6 +12,8 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 dxl = pytest.importorskip("dynamixel_sdk")
 
 from spm_console.config.schema import Profile  # noqa: E402

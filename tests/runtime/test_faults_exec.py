@@ -4,7 +4,6 @@ wrist left still; low-rate lost/corrupted replies are retried and counted withou
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -21,7 +20,7 @@ from spm_console.motion.logs.runlog import load_run
 from spm_console.motion.plans import synthetic_plan
 from spm_console.motion.safety import EXIT_CODES
 from spm_console.motion.sample import Sample
-from tests.support.exec_helpers import PAPER_START, EmuRun, run_on_emulator
+from tests.support.exec_helpers import PAPER_START, EmuRun, run_on_emulator, wait_emulated
 
 GOAL = np.array([100.0, 120.0, 110.0])
 ONSET = 0.5
@@ -79,9 +78,9 @@ CASES = cases(ONSET)
 
 def _still_after(result: dict[str, np.ndarray]) -> Callable[[EmulatorHandle], None]:
     def after(emu: EmulatorHandle) -> None:
-        time.sleep(0.3)  # the servo settles on its hold goal (or its Bus Watchdog trips)
+        wait_emulated(emu, 0.3)  # the servo settles on its hold goal (or its Bus Watchdog trips)
         a = emu.joint_deg()
-        time.sleep(0.05)
+        wait_emulated(emu, 0.05)
         result["a"], result["b"] = a, emu.joint_deg()
     return after
 

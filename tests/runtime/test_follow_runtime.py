@@ -19,21 +19,26 @@ from spm_console.motion.follow.regions import follow_regions
 from spm_console.motion.follow.target_feed import TargetFeed
 from spm_console.motion.logs.runlog import RunLog, load_run
 from spm_console.motion.segments import ExecutionResult
+from spm_console.system.simclock import SimClock
 from tests.support.ws_helpers import agile_workspace
 
 
 def _follow(profile: Profile, tmp_path: Path, start: np.ndarray, feed: TargetFeed
             ) -> tuple[ExecutionResult, Follower]:
-    """Follow ``feed`` over a fresh in-process emulated bus powered on at ``start``."""
-    emu = start_emulator(profile, record=False, initial_deg=list(start))
-    bus = open_bus(profile, emu.port)
+    """Follow ``feed`` over a fresh in-process emulated bus powered on at ``start``, in
+    simulated time."""
+    clock = SimClock.create()
+    emu = start_emulator(profile, record=False, initial_deg=list(start), sim=clock)
+    bus = open_bus(profile, emu.port, sim=clock)
     try:
         log = RunLog.create("follow", profile.name, profile.digest(), [], root=tmp_path)
-        ex = Follower(profile, bus, workspace=agile_workspace(), log=log)
+        ex = Follower(profile, bus, workspace=agile_workspace(), log=log, clock=clock.now,
+                      sleep=clock.sleep)
         return ex.follow(feed), ex
     finally:
         bus.close()
         emu.stop()
+        clock.close()
 
 
 def test_timed_steps_are_followed_and_every_motion_is_certified(agile: Profile, tmp_path: Path) -> None:
@@ -247,17 +252,20 @@ def test_a_communication_loss_while_following_the_emulated_bus_names_its_causes(
 
     ws = agile_workspace()
     start = np.asarray(ws.theta_deg()[ws.home_index], float)
-    emu = start_emulator(agile, record=False, initial_deg=list(start))
+    clock = SimClock.create()
+    emu = start_emulator(agile, record=False, initial_deg=list(start), sim=clock)
     emu.inject(FaultSpec("unplug", 0.3))
-    bus = open_bus(agile, emu.port)
+    bus = open_bus(agile, emu.port, sim=clock)
     feed = TargetFeed(TimedTargets(np.array([0.0, 2.0]), np.vstack([start, start + 5.0])))
     try:
         out = run_follow(agile, bus, ws, feed, RunContext(port=emu.port, sim=True,
-                                                          logs_root=str(tmp_path)),
+                                                          logs_root=str(tmp_path),
+                                                          sim_clock=clock.path),
                          None, lambda ex: None, homed=True)
     finally:
         bus.close()
         emu.stop()
+        clock.close()
     res = out.execution
     assert res.exit_code == ExitCode.STOP_COMM, res.message
     assert "on the emulated bus: an injected fault, or this machine" in res.message

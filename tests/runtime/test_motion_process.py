@@ -26,6 +26,8 @@ from spm_console.services.client import MotionClient
 from spm_console.store.plan_file import save_plan
 from tests.support.exec_helpers import PAPER_START
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 GOAL = np.array([100.0, 120.0, 110.0])
 
 

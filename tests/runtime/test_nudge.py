@@ -17,6 +17,8 @@ from spm_console.errors import BadInputError
 from spm_console.motion.nudge import BALL_DEG, PWM_LIMIT, NudgeState, release, run_nudge
 from tests.runtime.test_bus_emulator import relaxed
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 START = (128.0, 141.0, 133.0)
 
 

@@ -19,6 +19,8 @@ from spm_console.services.session import Session
 from spm_console.store.plan_file import save_plan
 from tests.support.exec_helpers import paper_mvn
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 
 def test_the_paper_mvn_runs_on_the_physical_wrist_and_is_not_the_model(
     agile: Profile, tmp_path: Path, capsys: pytest.CaptureFixture[str], root: Path

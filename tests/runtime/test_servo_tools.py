@@ -32,6 +32,8 @@ from spm_console.refusals import Refusal
 from spm_console.services.session import Session
 from tests.runtime.test_bus_emulator import protocol1, relaxed
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 START = (128.0, 141.0, 133.0)
 
 

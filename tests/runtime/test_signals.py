@@ -33,8 +33,9 @@ from tests.support.exec_helpers import PAPER_START
 from tests.support.terminal_helpers import last_measured
 
 GOAL = np.array([100.0, 120.0, 110.0])
-# paced: the signals land while the wrist moves
-pytestmark = pytest.mark.usefixtures("sighup_default", "paced_clock")
+# paced: the signals land while the wrist moves; its kill tests drive an emulated bus on the
+# wall clock (see tests/conftest.py)
+pytestmark = [pytest.mark.usefixtures("sighup_default", "paced_clock"), pytest.mark.realtime]
 
 
 def test_one_handler_for_every_stop_signal_then_the_old_ones_back() -> None:

@@ -4,9 +4,11 @@ pty emulator with our DynamixelBus, and the emulator's true velocity at each rea
 from __future__ import annotations
 
 import functools
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -22,6 +24,7 @@ from spm_console.motion.executor import ExecutionResult, Executor, Segment
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.sample import Sample
 from spm_console.store.plan_file import plan_hash
+from spm_console.system.simclock import SimClock
 from tests.support.ws_helpers import agile_workspace
 
 PAPER_START = np.array([127.53, 83.23, 85.25])
@@ -49,17 +52,23 @@ def run_on_emulator(
     faults: Sequence[FaultSpec] = (), initial_deg: np.ndarray | None = None,
     on_sample: Callable[[Executor, EmulatorHandle, Sample], None] | None = None,
     after: Callable[[EmulatorHandle], None] | None = None,
+    simulated: bool = True,
 ) -> EmuRun:
-    """Execute over a fresh emulator; ``after`` runs before the emulator is stopped."""
+    """Execute over a fresh emulator; ``after`` runs before the emulator is stopped.
+    ``simulated``: the loop, the bus and the emulator in lockstep on a simulated clock (else
+    the wall clock: for the tests about real time)."""
     start = segments[0].plan.reference_deg[0] if initial_deg is None else initial_deg
     ws = agile_workspace()  # before the emulator's fault clock starts (a first build takes seconds)
-    emu = start_emulator(profile, faults, record=True, initial_deg=list(start))
-    bus = open_bus(profile, emu.port)
+    clock = SimClock.create() if simulated else None
+    emu = start_emulator(profile, faults, record=True, initial_deg=list(start), sim=clock)
+    bus = open_bus(profile, emu.port, sim=clock)
+    timing: dict[str, Any] = {} if clock is None else {"clock": clock.now, "sleep": clock.sleep}
     try:
         log = RunLog.create("execute", profile.name, profile.digest(), [], root=tmp_path)
         holder: list[Executor] = []
         cb = None if on_sample is None else (lambda s: on_sample(holder[0], emu, s))
-        ex = Executor(profile, bus, workspace=ws, log=log, on_start=emu.start_clock, on_sample=cb)
+        ex = Executor(profile, bus, workspace=ws, log=log, on_start=emu.start_clock, on_sample=cb,
+                      **timing)
         holder.append(ex)
         res = ex.run(list(segments))
         if after is not None:
@@ -68,6 +77,17 @@ def run_on_emulator(
     finally:
         bus.close()
         emu.stop()
+        if clock is not None:
+            clock.close()
+
+
+def wait_emulated(emu: EmulatorHandle, seconds: float) -> None:
+    """Let ``seconds`` pass for the emulated wrist: on its simulated clock when it has one
+    (nothing moves otherwise), else on the wall clock."""
+    if emu.sim is not None:
+        emu.sim.sleep(seconds)
+    else:
+        time.sleep(seconds)
 
 
 def true_velocity_at_reads(run: EmuRun) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -29,6 +29,8 @@ from spm_console.tui.widgets.field import TextField
 from tests.conftest import ROOT
 from tests.support.console_helpers import screen_text, settle, status_of, text_of
 
+pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
+
 POSES = FIT_POSES + HELD_OUT
 
 SMALL = (80, 24)
