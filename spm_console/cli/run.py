@@ -4,6 +4,10 @@ Both go through the operator runtime (:mod:`spm_console.services.oneshot`): the 
 the motion process, the emulated bus in its own. ``execute`` homes first unless
 ``--skip-homing REASON`` overrides it (the reason is logged).
 
+``execute --preview`` moves nothing: the whole command runs on the wrist's twin in simulated
+time (:mod:`spm_console.services.preview`); its exit code is the predicted run's (0 when it
+completes), so ``execute --preview && execute`` moves only what the twin completed.
+
 Exit codes: 0 done; a stop ends with its own code (20 E-stop, 21 tracking error,
 22 communication lost, 23 servo hardware error, 24 left the region, 25 servo
 limit); refusals before motion use the usual codes (4 bad input, 5 unreachable
@@ -13,6 +17,7 @@ pose, 9 plan mismatch, 10 bus error).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -20,22 +25,26 @@ from typing import Any
 from spm_console.cli.common import (
     add_common,
     add_plant,
+    console_plant,
     emit,
     info,
     number,
     output_folder,
     output_may_be_gone,
     profile_of,
+    with_plant,
 )
-from spm_console.cli.preview import preview_of, report_preview
 from spm_console.cli.streams.progress import RunProgress, wanted
+from spm_console.config.load import load_profile
 from spm_console.config.schema import Profile
+from spm_console.core.plan import Plan
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_vec
 from spm_console.input_rules import theta_in_servo_limits
 from spm_console.motion.segments import ExecutionResult
 from spm_console.services.oneshot import RunRequest, execute_once, home_once
+from spm_console.services.preview import Preview, preview_execute
 from spm_console.services.session import Session
 from spm_console.store.plan_file import load_plan
 
@@ -196,3 +205,58 @@ def cmd_home(args: argparse.Namespace) -> int:
                                            "n": pose.n, "zeta": pose.zeta},
     }
     return _report(args, r.execution, extra)
+
+
+def preview_of(args: argparse.Namespace, plan: Plan, req: RunRequest) -> Preview:
+    """The preview of ``execute`` as ``args`` and ``req`` ask for it, on the profile's twin:
+    ``--plant`` when given, the profile's ``[plant] model`` when it names one, else the
+    physical wrist."""
+    base = load_profile(args.profile)
+    twin = with_plant(base, console_plant(base, args.plant))
+    return preview_execute(twin, plan, req, source=str(args.plan))
+
+
+def _num(x: float) -> float | None:
+    return x if math.isfinite(x) else None
+
+
+def report_preview(args: argparse.Namespace, pv: Preview) -> int:
+    ex = pv.run.execution
+    st = ex.stats
+    model = st.model
+    homing = pv.run.homing
+    data: dict[str, Any] = {
+        "preview": True, "outcome": ex.outcome, "exit_code": int(ex.exit_code),
+        "message": ex.message, "plant": pv.plant,
+        "start_deg": pv.start_deg, "final_deg": ex.final_deg,
+        "final_error_deg": pv.final_error_deg,
+        "tracking_rms_per_joint_deg": list(st.tracking_rms_per_joint_deg),
+        "tracking_max_per_joint_deg": None if model is None else list(model.max_per_joint_deg),
+        "min_margin_deg": _num(pv.min_margin_deg), "min_link_mm": _num(pv.min_link_mm),
+        "link_limit_mm": pv.link_limit_mm, "simulated_s": pv.simulated_s, "wall_s": pv.wall_s,
+        "log_dir": str(ex.log_dir) if ex.log_dir else None,
+        "homing": None if homing is None else {
+            "outcome": homing.execution.outcome,
+            "log_dir": str(homing.execution.log_dir or "") or None},
+        "plan": str(args.plan), "stats": st.to_dict(),
+    }
+    wrist = "the physical wrist" if pv.plant == "physical" else "ideal servos (eq. 27)"
+    lines = [f"preview on the twin ({wrist}; {pv.simulated_s:.2f} s simulated in "
+             f"{pv.wall_s:.2f} s): {ex.outcome}: {ex.message}"]
+    if st.tracking_rms_per_joint_deg and model is not None:
+        lines.append(f"predicted tracking of the servo model: RMS "
+                     f"{fmt_vec(st.tracking_rms_per_joint_deg, 3)}°, max "
+                     f"{fmt_vec(model.max_per_joint_deg, 3)}° per joint")
+    if pv.final_error_deg is not None:
+        lines.append(f"final error against the plan's goal: {fmt_vec(pv.final_error_deg, 3)}°")
+    if math.isfinite(pv.min_margin_deg):
+        lines.append(f"closest to the edge of the certified set P′: {pv.min_margin_deg:.3f}° "
+                     f"(L∞); closest links: {pv.min_link_mm:.1f} mm (2δ = "
+                     f"{pv.link_limit_mm:.1f} mm)")
+    lines.append("nothing moved on the wrist" + (f"; log: {ex.log_dir} (preview)"
+                                                  if ex.log_dir else ""))
+    with output_may_be_gone():
+        emit(args, data, "\n".join(lines))
+        if not ex.ok:
+            info(f"the preview stopped: {ex.message}")
+    return int(ex.exit_code)

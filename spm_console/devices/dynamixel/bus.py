@@ -17,7 +17,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, TypeVar
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,9 +34,7 @@ from spm_console.devices.dynamixel.protocol2 import describe_error
 from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
 from spm_console.devices.dynamixel.transport import Transport, open_transport
 from spm_console.errors import BadInputError, BusError
-
-if TYPE_CHECKING:
-    from spm_console.system.simclock import SimClock
+from spm_console.system.simclock import SimClock
 
 T = TypeVar("T")
 

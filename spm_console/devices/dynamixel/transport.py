@@ -43,17 +43,14 @@ import termios
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Protocol, TypeVar
+from typing import Protocol, TypeVar
 
 import serial
 
 from spm_console.devices.base import CommError
 from spm_console.devices.dynamixel import port_lock
 from spm_console.errors import BadInputError, BusError
-from spm_console.system.simclock import CATCH_UP_S
-
-if TYPE_CHECKING:
-    from spm_console.system.simclock import SimClock
+from spm_console.system.simclock import CATCH_UP_S, SimClock
 
 P = TypeVar("P")
 

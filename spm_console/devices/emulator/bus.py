@@ -54,12 +54,12 @@ from spm_console.devices.emulator.truth_log import TruthLog
 from spm_console.devices.emulator.twin import TrueWrist
 from spm_console.errors import BusError
 from spm_console.system.realtime import EMULATOR_PRIORITY, RtGrant, request_realtime
+from spm_console.system.simclock import SimClock
 
 if TYPE_CHECKING:  # the physical wrist loads MuJoCo: only a physical plant needs it
     from spm_console.devices.emulator.as_built_parts import WristTruth
     from spm_console.devices.emulator.bno055 import ImuTruth
     from spm_console.devices.emulator.physical import PhysicalWrist
-    from spm_console.system.simclock import SimClock
 
 F = NDArray[np.float64]
 
