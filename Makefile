@@ -46,7 +46,7 @@ run: $(STAMP)
 test: test-unit test-runtime
 
 test-unit: $(STAMP)
-	SPM_TESTS_HOST_STALLS=0 $(BIN)/python -m pytest tests/unit -n auto
+	SPM_TESTS_HOST_STALLS=0 $(BIN)/python -m pytest tests/unit -m 'not slow and not realtime' -n auto
 
 test-runtime: $(STAMP)
 	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e -m 'not slow and not realtime' \
@@ -55,8 +55,7 @@ test-runtime: $(STAMP)
 # The tests about real time (marked realtime: jitter, scheduling, reply timing, runs on the
 # wall clock), one at a time with nothing beside them.
 test-realtime: $(STAMP)
-	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e -m 'realtime and not slow' \
-		--durations=15
+	$(BIN)/python -m pytest tests -m 'realtime and not slow' --durations=15
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -m ''

@@ -21,10 +21,11 @@ from typing import Any
 
 from spm_console.cli.common import integer, number, output_may_be_gone, profile_of
 from spm_console.cli.follow_source import UdpTargets
-from spm_console.cli.run import _bus_opts, _report, _request, with_progress
+from spm_console.cli.run import _bus_opts, _report, _request, report_preview, twin_of, with_progress
 from spm_console.errors import BadInputError
 from spm_console.input_rules import finite_number
-from spm_console.services.oneshot import follow_once
+from spm_console.services.oneshot import FollowOneShot, follow_once
+from spm_console.services.preview import preview_follow
 from spm_console.store.target_file import read_target_csv
 
 
@@ -44,6 +45,10 @@ def register(sub: Any) -> None:
                    help="live targets: hold when none arrives for S seconds (default 0.5)")
     f.add_argument("--skip-homing", metavar="REASON", default="",
                    help="follow without homing first; REASON is written to the run log")
+    f.add_argument("--preview", action="store_true",
+                   help="with --targets: do not move the wrist; follow them on its twin in "
+                        "simulated time from where the wrist rests and print the predicted run "
+                        "(exit code: the predicted run's)")
     f.set_defaults(func=cmd_follow)
 
 
@@ -51,6 +56,17 @@ def cmd_follow(args: argparse.Namespace) -> int:
 
     profile = profile_of(args)
     req = _request(args, profile)
+    if args.preview:
+        if args.udp is not None:
+            raise BadInputError("--preview follows a timed target file (--targets): live "
+                                "targets come in real time")
+        timed = read_target_csv(profile, args.targets, args.rpy)
+        pv = preview_follow(twin_of(args), timed, req, source=str(args.targets))
+        if isinstance(pv, FollowOneShot):  # the twin's homing stopped
+            assert pv.homing is not None
+            return _report(args, pv.homing.execution, {"preview": True,
+                                                       "stopped_during": "homing"})
+        return report_preview(args, pv, {"targets": str(args.targets)})
     if args.udp is not None:
         if not 1 <= args.udp <= 65535:
             raise BadInputError(f"--udp: a port in 1..65535, got {args.udp}")

@@ -37,7 +37,6 @@ from spm_console.cli.common import (
 from spm_console.cli.streams.progress import RunProgress, wanted
 from spm_console.config.load import load_profile
 from spm_console.config.schema import Profile
-from spm_console.core.plan import Plan
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_vec
@@ -179,7 +178,9 @@ def cmd_execute(args: argparse.Namespace) -> int:
     req = _request(args, profile)
     plan = load_plan(args.plan, profile)
     if args.preview:
-        return report_preview(args, preview_of(args, plan, req))
+        return report_preview(args, preview_execute(twin_of(args), plan, req,
+                                                    source=str(args.plan)),
+                              {"plan": str(args.plan)})
     with with_progress(args, req, verifies=True):
         out = execute_once(profile, plan, req, source=str(args.plan))
     homing = out.homing
@@ -207,20 +208,19 @@ def cmd_home(args: argparse.Namespace) -> int:
     return _report(args, r.execution, extra)
 
 
-def preview_of(args: argparse.Namespace, plan: Plan, req: RunRequest) -> Preview:
-    """The preview of ``execute`` as ``args`` and ``req`` ask for it, on the profile's twin:
-    ``--plant`` when given, the profile's ``[plant] model`` when it names one, else the
-    physical wrist."""
+def twin_of(args: argparse.Namespace) -> Profile:
+    """The profile's twin for a preview: ``--plant`` when given, the profile's ``[plant]
+    model`` when it names one, else the physical wrist."""
     base = load_profile(args.profile)
-    twin = with_plant(base, console_plant(base, args.plant))
-    return preview_execute(twin, plan, req, source=str(args.plan))
+    return with_plant(base, console_plant(base, args.plant))
 
 
 def _num(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def report_preview(args: argparse.Namespace, pv: Preview) -> int:
+def report_preview(args: argparse.Namespace, pv: Preview, extra: dict[str, Any]) -> int:
+    """Print the predicted run (``extra``: what the command adds to its JSON); its exit code."""
     ex = pv.run.execution
     st = ex.stats
     model = st.model
@@ -238,7 +238,7 @@ def report_preview(args: argparse.Namespace, pv: Preview) -> int:
         "homing": None if homing is None else {
             "outcome": homing.execution.outcome,
             "log_dir": str(homing.execution.log_dir or "") or None},
-        "plan": str(args.plan), "stats": st.to_dict(),
+        "stats": st.to_dict(), **extra,
     }
     wrist = "the physical wrist" if pv.plant == "physical" else "ideal servos (eq. 27)"
     lines = [f"preview on the twin ({wrist}; {pv.simulated_s:.2f} s simulated in "
@@ -248,7 +248,7 @@ def report_preview(args: argparse.Namespace, pv: Preview) -> int:
                      f"{fmt_vec(st.tracking_rms_per_joint_deg, 3)}°, max "
                      f"{fmt_vec(model.max_per_joint_deg, 3)}° per joint")
     if pv.final_error_deg is not None:
-        lines.append(f"final error against the plan's goal: {fmt_vec(pv.final_error_deg, 3)}°")
+        lines.append(f"final error against the goal: {fmt_vec(pv.final_error_deg, 3)}°")
     if math.isfinite(pv.min_margin_deg):
         lines.append(f"closest to the edge of the certified set P′: {pv.min_margin_deg:.3f}° "
                      f"(L∞); closest links: {pv.min_link_mm:.1f} mm (2δ = "

@@ -28,16 +28,26 @@ from numpy.typing import NDArray
 from spm_console.config.models import link_model_of, model_of
 from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
+from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.core.workspace.margin import certified_margin_deg
 from spm_console.motion.logs.runlog import load_run
-from spm_console.services.oneshot import OneShotResult, RunRequest, execute_once, one_shot
+from spm_console.motion.segments import ExecutionResult
+from spm_console.services.oneshot import (
+    FollowOneShot,
+    OneShotResult,
+    RunRequest,
+    execute_once,
+    follow_once,
+    one_shot,
+)
 from spm_console.store.workspace_cache import load_or_build
 
 F = NDArray[np.float64]
 
 #: The phases whose samples the prediction's margins cover (homing and the approach are
-#: runtime-built straight moves, checked on their own path).
-PLAN_PHASES = ("plan", "settle")
+#: runtime-built straight moves, checked on their own path; a following's periods are
+#: ``follow``).
+PLAN_PHASES = ("plan", "settle", "follow")
 
 
 @dataclass(frozen=True)
@@ -74,27 +84,53 @@ def rest_pose(profile: Profile, req: RunRequest) -> F | None:
     return np.asarray(one_shot(profile, "preview", read, lambda s: s.read_position()), float)
 
 
+def _twin_request(twin: Profile, req: RunRequest) -> tuple[F | None, RunRequest]:
+    """Where the wrist rests, and the request that runs ``req``'s command on the twin powered
+    on there, in simulated time, logged as a preview."""
+    start = rest_pose(twin, req)
+    return start, RunRequest(sim=True, sim_start_deg=start, faults=req.faults,
+                             approach=req.approach, skip_homing=req.skip_homing,
+                             log_root=req.log_root, cache_dir=req.cache_dir,
+                             on_sample=req.on_sample, on_connected=req.on_connected,
+                             handle_signals=req.handle_signals, sim_time=True, preview=True)
+
+
+def _preview(twin: Profile, start: F | None, execution: ExecutionResult,
+             homing: ExecutionResult | None, goal_deg: F | None, req: RunRequest,
+             run: OneShotResult, t0: float) -> Preview:
+    final = None if execution.final_deg is None else np.asarray(execution.final_deg, float)
+    margin, link = _margins(twin, req, execution.log_dir)
+    simulated = execution.stats.duration_s + (0.0 if homing is None else homing.stats.duration_s)
+    error = None if final is None or goal_deg is None else final - goal_deg
+    return Preview(run, start, twin.plant.model, error, margin, link,
+                   2.0 * twin.links.delta_mm, simulated, time.perf_counter() - t0)
+
+
 def preview_execute(twin: Profile, plan: Plan, req: RunRequest,
                     source: str | None = None) -> Preview:
     """Run ``execute`` of ``plan`` on ``twin`` (the profile with its twin's ``[plant]``) in
     simulated time, from where the wrist rests (``req``: the real run's request)."""
     t0 = time.perf_counter()
-    start = rest_pose(twin, req)
-    sim_req = RunRequest(sim=True, sim_start_deg=start, faults=req.faults,
-                         approach=req.approach, skip_homing=req.skip_homing,
-                         log_root=req.log_root, cache_dir=req.cache_dir,
-                         on_sample=req.on_sample, on_connected=req.on_connected,
-                         handle_signals=req.handle_signals, sim_time=True, preview=True)
+    start, sim_req = _twin_request(twin, req)
     out = execute_once(twin, plan, sim_req, source=source)
-    ex = out.execution
-    final = None if ex.final_deg is None else np.asarray(ex.final_deg, float)
-    margin, link = _margins(twin, req, ex.log_dir)
-    simulated = ex.stats.duration_s + (0.0 if out.homing is None
-                                       else out.homing.execution.stats.duration_s)
-    return Preview(out, start, twin.plant.model,
-                   None if final is None else final - plan.reference_deg[-1],
-                   margin, link, 2.0 * twin.links.delta_mm, simulated,
-                   time.perf_counter() - t0)
+    return _preview(twin, start, out.execution,
+                    None if out.homing is None else out.homing.execution,
+                    plan.reference_deg[-1], req, out, t0)
+
+
+def preview_follow(twin: Profile, timed: TimedTargets, req: RunRequest,
+                   source: str | None = None) -> Preview | FollowOneShot:
+    """Run ``follow`` of the timed targets on ``twin`` in simulated time, from where the wrist
+    rests: the preview, or (homing stopped) the homing's result. The final error is against
+    the last target."""
+    t0 = time.perf_counter()
+    start, sim_req = _twin_request(twin, req)
+    out = follow_once(twin, sim_req, timed, source=source)
+    if out.follow is None:
+        return out
+    homing = None if out.homing is None else out.homing.execution
+    return _preview(twin, start, out.follow.execution, homing, timed.theta_deg[-1], req,
+                    OneShotResult(out.follow.execution, out.homing), t0)
 
 
 def _margins(profile: Profile, req: RunRequest, log_dir: str | Path | None) -> tuple[float, float]:

@@ -79,3 +79,18 @@ def test_a_preview_starts_where_the_emulated_wrist_rests(
                    "--sim-start", *(f"{x:g}" for x in start), "--logs", str(tmp_path))
     assert code == 0 and d["homing"] is None and d["start_deg"] == start
     assert load_run(d["log_dir"]).meta["homing"].startswith("skipped")
+
+
+def test_follow_previews_a_timed_target_file_and_refuses_live_targets(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    csv = tmp_path / "targets.csv"
+    csv.write_text("t,a,b,c\n0,135,135,135\n0.5,140,130,138\n1.5,132,138,130\n")
+    code, d = _run(capsys, "follow", "--targets", str(csv), "--sim", "--plant", "ideal",
+                   "--json", "--preview", "--logs", str(tmp_path / "logs"))
+    assert code == 0 and d["preview"] is True and d["outcome"] == "completed"
+    assert d["targets"] == str(csv)
+    assert max(abs(x) for x in d["final_error_deg"]) < 0.3  # settled on the last target
+    assert d["min_margin_deg"] > 0.0
+    assert load_run(d["log_dir"]).meta["preview"] is True
+    assert main(["follow", "--udp", "9999", "--sim", "--preview"]) == int(ExitCode.BAD_INPUT)
+    assert "timed target file" in capsys.readouterr().err

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 
 import numpy as np
+import pytest
 from textual.widgets import DataTable
 
 from spm_console.errors import ExitCode
@@ -90,6 +91,7 @@ async def test_home_moves_to_home_and_logs_the_run(console, tmp_path) -> None:
         assert status_of(app) == ""  # not the homing's outcome, as if it were the last run
 
 
+@pytest.mark.usefixtures("paced_clock")  # acts while the wrist homes
 async def test_space_stops_homing_and_says_so(console, tmp_path) -> None:
     app = console(initial_deg=(85.0, 150.0, 110.0))  # 50° away: 2.5 s at 20°/s
     async with app.run_test(size=SIZE) as pilot:

@@ -6,12 +6,15 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
+import pytest
+
 from tests.support.console_helpers import settle, status_of
 from tests.tui.test_small_terminal import screen_text
 
 SMALL = (80, 24)
 
 
+@pytest.mark.usefixtures("paced_clock")  # acts while the wrist homes
 async def test_the_footer_shows_space_estop_while_homing_at_80_columns(console: Any) -> None:
     app = console(initial_deg=(85.0, 150.0, 110.0))  # 50° from home: 2.5 s at 20°/s
     async with app.run_test(size=SMALL) as pilot:

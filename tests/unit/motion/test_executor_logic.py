@@ -104,6 +104,7 @@ def test_estop_from_the_telemetry_callback(agile: Profile, tmp_path: Path) -> No
     assert np.allclose(hold, ex.samples[-1].measured_deg, atol=1e-9)
 
 
+@pytest.mark.realtime  # how soon the loop wakes on the wall clock
 def test_estop_from_another_thread(agile: Profile, tmp_path: Path) -> None:
     plan = synthetic_plan(agile, START, GOAL, 1.5)
     bus = FakeBus(START)  # real time: the request comes from another thread
