@@ -77,6 +77,11 @@ class RunRequest:
     preview: bool = False
     """A preview on the wrist's twin (the run logs say so)."""
 
+    def emulated(self, profile: Profile) -> bool:
+        """Whether the run drives the emulated bus: ``--sim``, or no port given here or in the
+        profile."""
+        return self.sim or not (self.port or profile.bus.port)
+
 
 @dataclass(frozen=True)
 class OneShotResult:
@@ -109,14 +114,13 @@ class _SignalStop:
 
 
 def run_context(profile: Profile, req: RunRequest) -> RunContext:
-    sim = req.sim or not (req.port or profile.bus.port)
+    sim = req.emulated(profile)
     return RunContext(req.port or profile.bus.port or "", sim, tuple(str(f) for f in req.faults),
                       None if req.log_root is None else str(req.log_root), preview=req.preview)
 
 
 def one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Session], T]) -> T:
-    dev = req.port or profile.bus.port
-    sim = req.sim or not dev
+    sim = req.emulated(profile)
     if not sim and (req.faults or req.sim_start_deg is not None):
         raise BadInputError("--fault and --sim-start act on the emulated bus: add --sim")
     session = Session(profile, port=req.port, sim=sim,

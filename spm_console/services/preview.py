@@ -77,7 +77,7 @@ class Preview:
 def rest_pose(profile: Profile, req: RunRequest) -> F | None:
     """Where the wrist rests: read on the real bus (one connection, nothing moves); on the
     emulated bus its power-on pose (``req.sim_start_deg``, None: the profile's home)."""
-    if req.sim or not (req.port or profile.bus.port):
+    if req.emulated(profile):
         return None if req.sim_start_deg is None else np.asarray(req.sim_start_deg, float)
     read = RunRequest(port=req.port, log_root=req.log_root, cache_dir=req.cache_dir,
                       handle_signals=req.handle_signals)

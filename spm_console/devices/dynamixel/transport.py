@@ -258,14 +258,10 @@ class Transport:
                 data = self._read(self._waiting() or 1)
             except OSError as exc:
                 raise CommError(f"read from {self.port} failed: {exc}") from None
-            self.bytes_in += len(data)
             received += len(data)
-            for pkt in decoder.feed(data):
-                n = 1 if check is None else check(pkt)
-                if n > 0:
-                    got.append(pkt)
-                    settled += n
-                    deadline = sim.now() + timeout_s
+            if (n := self._settle(decoder, data, check, got)) > 0:
+                settled += n
+                deadline = sim.now() + timeout_s
         self._on_wire(sent + received)
         return got
 
@@ -287,14 +283,23 @@ class Transport:
                 data = self._read(self._waiting() or 1)
             except OSError as exc:
                 raise CommError(f"read from {self.port} failed: {exc}") from None
-            self.bytes_in += len(data)
-            for pkt in decoder.feed(data):
-                n = 1 if check is None else check(pkt)
-                if n > 0:
-                    got.append(pkt)
-                    settled += n
-                    deadline = time.perf_counter() + timeout_s
+            if (n := self._settle(decoder, data, check, got)) > 0:
+                settled += n
+                deadline = time.perf_counter() + timeout_s
         return got
+
+    def _settle(self, decoder: StreamDecoder[P], data: bytes, check: Callable[[P], int] | None,
+                got: list[P]) -> int:
+        """Decode ``data``, keep in ``got`` the packets that answer the request (``check``),
+        and return how many of the expected replies they settle."""
+        self.bytes_in += len(data)
+        settled = 0
+        for pkt in decoder.feed(data):
+            n = 1 if check is None else check(pkt)
+            if n > 0:
+                got.append(pkt)
+                settled += n
+        return settled
 
 
 class SerialTransport(Transport):

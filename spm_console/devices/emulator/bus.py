@@ -306,53 +306,41 @@ class EmulatorHandle:
     # --- serving thread ---------------------------------------------------------------
 
     def _serve(self) -> None:
+        """Answer requests as they come. On the wall clock the wrist also steps while idle; in
+        simulated time nothing moves between requests, and a reply held back is written once
+        the clock reaches it (polled while one is); the clock is told what was answered."""
         self.realtime = request_realtime(EMULATOR_PRIORITY)
+        sim = self.sim
+        idle = IDLE_S if self.wrist is None else PHYSICAL_IDLE_S
         try:
-            if self.sim is not None:
-                self._serve_sim(self.sim)
-                return
-            idle = IDLE_S if self.wrist is None else PHYSICAL_IDLE_S
             while not self._stop.is_set():
-                timeout = idle
-                if self._pending:
-                    timeout = max(0.0, min(timeout, self._pending[0][0] - time.perf_counter()))
                 try:
-                    ready, _, _ = select.select(self._endpoint.fds(), [], [], timeout)
+                    ready, _, _ = select.select(self._endpoint.fds(), [], [], self._wait_s(idle))
                 except (OSError, ValueError):
                     return
                 received = self._endpoint.receive(ready) if ready else []
                 with self._lock:
-                    now = time.perf_counter()
-                    self._advance(now)
-                    self._receive(received, now)
+                    now = self._clock()
+                    if sim is None or received:
+                        self._advance(now)
+                    for channel, data in received:
+                        self._handle(channel, data, now)
+                    if received and not self.clock_started and any(sv.torque for sv in self.servos):
+                        self.start_clock()  # the first torque-on: the motion starts
                     self._flush(now)
+                    if sim is not None:
+                        sim.due = self._pending[0][0] if self._pending else math.inf
+                        sim.answered(sum(len(data) for _, data in received))
         finally:
             self._stop.set()
 
-    def _receive(self, received: list[tuple[Channel, bytes]], now: float) -> None:
-        for channel, data in received:
-            self._handle(channel, data, now)
-        if received and not self.clock_started and any(sv.torque for sv in self.servos):
-            self.start_clock()  # the first torque-on: the motion starts
-
-    def _serve_sim(self, sim: SimClock) -> None:
-        """The serving loop in simulated time: nothing moves between requests; a reply held
-        back is written once the clock reaches it (polled while one is)."""
-        while not self._stop.is_set():
-            timeout = SIM_POLL_S if self._pending else IDLE_S
-            try:
-                ready, _, _ = select.select(self._endpoint.fds(), [], [], timeout)
-            except (OSError, ValueError):
-                return
-            received = self._endpoint.receive(ready) if ready else []
-            with self._lock:
-                now = sim.now()
-                if received:
-                    self._advance(now)
-                    self._receive(received, now)
-                self._flush(now)
-                sim.due = self._pending[0][0] if self._pending else math.inf
-                sim.answered(sum(len(data) for _, data in received))
+    def _wait_s(self, idle: float) -> float:
+        """How long the serving thread may sleep for new bytes (wall clock), s."""
+        if self.sim is not None:
+            return SIM_POLL_S if self._pending else IDLE_S
+        if self._pending:
+            return max(0.0, min(idle, self._pending[0][0] - time.perf_counter()))
+        return idle
 
     def _handle(self, channel: Channel, data: bytes, now: float) -> None:
         decoder = channel.decoder
