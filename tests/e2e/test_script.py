@@ -240,7 +240,7 @@ def _spawn_script(tmp_path: Path, text: str) -> subprocess.Popen[str]:
                             stderr=subprocess.PIPE, text=True, env=env)
 
 
-@pytest.mark.usefixtures("sighup_default")
+@pytest.mark.usefixtures("sighup_default", "paced_clock")  # the signal lands mid-motion
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=lambda s: s.name)
 def test_a_signal_stops_the_motion_and_ends_cleanly(tmp_path, sig) -> None:
     """SIGTERM (kill) and SIGHUP (the terminal closed) mid-motion: E-stop, exit 20."""
