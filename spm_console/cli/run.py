@@ -234,6 +234,7 @@ def report_preview(args: argparse.Namespace, pv: Preview, extra: dict[str, Any])
         "tracking_max_per_joint_deg": None if model is None else list(model.max_per_joint_deg),
         "min_margin_deg": _num(pv.min_margin_deg), "min_link_mm": _num(pv.min_link_mm),
         "link_limit_mm": pv.link_limit_mm, "simulated_s": pv.simulated_s, "wall_s": pv.wall_s,
+        "peak_current_a": pv.peak_current_a,
         "log_dir": str(ex.log_dir) if ex.log_dir else None,
         "homing": None if homing is None else {
             "outcome": homing.execution.outcome,
@@ -253,6 +254,8 @@ def report_preview(args: argparse.Namespace, pv: Preview, extra: dict[str, Any])
         lines.append(f"closest to the edge of the certified set P′: {pv.min_margin_deg:.3f}° "
                      f"(L∞); closest links: {pv.min_link_mm:.1f} mm (2δ = "
                      f"{pv.link_limit_mm:.1f} mm)")
+    if pv.peak_current_a is not None:
+        lines.append(f"peak motor current: {fmt_vec(pv.peak_current_a, 2)} A per joint")
     lines.append("nothing moved on the wrist" + (f"; log: {ex.log_dir} (preview)"
                                                   if ex.log_dir else ""))
     with output_may_be_gone():

@@ -19,8 +19,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
-from pathlib import Path
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,7 +29,8 @@ from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.core.workspace.margin import certified_margin_deg
-from spm_console.motion.logs.runlog import load_run
+from spm_console.errors import BadInputError, Issue
+from spm_console.motion.logs.runlog import RunData, load_run
 from spm_console.motion.segments import ExecutionResult
 from spm_console.services.oneshot import (
     FollowOneShot,
@@ -40,6 +40,7 @@ from spm_console.services.oneshot import (
     follow_once,
     one_shot,
 )
+from spm_console.services.session import Session
 from spm_console.store.workspace_cache import load_or_build
 
 F = NDArray[np.float64]
@@ -72,6 +73,25 @@ class Preview:
     """Simulated time the twin's runs covered, s."""
     wall_s: float
     """Wall-clock time the preview took, s."""
+    peak_current_a: F | None = None
+    """Each motor's largest winding current over the twin's runs, A (None: the ideal servos'
+    twin, which models no current)."""
+    track: PredictedTrack | None = None
+    """The execution's samples: planned θ* and predicted θ (None: no log)."""
+    plan: Plan | None = None
+    """The plan previewed (None: a following)."""
+
+
+@dataclass(frozen=True)
+class PredictedTrack:
+    """The twin's execution sample by sample (approach, plan, settling), for a plot."""
+
+    t_s: F
+    """Time since the run began, s (K,)."""
+    planned_deg: F
+    """The reference θ* the loop sent, deg (K, 3)."""
+    predicted_deg: F
+    """The twin's measured θ, deg (K, 3; NaN where a read failed)."""
 
 
 def rest_pose(profile: Profile, req: RunRequest) -> F | None:
@@ -84,10 +104,12 @@ def rest_pose(profile: Profile, req: RunRequest) -> F | None:
     return np.asarray(one_shot(profile, "preview", read, lambda s: s.read_position()), float)
 
 
-def _twin_request(twin: Profile, req: RunRequest) -> tuple[F | None, RunRequest]:
-    """Where the wrist rests, and the request that runs ``req``'s command on the twin powered
-    on there, in simulated time, logged as a preview."""
-    start = rest_pose(twin, req)
+def _twin_request(twin: Profile, req: RunRequest,
+                  start: F | None = None) -> tuple[F | None, RunRequest]:
+    """Where the wrist rests (``start``, else read), and the request that runs ``req``'s
+    command on the twin powered on there, in simulated time, logged as a preview."""
+    if start is None:
+        start = rest_pose(twin, req)
     return start, RunRequest(sim=True, sim_start_deg=start, faults=req.faults,
                              approach=req.approach, skip_homing=req.skip_homing,
                              log_root=req.log_root, cache_dir=req.cache_dir,
@@ -99,23 +121,58 @@ def _preview(twin: Profile, start: F | None, execution: ExecutionResult,
              homing: ExecutionResult | None, goal_deg: F | None, req: RunRequest,
              run: OneShotResult, t0: float) -> Preview:
     final = None if execution.final_deg is None else np.asarray(execution.final_deg, float)
-    margin, link = _margins(twin, req, execution.log_dir)
+    data = None if execution.log_dir is None else load_run(execution.log_dir)
+    margin, link = (math.nan, math.nan) if data is None else _margins(twin, req, data)
     simulated = execution.stats.duration_s + (0.0 if homing is None else homing.stats.duration_s)
     error = None if final is None or goal_deg is None else final - goal_deg
+    runs = [data] + ([] if homing is None or homing.log_dir is None
+                     else [load_run(homing.log_dir)])
+    track = None if data is None else PredictedTrack(data.columns["t"], data.vec("ref"),
+                                                     data.vec("meas"))
     return Preview(run, start, twin.plant.model, error, margin, link,
-                   2.0 * twin.links.delta_mm, simulated, time.perf_counter() - t0)
+                   2.0 * twin.links.delta_mm, simulated, time.perf_counter() - t0,
+                   _peak_current(runs), track)
 
 
-def preview_execute(twin: Profile, plan: Plan, req: RunRequest,
-                    source: str | None = None) -> Preview:
+def _peak_current(runs: list[RunData | None]) -> F | None:
+    """The largest winding current per motor the twin told over these runs' logs (events
+    ``peak_current``), A; None when none told one."""
+    peaks = [np.asarray(e["peak_current_a"], float) for r in runs if r is not None
+             for e in r.events if e.get("event") == "peak_current"
+             and isinstance(e.get("peak_current_a"), list) and len(e["peak_current_a"]) == 3]
+    return np.max(peaks, axis=0) if peaks else None
+
+
+def preview_execute(twin: Profile, plan: Plan, req: RunRequest, source: str | None = None,
+                    start_deg: F | None = None) -> Preview:
     """Run ``execute`` of ``plan`` on ``twin`` (the profile with its twin's ``[plant]``) in
-    simulated time, from where the wrist rests (``req``: the real run's request)."""
+    simulated time, from where the wrist rests (``start_deg``, else read as ``req``, the real
+    run's request, says)."""
     t0 = time.perf_counter()
-    start, sim_req = _twin_request(twin, req)
+    start, sim_req = _twin_request(twin, req, start_deg)
     out = execute_once(twin, plan, sim_req, source=source)
-    return _preview(twin, start, out.execution,
-                    None if out.homing is None else out.homing.execution,
-                    plan.reference_deg[-1], req, out, t0)
+    return replace(_preview(twin, start, out.execution,
+                            None if out.homing is None else out.homing.execution,
+                            plan.reference_deg[-1], req, out, t0), plan=plan)
+
+
+def preview_in_session(session: Session, source: str | None = None) -> Preview:
+    """The console's preview of executing the session's plan: on the session's twin (its
+    profile, whose ``[plant]`` the console chose), powered on where the session reads the
+    wrist now (through its own connection: the bus has one owner), the homing the session
+    made taken as done. Runs in the caller's thread; the session's bus is not touched
+    beyond that one read."""
+    plan = session.plan
+    if plan is None:
+        raise BadInputError("no plan to preview: solve one first", Issue.NO_PLAN)
+    if not session.homed:
+        raise BadInputError("the wrist is not homed: the preview starts where a homed wrist "
+                            "rests")
+    here = np.asarray(session.read_position(), float)
+    req = RunRequest(faults=session.faults, log_root=session.logs_root,
+                     cache_dir=session.cache_dir, handle_signals=False,
+                     skip_homing="the console homed the wrist")
+    return preview_execute(session.profile, plan, req, source=source, start_deg=here)
 
 
 def preview_follow(twin: Profile, timed: TimedTargets, req: RunRequest,
@@ -133,12 +190,9 @@ def preview_follow(twin: Profile, timed: TimedTargets, req: RunRequest,
                     OneShotResult(out.follow.execution, out.homing), t0)
 
 
-def _margins(profile: Profile, req: RunRequest, log_dir: str | Path | None) -> tuple[float, float]:
+def _margins(profile: Profile, req: RunRequest, run: RunData) -> tuple[float, float]:
     """(closest approach to P′'s edge, deg; closest links, mm) over the plan's samples of
-    the run logged in ``log_dir`` (NaN, NaN without any)."""
-    if log_dir is None:
-        return math.nan, math.nan
-    run = load_run(log_dir)
+    the logged run (NaN, NaN without any)."""
     keep = np.array([p in PLAN_PHASES for p in run.phase], bool)
     theta = run.vec("meas")[keep]
     theta = theta[np.isfinite(theta).all(axis=1)]

@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -151,6 +151,8 @@ class Session(ServoTools, FollowTools):
         self.faults = tuple(faults)
         self.initial_deg = initial_deg
         simulated, self.sim_rate = _clock_default(profile)
+        if preview:  # a preview is wanted now: as fast as computed, whatever paces the rest
+            self.sim_rate = 0.0
         self.sim_time = self.sim and (simulated if sim_time is None else sim_time)
         """The emulated bus runs in simulated time (:mod:`spm_console.system.simclock`; default
         ``SPM_CONSOLE_CLOCK``, else the profile's ``[emulator] clock``), at ``sim_rate``
@@ -299,6 +301,9 @@ class Session(ServoTools, FollowTools):
             raise BadInputError("a motion is already running")
         self._estop_sent = False
         self.moving.set()
+        emu = self._physical_child()
+        # a preview's peak current is over the run: its window starts here
+        window = emu is not None and self.preview and emu.flush()
         began = self.clock()
         try:
             if self.before_motion is not None:
@@ -307,7 +312,7 @@ class Session(ServoTools, FollowTools):
         finally:
             self.moving.clear()
             self._motion.release()
-        self._log_collisions(result, began)
+        self._log_emulated_wrist(result, began, window)
         if result.final_deg is not None and np.all(np.isfinite(result.final_deg)):
             self.theta_deg = np.asarray(result.final_deg, float)
         else:  # the last cycle had no reply: ask again rather than show a stale or NaN pose
@@ -316,22 +321,36 @@ class Session(ServoTools, FollowTools):
         self.last_run = result
         return result
 
-    def _log_collisions(self, result: ExecutionResult, began: float) -> None:
-        """The physical emulated wrist's leg contacts during the run, into its log: events
-        ``collision`` (``t``: seconds since the run was asked for, from the emulator's clock)."""
+    def _physical_child(self) -> EmulatorChild | None:
+        """The emulated physical wrist in its child process (None: real servos, ideal ones, or
+        the emulator in a thread)."""
         emu = self.emulator
-        if not isinstance(emu, EmulatorChild) or not emu.physical or result.log_dir is None:
+        return emu if isinstance(emu, EmulatorChild) and emu.physical else None
+
+    def _log_emulated_wrist(self, result: ExecutionResult, began: float, window: bool) -> None:
+        """What the physical emulated wrist saw during the run, into its log: events
+        ``collision`` (its legs' contacts; ``t``: seconds since the run was asked for, from
+        the emulator's clock) and, when ``window`` (a preview: the child answered the flush
+        as the run began), ``peak_current`` (each motor's largest winding current, A)."""
+        emu = self._physical_child()
+        if emu is None or result.log_dir is None:
             return
         until = self.clock()
-        if not emu.flush():  # the child did not answer: take what it told so far
+        flushed = emu.flush()
+        if not flushed:  # the child did not answer: take what it told so far
             time.sleep(COLLISION_REPORT_S)
-        hits = emu.collisions(began, until)
-        if not hits:
-            return
-        append_events(Path(result.log_dir), [
+        peak = emu.peak_current_a() if flushed and window else None
+        events: list[dict[str, Any]] = [
             {"t": float(c["t"]) - began, "event": "collision", "source": "emulated wrist",
              "legs": [int(x) + 1 for x in c["legs"]], "segments": c["segments"],
-             "distance_mm": c["distance_mm"], "theta_deg": c["theta_deg"]} for c in hits])
+             "distance_mm": c["distance_mm"], "theta_deg": c["theta_deg"]}
+            for c in emu.collisions(began, until)]
+        if peak is not None:
+            events.append({"t": until - began, "event": "peak_current",
+                           "source": "emulated wrist", "peak_current_a": peak})
+        if not events:
+            return
+        append_events(Path(result.log_dir), events)
         from spm_console.motion.logs.mcap_log import write_run_mcap  # loads mcap
 
         with contextlib.suppress(Exception):  # the MCAP carries them too (the run stands)

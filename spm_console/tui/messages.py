@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from spm_console.motion.segments import ExecutionResult
     from spm_console.motion.servo_tools import ServoHealth
     from spm_console.services.kin_record import FkRecord
+    from spm_console.services.preview import Preview
     from spm_console.services.session import BusState
 
 
@@ -39,6 +40,13 @@ class PositionRead:
 class MotionDone:
     kind: Literal["home", "execute", "jog"]
     result: ExecutionResult
+
+
+@dataclass(frozen=True)
+class PreviewDone:
+    """The plan's run on the wrist's twin in simulated time (nothing moved)."""
+
+    preview: Preview
 
 
 @dataclass(frozen=True)
@@ -131,7 +139,7 @@ class BenchmarkDone:
 
 Outcome = (Connected | PositionRead | MotionDone | FkSolved | WorkspaceLoaded | ThetaChecked
            | PlanSolved | PlanSaved | PlanLoaded | RunOpened | BenchmarkDone | ServoToolDone
-           | FollowDone | IdentifyDone | CommissionDone)
+           | FollowDone | IdentifyDone | CommissionDone | PreviewDone)
 
 
 class Done(Message):

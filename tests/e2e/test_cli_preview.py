@@ -94,3 +94,22 @@ def test_follow_previews_a_timed_target_file_and_refuses_live_targets(
     assert load_run(d["log_dir"]).meta["preview"] is True
     assert main(["follow", "--udp", "9999", "--sim", "--preview"]) == int(ExitCode.BAD_INPUT)
     assert "timed target file" in capsys.readouterr().err
+
+
+def test_the_physical_twin_predicts_each_motors_peak_current(
+        plan_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The physical twin's motors draw current (the ideal servos model none); it is told
+    per joint, below the MX-106's stall current at its supply, and lands in the log."""
+    from spm_console.config.schema import Plant
+    from spm_console.description.mjcf import plant_params
+
+    code, d = _run(capsys, "execute", "--plan", str(plan_file), "--sim", "--plant", "physical",
+                   "--json", "--preview", "--logs", str(tmp_path))
+    assert code == 0 and d["plant"] == "physical", d
+    peak = np.asarray(d["peak_current_a"], float)
+    p = plant_params(Plant())
+    assert peak.shape == (3,) and (peak > 0.05).all(), peak
+    assert (peak < p.supply_v / p.resistance_ohm).all(), peak
+    told = [e for e in load_run(d["log_dir"]).events if e["event"] == "peak_current"]
+    assert len(told) == 1 and told[0]["source"] == "emulated wrist"
+    assert max(told[0]["peak_current_a"]) <= peak.max()

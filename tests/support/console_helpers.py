@@ -31,6 +31,15 @@ async def settle(pilot: Pilot[Any], timeout_s: float = 30.0) -> None:
             raise TimeoutError("the console did not settle")
 
 
+async def confirm_execute(pilot: Pilot[Any]) -> None:
+    """x on the Execute step: the run's preview on the twin first (a worker), then "Execute
+    the plan?", answered y."""
+    await pilot.press("x")
+    await settle(pilot)
+    assert type(pilot.app.screen).__name__ == "LongConfirm", status_of(pilot.app)
+    await pilot.press("y")
+
+
 def text_of(app: SpmConsoleApp, selector: str) -> str:
     """Plain text of a Static on the current screen."""
     return str(app.screen.query_one(selector, Static).render())

@@ -13,8 +13,9 @@ from textual.widgets import DataTable
 
 from spm_console.motion.stats import run_stats
 from spm_console.tui.messages import Telemetry
-from spm_console.tui.screens.execute import NO_REPLY, LiveTiming, LoopTiming
-from tests.support.console_helpers import settle, status_of, text_of
+from spm_console.tui.screens.execute import NO_REPLY
+from spm_console.tui.screens.execute_timing import LiveTiming, LoopTiming
+from tests.support.console_helpers import confirm_execute, settle, status_of, text_of
 from tests.support.runlog_helpers import TS, sample
 
 pytestmark = pytest.mark.usefixtures("paced_clock")  # acts while the wrist moves
@@ -104,7 +105,7 @@ async def test_during_a_real_execution_the_timing_line_updates(console) -> None:
                                 PoseSpec("theta", (95.0, 110.0, 105.0)), 100)
         await pilot.press("5")
         await settle(pilot)
-        await pilot.press("x", "y")
+        await confirm_execute(pilot)
         await settle(pilot)
         res = s.last_run
         assert res is not None and res.ok, status_of(app)

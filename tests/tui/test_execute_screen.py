@@ -11,7 +11,7 @@ from textual.widgets import DataTable
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import ExitCode
 from spm_console.motion.logs.runlog import list_runs, load_run
-from tests.support.console_helpers import MotionSpy, settle, status_of, text_of
+from tests.support.console_helpers import MotionSpy, confirm_execute, settle, status_of, text_of
 
 pytestmark = pytest.mark.usefixtures("paced_clock")  # acts while the wrist moves
 
@@ -57,9 +57,7 @@ async def test_execute_runs_the_plan_live_and_logs_it(console, tmp_path) -> None
         await _homed_with_plan(pilot, 50)
         spy.press_while_moving = "1"  # steps are locked while the wrist moves
         n_before = len(spy.banner_at_telemetry)
-        await pilot.press("x")
-        assert type(app.screen).__name__ == "ConfirmScreen", status_of(app)
-        await pilot.press("y")
+        await confirm_execute(pilot)
         await settle(pilot)
         assert type(app.screen).__name__ == "ExecuteScreen"
         assert spy.press_while_moving == ""  # the key was sent during the motion
@@ -89,7 +87,7 @@ async def test_space_is_an_estop_during_execution(console) -> None:
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         await _homed_with_plan(pilot, 150)  # 3 s of motion
-        await pilot.press("x", "y")
+        await confirm_execute(pilot)
         await pilot.pause(0.2)
         await pilot.press("space")
         await settle(pilot)
@@ -113,12 +111,15 @@ async def test_a_stalled_joint_stops_the_run_with_the_reason(console, tmp_path) 
     app = console(faults=[parse_fault("stall:2")])
     async with app.run_test(size=SIZE) as pilot:
         await _homed_with_plan(pilot, 60)
-        await pilot.press("x", "y")
+        await confirm_execute(pilot)
         await settle(pilot)
         res = app.session.last_run
         assert res is not None and res.exit_code == ExitCode.STOP_TRACKING, status_of(app)
         assert "joint 2" in status_of(app)
-        assert [r.meta["outcome"] for r in list_runs(tmp_path / "logs")] == ["completed", "stopped"]
+        runs = list_runs(tmp_path / "logs")
+        assert [r.meta["outcome"] for r in runs if not r.info.preview] == ["completed", "stopped"]
+        # the preview on the twin (the same emulated fault) said so before the question
+        assert [r.meta["outcome"] for r in runs if r.info.preview] == ["stopped"]
 
 
 async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
@@ -142,7 +143,7 @@ async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
         assert "not connected and homed" in status_of(app)
         assert not s.homed and s.last_run is None
         await asyncio.to_thread(s.home)
-        await pilot.press("x", "y")
+        await confirm_execute(pilot)
         await settle(pilot)
         assert s.last_run is not None and s.last_run.ok, status_of(app)
         console_meta = load_run(s.last_run.log_dir).meta
@@ -159,3 +160,44 @@ async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
     cli_meta = load_run(cli_run.path).meta
     assert set(console_meta) == set(cli_meta)
     assert console_meta["homing"] == cli_meta["homing"] == "done"
+
+
+async def test_x_previews_the_run_on_the_twin_before_it_asks(console, tmp_path) -> None:
+    """The preview shows under the plan and as the plot before "Execute the plan?"; nothing
+    moved; its log is marked preview; no again moves nothing; x from the same place asks
+    at once (the same preview); the run then ends where the preview said."""
+    app = console()
+    async with app.run_test(size=SIZE) as pilot:
+        await _homed_with_plan(pilot, 60)
+        s = app.session
+        before, homing = s.read_position(), s.last_run
+        await pilot.press("x")
+        await settle(pilot)
+        assert type(app.screen).__name__ == "LongConfirm", status_of(app)
+        body = text_of(app, "#confirm-body")
+        assert "Preview on the twin" in body and "the run completes" in body
+        assert "final error against the goal" in body and "closest to the edge of P′" in body
+        await pilot.press("n")
+        await settle(pilot)
+        shown = text_of(app, "#exec-preview")
+        assert shown.startswith("Preview on the twin") and "final error" in shown
+        view = app.screen.query_one("#exec-plot")
+        assert view._title.startswith("preview: planned θ*")
+        np.testing.assert_allclose(s.read_position(), before, atol=0.1)  # nothing moved
+        assert s.last_run is homing  # no run on the wrist
+        pv = app.screen.preview
+        assert pv is not None and pv.plan is s.plan
+        [log] = [r for r in list_runs(tmp_path / "logs") if r.info.preview]
+        assert log.meta["kind"] == "execute" and log.meta["clock"] == "simulated"
+        await pilot.press("x")  # from the same place: the same preview, asked at once
+        await pilot.pause()
+        assert type(app.screen).__name__ == "LongConfirm"
+        await pilot.press("y")
+        await settle(pilot)
+        assert app.screen.preview is pv
+        assert len([r for r in list_runs(tmp_path / "logs") if r.info.preview]) == 1
+        res = s.last_run
+        assert res is not None and res.ok, status_of(app)
+        assert pv.final_error_deg is not None
+        np.testing.assert_allclose(res.final_deg, pv.plan.reference_deg[-1] + pv.final_error_deg,
+                                   atol=0.2)

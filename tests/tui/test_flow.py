@@ -7,7 +7,7 @@ import numpy as np
 from textual.widgets import DataTable, Input
 
 from spm_console.motion.logs.runlog import list_runs
-from tests.support.console_helpers import settle, status_of, text_of
+from tests.support.console_helpers import confirm_execute, settle, status_of, text_of
 
 SIZE = (130, 42)
 
@@ -47,7 +47,8 @@ async def test_whole_flow_by_keys(console, tmp_path) -> None:
         assert app.focused is None
         assert "press 5" in text_of(app, "#hint-line")
 
-        await pilot.press("5", "x", "y")  # 5: execute
+        await pilot.press("5")  # 5: execute (x previews the run, then asks)
+        await confirm_execute(pilot)
         await settle(pilot)
         res = app.session.last_run
         assert res is not None and res.ok, status_of(app)
@@ -57,8 +58,9 @@ async def test_whole_flow_by_keys(console, tmp_path) -> None:
         await pilot.press("6")  # 6: the log
         await settle(pilot)
         table = app.screen.query_one("#runs", DataTable)
-        assert table.row_count == 2  # homing and the execution, newest first
-        assert table.get_row_at(0)[1] == "execute"
+        # homing, the preview and the execution, newest first
+        assert [table.get_row_at(i)[1] for i in range(table.row_count)] == [
+            "execute", "execute (preview)", "home"]
         await pilot.press("enter")
         await settle(pilot)
         assert str(res.log_dir) in text_of(app, "#run-text")
@@ -69,7 +71,7 @@ async def test_whole_flow_by_keys(console, tmp_path) -> None:
 
         await pilot.press("q", "q")  # quitting asks first
     assert app.return_code == 0
-    assert len(list_runs(tmp_path / "logs")) == 2
+    assert [r.info.preview for r in list_runs(tmp_path / "logs")] == [False, True, False]
     assert app.session.bus is None and app.session.emulator is None  # closed on quit
 
 

@@ -25,7 +25,7 @@ from spm_console.tui.identify_run import PLOT_NAME
 from spm_console.tui.switch import SwitchRequest
 from spm_console.tui.widgets.confirm import LongConfirm
 from tests.conftest import ROOT
-from tests.support.console_helpers import MotionSpy, screen_text, settle, status_of, text_of
+from tests.support.console_helpers import MotionSpy, confirm_execute, screen_text, settle, status_of, text_of
 
 SMALL = (80, 24)
 #: The dialog's border (left and right), and its scrollbar's thumb beside the text.
@@ -117,7 +117,8 @@ async def test_identify_then_use_the_identified_model_with_the_workspace_kept(
         await settle(pilot)
         plan = s.plan
         assert plan is not None and plan.N == 60, status_of(second)
-        await pilot.press("escape", "5", "x", "y")  # and execute it
+        await pilot.press("escape", "5")  # and execute it
+        await confirm_execute(pilot)
         await settle(pilot)
         res = s.last_run
         assert res is not None and res.ok, status_of(second)

@@ -22,7 +22,7 @@ OPERATIONS = {
     "fk": {"FK", "IK", "Modes", "Current"},
     "workspace": {"Load", "Rebuild", "Cancel build", "Check"},
     "plan": {"Solve", "Plot", "Save", "Open plan"},
-    "execute": {"Execute", "Plot", "Live jog"},
+    "execute": {"Execute", "Preview", "Plot", "Live jog"},
     "logs": {"Refresh", "Open run", "Filter", "Plot", "Joint"},
 }
 

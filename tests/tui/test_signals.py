@@ -13,7 +13,7 @@ import pytest
 from spm_console.errors import ExitCode
 from spm_console.motion.logs.runlog import list_runs
 from spm_console.system.signals import STOP_SIGNALS
-from tests.support.console_helpers import settle, status_of
+from tests.support.console_helpers import confirm_execute, settle, status_of
 
 SIZE = (130, 42)
 # paced: the signals land while the wrist moves
@@ -47,7 +47,8 @@ async def test_a_signal_mid_motion_stops_the_wrist_and_the_console(console, tmp_
         await asyncio.to_thread(s.load_workspace)
         await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
                                 PoseSpec("theta", (95.0, 110.0, 105.0)), 150)  # 3 s
-        await pilot.press("5", "x", "y")
+        await pilot.press("5")
+        await confirm_execute(pilot)
         t_end = asyncio.get_running_loop().time() + 30.0
         while not s.moving.is_set():  # bounded: a motion that never starts fails, never hangs
             assert asyncio.get_running_loop().time() < t_end, status_of(app)
@@ -57,7 +58,7 @@ async def test_a_signal_mid_motion_stops_the_wrist_and_the_console(console, tmp_
         await _wait_exit(app)
     assert app.return_value == app.return_code == int(ExitCode.STOP_ESTOP)  # what `tui` exits with
     assert signal.getsignal(sig) is not app._on_stop_signal  # handlers given back on exit
-    runs = list_runs(tmp_path / "logs")
+    runs = [r for r in list_runs(tmp_path / "logs") if not r.info.preview]
     assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
     assert runs[-1].meta["exit_code"] == 20
     assert runs[-1].meta["message"] == f"E-stop: signal {sig.name}"

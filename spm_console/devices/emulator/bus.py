@@ -210,6 +210,15 @@ class EmulatorHandle:
             self._advance(self._clock())
             return np.array([m.to_deg(s.pos) for m, s in zip(self.maps, self.servos, strict=True)])
 
+    def take_peak_current(self) -> F | None:
+        """The physical wrist's largest |winding current| per joint (A) since the last call,
+        stepped to now; it starts again (None: ideal servos, no current modelled)."""
+        with self._lock:
+            if self.wrist is None:
+                return None
+            self._advance(self._clock())
+            return self.wrist.take_peak_current()
+
     def set_joint_deg(self, theta_deg: Sequence[float] | F) -> None:
         """Place the servos at rest at these joint angles (deg)."""
         theta = [float(x) for x in theta_deg]

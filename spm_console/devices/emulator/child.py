@@ -8,7 +8,9 @@ reads the profile (JSON) and options on stdin, prints ``{"port": ...}`` and serv
 until its owner stops it (SIGUSR1) or is gone. On SIGUSR2 it tells the physical wrist's leg
 contacts at once and then ``{"flushed": T}``: every contact up to the instant T
 (``time.perf_counter()``, shared by the processes) has been told (:meth:`EmulatorChild.flush`;
-signals that arrive together count as one, and T still answers each of them).
+signals that arrive together count as one, and T still answers each of them), with the
+physical wrist's largest winding current per joint since the flush before
+(:meth:`EmulatorChild.peak_current_a`).
 
 The emulated servos stand in for hardware, which no signal switches off: the terminating
 signals (SIGINT, SIGTERM, SIGHUP, SIGQUIT: a service manager stopping every process of its
@@ -80,6 +82,7 @@ class EmulatorChild(ChildProcess):
         self._flushed = threading.Condition(self._lock)
         self._flushed_t = float("-inf")
         """The latest instant up to which the child has told every contact."""
+        self._peak_a: list[float] | None = None
 
     def collisions(self, since: float, until: float) -> list[dict[str, Any]]:
         """The physical wrist's leg contacts that began between the monotonic instants
@@ -87,6 +90,12 @@ class EmulatorChild(ChildProcess):
         or the simulated clock)."""
         with self._lock:
             return [c for c in self._collisions if since <= float(c["t"]) <= until]
+
+    def peak_current_a(self) -> list[float] | None:
+        """The physical wrist's largest |winding current| per joint (A) between the last two
+        answered :meth:`flush` calls (None: no such window, or ideal servos)."""
+        with self._lock:
+            return None if self._peak_a is None else list(self._peak_a)
 
     def flush(self, timeout_s: float = FLUSH_TIMEOUT_S) -> bool:
         """Have the child tell every leg contact up to now; True once it has (False when it
@@ -117,6 +126,9 @@ class EmulatorChild(ChildProcess):
                         del self._collisions[:-MAX_COLLISIONS]
                     if isinstance(data.get("flushed"), (int, float)):
                         self._flushed_t = max(self._flushed_t, float(data["flushed"]))
+                        peak = data.get("peak_current_a")
+                        self._peak_a = ([float(a) for a in peak] if isinstance(peak, list)
+                                        and len(peak) == 3 else None)
                         self._flushed.notify_all()
         except (OSError, ValueError):  # the pipe closed under us: the child was stopped
             return
@@ -190,13 +202,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                 break
             flushes = asked["flush"]  # one read: a later request finds its byte in the pipe
             now = time.perf_counter() if em.sim is None else em.sim.now()
+            peak = None
             if em.wrist is not None:  # the legs' contacts, told to the owner as they begin
-                if flushes > told:
-                    em.joint_deg()  # steps the wrist up to now first (the serving thread waits)
+                if flushes > told:  # steps the wrist up to now first (the serving thread waits)
+                    peak = em.take_peak_current()
                 for c in em.wrist.contacts.take():
                     sys.stdout.write(json.dumps({"collision": asdict(c)}) + "\n")
             if flushes > told:
-                sys.stdout.write(json.dumps({"flushed": now}) + "\n")
+                sys.stdout.write(json.dumps({
+                    "flushed": now,
+                    "peak_current_a": None if peak is None else [float(a) for a in peak]}) + "\n")
                 told = flushes
             sys.stdout.flush()
     finally:

@@ -215,6 +215,9 @@ class PhysicalWrist:
         self.strain_s = np.zeros(3)
         """Per joint, how long its drive has pushed at full duty against a shaft that does
         not turn, s."""
+        self.peak_current_a = np.zeros(3)
+        """Per joint, the largest |winding current| of a driven motor since
+        :meth:`take_peak_current`, A (0 with torque off: the winding is open)."""
 
     def overloaded(self, index: int) -> bool:
         """Whether joint ``index``'s drive has strained long enough to shut down."""
@@ -240,6 +243,11 @@ class PhysicalWrist:
             self.blocked[index] = float(self.motor_angle()[index])
         elif not blocked:
             self.blocked[index] = None
+
+    def take_peak_current(self) -> F:
+        """The largest |winding current| per joint since the last call (A); starts again."""
+        peak, self.peak_current_a = self.peak_current_a, np.zeros(3)
+        return peak
 
     def current(self, index: int) -> float:
         """Winding current of joint ``index`` now, A."""
@@ -362,6 +370,9 @@ class PhysicalWrist:
         duty = [0.0, 0.0, 0.0]
         torque = [0.0, 0.0, 0.0]
         strain = [float(x) for x in self.strain_s]
+        peak = [float(x) for x in self.peak_current_a]
+        p = self.params
+        volts, kt, ohm = p.supply_v, p.kt_nm_per_a, p.resistance_ohm
         while self.t + dt <= t + 1e-12:
             qp = qpos.tolist()
             qv = qvel.tolist()
@@ -374,6 +385,9 @@ class PhysicalWrist:
                     present = round((home[i] + q) * tpr)
                     du = drives[i].duty(goal[i], present)
                     tau = drives[i].torque(du, om[i])
+                    amps = abs(du * volts - kt * om[i]) / ohm  # Drive.current, inlined
+                    if amps > peak[i]:
+                        peak[i] = amps
                 lock = blocked[i]
                 if lock is not None:  # a blocked shaft: a stiff, damped stop where it stuck
                     tau += -BLOCK_STIFFNESS * (qp[drive_q[i]] - lock) - BLOCK_DAMPING * om[i]
@@ -390,3 +404,4 @@ class PhysicalWrist:
                 self.contacts.check(self.data, self.t, self.theta())
         self.duty = np.array(duty)
         self.strain_s = np.array(strain)
+        self.peak_current_a = np.array(peak)

@@ -78,6 +78,8 @@ class RunInfo:
     samples: int | None
     plan: RunPlan | None
     bus: str | None
+    preview: bool = False
+    """A preview: the run made on the wrist's twin in simulated time (nothing moved)."""
 
     @property
     def duration_s(self) -> float | None:
@@ -194,4 +196,5 @@ def run_info(name: str, meta: Mapping[str, Any],
         samples=_int(meta.get("samples")),
         plan=_plan(meta.get("plans")),
         bus=_str(meta.get("bus")),
+        preview=meta.get("preview") is True,
     )

@@ -6,8 +6,6 @@ arrow keys move."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -19,15 +17,17 @@ from textual.widgets import DataTable, ProgressBar, Static
 
 from spm_console.formatting import fmt_deg
 from spm_console.motion.sample import Sample
-from spm_console.tui.messages import FollowDone, MotionDone, Outcome, Telemetry
+from spm_console.tui.messages import FollowDone, MotionDone, Outcome, PreviewDone, Telemetry
 from spm_console.tui.screens.base import StepScreen
+from spm_console.tui.screens.execute_preview import draw_preview, preview_lines, still_valid
+from spm_console.tui.screens.execute_timing import LiveTiming, LoopTiming
 from spm_console.tui.screens.jog import JogFailure, JogResult, JogScreen
 from spm_console.tui.screens.plan_words import KIND_WORDS
-from spm_console.tui.widgets.confirm import ConfirmScreen
+from spm_console.tui.widgets.confirm import LongConfirm
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
 if TYPE_CHECKING:
-    from spm_console.motion.stats import RunStats
+    from spm_console.services.preview import Preview
 
 #: Live plot redraw interval, s (telemetry itself arrives every Ts, coalesced).
 PLOT_EVERY_S = 0.5
@@ -38,70 +38,6 @@ NO_REPLY = "no reply"
 JOINT_COLUMNS = ("joint", "reference θ*", "measured θ", "dθ/dt (KF)",
                  "measured −\nmodel", "reference −\nmeasured")
 """Live table headers (two lines: the table fits 80 columns)."""
-
-
-@dataclass(frozen=True)
-class LoopTiming:
-    """The servo loop's timing over the cycles seen so far (or over the whole run)."""
-
-    cycles: int
-    jitter_p99_ms: float
-    """99th percentile of |t(k) − t(k−1) − Ts| over consecutive cycles, ms (NaN: < 2)."""
-    late_cycles: int
-    """Cycles that started more than one period after their deadline (RunStats.overruns)."""
-    read_retries: int
-    no_reply: int
-    """Cycles without a valid reply after their retries."""
-    stale_replies: int
-    """Stale status packets the bus discarded (late or unasked-for replies)."""
-
-    def text(self) -> str:
-        jit = f"{self.jitter_p99_ms:.2f} ms" if math.isfinite(self.jitter_p99_ms) else "–"
-        return (f"servo loop, {self.cycles} cycles: jitter p99 {jit} · "
-                f"late cycles {self.late_cycles} · read retries {self.read_retries} · "
-                f"no-reply cycles {self.no_reply} · stale replies {self.stale_replies}")
-
-    @classmethod
-    def of_run(cls, stats: RunStats) -> LoopTiming:
-        """The motion process's own figures over every cycle of a finished run."""
-        return cls(cycles=stats.samples,
-                   jitter_p99_ms=stats.jitter_ms.p99 if stats.jitter_ms else math.nan,
-                   late_cycles=stats.overruns, read_retries=stats.read_retries,
-                   no_reply=stats.failed_reads, stale_replies=stats.stale_replies)
-
-
-class LiveTiming:
-    """Loop timing accumulated sample by sample while the wrist moves (the definitions of
-    ``run.stats.run_stats``; a cycle the telemetry left out breaks the jitter pair)."""
-
-    def __init__(self, ts_s: float) -> None:
-        self.ts_s = ts_s
-        """Servo period, s."""
-        self._jitter_ms: list[float] = []
-        self._prev_k = -2
-        self._prev_t = 0.0
-        self.cycles = 0
-        self.late_cycles = 0
-        self.read_retries = 0
-        self.no_reply = 0
-        self.stale_replies = 0
-
-    def add(self, samples: Sequence[Sample]) -> None:
-        for s in samples:
-            if s.k == self._prev_k + 1:
-                self._jitter_ms.append(abs(s.t - self._prev_t - self.ts_s) * 1e3)
-            self._prev_k, self._prev_t = s.k, s.t
-            self.cycles += 1
-            self.late_cycles += int(s.late_s > self.ts_s)
-            self.read_retries += s.retries
-            self.no_reply += int(not s.read_ok)
-            self.stale_replies = max(self.stale_replies, s.stale_replies)
-
-    def timing(self) -> LoopTiming:
-        jit = float(np.percentile(self._jitter_ms, 99)) if self._jitter_ms else math.nan
-        return LoopTiming(cycles=self.cycles, jitter_p99_ms=jit, late_cycles=self.late_cycles,
-                          read_retries=self.read_retries, no_reply=self.no_reply,
-                          stale_replies=self.stale_replies)
 
 
 def _last_read(samples: list[Sample]) -> Sample:
@@ -122,7 +58,10 @@ def _diff(a: float, b: float) -> str:
 class ExecuteScreen(StepScreen):
     MODE = "execute"
     BINDINGS: ClassVar[list[BindingType]] = [
-        Binding("x", "execute", "Execute"),
+        Binding("x", "execute", "Execute",
+                tooltip="previews the run on the twin first, then asks"),
+        Binding("v", "preview", "Preview",
+                tooltip="the run on the wrist's twin in simulated time: nothing moves"),
         Binding("p", "next_plot", "Plot"),
         Binding("j", "jog", "Live jog",
                 tooltip="the wrist follows a target the arrow keys move (homed only)"),
@@ -132,6 +71,7 @@ class ExecuteScreen(StepScreen):
     ExecuteScreen #exec-clock-row { height: 1; }
     ExecuteScreen #exec-clock { width: auto; padding: 0 2 0 0; }
     ExecuteScreen #exec-timing { height: auto; }
+    ExecuteScreen #exec-preview { display: none; }
     """
 
     def __init__(self) -> None:
@@ -142,10 +82,14 @@ class ExecuteScreen(StepScreen):
         """The running execution's timing (None before the first execution)."""
         self._fed = 0
         """How many of ``console.live_samples`` the timing has taken in."""
+        self.preview: Preview | None = None
+        """The last preview (:mod:`.execute_preview`)."""
+        self._confirm_after_preview = False
 
     def compose_body(self) -> ComposeResult:
         with Vertical(classes="body"):
             yield Static(id="exec-plan", markup=False)
+            yield Static(id="exec-preview", markup=False)
             yield DataTable(id="joints", cursor_type="none", header_height=2)
             with Horizontal(id="exec-clock-row"):
                 yield Static(id="exec-clock", markup=False)
@@ -174,26 +118,57 @@ class ExecuteScreen(StepScreen):
                     + ("" if s.homed else "   (not homed: press 1, then h)"))
         self.query_one("#exec-plan", Static).update(Content(text))
 
-    def action_execute(self) -> None:
+    def _can_move(self) -> bool:
+        """A plan, a homed wrist and nothing running (else refused with the reason)."""
         s = self.session
         if s.plan is None:
             self.status.refused("no plan: press 4 and solve one first")
-            return
+            return False
         if s.bus is None or not s.homed:
             self.status.refused("the wrist is not connected and homed: press 1, then c and h")
-            return
+            return False
         if self.busy_op or self.console.moving:
             self.status.error("busy: a motion is already running")
+            return False
+        return True
+
+    def action_preview(self, then_confirm: bool = False) -> None:
+        """Run the plan on the wrist's twin in simulated time (nothing moves); show it."""
+        if not self._can_move():
             return
+        from spm_console.services.preview import preview_in_session
+
+        self._confirm_after_preview = then_confirm
+        self._show_preview_text("Preview: the run on the wrist's twin, in simulated time …")
+        self.run_blocking("preview", lambda: PreviewDone(preview_in_session(self.session)),
+                          "previewing the run on the twin (simulated time; nothing moves) …")
+
+    def action_execute(self) -> None:
+        """Preview the run (unless the last preview is of this plan from here), then ask."""
+        if not self._can_move():
+            return
+        s = self.session
+        pv = self.preview
+        if pv is not None and s.plan is not None and still_valid(pv, s.plan, s.theta_deg):
+            self._ask(pv)
+        else:
+            self.action_preview(then_confirm=True)
+
+    def _ask(self, pv: Preview) -> None:
+        s = self.session
         p = s.plan
+        if p is None:
+            return
         here = fmt_deg(s.theta_deg) if s.theta_deg is not None else "unknown"
         kind = "minimum-time" if p.kind == "mintime" else KIND_WORDS.get(p.kind, p.kind)
         body = (f"The wrist moves on the {s.bus_label}: {kind} plan of "
                 f"{p.duration_s:.2f} s from {fmt_deg(p.reference_deg[0])} to "
                 f"{fmt_deg(p.reference_deg[-1])} (now at {here}; a straight approach move at "
                 f"≤ {s.profile.safety.home_speed_degps:g}°/s comes first if needed).\n"
-                "Press SPACE at any time to stop it.")
-        self.app.push_screen(ConfirmScreen("Execute the plan?", body), self._confirmed)
+                "Press SPACE at any time to stop it.\n\n" + "\n".join(preview_lines(pv)))
+        title = ("Execute the plan?" if pv.run.execution.ok else
+                 "Execute the plan? Its preview STOPPED on the twin")
+        self.app.push_screen(LongConfirm(title, body), self._confirmed)
 
     def _confirmed(self, yes: bool | None) -> None:
         if not yes:
@@ -334,7 +309,28 @@ class ExecuteScreen(StepScreen):
             view.plot("velocity dθ/dt [deg/s]: Kalman filter, model (dots)", t, series)
 
     # ------------------------------------------------------------------ outcome
+    def _show_preview_text(self, text: str) -> None:
+        """The preview's panel under the plan (hidden before the first preview)."""
+        panel = self.query_one("#exec-preview", Static)
+        panel.update(Content(text))
+        panel.display = True
+
+    def show_preview(self, pv: Preview) -> None:
+        self.preview = pv
+        self._show_preview_text("\n".join(preview_lines(pv)))
+        draw_preview(self.query_one("#exec-plot", PlotView), pv)
+
     def handle_done(self, outcome: Outcome) -> None:
+        if isinstance(outcome, PreviewDone):
+            self.show_preview(outcome.preview)
+            if self._confirm_after_preview and self._can_move():
+                self._ask(outcome.preview)
+            elif outcome.preview.run.execution.ok:
+                self.status.ok("preview: the run completes on the twin; x executes it")
+            else:
+                self.status.error("preview: the run STOPS on the twin "
+                                  f"({outcome.preview.run.execution.message})")
+            return
         if not isinstance(outcome, MotionDone):
             return
         result = outcome.result
@@ -363,6 +359,8 @@ class ExecuteScreen(StepScreen):
     def handle_failed(self, op: str, message: str) -> None:
         if op == "execute":
             self.console.moving = False
+        elif op == "preview":
+            self._show_preview_text(f"Preview failed (nothing moved): {message}")
 
 
 def outcome_text(result: Any) -> str:

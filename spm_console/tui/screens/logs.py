@@ -67,7 +67,7 @@ def short_reason(reason: str, width: int = REASON_CHARS) -> str:
 
 def run_row(info: RunInfo) -> tuple[str, ...]:
     """The runs table's cells of one run (RUN_COLUMNS)."""
-    return (info.name, info.kind, info.outcome,
+    return (info.name, f"{info.kind} (preview)" if info.preview else info.kind, info.outcome,
             "" if info.exit_code is None else str(info.exit_code), _secs(info.loop_s),
             "" if info.plan is None else info.plan.kind, short_reason(info.reason))
 
@@ -91,7 +91,8 @@ def run_text(run: RunData) -> str:
     loop = ("servo loop not recorded" if info.loop_s is None
             else f"servo loop {info.loop_s:.2f} s ({info.samples or 0} cycles)")
     lines = [
-        f"{info.name}: {info.kind} on {info.bus or '?'}",
+        f"{info.name}: {info.kind} on {info.bus or '?'}"
+        + (" — a PREVIEW on the wrist's twin (nothing moved)" if info.preview else ""),
         f"outcome {info.outcome} (exit code {code}): {info.message}",
     ]
     if info.stop_kind is not None:

@@ -204,3 +204,26 @@ def test_the_drive_uses_the_gains_the_driver_wrote() -> None:
     assert servo.write(reg.address, reg.encode(425)) == 0
     assert wrist.drives[0].gains.p == 425
     assert wrist.drives[0].duty(10.0, 0.0) == pytest.approx(425 / 128 * 10 / PWM_FULL)
+
+
+def test_the_peak_current_is_the_largest_drive_current_step_by_step() -> None:
+    """Reference: the drive's current (duty and the motor's speed as each step began) taken
+    step by step with the public methods, its largest |value| per joint; with torque off
+    nothing flows. A step of 20° asks for more than holding: the peak grows."""
+    wrist = PhysicalWrist(model_of(load_profile(ROOT / "profiles" / "agile_wrist.toml")))
+    wrist.advance(0.05)
+    assert not wrist.take_peak_current().any()  # torque off: the windings are open
+    _drive(wrist, wrist.theta() + np.radians([20.0, -15.0, 10.0]))
+    dt, ref = P.timestep_s, np.zeros(3)
+    for _ in range(round(0.4 / dt)):
+        omega = wrist.motor_omega()
+        wrist.advance(wrist.t + dt)
+        d = Drive(P, TICKS_PER_RAD)
+        ref = np.maximum(ref, [abs(d.current(float(wrist.duty[i]), float(omega[i])))
+                               for i in range(3)])
+    peak = wrist.take_peak_current()
+    np.testing.assert_allclose(peak, ref, rtol=1e-12)
+    assert (peak > 0.5).all()  # a 20° step drives at full duty for a while
+    stall_a = P.supply_v / P.resistance_ohm
+    assert (peak < 2 * stall_a).all()
+    assert not wrist.take_peak_current().any()  # taken: a new window starts
