@@ -88,9 +88,11 @@ class Tmux:
 
 @pytest.fixture
 def env(tmp_path: Path, ws_cache_dir: Path) -> dict[str, str]:
+    """The console's environment: its motions in simulated time paced at real time (the
+    tests act while the wrist moves; a loaded machine slows the wrist, never races it)."""
     return {"SPM_CONSOLE_LOGS": str(tmp_path / "logs"), "SPM_CONSOLE_CACHE": str(ws_cache_dir),
             "TERM": "xterm-256color", "COLORTERM": "truecolor", "PATH": os.environ["PATH"],
-            "HOME": os.environ.get("HOME", "/tmp")}
+            "HOME": os.environ.get("HOME", "/tmp"), "SPM_CONSOLE_CLOCK": "simulated:1"}
 
 
 @pytest.fixture(scope="module")
@@ -114,6 +116,11 @@ def tmux_console(env: dict[str, str]) -> Iterator[callable]:  # type: ignore[val
     yield start
     for t in made:
         t.kill()
+
+
+def _moved(tmp_path: Path) -> list:  # type: ignore[type-arg]
+    """The runs that moved the wrist (not the previews on its twin), oldest first."""
+    return [r for r in list_runs(tmp_path / "logs") if not r.info.preview]
 
 
 def _home_and_solve(t) -> None:  # type: ignore[no-untyped-def]
@@ -141,7 +148,9 @@ def _start_execution(t) -> None:  # type: ignore[no-untyped-def]
     t.keys("y")
 
 
-def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.realtime  # the one walk through the console on the wall clock
+def test_walk_home_plan_execute_by_keys(tmux_console, env, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    env["SPM_CONSOLE_CLOCK"] = "real"
     t = tmux_console("--sim", "--plant", "ideal", "--no-viewer")
     _home_and_solve(t)
     # the result panel may be painted a frame after the status line: wait for it, then check it
@@ -161,7 +170,7 @@ def test_walk_home_plan_execute_by_keys(tmux_console, tmp_path) -> None:  # type
     t.keys("enter")
     t.wait_for(r"outcome completed \(exit code 0\)")
     t.quit()
-    assert [r.meta["outcome"] for r in list_runs(tmp_path / "logs")] == ["completed", "completed"]
+    assert [r.meta["outcome"] for r in _moved(tmp_path)] == ["completed", "completed"]
 
 
 def _viewer_port(screen: str) -> int:
@@ -215,7 +224,7 @@ def test_a_signal_to_its_group_mid_motion_stops_the_wrist_the_console_and_its_vi
     while alive(pid) and time.monotonic() - t0 < 10:
         time.sleep(0.1)
     assert not alive(pid)
-    runs = list_runs(tmp_path / "logs")
+    runs = _moved(tmp_path)
     assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
     assert_estopped(tmp_path / "logs", runs[-1].path, sig, agile.servo.ts_s, loop_pid)
 
@@ -234,7 +243,7 @@ def test_closing_the_terminal_mid_motion_stops_the_wrist_and_closes_the_log(  # 
     while alive(pid) and time.monotonic() - t0 < 10:
         time.sleep(0.1)
     assert not alive(pid), "the console outlived its terminal"
-    runs = list_runs(tmp_path / "logs")
+    runs = _moved(tmp_path)
     assert [r.meta["outcome"] for r in runs] == ["completed", "stopped"]
     assert runs[-1].meta["exit_code"] == 20 and runs[-1].meta["message"] == "E-stop: signal SIGHUP"
     assert_estopped(tmp_path / "logs", runs[-1].path, signal.SIGHUP, agile.servo.ts_s,

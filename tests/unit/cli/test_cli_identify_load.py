@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
@@ -23,9 +24,11 @@ DYN = Dynamics(39.0, 0.77, 0.001)
 LOAD = LoadModel(np.array([1.39]), 0.085)
 
 
-def _csv(tmp_path: Path, joints: int = 3) -> Path:
-    """A record of the loaded model about home: the weight's offset at the poses it reaches
-    (iterated to its fixed point: the load depends on where the servo is)."""
+@functools.cache
+def _record() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, reference, measured) of the loaded model about home: the weight's offset at the
+    poses it reaches (iterated to its fixed point: the load depends on where the servo is).
+    Computed once: every test reads the same record."""
     profile = load_profile(ROOT / "profiles" / "agile_wrist.toml")
     home = np.full(3, 135.0)
     ex = excitation(home, 0.02, 6.0, 120.0)
@@ -36,6 +39,12 @@ def _csv(tmp_path: Path, joints: int = 3) -> Path:
     for _ in range(4):
         d = LOAD.offset_deg(holding_torque_nm(profile, meas)[:, :, None], vel)
         meas = response(DYN, DYN.delay_s, t - t[0], ref - d, home - d[0])
+    return t, ref, meas
+
+
+def _csv(tmp_path: Path, joints: int = 3) -> Path:
+    """The record as a CSV of ``joints`` joints."""
+    t, ref, meas = _record()
     cols = ["t", *(f"ref{i + 1}" for i in range(joints)), *(f"meas{i + 1}" for i in range(joints))]
     rows = [",".join(cols)]
     rows += [",".join(f"{v:.9f}" for v in (t[k], *ref[k, :joints], *meas[k, :joints]))

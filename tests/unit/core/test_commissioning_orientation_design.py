@@ -69,21 +69,26 @@ def test_orientation_jacobian_is_the_finite_difference_of_the_fk(model: SpmModel
     assert np.abs(home[:, :, 8:]).max() < 1e-9
 
 
-def _variances(model: SpmModel, poses: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    """Jw_k C Jw_kᵀ per reference pose (K, 3, 3), rad², from finite differences of the FK."""
+def _ref_jacobian(model: SpmModel, ref: np.ndarray) -> np.ndarray:
+    """∂ω/∂(free parameters) at the reference poses (K, 3, free), rad per deg, from finite
+    differences of the FK (computed once per set of reference poses)."""
+    return np.asarray(_fd_orientation(model, PRIOR, ref) @ free_basis(FIXED) * (math.pi / 180.0))
+
+
+def _variances(model: SpmModel, poses: np.ndarray, Jw: np.ndarray) -> np.ndarray:
+    """Jw_k C Jw_kᵀ per reference pose (K, 3, 3), rad², ``Jw`` from :func:`_ref_jacobian`."""
     N = free_basis(FIXED)
     sig = math.radians(DEFAULT_NOISE_DEG)
     J = evaluate(model, PRIOR.vector_rad(), np.radians(poses)).jacobian
     assert J is not None
     Js = J.reshape(-1, 14) @ N / sig * (math.pi / 180.0)
     C = np.linalg.inv(Js.T @ Js)
-    Jw = _fd_orientation(model, PRIOR, ref) @ N * (math.pi / 180.0)
     return np.asarray(np.einsum("kai,ij,kbj->kab", Jw, C, Jw))
 
 
-def _mean_variance(model: SpmModel, poses: np.ndarray, ref: np.ndarray) -> float:
+def _mean_variance(model: SpmModel, poses: np.ndarray, Jw: np.ndarray) -> float:
     """tr(W C): the mean squared orientation error over the reference poses, rad²."""
-    return float(np.mean(np.trace(_variances(model, poses, ref), axis1=1, axis2=2)))
+    return float(np.mean(np.trace(_variances(model, poses, Jw), axis1=1, axis2=2)))
 
 
 def test_the_design_predicts_the_orientation_better_than_random_or_near_home_poses(
@@ -96,14 +101,15 @@ def test_the_design_predicts_the_orientation_better_than_random_or_near_home_pos
     assert len(d.theta_deg) == 16 and d.theta_deg[0] == (135.0, 135.0, 135.0)
     chosen = np.asarray(d.theta_deg)
     assert all(any(np.array_equal(c, x) for x in cand) for c in chosen)
-    ours = _mean_variance(model, chosen, ref)
+    Jw = _ref_jacobian(model, ref)
+    ours = _mean_variance(model, chosen, Jw)
     randoms = [_mean_variance(model, np.vstack([home, cand[1 + rng.choice(120, 15, False)]]),
-                              ref) for _ in range(10)]
+                              Jw) for _ in range(10)]
     assert ours < min(randoms)
     near = design_poses(model, 16, (3.0, 6.0, 10.0), prior=PRIOR, fixed=FIXED)
-    assert ours < _mean_variance(model, np.asarray(near.theta_deg), ref) / 10
+    assert ours < _mean_variance(model, np.asarray(near.theta_deg), Jw) / 10
     # its own figure: the worst reference pose's standard error along its worst direction
-    worst = math.sqrt(float(np.linalg.eigvalsh(_variances(model, chosen, ref))[:, -1].max()))
+    worst = math.sqrt(float(np.linalg.eigvalsh(_variances(model, chosen, Jw))[:, -1].max()))
     assert d.orientation_std_deg == pytest.approx(math.degrees(worst), rel=1e-4)
 
 
