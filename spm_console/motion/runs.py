@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -70,6 +71,12 @@ class RunContext:
         """The simulated clock of this run's bus (None: the wall clock)."""
         return None if self.sim_clock is None else attached(self.sim_clock)
 
+    def mcap_writer(self, profile: Profile) -> Callable[[Path], object] | None:
+        """What writes the run's MCAP beside its log once it has finished: none for a preview
+        (a prediction, read through its samples; the MCAP's FK of every sample would take
+        longer than the simulated run)."""
+        return None if self.preview else mcap_beside(profile)
+
     def timing(self, live: bool = False) -> dict[str, Any]:
         """The executor's ``clock`` and ``sleep`` (none: the wall clock's). ``live``: the run
         follows an operator's input as it comes, so simulated time runs no faster than
@@ -86,7 +93,7 @@ def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,
               on_sample: SampleCallback | None) -> Executor:
     log = RunLog.create(kind, profile.name, profile.digest(), plans, root=ctx.logs_root,
                         extra=ctx.meta(), wrist=wrist_digests(profile))
-    log.on_finish = mcap_beside(profile)
+    log.on_finish = ctx.mcap_writer(profile)
     return Executor(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim,
                     **ctx.timing())
 
@@ -111,7 +118,7 @@ def refused_run(profile: Profile, kind: str, ctx: RunContext, exc: SpmError) -> 
     while connecting): the same schema, outcome ``refused`` or ``interrupted``."""
     log = RunLog.create(kind, profile.name, profile.digest(), [], root=ctx.logs_root,
                         extra=ctx.meta(), wrist=wrist_digests(profile))
-    log.on_finish = mcap_beside(profile)
+    log.on_finish = ctx.mcap_writer(profile)
     with contextlib.suppress(SpmError), refusals_logged(log):
         raise exc
 

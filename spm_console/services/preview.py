@@ -49,6 +49,8 @@ F = NDArray[np.float64]
 #: runtime-built straight moves, checked on their own path; a following's periods are
 #: ``follow``).
 PLAN_PHASES = ("plan", "settle", "follow")
+#: Samples whose FK is walked together from the pose before them (see :func:`_margins`).
+TRACK_CHUNK = 16
 
 
 @dataclass(frozen=True)
@@ -202,12 +204,19 @@ def _margins(profile: Profile, req: RunRequest, run: RunData) -> tuple[float, fl
     margin = float(np.min(certified_margin_deg(ws.certified_set(), theta)))
     model, links = model_of(profile), link_model_of(profile)
     closest = math.inf
-    prev: tuple[F, F] | None = None  # each sample's pose continued from the last one's
-    for th in np.radians(theta):
-        r = model.track(th) if prev is None else model.track(th, *prev)
-        if not (r.ok and r.pose is not None):
-            return margin, math.nan
-        prev = (th, r.pose.R)
-        d, _ = links.min_distance(model.u, model.geom.w(th), r.pose.v)
-        closest = min(closest, float(d))
+    th_from, R_from = model.theta_home, np.eye(3)
+    rad = np.radians(theta)
+    # the FK by continuation along the run: each chunk of consecutive samples walked together
+    # from the last pose of the chunk before (samples a period apart: steps of a degree or so)
+    for k in range(0, len(rad), TRACK_CHUNK):
+        rows = rad[k:k + TRACK_CHUNK]
+        poses = model.track_batch(rows, th_from, R_from)
+        for th, r in zip(rows, poses, strict=True):
+            if not (r.ok and r.pose is not None):
+                return margin, math.nan
+            d, _ = links.min_distance(model.u, model.geom.w(th), r.pose.v)
+            closest = min(closest, float(d))
+        last = poses[-1].pose
+        assert last is not None
+        th_from, R_from = rows[-1], last.R
     return margin, closest

@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,7 +30,7 @@ from spm_console.core.workspace.check import ThetaCheck
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoStatus
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
-from spm_console.devices.emulator.child import EVENTS_EVERY_S, EmulatorChild
+from spm_console.devices.emulator.child import EmulatorChild
 from spm_console.devices.emulator.faults import FaultSpec
 from spm_console.errors import (
     BadInputError,
@@ -40,7 +40,6 @@ from spm_console.errors import (
     UnreachableError,
 )
 from spm_console.formatting import fmt_deg
-from spm_console.motion.logs.runlog import append_events
 from spm_console.motion.plans import line_plan
 from spm_console.motion.sample import Sample
 from spm_console.motion.servo_tools import ServoHealth
@@ -48,6 +47,7 @@ from spm_console.services.kin_record import FkGraphSource, FkRecord, fk_result, 
 from spm_console.services.plan_info import PlanInfo
 from spm_console.services.session_follow import FollowTools
 from spm_console.services.session_tools import ServoTools
+from spm_console.services.wrist_events import log_wrist_events, start_window
 from spm_console.store.plan_file import load_plan
 from spm_console.store.workspace_cache import CacheInfo, load_or_build
 from spm_console.system.cpus import cpu_plan, place_beside_loop
@@ -64,8 +64,6 @@ F = NDArray[np.float64]
 
 SampleCallback = Callable[["Sample"], None]
 
-COLLISION_REPORT_S = 1.5 * EVENTS_EVERY_S
-"""Wait after a motion on the physical emulated wrist for its last leg contacts to arrive."""
 ProgressCallback = Callable[[str, float], None]
 
 
@@ -219,12 +217,15 @@ class Session(ServoTools, FollowTools):
         self.disconnect()
         port = self.port
         cpu_plan()  # the CPU set is fixed before any child starts (see spm_console.system.cpus)
-        # the physical wrist always in a process of its own: its physics would share this
-        # interpreter's lock with the front end
+        # the physical wrist in a process of its own: its physics would share this
+        # interpreter's lock with the front end and delay the servos' replies. A preview's
+        # twin serves in a thread here: in simulated time no reply can be late (the clock waits
+        # for it), and a second process would take longer to start than the whole run
         if self.sim_time:
             self.sim_clock = SimClock.create(rate=self.sim_rate)
         sim = self.sim_clock
-        if self.sim and (self.emulator_process or self.profile.plant.model == "physical"):
+        own_process = self.emulator_process or self.profile.plant.model == "physical"
+        if self.sim and own_process and not (self.preview and sim is not None):
             child = EmulatorChild(self.profile, self.faults, self.initial_deg, sim)
             self.emulator = child
             try:
@@ -301,9 +302,8 @@ class Session(ServoTools, FollowTools):
             raise BadInputError("a motion is already running")
         self._estop_sent = False
         self.moving.set()
-        emu = self._physical_child()
         # a preview's peak current is over the run: its window starts here
-        window = emu is not None and self.preview and emu.flush()
+        window = self.preview and start_window(self.emulator)
         began = self.clock()
         try:
             if self.before_motion is not None:
@@ -312,7 +312,7 @@ class Session(ServoTools, FollowTools):
         finally:
             self.moving.clear()
             self._motion.release()
-        self._log_emulated_wrist(result, began, window)
+        log_wrist_events(self.emulator, self.profile, result.log_dir, began, self.clock(), window)
         if result.final_deg is not None and np.all(np.isfinite(result.final_deg)):
             self.theta_deg = np.asarray(result.final_deg, float)
         else:  # the last cycle had no reply: ask again rather than show a stale or NaN pose
@@ -320,41 +320,6 @@ class Session(ServoTools, FollowTools):
                 self.read_position()
         self.last_run = result
         return result
-
-    def _physical_child(self) -> EmulatorChild | None:
-        """The emulated physical wrist in its child process (None: real servos, ideal ones, or
-        the emulator in a thread)."""
-        emu = self.emulator
-        return emu if isinstance(emu, EmulatorChild) and emu.physical else None
-
-    def _log_emulated_wrist(self, result: ExecutionResult, began: float, window: bool) -> None:
-        """What the physical emulated wrist saw during the run, into its log: events
-        ``collision`` (its legs' contacts; ``t``: seconds since the run was asked for, from
-        the emulator's clock) and, when ``window`` (a preview: the child answered the flush
-        as the run began), ``peak_current`` (each motor's largest winding current, A)."""
-        emu = self._physical_child()
-        if emu is None or result.log_dir is None:
-            return
-        until = self.clock()
-        flushed = emu.flush()
-        if not flushed:  # the child did not answer: take what it told so far
-            time.sleep(COLLISION_REPORT_S)
-        peak = emu.peak_current_a() if flushed and window else None
-        events: list[dict[str, Any]] = [
-            {"t": float(c["t"]) - began, "event": "collision", "source": "emulated wrist",
-             "legs": [int(x) + 1 for x in c["legs"]], "segments": c["segments"],
-             "distance_mm": c["distance_mm"], "theta_deg": c["theta_deg"]}
-            for c in emu.collisions(began, until)]
-        if peak is not None:
-            events.append({"t": until - began, "event": "peak_current",
-                           "source": "emulated wrist", "peak_current_a": peak})
-        if not events:
-            return
-        append_events(Path(result.log_dir), events)
-        from spm_console.motion.logs.mcap_log import write_run_mcap  # loads mcap
-
-        with contextlib.suppress(Exception):  # the MCAP carries them too (the run stands)
-            write_run_mcap(Path(result.log_dir), self.profile)
 
     def home(self, on_sample: SampleCallback | None = None) -> ExecutionResult:
         """Move home at the profile's homing speed, in the motion process (which checks the

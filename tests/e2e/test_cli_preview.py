@@ -13,7 +13,8 @@ import pytest
 from spm_console.cli.main import main
 from spm_console.config.schema import Profile
 from spm_console.errors import ExitCode
-from spm_console.motion.logs.runlog import load_run
+from spm_console.motion.logs.mcap_log import MCAP_NAME
+from spm_console.motion.logs.runlog import RunData, load_run
 from spm_console.motion.plans import synthetic_plan
 from spm_console.store.plan_file import save_plan
 from tests.support.exec_helpers import PAPER_START
@@ -36,8 +37,26 @@ def _run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, dict]:  #
     return code, {**json.loads(out[0]), "_stderr": got.err}
 
 
+def _closest_links_one_by_one(profile: Profile, run: RunData) -> float:
+    """The reference for the preview's closest links: the FK of each plan sample tracked
+    from the sample before it, one at a time, and the links' distances there (mm)."""
+    from spm_console.config.models import link_model_of, model_of
+
+    model, links = model_of(profile), link_model_of(profile)
+    keep = np.array([p in ("plan", "settle") for p in run.phase])
+    theta = np.radians(run.vec("meas")[keep])
+    closest, prev = np.inf, (model.theta_home, np.eye(3))
+    for th in theta:
+        r = model.track(th, *prev)
+        assert r.ok and r.pose is not None, r.reason
+        prev = (th, r.pose.R)
+        closest = min(closest, float(links.min_distance(model.u, model.geom.w(th),
+                                                        r.pose.v)[0]))
+    return closest
+
+
 def test_a_preview_predicts_the_run_and_says_it_is_one(
-        plan_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        plan_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], agile: Profile) -> None:
     argv = ("execute", "--plan", str(plan_file), "--sim", "--plant", "ideal", "--json")
     code, d = _run(capsys, *argv, "--preview", "--logs", str(tmp_path / "a"))
     assert code == 0 and d["preview"] is True and d["outcome"] == "completed"
@@ -50,6 +69,8 @@ def test_a_preview_predicts_the_run_and_says_it_is_one(
     run, homing = load_run(d["log_dir"]), load_run(d["homing"]["log_dir"])
     for r in (run, homing):
         assert r.meta["preview"] is True and r.meta["clock"] == "simulated"
+        assert not (r.path / MCAP_NAME).exists()  # a prediction: its samples, no MCAP
+    assert d["min_link_mm"] == pytest.approx(_closest_links_one_by_one(agile, run), abs=1e-6)
     # the same preview again: the same samples, byte for byte
     _, d2 = _run(capsys, *argv, "--preview", "--logs", str(tmp_path / "b"))
     assert (Path(d["log_dir"]) / "samples.csv").read_bytes() == \
@@ -57,6 +78,7 @@ def test_a_preview_predicts_the_run_and_says_it_is_one(
     # the run itself on the same emulated wrist, in simulated time: what the preview said
     code, real = _run(capsys, *argv, "--logs", str(tmp_path / "c"))
     assert code == 0 and "preview" not in load_run(real["log_dir"]).meta
+    assert (Path(real["log_dir"]) / MCAP_NAME).is_file()
     assert real["final_deg"] == d["final_deg"]
     np.testing.assert_allclose(real["stats"]["tracking_rms_per_joint_deg"],
                                d["tracking_rms_per_joint_deg"], atol=0.02)

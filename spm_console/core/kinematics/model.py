@@ -156,6 +156,21 @@ class SpmModel:
             residual=float(full_residual(self.geom, w, v)),
         )
 
+    def poses(self, theta: F, R: F) -> list[Pose]:
+        """:meth:`pose` of each row of θ (B, 3) rad with rotations R (B, 3, 3), computed
+        together (the same figures as one by one)."""
+        theta = np.asarray(theta, float).reshape(-1, 3)
+        R = np.asarray(R, float).reshape(-1, 3, 3)
+        if not len(theta):
+            return []
+        w = self.geom.w(theta)
+        v = platform_axes(R, self.v_home)
+        z = np.broadcast_to(conditioning_index(self.u, v, w), (len(theta),))
+        n = normal(v)
+        res = np.broadcast_to(full_residual(self.geom, w, v), (len(theta),))
+        return [Pose(theta=theta[k].copy(), R=R[k], v=v[k], n=n[k], zeta=float(z[k]),
+                     residual=float(res[k])) for k in range(len(theta))]
+
     def mode_check(self, theta: F, R: F) -> tuple[F, F, F]:
         """(ζ, det J1 · home sign, J2 diag · home signs) for batches: positive = same mode."""
         w = self.geom.w(theta)
@@ -238,7 +253,9 @@ class SpmModel:
             res, z, s1, s2 = st.residual, st.zeta, st.det_side, st.leg_sides
             conv = st.converged
             minz[a] = np.minimum(minz[a], z)
-            for j, b in enumerate(a):
+            crossed = ~conv | (s1 <= 0.0) | (z < PATH_ZETA_FLOOR) | (s2 <= 0.0).any(axis=-1)
+            for j in np.flatnonzero(crossed):  # the rows that stop here, each with its reason
+                b = a[j]
                 if not conv[j]:
                     alive[b] = False
                     reason[b] = (
@@ -264,16 +281,11 @@ class SpmModel:
             if keep_path:
                 for jj in a[ok]:
                     paths[int(jj)].append(list(np.degrees(th[jj])))
-        results = []
-        for row in range(B):
-            pose = self.pose(th[row], R[row])
-            results.append(
-                FkResult(
-                    ok=bool(alive[row]), pose=pose, reason=reason[row],
-                    path_min_zeta=float(minz[row]), steps=n, path_theta_deg=paths[row],
-                )
-            )
-        return results
+        return [
+            FkResult(ok=bool(alive[row]), pose=pose, reason=reason[row],
+                     path_min_zeta=float(minz[row]), steps=n, path_theta_deg=paths[row])
+            for row, pose in enumerate(self.poses(th, R))
+        ]
 
 
 def _fmt(theta_rad: F) -> str:

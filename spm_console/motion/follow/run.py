@@ -11,7 +11,6 @@ from spm_console.devices.base import ServoBus
 from spm_console.errors import RefusedError
 from spm_console.motion.follow.loop import Follower, FollowStats
 from spm_console.motion.follow.target_feed import TargetFeed
-from spm_console.motion.logs.mcap_log import mcap_beside
 from spm_console.motion.logs.profile_record import wrist_digests
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.motion.runs import Attach, RunContext, SampleCallback, refusals_logged
@@ -36,7 +35,7 @@ def run_follow(profile: Profile, bus: ServoBus, ws: Workspace, feed: TargetFeed,
             "targets": 0 if feed.timed is None else len(feed.timed.t_s)}
     log = RunLog.create("follow", profile.name, profile.digest(), [what], root=ctx.logs_root,
                         extra=ctx.meta(), wrist=wrist_digests(profile))
-    log.on_finish = mcap_beside(profile)
+    log.on_finish = ctx.mcap_writer(profile)
     ex = Follower(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim,
                   **ctx.timing(live=feed.live))
     with refusals_logged(log):

@@ -189,3 +189,27 @@ def test_failed_shortcut_falls_back_to_grid_steps(setup: tuple[SpmModel, FkGraph
     assert np.abs(np.diff(way[1:], axis=0)).max() <= graph.step_deg + 1e-9
     straight = model.track(np.radians(th))
     np.testing.assert_allclose(r.pose.R, straight.pose.R, atol=1e-9)  # type: ignore[union-attr]
+
+
+def test_poses_together_are_each_pose_alone(setup: tuple[SpmModel, FkGraph]) -> None:
+    """SpmModel.poses (the batch a continuation ends with) gives what pose() gives row by row,
+    and a batch of straight paths gives each row what its own path gives."""
+    model, _ = setup
+    rng = np.random.default_rng(11)
+    theta = model.theta_home + np.radians(rng.uniform(-25.0, 25.0, (40, 3)))
+    together = model.track_batch(theta)
+    for k in (0, 13, 39):
+        alone = model.track(theta[k])
+        assert alone.ok == together[k].ok and alone.reason == together[k].reason
+        assert alone.pose is not None and together[k].pose is not None
+        np.testing.assert_allclose(together[k].pose.R, alone.pose.R, atol=1e-12)
+    ok = [r for r in together if r.ok and r.pose is not None]
+    assert len(ok) > 30
+    batch = model.poses(np.array([r.pose.theta for r in ok]), np.array([r.pose.R for r in ok]))
+    for r, p in zip(ok, batch, strict=True):
+        single = model.pose(r.pose.theta, r.pose.R)
+        np.testing.assert_array_equal(p.theta, single.theta)
+        np.testing.assert_allclose(p.v, single.v, atol=1e-15)
+        np.testing.assert_allclose(p.n, single.n, atol=1e-15)
+        assert p.zeta == pytest.approx(single.zeta, abs=1e-15)
+        assert p.residual == pytest.approx(single.residual, abs=1e-15)
