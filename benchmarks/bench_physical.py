@@ -38,7 +38,7 @@ from spm_console.errors import SpmError
 from spm_console.motion.executor import Executor, Segment
 from spm_console.motion.logs.runlog import RunLog
 from spm_console.report import paper_values as pv
-from spm_console.services.identify_experiment import (
+from spm_console.services.identify.experiment import (
     experiment_once,
     fit_experiment,
     identified_servo,

@@ -7,7 +7,7 @@ backup).
 ``--run`` and ``--csv`` fit the paper's p (and with ``--delay`` a pure delay); ``--damping``
 adds the damping ratio ζ; ``--load`` fits the experiment's structure (ωn, ζ, delay and the
 servo's load). The experiment homes the wrist,
-runs an excitation the runtime verifies like any plan (:mod:`spm_console.services.identify_experiment`),
+runs an excitation the runtime verifies like any plan (:mod:`spm_console.services.identify.experiment`),
 fits ωn, ζ and a delay on its first part and measures the model's error on the second,
 held out. Exit codes: 0 done; a stop of the experiment ends with its own code (20–25);
 3 a model no profile can hold; 4 bad input; 8 a fit that does not determine the model.
@@ -40,12 +40,12 @@ from spm_console.motion.logs.runlog import RunData, load_run
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.report.plot_identify import plot_experiment
 from spm_console.safe_io import MB, read_text, write_text_atomic
-from spm_console.services.identify_experiment import (
+from spm_console.services.identify.experiment import (
     experiment_once,
     fit_experiment,
     identified_servo,
 )
-from spm_console.services.identify_report import fit_data, fit_lines, identified_text
+from spm_console.services.identify.report import fit_data, fit_lines, identified_text
 from spm_console.store.identified_profiles import apply_in_place, identified_path, write_beside
 
 #: Largest CSV file ``identify --csv`` reads, and most samples identified (33 min at 20 ms).

@@ -12,14 +12,14 @@ from spm_console.config.schema import DEFAULT_PROFILE
 from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
 from spm_console.errors import BadInputError
 from spm_console.report.plot_identify import plot_experiment
-from spm_console.services.identify_experiment import (
+from spm_console.services.identify.experiment import (
     SPEED_SHARE,
     STEP_MARGIN_DEG,
     experiment_in_session,
     fit_experiment,
     identified_servo,
 )
-from spm_console.services.identify_report import fit_lines, identified_text
+from spm_console.services.identify.report import fit_lines, identified_text
 from spm_console.services.session import SampleCallback, Session
 from spm_console.store.identified_profiles import identified_path, write_beside, write_new
 from spm_console.tui.messages import IdentifyDone

@@ -14,7 +14,7 @@ from textual.widgets import DataTable
 from spm_console.motion.stats import run_stats
 from spm_console.tui.messages import Telemetry
 from spm_console.tui.screens.execute import NO_REPLY
-from spm_console.tui.screens.execute_timing import LiveTiming, LoopTiming
+from spm_console.tui.widgets.loop_timing import LiveTiming, LoopTiming
 from tests.support.console_helpers import confirm_execute, settle, status_of, text_of
 from tests.support.runlog_helpers import TS, sample
 

@@ -20,10 +20,10 @@ from spm_console.motion.sample import Sample
 from spm_console.tui.messages import FollowDone, MotionDone, Outcome, PreviewDone, Telemetry
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.screens.execute_preview import draw_preview, preview_lines, still_valid
-from spm_console.tui.screens.execute_timing import LiveTiming, LoopTiming
 from spm_console.tui.screens.jog import JogFailure, JogResult, JogScreen
 from spm_console.tui.screens.plan_words import KIND_WORDS
 from spm_console.tui.widgets.confirm import LongConfirm
+from spm_console.tui.widgets.loop_timing import LiveTiming, LoopTiming
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
 if TYPE_CHECKING:

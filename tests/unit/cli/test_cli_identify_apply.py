@@ -23,7 +23,7 @@ from spm_console.core.servo.identify import response
 from spm_console.core.servo.model import Dynamics
 from spm_console.errors import ExitCode
 from spm_console.motion.segments import ExecutionResult
-from spm_console.services.identify_experiment import ExperimentRun
+from spm_console.services.identify.experiment import ExperimentRun
 from tests.support.paths import ROOT
 
 AGILE = ROOT / "profiles" / "agile_wrist.toml"

@@ -12,7 +12,7 @@ from spm_console.core.servo.experiment import excitation, fit_record
 from spm_console.core.servo.identify import response
 from spm_console.core.servo.model import Dynamics
 from spm_console.errors import SolverError
-from spm_console.services.identify_experiment import identified_servo
+from spm_console.services.identify.experiment import identified_servo
 from tests.support.paths import ROOT
 
 HOME = np.array([135.0, 135.0, 135.0])

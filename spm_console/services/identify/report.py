@@ -13,7 +13,7 @@ from spm_console.core.servo.identify import IdentifyResult
 from spm_console.core.servo.order import OrderCheck
 from spm_console.errors import BadInputError
 from spm_console.safe_io import MB, read_text
-from spm_console.services.identify_experiment import ExperimentRun, identified_profile
+from spm_console.services.identify.experiment import ExperimentRun, identified_profile
 
 #: Largest profile file read to write its identified copy.
 MAX_PROFILE_TEXT = 1 * MB
