@@ -46,14 +46,13 @@ from numpy.typing import NDArray
 from spm_console.config.plant import PLANT_STEP_S
 from spm_console.config.schema import Plant
 from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
+from spm_console.core.kinematics.loads import GRAVITY_MPS2
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.rotations import matrix_quaternion
 from spm_console.description import names
 
 F = NDArray[np.float64]
 
-#: Standard gravity, m/s² (along the world's −z).
-GRAVITY_MPS2 = 9.81
 #: Radius of the solid sphere whose inertia a payload gets, m (its mass is what matters).
 PAYLOAD_RADIUS_M = 0.02
 
@@ -283,7 +282,7 @@ def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = N
         f'solimp="0.99 0.999 0.001"/>' for j in (1, 2))
     motors = "\n".join(f'<motor name="{names.servo_actuator(i)}" joint="{names.motor_joint(i)}" '
                         f'gear="1" ctrllimited="false"/>' for i in range(3))
-    gravity = "0 0 -9.81" if body is None else _vec(body.gravity_mps2)
+    gravity = f"0 0 {-GRAVITY_MPS2:g}" if body is None else _vec(body.gravity_mps2)
     return f"""<mujoco model="spm_wrist">
   <option timestep="{params.timestep_s:.6g}" gravity="{gravity}" integrator="implicitfast"/>
   <worldbody>

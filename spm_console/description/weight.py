@@ -16,14 +16,18 @@ from numpy.typing import NDArray
 
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
-from spm_console.core.kinematics.loads import BODIES, gravity_regressor, path_rotations
+from spm_console.core.kinematics.loads import (
+    BODIES,
+    GRAVITY_MPS2,
+    gravity_regressor,
+    path_rotations,
+)
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.description import names
 from spm_console.description.mjcf import PlantParams, body_capsules, plant_params
 
 F = NDArray[np.float64]
 
-GRAVITY_MPS2 = 9.81
 UP = np.array([0.0, 0.0, 1.0])
 """Against gravity, in the base frame."""
 #: The platform's three entries among the bodies' first moments (:data:`BODIES` order).

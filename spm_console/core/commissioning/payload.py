@@ -36,9 +36,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-F = NDArray[np.float64]
+from spm_console.core.kinematics.loads import GRAVITY_MPS2
 
-GRAVITY_MPS2 = 9.81
+F = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,9 @@ from spm_console.core.kinematics.model import SpmModel
 
 F = NDArray[np.float64]
 
+GRAVITY_MPS2 = 9.81
+"""Standard gravity, m/s² (along the base's −z in the emulated wrist and the descriptions)."""
+
 BODIES = ("proximal 1", "proximal 2", "proximal 3", "distal 1", "distal 2", "distal 3",
           "platform")
 """The bodies whose weight loads the motors, in the regressor's order."""

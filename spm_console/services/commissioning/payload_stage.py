@@ -15,12 +15,11 @@ from numpy.typing import NDArray
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.core.commissioning.payload import (
-    GRAVITY_MPS2,
     HoldingFit,
     fit_holding,
     predicted_offsets_deg,
 )
-from spm_console.core.kinematics.loads import gravity_regressor
+from spm_console.core.kinematics.loads import GRAVITY_MPS2, gravity_regressor
 from spm_console.description.weight import PLATFORM, UP, Weight, payload_moment_kgm
 
 F = NDArray[np.float64]

@@ -10,12 +10,8 @@ import pytest
 
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
-from spm_console.core.commissioning.payload import (
-    GRAVITY_MPS2,
-    fit_holding,
-    predicted_offsets_deg,
-)
-from spm_console.core.kinematics.loads import gravity_regressor
+from spm_console.core.commissioning.payload import fit_holding, predicted_offsets_deg
+from spm_console.core.kinematics.loads import GRAVITY_MPS2, gravity_regressor
 from spm_console.description.weight import UP, Weight
 
 S_TRUE = np.array([0.3 * 0.010, -0.3 * 0.005, 0.3 * 0.120])  # 0.3 kg at (10, −5, 120) mm

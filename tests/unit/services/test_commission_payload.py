@@ -12,8 +12,8 @@ import pytest
 from spm_console.config.edit import with_values
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
-from spm_console.core.commissioning.payload import GRAVITY_MPS2, HoldingFit
-from spm_console.core.kinematics.loads import gravity_regressor
+from spm_console.core.commissioning.payload import HoldingFit
+from spm_console.core.kinematics.loads import GRAVITY_MPS2, gravity_regressor
 from spm_console.description.weight import PLATFORM, UP, Weight
 from spm_console.services.commissioning.payload_stage import (
     PayloadReport,
