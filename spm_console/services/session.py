@@ -217,10 +217,11 @@ class Session(ServoTools, FollowTools):
         self.disconnect()
         port = self.port
         cpu_plan()  # the CPU set is fixed before any child starts (see spm_console.system.cpus)
-        # the physical wrist in a process of its own: its physics would share this
-        # interpreter's lock with the front end and delay the servos' replies. A preview's
-        # twin serves in a thread here: in simulated time no reply can be late (the clock waits
-        # for it), and a second process would take longer to start than the whole run
+        # the emulated servos in a process of their own for a front end (its UI thread would
+        # delay their replies past the bus's timeout) and for the physical wrist (its physics
+        # would hold this interpreter's lock). A preview's twin serves in a thread here: in
+        # simulated time no reply can be late (the clock waits for it), nothing acts on the
+        # wrist while it runs, and a process would take longer to start than the whole run
         if self.sim_time:
             self.sim_clock = SimClock.create(rate=self.sim_rate)
         sim = self.sim_clock
