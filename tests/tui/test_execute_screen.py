@@ -201,3 +201,12 @@ async def test_x_previews_the_run_on_the_twin_before_it_asks(console, tmp_path) 
         assert pv.final_error_deg is not None
         np.testing.assert_allclose(res.final_deg, pv.plan.reference_deg[-1] + pv.final_error_deg,
                                    atol=0.2)
+        # another plan: the preview of the last one is no longer shown
+        from spm_console.services.session import PoseSpec
+
+        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
+                                PoseSpec("theta", (100.0, 115.0, 110.0)), 40)
+        await pilot.press("4", "5")
+        await settle(pilot)
+        assert app.screen.preview is None
+        assert not app.screen.query_one("#exec-preview").display

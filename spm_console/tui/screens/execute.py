@@ -117,6 +117,14 @@ class ExecuteScreen(StepScreen):
                     f"{fmt_deg(p.reference_deg[-1])}, {p.duration_s:.2f} s, on the {s.bus_label}"
                     + ("" if s.homed else "   (not homed: press 1, then h)"))
         self.query_one("#exec-plan", Static).update(Content(text))
+        if self.preview is not None and self.preview.plan is not s.plan:
+            self._drop_preview()  # another plan: its preview no longer says anything
+
+    def _drop_preview(self) -> None:
+        """Forget the preview shown, its panel and its plot (the plan it was of is gone)."""
+        self.preview = None
+        self.query_one("#exec-preview", Static).display = False
+        self.query_one("#exec-plot", PlotView).plot("", [], [])
 
     def _can_move(self) -> bool:
         """A plan, a homed wrist and nothing running (else refused with the reason)."""
