@@ -106,10 +106,13 @@ class Executor:
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
         emulated: bool = False,
+        simulated_time: bool = False,
     ) -> None:
         KalmanVelocity.load()  # not after torque-on (see KalmanVelocity.load)
         self.profile = profile
         self.emulated = emulated
+        self.simulated_time = simulated_time
+        """The emulated bus runs in simulated time (its replies cannot be late)."""
         """Driving the emulated bus (said in a communication-loss stop's reason)."""
         self.bus = bus
         self.verifier = PlanVerifier(profile, workspace)
@@ -366,7 +369,8 @@ class Executor:
     def _loop_state(self, theta0: F) -> _LoopState:
         """Filters, predictors and the safety monitor of a run starting at rest at θ0; sets the
         first deadline (t0) and tells ``on_start``."""
-        safety = SafetyMonitor(self.profile, self.verifier.certified, emulated=self.emulated)
+        safety = SafetyMonitor(self.profile, self.verifier.certified, emulated=self.emulated,
+                               simulated_time=self.simulated_time)
         self.safety = safety
         st = _LoopState(
             safety=safety,

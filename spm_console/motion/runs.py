@@ -95,7 +95,7 @@ def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,
                         extra=ctx.meta(), wrist=wrist_digests(profile))
     log.on_finish = ctx.mcap_writer(profile)
     return Executor(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim,
-                    **ctx.timing())
+                    simulated_time=ctx.clock() is not None, **ctx.timing())
 
 
 @contextlib.contextmanager

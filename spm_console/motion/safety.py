@@ -55,16 +55,21 @@ def _vec(v: F, digits: int = 2) -> str:
 
 _EMULATED_HINT = ("on the emulated bus: an injected fault, or this machine did not run the emulated "
                   "servos in time (`spm-console latency` measures how late it wakes them)")
+_SIMULATED_HINT = ("on the emulated bus in simulated time, where no reply can be late: an injected "
+                   "fault, or the emulated servos' process is gone")
 
 
 class SafetyMonitor:
     """Stateful checks: tracking, region, servo limits, communication, hardware errors."""
 
     def __init__(self, profile: Profile, certified: CertifiedSet | None = None, *,
-                 emulated: bool = False) -> None:
+                 emulated: bool = False, simulated_time: bool = False) -> None:
         self.cfg = profile.safety
         self.emulated = emulated
         """The emulated bus: a lost reply is then an injected fault or this machine's doing."""
+        self.simulated_time = simulated_time
+        """The emulated bus in simulated time: a lost reply is an injected fault or a gone
+        emulator, never lateness."""
         self.certified = certified
         """The workspace's certified set: where a planned motion's measured position must stay."""
         self.region_half_width_deg = 0.0
@@ -96,7 +101,8 @@ class SafetyMonitor:
                 "comm",
                 f"communication lost: {n} consecutive bus cycles without a valid reply "
                 f"(last: {detail or 'no status packet'}); " + (
-                    _EMULATED_HINT if self.emulated else "check the cable, power and port"),
+                    (_SIMULATED_HINT if self.simulated_time else _EMULATED_HINT) if self.emulated
+                    else "check the cable, power and port"),
                 t, k,
             )
         return None

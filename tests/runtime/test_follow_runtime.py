@@ -268,7 +268,8 @@ def test_a_communication_loss_while_following_the_emulated_bus_names_its_causes(
         clock.close()
     res = out.execution
     assert res.exit_code == ExitCode.STOP_COMM, res.message
-    assert "on the emulated bus: an injected fault, or this machine" in res.message
+    assert "on the emulated bus in simulated time, where no reply can be late: an injected fault" \
+        in res.message
     assert "cable" not in res.message
 
 

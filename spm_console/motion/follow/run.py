@@ -37,7 +37,7 @@ def run_follow(profile: Profile, bus: ServoBus, ws: Workspace, feed: TargetFeed,
                         extra=ctx.meta(), wrist=wrist_digests(profile))
     log.on_finish = ctx.mcap_writer(profile)
     ex = Follower(profile, bus, workspace=ws, log=log, on_sample=on_sample, emulated=ctx.sim,
-                  **ctx.timing(live=feed.live))
+                  simulated_time=ctx.clock() is not None, **ctx.timing(live=feed.live))
     with refusals_logged(log):
         log.meta["homing"] = "done" if homed else f"skipped by the operator: {skip_homing}"
         if not homed and not skip_homing:
