@@ -26,10 +26,12 @@ from numpy.typing import NDArray
 
 from spm_console.config.models import link_model_of, model_of
 from spm_console.config.schema import Profile
+from spm_console.core.kinematics.model import platform_axes
 from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.core.workspace.margin import certified_margin_deg
 from spm_console.errors import BadInputError, Issue
+from spm_console.motion.logs.mcap_log import platform_rotations
 from spm_console.motion.logs.runlog import RunData, load_run
 from spm_console.motion.segments import ExecutionResult
 from spm_console.services.oneshot import (
@@ -49,8 +51,6 @@ F = NDArray[np.float64]
 #: runtime-built straight moves, checked on their own path; a following's periods are
 #: ``follow``).
 PLAN_PHASES = ("plan", "settle", "follow")
-#: Samples whose FK is walked together from the pose before them (see :func:`_margins`).
-TRACK_CHUNK = 16
 
 
 @dataclass(frozen=True)
@@ -203,20 +203,9 @@ def _margins(profile: Profile, req: RunRequest, run: RunData) -> tuple[float, fl
     ws, _ = load_or_build(profile, cache_dir=req.cache_dir)
     margin = float(np.min(certified_margin_deg(ws.certified_set(), theta)))
     model, links = model_of(profile), link_model_of(profile)
-    closest = math.inf
-    th_from, R_from = model.theta_home, np.eye(3)
     rad = np.radians(theta)
-    # the FK by continuation along the run: each chunk of consecutive samples walked together
-    # from the last pose of the chunk before (samples a period apart: steps of a degree or so)
-    for k in range(0, len(rad), TRACK_CHUNK):
-        rows = rad[k:k + TRACK_CHUNK]
-        poses = model.track_batch(rows, th_from, R_from)
-        for th, r in zip(rows, poses, strict=True):
-            if not (r.ok and r.pose is not None):
-                return margin, math.nan
-            d, _ = links.min_distance(model.u, model.geom.w(th), r.pose.v)
-            closest = min(closest, float(d))
-        last = poses[-1].pose
-        assert last is not None
-        th_from, R_from = rows[-1], last.R
-    return margin, closest
+    R = platform_rotations(model, rad)  # the unique FK of every sample, as the run's MCAP has it
+    if np.isnan(R).any():
+        return margin, math.nan
+    d, _ = links.min_distance(model.u, model.geom.w(rad), platform_axes(R, model.v_home))
+    return margin, float(np.min(d))

@@ -37,8 +37,8 @@ def physical(emu: Emulator) -> bool:
 
 
 def start_window(emu: Emulator) -> bool:
-    """Start the window of a run's peak current (and drop contacts told before it); whether
-    it started (the child answered)."""
+    """Start the window of a run's peak current (contacts are kept by time, not by window);
+    whether it started (the child answered)."""
     if isinstance(emu, EmulatorChild):
         return emu.physical and emu.flush()
     if isinstance(emu, EmulatorHandle) and emu.wrist is not None:
