@@ -90,8 +90,6 @@ def cmd_commission(args: argparse.Namespace) -> int:
     return int(ExitCode.OK)
 
 
-#: Seconds the operator has to answer one question (the nudged servo holds meanwhile).
-ANSWER_TIMEOUT_S = 600.0
 #: Unrecognised answers to one question before commissioning gives up.
 MAX_TRIES = 5
 #: Longest answer line read, characters.
@@ -102,6 +100,8 @@ def ask_on_terminal(question: str, answers: Sequence[str]) -> str:
     """Ask on stderr, read the answer from stdin: one of ``answers`` (any case; a unique
     prefix will do). BadInputError when stdin closes, nobody answers within
     :data:`ANSWER_TIMEOUT_S` or :data:`MAX_TRIES` answers are not one of them."""
+    from spm_console.services.commissioning.stages import ANSWER_TIMEOUT_S
+
     for _ in range(MAX_TRIES):
         sys.stderr.write(f"{question} [{'/'.join(answers)}]: ")
         sys.stderr.flush()

@@ -16,18 +16,24 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 from textual.widgets import RichLog
 
 from spm_console.config.load import load_profile
+from spm_console.config.schema import Profile
+from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
+from spm_console.motion.logs.runlog import load_run
 from spm_console.services.commissioning.imu_stage import FIT_POSES, HELD_OUT
 from spm_console.tui.screens.commission import MAX_PORT_CHARS, CommissionScreen
 from spm_console.tui.switch import SwitchRequest
+from spm_console.tui.widgets.answer import AnswerScreen
 from spm_console.tui.widgets.checkbox import TickBox
 from spm_console.tui.widgets.confirm import LongConfirm
 from spm_console.tui.widgets.field import TextField
 from tests.conftest import ROOT
 from tests.support.console_helpers import screen_text, settle, status_of, text_of
+from tests.support.wiring import IDS, REVERSED, Operator, as_built
 
 pytestmark = pytest.mark.realtime  # an emulated bus on the wall clock (see tests/conftest.py)
 
@@ -44,6 +50,7 @@ def _fill(app, bus: str, imu: str) -> None:  # type: ignore[no-untyped-def]
 
 @pytest.mark.parametrize(("bus", "imu", "jig", "why"), [
     ("", "/dev/ttyUSB1", True, "servo bus: empty"),
+    ("/dev/ttyUSB0", "", True, "the IMU stage needs the IMU"),
     ("/dev/ttyUSB0", "   ", True, "IMU port: empty"),
     ("/dev/" + "x" * MAX_PORT_CHARS, "/dev/ttyUSB1", True, f"at most {MAX_PORT_CHARS}"),
     ("/dev/ttyUSB0", "/dev/tty USB1", True, "no spaces"),
@@ -191,7 +198,7 @@ async def test_space_stops_commissioning_in_its_motion_process_and_the_console_l
     client = _Client()
     attached = threading.Event()
 
-    def fake(profile, profile_path, form, stop, on_stage):  # type: ignore[no-untyped-def]
+    def fake(profile, profile_path, form, stop, on_stage, *_rest):  # type: ignore[no-untyped-def]
         on_stage("map: nudging servo id 1 by 2°")
         stop.attach(client)  # type: ignore[arg-type]
         attached.set()
@@ -229,3 +236,115 @@ async def test_space_stops_commissioning_in_its_motion_process_and_the_console_l
         await pilot.press("1")  # the console goes on
         await settle(pilot)
         assert app.current_mode == "connect"
+
+
+@pytest.fixture
+def wired(agile: Profile) -> Iterator[EmulatorHandle]:
+    """The emulated bus of a wrist wired otherwise than its profile says
+    (:mod:`tests.support.wiring`), at rest on its jig, in this process."""
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(0.0005)  # threads of this process answer the bus
+    em = start_emulator(as_built(agile), record=False, link="socket")
+    yield em
+    em.stop()
+    sys.setswitchinterval(switch)
+
+
+async def _next_question(pilot, timeout_s: float = 60.0) -> AnswerScreen | None:  # type: ignore[no-untyped-def]
+    """The question the worker asks next (None once it no longer asks: the worker ended)."""
+    app = pilot.app
+    loop = asyncio.get_running_loop()
+    t_end = loop.time() + timeout_s
+    while loop.time() < t_end:
+        await pilot.pause(0.02)
+        if isinstance(app.screen, AnswerScreen):
+            return app.screen
+        if not app.moving and not any(w.is_running for w in app.workers):
+            return None
+    raise TimeoutError("no question and the worker still runs")
+
+
+def _profile_in_use(tmp_path: Path) -> Path:
+    folder = tmp_path / "profiles"
+    folder.mkdir()
+    in_use = folder / "agile_wrist.toml"
+    in_use.write_bytes((ROOT / "profiles" / "agile_wrist.toml").read_bytes())
+    return in_use
+
+
+async def _start_without_imu(app, pilot, port: str) -> None:  # type: ignore[no-untyped-def]
+    await settle(pilot)
+    await pilot.press("0")
+    await settle(pilot)
+    _fill(app, port, "")
+    app.screen.query_one("#jig", TickBox).value = True
+    app.screen.query_one("#imu-stage", TickBox).value = False
+    await pilot.press("s")
+    await pilot.pause()
+    assert isinstance(app.screen, LongConfirm), status_of(app)
+    assert "you are asked which leg's arm moved" in text_of(app, "#confirm-body")
+    await pilot.press("y")
+
+
+async def test_without_an_imu_the_operator_answers_which_arm_moved_in_a_dialog(
+        console, agile: Profile, wired: EmulatorHandle, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Each nudge's question in a dialog, answered by its keys ("again" first: the nudge is
+    made again); the profile written maps the legs as built; the run is on the Logs step's
+    root with every question and answer."""
+    operator = Operator(wired, agile)
+    app = console(profile_path=_profile_in_use(tmp_path))
+    async with app.run_test(size=(100, 30)) as pilot:
+        await _start_without_imu(app, pilot, wired.port)
+        while (asked := await _next_question(pilot)) is not None:
+            assert app.moving  # SPACE armed while the operator looks
+            answer = operator(asked.question, asked.answers)
+            await pilot.press(asked.keys[asked.answers.index(answer)])
+        await settle(pilot)
+        assert isinstance(app.screen, LongConfirm), status_of(app)
+        assert "Use the commissioned profile now?" in screen_text(app)
+        step = app.screen_stack[-2]
+        assert isinstance(step, CommissionScreen)
+        assert "leg 1: servo id 3" in str(step.query_one("#commission-result").render())
+        await pilot.press("n")
+        await settle(pilot)
+    assert len(operator.questions) == 7
+    (written,) = (tmp_path / "profiles").glob("agile_wrist.commissioned-*.toml")
+    built = load_profile(written)
+    assert [(j.id, j.direction) for j in built.bus.joints] == [
+        (i, j.direction * d) for i, j, d in zip(IDS, agile.bus.joints, REVERSED, strict=True)]
+    (run_dir,) = [d for d in (tmp_path / "logs").iterdir() if "commission" in d.name]
+    asked_events = [e for e in load_run(run_dir).events if e["event"] == "asked"]
+    assert [e["question"] for e in asked_events] == operator.questions
+    assert not app.moving and app.stop_elsewhere is None
+
+
+@pytest.mark.parametrize(("key", "outcome", "said"), [
+    ("space", "stopped", "E-stop"),
+    ("escape", "refused", "no answer"),
+])
+async def test_space_or_esc_at_a_question_ends_commissioning_and_writes_nothing(
+        console, wired: EmulatorHandle, tmp_path: Path, key: str, outcome: str,
+        said: str) -> None:  # type: ignore[no-untyped-def]
+    """SPACE at the question E-stops (the wrist holds where the nudge left it); esc gives up:
+    the nudged servo goes back, and the stage ends refused. Either way the dialog closes and
+    nothing is written."""
+    rest = np.asarray(wired.joint_deg(), float)
+    app = console(profile_path=_profile_in_use(tmp_path))
+    async with app.run_test(size=(100, 30)) as pilot:
+        await _start_without_imu(app, pilot, wired.port)
+        asked = await _next_question(pilot)
+        assert asked is not None and "which leg" in asked.question
+        await pilot.press(key)
+        assert await _next_question(pilot) is None  # the dialog closed, the worker ended
+        await settle(pilot)
+        assert isinstance(app.screen, CommissionScreen)
+        assert said in status_of(app), status_of(app)
+        assert not app.moving and app.stop_elsewhere is None
+    assert not list((tmp_path / "profiles").glob("*.commissioned-*.toml"))
+    (run_dir,) = [d for d in (tmp_path / "logs").iterdir() if "commission" in d.name]
+    assert load_run(run_dir).meta["outcome"] == outcome
+    moved = np.abs(np.asarray(wired.joint_deg(), float) - rest).max()
+    if key == "escape":
+        assert moved < 0.2  # the nudge went back
+    else:
+        assert moved > 1.0  # held where the nudge had brought it

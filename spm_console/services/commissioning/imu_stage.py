@@ -15,6 +15,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
@@ -92,15 +93,18 @@ class Refinement:
 
 def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
                     on_stage: Callable[[str], None],
-                    stop: EstopRelay | None = None) -> Refinement:
+                    stop: EstopRelay | None = None,
+                    logs_root: str | Path | None = None) -> Refinement:
     """Visit the designed poses on ``profile`` (mapped and jig-zeroed), fit and verify.
-    ``stop``: the run's E-stop, attached to this stage's motion process."""
+    ``stop``: the run's E-stop, attached to this stage's motion process; ``logs_root``: where
+    its moves' run logs go (None: ``$SPM_CONSOLE_LOGS`` or ``logs/``)."""
     model = model_of(profile)
     if stop is not None:
         stop.check()
     # the poses are held where the servos come to rest: settling would take up the offsets
     # the payload is fitted to (a profile commissioned before may settle)
-    session = Session(profile.model_copy(update={"settle": Settle()}), port=port, sim=False)
+    session = Session(profile.model_copy(update={"settle": Settle()}), port=port, sim=False,
+                      logs_root=None if logs_root is None else Path(logs_root))
     poses: list[tuple[float, float, float]] = []
     thetas: list[F] = []
     gravity: list[F] = []

@@ -79,7 +79,7 @@ def run_commissioning(profile: Profile, profile_path: Path, req: CommissionReque
             result = commission(profile, req.port, imu, req.jig, staged, stop, nudged, asked)
             if with_imu_stage and imu is not None:
                 result = refined(result, refine_with_imu(result.profile, req.port, imu,
-                                                         staged, stop))
+                                                         staged, stop, req.logs_root))
         finally:
             if imu is not None:
                 imu.close()

@@ -253,6 +253,8 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
 Ask = Callable[[str, Sequence[str]], str]
 #: Answers the operator may give to see the nudge again.
 AGAIN = "again"
+#: Seconds the operator has to answer one question (the nudged servo holds meanwhile).
+ANSWER_TIMEOUT_S = 600.0
 
 
 def _asked(ident: int, nudge: Callable[[int, float], None], ask: Ask,

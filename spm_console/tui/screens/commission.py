@@ -2,6 +2,8 @@
 
 The operator names the servo bus and the IMU's port, says whether the wrist rests on its home
 jig and whether the IMU stage runs, and starts (``s``, after a yes/no that says what moves).
+Without an IMU (its port left empty) the map asks the operator, in a dialog, which leg's arm
+each nudge moved and which way (:mod:`spm_console.tui.widgets.answer`).
 The stages run in a worker thread (:mod:`spm_console.services.commissioning.stages`), each stage's line
 streamed into the log on this step; the result (legs, ids, directions, tick offsets, the IMU
 stage's residuals and what it leaves undetermined) stays here, the commissioned profile is
@@ -40,6 +42,7 @@ from spm_console.tui.widgets.field import TextField
 
 if TYPE_CHECKING:
     from spm_console.services.client import EstopRelay
+    from spm_console.services.commissioning.stages import Ask
 
 #: Longest port name accepted, characters (a device path, or ``unix:`` and a socket path,
 #: which Linux bounds at 107 bytes).
@@ -91,8 +94,9 @@ class CommissionScreen(StepScreen):
     CommissionScreen .param-label { width: 16; }
     """
     BINDINGS: ClassVar[list[BindingType]] = [
-        Binding("s", "start", "Start", tooltip="find the servos, map them to legs with the IMU, "
-                "zero them on the jig, refine with the IMU; writes a profile (asks first)"),
+        Binding("s", "start", "Start", tooltip="find the servos, map them to legs (the IMU, or your "
+                "answers), zero them on the jig, refine with the IMU; writes a profile (asks "
+                "first)"),
     ]
 
     def __init__(self) -> None:
@@ -104,14 +108,16 @@ class CommissionScreen(StepScreen):
         bus = "" if s.sim else (s.port or "")
         with Vertical(classes="body"):
             yield Static("Find the servos of the wrist as built, map them to legs with the IMU "
-                         "on the platform, zero them on the home jig and write a profile for "
-                         "it beside the profile in use.", markup=False)
+                         "on the platform (without one: you say which arm each nudge moved), "
+                         "zero them on the home jig and write a profile for it beside the "
+                         "profile in use.", markup=False)
             with Horizontal(classes="param"):
                 yield Label("Servo bus", classes="param-label", markup=False)
                 yield TextField(bus, placeholder="/dev/ttyUSB0 or unix:…", id="bus-port")
             with Horizontal(classes="param"):
                 yield Label("IMU (BNO055)", classes="param-label", markup=False)
-                yield TextField("", placeholder="/dev/ttyUSB1", id="imu-port")
+                yield TextField("", placeholder="/dev/ttyUSB1 (empty: none, you answer)",
+                                id="imu-port")
             yield TickBox("the wrist rests on its home jig, torque off (zero the servos there)",
                           False, id="jig")
             yield TickBox("IMU stage: verified poses across the region P, fit and verify",
@@ -134,11 +140,14 @@ class CommissionScreen(StepScreen):
 
     def form_problem(self, f: CommissionForm) -> str:
         """Why ``f`` cannot start ("" when it can)."""
-        why = port_problem(f.bus, "servo bus") or port_problem(f.imu, "IMU port")
+        why = port_problem(f.bus, "servo bus") or (f.imu and port_problem(f.imu, "IMU port"))
         if why:
             return why
         if f.bus == f.imu:
             return "the servo bus and the IMU need ports of their own"
+        if f.imu_stage and not f.imu:
+            return ("the IMU stage needs the IMU: type its port, or untick the IMU stage (the "
+                    "map then asks you which leg each nudge moved)")
         if f.imu_stage and not f.jig:
             return ("the IMU stage refines the jig's zero: tick the home jig, or untick the IMU "
                     "stage")
@@ -166,12 +175,15 @@ class CommissionScreen(StepScreen):
         )
         from spm_console.services.commissioning.stages import MAP_NUDGE_DEG, MAP_SPEED_DEGPS
 
-        lines = [f"Servo bus {f.bus}, IMU on {f.imu}.",
+        lines = [f"Servo bus {f.bus}, " + (f"IMU on {f.imu}." if f.imu else
+                                            "no IMU: you say what each nudge moved."),
                  "1. Discover: every id 0..252 pinged on both protocols (nothing moves)."]
         if f.jig:
             lines.append("2. Jig: torque off, each servo's ticks averaged at the home jig.")
         lines.append(f"3. Map: each servo alone nudged {MAP_NUDGE_DEG:g}° at "
-                     f"{MAP_SPEED_DEGPS:g}°/s and back, the others holding.")
+                     f"{MAP_SPEED_DEGPS:g}°/s and back, the others holding."
+                     + ("" if f.imu else " While it is out you are asked which leg's arm "
+                        "moved and which way (esc gives up; 'again' nudges it again)."))
         if f.imu_stage:
             lines.append(f"4. IMU stage: homing, then {FIT_POSES + HELD_OUT} verified poses "
                          f"across the workspace's region P at up to {POSE_SPEED_DEGPS:g}°/s; "
@@ -215,7 +227,8 @@ class CommissionScreen(StepScreen):
             s.disconnect()
         try:
             return commission_blocking(s.profile, self.console.profile_path, f, stop,
-                                       self._stage)
+                                       self._stage, None if f.imu else self._asker(stop),
+                                       s.logs_root)
         finally:
             if release:
                 self._stage(f"console: connecting to {f.bus} again")
@@ -224,6 +237,13 @@ class CommissionScreen(StepScreen):
                 except SpmError as exc:
                     self._stage(f"console: not connected again ({exc.message}); press 1, "
                                 "then c")
+
+    def _asker(self, stop: EstopRelay) -> Ask:
+        """The operator, asked in a dialog from the worker (no IMU)."""
+        from spm_console.services.commissioning.stages import ANSWER_TIMEOUT_S
+        from spm_console.tui.widgets.answer import asker
+
+        return asker(self.app, stop, "Commissioning: what moved?", ANSWER_TIMEOUT_S)
 
     def _stage(self, line: str) -> None:
         self.post_message(CommissionStage(line))
@@ -279,14 +299,19 @@ class CommissionScreen(StepScreen):
 
 
 def commission_blocking(profile: Profile, profile_path: Path | None, f: CommissionForm,
-                        stop: EstopRelay, on_stage: Callable[[str], None]) -> CommissionDone:
+                        stop: EstopRelay, on_stage: Callable[[str], None],
+                        ask: Ask | None = None,
+                        logs_root: Path | None = None) -> CommissionDone:
     """Commission (and refine with the IMU when asked), then write the profile beside
-    ``profile_path`` (the default profile when the console has no file) as the CLI does."""
+    ``profile_path`` (the default profile when the console has no file) as the CLI does;
+    ``ask``: the operator, when there is no IMU; ``logs_root``: the console's run logs (the
+    commissioning's and its IMU stage's runs are listed on the Logs step)."""
     from spm_console.services.commissioning.profile_out import commissioned_lines
     from spm_console.services.commissioning.run import CommissionRequest, run_commissioning
 
-    req = CommissionRequest(f.bus, f.imu, f.jig, f.imu_stage)
-    done = run_commissioning(profile, profile_path or DEFAULT_PROFILE, req, on_stage, stop)
+    req = CommissionRequest(f.bus, f.imu or None, f.jig, f.imu_stage, logs_root=logs_root)
+    done = run_commissioning(profile, profile_path or DEFAULT_PROFILE, req, on_stage, stop,
+                             ask)
     result, written = done.result, done.written
     ids = ", ".join(f"{m.leg}: id {m.id} ({'+' if m.direction > 0 else '−'})"
                     for m in result.legs)
