@@ -110,7 +110,10 @@ def asker(app: App[Any], stop: EstopRelay, title: str,
                     raise BadInputError(f"{stop.what}: no answer within {timeout_s:g} s to "
                                         f"{question!r}")
         finally:
-            app.call_from_thread(_close, app, screen)
+            try:
+                app.call_from_thread(_close, app, screen)
+            except RuntimeError:  # the console has ended (a signal): no dialog to close
+                pass
         if answer is None:
             raise BadInputError(f"{stop.what}: no answer to {question!r} (esc)")
         return answer
