@@ -36,6 +36,7 @@ from spm_console.errors import SpmError
 from spm_console.tui.messages import CommissionDone, Outcome
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.switch import SwitchRequest
+from spm_console.tui.widgets.answer import asker
 from spm_console.tui.widgets.checkbox import TickBox
 from spm_console.tui.widgets.confirm import LongConfirm
 from spm_console.tui.widgets.field import TextField
@@ -241,7 +242,6 @@ class CommissionScreen(StepScreen):
     def _asker(self, stop: EstopRelay) -> Ask:
         """The operator, asked in a dialog from the worker (no IMU)."""
         from spm_console.services.commissioning.stages import ANSWER_TIMEOUT_S
-        from spm_console.tui.widgets.answer import asker
 
         return asker(self.app, stop, "Commissioning: what moved?", ANSWER_TIMEOUT_S)
 

@@ -10,6 +10,7 @@ does."""
 
 from __future__ import annotations
 
+import contextlib
 import queue
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -110,10 +111,8 @@ def asker(app: App[Any], stop: EstopRelay, title: str,
                     raise BadInputError(f"{stop.what}: no answer within {timeout_s:g} s to "
                                         f"{question!r}")
         finally:
-            try:
+            with contextlib.suppress(RuntimeError):  # the console ended (a signal): no dialog
                 app.call_from_thread(_close, app, screen)
-            except RuntimeError:  # the console has ended (a signal): no dialog to close
-                pass
         if answer is None:
             raise BadInputError(f"{stop.what}: no answer to {question!r} (esc)")
         return answer
