@@ -1,36 +1,61 @@
-"""Typed messages between a front end and the motion process (:mod:`.motion_process`).
+"""Typed messages between a front end and the motion process (:mod:`.server`).
 
-Requests carry an ``id`` that the reply repeats; telemetry carries a sample. Everything
-here pickles (plans and results are dataclasses of numpy arrays). Degrees and seconds.
+A request that is answered is a :class:`Request` ``[R]``: it carries an ``id`` that the reply
+repeats, and ``R`` is the type of the reply's value (the client's call returns an ``R``).
+Telemetry carries samples. Everything here pickles (plans and
+results are dataclasses of numpy arrays). Degrees and seconds.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Generic, TypeVar
 
 from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.motion.sample import Sample
 from spm_console.motion.servo_query import BusQuery
 
+if TYPE_CHECKING:  # the replies' types (named in the requests' bases, as strings)
+    import numpy as np  # noqa: F401
+    from numpy.typing import NDArray  # noqa: F401
+
+    from spm_console.devices.base import ServoStatus  # noqa: F401
+    from spm_console.motion.follow.run import FollowOutcome  # noqa: F401
+    from spm_console.motion.homing import HomingResult  # noqa: F401
+    from spm_console.motion.nudge import NudgeResult  # noqa: F401
+    from spm_console.motion.plan_check import PlanCheck  # noqa: F401
+    from spm_console.motion.segments import ExecutionResult  # noqa: F401
+    from spm_console.motion.servo_query import BusReport  # noqa: F401
+    from spm_console.motion.servo_tools import ServoHealth  # noqa: F401
+
+R = TypeVar("R", covariant=True)
+
+
+class Request(Generic[R]):
+    """A request the motion process answers with a :class:`Reply` whose value is an ``R``
+    (or a :class:`Failed`)."""
+
+    __slots__ = ()
+    id: int
+
 
 @dataclass(frozen=True)
-class Ping:
+class Ping(Request["list[ServoStatus]"]):
     """Ping every servo; reply: list of ServoStatus (with temperature and voltage)."""
 
     id: int
 
 
 @dataclass(frozen=True)
-class ReadPosition:
+class ReadPosition(Request["NDArray[np.float64]"]):
     """Measured θ (deg), read with set-up retries."""
 
     id: int
 
 
 @dataclass(frozen=True)
-class Status:
+class Status(Request["ServoHealth"]):
     """Every joint's health (position, current/load, temperature, voltage, torque, hardware
     error); reply: :class:`~spm_console.motion.servo_tools.ServoHealth`. Refused while moving."""
 
@@ -38,7 +63,7 @@ class Status:
 
 
 @dataclass(frozen=True)
-class Torque:
+class Torque(Request["ServoHealth"]):
     """Torque Enable of one joint ("on": goal := present position first, so nothing
     lunges); reply: ServoHealth read after it. Refused while moving. Off: the wrist is no
     longer homed (the joint can be moved by hand)."""
@@ -50,7 +75,7 @@ class Torque:
 
 
 @dataclass(frozen=True)
-class Reboot:
+class Reboot(Request["ServoHealth"]):
     """REBOOT one joint's servo (clears a latched hardware error; Protocol 2.0), wait until it
     answers; reply: ServoHealth read after it. Refused while moving. The servo comes back
     with torque off: the wrist is no longer homed."""
@@ -61,7 +86,7 @@ class Reboot:
 
 
 @dataclass(frozen=True)
-class Query:
+class Query(Request["BusReport"]):
     """A bus diagnostic by servo id (:mod:`~spm_console.motion.servo_query`); reply: BusReport.
     Refused while moving."""
 
@@ -70,14 +95,14 @@ class Query:
 
 
 @dataclass(frozen=True)
-class Home:
+class Home(Request["HomingResult"]):
     """Home the wrist; reply: HomingResult."""
 
     id: int
 
 
 @dataclass(frozen=True)
-class Execute:
+class Execute(Request["ExecutionResult"]):
     """Execute a plan (after the runtime's verification; an approach move first when the
     wrist is farther than ``approach_tolerance_deg`` from its start); reply: ExecutionResult."""
 
@@ -92,7 +117,7 @@ class Execute:
 
 
 @dataclass(frozen=True)
-class Verify:
+class Verify(Request["PlanCheck"]):
     """Verify a plan against this profile's workspace and the runtime's rules exactly as
     :class:`Execute` will, moving nothing (a front end asks before it homes the wrist for a
     plan from a file); reply: :class:`~spm_console.motion.plan_check.PlanCheck`, or a
@@ -103,7 +128,7 @@ class Verify:
 
 
 @dataclass(frozen=True)
-class Nudge:
+class Nudge(Request["NudgeResult | None"]):
     """Commissioning: move servos by id to small offsets from their rest (deg of their own
     counting, each within :data:`~spm_console.motion.nudge.BALL_DEG`), slowly and with their
     effort limited, the others holding (:mod:`~spm_console.motion.nudge`); reply:
@@ -118,7 +143,7 @@ class Nudge:
 
 
 @dataclass(frozen=True)
-class Follow:
+class Follow(Request["FollowOutcome"]):
     """Follow targets live (:mod:`~spm_console.motion.follow.loop`): a timed list, or live
     targets sent with :class:`SetTarget` from ``initial_deg`` on; reply: FollowOutcome."""
 
@@ -167,14 +192,15 @@ class Close:
     """Close the bus and end the process."""
 
 
-Request = (Ping | ReadPosition | Status | Torque | Reboot | Query | Home | Execute | Verify | Follow
-           | Nudge | SetTarget | EndFollow | EStop | Heartbeat | Close)
+#: Everything a front end sends: the requests answered, and the messages that are not.
+ToServer = (Ping | ReadPosition | Status | Torque | Reboot | Query | Home | Execute | Verify
+            | Follow | Nudge | SetTarget | EndFollow | EStop | Heartbeat | Close)
 
 
 @dataclass(frozen=True)
-class Reply:
+class Reply(Generic[R]):
     id: int
-    value: Any
+    value: R
     homed: bool = False
     """Whether this motion process has the wrist homed, as of this answer (the one flag the
     front ends read)."""

@@ -58,11 +58,11 @@ from spm_console.motion.protocol import (
     ReadPosition,
     Reboot,
     Reply,
-    Request,
     SetTarget,
     Status,
     Telemetry,
     Torque,
+    ToServer,
     Verify,
 )
 from spm_console.motion.runs import (
@@ -221,7 +221,7 @@ class _Server:
                       str(exc.reason) if isinstance(exc, RefusedError) else "")
 
     # --- requests ---------------------------------------------------------------------
-    def handle(self, req: Request) -> None:
+    def handle(self, req: ToServer) -> None:
         if isinstance(req, Heartbeat):
             self.last_heartbeat = time.monotonic()
         elif isinstance(req, EStop):

@@ -19,11 +19,18 @@ import time
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any
+from typing import TypeVar, cast
+
+import numpy as np
+from numpy.typing import NDArray
 
 from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
+from spm_console.core.planning.follow.timed import TimedTargets
+from spm_console.devices.base import ServoStatus
 from spm_console.errors import BusError, MotionProcessLostError, SpmError, error_for
+from spm_console.motion.follow.run import FollowOutcome
+from spm_console.motion.homing import HomingResult
 from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import (
@@ -50,9 +57,14 @@ from spm_console.motion.protocol import (
 )
 from spm_console.motion.runs import RunContext
 from spm_console.motion.sample import Sample
+from spm_console.motion.segments import ExecutionResult
 from spm_console.motion.server import HEARTBEAT_S, REQUEST_TIMEOUT_S, Start
+from spm_console.motion.servo_query import BusQuery, BusReport
+from spm_console.motion.servo_tools import ServoHealth
 from spm_console.services.warm_start import MotionProcessHandle, start_motion_process
 from spm_console.system.simclock import SimClock
+
+T = TypeVar("T")
 
 VERIFY_TIMEOUT_S = 300.0
 """How long a plan's verification may take: on a cold cache the motion process builds this
@@ -162,7 +174,9 @@ class MotionClient:
                     self._send(Heartbeat())
                 time.sleep(HEARTBEAT_S)
 
-    def _call(self, make: Callable[[int], Request], timeout_s: float | None) -> Any:
+    def _call(self, make: Callable[[int], Request[T]], timeout_s: float | None) -> T:
+        """Send the request ``make`` builds with the next id; its reply's value (the type the
+        request names), or the error its :class:`Failed` stands for."""
         with self._lock:
             rid = self._next_id
             self._next_id += 1
@@ -179,31 +193,33 @@ class MotionClient:
             msg = self._replies.pop(rid)
         if isinstance(msg, Failed):
             raise _error(msg)
-        return msg.value
+        return cast("T", msg.value)
 
     # --- operations ---------------------------------------------------------------------
-    def ping_all(self) -> list[Any]:
+    def ping_all(self) -> list[ServoStatus]:
         return list(self._call(lambda i: Ping(i), REQUEST_TIMEOUT_S))
 
-    def read_position(self) -> Any:
+    def read_position(self) -> NDArray[np.float64]:
+        """Measured θ (deg), read with set-up retries."""
         return self._call(lambda i: ReadPosition(i), REQUEST_TIMEOUT_S)
 
-    def status(self) -> Any:
+    def status(self) -> ServoHealth:
         """Every joint's health (:class:`~spm_console.motion.servo_tools.ServoHealth`);
         refused (BadInputError) while a motion runs."""
         return self._call(lambda i: Status(i), REQUEST_TIMEOUT_S)
 
-    def set_torque(self, joint: int, on: bool) -> Any:
+    def set_torque(self, joint: int, on: bool) -> ServoHealth:
         """Torque Enable of one joint (1-based; "on" holds it where it is), then the health
         read after it; refused while a motion runs."""
         return self._call(lambda i: Torque(i, joint, on), REQUEST_TIMEOUT_S)
 
-    def reboot(self, joint: int) -> Any:
+    def reboot(self, joint: int) -> ServoHealth:
         """REBOOT one joint's servo (clears a hardware error; torque comes back off), then
         the health read after it; refused while a motion runs."""
         return self._call(lambda i: Reboot(i, joint), REQUEST_TIMEOUT_S)
 
-    def _motion(self, make: Callable[[int], Request], on_sample: Callable[[Sample], None] | None) -> Any:
+    def _motion(self, make: Callable[[int], Request[T]],
+                on_sample: Callable[[Sample], None] | None) -> T:
         self.on_sample = on_sample
         self._moving.set()
         try:
@@ -215,12 +231,12 @@ class MotionClient:
             delivered.wait(5.0)
             self.on_sample = None
 
-    def home(self, on_sample: Callable[[Sample], None] | None = None) -> Any:
+    def home(self, on_sample: Callable[[Sample], None] | None = None) -> HomingResult:
         return self._motion(lambda i: Home(i), on_sample)
 
-    def execute(self, plan: Any, on_sample: Callable[[Sample], None] | None = None,
+    def execute(self, plan: Plan, on_sample: Callable[[Sample], None] | None = None,
                 approach_tolerance_deg: float | None = None, skip_homing: str = "",
-                source: str | None = None) -> Any:
+                source: str | None = None) -> ExecutionResult:
         """Execute ``plan`` (refused unless this motion process homed the wrist, or
         ``skip_homing`` says why the operator overrides that)."""
         return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg, skip_homing, source),
@@ -237,7 +253,8 @@ class MotionClient:
         """Commissioning: servos by id to small offsets from their rest (deg), the others
         holding (:mod:`~spm_console.motion.nudge`); E-stops reach it."""
         result = self._motion(lambda i: Nudge(i, moves, speed_degps), None)
-        assert isinstance(result, NudgeResult)
+        if not isinstance(result, NudgeResult):
+            raise BusError("commission: the motion process answered a nudge with nothing")
         return result
 
     def end_nudging(self, hold: bool = False) -> None:
@@ -245,13 +262,14 @@ class MotionClient:
         ``hold`` (after an E-stop) on again, holding where they are."""
         self._motion(lambda i: Nudge(i, release=True, hold=hold), None)
 
-    def query(self, q: Any) -> Any:
+    def query(self, q: BusQuery) -> BusReport:
         """A bus diagnostic by servo id (BusQuery -> BusReport); refused while moving."""
         return self._call(lambda i: Query(i, q), REQUEST_TIMEOUT_S)
 
-    def follow(self, timed: Any = None, initial_deg: Any = None, deadman_s: float | None = None,
+    def follow(self, timed: TimedTargets | None = None,
+               initial_deg: Sequence[float] | NDArray[np.float64] | None = None, deadman_s: float | None = None,
                on_sample: Callable[[Sample], None] | None = None, skip_homing: str = "",
-               source: str | None = None) -> Any:
+               source: str | None = None) -> FollowOutcome:
         """Follow timed targets, or live ones sent with :meth:`set_target` (see
         :class:`~spm_console.motion.protocol.Follow`); blocks until the run ends."""
         init: tuple[float, float, float] | None = None
@@ -261,7 +279,7 @@ class MotionClient:
         return self._motion(lambda i: Follow(i, timed, init, deadman_s, skip_homing, source),
                             on_sample)
 
-    def set_target(self, theta_deg: Any) -> None:
+    def set_target(self, theta_deg: Sequence[float] | NDArray[np.float64]) -> None:
         """A new live target (deg) for the following under way (any thread)."""
         a, b, c = (float(x) for x in theta_deg)
         self._send(SetTarget((a, b, c)))
