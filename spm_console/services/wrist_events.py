@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import contextlib
 import time
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 from spm_console.config.schema import Profile
 from spm_console.devices.emulator.bus import EmulatorHandle
 from spm_console.devices.emulator.child import EVENTS_EVERY_S, EmulatorChild
+from spm_console.devices.emulator.contacts import Collision
 from spm_console.motion.logs.runlog import append_events
 
 COLLISION_REPORT_S = 1.5 * EVENTS_EVERY_S
@@ -48,7 +48,7 @@ def start_window(emu: Emulator) -> bool:
 
 
 def _told(emu: EmulatorHandle | EmulatorChild, began: float, until: float,
-          window: bool) -> tuple[list[dict[str, Any]], list[float] | None]:
+          window: bool) -> tuple[list[Collision], list[float] | None]:
     """(the contacts that began in [began, until], the window's peak current or None)."""
     if isinstance(emu, EmulatorChild):
         flushed = emu.flush()
@@ -57,7 +57,7 @@ def _told(emu: EmulatorHandle | EmulatorChild, began: float, until: float,
         return emu.collisions(began, until), emu.peak_current_a() if flushed and window else None
     peak = emu.take_peak_current()  # steps the wrist to now first
     assert emu.wrist is not None
-    hits = [asdict(c) for c in emu.wrist.contacts.take() if began <= c.t <= until]
+    hits = [c for c in emu.wrist.contacts.take() if began <= c.t <= until]
     return hits, None if peak is None or not window else [float(a) for a in peak]
 
 
@@ -69,9 +69,9 @@ def log_wrist_events(emu: Emulator, profile: Profile, log_dir: str | Path | None
         return
     hits, peak = _told(emu, began, until, window)
     events: list[dict[str, Any]] = [
-        {"t": float(c["t"]) - began, "event": "collision", "source": "emulated wrist",
-         "legs": [int(x) + 1 for x in c["legs"]], "segments": list(c["segments"]),
-         "distance_mm": c["distance_mm"], "theta_deg": list(c["theta_deg"])} for c in hits]
+        {"t": c.t - began, "event": "collision", "source": "emulated wrist",
+         "legs": [x + 1 for x in c.legs], "segments": list(c.segments),
+         "distance_mm": c.distance_mm, "theta_deg": list(c.theta_deg)} for c in hits]
     if peak is not None:
         events.append({"t": until - began, "event": "peak_current", "source": "emulated wrist",
                        "peak_current_a": peak})

@@ -95,10 +95,10 @@ def test_the_emulated_wrist_tells_its_owner_when_two_legs_meet(agile: Profile) -
             assert hits == []
             continue
         assert hits, "no contact told"
-        legs = {tuple(h["legs"]) for h in hits}
-        assert (0, 2) in legs and all(h["distance_mm"] < 0 for h in hits)
-        assert {"DE", "EF"} & {s for h in hits for s in h["segments"]}
-        np.testing.assert_allclose(hits[0]["theta_deg"], start, atol=0.5)
+        legs = {h.legs for h in hits}
+        assert (0, 2) in legs and all(h.distance_mm < 0 for h in hits)
+        assert {"DE", "EF"} & {s for h in hits for s in h.segments}
+        np.testing.assert_allclose(hits[0].theta_deg, start, atol=0.5)
 
 
 def test_the_physical_wrist_powers_on_once_it_is_built(agile: Profile,

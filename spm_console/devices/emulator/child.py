@@ -34,6 +34,7 @@ from dataclasses import asdict
 from typing import TYPE_CHECKING, Any
 
 from spm_console.config.schema import Profile
+from spm_console.devices.emulator.contacts import Collision
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import SpmError
 from spm_console.system.childproc import ChildProcess
@@ -77,19 +78,19 @@ class EmulatorChild(ChildProcess):
         self.realtime_granted = False
         self.physical = profile.plant.model == "physical"
         """The physical wrist (its leg contacts are told): see :meth:`collisions`."""
-        self._collisions: list[dict[str, Any]] = []
+        self._collisions: list[Collision] = []
         self._lock = threading.Lock()
         self._flushed = threading.Condition(self._lock)
         self._flushed_t = float("-inf")
         """The latest instant up to which the child has told every contact."""
         self._peak_a: list[float] | None = None
 
-    def collisions(self, since: float, until: float) -> list[dict[str, Any]]:
+    def collisions(self, since: float, until: float) -> list[Collision]:
         """The physical wrist's leg contacts that began between the monotonic instants
         ``since`` and ``until`` (:attr:`clock`: ``time.perf_counter()``, shared by the processes,
         or the simulated clock)."""
         with self._lock:
-            return [c for c in self._collisions if since <= float(c["t"]) <= until]
+            return [c for c in self._collisions if since <= c.t <= until]
 
     def peak_current_a(self) -> list[float] | None:
         """The physical wrist's largest |winding current| per joint (A) between the last two
@@ -121,8 +122,10 @@ class EmulatorChild(ChildProcess):
                 if not isinstance(data, dict):
                     continue
                 with self._flushed:
-                    if isinstance(data.get("collision"), dict):
-                        self._collisions.append(data["collision"])
+                    told = data.get("collision")
+                    if isinstance(told, dict):
+                        with contextlib.suppress(ValueError):  # not one: nothing to tell
+                            self._collisions.append(Collision.from_json(told))
                         del self._collisions[:-MAX_COLLISIONS]
                     if isinstance(data.get("flushed"), (int, float)):
                         self._flushed_t = max(self._flushed_t, float(data["flushed"]))

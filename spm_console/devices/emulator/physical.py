@@ -40,6 +40,7 @@ from spm_console.description.mjcf import (
 from spm_console.devices.dynamixel.control_table import table_for
 from spm_console.devices.emulator.as_built_parts import AsBuiltParts, WristTruth
 from spm_console.devices.emulator.bno055 import ImuTruth
+from spm_console.devices.emulator.contacts import Collision
 
 F = NDArray[np.float64]
 
@@ -118,22 +119,6 @@ CONTACT_CHECK_S = 0.002
 """How often the legs' envelopes are checked for contact, s of simulated time."""
 CONTACT_DISTMAX_M = 0.01
 """Distances beyond this are not computed exactly (only their sign matters), m."""
-
-
-@dataclass(frozen=True)
-class Collision:
-    """Two legs' envelope capsules met (their segments closer than 2δ)."""
-
-    t: float
-    """Simulated time, s (the emulator's clock)."""
-    legs: tuple[int, int]
-    """Legs 0..2."""
-    segments: tuple[str, str]
-    """The segment of each leg, e.g. ("DE", "EF")."""
-    distance_mm: float
-    """Signed distance between the capsules' surfaces, mm (< 0: they overlap)."""
-    theta_deg: tuple[float, float, float]
-    """The joint angles then, deg."""
 
 
 class LegContacts:
