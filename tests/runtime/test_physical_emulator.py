@@ -101,6 +101,29 @@ def test_the_emulated_wrist_tells_its_owner_when_two_legs_meet(agile: Profile) -
         np.testing.assert_allclose(hits[0].theta_deg, start, atol=0.5)
 
 
+def test_a_contact_told_by_the_child_is_written_into_the_runs_events(
+        agile: Profile, tmp_path: Path) -> None:
+    """What the child tells crosses as typed contacts into the run's ``events.jsonl``: legs
+    1-based, the distance and the angles as told (no MCAP in this folder: none is written)."""
+    from spm_console.services.wrist_events import log_wrist_events
+
+    physical = agile.model_copy(update={"plant": Plant(model="physical")})
+    start = [118.2, 62.0, 63.7]
+    emu = EmulatorChild(physical, initial_deg=start)
+    began = time.perf_counter()
+    emu.launch()
+    try:
+        log_wrist_events(emu, physical, tmp_path, began, time.perf_counter(), window=False)
+    finally:
+        emu.stop()
+    events = [json.loads(line) for line in (tmp_path / "events.jsonl").read_text().splitlines()]
+    hits = [e for e in events if e["event"] == "collision"]
+    assert hits and {tuple(e["legs"]) for e in hits} >= {(1, 3)}
+    assert all(e["distance_mm"] < 0 and e["source"] == "emulated wrist" for e in hits)
+    np.testing.assert_allclose(hits[0]["theta_deg"], start, atol=0.5)
+    assert not (tmp_path / "run.mcap").exists()
+
+
 def test_the_physical_wrist_powers_on_once_it_is_built(agile: Profile,
                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     """Building the wrist (MuJoCo's model, the assembly) takes a tenth of a second or more; the
