@@ -36,9 +36,11 @@ def register(sub: Any) -> None:
                         "are asked on the terminal which leg each nudge moved, and which way "
                         "(and the IMU stage is skipped)")
     c.add_argument("--jig", action="store_true",
-                   help="the wrist rests on its home jig, torque off: zero the servos there")
+                   help="the wrist rests on its home jig, torque off: zero the servos there "
+                        "(without it, the IMU zeroes them where the wrist rests: each leg "
+                        "swings ±1.8° and the platform's rotations give its angles)")
     c.add_argument("--no-imu-fit", action="store_true",
-                   help="after the jig's zero, skip the IMU stage (poses across the region P, "
+                   help="after the zero, skip the IMU stage (poses across the region P, "
                         "the fit of horn offsets, IMU mounting and base tilt, its verification)")
     c.add_argument("--out", type=Path, metavar="FILE.toml",
                    help="where to write the commissioned profile (default: beside the "
@@ -82,6 +84,11 @@ def cmd_commission(args: argparse.Namespace) -> int:
                       for f in result.discovery.found],
             "legs": legs, "jig_ticks": result.jig_ticks, "tick_offsets": result.tick_offsets,
             "zeroed": result.tick_offsets is not None, "profile_written": str(done.written),
+            "zero_at_rest": None if result.rest_zero is None else {
+                "theta_deg": list(result.rest_zero.fit.theta_deg),
+                "theta_std_deg": list(result.rest_zero.fit.theta_std_deg),
+                "imu_mount_rotvec_deg": list(result.rest_zero.fit.mount_rotvec_deg),
+                "residual_rms_deg": result.rest_zero.fit.residual_rms_deg},
             "log_dir": str(done.log_dir),
             "imu_fit": None if result.refinement is None else _fit_json(result.refinement)}
     human = "\n".join([*commissioned_lines(result), f"profile written: {done.written}",

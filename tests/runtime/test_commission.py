@@ -102,6 +102,32 @@ def test_commission_maps_zeroes_and_writes_the_wrist_as_built(
     assert math.dist(em.joint_deg(), start) < BALL_DEG  # the nudges came back
 
 
+def test_without_a_jig_the_imu_zeroes_the_wrist_where_it_rests(
+        wrist: tuple[EmulatorHandle, EmulatedBno055, Profile], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """No jig: after the map each leg swings ±1.8° about its rest; the rotations the IMU
+    measures give the joint angles at rest, so the profile written reads the true angles to
+    its stated standard errors (and under a degree); nothing went past the nudges' ball."""
+    em, imu, truth = wrist
+    start = em.joint_deg()
+    out = tmp_path / "built.toml"
+    rc = main(["commission", "--profile", str(AGILE), "--port", em.port, "--imu-port", imu.port,
+               "--no-imu-fit", "--out", str(out), "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0, d
+    assert d["zeroed"] and d["jig_ticks"] is None and d["imu_fit"] is None
+    rest = d["zero_at_rest"]
+    std = np.asarray(rest["theta_std_deg"])
+    assert (std > 0).all() and (std < 2.0 / 3.0).all()
+    np.testing.assert_allclose(rest["theta_deg"], start, atol=1.0)
+    built = load_profile(out)
+    for m, tm, e in zip(joint_maps(built), joint_maps(truth), std, strict=True):
+        for th in (built.home.theta_deg[0] - 10.0, built.home.theta_deg[0] + 10.0):
+            assert m.to_deg(tm.to_ticks(th)) == pytest.approx(th, abs=max(4.0 * e, 0.1))
+    assert "zero: IMU at rest" in out.read_text()
+    assert math.dist(em.joint_deg(), start) < BALL_DEG  # the swings came back
+
+
 def test_an_imu_port_where_no_imu_answers_is_refused_before_anything_moves(
         agile: Profile, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     em = start_emulator(agile, record=False, link="socket")

@@ -1,5 +1,5 @@
 """Step 0 commissions the wrist as built (key 0, F10): the ports are checked before anything
-starts (empty, overlong, the same port twice, the IMU stage without the jig: refused with the
+starts (empty, overlong, the same port twice, the IMU stage without the IMU: refused with the
 reason, no dialog, no worker); started after a yes/no, each stage's line streams into the
 step's log, the result stays on the step, the profile is written beside the profile in use
 with the ids as built, and "Use the commissioned profile now?" restarts the console on it
@@ -55,7 +55,6 @@ def _fill(app, bus: str, imu: str) -> None:  # type: ignore[no-untyped-def]
     ("/dev/" + "x" * MAX_PORT_CHARS, "/dev/ttyUSB1", True, f"at most {MAX_PORT_CHARS}"),
     ("/dev/ttyUSB0", "/dev/tty USB1", True, "no spaces"),
     ("/dev/ttyUSB0", "/dev/ttyUSB0", True, "ports of their own"),
-    ("/dev/ttyUSB0", "/dev/ttyUSB1", False, "tick the home jig"),
 ])
 async def test_bad_ports_are_refused_with_the_reason_and_nothing_starts(
         console, bus: str, imu: str, jig: bool, why: str) -> None:  # type: ignore[no-untyped-def]

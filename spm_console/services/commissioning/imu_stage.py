@@ -94,11 +94,17 @@ class Refinement:
 def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
                     on_stage: Callable[[str], None],
                     stop: EstopRelay | None = None,
-                    logs_root: str | Path | None = None) -> Refinement:
-    """Visit the designed poses on ``profile`` (mapped and jig-zeroed), fit and verify.
+                    logs_root: str | Path | None = None,
+                    zero_std_deg: tuple[float, float, float] | None = None) -> Refinement:
+    """Visit the designed poses on ``profile`` (mapped and zeroed), fit and verify.
     ``stop``: the run's E-stop, attached to this stage's motion process; ``logs_root``: where
-    its moves' run logs go (None: ``$SPM_CONSOLE_LOGS`` or ``logs/``)."""
+    its moves' run logs go (None: ``$SPM_CONSOLE_LOGS`` or ``logs/``); ``zero_std_deg``: the
+    zero's standard errors when it came from the IMU at rest (None: from the jig, whose common
+    offset the fit holds)."""
     model = model_of(profile)
+    # the jig fixes the three horns' common offset, which gravity near home hardly sees; a
+    # zero at rest leaves it to the fit (across P the Agile Wrist's gravity determines it)
+    fixed = {"horn_common": 0.0} if zero_std_deg is None else None
     if stop is not None:
         stop.check()
     # the poses are held where the servos come to rest: settling would take up the offsets
@@ -115,7 +121,7 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
             stop.attach(session.require_bus())
         on_stage("imu: loading the workspace the poses are verified against")
         session.load_workspace()
-        design, held_flags = _design(model, profile, session)
+        design, held_flags = _design(model, profile, session, fixed)
         on_stage(f"imu: homing, then {len(design.theta_deg)} poses across the region P "
                  f"(orientation predicted to {design.orientation_std_deg or math.inf:.3f}° "
                  f"at {DEFAULT_NOISE_DEG:g}° of noise)")
@@ -147,7 +153,7 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
     held = np.asarray(held_flags[:len(poses)], bool)
     th, g = np.asarray(thetas), np.asarray(gravity)
     try:
-        fit = fit_as_built(model, th[~held], g[~held], fixed={"horn_common": 0.0})
+        fit = fit_as_built(model, th[~held], g[~held], fixed=fixed)
     except SolverError as exc:
         raise BusError(f"commission: the IMU fit found no wrist that explains the poses "
                        f"({exc.message}); redo the jig stage (is the IMU fixed to the "
@@ -160,7 +166,8 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
                        f"{check.gravity_max_deg:.3f}° from the fitted wrist's (bound "
                        f"{VERIFY_BOUND_DEG:g}°); redo the jig stage (is the wrist on its jig, "
                        "the IMU fixed to the platform?). Nothing was written")
-    horn = tuple(_horn(p) for p in fit.parameters[:3])
+    prior = (None,) * 3 if zero_std_deg is None else zero_std_deg
+    horn = tuple(_horn(p, s) for p, s in zip(fit.parameters[:3], prior, strict=True))
     arcs = fit.parameters[8:14]
     fitted = None
     if all(_known(p, ARC_STD_DEG) for p in arcs):
@@ -183,7 +190,8 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
                       payload)
 
 
-def _design(model: SpmModel, profile: Profile, session: Session) -> tuple[PoseDesign, list[bool]]:
+def _design(model: SpmModel, profile: Profile, session: Session,
+            fixed: dict[str, float] | None) -> tuple[PoseDesign, list[bool]]:
     """The poses to visit in the order of a short tour from home, and which ones are held out.
 
     Candidates and reference poses are drawn uniformly (seeded) in the servos' range and kept
@@ -205,7 +213,7 @@ def _design(model: SpmModel, profile: Profile, session: Session) -> tuple[PoseDe
     home = np.degrees(model.theta_home)
     spare, held_out = cand[HELD_OUT:], cand[:HELD_OUT]
     design = design_for_orientation(model, FIT_POSES, np.vstack([home, spare]), ref,
-                                    fixed={"horn_common": 0.0})
+                                    fixed=fixed)
     poses = np.vstack([np.asarray(design.theta_deg), held_out])
     order = tour(poses, home)
     fit_n = len(design.theta_deg)
@@ -213,15 +221,18 @@ def _design(model: SpmModel, profile: Profile, session: Session) -> tuple[PoseDe
     return replace(design, theta_deg=visited), [k >= fit_n for k in order]
 
 
-def _horn(p: FittedParameter) -> float:
-    """A horn offset beyond the jig's zero, deg: the fit's where it knows it to better than the
-    jig (:data:`JIG_ACCURACY_DEG`), weighed against the jig's own zero (the nearest tick: an
-    error uniform over one tick, variance tick²/12) by inverse variances; else 0."""
-    if not _known(p, JIG_ACCURACY_DEG):
+def _horn(p: FittedParameter, zero_std_deg: float | None = None) -> float:
+    """A horn offset beyond the zero, deg. From the jig (``zero_std_deg`` None): the fit's
+    where it knows it to better than the jig (:data:`JIG_ACCURACY_DEG`), weighed against the
+    jig's own zero (the nearest tick: an error uniform over one tick, variance tick²/12) by
+    inverse variances; else 0. From the IMU at rest: the fit's weighed against that zero's
+    standard error alike, wherever the fit knows it better."""
+    ref = JIG_ACCURACY_DEG if zero_std_deg is None else zero_std_deg
+    if not _known(p, ref):
         return 0.0
     assert p.std_expected_deg is not None
-    jig_var = JIG_ACCURACY_DEG**2 / 12.0
-    return p.value_deg * jig_var / (jig_var + p.std_expected_deg**2)
+    prior_var = JIG_ACCURACY_DEG**2 / 12.0 if zero_std_deg is None else zero_std_deg**2
+    return p.value_deg * prior_var / (prior_var + p.std_expected_deg**2)
 
 
 def _known(p: FittedParameter, std_deg: float) -> bool:

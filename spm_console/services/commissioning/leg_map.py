@@ -17,8 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics.jacobian import j1_matrix, j2_diag
-from spm_console.core.kinematics.model import SpmModel, platform_axes
+from spm_console.core.kinematics.model import SpmModel
 
 F = NDArray[np.float64]
 
@@ -92,20 +91,6 @@ def operator_match(ident: int, leg: int, seen: str, motion: ElbowMotion,
     grows = seen == motion.answers[0]
     direction = 1 if grows == (counted_deg > 0) else -1
     return LegMatch(ident, leg, direction, 0.0, 0.0, 0.0, source="operator")
-
-
-def leg_axes(model: SpmModel, theta_deg: F) -> F:
-    """Each leg's platform rotation axis per radian of its joint at θ (deg): (3 legs, 3) in the
-    base frame, dω/dθ_i = J1⁻¹ J2 e_i."""
-    theta = np.radians(np.asarray(theta_deg, float))
-    r = model.track(theta)
-    if not r.ok or r.pose is None:
-        raise ValueError(f"no pose at θ = {theta_deg}: {r.reason}")
-    v = platform_axes(r.pose.R, model.v_home)
-    w = model.geom.w(theta)
-    j1 = j1_matrix(v, w)
-    j2 = np.diag(j2_diag(model.u, v, w))
-    return np.asarray(np.linalg.solve(j1, j2).T, float)
 
 
 def rotation_vector(q_before: F, q_after: F) -> F:

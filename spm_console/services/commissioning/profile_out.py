@@ -35,8 +35,9 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
                 values["tick_trim"] = result.tick_trims[k]
         joints.append(values)
     mapped = "IMU" if result.legs[0].source == "imu" else "operator"
-    how = f"map: {mapped}" + (", zero: jig" if result.tick_offsets is not None else "") + (
-        " and IMU" if result.refinement is not None else "")
+    zero = ("" if result.tick_offsets is None else ", zero: IMU at rest"
+            if result.rest_zero is not None else ", zero: jig")
+    how = f"map: {mapped}{zero}" + (" and IMU" if result.refinement is not None else "")
     where = f", run {run}" if run else ""
     note = f"commissioned {stamp} ({how}{where})"
     text, prof = with_joints(base_text, joints, note, source)  # type: ignore[arg-type]
@@ -104,13 +105,21 @@ def commissioned_lines(result: Commissioned) -> list[str]:
     lines = [f"leg {m.leg}: servo id {m.id}, direction {m.direction:+d} "
              + (f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})"
                 if m.source == "imu" else "(confirmed by the operator)") for m in result.legs]
-    if result.tick_offsets is not None:
+    rest = result.rest_zero
+    if rest is not None:
+        lines.append("tick offsets from the IMU at rest (no jig): " + str(list(
+            result.tick_offsets or ())) + ", joint angles at rest " + ", ".join(
+            f"{t:.2f} ± {e:.2f}" for t, e in zip(rest.fit.theta_deg, rest.fit.theta_std_deg,
+                                                 strict=True)) + "°")
+    elif result.tick_offsets is not None:
         lines.append(f"tick offsets from the jig: {list(result.tick_offsets)}")
     else:
-        lines.append("not zeroed: give --jig (the wrist on its home jig, torque off)")
+        lines.append("not zeroed: give --jig (the wrist on its home jig, torque off), or "
+                     "--imu-port (the IMU zeroes it where it rests)")
     r = result.refinement
     if r is not None:
-        lines.append(f"IMU stage: horn offsets beyond the jig {[round(h, 3) for h in r.horn_deg]}°"
+        beyond = "the jig" if rest is None else "the zero at rest"
+        lines.append(f"IMU stage: horn offsets beyond {beyond} {[round(h, 3) for h in r.horn_deg]}°"
                      f" (tick trims {list(result.tick_trims)}), "
                      f"held-out gravity residual {r.verification.gravity_max_deg:.3f}° at most, "
                      f"{r.motion_s:.1f} s of motion")

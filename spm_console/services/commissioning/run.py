@@ -1,5 +1,5 @@
 """One commissioning as the CLI and the console run it: the IMU opened, the stages in order
-(:func:`~.stages.commission`, then the IMU stage when the jig zeroed the wrist), the profile
+(:func:`~.stages.commission`, then the IMU stage on the zero found), the profile
 written, everything in the commissioning's run log (:mod:`.log`), closed however it ends.
 
 A stop (the E-stop of :class:`~spm_console.services.client.EstopRelay`: a key, a signal)
@@ -40,7 +40,8 @@ class CommissionRequest:
     jig: bool
     """The wrist rests on its home jig, torque off: zero the servos there."""
     imu_stage: bool = True
-    """After the jig's zero, the IMU stage (poses, fit, verification)."""
+    """After the zero (the jig's, or the IMU's at rest), the IMU stage (poses, fit,
+    verification)."""
     out: Path | None = None
     """Where to write the profile (None: beside the profile, never over a file)."""
     logs_root: str | Path | None = None
@@ -62,7 +63,7 @@ def run_commissioning(profile: Profile, profile_path: Path, req: CommissionReque
     """Commission the wrist on ``req.port`` (see the module docstring); ``profile_path``: the
     profile's file, whose text the commissioned profile keeps; ``ask``: the operator, asked
     which leg each nudge moved when there is no IMU (each question and answer is logged)."""
-    with_imu_stage = req.jig and req.imu_stage and req.imu_port is not None
+    with_imu_stage = req.imu_stage and req.imu_port is not None
     log = CommissionLog.create(profile, req.logs_root, port=req.port, imu_port=req.imu_port,
                                jig=req.jig, imu_stage=with_imu_stage)
     asked = None if ask is None else log.asking(ask)
@@ -78,8 +79,10 @@ def run_commissioning(profile: Profile, profile_path: Path, req: CommissionReque
         try:
             result = commission(profile, req.port, imu, req.jig, staged, stop, nudged, asked)
             if with_imu_stage and imu is not None:
+                prior = (None if result.rest_zero is None
+                         else result.rest_zero.fit.theta_std_deg)
                 result = refined(result, refine_with_imu(result.profile, req.port, imu,
-                                                         staged, stop, req.logs_root))
+                                                         staged, stop, req.logs_root, prior))
         finally:
             if imu is not None:
                 imu.close()

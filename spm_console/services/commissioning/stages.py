@@ -13,6 +13,9 @@ Stages, each through the motion process that owns the bus (nothing here writes t
    (:mod:`~spm_console.services.commissioning.leg_map`). Nothing else moves before the map is known.
 4. **Zero** from the jig: true θ at the jig = the profile's home, so each tick offset is the
    jig's ticks less the home angle in ticks (rounded to a tick: 0.088° on the MX-106).
+   Without a jig, with the IMU: each leg swings ±1.8° about its rest, and the rotations the IMU
+   measures give the joint angles at rest (:mod:`~spm_console.services.commissioning.rest_zero`),
+   to a few tenths of a degree; the IMU stage refines them.
 5. **Write**: a profile with the found ids, directions and tick offsets, and a comment block
    of provenance; the product's profile is never overwritten.
 
@@ -34,6 +37,7 @@ from spm_console.config.load import home_signs
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.core.commissioning.gravity import built_model
+from spm_console.core.commissioning.rest import leg_axes
 from spm_console.devices.imu.bno055 import Bno055, ImuSample
 from spm_console.devices.imu.bno055_registers import OprMode
 from spm_console.errors import BadInputError, BusError, ImuError, SolverError, SpmError
@@ -45,12 +49,19 @@ from spm_console.services.commissioning.leg_map import (
     ElbowMotion,
     LegMatch,
     elbow_motions,
-    leg_axes,
     match_leg,
     operator_match,
     rotation_vector,
 )
 from spm_console.services.commissioning.payload_stage import with_load_model
+from spm_console.services.commissioning.rest_zero import (
+    SWING_DEG,
+    RestZero,
+    Swing,
+    rotation_noise_deg,
+    swing,
+    zero_at_rest,
+)
 from spm_console.services.session import Session
 
 F = NDArray[np.float64]
@@ -133,7 +144,7 @@ class Commissioned:
     jig_ticks: tuple[float, float, float] | None
     """Each leg's servo's averaged ticks at the jig (None without a jig)."""
     tick_offsets: tuple[int, int, int] | None
-    """Tick offsets from the jig (None without one: the zero stage needs the jig here)."""
+    """Tick offsets from the jig, or from the IMU at rest (None: neither, not zeroed)."""
     profile: Profile
     """The commissioned profile (the input's, with ``[bus]`` as built)."""
     refinement: Refinement | None = None
@@ -143,7 +154,10 @@ class Commissioned:
     max_nudge_deg: float = 0.0
     """The farthest any servo was from its rest during the map stage, deg (at most 2°)."""
     tick_trims: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    """Each leg's fraction of a tick beyond its offset, from the IMU stage (−0.5..0.5)."""
+    """Each leg's fraction of a tick beyond its offset (−0.5..0.5): the zero at rest's, or
+    the IMU stage's."""
+    rest_zero: RestZero | None = None
+    """The zero found at rest from the IMU (no jig), with its standard errors."""
 
 
 def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
@@ -193,12 +207,13 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
             client.query(BusQuery("torque", on=False))
             jig_by_id = _jig_ticks(client, disc.ids)
         home = np.asarray(profile.home.theta_deg, float)
-        axes = leg_axes(model_of(profile), home)
+        axes = leg_axes(model_of(profile), np.radians(home))
         elbows = elbow_motions(model_of(profile), home)
         matches: list[LegMatch] = []
         nudges: list[NudgeResult] = []
+        swings: list[Swing] = []
 
-        def nudge(ident: int, offset: float) -> None:
+        def nudge(ident: int, offset: float) -> NudgeResult:
             r = client.nudge(((ident, offset),), MAP_SPEED_DEGPS)
             nudges.append(r)
             if on_nudge is not None:
@@ -206,6 +221,7 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
             if not r.ok:
                 raise BusError(f"commission: the nudge of servo id {ident} stopped "
                                f"({r.stopped}); nothing else moved. Check the wrist moves freely")
+            return r
 
         try:
             for ident in disc.ids:
@@ -222,31 +238,53 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
                     matches.append(match_leg(axes, ident, rotation_vector(q0, q1), MAP_NUDGE_DEG))
                 except ValueError as exc:
                     raise BusError(f"commission: {exc}") from None
+            if imu is not None and not jig:  # the zero at rest, inside the same ball
+                src = imu
+                _distinct_legs(matches, "the IMU")
+                for m in sorted(matches, key=lambda m: m.leg):
+                    on_stage(f"zero: swinging leg {m.leg} (id {m.id}) ±{SWING_DEG:g}° about its "
+                             "rest")
+                    swings.append(swing(m.id, nudge, lambda n: _mean_quaternion(src, n)))
         finally:  # after an E-stop the wrist holds where it stopped; else it rests as found
             client.end_nudging(hold=stop is not None and bool(stop.reason))
     finally:
         if stop is not None:
             stop.detach()
         session.close()
-    legs = sorted(matches, key=lambda m: m.leg)
-    if [m.leg for m in legs] != [1, 2, 3]:
-        by = "the IMU" if imu is not None else "the answers"
-        raise BusError(f"commission: two servos drive the same leg by {by} ("
-                       + ", ".join(f"id {m.id} → leg {m.leg}" for m in matches)
-                       + "): repeat with the wrist free to move")
+    legs = _distinct_legs(matches, "the IMU" if imu is not None else "the answers")
     on_stage("map: " + ", ".join(f"leg {m.leg} = id {m.id} ({'+' if m.direction > 0 else '−'})"
                                  for m in legs))
     offsets = None
     jig_ticks = None
+    trims = (0.0, 0.0, 0.0)
+    rest = None
     if jig_by_id is not None:
         jig_ticks = (jig_by_id[legs[0].id], jig_by_id[legs[1].id], jig_by_id[legs[2].id])
         offsets = zero_from_jig(profile, [m.direction for m in legs], jig_ticks)
-    built = _with_wiring(found_profile, legs, offsets)
+    elif swings:
+        rest = zero_at_rest(found_profile, legs, swings, rotation_noise_deg())
+        offsets, trims = rest.offsets, rest.trims
+        on_stage("zero: at rest θ = " + ", ".join(
+            f"{t:.2f} ± {e:.2f}" for t, e in zip(rest.fit.theta_deg, rest.fit.theta_std_deg,
+                                                 strict=True))
+            + f"° (rotations explained to {rest.fit.residual_rms_deg:.4f}° RMS)")
+    built = _with_wiring(found_profile, legs, offsets, trims)
     tpd = profile.bus.ticks_per_turn / 360.0
     farthest = max((abs(b - a) / tpd for r in nudges
                     for a, b in zip(r.rest_ticks, r.reached_ticks, strict=True)), default=0.0)
     return Commissioned(disc, (legs[0], legs[1], legs[2]), jig_ticks, offsets, built,
-                        nudge_s=sum(r.duration_s for r in nudges), max_nudge_deg=farthest)
+                        nudge_s=sum(r.duration_s for r in nudges), max_nudge_deg=farthest,
+                        tick_trims=trims, rest_zero=rest)
+
+
+def _distinct_legs(matches: Sequence[LegMatch], by: str) -> list[LegMatch]:
+    """The matches by leg 1..3; BusError when two servos drive one leg (by ``by``)."""
+    legs = sorted(matches, key=lambda m: m.leg)
+    if [m.leg for m in legs] != [1, 2, 3]:
+        raise BusError(f"commission: two servos drive the same leg by {by} ("
+                       + ", ".join(f"id {m.id} → leg {m.leg}" for m in matches)
+                       + "): repeat with the wrist free to move")
+    return legs
 
 
 #: How the operator is asked (question, allowed answers) -> the answer given.
@@ -257,7 +295,7 @@ AGAIN = "again"
 ANSWER_TIMEOUT_S = 600.0
 
 
-def _asked(ident: int, nudge: Callable[[int, float], None], ask: Ask,
+def _asked(ident: int, nudge: Callable[[int, float], object], ask: Ask,
            elbows: Sequence[ElbowMotion]) -> LegMatch:
     """Nudge ``ident`` out, ask which leg's elbow moved and which way, bring it back (as often
     as the operator asks to see it again)."""
@@ -284,7 +322,8 @@ def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
     tick, and the rest as the joint's ``tick_trim``; the link arcs and the load model (the
     payload's first moment, the drive's compliance) where the stage determined them."""
     if result.tick_offsets is None:
-        raise BadInputError("commission: the IMU stage refines the jig's zero; there is none")
+        raise BadInputError("commission: the IMU stage refines a zero (the jig's, or the IMU's at "
+                            "rest); there is none")
     tpt = result.profile.bus.ticks_per_turn
     zeros = [off - m.direction * d * tpt / 360.0 for off, m, d in
              zip(result.tick_offsets, result.legs, refinement.horn_deg, strict=True)]

@@ -110,8 +110,8 @@ class CommissionScreen(StepScreen):
         with Vertical(classes="body"):
             yield Static("Find the servos of the wrist as built, map them to legs with the IMU "
                          "on the platform (without one: you say which arm each nudge moved), "
-                         "zero them on the home jig and write a profile for it beside the "
-                         "profile in use.", markup=False)
+                         "zero them on the home jig (or with the IMU where the wrist rests) "
+                         "and write a profile for it beside the profile in use.", markup=False)
             with Horizontal(classes="param"):
                 yield Label("Servo bus", classes="param-label", markup=False)
                 yield TextField(bus, placeholder="/dev/ttyUSB0 or unix:…", id="bus-port")
@@ -149,9 +149,6 @@ class CommissionScreen(StepScreen):
         if f.imu_stage and not f.imu:
             return ("the IMU stage needs the IMU: type its port, or untick the IMU stage (the "
                     "map then asks you which leg each nudge moved)")
-        if f.imu_stage and not f.jig:
-            return ("the IMU stage refines the jig's zero: tick the home jig, or untick the IMU "
-                    "stage")
         return ""
 
     # ------------------------------------------------------------------ start
@@ -174,6 +171,7 @@ class CommissionScreen(StepScreen):
             HELD_OUT,
             POSE_SPEED_DEGPS,
         )
+        from spm_console.services.commissioning.rest_zero import SWING_DEG
         from spm_console.services.commissioning.stages import MAP_NUDGE_DEG, MAP_SPEED_DEGPS
 
         lines = [f"Servo bus {f.bus}, " + (f"IMU on {f.imu}." if f.imu else
@@ -181,6 +179,10 @@ class CommissionScreen(StepScreen):
                  "1. Discover: every id 0..252 pinged on both protocols (nothing moves)."]
         if f.jig:
             lines.append("2. Jig: torque off, each servo's ticks averaged at the home jig.")
+        elif f.imu:
+            lines.append(f"2. Zero at rest (no jig): after the map, each leg alone swings "
+                         f"±{SWING_DEG:g}° about where it rests; the IMU's rotations give its "
+                         "angle there.")
         lines.append(f"3. Map: each servo alone nudged {MAP_NUDGE_DEG:g}° at "
                      f"{MAP_SPEED_DEGPS:g}°/s and back, the others holding."
                      + ("" if f.imu else " While it is out you are asked which leg's arm "

@@ -11,8 +11,9 @@ import pytest
 
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
+from spm_console.core.commissioning.rest import leg_axes
 from spm_console.core.kinematics.rotations import expm_so3
-from spm_console.services.commissioning.leg_map import leg_axes, match_leg, rotation_vector
+from spm_console.services.commissioning.leg_map import match_leg, rotation_vector
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
@@ -34,7 +35,7 @@ def test_the_rotation_vector_of_two_quaternions_is_the_body_frame_rotation() -> 
 def test_each_leg_and_direction_is_recovered_through_a_mounting_within_25_degrees(
         agile: Profile) -> None:
     model = model_of(agile)
-    axes = leg_axes(model, np.asarray(agile.home.theta_deg))
+    axes = leg_axes(model, np.radians(agile.home.theta_deg))
     rng = np.random.default_rng(7)
     for _ in range(50):
         tilt = rng.normal(size=3)
@@ -50,7 +51,7 @@ def test_each_leg_and_direction_is_recovered_through_a_mounting_within_25_degree
 
 
 def test_no_rotation_or_an_unexplained_axis_is_refused(agile: Profile) -> None:
-    axes = leg_axes(model_of(agile), np.asarray(agile.home.theta_deg))
+    axes = leg_axes(model_of(agile), np.radians(agile.home.theta_deg))
     with pytest.raises(ValueError, match=r"turned 0\.00°"):
         match_leg(axes, 4, np.zeros(3), 2.0)
     between = (axes[0] / np.linalg.norm(axes[0]) + axes[1] / np.linalg.norm(axes[1])
