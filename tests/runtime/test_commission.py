@@ -167,6 +167,29 @@ def test_the_imu_stage_refines_the_jig_zero_and_verifies_it_on_held_out_poses(
             assert m.to_deg(tm.to_ticks(th)) == pytest.approx(th, abs=0.1)
 
 
+@pytest.mark.slow  # the zero at rest, then 32 poses visited
+def test_without_a_jig_the_imu_stage_refines_the_zero_at_rest_to_a_tenth_of_a_degree(
+        wrist: tuple[EmulatorHandle, EmulatedBno055, Profile], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """No jig: the zero at rest, then the IMU stage with the three horns free (the Agile
+    Wrist's gravity across P determines their common offset): the profile reads the true
+    angles to 0.1°, as the jig and the IMU do."""
+    em, imu, truth = wrist
+    out = tmp_path / "built.toml"
+    rc = main(["commission", "--profile", str(AGILE), "--port", em.port, "--imu-port", imu.port,
+               "--out", str(out), "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0, d
+    fit = d["imu_fit"]
+    assert d["zero_at_rest"] is not None and fit["held_out_gravity_max_deg"] < 0.15
+    horns = [p for p in fit["parameters"] if p["name"].startswith("horn")]
+    assert len(horns) == 3 and all(p["status"] == "determined" for p in horns), horns
+    built = load_profile(out)
+    for m, tm in zip(joint_maps(built), joint_maps(truth), strict=True):
+        for th in (built.home.theta_deg[0] - 10.0, built.home.theta_deg[0] + 10.0):
+            assert m.to_deg(tm.to_ticks(th)) == pytest.approx(th, abs=0.1)
+
+
 def test_without_an_imu_the_operator_names_each_leg_and_its_way(
         wrist: tuple[EmulatorHandle, EmulatedBno055, Profile], agile: Profile,
         tmp_path: Path) -> None:

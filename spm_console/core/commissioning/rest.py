@@ -123,22 +123,27 @@ def near(model: SpmModel, R0: F, thetas: F) -> F | None:
 
 def nudge_rotations(model: SpmModel, theta_rad: F, before_rad: F, after_rad: F,
                     fk: _Fk | None = None) -> F | None:
-    """Each leg i's rotation from θ + before_i e_i to θ + after_i e_i (3, 3), rad, in the
-    platform's frame: log(R(θ + before_i e_i)ᵀ R(θ + after_i e_i)); None where a pose does not
-    exist."""
+    """Each swing i's rotation from θ + before_i to θ + after_i (3, 3), rad, in the platform's
+    frame: log(R(θ + before_i)ᵀ R(θ + after_i)); ``before``, ``after``: (3 swings, 3 joints)
+    rad from θ (a swung leg's own step, and wherever the others were held), or (3,) for the
+    swung leg's step alone (the others at θ). None where a pose does not exist."""
     fk = fk or _Fk(model)
     base = np.asarray(theta_rad, float)
     R0 = fk.pose(base)
     if R0 is None:
         return None
-    eye = np.eye(3)
-    ends = np.vstack([base + eye * np.asarray(before_rad, float)[:, None],
-                      base + eye * np.asarray(after_rad, float)[:, None]])
+    ends = np.vstack([base + _steps(before_rad), base + _steps(after_rad)])
     R = near(model, R0, ends)
     if R is None:
         return None
     return np.asarray(Rotation.from_matrix(np.transpose(R[:3], (0, 2, 1)) @ R[3:]).as_rotvec(),
                       float)
+
+
+def _steps(x: F) -> F:
+    """(3 swings, 3 joints) from a (3,) step of each swung leg alone, or as given."""
+    a = np.asarray(x, float)
+    return np.diag(a) if a.ndim == 1 else a
 
 
 def _mount_for(body: F, measured: F) -> F:
@@ -154,7 +159,8 @@ def _mount_for(body: F, measured: F) -> F:
 def fit_rest(model: SpmModel, measured_rad: F, before_deg: F, after_deg: F, lo_deg: F,
              hi_deg: F, noise_deg: float = MIN_NOISE_DEG, arc_std_deg: float = 0.0) -> RestFit:
     """θ at rest and R_m from the three legs' measured rotations (3, 3) rad (row i: leg i
-    alone from rest + before_i to rest + after_i, true joint steps in deg, in the IMU's frame);
+    swung from rest + before_i to rest + after_i, in the IMU's frame; the steps in deg, (3,)
+    for the swung leg alone or (3, 3) with where the other joints were held);
     the starts stay inside [lo, hi] (deg, the servos' limits); ``noise_deg``: the measured
     components' expected noise (1σ), the least the standard errors assume; ``arc_std_deg``:
     how far each link arc as built may be from the model's (1σ), added to the standard errors

@@ -121,7 +121,9 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
             stop.attach(session.require_bus())
         on_stage("imu: loading the workspace the poses are verified against")
         session.load_workspace()
-        design, held_flags = _design(model, profile, session, fixed)
+        margin = POSE_MARGIN_DEG if zero_std_deg is None else max(
+            POSE_MARGIN_DEG, ZERO_SIGMAS * max(zero_std_deg))
+        design, held_flags = _design(model, profile, session, fixed, margin)
         on_stage(f"imu: homing, then {len(design.theta_deg)} poses across the region P "
                  f"(orientation predicted to {design.orientation_std_deg or math.inf:.3f}° "
                  f"at {DEFAULT_NOISE_DEG:g}° of noise)")
@@ -191,25 +193,27 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
 
 
 def _design(model: SpmModel, profile: Profile, session: Session,
-            fixed: dict[str, float] | None) -> tuple[PoseDesign, list[bool]]:
+            fixed: dict[str, float] | None,
+            margin_deg: float) -> tuple[PoseDesign, list[bool]]:
     """The poses to visit in the order of a short tour from home, and which ones are held out.
 
     Candidates and reference poses are drawn uniformly (seeded) in the servos' range and kept
-    inside the workspace's region P (the candidates with every corner of the box
-    ±:data:`POSE_MARGIN_DEG` around them): P is convex, so every move between two of them
-    stays in it."""
+    inside the workspace's region P (the candidates with every corner of the box ±``margin_deg``
+    around them: at least :data:`POSE_MARGIN_DEG`, more while the zero is uncertain): P is
+    convex, so every move between two of them stays in it, and so does the wrist's true path
+    while its zero is off by less than the margin."""
     region = session.ensure_workspace().region
     rng = np.random.default_rng(DESIGN_SEED)
     lo = np.array([j.min_deg for j in profile.bus.joints], float)
     hi = np.array([j.max_deg for j in profile.bus.joints], float)
     draw = rng.uniform(lo, hi, (40 * (CANDIDATES + REFERENCE), 3))
     slack = region.slack(draw)
-    margin = POSE_MARGIN_DEG * np.abs(region.A).sum(axis=1)[None]
+    margin = margin_deg * np.abs(region.A).sum(axis=1)[None]
     cand = draw[(slack >= margin).all(axis=1)][:CANDIDATES + HELD_OUT]
     ref = draw[(slack >= 0.0).all(axis=1)][-REFERENCE:]
     if len(cand) < FIT_POSES + HELD_OUT or len(ref) < REFERENCE // 2:
         raise BusError("commission: the workspace's region P is too small for the IMU stage's "
-                       f"poses ({len(cand)} drawn inside it {POSE_MARGIN_DEG:g}° from its faces)")
+                       f"poses ({len(cand)} drawn inside it {margin_deg:.2f}° from its faces)")
     home = np.degrees(model.theta_home)
     spare, held_out = cand[HELD_OUT:], cand[:HELD_OUT]
     design = design_for_orientation(model, FIT_POSES, np.vstack([home, spare]), ref,
@@ -244,6 +248,8 @@ def _known(p: FittedParameter, std_deg: float) -> bool:
 #: How far inside the certified region a pose must lie in every joint, deg: the measured
 #: position at rest (tracking, the gear's play, the load) stays certified around it.
 POSE_MARGIN_DEG = 2.0
+#: A zero found at rest widens that margin to this many of its standard errors.
+ZERO_SIGMAS = 3.0
 
 
 def _ok(result: object, what: str) -> None:

@@ -4,11 +4,11 @@ platform measuring the rotation between the two ends;
 :func:`~spm_console.core.commissioning.rest.fit_rest` finds the joint angles at rest that
 explain the three rotations, and each tick offset follows from the servo's ticks at rest.
 
-The zero is known to a few tenths of a degree (its standard errors are reported); the IMU
-stage then refines it across the region P. Before the IMU stage moves anything planned, the
-zero must be known to a third of the poses' margin inside P
-(:data:`~spm_console.services.commissioning.imu_stage.POSE_MARGIN_DEG`), or commissioning
-stops and asks for the jig.
+The zero is known to a few tenths of a degree to about a degree (its standard errors are
+reported; the encoder's tick at each end of a swing is most of it); the IMU stage then refines
+it across the region P, its poses kept three standard errors inside P so that the wrist's
+true path stays there. A zero known worse than :data:`MAX_ZERO_STD_DEG` is refused: zero on
+the jig.
 
 Degrees at the interface.
 """
@@ -16,6 +16,7 @@ Degrees at the interface.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -28,13 +29,14 @@ from spm_console.config.schema import Profile
 from spm_console.core.commissioning.rest import RestFit, fit_rest
 from spm_console.errors import BusError, SolverError
 from spm_console.motion.nudge import NudgeResult
-from spm_console.services.commissioning.imu_stage import POSE_MARGIN_DEG
 from spm_console.services.commissioning.leg_map import LegMatch, rotation_vector
 
 F = NDArray[np.float64]
 
 #: Each end of a leg's swing, deg of the servo's own counting (inside the 2° ball).
 SWING_DEG = 1.8
+#: Wait at each end of a swing before the IMU is read, s (the platform still).
+SETTLE_S = 0.4
 #: Fused quaternions averaged at each end of a swing.
 SWING_SAMPLES = 100
 #: Noise of one fused orientation sample of the BNO055, deg per axis (1σ): the floor the
@@ -43,8 +45,9 @@ FUSED_NOISE_DEG = 0.05
 #: How far a link arc as built may be from the profile's, deg (1σ): the zero's standard errors
 #: include it (0.4° off arcs bias the angles at rest by about 0.6°).
 ARC_STD_DEG = 0.3
-#: The zero must be known to this share of the poses' margin (3σ) before planned motion.
-ZERO_SIGMAS = 3.0
+#: The largest standard error of a zero at rest the IMU stage takes, deg: its poses then keep
+#: 3σ inside P (the true path stays there), which leaves enough of P to design them in.
+MAX_ZERO_STD_DEG = 2.0
 
 
 class QuaternionSource(Protocol):
@@ -59,10 +62,11 @@ class Swing:
 
     rotation_rad: F
     """From the + end to the − end, in the IMU's frame, rad."""
-    rest_tick: int
-    """The servo's ticks at rest."""
-    ends_ticks: tuple[int, int]
-    """The servo's ticks reached at the + and the − end."""
+    rest_ticks: dict[int, int]
+    """Every servo's ticks at rest, by id (where the nudging began)."""
+    ends_ticks: tuple[dict[int, int], dict[int, int]]
+    """Every servo's ticks at the + and the − end, by id (the others held where they were:
+    friction leaves them a few ticks from their rest)."""
 
 
 @dataclass(frozen=True)
@@ -81,13 +85,15 @@ def swing(ident: int, nudge: Callable[[int, float], NudgeResult],
     """Leg ``ident``'s servo to +:data:`SWING_DEG`, then −, then back to rest (each a nudge of
     its own), the IMU read at each end."""
     out = nudge(ident, SWING_DEG)
+    time.sleep(SETTLE_S)
     q_plus = quaternion(SWING_SAMPLES)
     back = nudge(ident, -SWING_DEG)
+    time.sleep(SETTLE_S)
     q_minus = quaternion(SWING_SAMPLES)
     nudge(ident, 0.0)
-    k = out.ids.index(ident)  # a nudge reports every servo it holds
-    return Swing(rotation_vector(q_plus, q_minus), out.rest_ticks[k],
-                 (out.reached_ticks[k], back.reached_ticks[back.ids.index(ident)]))
+    return Swing(rotation_vector(q_plus, q_minus), dict(zip(out.ids, out.rest_ticks, strict=True)),
+                 (dict(zip(out.ids, out.reached_ticks, strict=True)),
+                  dict(zip(back.ids, back.reached_ticks, strict=True))))
 
 
 def zero_at_rest(profile: Profile, legs: Sequence[LegMatch], swings: Sequence[Swing],
@@ -98,9 +104,10 @@ def zero_at_rest(profile: Profile, legs: Sequence[LegMatch], swings: Sequence[Sw
     IMU stage's poses."""
     tpd = profile.bus.ticks_per_turn / 360.0
     d = np.array([m.direction for m in legs], float)
-    rest = np.array([s.rest_tick for s in swings], float)
-    plus = np.array([s.ends_ticks[0] for s in swings], float)
-    minus = np.array([s.ends_ticks[1] for s in swings], float)
+    ids = [m.id for m in legs]
+    rest = np.array([swings[0].rest_ticks[i] for i in ids], float)
+    plus = np.array([[s.ends_ticks[0][i] for i in ids] for s in swings], float)
+    minus = np.array([[s.ends_ticks[1][i] for i in ids] for s in swings], float)
     lo = np.array([j.min_deg for j in profile.bus.joints], float)
     hi = np.array([j.max_deg for j in profile.bus.joints], float)
     try:
@@ -111,13 +118,12 @@ def zero_at_rest(profile: Profile, legs: Sequence[LegMatch], swings: Sequence[Sw
         raise BusError(f"commission: the zero at rest: {exc.message}; is the IMU fixed to the "
                        "platform? Else zero on the home jig (--jig). Nothing was written") from None
     worst = max(fit.theta_std_deg)
-    if ZERO_SIGMAS * worst > POSE_MARGIN_DEG:
-        raise BusError(f"commission: the zero at rest is known to ±{worst:.2f}° (1σ); the IMU "
-                       f"stage's poses need it to {POSE_MARGIN_DEG / ZERO_SIGMAS:.2f}°. Zero on "
-                       "the home jig (--jig). Nothing was written")
+    if worst > MAX_ZERO_STD_DEG:
+        raise BusError(f"commission: the zero at rest is known to ±{worst:.2f}° (1σ), more than "
+                       f"{MAX_ZERO_STD_DEG:g}°. Zero on the home jig (--jig). Nothing was written")
     tpt = profile.bus.ticks_per_turn
-    zeros = [r - m.direction * th * tpd for r, m, th in zip(rest, legs, fit.theta_deg,
-                                                           strict=True)]
+    zeros = [float(r) - m.direction * th * tpd for r, m, th in zip(rest, legs, fit.theta_deg,
+                                                                  strict=True)]
     whole = [round(float(z)) for z in zeros]
     trims = tuple(round(float(z - w), 3) for z, w in zip(zeros, whole, strict=True))
     return RestZero(fit, (whole[0] % tpt, whole[1] % tpt, whole[2] % tpt),
