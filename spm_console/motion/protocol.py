@@ -11,22 +11,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Generic, TypeVar
 
+import numpy as np
+from numpy.typing import NDArray
+
 from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.timed import TimedTargets
+from spm_console.devices.base import ServoStatus
 from spm_console.motion.sample import Sample
-from spm_console.motion.servo_query import BusQuery
+from spm_console.motion.servo_query import BusQuery, BusReport
 
 if TYPE_CHECKING:  # the replies' types (named in the requests' bases, as strings)
-    import numpy as np  # noqa: F401
-    from numpy.typing import NDArray  # noqa: F401
-
-    from spm_console.devices.base import ServoStatus  # noqa: F401
     from spm_console.motion.follow.run import FollowOutcome  # noqa: F401
     from spm_console.motion.homing import HomingResult  # noqa: F401
     from spm_console.motion.nudge import NudgeResult  # noqa: F401
     from spm_console.motion.plan_check import PlanCheck  # noqa: F401
     from spm_console.motion.segments import ExecutionResult  # noqa: F401
-    from spm_console.motion.servo_query import BusReport  # noqa: F401
     from spm_console.motion.servo_tools import ServoHealth  # noqa: F401
 
 R = TypeVar("R", covariant=True)
@@ -41,14 +40,14 @@ class Request(Generic[R]):
 
 
 @dataclass(frozen=True)
-class Ping(Request["list[ServoStatus]"]):
+class Ping(Request[list[ServoStatus]]):
     """Ping every servo; reply: list of ServoStatus (with temperature and voltage)."""
 
     id: int
 
 
 @dataclass(frozen=True)
-class ReadPosition(Request["NDArray[np.float64]"]):
+class ReadPosition(Request[NDArray[np.float64]]):
     """Measured θ (deg), read with set-up retries."""
 
     id: int
@@ -86,7 +85,7 @@ class Reboot(Request["ServoHealth"]):
 
 
 @dataclass(frozen=True)
-class Query(Request["BusReport"]):
+class Query(Request[BusReport]):
     """A bus diagnostic by servo id (:mod:`~spm_console.motion.servo_query`); reply: BusReport.
     Refused while moving."""
 
