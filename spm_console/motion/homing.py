@@ -27,8 +27,9 @@ from spm_console.core.kinematics.model import Pose
 from spm_console.core.plan import Plan
 from spm_console.errors import UnreachableError
 from spm_console.formatting import fmt_deg
-from spm_console.motion.executor import ExecutionResult, Executor, Segment
+from spm_console.motion.executor import Executor
 from spm_console.motion.plans import line_plan, plan_summary
+from spm_console.motion.segments import ExecutionResult, Segment
 
 F = NDArray[np.float64]
 

@@ -347,7 +347,7 @@ class _Server:
         out = TelemetryOut(self.send)
         on_sample = out.put
 
-        result: Reply | Failed
+        result: Reply[object] | Failed
         quiet_gc = _QuietGc()
         try:
             _ = self.workspace  # loaded (or built) before the loop, at normal priority
@@ -379,7 +379,7 @@ class _Server:
 
     def _nudge(self, req: Nudge) -> None:
         """A commissioning nudge (or its release) in the motion thread: E-stops reach it."""
-        result: Reply | Failed
+        result: Reply[object] | Failed
         try:
             if req.release:
                 release(self.bus, self.nudging, req.hold)

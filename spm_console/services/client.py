@@ -88,7 +88,7 @@ class MotionClient:
                          None if sim_clock is None else sim_clock.path, preview)
         self.conn.send(Start(profile, ctx, None if cache_dir is None else str(cache_dir)))
         self._lock = threading.Lock()
-        self._replies: dict[int, Reply | Failed] = {}
+        self._replies: dict[int, Reply[object] | Failed] = {}
         self._cond = threading.Condition()
         self._next_id = 1
         self._closed = False

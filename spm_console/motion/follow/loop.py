@@ -154,7 +154,10 @@ class Follower(Executor):
 
     def stats(self, feed: TargetFeed) -> FollowStats:
         ms = np.asarray(self._times, float) * 1e3
-        pct = (lambda q: float(np.percentile(ms, q))) if ms.size else (lambda q: float("nan"))
+
+        def pct(q: float) -> float:
+            return float(np.percentile(ms, q)) if ms.size else float("nan")
+
         c = self._counts
         return FollowStats(c["solves"], c["adopted"], c["misses"], c["refused"], c["clamped"],
                            feed.deadman_trips, pct(50), pct(99),

@@ -96,7 +96,7 @@ class TargetFeed:
         """The target asked for at ``t_run`` (before any projection into the region)."""
         if self.timed is not None:
             return np.asarray(self.timed.at(np.array([t_run]))[0])
-        return self.targets(t_run, 0.0, 1, wrist_deg)[0][0]
+        return np.asarray(self.targets(t_run, 0.0, 1, wrist_deg)[0][0], float)
 
     def finished(self, t_run: float) -> bool:
         """No target will change any more (the timed list is over, or the live source ended)."""

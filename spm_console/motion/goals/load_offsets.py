@@ -107,7 +107,7 @@ class LoadTracker:
         else:
             hold = np.zeros((1, 3))
         d = self.load.offset_deg(hold[:, :, None], np.asarray(velocity_degps, float)[None])[0]
-        return np.clip(d, -MAX_OFFSET_DEG, MAX_OFFSET_DEG)
+        return np.asarray(np.clip(d, -MAX_OFFSET_DEG, MAX_OFFSET_DEG), float)
 
 
 def step_limited(previous: F | None, sent: F, lo: F, hi: F) -> F:

@@ -290,7 +290,7 @@ def _write(fh: IO[bytes], run: RunData, rows: _Rows, urdf: str, t0: int,
             ns = t0 + round(row.t_s * 1e9)
             w.write_message("/imu", imu_schema, imu_message(_stamp(ns, "imu"), row), ns, ns,
                             sequence=k)
-    w.finish()
+    w.finish()  # type: ignore[no-untyped-call]  # mcap_ros2 leaves it unannotated
     return w.contents
 
 
