@@ -1,12 +1,14 @@
-"""Commissioning's IMU stage: once the map and the jig's zero are known, the wrist visits a set
-of verified poses across the region P, the IMU measuring gravity at each; the fit of
-:mod:`spm_console.core.commissioning` then refines each horn offset (the jig's common offset
-held: gravity near home hardly sees it), the IMU's mounting and the base's tilt (and each leg's
-arcs where the data determine them); held-out poses verify the result.
+"""Commissioning's IMU stage: once the map and a zero are known (the jig's, or the IMU's at
+rest), the wrist visits a set of verified poses across the region P, the IMU measuring gravity
+at each; the fit of :mod:`spm_console.core.commissioning` then refines each horn offset (after
+a jig its common offset held: gravity near home hardly sees it; after a zero at rest all three
+free), the IMU's mounting and the base's tilt (and each leg's arcs where the data determine
+them); held-out poses verify the result.
 
-Every move is an ordinary motion of the motion process on the jig-zeroed profile: homed,
-planned (minimum time at :data:`POSE_SPEED_DEGPS`), verified against its certified workspace,
-logged. Degrees at the interface.
+Every move is an ordinary motion of the motion process on the zeroed profile: homed, planned
+(minimum time at :data:`POSE_SPEED_DEGPS`), verified against its certified workspace, logged;
+the poses lie :data:`POSE_MARGIN_DEG` inside P, or three standard errors of a zero at rest if
+that is more. Degrees at the interface.
 """
 
 from __future__ import annotations
