@@ -17,11 +17,14 @@ from spm_console.cli.common import (
     add_force,
     emit,
     info,
+    number,
     output_file,
     output_folder,
     profile_of,
 )
+from spm_console.config.plant import MAX_PAYLOAD_KG
 from spm_console.errors import BadInputError, ExitCode
+from spm_console.input_rules import finite_number
 from spm_console.system.signals import stop_signals
 
 
@@ -42,6 +45,10 @@ def register(sub: Any) -> None:
     c.add_argument("--no-imu-fit", action="store_true",
                    help="after the zero, skip the IMU stage (poses across the region P, "
                         "the fit of horn offsets, IMU mounting and base tilt, its verification)")
+    c.add_argument("--payload-kg", type=number, metavar="KG",
+                   help="the payload's mass, weighed (0 < KG ≤ 2): with the IMU stage's first "
+                        "moment m·c it places the payload's centre (m·c / m), written as "
+                        "[plant] payload_kg so that the twin and the exports carry it")
     c.add_argument("--out", type=Path, metavar="FILE.toml",
                    help="where to write the commissioned profile (default: beside the "
                         "profile, NAME.commissioned-TIME.toml, never over a file)")
@@ -64,8 +71,15 @@ def cmd_commission(args: argparse.Namespace) -> int:
                             "'spm-console emulate' serves an emulated bus and prints its port")
     output_file(args.out, "--out", (".toml",), replace=args.force)
     output_folder(args.logs, "--logs")
+    payload_kg = None
+    if args.payload_kg is not None:
+        payload_kg = finite_number(args.payload_kg, "--payload-kg", 0.0, MAX_PAYLOAD_KG,
+                                   lo_open=True, unit="kg")
+        if args.no_imu_fit or not args.imu_port:
+            raise BadInputError("--payload-kg needs the IMU stage (--imu-port, without "
+                                "--no-imu-fit): it fits where the payload sits")
     req = CommissionRequest(port, args.imu_port, args.jig, not args.no_imu_fit, args.out,
-                            args.logs)
+                            args.logs, payload_kg)
     relay = EstopRelay("commission")
 
     def on_signal(sig: signal.Signals) -> None:
@@ -90,7 +104,10 @@ def cmd_commission(args: argparse.Namespace) -> int:
                 "imu_mount_rotvec_deg": list(result.rest_zero.fit.mount_rotvec_deg),
                 "residual_rms_deg": result.rest_zero.fit.residual_rms_deg},
             "log_dir": str(done.log_dir),
-            "imu_fit": None if result.refinement is None else _fit_json(result.refinement)}
+            "imu_fit": None if result.refinement is None else _fit_json(result.refinement),
+            "payload_kg": result.profile.plant.payload_kg,
+            "payload_centre_mm": (None if result.profile.plant.payload_centre_mm is None
+                                  else list(result.profile.plant.payload_centre_mm))}
     human = "\n".join([*commissioned_lines(result), f"profile written: {done.written}",
                        f"run log: {done.log_dir}"])
     emit(args, data, human)

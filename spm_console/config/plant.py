@@ -21,6 +21,10 @@ STALL_DAMPING_NMS = 20.0
 #: beyond what an MX-106 wrist holds, small enough to stay a load and not another machine).
 MAX_PAYLOAD_MOMENT_KGMM = 5000.0
 Moment = Annotated[Real, Field(ge=-MAX_PAYLOAD_MOMENT_KGMM, le=MAX_PAYLOAD_MOMENT_KGMM)]
+#: Heaviest payload a profile may name, kg (the MX-106 holds 8.4 N·m stalled: 2 kg at 0.2 m
+#: is half of it), and the farthest its centre may sit from the wrist's along an axis, mm.
+MAX_PAYLOAD_KG = 2.0
+MAX_PAYLOAD_CENTRE_MM = 300.0
 
 
 class Plant(Section):
@@ -67,7 +71,12 @@ class Plant(Section):
     the platform's frame at home, each component within ±5000 (commissioning fits it from the
     offsets the servos hold the wrist at; statics see m·c, not the mass). The load model adds
     it to the platform's weight (the torque that holds the wrist); the emulated wrist and the
-    exported descriptions, which need a mass, do not carry it. None: no payload."""
+    exported descriptions carry it only with ``payload_kg``. None: no payload."""
+    payload_kg: Real | None = Field(default=None, gt=0.0, le=MAX_PAYLOAD_KG)
+    """The payload's mass, kg, 0..2, weighed (a wrist cannot tell it: a body turning about a
+    fixed point shows its first and second moments only). With ``payload_moment_kgmm`` it puts
+    the payload's centre at m·c / m, and the emulated wrist and the exported descriptions
+    carry it there. None: not known."""
 
     @model_validator(mode="after")
     def _integrable(self) -> Plant:
@@ -80,4 +89,24 @@ class Plant(Section):
                 f"{STALL_DAMPING_NMS:g}) makes the emulated wrist unstable at its "
                 f"{PLANT_STEP_S * 1e3:g} ms step (allowed: armature_kgm2 ≥ {least:.3g} for "
                 "these kt_nm_per_a and resistance_ohm)")
+        if self.payload_kg is not None:
+            if self.payload_moment_kgmm is None:
+                raise ValueError("plant.payload_kg needs plant.payload_moment_kgmm (where the "
+                                 "payload sits: commissioning fits it)")
+            centre = self.payload_centre_mm
+            assert centre is not None
+            if max(abs(c) for c in centre) > MAX_PAYLOAD_CENTRE_MM:
+                raise ValueError(
+                    f"plant.payload_moment_kgmm / payload_kg puts the payload's centre at "
+                    f"({', '.join(f'{c:.0f}' for c in centre)}) mm, beyond "
+                    f"±{MAX_PAYLOAD_CENTRE_MM:g} mm of the wrist's centre: check both")
         return self
+
+    @property
+    def payload_centre_mm(self) -> tuple[float, float, float] | None:
+        """Where the payload sits in the platform's frame, mm: m·c / m (None: no mass)."""
+        if self.payload_kg is None or self.payload_moment_kgmm is None:
+            return None
+        m = float(self.payload_kg)
+        c = [float(x) / m for x in self.payload_moment_kgmm]
+        return (c[0], c[1], c[2])

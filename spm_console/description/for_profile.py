@@ -29,6 +29,11 @@ def sources(profile: Profile) -> str:
     for key in USED:
         desc = (Plant.model_fields[key].description or "").replace("\n", " ")
         lines.append(f"[plant] {key} = {getattr(profile.plant, key):g}: {desc}")
+    centre = profile.plant.payload_centre_mm
+    if centre is not None:
+        lines.append(f"[plant] payload_kg = {profile.plant.payload_kg:g} at m·c / m = ("
+                     + ", ".join(f"{c:.1f}" for c in centre) + ") mm in the platform frame "
+                     "(payload_moment_kgmm / payload_kg): a solid sphere welded to the platform")
     return "\n  ".join(lines)
 
 

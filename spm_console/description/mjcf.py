@@ -105,6 +105,10 @@ class PlantParams:
     link_radius_m: float
     backlash_rad: float = 0.0
     """Play of the gear between the rotor and the output shaft, rad (0: rigid)."""
+    payload_kg: float = 0.0
+    """A payload the profile names (``[plant] payload_kg``), kg (0: none)."""
+    payload_com_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Its centre in the platform frame, m."""
     capsule_m: float = 0.008
     """Radius of the capsules that carry the links' mass, m (their inertia only)."""
     timestep_s: float = PLANT_STEP_S
@@ -115,10 +119,14 @@ class PlantParams:
 
 def plant_params(plant: Plant) -> PlantParams:
     """The ``[plant]`` section in SI units."""
+    centre = plant.payload_centre_mm
     return PlantParams(plant.supply_v, plant.kt_nm_per_a, plant.resistance_ohm,
                        plant.armature_kgm2, plant.coulomb_nm, plant.viscous_nms,
                        plant.backdrive_friction_nm, plant.link_mass_kg, plant.platform_mass_kg,
-                       plant.link_radius_mm / 1000.0, math.radians(plant.backlash_deg))
+                       plant.link_radius_mm / 1000.0, math.radians(plant.backlash_deg),
+                       payload_kg=0.0 if centre is None else float(plant.payload_kg or 0.0),
+                       payload_com_m=(0.0, 0.0, 0.0) if centre is None else
+                       (centre[0] / 1000.0, centre[1] / 1000.0, centre[2] / 1000.0))
 
 
 def xml_comment(text: str) -> str:
@@ -193,17 +201,23 @@ def _envelopes(model: SpmModel, links: LinkModel | None, leg: int, proximal: boo
 
 
 def _platform_extras(model: SpmModel, params: PlantParams, body: AsBuiltBody | None) -> str:
-    """The IMU's site and a payload, inside the platform's body."""
+    """The IMU's site and a payload (the wrist as built's, else the profile's), inside the
+    platform's body."""
     if body is None:
-        return ""
+        return _payload(params.payload_kg, params.payload_com_m)
     out = (f'<site name="{names.IMU_SITE}" pos="{_vec(imu_position(model, params))}" '
            f'quat="{_vec(_quat_wxyz(body.imu_rotation))}" size="0.005"/>')
-    if body.payload_kg > 0.0:
-        inertia = 0.4 * body.payload_kg * PAYLOAD_RADIUS_M**2  # a solid sphere's
-        out += (f'<body name="{names.PAYLOAD}" pos="{_vec(np.asarray(body.payload_com_m))}">'
-                f'<inertial pos="0 0 0" mass="{body.payload_kg:.12g}" '
-                f'diaginertia="{inertia:.6g} {inertia:.6g} {inertia:.6g}"/></body>')
-    return out
+    return out + _payload(body.payload_kg, body.payload_com_m)
+
+
+def _payload(kg: float, com_m: tuple[float, float, float]) -> str:
+    """A payload body of ``kg`` centred at ``com_m`` (platform frame, m); "" for none."""
+    if kg <= 0.0:
+        return ""
+    inertia = 0.4 * kg * PAYLOAD_RADIUS_M**2  # a solid sphere's
+    return (f'<body name="{names.PAYLOAD}" pos="{_vec(np.asarray(com_m))}">'
+            f'<inertial pos="0 0 0" mass="{kg:.12g}" '
+            f'diaginertia="{inertia:.6g} {inertia:.6g} {inertia:.6g}"/></body>')
 
 
 def _jigs(params: PlantParams, body: AsBuiltBody | None) -> str:

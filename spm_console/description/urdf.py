@@ -27,7 +27,13 @@ from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.rotations import matrix_rpy
 from spm_console.description import names
 from spm_console.description.inertia import MassProperties, capsule, combined
-from spm_console.description.mjcf import PlantParams, body_capsules, envelope_segments, xml_comment
+from spm_console.description.mjcf import (
+    PAYLOAD_RADIUS_M,
+    PlantParams,
+    body_capsules,
+    envelope_segments,
+    xml_comment,
+)
 
 F = NDArray[np.float64]
 
@@ -118,6 +124,13 @@ def wrist_urdf(model: SpmModel, params: PlantParams, limits_rad: F,
     out.append(link(names.PLATFORM))
     out.append(joint(names.platform_joint(0), "continuous", names.distal_link(0), names.PLATFORM,
                      v[0]))
+    if params.payload_kg > 0.0:  # the profile's payload, welded to the platform
+        inertia = 0.4 * params.payload_kg * PAYLOAD_RADIUS_M**2  # a solid sphere's
+        sphere = MassProperties(params.payload_kg, np.zeros(3), np.eye(3) * inertia)
+        out.append(f'<link name="{names.PAYLOAD}">{_inertial(sphere)}</link>')
+        out.append(f'<joint name="{names.PAYLOAD}_weld" type="fixed"><parent '
+                   f'link="{names.PLATFORM}"/><child link="{names.PAYLOAD}"/><origin '
+                   f'xyz="{_vec(np.asarray(params.payload_com_m))}" rpy="0 0 0"/></joint>')
     out.append(f"<!-- legs 2 and 3 meet the platform about v2 and v3 (joints "
                f"{names.platform_joint(1)} and {names.platform_joint(2)} of the logs); a tree "
                f"cannot close them, the joint states do -->")

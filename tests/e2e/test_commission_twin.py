@@ -58,7 +58,8 @@ def test_commission_finds_the_twin_as_built(twin: dict[str, object], tmp_path: P
     assert twin["imu_port"] and twin["as_built"]
     out = tmp_path / "built.toml"
     rc = main(["commission", "--profile", str(AGILE), "--port", str(twin["port"]),
-               "--imu-port", str(twin["imu_port"]), "--jig", "--out", str(out), "--json"])
+               "--imu-port", str(twin["imu_port"]), "--jig", "--payload-kg", "0.3", "--out",
+               str(out), "--json"])
     d = json.loads(capsys.readouterr().out)
     assert rc == 0, d
     assert [(leg["leg"], leg["id"], leg["direction"]) for leg in d["legs"]] == [
@@ -82,5 +83,11 @@ def test_commission_finds_the_twin_as_built(twin: dict[str, object], tmp_path: P
             payload["compliance_deg_per_nm"], abs=1e-4)
     else:
         assert written.servo.load_deg_per_nm is None  # the profile's own: none
+    # the mass as weighed, beside m·c: the payload's centre m·c / m, written
+    assert written.plant.payload_kg == 0.3 and d["payload_kg"] == 0.3
+    centre = np.asarray(d["payload_centre_mm"])
+    np.testing.assert_allclose(centre, np.asarray(written.plant.payload_moment_kgmm) / 0.3)
+    assert (np.abs(centre - np.asarray(built.payload_com_mm))
+            <= 3.0 * np.asarray(payload["first_moment_std_kgmm"]) / 0.3 + 0.2).all(), centre
     assert payload["rest_offset_deg"] is not None
     assert (written.settle.duration_s > 0) == (abs(payload["rest_offset_deg"]) >= 0.044)

@@ -123,16 +123,20 @@ def friction_seen(report: PayloadReport) -> bool:
     return f is not None and abs(f) >= SETTLE_FRICTION_DEG
 
 
-def with_load_model(profile: Profile, report: PayloadReport) -> Profile:
+def with_load_model(profile: Profile, report: PayloadReport,
+                    payload_kg: float | None = None) -> Profile:
     """``profile`` with the load model the fit determines: ``[plant] payload_moment_kgmm``
     (kg·mm, 0.1) when a payload is seen, ``[servo] load_deg_per_nm`` (0.0001) when the
     compliance is known, and settling at the goal (``[settle] duration_s``,
     :data:`SETTLE_S`) when the friction leaves the drives off their goals and the profile
-    does not settle; what is not determined is kept as the profile has it."""
+    does not settle; with ``payload_kg`` (weighed), ``[plant] payload_kg`` beside the first
+    moment (the payload then sits at m·c / m); what is not determined is kept as the profile
+    has it."""
     plant, servo, settle = profile.plant, profile.servo, profile.settle
     if payload_seen(report):
         moment = tuple(round(float(x) * 1e3, 1) for x in report.fit.first_moment_kgm)
-        plant = plant.model_copy(update={"payload_moment_kgmm": moment})
+        plant = plant.model_copy(update={"payload_moment_kgmm": moment,
+                                         "payload_kg": payload_kg or plant.payload_kg})
     if compliance_known(report):
         servo = servo.model_copy(update={
             "load_deg_per_nm": round(report.fit.compliance_deg_per_nm, 4)})

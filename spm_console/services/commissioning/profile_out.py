@@ -64,6 +64,9 @@ def _load_values(result: Commissioned, base: Profile) -> dict[tuple[str, str], V
     moment = built.plant.payload_moment_kgmm
     if moment is not None and moment != base.plant.payload_moment_kgmm:
         out[("plant", "payload_moment_kgmm")] = list(moment)
+    mass = built.plant.payload_kg
+    if mass is not None and mass != base.plant.payload_kg:
+        out[("plant", "payload_kg")] = mass
     load = built.servo.load_deg_per_nm
     if load is not None and load != base.servo.load_deg_per_nm:
         out[("servo", "load_deg_per_nm")] = load
@@ -151,6 +154,15 @@ def commissioned_lines(result: Commissioned) -> list[str]:
             lines.append("  load model written: " + ", ".join(written) if written else
                          "  load model not written: the offsets do not determine it (the "
                          "profile's own kept)")
-            lines.append("  the payload's mass alone is not seen by statics: [plant] keeps "
-                         "its masses, the emulated wrist carries no payload")
+            mass = result.profile.plant.payload_kg
+            centre = result.profile.plant.payload_centre_mm
+            if mass is not None and centre is not None:
+                sd = f.first_moment_std_kgm * 1e3 / mass
+                lines.append(f"  payload {mass:g} kg (weighed) centred at [" + ", ".join(
+                    f"{c:.1f} ± {e:.1f}" for c, e in zip(centre, sd, strict=True))
+                    + "] mm (m·c / m): the twin and the exports carry it")
+            else:
+                lines.append("  the payload's mass alone is not seen by a wrist turning about a "
+                             "point (give --payload-kg, weighed): the emulated wrist carries no "
+                             "payload")
     return lines

@@ -46,6 +46,9 @@ class CommissionRequest:
     """Where to write the profile (None: beside the profile, never over a file)."""
     logs_root: str | Path | None = None
     """The run logs' root (None: ``$SPM_CONSOLE_LOGS`` or ``logs/``)."""
+    payload_kg: float | None = None
+    """The payload's mass as weighed, kg: with the first moment the IMU stage fits, it is
+    written (``[plant] payload_kg``) and places the payload (None: not known)."""
 
 
 @dataclass(frozen=True)
@@ -82,7 +85,8 @@ def run_commissioning(profile: Profile, profile_path: Path, req: CommissionReque
                 prior = (None if result.rest_zero is None
                          else result.rest_zero.fit.theta_std_deg)
                 result = refined(result, refine_with_imu(result.profile, req.port, imu,
-                                                         staged, stop, req.logs_root, prior))
+                                                         staged, stop, req.logs_root, prior),
+                                 req.payload_kg)
         finally:
             if imu is not None:
                 imu.close()

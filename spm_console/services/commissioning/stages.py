@@ -316,11 +316,13 @@ def _asked(ident: int, nudge: Callable[[int, float], object], ask: Ask,
             return operator_match(ident, int(leg), seen, motion, MAP_NUDGE_DEG)
 
 
-def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
+def refined(result: Commissioned, refinement: Refinement,
+            payload_kg: float | None = None) -> Commissioned:
     """``result`` with each tick offset moved by the horn offset the IMU stage found beyond
     the jig's zero (true θ = θ read + δ, so the zero moves by −d·δ ticks): the nearest whole
     tick, and the rest as the joint's ``tick_trim``; the link arcs and the load model (the
-    payload's first moment, the drive's compliance) where the stage determined them."""
+    payload's first moment, the drive's compliance) where the stage determined them; with the
+    payload's weighed mass ``payload_kg`` (kg), that mass where the first moment was written."""
     if result.tick_offsets is None:
         raise BadInputError("commission: the IMU stage refines a zero (the jig's, or the IMU's at "
                             "rest); there is none")
@@ -335,7 +337,7 @@ def refined(result: Commissioned, refinement: Refinement) -> Commissioned:
     if refinement.arcs_deg is not None:
         profile = with_arcs(profile, *refinement.arcs_deg)
     if refinement.payload is not None:
-        profile = _validated(with_load_model(profile, refinement.payload))
+        profile = _validated(with_load_model(profile, refinement.payload, payload_kg))
     return replace(result, tick_offsets=new, tick_trims=trims, refinement=refinement,
                    profile=profile)
 

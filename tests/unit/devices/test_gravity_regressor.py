@@ -74,3 +74,28 @@ def test_rotating_the_gravity_about_a_fixed_wrist_is_a_different_load() -> None:
     y_down = gravity_regressor(spm, theta, R, -UP)
     np.testing.assert_allclose(y_down, -y_up)
     assert math.isfinite(float(np.abs(y_up).max())) and np.abs(y_up).max() > 0
+
+
+def test_a_weighed_payload_rides_the_twin_where_the_load_model_puts_it() -> None:
+    """``[plant] payload_kg`` beside the fitted first moment: the profile's physical twin
+    carries the payload at m·c / m, and MuJoCo's ∂U/∂θ of that twin is the load model's
+    holding torque (which knows m·c only) at poses across the workspace."""
+    from spm_console.config.schema import Profile
+    from spm_console.description.mjcf import plant_params
+    from spm_console.description.weight import holding_torque_nm
+
+    base = load_profile(ROOT / "profiles" / "agile_wrist.toml")
+    plant = base.plant.model_copy(update={"payload_moment_kgmm": (9.0, -12.0, 36.0),
+                                          "payload_kg": 0.3})
+    profile = Profile.model_validate(base.model_copy(update={"plant": plant}).model_dump())
+    assert profile.plant.payload_centre_mm == pytest.approx((30.0, -40.0, 120.0))
+    w = PhysicalWrist(model_of(profile), plant_params(profile.plant))
+    w.mj.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    assert w.mj.body("payload").mass[0] == pytest.approx(0.3)
+    poses_deg = np.array([[127.53, 83.23, 85.25], [100.0, 120.0, 140.0], [150.0, 110.0, 95.0]])
+    loaded = holding_torque_nm(profile, poses_deg)
+    bare = holding_torque_nm(base, poses_deg)
+    for n, t in enumerate(np.radians(poses_deg)):
+        dU = _energy_gradient(w, t)
+        assert np.abs(loaded[n] - bare[n]).max() > 0.02  # the payload does load the motors
+        np.testing.assert_allclose(loaded[n], dU, atol=2e-4 * max(1.0, np.abs(dU).max()))

@@ -152,3 +152,26 @@ def test_the_imu_stage_holds_its_poses_without_settling(
         stage.refine_with_imu(settles, "/dev/null", object(), lambda _m: None)  # type: ignore[arg-type]
     assert len(seen) == 1 and seen[0].settle.duration_s == 0.0
     assert seen[0].bus == agile.bus and seen[0].servo == agile.servo
+
+
+def test_a_weighed_mass_is_written_beside_the_first_moment_it_places(agile: Profile) -> None:
+    """``payload_kg`` (weighed) goes with the fitted m·c: the payload's centre is m·c / m.
+    Without a first moment it is not written; the profile refuses a mass without one, or one
+    that puts the centre beyond ±300 mm; a profile without it keeps its hash."""
+    clear = _report((0.003, -0.0015, 0.036), 0.001, 0.05)
+    built = with_load_model(agile, clear, 0.3)
+    assert built.plant.payload_kg == 0.3
+    assert built.plant.payload_centre_mm == pytest.approx((10.0, -5.0, 120.0))
+    unclear = _report((0.001, 0.0, 0.002), 0.002, 0.5)
+    assert with_load_model(agile, unclear, 0.3).plant.payload_kg is None
+    assert _with(agile, S_KGMM).digest() == Profile.model_validate(
+        _with(agile, S_KGMM).model_dump(mode="python")).digest()
+    weighed = Profile.model_validate(built.model_dump(mode="python"))
+    assert weighed.digest() != _with(agile, built.plant.payload_moment_kgmm).digest()
+    for moment, kg, why in ((None, 0.3, "needs plant.payload_moment_kgmm"),
+                            ((0.0, 0.0, 400.0), 1.0, "beyond ±300 mm"),
+                            (S_KGMM, 0.0, "greater than 0")):
+        plant = agile.plant.model_copy(update={"payload_moment_kgmm": moment, "payload_kg": kg})
+        with pytest.raises(ValueError, match=why):
+            Profile.model_validate(agile.model_copy(update={"plant": plant})
+                                   .model_dump(mode="python"))

@@ -1,0 +1,33 @@
+"""``commission --payload-kg``: a weighed mass in (0, 2] kg, and only with the IMU stage that
+places it; anything else is refused (exit 4) before any port is opened."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from spm_console.cli.main import main
+from spm_console.errors import ExitCode
+
+
+@pytest.mark.parametrize(("value", "extra", "why"), [
+    ("0", [], "--payload-kg must be in (0, 2] kg"),
+    ("-1", [], "--payload-kg must be in (0, 2] kg"),
+    ("2.5", [], "--payload-kg must be in (0, 2] kg"),
+    ("nan", [], "--payload-kg"),
+    ("0.3", ["--no-imu-fit"], "needs the IMU stage"),
+])
+def test_a_bad_payload_mass_is_refused_before_anything_opens(
+        capsys: pytest.CaptureFixture[str], value: str, extra: list[str], why: str) -> None:
+    rc = main(["commission", "--port", "unix:/nonexistent/bus", "--imu-port", "/nonexistent/imu",
+               "--payload-kg", value, *extra, "--json"])
+    out = capsys.readouterr()
+    assert rc == ExitCode.BAD_INPUT, out
+    assert why in json.loads(out.out)["error"]
+
+
+def test_without_an_imu_a_payload_mass_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["commission", "--port", "unix:/nonexistent/bus", "--payload-kg", "0.3", "--json"])
+    assert rc == ExitCode.BAD_INPUT
+    assert "needs the IMU stage" in json.loads(capsys.readouterr().out)["error"]
