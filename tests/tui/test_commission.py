@@ -77,6 +77,30 @@ async def test_bad_ports_are_refused_with_the_reason_and_nothing_starts(
         assert not app.screen.query_one("#stages", RichLog).lines
 
 
+@pytest.mark.parametrize(("mass", "imu_stage", "why"), [
+    ("0", True, "payload mass"),
+    ("2.5", True, "payload mass"),
+    ("abc", True, "payload mass"),
+    ("0.3", False, "needs the IMU stage"),
+])
+async def test_a_bad_payload_mass_is_refused_and_nothing_starts(
+        console, mass: str, imu_stage: bool, why: str) -> None:  # type: ignore[no-untyped-def]
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        await pilot.press("0")
+        await settle(pilot)
+        _fill(app, "/dev/ttyUSB0", "/dev/ttyUSB1")
+        app.screen.query_one("#jig", TickBox).value = True
+        app.screen.query_one("#imu-stage", TickBox).value = imu_stage
+        app.screen.query_one("#payload-kg", TextField).value = mass
+        await pilot.press("s")
+        await pilot.pause()
+        assert isinstance(app.screen, CommissionScreen)  # no dialog
+        assert why in status_of(app) and "nothing started" in status_of(app), status_of(app)
+        assert app.screen.busy_op == "" and not app.moving
+
+
 async def test_an_imu_port_that_does_not_open_is_shown_on_the_step(
         console, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     app = console()

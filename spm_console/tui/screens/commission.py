@@ -31,8 +31,9 @@ from textual.content import Content
 from textual.message import Message
 from textual.widgets import Label, RichLog, Static
 
+from spm_console.config.plant import MAX_PAYLOAD_KG
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
-from spm_console.errors import SpmError
+from spm_console.errors import BadInputError, SpmError
 from spm_console.tui.messages import CommissionDone, Outcome
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.switch import SwitchRequest
@@ -40,6 +41,7 @@ from spm_console.tui.widgets.answer import asker
 from spm_console.tui.widgets.checkbox import TickBox
 from spm_console.tui.widgets.confirm import LongConfirm
 from spm_console.tui.widgets.field import TextField
+from spm_console.tui.widgets.number import NumberRule
 
 if TYPE_CHECKING:
     from spm_console.services.client import EstopRelay
@@ -67,6 +69,11 @@ def port_problem(text: str, what: str) -> str:
     return ""
 
 
+#: The payload's mass field: weighed, kg (empty: not known).
+PAYLOAD_RULE = NumberRule("payload mass", "a mass in kg (weighed)", " kg", lo=0.0,
+                          hi=MAX_PAYLOAD_KG, lo_open=True)
+
+
 @dataclass(frozen=True)
 class CommissionForm:
     """What the operator asked for."""
@@ -75,6 +82,12 @@ class CommissionForm:
     imu: str
     jig: bool
     imu_stage: bool
+    payload_kg: str = ""
+    """As typed (empty: not weighed)."""
+
+    def payload(self) -> float | None:
+        """The payload's mass, kg (None: not given); BadInputError for a bad one."""
+        return PAYLOAD_RULE.parse(self.payload_kg) if self.payload_kg.strip() else None
 
 
 class CommissionStage(Message):
@@ -123,6 +136,9 @@ class CommissionScreen(StepScreen):
                           False, id="jig")
             yield TickBox("IMU stage: verified poses across the region P, fit and verify",
                           True, id="imu-stage")
+            with Horizontal(classes="param"):
+                yield Label("Payload (kg)", classes="param-label", markup=False)
+                yield TextField("", placeholder="weighed; empty: not known", id="payload-kg")
             yield Static(id="commission-reason", markup=False)
             yield Static(HELP_LINE, id="commission-help", markup=False)
             yield RichLog(id="stages", markup=False, highlight=False, wrap=True,
@@ -137,7 +153,8 @@ class CommissionScreen(StepScreen):
         return CommissionForm(self.query_one("#bus-port", TextField).value,
                               self.query_one("#imu-port", TextField).value,
                               self.query_one("#jig", TickBox).value,
-                              self.query_one("#imu-stage", TickBox).value)
+                              self.query_one("#imu-stage", TickBox).value,
+                              self.query_one("#payload-kg", TextField).value)
 
     def form_problem(self, f: CommissionForm) -> str:
         """Why ``f`` cannot start ("" when it can)."""
@@ -149,6 +166,12 @@ class CommissionScreen(StepScreen):
         if f.imu_stage and not f.imu:
             return ("the IMU stage needs the IMU: type its port, or untick the IMU stage (the "
                     "map then asks you which leg each nudge moved)")
+        try:
+            mass = f.payload()
+        except BadInputError as exc:
+            return exc.message
+        if mass is not None and not f.imu_stage:
+            return "the payload's mass needs the IMU stage (it fits where the payload sits)"
         return ""
 
     # ------------------------------------------------------------------ start
@@ -191,6 +214,9 @@ class CommissionScreen(StepScreen):
             lines.append(f"4. IMU stage: homing, then {FIT_POSES + HELD_OUT} verified poses "
                          f"across the workspace's region P at up to {POSE_SPEED_DEGPS:g}°/s; "
                          "fit and held-out verification.")
+        if f.payload_kg.strip():
+            lines.append(f"Payload {f.payload():g} kg (weighed): placed at the IMU stage's "
+                         "first moment m·c / m, written as [plant] payload_kg.")
         if self._release_needed(f.bus):
             lines.append(f"The console's own connection to {f.bus} is closed first and opened "
                          "again after.")
@@ -311,7 +337,8 @@ def commission_blocking(profile: Profile, profile_path: Path | None, f: Commissi
     from spm_console.services.commissioning.profile_out import commissioned_lines
     from spm_console.services.commissioning.run import CommissionRequest, run_commissioning
 
-    req = CommissionRequest(f.bus, f.imu or None, f.jig, f.imu_stage, logs_root=logs_root)
+    req = CommissionRequest(f.bus, f.imu or None, f.jig, f.imu_stage, logs_root=logs_root,
+                            payload_kg=f.payload())
     done = run_commissioning(profile, profile_path or DEFAULT_PROFILE, req, on_stage, stop,
                              ask)
     result, written = done.result, done.written
