@@ -102,6 +102,7 @@ def test_commission_maps_zeroes_and_writes_the_wrist_as_built(
     assert math.dist(em.joint_deg(), start) < BALL_DEG  # the nudges came back
 
 
+@pytest.mark.slow  # the swings and a zero's fit: half a minute on the wall clock
 def test_without_a_jig_the_imu_zeroes_the_wrist_where_it_rests(
         wrist: tuple[EmulatorHandle, EmulatedBno055, Profile], tmp_path: Path,
         capsys: pytest.CaptureFixture[str]) -> None:

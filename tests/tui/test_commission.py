@@ -1,6 +1,5 @@
-"""Step 0 commissions the wrist as built (key 0, F10): the ports are checked before anything
-starts (empty, overlong, the same port twice, the IMU stage without the IMU: refused with the
-reason, no dialog, no worker); started after a yes/no, each stage's line streams into the
+"""Step 0 commissions the wrist as built (key 0, F10; its form's refusals:
+``test_commission_form.py``): started after a yes/no, each stage's line streams into the
 step's log, the result stays on the step, the profile is written beside the profile in use
 with the ids as built, and "Use the commissioned profile now?" restarts the console on it
 with the workspace kept. SPACE reaches commissioning's own motion process."""
@@ -25,7 +24,7 @@ from spm_console.config.schema import Profile
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
 from spm_console.motion.logs.runlog import load_run
 from spm_console.services.commissioning.imu_stage import FIT_POSES, HELD_OUT
-from spm_console.tui.screens.commission import MAX_PORT_CHARS, CommissionScreen
+from spm_console.tui.screens.commission import CommissionScreen
 from spm_console.tui.switch import SwitchRequest
 from spm_console.tui.widgets.answer import AnswerScreen
 from spm_console.tui.widgets.checkbox import TickBox
@@ -46,59 +45,6 @@ TWIN = ROOT / "tests" / "data" / "as_built" / "twin.toml"
 def _fill(app, bus: str, imu: str) -> None:  # type: ignore[no-untyped-def]
     app.screen.query_one("#bus-port", TextField).value = bus
     app.screen.query_one("#imu-port", TextField).value = imu
-
-
-@pytest.mark.parametrize(("bus", "imu", "jig", "why"), [
-    ("", "/dev/ttyUSB1", True, "servo bus: empty"),
-    ("/dev/ttyUSB0", "", True, "the IMU stage needs the IMU"),
-    ("/dev/ttyUSB0", "   ", True, "IMU port: empty"),
-    ("/dev/" + "x" * MAX_PORT_CHARS, "/dev/ttyUSB1", True, f"at most {MAX_PORT_CHARS}"),
-    ("/dev/ttyUSB0", "/dev/tty USB1", True, "no spaces"),
-    ("/dev/ttyUSB0", "/dev/ttyUSB0", True, "ports of their own"),
-])
-async def test_bad_ports_are_refused_with_the_reason_and_nothing_starts(
-        console, bus: str, imu: str, jig: bool, why: str) -> None:  # type: ignore[no-untyped-def]
-    app = console()
-    async with app.run_test(size=SMALL) as pilot:
-        await settle(pilot)
-        await pilot.press("0")
-        await settle(pilot)
-        assert isinstance(app.screen, CommissionScreen)
-        assert app.screen.query_one("#bus-port", TextField).value == ""  # emulated: no prefill
-        assert app.screen.query_one("#imu-stage", TickBox).value is True
-        _fill(app, bus, imu)
-        app.screen.query_one("#jig", TickBox).value = jig
-        await pilot.press("s")
-        await pilot.pause()
-        assert isinstance(app.screen, CommissionScreen)  # no dialog
-        assert why in status_of(app) and "nothing started" in status_of(app), status_of(app)
-        assert why in text_of(app, "#commission-reason")
-        assert app.screen.busy_op == "" and not app.moving
-        assert not app.screen.query_one("#stages", RichLog).lines
-
-
-@pytest.mark.parametrize(("mass", "imu_stage", "why"), [
-    ("0", True, "payload mass"),
-    ("2.5", True, "payload mass"),
-    ("abc", True, "payload mass"),
-    ("0.3", False, "needs the IMU stage"),
-])
-async def test_a_bad_payload_mass_is_refused_and_nothing_starts(
-        console, mass: str, imu_stage: bool, why: str) -> None:  # type: ignore[no-untyped-def]
-    app = console()
-    async with app.run_test(size=SMALL) as pilot:
-        await settle(pilot)
-        await pilot.press("0")
-        await settle(pilot)
-        _fill(app, "/dev/ttyUSB0", "/dev/ttyUSB1")
-        app.screen.query_one("#jig", TickBox).value = True
-        app.screen.query_one("#imu-stage", TickBox).value = imu_stage
-        app.screen.query_one("#payload-kg", TextField).value = mass
-        await pilot.press("s")
-        await pilot.pause()
-        assert isinstance(app.screen, CommissionScreen)  # no dialog
-        assert why in status_of(app) and "nothing started" in status_of(app), status_of(app)
-        assert app.screen.busy_op == "" and not app.moving
 
 
 async def test_an_imu_port_that_does_not_open_is_shown_on_the_step(
