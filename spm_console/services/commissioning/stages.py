@@ -327,8 +327,10 @@ def refined(result: Commissioned, refinement: Refinement,
         raise BadInputError("commission: the IMU stage refines a zero (the jig's, or the IMU's at "
                             "rest); there is none")
     tpt = result.profile.bus.ticks_per_turn
-    zeros = [off - m.direction * d * tpt / 360.0 for off, m, d in
-             zip(result.tick_offsets, result.legs, refinement.horn_deg, strict=True)]
+    # from the zero the stage ran on: the whole tick and its trim (a zero at rest has one)
+    zeros = [off + trim - m.direction * d * tpt / 360.0 for off, trim, m, d in
+             zip(result.tick_offsets, result.tick_trims, result.legs, refinement.horn_deg,
+                 strict=True)]
     whole = [round(z) for z in zeros]
     new = (whole[0] % tpt, whole[1] % tpt, whole[2] % tpt)
     trims = (round(zeros[0] - whole[0], 3), round(zeros[1] - whole[1], 3),
