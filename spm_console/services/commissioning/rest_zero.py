@@ -121,13 +121,20 @@ def zero_at_rest(profile: Profile, legs: Sequence[LegMatch], swings: Sequence[Sw
     if worst > MAX_ZERO_STD_DEG:
         raise BusError(f"commission: the zero at rest is known to ±{worst:.2f}° (1σ), more than "
                        f"{MAX_ZERO_STD_DEG:g}°. Zero on the home jig (--jig). Nothing was written")
-    tpt = profile.bus.ticks_per_turn
     zeros = [float(r) - m.direction * th * tpd for r, m, th in zip(rest, legs, fit.theta_deg,
                                                                   strict=True)]
+    offsets, trims = ticks_and_trims(zeros, profile.bus.ticks_per_turn)
+    return RestZero(fit, offsets, trims)
+
+
+def ticks_and_trims(zeros: Sequence[float], ticks_per_turn: int
+                    ) -> tuple[tuple[int, int, int], tuple[float, float, float]]:
+    """Three zeros in (fractional) ticks as the profile holds them: the nearest whole tick,
+    modulo one turn (``tick_offset``), and the rest (``tick_trim``, −0.5..0.5, to 0.001)."""
     whole = [round(float(z)) for z in zeros]
-    trims = tuple(round(float(z - w), 3) for z, w in zip(zeros, whole, strict=True))
-    return RestZero(fit, (whole[0] % tpt, whole[1] % tpt, whole[2] % tpt),
-                    (trims[0], trims[1], trims[2]))
+    trims = [round(float(z) - w, 3) for z, w in zip(zeros, whole, strict=True)]
+    return ((whole[0] % ticks_per_turn, whole[1] % ticks_per_turn, whole[2] % ticks_per_turn),
+            (trims[0], trims[1], trims[2]))
 
 
 def rotation_noise_deg(samples: int = SWING_SAMPLES) -> float:

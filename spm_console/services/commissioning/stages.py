@@ -60,6 +60,7 @@ from spm_console.services.commissioning.rest_zero import (
     Swing,
     rotation_noise_deg,
     swing,
+    ticks_and_trims,
     zero_at_rest,
 )
 from spm_console.services.session import Session
@@ -331,10 +332,7 @@ def refined(result: Commissioned, refinement: Refinement,
     zeros = [off + trim - m.direction * d * tpt / 360.0 for off, trim, m, d in
              zip(result.tick_offsets, result.tick_trims, result.legs, refinement.horn_deg,
                  strict=True)]
-    whole = [round(z) for z in zeros]
-    new = (whole[0] % tpt, whole[1] % tpt, whole[2] % tpt)
-    trims = (round(zeros[0] - whole[0], 3), round(zeros[1] - whole[1], 3),
-             round(zeros[2] - whole[2], 3))
+    new, trims = ticks_and_trims(zeros, tpt)
     profile = _with_wiring(result.profile, result.legs, new, trims)
     if refinement.arcs_deg is not None:
         profile = with_arcs(profile, *refinement.arcs_deg)
