@@ -30,11 +30,13 @@ Figures per wrist, against the twin's truth (:func:`~spm_console.devices.emulato
 
 from __future__ import annotations
 
+import contextlib
 import json
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -241,18 +243,29 @@ def _orientation_error(profile: Profile, truth: TrueWrist, thetas: np.ndarray) -
     return worst
 
 
-def _one(profile: Profile, table: dict[str, object], thetas: np.ndarray, folder: Path) -> Outcome:
-    path = folder / "as_built.toml"
+@contextlib.contextmanager
+def _twin(profile: Profile, table: dict[str, object], path: Path,
+          *options: str) -> Iterator[tuple[TrueWrist, dict[str, str]]]:
+    """The physical twin of the wrist ``table`` describes (written to ``path``), with its IMU,
+    in a process of its own (``emulate --as-built`` and ``options``): its truth and the first
+    JSON line it printed (``port``, ``imu_port``); stopped (SIGINT) on the way out."""
     path.write_text(tomli_w.dumps(table))
     truth = true_wrist(profile, load_as_built(path))
     proc = subprocess.Popen([sys.executable, "-m", "spm_console", "emulate", "--plant", "physical",
-                             "--as-built", str(path), "--imu", "--jig", "--link", "socket",
-                             "--duration", "900", "--truth-log", str(folder / "truth.csv"),
-                             "--json"],
+                             "--as-built", str(path), "--imu", "--link", "socket",
+                             "--duration", "900", *options, "--json"],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
         assert proc.stdout is not None
-        head = json.loads(proc.stdout.readline())
+        yield truth, json.loads(proc.stdout.readline())
+    finally:
+        proc.send_signal(2)
+        proc.communicate(timeout=30)
+
+
+def _one(profile: Profile, table: dict[str, object], thetas: np.ndarray, folder: Path) -> Outcome:
+    with _twin(profile, table, folder / "as_built.toml", "--jig", "--truth-log",
+               str(folder / "truth.csv")) as (truth, head):
         imu = Bno055Source(head["imu_port"])
         try:
             jig: Commissioned = commission(profile, head["port"], imu, True, lambda _m: None)
@@ -260,9 +273,6 @@ def _one(profile: Profile, table: dict[str, object], thetas: np.ndarray, folder:
         finally:
             imu.close()
         mvn, fast = _paper_runs(done, truth, head["port"], folder / "truth.csv", folder)
-    finally:
-        proc.send_signal(2)
-        proc.communicate(timeout=30)
     mapped = [(m.id, m.direction) for m in done.legs] == [(tj.id, tj.direction)
                                                           for tj in truth.joints]
     assert done.refinement is not None
@@ -299,16 +309,7 @@ def _no_jig(profile: Profile, table: dict[str, object], thetas: np.ndarray,
             folder: Path) -> NoJig:
     """Commission the wrist of ``table`` as an operator without a jig would: powered on where
     it rests, the IMU on the platform."""
-    path = folder / "as_built_no_jig.toml"
-    path.write_text(tomli_w.dumps(table))
-    truth = true_wrist(profile, load_as_built(path))
-    proc = subprocess.Popen([sys.executable, "-m", "spm_console", "emulate", "--plant", "physical",
-                             "--as-built", str(path), "--imu", "--link", "socket",
-                             "--duration", "900", "--json"],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    try:
-        assert proc.stdout is not None
-        head = json.loads(proc.stdout.readline())
+    with _twin(profile, table, folder / "as_built_no_jig.toml") as (truth, head):
         imu = Bno055Source(head["imu_port"])
         try:
             rest = commission(profile, head["port"], imu, False, lambda _m: None)
@@ -318,9 +319,6 @@ def _no_jig(profile: Profile, table: dict[str, object], thetas: np.ndarray,
                                                  rest.rest_zero.fit.theta_std_deg))
         finally:
             imu.close()
-    finally:
-        proc.send_signal(2)
-        proc.communicate(timeout=30)
     assert done.refinement is not None
     return NoJig(_reading_error(joint_maps(rest.profile), truth),
                  max(rest.rest_zero.fit.theta_std_deg),
