@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import queue
+import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -98,16 +99,16 @@ def asker(app: App[Any], stop: EstopRelay, title: str,
         box: queue.Queue[str | None] = queue.Queue(1)
         screen = AnswerScreen(title, question, answers)
         app.call_from_thread(app.push_screen, screen, box.put)
-        waited = 0.0
+        t_end = time.monotonic() + timeout_s
         try:
             while True:
                 try:
                     answer = box.get(timeout=POLL_S)
                     break
                 except queue.Empty:
-                    waited += POLL_S
+                    pass
                 stop.check()
-                if waited >= timeout_s:
+                if time.monotonic() >= t_end:
                     raise BadInputError(f"{stop.what}: no answer within {timeout_s:g} s to "
                                         f"{question!r}")
         finally:
