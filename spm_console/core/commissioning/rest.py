@@ -28,7 +28,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from spm_console.core.commissioning.gravity import built_model
-from spm_console.core.kinematics.jacobian import j1_matrix, j2_diag
+from spm_console.core.kinematics.jacobian import jacobian
 from spm_console.core.kinematics.model import SpmModel, newton, platform_axes
 from spm_console.errors import SolverError
 
@@ -72,10 +72,7 @@ def leg_axes(model: SpmModel, theta_rad: F) -> F:
         raise ValueError(f"no pose at θ = {np.degrees(theta_rad).round(3).tolist()} deg: "
                          f"{r.reason}")
     v = platform_axes(r.pose.R, model.v_home)
-    w = model.geom.w(np.asarray(theta_rad, float))
-    j1 = j1_matrix(v, w)
-    j2 = np.diag(j2_diag(model.u, v, w))
-    return np.asarray(np.linalg.solve(j1, j2).T, float)
+    return np.asarray(jacobian(model.u, v, model.geom.w(np.asarray(theta_rad, float))).T, float)
 
 
 #: Largest joint step a pose is found by Newton from a known one (no continuation), rad.
