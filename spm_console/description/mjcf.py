@@ -57,6 +57,12 @@ F = NDArray[np.float64]
 PAYLOAD_RADIUS_M = 0.02
 
 
+def payload_inertia_kgm2(kg: float) -> float:
+    """A payload's inertia about its centre on each axis, kg·m²: a solid sphere's of
+    :data:`PAYLOAD_RADIUS_M` (the MJCF and the URDF give it the same)."""
+    return 0.4 * kg * PAYLOAD_RADIUS_M**2
+
+
 @dataclass(frozen=True)
 class AsBuiltBody:
     """How the wrist stands and what it carries as built, SI units (from an as-built file)."""
@@ -214,7 +220,7 @@ def _payload(kg: float, com_m: tuple[float, float, float]) -> str:
     """A payload body of ``kg`` centred at ``com_m`` (platform frame, m); "" for none."""
     if kg <= 0.0:
         return ""
-    inertia = 0.4 * kg * PAYLOAD_RADIUS_M**2  # a solid sphere's
+    inertia = payload_inertia_kgm2(kg)
     return (f'<body name="{names.PAYLOAD}" pos="{_vec(np.asarray(com_m))}">'
             f'<inertial pos="0 0 0" mass="{kg:.12g}" '
             f'diaginertia="{inertia:.6g} {inertia:.6g} {inertia:.6g}"/></body>')

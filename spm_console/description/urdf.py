@@ -28,10 +28,10 @@ from spm_console.core.kinematics.rotations import matrix_rpy
 from spm_console.description import names
 from spm_console.description.inertia import MassProperties, capsule, combined
 from spm_console.description.mjcf import (
-    PAYLOAD_RADIUS_M,
     PlantParams,
     body_capsules,
     envelope_segments,
+    payload_inertia_kgm2,
     xml_comment,
 )
 
@@ -125,8 +125,8 @@ def wrist_urdf(model: SpmModel, params: PlantParams, limits_rad: F,
     out.append(joint(names.platform_joint(0), "continuous", names.distal_link(0), names.PLATFORM,
                      v[0]))
     if params.payload_kg > 0.0:  # the profile's payload, welded to the platform
-        inertia = 0.4 * params.payload_kg * PAYLOAD_RADIUS_M**2  # a solid sphere's
-        sphere = MassProperties(params.payload_kg, np.zeros(3), np.eye(3) * inertia)
+        sphere = MassProperties(params.payload_kg, np.zeros(3),
+                                np.eye(3) * payload_inertia_kgm2(params.payload_kg))
         out.append(f'<link name="{names.PAYLOAD}">{_inertial(sphere)}</link>')
         out.append(f'<joint name="{names.PAYLOAD}_weld" type="fixed"><parent '
                    f'link="{names.PLATFORM}"/><child link="{names.PAYLOAD}"/><origin '
