@@ -25,6 +25,9 @@ Moment = Annotated[Real, Field(ge=-MAX_PAYLOAD_MOMENT_KGMM, le=MAX_PAYLOAD_MOMEN
 #: is half of it), and the farthest its centre may sit from the wrist's along an axis, mm.
 MAX_PAYLOAD_KG = 2.0
 MAX_PAYLOAD_CENTRE_MM = 300.0
+#: Largest base tilt about each axis, deg: a bench that is not level, not a wall mount.
+MAX_BASE_TILT_DEG = 10.0
+Tilt = Annotated[Real, Field(ge=-MAX_BASE_TILT_DEG, le=MAX_BASE_TILT_DEG)]
 
 
 class Plant(Section):
@@ -77,6 +80,11 @@ class Plant(Section):
     fixed point shows its first and second moments only). With ``payload_moment_kgmm`` it puts
     the payload's centre at m·c / m, and the emulated wrist and the exported descriptions
     carry it there. None: not known."""
+    base_tilt_deg: tuple[Tilt, Tilt] = (0.0, 0.0)
+    """How the base stands in the world, deg, each within ±10: turned about the world's x by
+    the first, then about its y by the second (R_tilt = R_y·R_x; commissioning fits it from
+    the gravity an IMU on the platform measures). The load model's gravity and the emulated
+    wrist's are turned with it. (0, 0): level, the base's z axis up."""
 
     @model_validator(mode="after")
     def _integrable(self) -> Plant:

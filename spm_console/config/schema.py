@@ -385,7 +385,7 @@ _NOT_DIGESTED: dict[str, set[str]] = {"workspace": {"refined_cover"}}
 _DIGESTED_UNLESS_DEFAULT: dict[str, dict[str, object]] = {
     "geometry": {"alpha1_leg_offset_deg": [0.0, 0.0, 0.0],
                  "alpha2_leg_offset_deg": [0.0, 0.0, 0.0]},
-    "plant": {"payload_moment_kgmm": None, "payload_kg": None},
+    "plant": {"payload_moment_kgmm": None, "payload_kg": None, "base_tilt_deg": [0.0, 0.0]},
     "emulator": {"clock": "real", "clock_rate": 0.0},
 }
 

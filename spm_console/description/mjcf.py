@@ -48,7 +48,7 @@ from spm_console.config.schema import Plant
 from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
 from spm_console.core.kinematics.loads import GRAVITY_MPS2
 from spm_console.core.kinematics.model import SpmModel
-from spm_console.core.kinematics.rotations import matrix_quaternion
+from spm_console.core.kinematics.rotations import matrix_quaternion, rpy_matrix
 from spm_console.description import names
 
 F = NDArray[np.float64]
@@ -83,6 +83,13 @@ class AsBuiltBody:
         return np.asarray(self.base_rotation.T @ np.array([0.0, 0.0, -GRAVITY_MPS2]), float)
 
 
+def base_rotation(tilt_deg: tuple[float, float]) -> F:
+    """World ← base (3, 3) of a base tilted by (about x, then about the world's y) deg:
+    R_y·R_x, as an as-built file's and a profile's ``base_tilt_deg`` mean it."""
+    return np.asarray(rpy_matrix(math.radians(tilt_deg[0]), math.radians(tilt_deg[1]), 0.0),
+                      float)
+
+
 def imu_position(model: SpmModel, params: PlantParams) -> F:
     """Where the IMU sits on the platform, m (platform frame): the centroid of the platform's
     triangle, r·(v1 + v2 + v3)/3 at home."""
@@ -115,6 +122,8 @@ class PlantParams:
     """A payload the profile names (``[plant] payload_kg``), kg (0: none)."""
     payload_com_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """Its centre in the platform frame, m."""
+    base_tilt_deg: tuple[float, float] = (0.0, 0.0)
+    """How the base stands (``[plant] base_tilt_deg``, :func:`base_rotation`), deg."""
     capsule_m: float = 0.008
     """Radius of the capsules that carry the links' mass, m (their inertia only)."""
     timestep_s: float = PLANT_STEP_S
@@ -132,7 +141,8 @@ def plant_params(plant: Plant) -> PlantParams:
                        plant.link_radius_mm / 1000.0, math.radians(plant.backlash_deg),
                        payload_kg=0.0 if centre is None else float(plant.payload_kg or 0.0),
                        payload_com_m=(0.0, 0.0, 0.0) if centre is None else
-                       (centre[0] / 1000.0, centre[1] / 1000.0, centre[2] / 1000.0))
+                       (centre[0] / 1000.0, centre[1] / 1000.0, centre[2] / 1000.0),
+                       base_tilt_deg=(float(plant.base_tilt_deg[0]), float(plant.base_tilt_deg[1])))
 
 
 def xml_comment(text: str) -> str:
@@ -302,7 +312,11 @@ def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = N
         f'solimp="0.99 0.999 0.001"/>' for j in (1, 2))
     motors = "\n".join(f'<motor name="{names.servo_actuator(i)}" joint="{names.motor_joint(i)}" '
                         f'gear="1" ctrllimited="false"/>' for i in range(3))
-    gravity = f"0 0 {-GRAVITY_MPS2:g}" if body is None else _vec(body.gravity_mps2)
+    # gravity in the base's frame: the as-built wrist's tilt, else the profile's
+    tilt = body.base_rotation if body is not None else (
+        None if params.base_tilt_deg == (0.0, 0.0) else base_rotation(params.base_tilt_deg))
+    gravity = (f"0 0 {-GRAVITY_MPS2:g}" if tilt is None else
+               _vec(tilt.T @ np.array([0.0, 0.0, -GRAVITY_MPS2])))
     return f"""<mujoco model="spm_wrist">
   <option timestep="{params.timestep_s:.6g}" gravity="{gravity}" integrator="implicitfast"/>
   <worldbody>

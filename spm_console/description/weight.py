@@ -3,13 +3,14 @@
 The bodies' first moments of mass come from the same capsules as the MJCF and URDF
 (``[plant]``'s link and platform masses), the platform's with the payload's first moment
 (``[plant] payload_moment_kgmm``, which commissioning fits) added; the regressor from the kinematics
-(:mod:`spm_console.core.kinematics.loads`). The base's z axis points up, as in the emulated
-wrist and the exported descriptions. Degrees at the interface, N·m.
+(:mod:`spm_console.core.kinematics.loads`). Gravity in the base's frame is the profile's
+(``[plant] base_tilt_deg``: level, the base's z axis up, unless it names a tilt), as in the
+emulated wrist. Degrees at the interface, N·m.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,12 +25,12 @@ from spm_console.core.kinematics.loads import (
 )
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.description import names
-from spm_console.description.mjcf import PlantParams, body_capsules, plant_params
+from spm_console.description.mjcf import PlantParams, base_rotation, body_capsules, plant_params
 
 F = NDArray[np.float64]
 
 UP = np.array([0.0, 0.0, 1.0])
-"""Against gravity, in the base frame."""
+"""Against gravity, in the frame of a level base."""
 #: The platform's three entries among the bodies' first moments (:data:`BODIES` order).
 PLATFORM = slice(3 * BODIES.index("platform"), 3 * BODIES.index("platform") + 3)
 _NAMES = (*(names.proximal_link(i) for i in range(3)), *(names.distal_link(i) for i in range(3)),
@@ -53,6 +54,8 @@ class Weight:
     model: SpmModel
     moments_kgm: F
     """(21,) first moments of the bodies at home, kg·m (:func:`first_moments`)."""
+    up: F = field(default_factory=lambda: UP.copy())
+    """(3,) unit vector against gravity in the base's frame (:func:`base_up`)."""
 
     @classmethod
     def of(cls, profile: Profile, payload: bool = True) -> Weight:
@@ -62,11 +65,11 @@ class Weight:
         moments = first_moments(model, plant_params(profile.plant))
         if payload:
             moments[PLATFORM] += payload_moment_kgm(profile)
-        return cls(model, moments)
+        return cls(model, moments, base_up(profile.plant.base_tilt_deg))
 
     def torque_nm(self, theta_rad: F, R: F) -> F:
         """∂U/∂θ (n, 3), N·m, at poses θ (n, 3) rad with platform rotations R (n, 3, 3)."""
-        Y = gravity_regressor(self.model, theta_rad, R, UP)
+        Y = gravity_regressor(self.model, theta_rad, R, self.up)
         return np.asarray(GRAVITY_MPS2 * Y @ self.moments_kgm, float)
 
     def along(self, theta_deg: F) -> F:
@@ -75,6 +78,12 @@ class Weight:
         singularity."""
         th = np.radians(np.asarray(theta_deg, float).reshape(-1, 3))
         return self.torque_nm(th, path_rotations(self.model, th))
+
+
+def base_up(tilt_deg: tuple[float, float]) -> F:
+    """(3,) against gravity in the frame of a base tilted by ``tilt_deg`` (``[plant]
+    base_tilt_deg``): R_tiltᵀ·e_z."""
+    return np.asarray(base_rotation(tilt_deg).T @ UP, float)
 
 
 def payload_moment_kgm(profile: Profile) -> F:

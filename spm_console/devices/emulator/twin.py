@@ -32,7 +32,7 @@ from spm_console.core.kinematics.geometry import SpmGeometry
 from spm_console.core.kinematics.model import SpmModel
 from spm_console.core.kinematics.modes import home_model
 from spm_console.core.kinematics.rotations import rpy_matrix
-from spm_console.description.mjcf import AsBuiltBody
+from spm_console.description.mjcf import AsBuiltBody, base_rotation
 from spm_console.devices.dynamixel.tick_map import JointMap
 from spm_console.devices.emulator.servo import DRIVE_MODE_REVERSE, reversed_zero
 
@@ -133,10 +133,9 @@ def true_wrist(profile: Profile, as_built: AsBuilt, source: str = "as-built") ->
         raise AsBuiltError(f"{source}: the link arcs as built (alpha1_error_deg "
                            f"{list(as_built.alpha1_error_deg)}, alpha2_error_deg "
                            f"{list(as_built.alpha2_error_deg)}) leave no home pose: {exc}") from None
-    tilt_x, tilt_y = (math.radians(a) for a in as_built.base_tilt_deg)
     roll, pitch, yaw = (math.radians(a) for a in as_built.imu_mount_rpy_deg)
     com = tuple(x / 1000.0 for x in as_built.payload_com_mm)
-    body = AsBuiltBody(base_rotation=rpy_matrix(tilt_x, tilt_y, 0.0),  # R_y(y)·R_x(x)
+    body = AsBuiltBody(base_rotation=base_rotation(as_built.base_tilt_deg),
                        imu_rotation=rpy_matrix(roll, pitch, yaw),
                        payload_kg=float(as_built.payload_kg),
                        payload_com_m=(com[0], com[1], com[2]))

@@ -20,7 +20,7 @@ from spm_console.core.commissioning.payload import (
     predicted_offsets_deg,
 )
 from spm_console.core.kinematics.loads import GRAVITY_MPS2, gravity_regressor
-from spm_console.description.weight import PLATFORM, UP, Weight, payload_moment_kgm
+from spm_console.description.weight import PLATFORM, Weight, payload_moment_kgm
 
 F = NDArray[np.float64]
 
@@ -35,15 +35,16 @@ class PayloadReport:
 def _loads(profile: Profile, theta_deg: F) -> tuple[F, F]:
     """The holding torque of the wrist's bodies, without a payload (n, 3) N·m, and the
     platform's regressor (n, 3, 3) at the poses θ (deg) (NaN rows where the FK finds no
-    pose)."""
+    pose), under the profile's gravity (its base's tilt)."""
     model = model_of(profile)
     th = np.radians(np.asarray(theta_deg, float).reshape(-1, 3))
     R = np.empty((len(th), 3, 3))
     for i, t in enumerate(th):
         r = model.track(t)
         R[i] = r.pose.R if r.ok and r.pose is not None else np.nan
-    tw = Weight.of(profile, payload=False).torque_nm(th, R)
-    yp = gravity_regressor(model, th, R, UP)[:, :, PLATFORM]
+    weight = Weight.of(profile, payload=False)
+    tw = weight.torque_nm(th, R)
+    yp = gravity_regressor(model, th, R, weight.up)[:, :, PLATFORM]
     return np.asarray(tw, float), np.asarray(yp, float)
 
 

@@ -41,13 +41,17 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
     where = f", run {run}" if run else ""
     note = f"commissioned {stamp} ({how}{where})"
     text, prof = with_joints(base_text, joints, note, source)  # type: ignore[arg-type]
+    fitted: dict[tuple[str, str], Value] = {}
     if result.refinement is not None and result.refinement.arcs_deg is not None:
         g = result.profile.geometry
-        text, prof = with_values(text, {
+        fitted.update({
             ("geometry", "alpha1_leg_offset_deg"): list(g.alpha1_leg_offset_deg),
             ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg),
-            ("home", "sign_seed"): list(result.profile.home.sign_seed)},
-            f"commissioned {stamp} (IMU fit{where})", source)
+            ("home", "sign_seed"): list(result.profile.home.sign_seed)})
+    if result.refinement is not None and result.refinement.tilt_deg is not None:
+        fitted[("plant", "base_tilt_deg")] = list(result.profile.plant.base_tilt_deg)
+    if fitted:
+        text, prof = with_values(text, fitted, f"commissioned {stamp} (IMU fit{where})", source)
     load = _load_values(result, prof)
     if load:
         text, prof = with_values(text, load, f"commissioned {stamp} (holding offsets{where})",

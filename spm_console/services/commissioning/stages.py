@@ -33,17 +33,16 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.load import home_signs
 from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
-from spm_console.core.commissioning.gravity import built_model
 from spm_console.core.commissioning.rest import leg_axes
 from spm_console.devices.imu.bno055 import Bno055, ImuSample
 from spm_console.devices.imu.bno055_registers import OprMode
-from spm_console.errors import BadInputError, BusError, ImuError, SolverError, SpmError
+from spm_console.errors import BadInputError, BusError, ImuError, SpmError
 from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.servo_query import BusQuery, BusReport, PingedServo
 from spm_console.services.client import EstopRelay, MotionClient
+from spm_console.services.commissioning.built_profile import validated, with_arcs, with_tilt
 from spm_console.services.commissioning.imu_stage import Refinement
 from spm_console.services.commissioning.leg_map import (
     ElbowMotion,
@@ -321,8 +320,9 @@ def refined(result: Commissioned, refinement: Refinement,
             payload_kg: float | None = None) -> Commissioned:
     """``result`` with each tick offset moved by the horn offset the IMU stage found beyond
     the jig's zero (true θ = θ read + δ, so the zero moves by −d·δ ticks): the nearest whole
-    tick, and the rest as the joint's ``tick_trim``; the link arcs and the load model (the
-    payload's first moment, the drive's compliance) where the stage determined them; with the
+    tick, and the rest as the joint's ``tick_trim``; the link arcs, the base's tilt and the
+    load model (the payload's first moment, the drive's compliance) where the stage
+    determined them; with the
     payload's weighed mass ``payload_kg`` (kg), that mass where the first moment was written."""
     if result.tick_offsets is None:
         raise BadInputError("commission: the IMU stage refines a zero (the jig's, or the IMU's at "
@@ -336,32 +336,12 @@ def refined(result: Commissioned, refinement: Refinement,
     profile = _with_wiring(result.profile, result.legs, new, trims)
     if refinement.arcs_deg is not None:
         profile = with_arcs(profile, *refinement.arcs_deg)
+    if refinement.tilt_deg is not None:
+        profile = with_tilt(profile, refinement.tilt_deg)
     if refinement.payload is not None:
-        profile = _validated(with_load_model(profile, refinement.payload, payload_kg))
+        profile = validated(with_load_model(profile, refinement.payload, payload_kg))
     return replace(result, tick_offsets=new, tick_trims=trims, refinement=refinement,
                    profile=profile)
-
-
-def with_arcs(profile: Profile, a1: Sequence[float], a2: Sequence[float]) -> Profile:
-    """``profile`` with each leg's arcs as fitted (deg from its nominal), its home sign seed
-    that of the home pose continued from the profile's own onto those arcs (same assembly and
-    working modes, :func:`~spm_console.core.commissioning.gravity.built_model`)."""
-    geometry = profile.geometry.model_copy(update={
-        "alpha1_leg_offset_deg": tuple(round(float(x), 3) for x in a1),
-        "alpha2_leg_offset_deg": tuple(round(float(x), 3) for x in a2)})
-    arcs = np.radians([geometry.alpha1_leg_offset_deg, geometry.alpha2_leg_offset_deg])
-    try:
-        v = built_model(model_of(profile), arcs[0], arcs[1]).v_home
-    except SolverError as exc:
-        raise BadInputError(f"commission: the arcs as fitted leave no home pose in the profile's "
-                            f"modes ({exc.message}); redo the IMU stage") from None
-    seed = tuple(home_signs(v.tolist()))  # a component near 0 may cross it with the arcs
-    home = profile.home.model_copy(update={"sign_seed": seed})
-    out = _validated(profile.model_copy(update={"geometry": geometry, "home": home}))
-    if not np.allclose(model_of(out).v_home, v, atol=1e-9):
-        raise BadInputError("commission: the arcs as fitted make the profile's home another "
-                            "assembly mode; redo the IMU stage")
-    return out
 
 
 def _jig_ticks(client: MotionClient, ids: Sequence[int]) -> dict[int, float]:
@@ -430,7 +410,7 @@ def _with_bus(profile: Profile, protocol: str | None = None, model_number: int |
     if ids is not None:
         joints = tuple(j.model_copy(update={"id": i}) for j, i in zip(bus.joints, ids, strict=True))
         bus = bus.model_copy(update={"joints": joints})
-    return _validated(profile.model_copy(update={"bus": bus}))
+    return validated(profile.model_copy(update={"bus": bus}))
 
 
 def _with_wiring(profile: Profile, legs: Sequence[LegMatch], offsets: Sequence[int] | None,
@@ -443,12 +423,4 @@ def _with_wiring(profile: Profile, legs: Sequence[LegMatch], offsets: Sequence[i
             update["tick_trim"] = float(trims[k])
         joints.append(j.model_copy(update=update))
     bus = profile.bus.model_copy(update={"joints": tuple(joints)})
-    return _validated(profile.model_copy(update={"bus": bus}))
-
-
-def _validated(profile: Profile) -> Profile:
-    """The profile checked as a file would be (limits' ticks inside the servo's range...)."""
-    try:
-        return Profile.model_validate(profile.model_dump(mode="python"))
-    except ValueError as exc:
-        raise BadInputError(f"commission: the profile as built does not validate: {exc}") from None
+    return validated(profile.model_copy(update={"bus": bus}))

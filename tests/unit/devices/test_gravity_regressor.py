@@ -99,3 +99,29 @@ def test_a_weighed_payload_rides_the_twin_where_the_load_model_puts_it() -> None
         dU = _energy_gradient(w, t)
         assert np.abs(loaded[n] - bare[n]).max() > 0.02  # the payload does load the motors
         np.testing.assert_allclose(loaded[n], dU, atol=2e-4 * max(1.0, np.abs(dU).max()))
+
+
+def test_a_tilted_base_turns_the_twins_gravity_and_the_load_models_alike() -> None:
+    """``[plant] base_tilt_deg``: the profile's twin stands tilted (its gravity turned into the
+    base's frame), and MuJoCo's ∂U/∂θ of that twin is the load model's holding torque, which
+    differs from a level base's by far more than the comparison's tolerance."""
+    from spm_console.config.schema import Profile
+    from spm_console.description.mjcf import plant_params
+    from spm_console.description.weight import holding_torque_nm
+
+    base = load_profile(ROOT / "profiles" / "agile_wrist.toml")
+    plant = base.plant.model_copy(update={"base_tilt_deg": (2.0, -3.0),
+                                          "payload_moment_kgmm": (9.0, -12.0, 36.0),
+                                          "payload_kg": 0.3})
+    profile = Profile.model_validate(base.model_copy(update={"plant": plant}).model_dump())
+    level = Profile.model_validate(base.model_copy(update={"plant": plant.model_copy(
+        update={"base_tilt_deg": (0.0, 0.0)})}).model_dump())
+    w = PhysicalWrist(model_of(profile), plant_params(profile.plant))
+    w.mj.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    assert abs(float(w.mj.opt.gravity[2])) < G and abs(float(w.mj.opt.gravity[0])) > 0.3
+    poses_deg = np.array([[127.53, 83.23, 85.25], [100.0, 120.0, 140.0], [150.0, 110.0, 95.0]])
+    tilted, flat = holding_torque_nm(profile, poses_deg), holding_torque_nm(level, poses_deg)
+    assert np.abs(tilted - flat).max() > 0.01
+    for n, t in enumerate(np.radians(poses_deg)):
+        dU = _energy_gradient(w, t)
+        np.testing.assert_allclose(tilted[n], dU, atol=2e-4 * max(1.0, np.abs(dU).max()))

@@ -175,3 +175,22 @@ def test_a_weighed_mass_is_written_beside_the_first_moment_it_places(agile: Prof
         with pytest.raises(ValueError, match=why):
             Profile.model_validate(agile.model_copy(update={"plant": plant})
                                    .model_dump(mode="python"))
+
+
+def test_a_tilted_base_is_fitted_with_its_gravity(agile: Profile) -> None:
+    """The servos hold a wrist whose base stands 3° off level: fitted with the profile's
+    gravity turned by that tilt (``[plant] base_tilt_deg``, what the IMU stage fits), the
+    payload comes back exactly; fitted as if level, its first moment is several % off (the
+    bias the IMU stage's tilt removes)."""
+    tilted = agile.model_copy(update={"plant": agile.plant.model_copy(
+        update={"base_tilt_deg": (2.1, -2.1)})})
+    measured, R = _poses(agile, 24)
+    rad = np.radians(measured)
+    commanded = measured + K_TRUE * Weight.of(_with(tilted, S_KGMM)).torque_nm(rad, R)
+    held = np.zeros(len(measured), bool)
+    held[-4:] = True
+    right = payload_from_holding(tilted, commanded, measured, held)
+    np.testing.assert_allclose(right.fit.first_moment_kgm * 1e3, S_KGMM, atol=1e-6)
+    level = payload_from_holding(agile, commanded, measured, held)
+    err = np.linalg.norm(level.fit.first_moment_kgm * 1e3 - S_KGMM) / np.linalg.norm(S_KGMM)
+    assert err > 0.03

@@ -3,13 +3,17 @@ zero at rest has one; a jig's has none): true θ = θ read + δ, so the zero mov
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 
 from spm_console.config.schema import Profile
 from spm_console.services.commissioning.leg_map import LegMatch
+from spm_console.services.commissioning.profile_out import commissioned_text
 from spm_console.services.commissioning.stages import Commissioned, Discovery, refined
+
+AGILE = Path(__file__).resolve().parents[3] / "profiles" / "agile_wrist.toml"
 
 
 @pytest.mark.parametrize("trims", [(0.0, 0.0, 0.0), (0.31, -0.27, 0.05)])
@@ -22,7 +26,7 @@ def test_the_horns_move_the_zero_the_stage_ran_on(agile: Profile,
     before = Commissioned(Discovery("2.0", (), (1, 2, 3)), (legs[0], legs[1], legs[2]), None,
                           offsets, agile, tick_trims=trims)
     horn = (0.5, -0.25, 0.07)
-    stage = SimpleNamespace(horn_deg=horn, arcs_deg=None, payload=None)
+    stage = SimpleNamespace(horn_deg=horn, arcs_deg=None, payload=None, tilt_deg=None)
     after = refined(before, stage)  # type: ignore[arg-type]
     tpd = agile.bus.ticks_per_turn / 360.0
     assert after.tick_offsets is not None
@@ -31,3 +35,22 @@ def test_the_horns_move_the_zero_the_stage_ran_on(agile: Profile,
         now = after.tick_offsets[k] + after.tick_trims[k]
         assert now == pytest.approx(was - m.direction * horn[k] * tpd, abs=1e-3)
         assert abs(after.tick_trims[k]) <= 0.5
+
+
+def test_the_fitted_tilt_is_written_with_its_provenance(agile: Profile) -> None:
+    """A tilt the IMU stage determined goes into ``[plant] base_tilt_deg`` (the load model's
+    gravity), in the profile and in the text written, commented as the IMU fit's."""
+    joints = agile.bus.joints
+    legs = tuple(LegMatch(j.id, k + 1, j.direction, 0.0, 0.0, 0.0)
+                 for k, j in enumerate(joints))
+    offsets = (joints[0].tick_offset, joints[1].tick_offset, joints[2].tick_offset)
+    before = Commissioned(Discovery("2.0", (), (1, 2, 3)), (legs[0], legs[1], legs[2]), None,
+                          offsets, agile)
+    stage = SimpleNamespace(horn_deg=(0.0, 0.0, 0.0), arcs_deg=None, payload=None,
+                            tilt_deg=(1.23456, -2.5))
+    after = refined(before, stage)  # type: ignore[arg-type]
+    assert after.profile.plant.base_tilt_deg == (1.235, -2.5)
+    text, back = commissioned_text(AGILE.read_text(), after, "test")
+    assert back.plant.base_tilt_deg == (1.235, -2.5)
+    line = next(ln for ln in text.splitlines() if ln.startswith("base_tilt_deg"))
+    assert "IMU fit" in line
