@@ -120,17 +120,23 @@ def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
     """End the nudging: torque off, PWM Limits restored (an EEPROM register: torque off to
     write it); then, with ``hold``, torque on again holding where each servo is (after an
     E-stop: the wrist holds, at its full effort), else left off (the wrist rests as it was
-    found). Torque is off for the few milliseconds of the writes."""
+    found). Torque is off for the few milliseconds of the writes. BusError when the servos
+    do not answer (the PWM Limits not restored are kept, to restore at the next release)."""
     ids = list(bus.ids)
-    bus.set_torque(False, ids)
-    for ident, pwm in state.saved_pwm.items():
-        bus.write(ident, "pwm_limit", pwm)
-    state.saved_pwm.clear()
-    state.goal_ticks.clear()
-    if hold:
-        ticks = _ticks(bus)
-        bus.sync_write("goal_position", dict(zip(ids, ticks, strict=True)))
-        bus.set_torque(True, ids)
+    try:
+        bus.set_torque(False, ids)
+        for ident, pwm in list(state.saved_pwm.items()):
+            bus.write(ident, "pwm_limit", pwm)
+            del state.saved_pwm[ident]
+        state.goal_ticks.clear()
+        if hold:
+            ticks = _ticks(bus)
+            bus.sync_write("goal_position", dict(zip(ids, ticks, strict=True)))
+            bus.set_torque(True, ids)
+    except CommError as exc:
+        raise BusError(f"ending the nudges on {bus.port}: {exc}; the servos may be left with "
+                       "torque off and their PWM Limits lowered: check the cable and power, "
+                       "then run commission again") from None
 
 
 def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, float]],

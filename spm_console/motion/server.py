@@ -503,8 +503,10 @@ def serve(conn: Connection, start: Start) -> None:
         if server.motion is not None:
             server.estop("motion process closing")
             server.motion.join(timeout=5.0)
-        if server.nudging.saved_pwm:  # its front end left mid-commissioning: PWM Limits back,
-            with contextlib.suppress(OSError, SpmError):  # the wrist holding where it is
+        # its front end left mid-commissioning: PWM Limits back, the wrist holding where it is
+        # (a bus that does not answer is left as it is: nothing else can reach it)
+        if server.nudging.saved_pwm:
+            with contextlib.suppress(CommError, OSError, SpmError):
                 release(server.bus, server.nudging, hold=True)
         with contextlib.suppress(OSError, SpmError):
             server.bus.close()

@@ -5,6 +5,7 @@ anything moves; a blocked servo stops the nudge."""
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Iterator
 
 import pytest
@@ -13,7 +14,7 @@ from spm_console.config.schema import Profile
 from spm_console.devices.dynamixel.bus import DynamixelBus, open_bus
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
 from spm_console.devices.emulator.faults import parse_fault
-from spm_console.errors import BadInputError
+from spm_console.errors import BadInputError, BusError
 from spm_console.motion.nudge import BALL_DEG, PWM_LIMIT, NudgeState, release, run_nudge
 from tests.runtime.test_bus_emulator import relaxed
 
@@ -106,3 +107,23 @@ def test_a_scan_lists_every_servo_on_the_bus_in_about_a_second(
     report = answer(bus, BusQuery("scan"))
     assert [(f.id, f.model_number) for f in report.found] == [(i, 321) for i in sorted(bus.ids)]
     assert len(report.ids) == 253
+
+
+def test_a_bus_lost_before_the_release_is_a_bus_error_not_an_internal_one(
+        agile: Profile) -> None:
+    """The servos stop answering between the last nudge and the release: the release says
+    so (BusError, which the motion process reports as a refusal, not as a bug) and keeps the
+    PWM Limits it could not restore."""
+    t0 = time.monotonic()
+    em = start_emulator(agile, [parse_fault("unplug@1.5")], record=False, initial_deg=START)
+    bus = open_bus(relaxed(agile), em.port)
+    try:
+        state = NudgeState()
+        assert run_nudge(bus, state, ((bus.ids[0], 0.5),), 5.0, _never).ok
+        time.sleep(max(0.0, t0 + 1.8 - time.monotonic()))
+        with pytest.raises(BusError, match="ending the nudges"):
+            release(bus, state)
+        assert set(state.saved_pwm) == set(bus.ids)
+    finally:
+        bus.close()
+        em.stop()
