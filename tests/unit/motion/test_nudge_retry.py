@@ -1,0 +1,84 @@
+"""The nudges' register transactions on a bus that loses a reply now and then: each is tried
+again (a write sets a register to a value: done twice, the same), and a bus that stops
+answering is a BusError that keeps the PWM Limits it could not restore."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+from spm_console.devices.base import CommError
+from spm_console.errors import BusError
+from spm_console.motion.nudge import PWM_LIMIT, READ_TRIES, NudgeState, release, run_nudge
+
+
+@dataclass
+class LossyBus:
+    """Three servos whose every ``lose``-th transaction's reply is lost (0: none; 1: all)."""
+
+    lose: int
+    ids: tuple[int, ...] = (1, 2, 3)
+    port: str = "lossy"
+    maps: list[Any] = field(default_factory=lambda: [SimpleNamespace(ticks_per_turn=4096)])
+    pwm: dict[int, int] = field(default_factory=lambda: dict.fromkeys((1, 2, 3), 885))
+    torque_on: bool = False
+    goal: dict[int, int] = field(default_factory=lambda: dict.fromkeys((1, 2, 3), 2048))
+    n: int = 0
+
+    def _transaction(self) -> None:
+        self.n += 1
+        if self.lose and self.n % self.lose == 0:
+            raise CommError("no status packet within 4.0 ms (0 of 1 received, 0 corrupt)")
+
+    def set_torque(self, on: bool, ids: list[int]) -> None:
+        self.torque_on = on  # the servo acts on the write whether or not its reply arrives
+        self._transaction()
+
+    def read(self, ident: int, name: str) -> int:
+        assert name == "pwm_limit"
+        self._transaction()
+        return self.pwm[ident]
+
+    def write(self, ident: int, name: str, value: int) -> None:
+        assert name == "pwm_limit"
+        self.pwm[ident] = value
+        self._transaction()
+
+    def read_ticks(self) -> list[int]:
+        self._transaction()
+        return [self.goal[i] for i in self.ids]
+
+    def sync_write(self, name: str, values: dict[int, int]) -> None:
+        self.goal.update(values)  # no reply to lose
+
+    def drain_input(self, _s: float) -> None:
+        pass
+
+
+def _never() -> str:
+    return ""
+
+
+def test_lost_replies_are_tried_again_and_the_nudging_ends_as_it_began() -> None:
+    bus = LossyBus(lose=3)  # every third transaction's reply lost
+    state = NudgeState()
+    r = run_nudge(bus, state, ((2, 0.5),), 5.0, _never,  # type: ignore[arg-type]
+                  clock=iter(range(10_000)).__next__, sleep=lambda _s: None)
+    assert r.ok and bus.torque_on and bus.pwm == dict.fromkeys((1, 2, 3), PWM_LIMIT)
+    release(bus, state, hold=True)  # type: ignore[arg-type]
+    assert bus.pwm == dict.fromkeys((1, 2, 3), 885) and bus.torque_on
+    assert state.saved_pwm == {}
+
+
+def test_a_bus_that_stops_answering_is_a_bus_error_keeping_the_limits_to_restore() -> None:
+    bus = LossyBus(lose=0)
+    state = NudgeState()
+    assert run_nudge(bus, state, ((2, 0.5),), 5.0, _never,  # type: ignore[arg-type]
+                     clock=iter(range(10_000)).__next__, sleep=lambda _s: None).ok
+    bus.lose = 1
+    with pytest.raises(BusError, match="ending the nudges on lossy"):
+        release(bus, state)  # type: ignore[arg-type]
+    assert set(state.saved_pwm) == {1, 2, 3} and bus.n >= READ_TRIES
