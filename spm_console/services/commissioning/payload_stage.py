@@ -101,6 +101,10 @@ COMPLIANCE_REL_STD_MAX = 0.1
 #: long at most, s.
 SETTLE_FRICTION_DEG = 0.044
 SETTLE_S = 2.0
+#: The tolerance that settling then ends at, deg: half an MX-106 tick and a little, so the
+#: reading settles on the goal's nearest tick (the default 0.1° accepts a tick off: near the
+#: paper's goal, 0.1° on joint 3 turns the platform by 0.26°).
+SETTLE_TOLERANCE_DEG = 0.05
 
 
 def payload_seen(report: PayloadReport) -> bool:
@@ -128,11 +132,11 @@ def with_load_model(profile: Profile, report: PayloadReport,
                     payload_kg: float | None = None) -> Profile:
     """``profile`` with the load model the fit determines: ``[plant] payload_moment_kgmm``
     (kg·mm, 0.1) when a payload is seen, ``[servo] load_deg_per_nm`` (0.0001) when the
-    compliance is known, and settling at the goal (``[settle] duration_s``,
-    :data:`SETTLE_S`) when the friction leaves the drives off their goals and the profile
-    does not settle; with ``payload_kg`` (weighed), ``[plant] payload_kg`` beside the first
-    moment (the payload then sits at m·c / m); what is not determined is kept as the profile
-    has it."""
+    compliance is known, and settling at the goal's nearest tick (``[settle] duration_s``
+    :data:`SETTLE_S`, ``tolerance_deg`` :data:`SETTLE_TOLERANCE_DEG`) when the friction
+    leaves the drives off their goals and the profile does not settle; with ``payload_kg``
+    (weighed), ``[plant] payload_kg`` beside the first moment (the payload then sits at
+    m·c / m); what is not determined is kept as the profile has it."""
     plant, servo, settle = profile.plant, profile.servo, profile.settle
     if payload_seen(report):
         moment = tuple(round(float(x) * 1e3, 1) for x in report.fit.first_moment_kgm)
@@ -142,5 +146,6 @@ def with_load_model(profile: Profile, report: PayloadReport,
         servo = servo.model_copy(update={
             "load_deg_per_nm": round(report.fit.compliance_deg_per_nm, 4)})
     if friction_seen(report) and settle.duration_s == 0.0:
-        settle = settle.model_copy(update={"duration_s": SETTLE_S})
+        settle = settle.model_copy(update={"duration_s": SETTLE_S,
+                                           "tolerance_deg": SETTLE_TOLERANCE_DEG})
     return profile.model_copy(update={"plant": plant, "servo": servo, "settle": settle})

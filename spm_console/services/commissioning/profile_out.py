@@ -76,6 +76,8 @@ def _load_values(result: Commissioned, base: Profile) -> dict[tuple[str, str], V
         out[("servo", "load_deg_per_nm")] = load
     if built.settle.duration_s != base.settle.duration_s:
         out[("settle", "duration_s")] = built.settle.duration_s
+    if built.settle.tolerance_deg != base.settle.tolerance_deg:
+        out[("settle", "tolerance_deg")] = built.settle.tolerance_deg
     return out
 
 
@@ -153,7 +155,8 @@ def commissioned_lines(result: Commissioned) -> list[str]:
                              + " their goals in the direction they came from (friction, play)")
             written = [w for w, ok in (("[plant] payload_moment_kgmm", payload_seen(r.payload)),
                                        ("[servo] load_deg_per_nm", compliance_known(r.payload)),
-                                       ("[settle] duration_s", friction_seen(r.payload)))
+                                       ("[settle] duration_s, tolerance_deg",
+                                        friction_seen(r.payload)))
                        if ok]
             lines.append("  load model written: " + ", ".join(written) if written else
                          "  load model not written: the offsets do not determine it (the "

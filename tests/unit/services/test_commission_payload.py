@@ -104,6 +104,8 @@ def test_what_the_fit_does_not_determine_is_not_written(agile: Profile) -> None:
     assert built.settle.duration_s == 0.0  # friction not fitted: no settling asked for
     rough = with_load_model(agile, _report((0.003, -0.0015, 0.036), 0.001, 0.05, -0.06))
     assert rough.settle.duration_s > 0.0
+    # on the goal's nearest tick: half a tick (0.044°) and a little
+    assert 0.044 < rough.settle.tolerance_deg < agile.settle.tolerance_deg
     smooth = with_load_model(agile, _report((0.003, -0.0015, 0.036), 0.001, 0.05, 0.01))
     assert smooth.settle.duration_s == 0.0
 
