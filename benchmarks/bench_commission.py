@@ -136,6 +136,10 @@ def _cli(*args: str) -> dict[str, object]:
                          capture_output=True, text=True, timeout=600, check=False)
     reply = json.loads(out.stdout.splitlines()[-1])
     assert isinstance(reply, dict)
+    if out.returncode != 0:  # the table shows the row failed; stderr says why
+        print(f"bench_commission: {args[0]} exited {out.returncode}: "
+              f"{reply.get('message') or reply.get('error') or out.stderr[-2000:]}",
+              file=sys.stderr)
     return reply
 
 

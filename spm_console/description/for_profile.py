@@ -34,6 +34,11 @@ def sources(profile: Profile) -> str:
         lines.append(f"[plant] payload_kg = {profile.plant.payload_kg:g} at m·c / m = ("
                      + ", ".join(f"{c:.1f}" for c in centre) + ") mm in the platform frame "
                      "(payload_moment_kgmm / payload_kg): a solid sphere welded to the platform")
+    tilt = profile.plant.base_tilt_deg
+    if tuple(tilt) != (0.0, 0.0):
+        lines.append(f"[plant] base_tilt_deg = [{tilt[0]:g}, {tilt[1]:g}]: the base stands tilted "
+                     "(R_tilt = R_y·R_x); gravity in the base's frame is R_tiltᵀ·(0, 0, −9.81) "
+                     "(the MJCF's gravity option; a URDF has none: give it to the simulator)")
     return "\n  ".join(lines)
 
 

@@ -19,8 +19,9 @@ friction (Coulomb ``frictionloss``, viscous ``damping``) and the motor's reflect
 joint limit, so MuJoCo's constraint solver takes the impacts); without, the drive turns the
 proximal link itself.
 
-A wrist as built (:class:`AsBuiltBody`, from an as-built file) adds, and only then: gravity
-turned into the base's frame (a tilted base; the MJCF's frame is the base's), a payload welded
+Gravity is turned into the base's frame when the base stands tilted (the MJCF's frame is the
+base's): the as-built wrist's tilt, else the profile's ``[plant] base_tilt_deg``. A wrist as
+built (:class:`AsBuiltBody`, from an as-built file) adds, and only then: its payload welded
 to the platform, the IMU's site on the platform with MuJoCo's own ``accelerometer``, ``gyro``
 and ``framequat`` sensors on it, and a home jig per leg (a ``joint`` equality holding the
 output shaft at home, inactive until the emulator engages it). Without one the text is the

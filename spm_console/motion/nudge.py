@@ -117,7 +117,8 @@ def _begin(bus: DynamixelBus, state: NudgeState) -> None:
     ids = list(bus.ids)
     _again(bus, lambda: bus.set_torque(False, ids))
     for ident in ids:
-        state.saved_pwm[ident] = int(_again(bus, partial(bus.read, ident, "pwm_limit")))
+        if ident not in state.saved_pwm:  # a begin or release cut short saved it already
+            state.saved_pwm[ident] = int(_again(bus, partial(bus.read, ident, "pwm_limit")))
         _again(bus, partial(bus.write, ident, "pwm_limit", min(PWM_LIMIT, state.saved_pwm[ident])))
     ticks = _ticks(bus)
     state.rest_ticks = dict(zip(ids, ticks, strict=True))
@@ -133,6 +134,7 @@ def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
     found). Torque is off for the few milliseconds of the writes. BusError when the servos
     do not answer (the PWM Limits not restored are kept, to restore at the next release)."""
     ids = list(bus.ids)
+    state.rest_ticks.clear()  # the next nudge begins again, whatever happens here
     try:
         _again(bus, lambda: bus.set_torque(False, ids))
         for ident, pwm in list(state.saved_pwm.items()):
@@ -161,7 +163,7 @@ def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, f
     tpd = bus.maps[0].ticks_per_turn / 360.0
     t0 = clock()
     try:
-        if not state.saved_pwm:
+        if not state.rest_ticks:  # the first nudge, or the first since a release
             _begin(bus, state)
         start = dict(state.goal_ticks)
         target = dict(start)

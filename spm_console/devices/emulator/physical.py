@@ -9,9 +9,10 @@ Each servo is its firmware's position loop driving a DC motor (Protocol 2.0 e-ma
 * Coulomb and viscous friction and the rotor's reflected inertia act on the output joint.
 
 The joints drive :func:`~spm_console.description.mjcf.wrist_mjcf`'s closed chain
-under gravity. Angles are the joints' θ in radians (θ_home at the model's rest pose). A wrist
-as built (an :class:`~spm_console.description.mjcf.AsBuiltBody`) also stands tilted, carries a
-payload, an IMU whose truth :meth:`PhysicalWrist.truth` reads, and a home jig
+under gravity (turned by the profile's base tilt). Angles are the joints' θ in radians
+(θ_home at the model's rest pose). A wrist as built (an
+:class:`~spm_console.description.mjcf.AsBuiltBody`) stands tilted as built, carries a payload,
+an IMU whose truth :meth:`PhysicalWrist.truth` reads, and a home jig
 (:mod:`spm_console.devices.emulator.as_built_parts`).
 """
 

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.config.models import model_of
+from spm_console.config.plant import MAX_BASE_TILT_DEG
 from spm_console.config.schema import Profile, Settle
 from spm_console.core.commissioning.design import PoseDesign, design_for_orientation, tour
 from spm_console.core.commissioning.fit import CommissioningFit, FittedParameter, fit_as_built
@@ -33,7 +34,11 @@ from spm_console.core.kinematics.model import SpmModel
 from spm_console.errors import BusError, SolverError
 from spm_console.services.client import EstopRelay
 from spm_console.services.commissioning.built_profile import with_arcs, with_tilt
-from spm_console.services.commissioning.payload_stage import PayloadReport, payload_from_holding
+from spm_console.services.commissioning.payload_stage import (
+    PayloadReport,
+    payload_from_holding,
+    sent_at_rest,
+)
 from spm_console.services.session import PoseSpec, Session
 
 F = NDArray[np.float64]
@@ -184,19 +189,20 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
     if all(_known(p, ARC_STD_DEG) for p in arcs):
         v = [p.value_deg for p in arcs]
         fitted = ((v[0], v[1], v[2]), (v[3], v[4], v[5]))
-    tilt = None
-    if all(_known(fit.parameter(n), TILT_STD_DEG) for n in ("tilt_x", "tilt_y")):
-        tilt = (fit.parameter("tilt_x").value_deg, fit.parameter("tilt_y").value_deg)
+    tilt = _tilt(fit, on_stage)
     payload = None
     try:
         # the holding torques of the wrist as fitted: its joint angles with the horn offsets
         # found, its arcs, and gravity in its base's frame (3° of tilt unaccounted for leave
-        # 7 % of m·c in the fit)
+        # 7 % of m·c in the fit); what the runtime added to each pose is that of the profile
+        # the poses were held on
         as_fitted = profile if fitted is None else with_arcs(profile, *fitted)
         as_fitted = as_fitted if tilt is None else with_tilt(as_fitted, tilt)
         delta = np.asarray(horn, float)
-        payload = payload_from_holding(as_fitted, np.asarray(poses, float) + delta, th + delta,
-                                       held, np.asarray(profile.home.theta_deg, float) + delta)
+        commanded = np.asarray(poses, float)
+        payload = payload_from_holding(as_fitted, commanded + delta, th + delta, held,
+                                       np.asarray(profile.home.theta_deg, float) + delta,
+                                       sent_at_rest(profile, commanded))
         s, e = payload.fit.first_moment_kgm * 1e3, payload.fit.first_moment_std_kgm * 1e3
         on_stage("payload: first moment m·c = [" + ", ".join(
             f"{x:.1f} ± {d:.1f}" for x, d in zip(s, e, strict=True)) + "] kg·mm (platform "
@@ -241,6 +247,20 @@ def _design(model: SpmModel, profile: Profile, session: Session,
     fit_n = len(design.theta_deg)
     visited = tuple((float(poses[k][0]), float(poses[k][1]), float(poses[k][2])) for k in order)
     return replace(design, theta_deg=visited), [k >= fit_n for k in order]
+
+
+def _tilt(fit: CommissioningFit, on_stage: Callable[[str], None]) -> tuple[float, float] | None:
+    """The base's tilt the profile takes from the fit, deg: None where the fit does not know
+    it to :data:`TILT_STD_DEG`, or where it is beyond what a profile may hold (said)."""
+    x, y = fit.parameter("tilt_x"), fit.parameter("tilt_y")
+    if not (_known(x, TILT_STD_DEG) and _known(y, TILT_STD_DEG)):
+        return None
+    if max(abs(x.value_deg), abs(y.value_deg)) > MAX_BASE_TILT_DEG:
+        on_stage(f"base tilt ({x.value_deg:.2f}, {y.value_deg:.2f})° is beyond the "
+                 f"±{MAX_BASE_TILT_DEG:g}° a profile holds: not written (the load model "
+                 "keeps the profile's; level the base)")
+        return None
+    return (x.value_deg, y.value_deg)
 
 
 def _horn(p: FittedParameter, zero_std_deg: float | None = None) -> float:

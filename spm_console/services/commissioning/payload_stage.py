@@ -19,8 +19,8 @@ from spm_console.core.commissioning.payload import (
     fit_holding,
     predicted_offsets_deg,
 )
-from spm_console.core.kinematics.loads import GRAVITY_MPS2, gravity_regressor
-from spm_console.description.weight import PLATFORM, Weight, payload_moment_kgm
+from spm_console.core.kinematics.loads import gravity_regressor
+from spm_console.description.weight import PLATFORM, Weight
 
 F = NDArray[np.float64]
 
@@ -32,20 +32,39 @@ class PayloadReport:
     """RMS of predicted − measured offsets on the held-out poses, deg."""
 
 
-def _loads(profile: Profile, theta_deg: F) -> tuple[F, F]:
-    """The holding torque of the wrist's bodies, without a payload (n, 3) N·m, and the
-    platform's regressor (n, 3, 3) at the poses θ (deg) (NaN rows where the FK finds no
-    pose), under the profile's gravity (its base's tilt)."""
+def _rotations(profile: Profile, theta_deg: F) -> tuple[F, F]:
+    """The poses θ (deg) in radians (n, 3) and their platform rotations (n, 3, 3) (NaN where
+    the FK finds no pose)."""
     model = model_of(profile)
     th = np.radians(np.asarray(theta_deg, float).reshape(-1, 3))
     R = np.empty((len(th), 3, 3))
     for i, t in enumerate(th):
         r = model.track(t)
         R[i] = r.pose.R if r.ok and r.pose is not None else np.nan
+    return th, R
+
+
+def _loads(profile: Profile, theta_deg: F) -> tuple[F, F]:
+    """The holding torque of the wrist's bodies, without a payload (n, 3) N·m, and the
+    platform's regressor (n, 3, 3) at the poses θ (deg) (NaN rows where the FK finds no
+    pose), under the profile's gravity (its base's tilt)."""
+    th, R = _rotations(profile, theta_deg)
     weight = Weight.of(profile, payload=False)
     tw = weight.torque_nm(th, R)
-    yp = gravity_regressor(model, th, R, weight.up)[:, :, PLATFORM]
+    yp = gravity_regressor(weight.model, th, R, weight.up)[:, :, PLATFORM]
     return np.asarray(tw, float), np.asarray(yp, float)
+
+
+def sent_at_rest(profile: Profile, commanded_deg: F) -> F:
+    """What the runtime adds to each pose ``commanded_deg`` (n, 3) it holds at rest, deg: its
+    load model's offset there, k_c·τ(θ*) with the profile's whole weight (the last reference
+    of a run, :mod:`spm_console.motion.goals.load_offsets`); zeros without a load model."""
+    k_c = profile.servo.load_deg_per_nm
+    commanded = np.asarray(commanded_deg, float).reshape(-1, 3)
+    if not k_c:
+        return np.zeros_like(commanded)
+    th, R = _rotations(profile, commanded)
+    return np.asarray(float(k_c) * Weight.of(profile).torque_nm(th, R), float)
 
 
 #: A joint commanded less than this from where it was, deg, did not move: it keeps the
@@ -66,26 +85,29 @@ def approach_signs(start_deg: F, commanded_deg: F) -> F:
 
 
 def payload_from_holding(profile: Profile, commanded_deg: F, measured_deg: F,
-                         held_out: NDArray[np.bool_], start_deg: F | None = None
-                         ) -> PayloadReport:
-    """Fit the payload to the offsets commanded − measured (n, 3) deg at the poses not
-    ``held_out``; check it on those. ``start_deg``: where the wrist was before the first
-    pose (the poses visited in their order from there): the fit then takes the gear
+                         held_out: NDArray[np.bool_], start_deg: F | None = None,
+                         sent_deg: F | None = None) -> PayloadReport:
+    """Fit the payload to the offsets θ* + d − θ (n, 3) deg at the poses not ``held_out``
+    (commanded θ*, measured θ, on ``profile``'s wrist); check it on those. ``sent_deg``: d,
+    what the runtime added to each commanded pose (None: ``profile``'s own load model's,
+    :func:`sent_at_rest`; give it when the poses were held on another profile, as the IMU
+    stage's were on the one before the fit). ``start_deg``: where the wrist was before the
+    first pose (the poses visited in their order from there): the fit then takes the gear
     friction's offset against each joint's approach. ValueError when the data do not
     determine it.
 
-    The first moment fitted is the whole payload's: a profile that has one already
-    (``[plant] payload_moment_kgmm``, its load model compensating k_c·g·Y_p·s₀) has that
-    compensation added back to the offsets, which are then those of the bodies alone."""
+    With what was sent added back the offsets are the whole load's, k·τ: the first moment
+    fitted is the whole payload's and the compliance k the drive's, whatever load model the
+    poses were held with."""
+    commanded = np.asarray(commanded_deg, float)
     measured = np.asarray(measured_deg, float)
-    offsets = np.asarray(commanded_deg, float) - measured
+    sent = sent_at_rest(profile, commanded) if sent_deg is None else np.asarray(sent_deg, float)
+    offsets = commanded + sent - measured
     tw, yp = _loads(profile, measured)
-    comp = float(profile.servo.load_deg_per_nm or 0.0)
-    offsets = offsets + comp * GRAVITY_MPS2 * yp @ payload_moment_kgm(profile)
     sg = None if start_deg is None else approach_signs(start_deg, commanded_deg)
-    fit = fit_holding(offsets[~held_out], tw[~held_out], yp[~held_out], comp,
+    fit = fit_holding(offsets[~held_out], tw[~held_out], yp[~held_out], 0.0,
                       None if sg is None else sg[~held_out])
-    pred = predicted_offsets_deg(fit, tw[held_out], yp[held_out], comp,
+    pred = predicted_offsets_deg(fit, tw[held_out], yp[held_out], 0.0,
                                  None if sg is None else sg[held_out])
     rms = float(np.sqrt(np.mean((pred - offsets[held_out]) ** 2))) if held_out.any() else 0.0
     return PayloadReport(fit, rms)

@@ -141,6 +141,9 @@ def commissioned_lines(result: Commissioned) -> list[str]:
         if r.arcs_deg is not None:
             lines.append("link arcs as fitted written to [geometry]: the workspace is rebuilt "
                          "for them on its first use")
+        if r.tilt_deg is not None:
+            lines.append(f"base tilt as fitted written to [plant] base_tilt_deg "
+                         f"{list(result.profile.plant.base_tilt_deg)}°: the load model's gravity")
         if r.payload is not None:
             f = r.payload.fit
             lines.append("payload first moment m·c [" + ", ".join(

@@ -140,3 +140,20 @@ def test_any_profile_name_gives_well_formed_files(agile: Profile, name: str) -> 
     assert robot.get("name") == name
     ET.fromstring(robot_description(named, "mjcf"))
     mujoco.MjModel.from_xml_string(robot_description(named, "mjcf"))
+
+
+def test_a_tilted_base_turns_the_mjcfs_gravity_and_the_urdf_says_so(agile: Profile) -> None:
+    """``[plant] base_tilt_deg``: MuJoCo reads the exported MJCF's gravity turned into the
+    base's frame (R_tiltᵀ·(0, 0, −g)); the URDF, which has no gravity, names the tilt in its
+    comment; a level profile's files say nothing of it."""
+    from spm_console.description.mjcf import base_rotation
+
+    tilted = agile.model_copy(update={"plant": agile.plant.model_copy(
+        update={"base_tilt_deg": (2.0, -3.0)})})
+    mj = mujoco.MjModel.from_xml_string(robot_description(tilted, "mjcf"))
+    expected = base_rotation((2.0, -3.0)).T @ np.array([0.0, 0.0, -9.81])
+    np.testing.assert_allclose(mj.opt.gravity, expected, atol=1e-5)
+    assert "base_tilt_deg" in robot_description(tilted, "urdf")
+    assert "base_tilt_deg" not in robot_description(agile, "urdf")
+    level = mujoco.MjModel.from_xml_string(robot_description(agile, "mjcf"))
+    np.testing.assert_allclose(level.opt.gravity, [0.0, 0.0, -9.81])

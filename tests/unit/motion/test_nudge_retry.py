@@ -82,3 +82,31 @@ def test_a_bus_that_stops_answering_is_a_bus_error_keeping_the_limits_to_restore
     with pytest.raises(BusError, match="ending the nudges on lossy"):
         release(bus, state)  # type: ignore[arg-type]
     assert set(state.saved_pwm) == {1, 2, 3} and bus.n >= READ_TRIES
+
+
+def test_a_begin_cut_short_begins_again_and_restores_the_limits_it_first_saved() -> None:
+    """The bus stops answering while the first nudge lowers the PWM Limits: that nudge is a
+    BusError; once the bus answers again the next nudge begins again (torque, limits, rest)
+    and the release restores each servo's own limit, never the lowered one it left."""
+    bus = LossyBus(lose=0)
+    state = NudgeState()
+    real_write = bus.write
+    calls = {"n": 0}
+
+    def dying_write(ident: int, name: str, value: int) -> None:
+        calls["n"] += 1
+        if calls["n"] >= 2:  # servo 1's limit lowered, then nothing answers
+            bus.lose = 1
+        real_write(ident, name, value)
+
+    bus.write = dying_write  # type: ignore[method-assign]
+    with pytest.raises(BusError):
+        run_nudge(bus, state, ((2, 0.5),), 5.0, _never,  # type: ignore[arg-type]
+                  clock=iter(range(10_000)).__next__, sleep=lambda _s: None)
+    assert bus.pwm[1] == PWM_LIMIT and state.saved_pwm[1] == 885
+    bus.write, bus.lose = real_write, 0  # type: ignore[method-assign]
+    r = run_nudge(bus, state, ((2, 0.5),), 5.0, _never,  # type: ignore[arg-type]
+                  clock=iter(range(10_000)).__next__, sleep=lambda _s: None)
+    assert r.ok and bus.torque_on and set(bus.pwm.values()) == {PWM_LIMIT}
+    release(bus, state)  # type: ignore[arg-type]
+    assert bus.pwm == dict.fromkeys((1, 2, 3), 885) and not bus.torque_on

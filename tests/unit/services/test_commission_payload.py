@@ -20,6 +20,7 @@ from spm_console.services.commissioning.payload_stage import (
     approach_signs,
     payload_from_holding,
     payload_seen,
+    sent_at_rest,
     with_load_model,
 )
 
@@ -65,16 +66,18 @@ def test_a_profile_without_a_payload_keeps_its_hash(agile: Profile) -> None:
 @pytest.mark.parametrize("before", [None, (1.0, 2.0, 20.0)])
 def test_the_fit_gives_the_whole_payload_whatever_the_profile_compensated(
         agile: Profile, before: tuple[float, float, float] | None) -> None:
-    """The servos hold θ = θ* + k_c·τ_model − k·τ_true: the profile's load model (k_c, its
-    payload s₀) sent, the wrist's true one (k, the payload S) held; the torques at the pose
-    held (as the stage takes them)."""
+    """The servos hold θ = θ* + k_c·τ_model(θ*) − k·τ_true(θ): the profile's load model
+    (k_c, its payload s₀) sent at the pose commanded, the wrist's true one (k, the payload S)
+    held at the pose reached."""
     k_c = None if before is None else 1.1
     profile = _with(agile, before, k_c)
     measured, R = _poses(agile, 24)
     rad = np.radians(measured)
     true_tau = Weight.of(_with(agile, S_KGMM)).torque_nm(rad, R)
-    sent = (k_c or 0.0) * Weight.of(profile).torque_nm(rad, R)
-    commanded = measured - sent + K_TRUE * true_tau
+    # θ* + d(θ*) − θ = k·τ: the runtime's offset d is its model's at the pose it commands
+    commanded = measured + K_TRUE * true_tau
+    for _ in range(30):
+        commanded = measured - sent_at_rest(profile, commanded) + K_TRUE * true_tau
     held = np.zeros(len(measured), bool)
     held[-4:] = True
     report = payload_from_holding(profile, commanded, measured, held)
@@ -196,3 +199,28 @@ def test_a_tilted_base_is_fitted_with_its_gravity(agile: Profile) -> None:
     level = payload_from_holding(agile, commanded, measured, held)
     err = np.linalg.norm(level.fit.first_moment_kgm * 1e3 - S_KGMM) / np.linalg.norm(S_KGMM)
     assert err > 0.03
+
+
+def test_poses_held_on_the_profile_before_the_fit_are_fitted_on_the_wrist_as_fitted(
+        agile: Profile) -> None:
+    """The IMU stage's poses are held on the profile it ran on (a load model with a level
+    base: k_c·τ_level sent) and fitted on the wrist as fitted (its base tilted): with what
+    was sent given, the payload and the compliance come back exactly; taking the fitted
+    profile's own load model as what was sent leaves k_c·(τ_tilted − τ_level) in the fit."""
+    ran_on = _with(agile, (1.0, 2.0, 20.0), 1.1)
+    tilted = ran_on.model_copy(update={"plant": ran_on.plant.model_copy(
+        update={"base_tilt_deg": (2.1, -2.1)})})
+    measured, R = _poses(agile, 24)
+    true_tau = Weight.of(_with(tilted, S_KGMM)).torque_nm(np.radians(measured), R)
+    commanded = measured + K_TRUE * true_tau
+    for _ in range(30):
+        commanded = measured - sent_at_rest(ran_on, commanded) + K_TRUE * true_tau
+    held = np.zeros(len(measured), bool)
+    held[-4:] = True
+    right = payload_from_holding(tilted, commanded, measured, held,
+                                 sent_deg=sent_at_rest(ran_on, commanded))
+    np.testing.assert_allclose(right.fit.first_moment_kgm * 1e3, S_KGMM, atol=1e-6)
+    assert right.fit.compliance_deg_per_nm == pytest.approx(K_TRUE, abs=1e-8)
+    wrong = payload_from_holding(tilted, commanded, measured, held)
+    err = np.linalg.norm(wrong.fit.first_moment_kgm * 1e3 - S_KGMM) / np.linalg.norm(S_KGMM)
+    assert err > 0.01
