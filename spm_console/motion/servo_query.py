@@ -129,9 +129,10 @@ def answer(bus: object, q: BusQuery) -> BusReport:
                           bus.describe_hardware_error(h))
                 for m, t, tq, h in zip(bus.maps, ticks, torque, hw, strict=True))
             return BusReport(bus.port, bus.protocol, ids, joints=joints)
+        # a lost reply is tried again (set-up: writes of a value, done twice the same)
         if q.on:
-            bus.hold()  # goal := present position first, so torque-on does not lunge
-        bus.set_torque(q.on, list(ids))
+            bus.set_up(bus.hold)  # goal := present position first, so torque-on does not lunge
+        bus.set_up(lambda: bus.set_torque(q.on, list(ids)))
         return BusReport(bus.port, bus.protocol, ids, torque_on=q.on)
     except CommError as exc:
         raise BusError(f"{q.action} on {bus.port} failed: {exc}") from None

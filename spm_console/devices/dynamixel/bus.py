@@ -130,6 +130,12 @@ class DynamixelBus:
 
     # --- ping / status ----------------------------------------------------------------
 
+    def set_up(self, fn: Callable[[], T]) -> T:
+        """``fn``, a set-up transaction on this bus (a read, or a write of registers to values:
+        done twice, the same), tried again with more patience once the line is quiet when its
+        reply is lost (:data:`SETUP_TIMEOUTS_S`); the last CommError raised."""
+        return _retry(fn, self.transport, self.drain_input)
+
     def ping(self, ident: int) -> ServoStatus:
         """Ping one id; BusError if it does not answer (after the tries of
         :data:`SETUP_TIMEOUTS_S`: one lost reply is not a missing servo) or is not the profile's model."""

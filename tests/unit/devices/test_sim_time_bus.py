@@ -105,3 +105,16 @@ def test_an_unplugged_bus_times_out_at_once_on_the_wall_clock(agile: Profile) ->
 def _present_position(bus: DynamixelBus) -> tuple[int, int]:
     reg = bus.table["present_position"]
     return reg.address, reg.size
+
+
+def test_a_torque_query_outlasts_replies_later_than_the_links_timeout(agile: Profile) -> None:
+    """Replies 10 ms late (the link waits 4 ms): commissioning's torque query is a set-up
+    transaction, tried again with more patience, not a lost bus."""
+    from spm_console.motion.servo_query import BusQuery, answer
+
+    with lockstep(agile, ("delay:0.01@0",)) as (_clock, _em, bus):
+        with pytest.raises(CommError):
+            bus.set_torque(False)  # one try: the reply comes after the link's timeout
+        report = answer(bus, BusQuery("torque", on=True))
+        assert report.torque_on is True
+        assert bus.set_up(bus.torque) == [True, True, True]
