@@ -21,6 +21,7 @@ from spm_console.core.commissioning.payload import (
 )
 from spm_console.core.kinematics.loads import gravity_regressor
 from spm_console.description.weight import PLATFORM, Weight
+from spm_console.motion.goals.load_offsets import load_model
 
 F = NDArray[np.float64]
 
@@ -57,14 +58,16 @@ def _loads(profile: Profile, theta_deg: F) -> tuple[F, F]:
 
 def sent_at_rest(profile: Profile, commanded_deg: F) -> F:
     """What the runtime adds to each pose ``commanded_deg`` (n, 3) it holds at rest, deg: its
-    load model's offset there, k_c·τ(θ*) with the profile's whole weight (the last reference
-    of a run, :mod:`spm_console.motion.goals.load_offsets`); zeros without a load model."""
-    k_c = profile.servo.load_deg_per_nm
+    load model's offset there at speed 0, k_c·τ(θ*) with the profile's whole weight (the last
+    reference of a run, :mod:`spm_console.motion.goals.load_offsets`); zeros without a load
+    model."""
+    load = load_model(profile)  # the runtime's own rule: its offset at rest (speed 0)
     commanded = np.asarray(commanded_deg, float).reshape(-1, 3)
-    if not k_c:
+    if load is None:
         return np.zeros_like(commanded)
     th, R = _rotations(profile, commanded)
-    return np.asarray(float(k_c) * Weight.of(profile).torque_nm(th, R), float)
+    hold = Weight.of(profile).torque_nm(th, R)
+    return load.offset_deg(hold[:, :, None], np.zeros_like(commanded))
 
 
 #: A joint commanded less than this from where it was, deg, did not move: it keeps the
