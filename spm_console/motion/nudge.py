@@ -19,7 +19,6 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
-from typing import TypeVar
 
 from spm_console.devices.base import CommError
 from spm_console.devices.dynamixel.bus import DynamixelBus
@@ -37,11 +36,10 @@ TRACK_TOL_DEG = 1.0
 SETTLE_S = 0.3
 #: Cycle of a nudge's ramp, s.
 CYCLE_S = 0.02
-#: Tries of a read or a register's write before the nudge gives up on the bus (a lost reply
-#: is tried again, as the servo loop tolerates isolated losses).
+#: Reads of the servos' positions tried before the nudge gives up on the bus (a lost reply
+#: is read again, as the servo loop tolerates isolated losses). The registers' set-up reads
+#: and writes are the bus's set-up transactions (:meth:`DynamixelBus.set_up`).
 READ_TRIES = 3
-
-T = TypeVar("T")
 
 
 @dataclass
@@ -94,12 +92,11 @@ def check_moves(moves: Sequence[tuple[int, float]], ids: Sequence[int], speed_de
                                 f"{BALL_DEG:g}° allowed before the wrist is commissioned")
 
 
-def _again(bus: DynamixelBus, transaction: Callable[[], T]) -> T:
-    """``transaction()``, tried again when its reply is lost (:data:`READ_TRIES` in all): a
-    read, or a write of a register to a value (done twice, the same)."""
+def _ticks(bus: DynamixelBus) -> list[int]:
+    """Present Position of the joints' servos, a lost reply read again (:data:`READ_TRIES`)."""
     for k in range(READ_TRIES):
         try:
-            return transaction()
+            return bus.read_ticks()
         except CommError:
             if k == READ_TRIES - 1:
                 raise
@@ -107,24 +104,19 @@ def _again(bus: DynamixelBus, transaction: Callable[[], T]) -> T:
     raise AssertionError("unreachable")
 
 
-def _ticks(bus: DynamixelBus) -> list[int]:
-    """Present Position of the joints' servos, a lost reply read again (:data:`READ_TRIES`)."""
-    return _again(bus, bus.read_ticks)
-
-
 def _begin(bus: DynamixelBus, state: NudgeState) -> None:
     """First nudge: torque off, PWM Limit saved and lowered, the rest read, hold, torque on."""
     ids = list(bus.ids)
-    _again(bus, lambda: bus.set_torque(False, ids))
+    bus.set_up(lambda: bus.set_torque(False, ids))
     for ident in ids:
         if ident not in state.saved_pwm:  # a begin or release cut short saved it already
-            state.saved_pwm[ident] = int(_again(bus, partial(bus.read, ident, "pwm_limit")))
-        _again(bus, partial(bus.write, ident, "pwm_limit", min(PWM_LIMIT, state.saved_pwm[ident])))
+            state.saved_pwm[ident] = int(bus.set_up(partial(bus.read, ident, "pwm_limit")))
+        bus.set_up(partial(bus.write, ident, "pwm_limit", min(PWM_LIMIT, state.saved_pwm[ident])))
     ticks = _ticks(bus)
     state.rest_ticks = dict(zip(ids, ticks, strict=True))
     state.goal_ticks = dict(state.rest_ticks)
     bus.sync_write("goal_position", state.goal_ticks)
-    _again(bus, lambda: bus.set_torque(True, ids))
+    bus.set_up(lambda: bus.set_torque(True, ids))
 
 
 def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
@@ -136,15 +128,15 @@ def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
     ids = list(bus.ids)
     state.rest_ticks.clear()  # the next nudge begins again, whatever happens here
     try:
-        _again(bus, lambda: bus.set_torque(False, ids))
+        bus.set_up(lambda: bus.set_torque(False, ids))
         for ident, pwm in list(state.saved_pwm.items()):
-            _again(bus, partial(bus.write, ident, "pwm_limit", pwm))
+            bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
             del state.saved_pwm[ident]
         state.goal_ticks.clear()
         if hold:
             ticks = _ticks(bus)
             bus.sync_write("goal_position", dict(zip(ids, ticks, strict=True)))
-            _again(bus, lambda: bus.set_torque(True, ids))
+            bus.set_up(lambda: bus.set_torque(True, ids))
     except CommError as exc:
         raise BusError(f"ending the nudges on {bus.port}: {exc}; the servos may be left with "
                        "torque off and their PWM Limits lowered: check the cable and power, "

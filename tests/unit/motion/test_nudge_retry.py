@@ -1,18 +1,24 @@
 """The nudges' register transactions on a bus that loses a reply now and then: each is tried
-again (a write sets a register to a value: done twice, the same), and a bus that stops
-answering is a BusError that keeps the PWM Limits it could not restore."""
+again, by the bus's own set-up retry (a write sets a register to a value: done twice, the
+same), and a bus that stops answering is a BusError that keeps the PWM Limits it could not
+restore."""
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, TypeVar
 
 import pytest
 
 from spm_console.devices.base import CommError
+from spm_console.devices.dynamixel.bus import SETUP_TIMEOUTS_S, DynamixelBus
 from spm_console.errors import BusError
-from spm_console.motion.nudge import PWM_LIMIT, READ_TRIES, NudgeState, release, run_nudge
+from spm_console.motion.nudge import PWM_LIMIT, NudgeState, release, run_nudge
+
+T = TypeVar("T")
 
 
 @dataclass
@@ -57,6 +63,13 @@ class LossyBus:
     def drain_input(self, _s: float) -> None:
         pass
 
+    transport: Any = field(default_factory=lambda: SimpleNamespace(
+        patience=lambda _timeout_s: contextlib.nullcontext()))
+
+    def set_up(self, fn: Callable[[], T]) -> T:
+        """The bus's own set-up retry (:meth:`DynamixelBus.set_up`) on this bus."""
+        return DynamixelBus.set_up(self, fn)  # type: ignore[arg-type]
+
 
 def _never() -> str:
     return ""
@@ -81,7 +94,7 @@ def test_a_bus_that_stops_answering_is_a_bus_error_keeping_the_limits_to_restore
     bus.lose = 1
     with pytest.raises(BusError, match="ending the nudges on lossy"):
         release(bus, state)  # type: ignore[arg-type]
-    assert set(state.saved_pwm) == {1, 2, 3} and bus.n >= READ_TRIES
+    assert set(state.saved_pwm) == {1, 2, 3} and bus.n >= len(SETUP_TIMEOUTS_S)
 
 
 def test_a_begin_cut_short_begins_again_and_restores_the_limits_it_first_saved() -> None:
