@@ -81,7 +81,13 @@ class AsBuiltBody:
     @property
     def gravity_mps2(self) -> F:
         """Gravity in the base's frame, m/s²."""
-        return np.asarray(self.base_rotation.T @ np.array([0.0, 0.0, -GRAVITY_MPS2]), float)
+        return gravity_in_base(self.base_rotation)
+
+
+def gravity_in_base(base_rotation: F) -> F:
+    """Gravity in the frame of a base turned by ``base_rotation`` (world ← base), m/s²:
+    Rᵀ·(0, 0, −9.81)."""
+    return np.asarray(base_rotation.T @ np.array([0.0, 0.0, -GRAVITY_MPS2]), float)
 
 
 def base_rotation(tilt_deg: tuple[float, float]) -> F:
@@ -314,10 +320,9 @@ def wrist_mjcf(model: SpmModel, params: PlantParams, links: LinkModel | None = N
     motors = "\n".join(f'<motor name="{names.servo_actuator(i)}" joint="{names.motor_joint(i)}" '
                         f'gear="1" ctrllimited="false"/>' for i in range(3))
     # gravity in the base's frame: the as-built wrist's tilt, else the profile's
-    tilt = body.base_rotation if body is not None else (
-        None if params.base_tilt_deg == (0.0, 0.0) else base_rotation(params.base_tilt_deg))
-    gravity = (f"0 0 {-GRAVITY_MPS2:g}" if tilt is None else
-               _vec(tilt.T @ np.array([0.0, 0.0, -GRAVITY_MPS2])))
+    gravity = (_vec(body.gravity_mps2) if body is not None else
+               f"0 0 {-GRAVITY_MPS2:g}" if params.base_tilt_deg == (0.0, 0.0) else
+               _vec(gravity_in_base(base_rotation(params.base_tilt_deg))))
     return f"""<mujoco model="spm_wrist">
   <option timestep="{params.timestep_s:.6g}" gravity="{gravity}" integrator="implicitfast"/>
   <worldbody>
