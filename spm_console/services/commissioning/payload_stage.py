@@ -39,8 +39,7 @@ def _rotations(profile: Profile, theta_deg: F) -> tuple[F, F]:
     model = model_of(profile)
     th = np.radians(np.asarray(theta_deg, float).reshape(-1, 3))
     R = np.empty((len(th), 3, 3))
-    for i, t in enumerate(th):
-        r = model.track(t)
+    for i, r in enumerate(model.track_batch(th)):  # all poses march from home together
         R[i] = r.pose.R if r.ok and r.pose is not None else np.nan
     return th, R
 
