@@ -11,6 +11,12 @@ STAMP := $(VENV)/.installed
 # uv uses this interpreter and never downloads one; the environment lives in .venv.
 UV_ENV := UV_PROJECT_ENVIRONMENT=$(VENV) UV_PYTHON_DOWNLOADS=never UV_PYTHON=$(PY)
 PROFILE ?=
+# Bytecode is written where a module is first imported, whatever the machine says
+# (PYTHONDONTWRITEBYTECODE is set on CI machines and some containers): pytest rewrites the
+# asserts of every test module and of its plugins' modules (hypothesis: about 140) in each
+# process, each xdist worker, and can only keep the result as bytecode. Without it every
+# pytest process compiled them again: collection of the suite took 20 s instead of 11 s.
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: run test test-unit test-runtime test-realtime test-all test-slow test-newest lint bench clean venv lock
 

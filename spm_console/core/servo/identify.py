@@ -221,10 +221,16 @@ def response(p: Pole, delay_s: float, t: F, reference: F, theta0: F) -> F:
     tl, kl, il = times[order].tolist(), kinds[order].tolist(), idx[order].tolist()
     tc = tl[0]
     dyn = dynamics(p)
+    coeffs: dict[float, tuple[float, float, float, float, float, float]] = {}
     for te, kind, i in zip(tl, kl, il, strict=True):
         dt = te - tc
         if dt > 0:
-            a, b, c, d, g0, g1 = exact_coeffs(dyn, dt)
+            # a record's intervals repeat (the period, the delay's remainder): each is
+            # discretised once
+            k = coeffs.get(dt)
+            if k is None:
+                k = coeffs[dt] = exact_coeffs(dyn, dt)
+            a, b, c, d, g0, g1 = k
             for j in range(J):
                 th[j], om[j] = (a * th[j] + b * om[j] + g0 * u[j],
                                 c * th[j] + d * om[j] + g1 * u[j])
