@@ -151,7 +151,10 @@ def build(model: ServoModel, region: Region, vmax_degps: float, H: int, ref_lo_d
           track_weight: float, margin_deg: float, speed_margin_degps: float,
           step_deg: float = np.inf, lead_deg: float = np.inf) -> FollowMatrices:
     """Assemble P, A and the constant bounds of the follow QP (see the module docstring);
-    ``step_deg``: largest reference step, ``lead_deg``: the linear range (∞: none)."""
+    ``step_deg``: largest reference step, ``lead_deg``: the linear range (∞: none).
+
+    Every block's entries at once (arrays over the samples k and joints i): a live following
+    builds one QP per region of the cover before torque-on."""
     nr = region.halfspaces
     L = FollowLayout(H, nr)
     (a, b), (c, d) = model.A.tolist()
@@ -160,64 +163,66 @@ def build(model: ServoModel, region: Region, vmax_degps: float, H: int, ref_lo_d
     cols: list[I] = []
     vals: list[F] = []
 
-    def add(r: I | int, cc: I, v: F | float) -> None:
-        cc = np.asarray(cc, np.int64).ravel()
-        rows.append(np.broadcast_to(np.asarray(r, np.int64), cc.shape).ravel())
-        cols.append(cc)
-        vals.append(np.broadcast_to(np.asarray(v, float), cc.shape).ravel())
+    def add(r: I, cc: I, v: F | float) -> None:
+        r, cc = np.broadcast_arrays(r, cc)
+        rows.append(r.ravel())
+        cols.append(cc.ravel())
+        vals.append(np.broadcast_to(np.asarray(v, float), r.shape).ravel())
 
-    inf = np.inf
-    lo = np.zeros(L.m)
-    hi = np.zeros(L.m)
-    An = np.linalg.norm(region.A, axis=1)
-    b_tight = region.b - margin_deg * An
-    v = vmax_degps - speed_margin_degps
-    for k in range(1, H + 1):
-        r0 = L.row(k)
-        for i in range(3):
-            # dynamics, θ row then θ̇ row of joint i
-            add(r0 + i, L.th(k)[i:i + 1], 1.0)
-            add(r0 + i, L.u(k - 1)[i:i + 1], -b0)
-            add(r0 + 3 + i, L.om(k)[i:i + 1], 1.0)
-            add(r0 + 3 + i, L.u(k - 1)[i:i + 1], -b1)
-            if k > 1:
-                add(r0 + i, L.th(k - 1)[i:i + 1], -a)
-                add(r0 + i, L.om(k - 1)[i:i + 1], -b)
-                add(r0 + 3 + i, L.th(k - 1)[i:i + 1], -c)
-                add(r0 + 3 + i, L.om(k - 1)[i:i + 1], -d)
-        # speed, reference bound
-        add(r0 + 6 + np.arange(3), L.om(k), 1.0)
-        lim = 0.0 if k == H else v
-        lo[r0 + 6: r0 + 9], hi[r0 + 6: r0 + 9] = -lim, lim
-        add(r0 + 9 + np.arange(3), L.u(k - 1), 1.0)
-        lo[r0 + 9: r0 + 12], hi[r0 + 9: r0 + 12] = ref_lo_deg, ref_hi_deg
-        # step from the reference before, lead over the position (k = 1: bounds per solve)
-        add(r0 + 12 + np.arange(3), L.u(k - 1), 1.0)
-        add(r0 + 15 + np.arange(3), L.u(k - 1), 1.0)
-        if k > 1:
-            add(r0 + 12 + np.arange(3), L.u(k - 2), -1.0)
-            add(r0 + 15 + np.arange(3), L.th(k - 1), -1.0)
-            lo[r0 + 12: r0 + 15], hi[r0 + 12: r0 + 15] = -step_deg, step_deg
-            lo[r0 + 15: r0 + 18], hi[r0 + 15: r0 + 18] = -lead_deg, lead_deg
-        # region
-        rr = r0 + FIXED_ROWS + np.arange(nr)
-        for i in range(3):
-            add(rr, np.full(nr, L.th(k)[i]), region.A[:, i])
-        lo[rr], hi[rr] = -inf, b_tight
+    k = np.arange(1, H + 1)[:, None]  # (H, 1): samples 1..H
+    i = np.arange(3)[None, :]  # (1, 3): joints
+    r0 = L.rows_per_block * (k - 1)  # first row of each sample's block
+    u = BLOCK * (k - 1) + i  # columns of θ*(k−1)
+    th, om = u + 3, u + 6  # columns of θ(k), θ̇(k)
+    r1 = r0[1:]  # the blocks k = 2..H, whose θ(k−1), θ̇(k−1), θ*(k−2) are variables
+    # dynamics: θ row then θ̇ row of each joint
+    add(r0 + i, th, 1.0)
+    add(r0 + i, u, -b0)
+    add(r0 + 3 + i, om, 1.0)
+    add(r0 + 3 + i, u, -b1)
+    add(r1 + i, th[:-1], -a)
+    add(r1 + i, om[:-1], -b)
+    add(r1 + 3 + i, th[:-1], -c)
+    add(r1 + 3 + i, om[:-1], -d)
+    # speed, reference bound, step from the reference before, lead over the position
+    add(r0 + 6 + i, om, 1.0)
+    add(r0 + 9 + i, u, 1.0)
+    add(r0 + 12 + i, u, 1.0)
+    add(r0 + 15 + i, u, 1.0)
+    add(r1 + 12 + i, u[:-1], -1.0)
+    add(r1 + 15 + i, th[:-1], -1.0)
+    # region: row j of sample k is A_j · θ(k)
+    add((r0 + FIXED_ROWS)[:, :, None] + np.arange(nr)[None, :, None], th[:, None, :],
+        np.asarray(region.A, float)[None])
     t0 = L.terminal_row
     add(t0 + np.arange(3), L.s, 1.0)
     add(t0 + np.arange(3), L.th(H), -1.0)
     add(t0 + 3 + np.arange(3), L.s, 1.0)
     add(t0 + 3 + np.arange(3), L.th(H), 1.0)
-    hi[t0: t0 + 6] = inf
     add(t0 + 6 + np.arange(3), L.th(H), 1.0)
-    lo[t0 + 6: t0 + 9], hi[t0 + 6: t0 + 9] = ref_lo_deg, ref_hi_deg
     Amat = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(L.m, L.n))
+
+    lo = np.zeros(L.m)
+    hi = np.zeros(L.m)
+    blo = lo[: L.rows_per_block * H].reshape(H, L.rows_per_block)  # views: one row per sample
+    bhi = hi[: L.rows_per_block * H].reshape(H, L.rows_per_block)
+    lim = np.full((H, 1), vmax_degps - speed_margin_degps)
+    lim[-1] = 0.0  # θ̇(H) = 0: the horizon ends at rest
+    blo[:, 6:9], bhi[:, 6:9] = -lim, lim
+    blo[:, 9:12], bhi[:, 9:12] = ref_lo_deg, ref_hi_deg
+    # k = 1: the step's and the lead's bounds come from the data, per solve
+    blo[1:, 12:15], bhi[1:, 12:15] = -step_deg, step_deg
+    blo[1:, 15:18], bhi[1:, 15:18] = -lead_deg, lead_deg
+    blo[:, FIXED_ROWS:] = -np.inf
+    bhi[:, FIXED_ROWS:] = region.b - margin_deg * np.linalg.norm(region.A, axis=1)
+    hi[t0: t0 + 6] = np.inf
+    lo[t0 + 6: t0 + 9], hi[t0 + 6: t0 + 9] = ref_lo_deg, ref_hi_deg
+
     diag = np.zeros(L.n)
-    for k in range(1, H + 1):
-        diag[L.om(k)] = 2.0
-        diag[L.th(k)] = 2.0 * track_weight
+    dblk = diag[: BLOCK * H].reshape(H, BLOCK)
+    dblk[:, 6:9] = 2.0  # θ̇(k)
+    dblk[:, 3:6] = 2.0 * track_weight  # θ(k)
     idx = np.arange(L.n)
     P = sp.csc_matrix((diag, (idx, idx)), shape=(L.n, L.n))
     return FollowMatrices(L, P, Amat, lo, hi, float(step_deg), float(lead_deg))
