@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import TypeVar, cast
+from typing import TYPE_CHECKING, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,7 +29,6 @@ from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.devices.base import ServoStatus
 from spm_console.errors import BusError, MotionProcessLostError, SpmError, error_for
-from spm_console.motion.follow.run import FollowOutcome
 from spm_console.motion.homing import HomingResult
 from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.plan_check import PlanCheck
@@ -63,6 +62,9 @@ from spm_console.motion.servo_query import BusQuery, BusReport
 from spm_console.motion.servo_tools import ServoHealth
 from spm_console.services.warm_start import MotionProcessHandle, start_motion_process
 from spm_console.system.simclock import SimClock
+
+if TYPE_CHECKING:  # the follower loads scipy.optimize and osqp (~1.2 s): not for a front end
+    from spm_console.motion.follow.run import FollowOutcome
 
 T = TypeVar("T")
 

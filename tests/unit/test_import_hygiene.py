@@ -76,6 +76,14 @@ def test_the_console_shows_its_first_screen_before_loading_scipy_or_meshcat() ->
     assert _loaded(code, (*HEAVY, "scipy.sparse", "scipy.spatial", "meshcat")) == []
 
 
+def test_a_command_that_only_executes_or_homes_never_loads_the_follower() -> None:
+    """The motion process's client (every command and console) names the following's outcome
+    for its types only: the follower's solvers (scipy.optimize, osqp: about 1.2 s) load in
+    the motion process, never in a front end that does not follow."""
+    code = "import spm_console.cli.run, spm_console.services.client, spm_console.services.oneshot"
+    assert _loaded(code, ("scipy.optimize", "osqp", "spm_console.motion.follow.run")) == []
+
+
 def test_no_import_circle_anywhere_in_the_package() -> None:
     """Function-level and type-only imports count: each module depends on modules below it."""
     graph = own_import_graph()
