@@ -60,7 +60,8 @@ from spm_console.motion.segments import ExecutionResult
 from spm_console.motion.server import HEARTBEAT_S, REQUEST_TIMEOUT_S, Start
 from spm_console.motion.servo_query import BusQuery, BusReport
 from spm_console.motion.servo_tools import ServoHealth
-from spm_console.services.warm_start import MotionProcessHandle, start_motion_process
+from spm_console.services.forked_process import MotionProcessHandle
+from spm_console.services.warm_start import start_motion_process
 from spm_console.system.simclock import SimClock
 
 if TYPE_CHECKING:  # the follower loads scipy.optimize and osqp (~1.2 s): not for a front end

@@ -47,6 +47,7 @@ from spm_console.services.kin_record import FkGraphSource, FkRecord, fk_result, 
 from spm_console.services.plan_info import PlanInfo
 from spm_console.services.session_follow import FollowTools
 from spm_console.services.session_tools import ServoTools
+from spm_console.services.warm_start import fork_helper
 from spm_console.services.wrist_events import log_wrist_events, start_window
 from spm_console.store.plan_file import load_plan
 from spm_console.store.workspace_cache import CacheInfo, load_or_build
@@ -227,7 +228,9 @@ class Session(ServoTools, FollowTools):
         sim = self.sim_clock
         own_process = self.emulator_process or self.profile.plant.model == "physical"
         if self.sim and own_process and not (self.preview and sim is not None):
-            child = EmulatorChild(self.profile, self.faults, self.initial_deg, sim)
+            # forked by the warm start the motion process comes from (its imports are done)
+            child = EmulatorChild(self.profile, self.faults, self.initial_deg, sim,
+                                  fork=fork_helper)
             self.emulator = child
             try:
                 port = child.launch()

@@ -27,15 +27,14 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import select
 import signal
 import socket
 import subprocess
 import sys
 import threading
 from collections.abc import Callable
-from typing import Protocol
 
+from spm_console.services.forked_process import ForkedProcess, MotionProcessHandle, readable
 from spm_console.system import resident
 from spm_console.system.env import switched_off
 
@@ -50,21 +49,6 @@ READY_TIMEOUT_S = 60.0
 FORK_TIMEOUT_S = 10.0
 #: Largest message read from the warm start, bytes.
 MAX_MESSAGE = 4096
-
-
-class MotionProcessHandle(Protocol):
-    """What the motion client needs of its motion process (as :class:`subprocess.Popen`)."""
-
-    @property
-    def pid(self) -> int: ...
-
-    def poll(self) -> int | None: ...
-
-    def wait(self, timeout: float | None = None) -> int: ...
-
-    def send_signal(self, sig: int) -> None: ...
-
-    def terminate(self) -> None: ...
 
 
 def _umask() -> int:
@@ -89,70 +73,6 @@ def _has_fd(stream: object) -> bool:
         return True
     except (AttributeError, OSError, ValueError):
         return False
-
-
-#: The exit code reported for a fork whose end the warm start never reported (it died).
-UNKNOWN_EXIT = 255
-
-
-def _readable(fd: int, timeout_s: float | None) -> bool:
-    poller = select.poll()  # not select(): any fd number
-    poller.register(fd, select.POLLIN)
-    return bool(poller.poll(None if timeout_s is None else max(0, int(timeout_s * 1000))))
-
-
-class ForkedProcess:
-    """A motion process forked by the warm start: waited for and signalled through its
-    pidfd (this process is not its parent); its exit code as the warm start reports it.
-    Thread-safe (the motion client polls it from several threads)."""
-
-    def __init__(self, pid: int, pidfd: int, starter: WarmStart) -> None:
-        self._pid = pid
-        self._pidfd = pidfd
-        self._starter = starter
-        self._lock = threading.Lock()
-        self.returncode: int | None = None
-
-    @property
-    def pid(self) -> int:
-        return self._pid
-
-    def _settle(self, timeout_s: float | None) -> int | None:
-        """The exit code once the process has ended within ``timeout_s``, else None."""
-        with self._lock:
-            if self.returncode is not None:
-                return self.returncode
-            fd = self._pidfd
-        if fd >= 0 and not _readable(fd, timeout_s):
-            return None
-        code = self._starter.exit_code(self._pid, 0.0 if timeout_s == 0 else 2.0)
-        with self._lock:
-            if self.returncode is None:
-                if code is None and timeout_s == 0:
-                    return None  # ended; its code is on its way
-                self.returncode = UNKNOWN_EXIT if code is None else code
-                if self._pidfd >= 0:
-                    os.close(self._pidfd)
-                    self._pidfd = -1
-            return self.returncode
-
-    def poll(self) -> int | None:
-        return self._settle(0)
-
-    def wait(self, timeout: float | None = None) -> int:
-        code = self._settle(timeout)
-        if code is None:
-            raise subprocess.TimeoutExpired("motion process", timeout or 0.0)
-        return code
-
-    def send_signal(self, sig: int) -> None:
-        with self._lock:
-            if self.returncode is None and self._pidfd >= 0:
-                with contextlib.suppress(ProcessLookupError):
-                    signal.pidfd_send_signal(self._pidfd, sig)
-
-    def terminate(self) -> None:
-        self.send_signal(signal.SIGTERM)
 
 
 class NotSentError(OSError):
@@ -261,7 +181,7 @@ class WarmStart:
         reader thread is not running yet)."""
         if first:
             while not done():
-                if not _readable(self._sock.fileno(), timeout_s) or not self._recv_one():
+                if not readable(self._sock.fileno(), timeout_s) or not self._recv_one():
                     return False
             return True
         with self._cond:
@@ -278,18 +198,27 @@ class WarmStart:
         niced below it, a bad request): another process may serve it; OSError when it was
         asked and gave no answer (``theirs`` may have been handed over: it must not be served
         by another process)."""
+        err = sys.stderr.fileno() if _has_fd(sys.stderr) else 2
+        return self._ask([theirs.fileno(), err], {})
+
+    def fork_helper(self, module: str, stdin_fd: int, stdout_fd: int) -> ForkedProcess:
+        """The helper ``module`` (one the warm start knows, see :mod:`.zygote_forks`) with
+        these ends of its standard input and output, watching this process as its parent;
+        errors as :meth:`fork`'s."""
+        return self._ask([stdin_fd, stdout_fd], {"helper": module, "parent": os.getpid()})
+
+    def _ask(self, fds: list[int], extra: dict[str, object]) -> ForkedProcess:
         with self._cond:
             ident = self._next_id
             self._next_id += 1
             self._waiting.add(ident)
         req = json.dumps({"id": ident, "env": dict(os.environ), "cwd": os.getcwd(),
                           "umask": _umask(), "cpus": sorted(os.sched_getaffinity(0)),
-                          "nice": os.getpriority(os.PRIO_PROCESS, 0)}).encode()
+                          "nice": os.getpriority(os.PRIO_PROCESS, 0), **extra}).encode()
         try:
             with self._lock:
                 try:
-                    socket.send_fds(self._sock, [req], [theirs.fileno(), sys.stderr.fileno()
-                                                        if _has_fd(sys.stderr) else 2])
+                    socket.send_fds(self._sock, [req], fds)
                 except OSError as exc:
                     raise NotSentError(str(exc)) from None
             got = self._wait_for(lambda: ident in self._answers, FORK_TIMEOUT_S)
@@ -298,9 +227,9 @@ class WarmStart:
                 self._waiting.discard(ident)
                 answer = self._answers.pop(ident, None)
         if not got or answer is None:
-            raise OSError("the warm start of the motion process did not fork in time")
-        if isinstance(answer, str):  # it says so only when no fork of it touched ``theirs``
-            raise NotSentError(f"the warm start of the motion process refused: {answer}")
+            raise OSError("the warm start did not fork in time")
+        if isinstance(answer, str):  # it says so only when no fork of it touched the fds
+            raise NotSentError(f"the warm start refused: {answer}")
         return ForkedProcess(answer[0], answer[1], self)
 
     def exit_code(self, pid: int, timeout_s: float) -> int | None:
@@ -429,3 +358,16 @@ def start_motion_process(theirs: socket.socket) -> MotionProcessHandle:
         except NotSentError:
             pass  # the warm start is gone before it was asked: start this one directly
     return start_direct(theirs)
+
+
+def fork_helper(module: str, stdin_fd: int, stdout_fd: int) -> ForkedProcess | None:
+    """The helper ``module`` forked from this front end's warm start (its imports already
+    done: milliseconds instead of about 0.6 s), or None when there is no warm start to ask or
+    it refused (the caller then starts the helper as a process of its own)."""
+    starter = _warm_start()
+    if starter is None:
+        return None
+    try:
+        return starter.fork_helper(module, stdin_fd, stdout_fd)
+    except NotSentError:
+        return None

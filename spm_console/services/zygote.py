@@ -42,6 +42,11 @@ with the motion process's end of its socket pair and its standard error attached
 process answers ``{"id": K, "pid": N}`` with a pidfd of the fork attached (race-free waiting
 and signalling for the front end, which is not the fork's parent) or ``{"id": K, "error":
 "..."}``, and later ``{"exit": N, "code": C}`` when the fork has ended.
+
+A helper (the emulated bus's process, :mod:`.zygote_forks`) is asked for the same way, with
+``"helper": MODULE, "parent": PID`` added and the ends of its standard input and output
+attached instead: it is the helper a front end would start as ``python -m MODULE --parent
+PID``, without the imports.
 """
 
 from __future__ import annotations
@@ -59,13 +64,15 @@ import sys
 import time
 import traceback
 from collections.abc import Sequence
-from dataclasses import dataclass
 
+from spm_console.services.zygote_forks import HELPER_IMPORTS, Request, run_helper, run_motion_process
 from spm_console.system import resident, rundir
 from spm_console.system.signals import STOP_SIGNALS
 
-#: What a motion process imports before it answers, and what only a motion needs.
-PRELOAD = ("spm_console.motion.server", "filterpy.kalman", "spm_console.motion.follow.run")
+#: What a motion process imports before it answers, and what only a motion needs; then what
+#: the helpers it forks import (the emulated bus's child: the profile's schema, the servos).
+PRELOAD = ("spm_console.motion.server", "filterpy.kalman", "spm_console.motion.follow.run",
+           *HELPER_IMPORTS)
 #: Largest request accepted, bytes (an environment of a few kB).
 MAX_MESSAGE = 1 << 20
 #: How often finished forks are reaped when no request comes, s.
@@ -76,58 +83,6 @@ MAX_CONNECTIONS = 64
 
 def _send(sock: socket.socket, msg: dict[str, object], fds: Sequence[int] = ()) -> None:
     socket.send_fds(sock, [json.dumps(msg).encode()], list(fds))
-
-
-@dataclass(frozen=True)
-class Request:
-    """One fork request, checked: what the motion process takes from its front end."""
-
-    ident: object
-    env: dict[str, str]
-    cwd: str
-    umask: int
-    cpus: frozenset[int]
-    nice: int
-
-    @classmethod
-    def parse(cls, data: bytes) -> Request:
-        """ValueError when the request is not one (its id, if any, is kept for the answer)."""
-        msg = json.loads(data)
-        if not isinstance(msg, dict):
-            raise ValueError("not a request")
-        env, cwd = msg.get("env"), msg.get("cwd")
-        if not isinstance(env, dict) or not isinstance(cwd, str):
-            raise ValueError("a request without environment or working directory")
-        umask = msg.get("umask", 0o022)
-        cpus = msg.get("cpus", sorted(os.sched_getaffinity(0)))
-        nice = msg.get("nice", os.getpriority(os.PRIO_PROCESS, 0))
-        if not (isinstance(umask, int) and 0 <= umask <= 0o777 and isinstance(nice, int)
-                and isinstance(cpus, list) and cpus
-                and all(isinstance(c, int) and 0 <= c < 4096 for c in cpus)):
-            raise ValueError("a request with a bad umask, CPU set or niceness")
-        return cls(msg.get("id"), {str(k): str(v) for k, v in env.items()}, cwd, umask,
-                   frozenset(cpus), nice)
-
-
-def _run_motion_process(fd: int, err: int, req: Request) -> int:
-    """In the fork, once released: become the asker's motion process on ``fd``."""
-    os.setsid()
-    for sig in (*STOP_SIGNALS, signal.SIGCHLD):
-        signal.signal(sig, signal.SIG_DFL)
-    if err >= 0:
-        os.dup2(err, 2)
-        os.close(err)
-    os.environ.clear()
-    os.environ.update(req.env)
-    os.chdir(req.cwd)
-    os.umask(req.umask)
-    os.setpriority(os.PRIO_PROCESS, 0, req.nice)  # never below this process's: checked
-    with contextlib.suppress(OSError):  # CPUs this process may not use: its own set stays
-        os.sched_setaffinity(0, req.cpus)
-    from spm_console.motion import server
-
-    sys.argv = [server.__file__, "--fd", str(fd)]  # what the run logs record
-    return server.main(["--fd", str(fd)])
 
 
 class Zygote:
@@ -148,8 +103,9 @@ class Zygote:
     # -- forks -------------------------------------------------------------------------
     def _fork(self, fd: int, err: int, req: Request, go: int, go_w: int) -> int:
         """Fork; the child waits for one byte on ``go`` (the parent has told the asker its pid
-        and pidfd), then runs the motion process on ``fd``; it never returns. Without that
-        byte it leaves at once, having touched nothing."""
+        and pidfd), then runs the motion process on ``fd`` (or the helper asked for, on its
+        standard input ``fd`` and output ``err``); it never returns. Without that byte it
+        leaves at once, having touched nothing."""
         pid = os.fork()
         if pid:
             return pid
@@ -163,7 +119,8 @@ class Zygote:
                 os.close(go_w)  # the parent's end: closed without a byte, the read below ends
                 if os.read(go, 1) == b"g":
                     os.close(go)
-                    code = _run_motion_process(fd, err, req)
+                    code = (run_helper(fd, err, req) if req.helper
+                            else run_motion_process(fd, err, req))
             except BaseException:  # a bug: say so on stderr, then leave like a crashed process
                 with contextlib.suppress(BaseException):
                     traceback.print_exc()
@@ -184,6 +141,8 @@ class Zygote:
             with contextlib.suppress(ValueError, AttributeError):
                 ident = json.loads(data).get("id")
             req = Request.parse(data)
+            if req.helper and err < 0:
+                raise ValueError("a helper needs the ends of its standard input and output")
             if self.retired and self.listener is not None:
                 raise OSError("this warm start is retired: it forks nothing new")
             if req.nice < os.getpriority(os.PRIO_PROCESS, 0):

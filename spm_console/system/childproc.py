@@ -3,7 +3,8 @@ started as children, stopped on exit and on SIGTERM.
 
 :class:`ChildProcess` runs ``python -m MODULE --parent PID …``; the child prints one
 JSON line on stdout when it is ready and watches its parent, so it never outlives a
-killed console.
+killed console. A helper the caller can have forked elsewhere (its ``fork``: the front end's
+warm start, whose imports are done) is started that way first, on pipes of this process.
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import IO, Any, Protocol
 
 from spm_console.errors import SpmError
 
@@ -84,6 +85,80 @@ def _take_spare(module: str, args: Sequence[str]) -> subprocess.Popen[bytes] | N
     return proc
 
 
+class ProcessHandle(Protocol):
+    """A started process, as :class:`subprocess.Popen` gives it."""
+
+    @property
+    def pid(self) -> int: ...
+
+    def poll(self) -> int | None: ...
+
+    def wait(self, timeout: float | None = None) -> int: ...
+
+    def send_signal(self, sig: int) -> None: ...
+
+    def kill(self) -> None: ...
+
+
+class HelperProcess(ProcessHandle, Protocol):
+    """A helper's process with its standard input and output, as :class:`subprocess.Popen`
+    (``stdin=PIPE, stdout=PIPE``) gives it."""
+
+    @property
+    def stdin(self) -> IO[bytes] | None: ...
+
+    @property
+    def stdout(self) -> IO[bytes] | None: ...
+
+
+#: Forks the helper ``module`` on the ends (standard input's read end, standard output's
+#: write end) of two pipes; None when it cannot (the helper is then started as a process).
+HelperFork = Callable[[str, int, int], ProcessHandle | None]
+
+
+class PipedProcess:
+    """A process started elsewhere (forked by a warm start) on pipes of this process."""
+
+    def __init__(self, proc: ProcessHandle, stdin: IO[bytes], stdout: IO[bytes]) -> None:
+        self._proc = proc
+        self.stdin: IO[bytes] | None = stdin
+        self.stdout: IO[bytes] | None = stdout
+
+    @property
+    def pid(self) -> int:
+        return self._proc.pid
+
+    def poll(self) -> int | None:
+        return self._proc.poll()
+
+    def wait(self, timeout: float | None = None) -> int:
+        return self._proc.wait(timeout)
+
+    def send_signal(self, sig: int) -> None:
+        self._proc.send_signal(sig)
+
+    def kill(self) -> None:
+        self._proc.kill()
+
+
+def _forked(fork: HelperFork, module: str) -> HelperProcess | None:
+    """``module`` forked by ``fork`` on two new pipes (their other ends here), or None."""
+    in_r, in_w = os.pipe()
+    out_r, out_w = os.pipe()
+    try:
+        proc = fork(module, in_r, out_w)
+    except OSError:  # asked, no answer: a fork, if any, reads EOF as its request and leaves
+        proc = None
+    finally:  # the fork has its own copies
+        os.close(in_r)
+        os.close(out_w)
+    if proc is None:
+        os.close(in_w)
+        os.close(out_r)
+        return None
+    return PipedProcess(proc, os.fdopen(in_w, "wb", buffering=0), os.fdopen(out_r, "rb"))
+
+
 class HelperProcessError(SpmError):
     """A helper process (3D viewer, emulator child) failed or does not answer."""
 
@@ -94,11 +169,16 @@ class ChildProcess:
     stop_signal: signal.Signals = signal.SIGTERM
     """What :meth:`stop` sends first (then SIGKILL if the child lingers)."""
 
-    def __init__(self, module: str, args: Sequence[str] = (), what: str = "helper") -> None:
+    def __init__(self, module: str, args: Sequence[str] = (), what: str = "helper",
+                 fork: HelperFork | None = None) -> None:
         self.module = module
         self.args = list(args)
         self.what = what
-        self._proc: subprocess.Popen[bytes] | None = None
+        self.fork = fork
+        """Forks the helper instead of starting a process (no extra ``args`` only)."""
+        self.forked = False
+        """The helper was forked by :attr:`fork` (not started as a process of its own)."""
+        self._proc: HelperProcess | None = None
         self.info: dict[str, Any] | None = None
 
     @property
@@ -110,9 +190,13 @@ class ChildProcess:
         return self._proc is not None and self._proc.poll() is None
 
     def start(self, stdin: bytes = b"", timeout_s: float = START_TIMEOUT_S) -> dict[str, Any]:
-        """Spawn the child (or take the one :func:`prespawn` started), send ``stdin``, wait for
-        its JSON line (blocking)."""
-        self._proc = _take_spare(self.module, self.args) or _spawn(self.module, self.args)
+        """Spawn the child (or take the one :func:`prespawn` started, or have it forked), send
+        ``stdin``, wait for its JSON line (blocking)."""
+        proc: HelperProcess | None = _take_spare(self.module, self.args)
+        if proc is None and self.fork is not None and not self.args:
+            proc = _forked(self.fork, self.module)
+            self.forked = proc is not None
+        self._proc = proc or _spawn(self.module, self.args)
         atexit.register(self.stop)
         assert self._proc.stdin is not None
         try:

@@ -37,7 +37,7 @@ from spm_console.config.schema import Profile
 from spm_console.devices.emulator.contacts import Collision
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import SpmError
-from spm_console.system.childproc import ChildProcess
+from spm_console.system.childproc import ChildProcess, HelperFork
 from spm_console.system.cpus import place_on_loop_cpu
 from spm_console.system.realtime import HELPER_PRIORITY, quick_gil_handoff, request_realtime
 from spm_console.system.signals import STOP_SIGNALS
@@ -63,8 +63,9 @@ class EmulatorChild(ChildProcess):
 
     def __init__(self, profile: Profile, faults: Sequence[Any] = (),
                  initial_deg: Sequence[float] | None = None,
-                 sim: SimClock | None = None) -> None:
-        super().__init__("spm_console.devices.emulator.child", what="emulated servo bus")
+                 sim: SimClock | None = None, fork: HelperFork | None = None) -> None:
+        super().__init__("spm_console.devices.emulator.child", what="emulated servo bus",
+                         fork=fork)
         self.request = {
             "profile": profile.model_dump(mode="json"),
             "faults": [str(f) for f in faults],
@@ -149,6 +150,21 @@ class EmulatorChild(ChildProcess):
         return self.port
 
 
+def _parent_watch(parent: int) -> Callable[[], bool]:
+    """Whether the front end ``parent`` (a pid, 0: none) is gone. Started by it, this process
+    is re-parented when it dies; forked by its warm start, the warm start is the parent, and
+    a pidfd of the front end says when it has ended."""
+    if not parent:
+        return lambda: False
+    if os.getppid() == parent:
+        return lambda: os.getppid() != parent
+    try:
+        fd = os.pidfd_open(parent)
+    except OSError:  # gone already (or no pidfd: then no warm start forked this process)
+        return lambda: True
+    return lambda: bool(select.select([fd], [], [], 0)[0])
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from spm_console.config.load import parse_profile
     from spm_console.devices.emulator.bus import start_emulator
@@ -176,6 +192,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     signal.signal(signal.SIGUSR1, on_signal)
     signal.signal(signal.SIGUSR2, on_signal)
+    parent_gone = _parent_watch(args.parent)
     try:
         req = json.loads(sys.stdin.read())
         profile = parse_profile(req["profile"], "profile")
@@ -201,7 +218,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             with contextlib.suppress(InterruptedError):
                 if select.select([wake_r], [], [], EVENTS_EVERY_S)[0]:
                     os.read(wake_r, 4096)
-            if asked["stop"] or (args.parent and os.getppid() != args.parent):
+            if asked["stop"] or parent_gone():
                 break
             flushes = asked["flush"]  # one read: a later request finds its byte in the pipe
             now = time.perf_counter() if em.sim is None else em.sim.now()
