@@ -24,17 +24,30 @@ def _children(pid: int) -> list[int]:
     return out
 
 
+def _descendants(pid: int) -> list[int]:
+    """Every process below ``pid``: the console's warm start, and the motion process and
+    emulated bus it forked."""
+    out, todo = [], [pid]
+    while todo:
+        kids = _children(todo.pop())
+        out += kids
+        todo += kids
+    return out
+
+
 @pytest.mark.slow  # a whole real-time run (the slow set runs in CI as its own stage)
 def test_switch_profile_and_grid_step_restarts_in_the_same_terminal(tmp_path: Path) -> None:
-    env = {"SPM_CONSOLE_LOGS": str(tmp_path / "logs"), "SPM_CONSOLE_CACHE": str(tmp_path / "c"),
+    # a warm start of the console's own: the processes of its sessions are its descendants
+    env = {"SPM_CONSOLE_WARM_START": "command",
+           "SPM_CONSOLE_LOGS": str(tmp_path / "logs"), "SPM_CONSOLE_CACHE": str(tmp_path / "c"),
            "SPM_CONSOLE_CONFIG": str(tmp_path / "config"), "TERM": "xterm-256color",
            "PATH": os.environ["PATH"], "HOME": os.environ.get("HOME", "/tmp")}
     t = Tmux([sys.executable, "-m", "spm_console", "tui", "--sim", "--plant", "ideal", "--no-viewer",
               "--grid-step", "5"], env)
     try:
         t.wait_for(r"press h to home")
-        before = len(_children(t.pane_pid()))
-        assert before >= 1  # the motion process (and the emulated bus)
+        before = len(_descendants(t.pane_pid()))
+        assert before >= 3  # the warm start, the motion process and the emulated bus
         t.keys("C-o")
         t.wait_for(r"In use: profile agile_wrist .*grid step 5°")
         t.keys("Down")
@@ -48,7 +61,7 @@ def test_switch_profile_and_grid_step_restarts_in_the_same_terminal(tmp_path: Pa
         screen = t.wait_for(r"press h to home")  # the new console starts at the connect step
         assert "profile coaxial_spm" in screen
         # the old session closed: its motion process and emulator are gone, not doubled
-        assert len(_children(t.pane_pid())) == before
+        assert len(_descendants(t.pane_pid())) == before
         t.keys("3")
         screen = t.wait_for(r"workspace ready", timeout_s=120)
         assert "step 10°" in screen and "no cache file" in screen
