@@ -148,6 +148,14 @@ def _start_execution(t) -> None:  # type: ignore[no-untyped-def]
     t.keys("y")
 
 
+def _moving(t) -> None:  # type: ignore[no-untyped-def]
+    """Until the wrist moves: the banner is up from the request on, the countdown only once
+    the run's samples come (torque on; a loaded machine can take longer than 0.5 s to get
+    there)."""
+    t.wait_for(r"(?s)(?=.*E-STOP: press SPACE)(?=.*s to go)")
+    time.sleep(0.3)
+
+
 @pytest.mark.realtime  # the one walk through the console on the wall clock
 def test_walk_home_plan_execute_by_keys(tmux_console, env, tmp_path) -> None:  # type: ignore[no-untyped-def]
     env["SPM_CONSOLE_CLOCK"] = "real"
@@ -213,8 +221,7 @@ def test_a_signal_to_its_group_mid_motion_stops_the_wrist_the_console_and_its_vi
     port = _viewer_port(t.wait_for(r"3D view: http://127\.0\.0\.1:\d+/static/", timeout_s=30))
     _home_and_solve(t)
     _start_execution(t)
-    t.wait_for(r"E-STOP: press SPACE")
-    time.sleep(0.5)
+    _moving(t)
     runs = list_runs(tmp_path / "logs")
     loop_pid = int(runs[-1].meta["process"]["pid"])
     pid = t.pane_pid()
@@ -235,8 +242,7 @@ def test_closing_the_terminal_mid_motion_stops_the_wrist_and_closes_the_log(  # 
     t = tmux_console("--sim", "--plant", "ideal", "--no-viewer")
     _home_and_solve(t)
     _start_execution(t)
-    t.wait_for(r"E-STOP: press SPACE")
-    time.sleep(0.5)
+    _moving(t)
     pid = t.pane_pid()
     t.kill()  # the terminal closes under the console
     t0 = time.monotonic()
