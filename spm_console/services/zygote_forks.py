@@ -100,8 +100,9 @@ def run_helper(stdin_fd: int, stdout_fd: int, req: Request) -> int:
     _take_on(req)
     devnull = os.open(os.devnull, os.O_WRONLY)
     for fd, target in ((stdin_fd, 0), (stdout_fd, 1), (devnull, 2)):
-        os.dup2(fd, target)
-        os.close(fd)
+        if fd != target:  # a warm start started without standard streams gets them as fds
+            os.dup2(fd, target)
+            os.close(fd)
     # the warm start's own streams may be closed or buffered: the helper's are new
     sys.stdin = io.TextIOWrapper(io.FileIO(0, "r", closefd=False), encoding="utf-8")
     sys.stdout = io.TextIOWrapper(io.FileIO(1, "w", closefd=False), encoding="utf-8",
