@@ -11,18 +11,11 @@ import subprocess
 import threading
 from typing import Protocol
 
+from spm_console.system.childproc import ProcessHandle
 
-class MotionProcessHandle(Protocol):
+
+class MotionProcessHandle(ProcessHandle, Protocol):
     """What the motion client needs of its motion process (as :class:`subprocess.Popen`)."""
-
-    @property
-    def pid(self) -> int: ...
-
-    def poll(self) -> int | None: ...
-
-    def wait(self, timeout: float | None = None) -> int: ...
-
-    def send_signal(self, sig: int) -> None: ...
 
     def terminate(self) -> None: ...
 

@@ -31,6 +31,7 @@ from spm_console.motion.logs.runlog import list_runs, load_run
 from spm_console.motion.plans import synthetic_plan
 from spm_console.store.plan_file import save_plan
 from tests.support.exec_helpers import PAPER_START
+from tests.support.procfs import descendants
 from tests.support.terminal_helpers import (
     CTRL_BACKSLASH,
     CTRL_C,
@@ -198,7 +199,7 @@ def test_a_service_stop_signals_every_process_and_the_wrist_holds(
     motion itself; the emulated servos keep their power until their owner is gone."""
     logs = tmp_path / "logs"
     t, run_dir, loop_pid = _start_moving(terminal, tmp_path, long_plan)
-    unit = _descendants(t.proc.pid) | {t.proc.pid}
+    unit = descendants(t.proc.pid) | {t.proc.pid}
     assert loop_pid in unit and len(unit) >= 3  # front end, motion process, emulated servos
     for pid in unit:
         os.kill(pid, signal.SIGTERM)
@@ -221,23 +222,6 @@ def test_a_signal_to_the_motion_process_alone_stops_the_motion_and_it_serves_on(
     assert "motion process is gone" not in t.output  # it lived to send the result
     assert_estopped(tmp_path / "logs", run_dir, signal.SIGHUP, agile.servo.ts_s, loop_pid,
                     where=" to the motion process")
-
-
-def _descendants(pid: int) -> set[int]:
-    out: set[int] = set()
-    todo = [pid]
-    while todo:
-        p = todo.pop()
-        for task in Path(f"/proc/{p}/task").glob("*"):
-            try:
-                kids = (task / "children").read_text().split()
-            except OSError:
-                continue
-            for k in map(int, kids):
-                if k not in out:
-                    out.add(k)
-                    todo.append(k)
-    return out
 
 
 @pytest.mark.parametrize(("sig", "after_s"), [(signal.SIGTERM, 0.8), (signal.SIGINT, 1.2),

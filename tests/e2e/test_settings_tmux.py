@@ -12,27 +12,9 @@ from pathlib import Path
 import pytest
 
 from tests.e2e.test_console_tmux import Tmux
+from tests.support.procfs import descendants
 
 pytestmark = pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed")
-
-
-def _children(pid: int) -> list[int]:
-    """Child processes of ``pid`` (Linux /proc)."""
-    out: list[int] = []
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        out += [int(c) for c in (task / "children").read_text().split()]
-    return out
-
-
-def _descendants(pid: int) -> list[int]:
-    """Every process below ``pid``: the console's warm start, and the motion process and
-    emulated bus it forked."""
-    out, todo = [], [pid]
-    while todo:
-        kids = _children(todo.pop())
-        out += kids
-        todo += kids
-    return out
 
 
 @pytest.mark.slow  # a whole real-time run (the slow set runs in CI as its own stage)
@@ -46,7 +28,7 @@ def test_switch_profile_and_grid_step_restarts_in_the_same_terminal(tmp_path: Pa
               "--grid-step", "5"], env)
     try:
         t.wait_for(r"press h to home")
-        before = len(_descendants(t.pane_pid()))
+        before = len(descendants(t.pane_pid()))
         assert before >= 3  # the warm start, the motion process and the emulated bus
         t.keys("C-o")
         t.wait_for(r"In use: profile agile_wrist .*grid step 5°")
@@ -61,7 +43,7 @@ def test_switch_profile_and_grid_step_restarts_in_the_same_terminal(tmp_path: Pa
         screen = t.wait_for(r"press h to home")  # the new console starts at the connect step
         assert "profile coaxial_spm" in screen
         # the old session closed: its motion process and emulator are gone, not doubled
-        assert len(_descendants(t.pane_pid())) == before
+        assert len(descendants(t.pane_pid())) == before
         t.keys("3")
         screen = t.wait_for(r"workspace ready", timeout_s=120)
         assert "step 10°" in screen and "no cache file" in screen
