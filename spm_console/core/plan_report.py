@@ -46,7 +46,13 @@ class ConstraintReport:
     """With K > 1: worst region (deg) or speed (deg/s) violation at the enforced sub-samples."""
     points_per_interval: int
     ok: bool
-    """All sample constraints hold to the planner's tolerance (1e-6)."""
+    """All sample constraints hold to the planner's tolerance (1e-6), and the runtime's rules
+    hold (:attr:`runtime_rule` is empty)."""
+    runtime_rule: str = ""
+    """The first of the runtime's rules (:class:`~spm_console.core.plan_rules.Rule`, its
+    value) the motion breaks, checked as the runtime will (all but the workspace's
+    certification, which the planner's caller checks); empty when every rule holds. Read
+    from a plan file written before the field existed: empty (the runtime checks again)."""
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

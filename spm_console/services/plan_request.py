@@ -6,7 +6,8 @@ both feasible (:meth:`~spm_console.core.workspace.check.ThetaCheck.verdict` is t
 wording); the region — given, the workspace's P, or grown around the segment
 (:func:`~spm_console.core.regions.p_build.choose_region`); the solve; then the runtime's own
 verification (:func:`~spm_console.motion.plan_check.verify_plan`), so only a plan that will
-execute is returned. Degrees, deg/s, seconds.
+execute is returned; the planner meets the runtime's rules by construction, so that
+verification refusing is a fault, never a reason to solve again. Degrees, deg/s, seconds.
 """
 
 from __future__ import annotations
@@ -31,8 +32,9 @@ from spm_console.core.regions.cover import connected_graph
 from spm_console.core.workspace.build import check_theta
 from spm_console.core.workspace.check import ThetaCheck
 from spm_console.core.workspace.data import Workspace
-from spm_console.errors import BadInputError, InfeasibleError, Issue, PlanRefusedError, SpmError
+from spm_console.errors import BadInputError, InfeasibleError, Issue
 from spm_console.formatting import fmt_deg, fmt_vec
+from spm_console.input_rules import vmax_arg
 from spm_console.motion.plan_check import verify_plan
 from spm_console.store.plan_file import plan_hash
 
@@ -94,8 +96,10 @@ class PlannedMotion:
 
 
 def precheck(profile: Profile, req: PlanRequest) -> None:
-    """What can be refused without the workspace (milliseconds): the servo limits, and for
+    """What can be refused without the workspace (milliseconds): a speed bound above the
+    profile's planning limit (the runtime refuses such a plan), the servo limits, and for
     minimum time a speed bound too low for any horizon the planner may try."""
+    vmax_arg(req.vmax_degps, profile, what="the speed bound")
     s = np.asarray(req.start_deg, float).reshape(3)
     g = np.asarray(req.goal_deg, float).reshape(3)
     lo, hi = servo_limits_deg(profile)
@@ -111,30 +115,15 @@ def precheck(profile: Profile, req: PlanRequest) -> None:
                       min(N_MAX, MAX_INSTANTS // max(1, int(req.intersample))))
 
 
-RETRY_INTERSAMPLE = 5
-"""Instants per interval of the re-solve when the runtime refuses a plan bounded at the
-samples only: an underdamped servo's speed peaks between samples, above the runtime's 10 %
-allowance there, so the planner then bounds speed and region inside each interval too."""
-
-
 def plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMotion:
     """Assemble, solve and verify (see the module docstring); raises the SpmError that says
     why not (bad input 4, infeasible 6, plan refused 26), with the Issue it was raised with.
-    A plan the verification refuses is solved once more with the speed and region bounded at
-    :data:`RETRY_INTERSAMPLE` instants per interval; if that fails too, the first refusal is
-    raised."""
-    try:
-        return _plan_motion(profile, ws, req)
-    except PlanRefusedError as first:
-        if req.intersample >= RETRY_INTERSAMPLE:
-            raise
-        try:
-            return _plan_motion(profile, ws, replace(req, intersample=RETRY_INTERSAMPLE))
-        except SpmError:
-            raise first from None
 
-
-def _plan_motion(profile: Profile, ws: Workspace, req: PlanRequest) -> PlannedMotion:
+    The planner holds the motion to the runtime's rules where the runtime checks them
+    (:attr:`~spm_console.core.planning.problem.PlanProblem.check_points`), and its report's
+    verdict is those rules', so the runtime's verification accepts what it returns; the
+    verification runs all the same (against the workspace's certified set), and a refusal
+    there is raised as it is, never worked around by solving again."""
     precheck(profile, req)
     s = np.asarray(req.start_deg, float).reshape(3)
     g = np.asarray(req.goal_deg, float).reshape(3)

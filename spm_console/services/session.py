@@ -40,8 +40,10 @@ from spm_console.errors import (
     UnreachableError,
 )
 from spm_console.formatting import fmt_deg
+from spm_console.motion.plan_check import PlanCheck, verify_plan
 from spm_console.motion.plans import line_plan
 from spm_console.motion.sample import Sample
+from spm_console.motion.segments import ExecutionResult
 from spm_console.motion.servo_tools import ServoHealth
 from spm_console.services.kin_record import FkGraphSource, FkRecord, fk_result, fk_route
 from spm_console.services.plan_info import PlanInfo
@@ -57,8 +59,6 @@ from spm_console.system.simclock import SimClock
 
 if TYPE_CHECKING:
     from spm_console.motion.homing import HomingResult
-    from spm_console.motion.plan_check import PlanCheck
-    from spm_console.motion.segments import ExecutionResult
     from spm_console.services.client import MotionClient
 
 F = NDArray[np.float64]
@@ -468,8 +468,6 @@ class Session(ServoTools, FollowTools):
         """A saved plan as the current plan: read and checked against this profile
         (``store.plan_file.load_plan``: format, profile hash, model), then verified exactly as
         the executor will (``run.plan_check.verify_plan``). Refused with the reason."""
-        from spm_console.motion.plan_check import verify_plan
-
         plan = load_plan(path, self.profile)
         verify_plan(self.profile, self.ensure_workspace(), plan)
         self.plan = plan

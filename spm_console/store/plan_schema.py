@@ -30,6 +30,7 @@ from spm_console.core.plan_report import (
     InfeasibilityRecord,
     SearchStep,
 )
+from spm_console.core.plan_rules import Rule
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.route import RegionRoute
 from spm_console.core.servo.model import Discretization, ServoModel
@@ -58,6 +59,10 @@ OPTION_KEYS = ("start_deg", "goal_deg", "vmax_degps", "intersample", "hold_first
 #: Keys of "extra" read into typed fields; any other key is kept in Plan.notes.
 TYPED_EXTRA_KEYS = (*OPTION_KEYS, "check", "solver", "search_seconds", "n_minus_1_infeasible")
 DISCRETIZATIONS = ("zoh", "tustin")
+
+
+#: What a plan file's ``extra.check.runtime_rule`` may hold.
+RUNTIME_RULES = frozenset({""} | {r.value for r in Rule})
 
 
 def is_number(v: Any) -> bool:
@@ -224,7 +229,12 @@ def _check(value: Any, src: str) -> ConstraintReport | None:
         if value.get("points_per_interval") is not None else 0
     if not isinstance(value.get("ok", False), bool):
         raise PlanMismatchError(f"{src}: 'extra.check.ok' must be true or false")
-    return ConstraintReport(**nums, points_per_interval=pts, ok=value.get("ok", False))
+    rule = value.get("runtime_rule", "")
+    if not isinstance(rule, str) or rule not in RUNTIME_RULES:
+        raise PlanMismatchError(f"{src}: 'extra.check.runtime_rule' must be empty or one of the "
+                                f"runtime's rules, got {_describe(rule)}")
+    return ConstraintReport(**nums, points_per_interval=pts, ok=value.get("ok", False),
+                            runtime_rule=rule)
 
 
 def _certificate(value: Any, where: str) -> Certificate | None:

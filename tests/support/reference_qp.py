@@ -15,7 +15,7 @@ import cvxpy as cp
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.planning.problem import PlanProblem, sub_matrices
+from spm_console.core.planning.problem import PlanProblem, sub_instants, sub_matrices
 from spm_console.core.planning.qp_build import PLAN_STEP_DEG
 
 F = NDArray[np.float64]
@@ -77,6 +77,12 @@ def formulate(pb: PlanProblem) -> tuple[cp.Problem, cp.Variable, cp.Variable, cp
         if pb.vmax_degps is not None:
             oms = ph[1, 0] * th[:-1] + ph[1, 1] * om[:-1] + ga[1] * ref[:-1]
             cons.append(cp.abs(oms) <= pb.vmax_degps)
+    # the runtime's check instants: its between-sample speed bound there
+    sub = sub_instants(pb)
+    for j in np.flatnonzero(~sub.requested) if pb.vmax_degps is not None else ():
+        ph, ga = sub.phis[j], sub.gams[j]
+        oms = ph[1, 0] * th[:-1] + ph[1, 1] * om[:-1] + ga[1] * ref[:-1]
+        cons.append(cp.abs(oms) <= sub.speed_bound_degps[j])
     prob = cp.Problem(cp.Minimize(cp.sum_squares(om)), cons)
     return prob, th, om, ref
 

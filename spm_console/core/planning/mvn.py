@@ -91,7 +91,9 @@ def finish(problem: PlanProblem, eq: Equalities, out: QpOutcome, t0: float,
         raise SolverError(
             f"the solution does not satisfy its constraints to 1e-6 (goal error "
             f"{report.goal_error_deg:.2e}°, region {report.region_violation_deg:.2e}°, speed "
-            f"{report.speed_excess_degps:.2e}°/s); method {out.method}")
+            f"{report.speed_excess_degps:.2e}°/s"
+            + (f"; the runtime's rules: {report.runtime_rule}" if report.runtime_rule else "")
+            + f"); method {out.method}")
     info = out.info()
     return PlanResult("optimal", problem, ref, pos, vel, float((vel**2).sum()),
                       time.perf_counter() - t0, out.qp_count + qp_extra, report, info)

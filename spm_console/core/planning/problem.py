@@ -9,14 +9,16 @@ is printed — θ*(0) = θ(0) (``hold_first``; set False to let the first refere
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from fractions import Fraction
 
 import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
+from spm_console.core.plan_rules import BETWEEN_SPEED_ALLOWANCE, POINTS_PER_INTERVAL, SAMPLE_TOL
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.route import RegionRoute
-from spm_console.core.servo.model import ServoModel, substeps
+from spm_console.core.servo.model import ServoModel, exact_step, substeps
 from spm_console.errors import BadInputError, InfeasibleError, Issue
 from spm_console.formatting import fmt_deg
 
@@ -56,6 +58,13 @@ class PlanProblem:
     lead_max_deg: float | None = None
     """Largest |θ*(k) − θ(k)| at the samples, deg: the servo's identified linear range (its
     drive saturates beyond, and the model no longer holds); None: unbounded, as (30)."""
+    check_points: int = POINTS_PER_INTERVAL
+    """Instants per interval at which the runtime checks the motion (the samples included,
+    :data:`~spm_console.core.plan_rules.POINTS_PER_INTERVAL`): the plan also holds its speed
+    to the runtime's between-sample bound
+    v_max·(1 + :data:`~spm_console.core.plan_rules.BETWEEN_SPEED_ALLOWANCE`) there, so the
+    runtime's verification accepts its speed by construction. 1: not (the problem (30) as
+    printed). Only with the exact (zoh) model."""
 
     def __post_init__(self) -> None:
         s = np.asarray(self.start_deg, float).reshape(-1)
@@ -77,6 +86,8 @@ class PlanProblem:
         if self.intersample > 1 and self.model.method != "zoh":
             raise BadInputError("intersample constraints need the exact (zoh) servo model",
                                 Issue.TOO_MANY_INSTANTS)
+        if int(self.check_points) != self.check_points or not 1 <= self.check_points <= 100:
+            raise BadInputError(f"check points must be an integer in 1..100, got {self.check_points}")
         if self.route is not None and self.route.count > 1 and not self.route.fits(self.N):
             raise BadInputError(f"N = {self.N} steps leave no room for the route's switch samples "
                                 f"{list(self.route.switch)}", Issue.TOO_FEW_STEPS)
@@ -158,5 +169,47 @@ class Layout:
 
 
 def sub_matrices(problem: PlanProblem) -> tuple[F, F]:
-    """Exact ZOH matrices at the K−1 sub-sample instants (empty for K = 1)."""
+    """Exact ZOH matrices at the K−1 sub-sample instants of ``intersample`` (empty for K = 1)."""
     return substeps(problem.model.dynamics, problem.model.ts, problem.intersample)
+
+
+@dataclass(frozen=True)
+class SubInstants:
+    """The instants inside every interval where (30d, e) are enforced besides the samples:
+    the K − 1 of ``intersample`` (speed ≤ v_max and the region) and the runtime's check
+    instants (speed ≤ its between-sample bound), each instant once, in time order."""
+
+    fractions: tuple[Fraction, ...]
+    """Each instant's time after the interval's sample, in periods Ts."""
+    phis: F
+    """(M, 2, 2) exact ZOH state matrices from the sample to each instant."""
+    gams: F
+    """(M, 2) … and their input columns."""
+    speed_bound_degps: F
+    """(M,) the speed bound at each instant, deg/s (+∞ without v_max)."""
+    requested: NDArray[np.bool_]
+    """(M,) whether the instant is one of ``intersample``'s (else only the runtime's: speed
+    rows only)."""
+
+    @property
+    def count(self) -> int:
+        return len(self.fractions)
+
+
+def sub_instants(problem: PlanProblem) -> SubInstants:
+    """The :class:`SubInstants` of ``problem``: ``intersample``'s, and with the exact (zoh)
+    model the runtime's ``check_points`` (those not already among them). Their speed bound
+    is v_max at the former and v_max·(1 + BETWEEN_SPEED_ALLOWANCE) − SAMPLE_TOL at the latter
+    (the runtime's rule 6, held with the planner's round-off to spare)."""
+    k, c = int(problem.intersample), int(problem.check_points)
+    asked = {Fraction(j, k) for j in range(1, k)}
+    runtime = ({Fraction(j, c) for j in range(1, c)} - asked
+               if problem.model.method == "zoh" else set())
+    fractions = tuple(sorted(asked | runtime))
+    mats = [exact_step(problem.model.dynamics, float(f) * problem.model.ts) for f in fractions]
+    phis = np.array([m[0] for m in mats]).reshape(len(mats), 2, 2)
+    gams = np.array([m[1] for m in mats]).reshape(len(mats), 2)
+    requested = np.array([f in asked for f in fractions], bool)
+    v = np.inf if problem.vmax_degps is None else float(problem.vmax_degps)
+    between = v * (1.0 + BETWEEN_SPEED_ALLOWANCE) - SAMPLE_TOL
+    return SubInstants(fractions, phis, gams, np.where(requested, v, between), requested)

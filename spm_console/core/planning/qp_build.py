@@ -3,8 +3,11 @@
 * Equalities: boundary conditions (30b, c), dynamics (30f) and θ*(0) = θ(0).
 * The inequality *pool*: region rows (30e) and speed rows (30d) at the samples
   k = 1..N−1, optional bounds on the references, the reference's steps (the
-  runtime's largest step between two references, from θ(0) to the goal), and with
-  K > 1 the region and speed rows at the sub-sample instants. Most pool rows are inactive at the
+  runtime's largest step between two references, from θ(0) to the goal), and the region and
+  speed rows at the K − 1 instants of ``intersample``, and speed rows at the runtime's check
+  instants with its own between-sample bound
+  (:func:`~spm_console.core.planning.problem.sub_instants`), so a plan meets the runtime's
+  speed rules where the runtime checks them. Most pool rows are inactive at the
   optimum, so the pool is evaluated densely on a trajectory (:meth:`Pool.slack`)
   and only the rows that matter are assembled (:meth:`Pool.rows`).
 
@@ -23,7 +26,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
-from spm_console.core.planning.problem import Layout, PlanProblem, sub_matrices
+from spm_console.core.planning.problem import Layout, PlanProblem, sub_instants
 
 #: The largest reference step a plan may take, deg: the runtime's bound less a margin above
 #: the solver's tolerance (a step the QP holds at its bound must pass the runtime's check).
@@ -109,14 +112,20 @@ class Pool:
         self.route_count = route.count
         self.ApT = np.ascontiguousarray(self.Ap.T)
         anorm = np.linalg.norm(self.Ap, axis=1)
-        self.Phis, self.Gams = sub_matrices(problem)
-        self.K1 = self.Phis.shape[0]
+        self.sub = sub_instants(problem)
+        self.Phis, self.Gams = self.sub.phis, self.sub.gams
+        self.K1 = self.sub.count
+        """Instants between samples with speed rows: intersample's and the runtime's."""
+        self.req = np.flatnonzero(self.sub.requested)
+        """Those of intersample's (the only ones with region rows: the runtime checks the
+        workspace's certified set, which holds every region, between samples)."""
+        self.KR = int(self.req.size)
         self.k0 = 1 if problem.hold_first else 0
         v = problem.vmax_degps
         has_ref = problem.ref_lo_deg is not None or problem.ref_hi_deg is not None
         sizes = [
             (N - 1) * self.nr,
-            N * self.K1 * self.nr,
+            N * self.KR * self.nr,
             N * self.K1 * 3 if v is not None else 0,
             (N - 1) * 3 if v is not None else 0,
             (N - self.k0) * 3 if has_ref else 0,
@@ -141,20 +150,32 @@ class Pool:
         step_lo[N] -= goal
         step_hi[N] -= goal
         lead = problem.lead_max_deg if problem.lead_max_deg is not None else inf
+        # the speed rows between samples: v_max at intersample's instants, the runtime's
+        # between-sample bound at its own check instants (row order k, instant, joint)
+        sub_speed = (np.broadcast_to(self.sub.speed_bound_degps[None, :, None], (N, self.K1, 3)).ravel()
+                     if sizes[2] else np.zeros(0))
         self.lo = np.concatenate([
-            np.full(sizes[0], -inf), np.full(sizes[1], -inf), np.full(sizes[2], -vv),
+            np.full(sizes[0], -inf), np.full(sizes[1], -inf), -sub_speed,
             np.full(sizes[3], -vv), np.tile(rlo, sizes[4] // 3), step_lo.ravel(),
             np.full(sizes[6], -lead)])
         at_samples = route.sample_mask(N)[1:N][:, self.owner]  # (N−1, nr)
-        between = np.repeat(route.interval_mask(N)[:, self.owner], self.K1, axis=0)  # (N·K1, nr)
+        between = np.repeat(route.interval_mask(N)[:, self.owner], self.KR, axis=0)  # (N·KR, nr)
         self.hi = np.concatenate([
             np.where(at_samples, self.bp, inf).ravel(), np.where(between, self.bp, inf).ravel(),
-            np.full(sizes[2], vv), np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3), step_hi.ravel(),
+            sub_speed, np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3), step_hi.ravel(),
             np.full(sizes[6], lead)])
         self.scale = np.concatenate([
-            np.tile(anorm, N - 1), np.tile(anorm, N * self.K1),
+            np.tile(anorm, N - 1), np.tile(anorm, N * self.KR),
             np.ones(sizes[2] + sizes[3] + sizes[4] + sizes[5] + sizes[6])])
         self.family = np.repeat(np.arange(len(sizes)), sizes)
+        """Each row's family (module docstring)."""
+        self.sub_instant = np.full(self.m, -1, np.int64)
+        """Rows of families 1 and 2: their instant's index in :attr:`sub`; −1 elsewhere."""
+        if self.KR:
+            self.sub_instant[self.offsets[1]:self.offsets[2]] = self.req[
+                (np.arange(sizes[1]) // self.nr) % self.KR]
+        if self.K1:
+            self.sub_instant[self.offsets[2]:self.offsets[3]] = (np.arange(sizes[2]) // 3) % self.K1
 
     def _split(self, z: F) -> tuple[F, F, F]:
         N = self.pb.N
@@ -168,9 +189,11 @@ class Pool:
         parts = [(th[1:N] @ self.ApT).ravel()]
         if self.K1:
             Ph, Ga = self.Phis, self.Gams
-            ths = (th[:N, None, :] * Ph[None, :, 0, 0, None] + om[:N, None, :] * Ph[None, :, 0, 1, None]
-                   + u[:, None, :] * Ga[None, :, 0, None])
-            parts.append((ths @ self.ApT).ravel())
+            if self.KR:
+                Pr, Gr = Ph[self.req], Ga[self.req]
+                ths = (th[:N, None, :] * Pr[None, :, 0, 0, None] + om[:N, None, :] * Pr[None, :, 0, 1, None]
+                       + u[:, None, :] * Gr[None, :, 0, None])
+                parts.append((ths @ self.ApT).ravel())
             if self.sizes[2]:
                 oms = (th[:N, None, :] * Ph[None, :, 1, 0, None]
                        + om[:N, None, :] * Ph[None, :, 1, 1, None] + u[:, None, :] * Ga[None, :, 1, None])
@@ -216,7 +239,7 @@ class Pool:
                     vals.append(self.Ap[r, i])
             elif f == 1:
                 kj, r = loc // self.nr, loc % self.nr
-                k, j = kj // self.K1, kj % self.K1
+                k, j = kj // self.KR, self.req[kj % self.KR]
                 for i in range(3):
                     a = self.Ap[r, i]
                     for var, coef in ((L.th, self.Phis[j, 0, 0]), (L.om, self.Phis[j, 0, 1]),
@@ -263,6 +286,11 @@ class Pool:
         first = int(np.flatnonzero(self.owner == i)[0])
         return f"half-space {r - first} of region {i} of the route"
 
+    def _instant(self, j: int) -> str:
+        f = self.sub.fractions[j]
+        return f"{f.numerator}/{f.denominator} of the period" + (
+            "" if self.sub.requested[j] else " (a runtime check instant)")
+
     def describe(self, i: int) -> str:
         """Human name of pool row ``i`` (e.g. 'region half-space 12 at k = 40')."""
         f = int(self.family[i])
@@ -271,11 +299,12 @@ class Pool:
             return f"{self._row_name(loc % self.nr)} at k = {loc // self.nr + 1}"
         if f == 1:
             kj = loc // self.nr
-            return (f"{self._row_name(loc % self.nr)} between samples k = {kj // self.K1}, "
-                    f"sub-sample {kj % self.K1 + 1}")
+            return (f"{self._row_name(loc % self.nr)} between samples k = {kj // self.KR} and "
+                    f"the next, at {self._instant(int(self.req[kj % self.KR]))}")
         if f == 2:
             kj = loc // 3
-            return f"speed of joint {loc % 3 + 1} between k = {kj // self.K1}, sub-sample {kj % self.K1 + 1}"
+            return (f"speed of joint {loc % 3 + 1} between k = {kj // self.K1} and the next, at "
+                    f"{self._instant(kj % self.K1)}")
         if f == 3:
             return f"speed of joint {loc % 3 + 1} at k = {loc // 3 + 1}"
         if f == 4:

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.plan_report import ConstraintReport
-from spm_console.core.plan_rules import SAMPLE_TOL
+from spm_console.core.plan_rules import SAMPLE_TOL, MotionCheck, check_motion
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.servo.model import simulate, simulate_continuous
 
@@ -30,9 +30,28 @@ def simulate_plan(problem: PlanProblem, reference: F) -> tuple[F, F]:
     return xs[..., 0].copy(), xs[..., 1].copy()
 
 
+def runtime_check(problem: PlanProblem, reference: F) -> MotionCheck:
+    """The runtime's rules (:func:`~spm_console.core.plan_rules.check_motion`) on
+    ``reference`` as the runtime applies them to a planned segment: from rest at θ*(0), with
+    the reference limits as the servo limits, the problem's speed bound and linear range.
+    All but the certification (rule 7): that is the workspace's certified set, which a pure
+    planner does not have (:func:`spm_console.services.plan_request.plan_motion` checks it
+    with the runtime's own verification; the regions a planner uses lie in it, and the
+    report's ``region_violation_between_deg`` says how far the motion leaves them)."""
+    inf = np.full(3, np.inf)
+    lo = -inf if problem.ref_lo_deg is None else problem.ref_lo_deg
+    hi = inf if problem.ref_hi_deg is None else problem.ref_hi_deg
+    vmax = np.inf if problem.vmax_degps is None else float(problem.vmax_degps)
+    x0 = np.column_stack([reference[0], np.zeros(3)])
+    return check_motion(problem.model.dynamics, problem.model.ts, x0, reference, lo, hi, vmax,
+                        None, lead_max_deg=problem.lead_max_deg)
+
+
 def check(problem: PlanProblem, reference: F, position: F | None = None,
           velocity: F | None = None) -> tuple[ConstraintReport, F, F]:
-    """Simulate ``reference`` and measure its constraints; returns (report, θ, θ̇)."""
+    """Simulate ``reference`` and measure its constraints; returns (report, θ, θ̇). The
+    report's verdict is the runtime's (:func:`runtime_check`) and the planner's own metrics
+    together: a plan whose report is ok is one the runtime's rules accept."""
     pos, vel = simulate_plan(problem, reference)
     mismatch = 0.0
     if position is not None:
@@ -57,6 +76,7 @@ def check(problem: PlanProblem, reference: F, position: F | None = None,
     goal_err = max(float(np.abs(pos[-1] - problem.goal_deg).max()),
                    float(np.abs(reference[-1] - problem.goal_deg).max()))
 
+    runtime = runtime_check(problem, reference)
     pts = problem.intersample * int(np.ceil(BETWEEN_POINTS / problem.intersample))
     x0 = np.column_stack([problem.start_deg, np.zeros(3)])
     known = np.stack([pos, vel], axis=-1) if problem.model.method == "zoh" else None
@@ -88,6 +108,7 @@ def check(problem: PlanProblem, reference: F, position: F | None = None,
         intersample_violation=max(sub_viol, 0.0),
         points_per_interval=pts,
         ok=max(hold_err, goal_err, float(np.abs(vel[-1]).max()), reg_viol, speed_ex, ref_ex,
-               sub_viol) <= SAMPLE_TOL,
+               sub_viol) <= SAMPLE_TOL and runtime.ok,
+        runtime_rule="" if runtime.violation is None else runtime.violation.rule.value,
     )
     return report, pos, vel

@@ -9,7 +9,7 @@ runs: the servo loop owns the bus then). Angles in degrees.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import ClassVar, Literal
 
 from textual import work
 from textual.app import ComposeResult
@@ -22,6 +22,7 @@ from textual.widgets import Input, Static
 from spm_console.config.models import servo_limits_deg
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
+from spm_console.motion.segments import ExecutionResult
 from spm_console.motion.servo_tools import ServoHealth, jog_target
 from spm_console.refusals import Refusal, worded
 from spm_console.services.session import SampleCallback
@@ -38,9 +39,6 @@ from spm_console.tui.screens.base import describe_error
 from spm_console.tui.screens.connect_identify import IdentifyStep
 from spm_console.tui.widgets.confirm import ConfirmScreen
 from spm_console.tui.widgets.servo_health import JogStepField, ServoTable
-
-if TYPE_CHECKING:
-    from spm_console.motion.segments import ExecutionResult
 
 #: Period of the live status read while idle, s (2.5 reads a second).
 HEALTH_EVERY_S = 0.4

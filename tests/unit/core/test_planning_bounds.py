@@ -49,10 +49,11 @@ def test_mintime_intersample_lowers_the_horizon_limit() -> None:
 
 @pytest.mark.parametrize("vmax", [500.0, 1000.0])
 def test_fast_mintime_references_stay_exactly_inside_the_servo_limits(vmax: float) -> None:
-    """At these speeds the solver meets θ* ≤ 160° only to ~5e-12°; the plan is put on it."""
+    """At these speeds θ* ≤ 160° is active; the solver meets it only to ~5e-12°, and a
+    reference past it by round-off is put on it: none lies beyond."""
     res = solve_mintime(MODEL, START, GOAL, polytope(), vmax, ref_lo_deg=LO, ref_hi_deg=HI)
     ref = res.plan.reference_deg
-    assert ref.max() == 160.0 and ref.min() >= 60.0
+    assert 160.0 - 1e-9 < ref.max() <= 160.0 and ref.min() >= 60.0
     assert res.plan.check.ok
 
 

@@ -13,11 +13,11 @@ import pytest
 from spm_console.config.models import servo_limits_deg, servo_model_of
 from spm_console.config.schema import Profile
 from spm_console.core.planning.mintime import solve_mintime, solve_mintime_problem
+from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.polytope.region import Region
-from spm_console.errors import PlanRefusedError
+from spm_console.errors import PlanRefusedError, SolverError
 from spm_console.motion.plan_check import verify_plan
-from spm_console.services import plan_request
-from spm_console.services.plan_request import RETRY_INTERSAMPLE, PlanRequest, plan_motion
+from spm_console.services.plan_request import PlanRequest, plan_motion
 from tests.support.planning_cases import GOAL, START_MT
 from tests.support.reference_qp import solve_reference
 from tests.support.ws_helpers import agile_profile, agile_workspace
@@ -83,20 +83,28 @@ def test_the_runtime_refuses_a_plan_beyond_the_linear_range() -> None:
         verify_plan(prof, ws, plan)
 
 
-def test_an_underdamped_servo_gets_a_minimum_time_plan_the_runtime_accepts() -> None:
+def test_an_underdamped_servo_gets_a_minimum_time_plan_the_runtime_accepts_at_once() -> None:
     """The model identified on the physical wrist at the default speed bound (ωn 44 rad/s,
-    ζ 0.79, 5.3 ms, linear range 3.57°): bounded at the samples only, the paper's minimum-time
-    plan at 50 °/s peaks between samples above the runtime's 10 % allowance (55.1°/s), and the
-    runtime refuses it. The planner re-solves with speed and region bounded inside each
-    interval, so the plan it returns executes."""
+    ζ 0.79, 5.3 ms, linear range 3.57°): bounded at the samples only (the problem (30) as
+    printed), the paper's minimum-time plan at 50 °/s peaks between samples above the
+    runtime's 10 % allowance (55.1°/s), and the runtime refuses it. The planner also holds
+    the runtime's check instants, so the plan it returns, solved once at K = 1, executes."""
     p = agile_profile()
     prof = p.model_copy(update={"servo": p.servo.model_copy(update={
         "p": 44.03, "zeta": 0.786, "delay_s": 0.0053, "linear_range_deg": 3.57,
         "residual_bound_deg": 0.19})})
     ws = agile_workspace()
     req = PlanRequest("mintime", START_MT, GOAL, vmax_degps=50.0)
-    with pytest.raises(PlanRefusedError, match="between samples"):  # bounded at the samples
-        plan_request._plan_motion(prof, ws, req)
-    got = plan_motion(prof, ws, req)  # re-solved at RETRY_INTERSAMPLE instants per interval
-    assert RETRY_INTERSAMPLE > req.intersample == 1
+    got = plan_motion(prof, ws, req)
+    assert got.plan.options is not None and got.plan.options.intersample == 1
+    assert got.plan.check is not None and got.plan.check.ok and got.plan.check.runtime_rule == ""
     assert verify_plan(prof, ws, got.plan).points > 0
+    # the same problem without the runtime's instants: its optimum breaks the between rule,
+    # and the planner's own verdict (the runtime's rules) refuses to return it
+    lo, hi = servo_limits_deg(prof)
+    route = got.plan.regions  # the regions the plan was solved in, in order
+    pb = PlanProblem(servo_model_of(prof), START_MT, GOAL, got.plan.N, route.regions[0], 50.0, 1,
+                     True, lo, hi, route=route if route.count > 1 else None, lead_max_deg=3.57,
+                     check_points=1)
+    with pytest.raises(SolverError, match="runtime's rules: speed above the bound between"):
+        solve_mintime_problem(pb)  # its report carries the runtime's verdict: never returned
