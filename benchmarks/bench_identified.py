@@ -101,7 +101,7 @@ def _plan_rows(paper: Profile) -> list[Row]:
         before = timeit(lambda: _solve(pb_base, method), repeat=5)  # noqa: B023
         rows.append(Row(f"identified: plan {name}", ours * 1e3, "ms", f"<= {target:g} ms",
                         before * 1e3, used > 0 and ours * 1e3 <= target,
-                        f"N = {plan.N}; bounded at the samples and the runtime's check instants "
+                        f"N = {plan.N}; bounded at the samples and the runtime's check instants"
                         f" ({'accepted' if used else 'refused'} by the runtime's "
                         f"verification); the identified model's lead, tube and exact "
                         f"underdamped sampling; baseline: the paper's model, same problem"))
