@@ -115,10 +115,11 @@ def synthetic_plan(profile: Profile, start_deg: F, goal_deg: F, duration_s: floa
 
 def plan_summary(plan: Plan, source: str | None = None) -> dict[str, Any]:
     """What a run's meta.json records about a plan (angles in degrees): the summary's
-    figures, and the ends of the references the servos were sent."""
+    figures, and the ends of the references the servos were sent: θ*(0) and θ*(N), named
+    for what they are (a plan's θ(0) is its start, which a reference need not equal)."""
     s = plan.summary()
     return {
-        "source": source, **s.figures(), "start_deg": list(s.first_reference_deg),
-        "goal_deg": list(s.last_reference_deg), "halfspaces": s.halfspaces,
+        "source": source, **s.figures(), "first_reference_deg": list(s.first_reference_deg),
+        "last_reference_deg": list(s.last_reference_deg), "halfspaces": s.halfspaces,
         "profile_hash": s.profile_hash,
     }

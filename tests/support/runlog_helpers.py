@@ -35,9 +35,9 @@ def sample(k: int, ok: bool = True, retries: int = 0, late_s: float = 1e-4,
 def plans(kind: str = "mvn", approach: bool = True) -> list[dict[str, Any]]:
     """meta.json plan summaries as an execute writes them (an approach move, then the plan)."""
     main = {"kind": kind, "phase": "plan", "N": 50, "Ts": TS, "duration_s": 1.0,
-            "start_deg": list(START), "goal_deg": list(GOAL)}
+            "first_reference_deg": list(START), "last_reference_deg": list(GOAL)}
     first = {"kind": "homing", "phase": "approach", "N": 10, "Ts": TS, "duration_s": 0.2,
-             "start_deg": [130.0, 130.0, 130.0], "goal_deg": list(START)}
+             "first_reference_deg": [130.0, 130.0, 130.0], "last_reference_deg": list(START)}
     return [first, main] if approach else [main]
 
 

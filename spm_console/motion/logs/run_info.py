@@ -50,8 +50,10 @@ class RunPlan:
 
     kind: str
     """'mvn', 'mintime', 'homing', … as the plan summary in meta.json names it."""
-    start_deg: Vec3 | None
-    goal_deg: Vec3 | None
+    first_reference_deg: Vec3 | None
+    """θ*(0), deg (a run log written before 0.2.0 calls it ``start_deg``)."""
+    last_reference_deg: Vec3 | None
+    """θ*(N), deg (before 0.2.0: ``goal_deg``)."""
     duration_s: float | None
     after_approach: bool
     """An approach move from where the wrist was to the plan's start came first."""
@@ -152,8 +154,8 @@ def _plan(plans: Any) -> RunPlan | None:
     main = next((p for p in entries if p.get("phase") == "plan"), entries[-1])
     return RunPlan(
         kind=_str(main.get("kind")) or "?",
-        start_deg=_vec3(main.get("start_deg")),
-        goal_deg=_vec3(main.get("goal_deg")),
+        first_reference_deg=_vec3(main.get("first_reference_deg", main.get("start_deg"))),
+        last_reference_deg=_vec3(main.get("last_reference_deg", main.get("goal_deg"))),
         duration_s=_float(main.get("duration_s")),
         after_approach=any(p.get("phase") == "approach" for p in entries),
     )

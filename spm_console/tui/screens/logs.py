@@ -43,8 +43,8 @@ def plan_text(info: RunInfo) -> str:
     p = info.plan
     if p is None:
         return "plan: not recorded"
-    ends = ("" if p.start_deg is None or p.goal_deg is None
-            else f" {fmt_deg(p.start_deg)} → {fmt_deg(p.goal_deg)}")
+    ends = ("" if p.first_reference_deg is None or p.last_reference_deg is None
+            else f" {fmt_deg(p.first_reference_deg)} → {fmt_deg(p.last_reference_deg)}")
     length = "" if p.duration_s is None else f", {p.duration_s:.2f} s"
     return (f"plan: {KIND_WORDS.get(p.kind, p.kind)}{ends}{length}"
             + (" (after an approach move)" if p.after_approach else ""))

@@ -35,7 +35,7 @@ def test_a_stopped_run_says_why_with_its_exit_code(tmp_path: Path) -> None:
     assert a.loop_s == pytest.approx(0.4) and a.samples == 20
     assert a.duration_s is not None and a.duration_s >= 0
     assert a.plan is not None and a.plan.kind == "mvn" and a.plan.after_approach
-    assert a.plan.start_deg == START and a.plan.goal_deg == GOAL
+    assert a.plan.first_reference_deg == START and a.plan.last_reference_deg == GOAL
     assert a.kind == "execute" and a.name == estop.path.name
 
 
@@ -59,19 +59,32 @@ def test_killed_and_running_runs(tmp_path: Path) -> None:
     assert "ended without closing its log" in info.message
 
 
+def test_a_run_log_from_before_the_rename_reads_its_references() -> None:
+    """Run logs before 0.2.0 named θ*(0) and θ*(N) ``start_deg`` and ``goal_deg``."""
+    old = {"outcome": "completed", "plans": [{"kind": "mvn", "phase": "plan",
+                                              "start_deg": [1.0, 2.0, 3.0],
+                                              "goal_deg": [4.0, 5.0, 6.0]}]}
+    plan = run_info("folder", old).plan
+    assert plan is not None
+    assert plan.first_reference_deg == (1.0, 2.0, 3.0)
+    assert plan.last_reference_deg == (4.0, 5.0, 6.0)
+
+
 @pytest.mark.parametrize("meta", [
     {},
     {"outcome": 3, "exit_code": "20", "plans": "mvn", "stats": [], "start_time": "yesterday"},
     {"outcome": "stopped", "exit_code": 20.5, "plans": [{"kind": 1, "start_deg": [1, 2]}],
      "stats": {"stop": "estop", "duration_s": float("nan")}, "end_time": 5},
-    {"outcome": "completed", "plans": [None, {"start_deg": ["a", 1, 2], "goal_deg": None}],
+    {"outcome": "completed", "plans": [None, {"first_reference_deg": ["a", 1, 2],
+                                              "last_reference_deg": None}],
      "samples": True, "start_time": "2026-01-01T00:00:00", "end_time": "2026-01-01T00:00:02"},
 ])
 def test_malformed_meta_reads_as_unknown_never_raises(meta: dict[str, object]) -> None:
     info = run_info("folder", meta)
     assert info.name == "folder"
     assert info.exit_code is None and info.loop_s is None and info.samples is None
-    assert info.plan is None or (info.plan.start_deg is None and info.plan.goal_deg is None)
+    assert info.plan is None or (info.plan.first_reference_deg is None
+                                 and info.plan.last_reference_deg is None)
     if meta.get("start_time") == "2026-01-01T00:00:00":
         assert info.duration_s == pytest.approx(2.0)
     else:

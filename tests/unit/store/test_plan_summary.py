@@ -68,8 +68,9 @@ def test_every_record_of_a_plan_names_its_figures_alike(plan: Plan) -> None:
     assert script["max_speed_degps"] == s.max_speed_degps
     assert s.max_speed_degps == float(np.abs(plan.velocity_degps).max())
     # a run log records the ends of the references sent
-    assert records["run log"]["start_deg"] == plan.reference_deg[0].tolist()
-    assert records["run log"]["goal_deg"] == plan.reference_deg[-1].tolist()
+    assert records["run log"]["first_reference_deg"] == plan.reference_deg[0].tolist()
+    assert records["run log"]["last_reference_deg"] == plan.reference_deg[-1].tolist()
+    assert "start_deg" not in records["run log"]  # θ*(0) is not the start θ(0)
 
 
 def test_the_text_forms_show_the_summarys_values(plan: Plan) -> None:
