@@ -387,7 +387,8 @@ class Executor:
         return st
 
     def _cycle(self, st: _LoopState, k: int, ref: F, phase: str, region: bool,
-               target: F | None = None, sent: F | None = None) -> StopReason | None:
+               target: F | None = None, sent: F | None = None,
+               target_clamp_deg: float | None = None) -> StopReason | None:
         """Cycle k: wait for its deadline, write ``ref`` (or ``sent``: ``ref`` plus the load's
         offset; the models run on ``ref``), read, filter, check, publish; the stop (already
         applied) or None."""
@@ -433,7 +434,8 @@ class Executor:
                         tracking_error_deg=err, bus_s=bus_s, late_s=t_start - deadline,
                         read_offset_s=(t_read - deadline) if z is not None else float("nan"),
                         retries=retries,
-                        stale_replies=stale_replies(self.bus) - self._stale0, target_deg=target)
+                        stale_replies=stale_replies(self.bus) - self._stale0, target_deg=target,
+                        target_clamp_deg=target_clamp_deg)
         self._publish(sample)
         t_done = self.clock()
         if t_done - deadline > SLOW_CYCLE * self.ts:  # where the period went (diagnostics)

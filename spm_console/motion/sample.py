@@ -52,6 +52,10 @@ class Sample:
     target_deg: F | None = None
     """Live following: the target the reference was re-planned toward (3,), deg; None for
     planned motions."""
+    target_clamp_deg: float | None = None
+    """Live following: how far the follower's projection moved the target of the plan in use,
+    deg, when that target lay outside its region or the servo limits (the plan is then
+    clamped to the edge); 0 when it lay inside; None for planned motions."""
     stale_replies: int = 0
     """Stale status packets the bus discarded since the run began, up to this cycle (late
     replies to earlier requests, or replies nothing asked for; not in samples.csv)."""

@@ -51,6 +51,9 @@ def test_timed_steps_are_followed_and_every_motion_is_certified(agile: Profile, 
     np.testing.assert_allclose(res.final_deg, steps.theta_deg[-1], atol=0.3)
     st = ex.stats(TargetFeed(steps))
     assert st.adopted > 0.9 * st.solves and st.refused == 0 and st.clamped == 0
+    # every sample carries the follower's own word on its target: never clamped here
+    assert [s.target_clamp_deg for s in ex.samples if s.phase == "follow"] == \
+        [0.0] * sum(s.phase == "follow" for s in ex.samples)
     meas = np.array([s.measured_deg for s in ex.samples if s.read_ok])  # (a lost read is NaN)
     assert ex.verifier.certified.contains(meas).all()
     run = load_run(res.log_dir)
@@ -68,6 +71,9 @@ def test_a_target_outside_the_region_is_projected_and_never_chased(agile: Profil
     assert res.ok, res.message
     st = ex.stats(feed)
     assert st.clamped > 0
+    # … and the samples say how far the follower moved the target: well outside P here
+    clamps = [s.target_clamp_deg for s in ex.samples if s.phase == "follow"]
+    assert None not in clamps and max(c or 0.0 for c in clamps) > 1.0
     meas = np.array([s.measured_deg for s in ex.samples if s.read_ok])  # (a lost read is NaN)
     # the follower plans through the region cover and constrains the states its references
     # produce (not the references): the model under the references sent stays in one of

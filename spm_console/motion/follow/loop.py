@@ -229,7 +229,8 @@ class Follower(Executor):
             if tracker is not None:  # the load's offset where the model is headed
                 d = tracker.offset(th_next, om_next)
                 sent = step_limited(sent, ref if d is None else ref + d, self.lo, self.hi)
-            stop = self._cycle(st, k, ref, "follow", True, target=asked, sent=sent)
+            stop = self._cycle(st, k, ref, "follow", True, target=asked, sent=sent,
+                               target_clamp_deg=plan.clamp_deg if plan.clamped else 0.0)
             if stop is not None:
                 return stop
             s = self.samples[-1]

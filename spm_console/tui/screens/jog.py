@@ -31,6 +31,7 @@ from textual.widgets import Static
 
 from spm_console.config.models import servo_limits_deg, servo_tick_deg
 from spm_console.core.kinematics.rotations import matrix_rpy
+from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
 from spm_console.core.polytope.region import Region
 from spm_console.errors import SpmError
 from spm_console.formatting import fmt_deg
@@ -39,7 +40,7 @@ from spm_console.motion.sample import Sample
 from spm_console.services.session import Session
 from spm_console.tui.messages import FollowDone, Outcome, Telemetry, WorkspaceLoaded
 from spm_console.tui.screens.base import StepScreen
-from spm_console.tui.screens.jog_target import OUTSIDE_TOL_DEG, JogTarget, TargetSender
+from spm_console.tui.screens.jog_target import JogTarget, TargetSender
 from spm_console.tui.widgets.plot import PlotView, joint_series
 
 F = NDArray[np.float64]
@@ -102,7 +103,7 @@ def outside_deg(session: Session, theta_deg: F, regions: tuple[Region, ...] | No
 def clamp_text(out_deg: float, in_p: bool = True) -> str:
     """Whether a target ``out_deg`` outside every region (or the servo limits) is projected;
     ``in_p``: whether it lies in P."""
-    if out_deg > OUTSIDE_TOL_DEG:
+    if out_deg > FOLLOW_TOL_DEG:
         return f"CLAMPED: {out_deg:.2f}° outside every region: the wrist stops at the edge"
     return "inside P: not clamped" if in_p else "outside P, inside the cover: not clamped"
 
@@ -315,11 +316,10 @@ class JogScreen(StepScreen):
         self.query_one("#jog-measured", Static).update(Content(
             f"measured:    θ = {_vec(smp.measured_deg if smp.read_ok else None)}   "
             f"θ* = {_vec(smp.reference_deg)}"))
-        if looped is not None:
-            out = outside_deg(self.session, looped, self.regions)
+        if looped is not None and smp.target_clamp_deg is not None:  # the follower's own word
             self.query_one("#jog-clamp", Static).update(Content(
                 f"in the loop: θ = {fmt_deg(looped)} (the target this cycle)\n"
-                f"             {clamp_text(out, self._in_p(looped))}"))
+                f"             {clamp_text(smp.target_clamp_deg, self._in_p(looped))}"))
         if smp.t - self._last_plot >= PLOT_EVERY_S:
             self._last_plot = smp.t
             self.draw_plot()
@@ -339,7 +339,7 @@ class JogScreen(StepScreen):
     def _in_p(self, theta_deg: F) -> bool:
         ws = self.session.workspace
         return ws is None or bool(ws.region.contains(np.asarray(theta_deg, float),
-                                                     tol=OUTSIDE_TOL_DEG))
+                                                     tol=FOLLOW_TOL_DEG))
 
     def draw_plot(self) -> None:
         samples = [s for s in list(self.console.live_samples) if s.target_deg is not None]

@@ -33,9 +33,6 @@ RPY_AXES = (2, 1, 0)
 #: … per joint θ1, θ2, θ3.
 JOINT_AXES = (0, 1, 2)
 RPY_NAMES = ("roll", "pitch", "yaw")
-#: A target farther than this outside every region or the servo limits is projected by the follower
-#: (reported as clamped), deg: the follower's own tolerance.
-OUTSIDE_TOL_DEG = FOLLOW_TOL_DEG
 
 
 def axis_name(mode: JogMode, slot: int) -> str:
@@ -118,7 +115,7 @@ class JogTarget:
             theta = self.theta_deg.copy()
             theta[JOINT_AXES[slot]] += d
         out = self._outside(theta)
-        if self.outside_deg > OUTSIDE_TOL_DEG and out > self.outside_deg + OUTSIDE_TOL_DEG:
+        if self.outside_deg > FOLLOW_TOL_DEG and out > self.outside_deg + FOLLOW_TOL_DEG:
             return (f"the target is already {self.outside_deg:.2f}° outside every region (the "
                     "wrist holds at the edge): step back, or along the edge")
         self.theta_deg, self.rpy_deg, self.outside_deg = theta, rpy, out

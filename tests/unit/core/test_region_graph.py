@@ -12,8 +12,6 @@ import numpy as np
 import pytest
 
 import spm_console.core.polytope.graph as graph_module
-from spm_console.core.planning.follow.solver import CHECK_TOL
-from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
 from spm_console.core.planning.route_search import find_route
 from spm_console.core.polytope.graph import RegionGraph, cheapest_paths, containing, members
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
@@ -105,9 +103,8 @@ def test_the_named_tolerances_that_are_not_membership() -> None:
     # a box is clear of a region when the region reaches into it no deeper than a point
     # counted inside the region may lie outside it
     assert CLEAR_TOL_DEG == INSIDE_TOL_DEG
-    # the follower counts inside what its solver accepts (the solver's final check), and the
-    # runtime and the console read that tolerance without loading a solver
-    assert FOLLOW_TOL_DEG == CHECK_TOL
+    # the follower's tolerance has one name (FOLLOW_TOL_DEG), which the runtime and the
+    # console read without loading a solver
     code = ("import sys; import spm_console.core.planning.follow.tolerance, "
             "spm_console.motion.follow.regions, spm_console.tui.screens.jog_target; "
             "print(sorted(m for m in ('osqp', 'clarabel', 'cvxpy') if m in sys.modules))")

@@ -72,8 +72,6 @@ FollowStatus = Literal["reached", "tracking", "infeasible", "failed"]
 TARGET_REFUSED = "target refused"
 #: θ(H) within this of the terminal target counts as reached, deg (a tenth of a servo tick).
 REACH_TOL_DEG = 1e-2
-#: Tolerance of the final check against the true region and speed bound (deg, deg/s).
-CHECK_TOL = FOLLOW_TOL_DEG
 RULE_MARGIN_DEG = 0.01
 """The QP holds the runtime's reference step and lead this far inside their bounds: its
 loosest pass answers to 1e-3, and an answer over a bound by that is one the runtime refuses."""
@@ -302,7 +300,7 @@ class FollowSolver:
                                 used_warm, reason, detail)
 
         viol = float(self.region.violation_deg(th0))
-        if viol > CHECK_TOL:
+        if viol > FOLLOW_TOL_DEG:
             self._warm = None
             return refuse("infeasible", f"the state θ = {fmt_deg(th0, 3)} is outside the "
                           f"region by {viol:.3g}°: following starts only inside it")
@@ -407,16 +405,16 @@ class FollowSolver:
 
     def _outside(self, targets: F) -> bool:
         """Whether any target is outside the true region or beyond the servo limits."""
-        far = float(self.region.violation_deg(targets).max()) > CHECK_TOL
-        return bool(far or np.any(targets < self._lo - CHECK_TOL) or np.any(targets > self._hi + CHECK_TOL))
+        far = float(self.region.violation_deg(targets).max()) > FOLLOW_TOL_DEG
+        return bool(far or np.any(targets < self._lo - FOLLOW_TOL_DEG) or np.any(targets > self._hi + FOLLOW_TOL_DEG))
 
     def _check(self, th: F, om: F) -> str:
         """Empty when the predicted samples 1..H satisfy the true region and speed bound."""
         viol = float(self.region.violation_deg(th[1:]).max())
-        if viol > CHECK_TOL:
+        if viol > FOLLOW_TOL_DEG:
             k = int(np.argmax(self.region.violation_deg(th[1:]))) + 1
             return f"the solution leaves the region by {viol:.3g}° at sample {k}"
         over = float(np.abs(om[1:]).max() - self.vmax_degps)
-        if over > CHECK_TOL:
+        if over > FOLLOW_TOL_DEG:
             return f"the solution exceeds the speed bound by {over:.3g}°/s"
         return ""
