@@ -24,9 +24,9 @@ from benchmarks.common import Row, timeit
 from spm_console.config.load import load_profile
 from spm_console.core.planning.mintime import solve_mintime_problem
 from spm_console.core.planning.mvn import solve_problem
-from spm_console.core.planning.osqp_solve import solve_osqp
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.qp_build import Pool, equalities
+from spm_console.core.planning.solvers.osqp_qp import OsqpQp
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import discretize
 from spm_console.errors import SpmError
@@ -104,8 +104,8 @@ def run() -> list[Row]:
     # OSQP's plain figure: the whole QP (every region row) in one OSQP solve
     eq, pool = equalities(pb), Pool(pb)
     every = np.arange(pool.m)
-    plain = timeit(lambda: solve_osqp(eq, pool, every, None), repeat=3)
-    o = solve_osqp(eq, pool, every, None)
+    plain = timeit(lambda: OsqpQp().solve(eq, pool, every, None), repeat=3)
+    o = OsqpQp().solve(eq, pool, every, None)
     rows.append(Row("plan: MVN N=150, OSQP on the full QP", plain * 1e3, "ms", "info",
                     None, None, f"{pool.m} inequality rows, {o.iterations} iterations, status "
                     f"'{o.detail}', polished={o.polished}; screening + exact KKT replace it"))

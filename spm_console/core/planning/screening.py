@@ -23,14 +23,18 @@ from numpy.typing import NDArray
 
 from spm_console.core.plan_report import Certificate
 from spm_console.core.planning.active_set import refine
-from spm_console.core.planning.clarabel_solve import solve_clarabel
-from spm_console.core.planning.osqp_solve import solve_osqp
 from spm_console.core.planning.qp_build import Equalities, Pool
+from spm_console.core.planning.solvers.base import QpSolution, QpSolver
+from spm_console.core.planning.solvers.clarabel_qp import ClarabelQp
+from spm_console.core.planning.solvers.osqp_qp import OsqpQp
 
 F = NDArray[np.float64]
 I = NDArray[np.int64]
 
 Backend = Literal["osqp", "clarabel"]
+
+#: The solver of each backend (:class:`~spm_console.core.planning.solvers.base.QpSolver`).
+SOLVERS: dict[Backend, QpSolver] = {"osqp": OsqpQp(), "clarabel": ClarabelQp()}
 
 #: Screening margins: a pool row this close to its bound joins the reduced QP.
 REGION_MARGIN_DEG = 0.3
@@ -103,28 +107,23 @@ def solve_qp(eq: Equalities, pool: Pool, guess: F, active: I | None = None,
     chosen = np.flatnonzero(sl0 < mg) if total else np.zeros(0, np.int64)
     if active is not None and len(active):
         chosen = np.union1d(chosen, active)
+    solver = SOLVERS[backend]
     z_prev: F = guess
     calls = iters = 0
-    z: F | None = None
-    y: F | None = None
+    sol: QpSolution | None = None
     rounds = 0
     for rounds in range(1, MAX_ROUNDS + 2):
         if rounds > MAX_ROUNDS:
             chosen = np.arange(total)
-        if backend == "osqp":
-            o = solve_osqp(eq, pool, chosen, z_prev)
-            calls += 1
-            iters += o.iterations
-            status, z, y, detail, cert = o.status, o.z, o.y_pool, o.detail, None
-        else:
-            c = solve_clarabel(eq, pool, chosen)
-            calls += 1
-            iters += c.iterations
-            status, z, y, detail, cert = c.status, c.z, c.y_pool, c.detail, c.certificate
-        if status != "solved":
-            return QpOutcome(status, None, backend, calls, kkt, rounds, chosen.size, total, iters,
-                             False, time.perf_counter() - t0, certificate=cert, detail=detail)
-        assert z is not None
+        sol = solver.solve(eq, pool, chosen, z_prev)
+        calls += 1
+        iters += sol.iterations
+        if not sol.solved:
+            return QpOutcome(sol.status, None, backend, calls, kkt, rounds, chosen.size, total,
+                             iters, False, time.perf_counter() - t0,
+                             certificate=sol.certificate, detail=sol.detail)
+        assert sol.z is not None
+        z = sol.z
         if chosen.size == total:
             break
         sl = pool.slack(z)
@@ -136,16 +135,17 @@ def solve_qp(eq: Equalities, pool: Pool, guess: F, active: I | None = None,
         near[chosen] = True
         chosen = np.flatnonzero(near | bad)
         z_prev = z
-    assert z is not None and y is not None
+    assert sol is not None and sol.z is not None and sol.y_pool is not None
+    z, y = sol.z, sol.y_pool
     # exact refinement on the solver's active set
     r2 = refine(eq, pool, *_active_of(pool, z, y, chosen))
     kkt += r2.solves
     if not r2.ok and backend == "osqp":  # OSQP's active set was not clean: once more, tighter
-        o = solve_osqp(eq, pool, chosen, z, tight=True)
+        again = OsqpQp(tight=True).solve(eq, pool, chosen, z)
         calls += 1
-        iters += o.iterations
-        if o.status == "solved" and o.z is not None and o.y_pool is not None:
-            z, y = o.z, o.y_pool
+        iters += again.iterations
+        if again.solved and again.z is not None and again.y_pool is not None:
+            z, y = again.z, again.y_pool
             r2 = refine(eq, pool, *_active_of(pool, z, y, chosen))
             kkt += r2.solves
     if r2.ok:

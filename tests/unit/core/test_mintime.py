@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from spm_console.core.planning.clarabel_solve import check_certificate
 from spm_console.core.planning.mintime import solve_mintime, solve_mintime_problem
 from spm_console.core.planning.problem import PlanProblem
+from spm_console.core.planning.solvers.clarabel_qp import check_certificate
 from spm_console.core.polytope.region import Region
 from spm_console.errors import BadInputError, InfeasibleError
 from tests.support.planning_cases import GOAL, MODEL, START, START_MT, slab

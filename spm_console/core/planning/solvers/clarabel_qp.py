@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.plan_report import Certificate
 from spm_console.core.planning.qp_build import Equalities, Pool
+from spm_console.core.planning.solvers.base import QpSolution
 
 F = NDArray[np.float64]
 I = NDArray[np.int64]
@@ -29,20 +30,6 @@ I = NDArray[np.int64]
 #: A certificate is accepted when it rules out every point with ‖x‖∞ below this: no angle,
 #: speed or reference of a wrist comes near 10⁴ deg or deg/s, so nothing real is excluded.
 CERTIFIED_RADIUS = 1e4
-
-
-@dataclass
-class IpOutcome:
-    status: str
-    """'solved', 'infeasible' or 'failed' (with Clarabel's status in ``detail``)."""
-    z: F | None
-    y_pool: F | None
-    """Multipliers of the chosen pool rows (> 0 at the upper bound, < 0 at the lower)."""
-    certificate: Certificate | None
-    iterations: int
-    seconds: float
-    detail: str
-    rows: int
 
 
 def _standard_form(eq: Equalities, pool: Pool, chosen: I) -> tuple[sp.csc_matrix, F, int, int]:
@@ -70,35 +57,46 @@ def check_certificate(A: sp.csc_matrix, b: F, y: F, m_eq: int) -> Certificate:
     return Certificate(r1, cone, float(radius), A.shape[0], bool(valid))
 
 
-def solve_clarabel(eq: Equalities, pool: Pool, chosen: I) -> IpOutcome:
-    """Solve the QP with the equalities and pool rows ``chosen``; certificate if infeasible."""
-    t0 = time.perf_counter()
-    A, b, m_eq, m_in = _standard_form(eq, pool, chosen)
-    P = sp.triu(eq.P, format="csc")
-    q = np.zeros(eq.layout.n)
-    cones = [clarabel.ZeroConeT(m_eq)]
-    if m_in:
-        cones.append(clarabel.NonnegativeConeT(m_in))
-    st = clarabel.DefaultSettings()
-    st.verbose = False
-    st.tol_gap_abs = 1e-9
-    st.tol_gap_rel = 1e-10
-    st.tol_feas = 1e-10
-    solver = clarabel.DefaultSolver(P, q, A, b, cones, st)
-    sol = solver.solve()
-    status = str(sol.status)
-    dt = time.perf_counter() - t0
-    it = int(sol.iterations)
-    if sol.status in (clarabel.SolverStatus.PrimalInfeasible, clarabel.SolverStatus.AlmostPrimalInfeasible):
-        cert = check_certificate(A, b, np.asarray(sol.z, float), m_eq)
-        return IpOutcome("infeasible" if cert.valid else "failed", None, None, cert, it,
-                         time.perf_counter() - t0, status, A.shape[0])
-    if sol.status in (clarabel.SolverStatus.Solved, clarabel.SolverStatus.AlmostSolved):
-        zd = np.asarray(sol.z, float)[m_eq:]
-        hi, lo = pool.hi[chosen], pool.lo[chosen]
-        up, dn = np.isfinite(hi), np.isfinite(lo)
-        y = np.zeros(chosen.size)
-        y[up] += zd[: int(up.sum())]
-        y[dn] -= zd[int(up.sum()):]
-        return IpOutcome("solved", np.asarray(sol.x, float), y, None, it, dt, status, A.shape[0])
-    return IpOutcome("failed", None, None, None, it, dt, status, A.shape[0])
+@dataclass(frozen=True)
+class ClarabelQp:
+    """:class:`~.base.QpSolver` by Clarabel (interior point: no warm start); an infeasible
+    QP is answered 'infeasible' only with a certificate that checks out, else 'failed'."""
+
+    @property
+    def name(self) -> str:
+        return "clarabel"
+
+    def solve(self, eq: Equalities, pool: Pool, chosen: I, z0: F | None = None) -> QpSolution:
+        t0 = time.perf_counter()
+        A, b, m_eq, m_in = _standard_form(eq, pool, chosen)
+        P = sp.triu(eq.P, format="csc")
+        q = np.zeros(eq.layout.n)
+        cones = [clarabel.ZeroConeT(m_eq)]
+        if m_in:
+            cones.append(clarabel.NonnegativeConeT(m_in))
+        st = clarabel.DefaultSettings()
+        st.verbose = False
+        st.tol_gap_abs = 1e-9
+        st.tol_gap_rel = 1e-10
+        st.tol_feas = 1e-10
+        sol = clarabel.DefaultSolver(P, q, A, b, cones, st).solve()
+        status = str(sol.status)
+        dt = time.perf_counter() - t0
+        it = int(sol.iterations)
+        S = clarabel.SolverStatus
+        if sol.status in (S.PrimalInfeasible, S.AlmostPrimalInfeasible):
+            cert = check_certificate(A, b, np.asarray(sol.z, float), m_eq)
+            return QpSolution("clarabel", "infeasible" if cert.valid else "failed", chosen,
+                              certificate=cert, iterations=it, seconds=time.perf_counter() - t0,
+                              detail=status)
+        if sol.status in (S.Solved, S.AlmostSolved):
+            z_all = np.asarray(sol.z, float)
+            zd = z_all[m_eq:]
+            hi, lo = pool.hi[chosen], pool.lo[chosen]
+            up, dn = np.isfinite(hi), np.isfinite(lo)
+            y = np.zeros(chosen.size)
+            y[up] += zd[: int(up.sum())]
+            y[dn] -= zd[int(up.sum()):]
+            return QpSolution("clarabel", "solved", chosen, np.asarray(sol.x, float),
+                              z_all[:m_eq].copy(), y, iterations=it, seconds=dt, detail=status)
+        return QpSolution("clarabel", "failed", chosen, iterations=it, seconds=dt, detail=status)
