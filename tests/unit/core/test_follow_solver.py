@@ -6,9 +6,9 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
+from spm_console.core.planning.follow.result import FollowResult
 from spm_console.core.planning.follow.solver import (
     TARGET_REFUSED,
-    FollowResult,
     FollowSettings,
     FollowSolver,
     FollowWeights,

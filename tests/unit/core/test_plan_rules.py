@@ -22,7 +22,7 @@ from spm_console.core.plan_rules import (
     Rule,
     check_motion,
 )
-from spm_console.core.planning.follow.solver import FollowResult
+from spm_console.core.planning.follow.result import FollowResult
 from spm_console.core.planning.mvn import solve_mvn
 from spm_console.core.planning.verify import BETWEEN_POINTS
 from spm_console.core.regions.choice import region_containing

@@ -49,13 +49,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import osqp
 from numpy.typing import NDArray
 
 from spm_console.core.planning.follow.qp import FollowLayout, build, fill_bounds, linear_cost, predict
+from spm_console.core.planning.follow.result import FollowResult, FollowStatus
 from spm_console.core.planning.follow.target import ProjectionError, TargetProjector
 from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
 from spm_console.core.planning.qp_build import PLAN_STEP_DEG
@@ -66,7 +67,6 @@ from spm_console.formatting import fmt_deg
 
 F = NDArray[np.float64]
 
-FollowStatus = Literal["reached", "tracking", "infeasible", "failed"]
 
 #: ``FollowResult.detail`` of a result refused because its target has no projection.
 TARGET_REFUSED = "target refused"
@@ -112,72 +112,30 @@ class FollowSettings:
     """Iterations between OSQP's step (ρ) adaptations."""
 
 
-@dataclass(frozen=True)
-class FollowResult:
-    """One receding-horizon solve (angles deg, speeds deg/s, time s)."""
-
-    status: FollowStatus
-    """'reached' (θ(H) = target, at rest), 'tracking' (terminal cost active: target not
-    reachable within the horizon), 'infeasible' (refused: state outside the region or no
-    admissible reference), 'failed' (solver did not converge or the check failed)."""
-    reference_deg: F
-    """(H, 3) θ*(0..H−1); row 0 is what the loop streams now. (0, 3) when not ok."""
-    position_deg: F
-    """(H+1, 3) predicted θ(0..H) (row 0 = the given state). (0, 3) when not ok."""
-    velocity_degps: F
-    """(H+1, 3) predicted θ̇(0..H). (0, 3) when not ok."""
-    requested_deg: F
-    """(3,) terminal target as given."""
-    target_deg: F
-    """(3,) terminal target used (projected when the given one was outside)."""
-    clamped: bool
-    """A given target (terminal or preview sample) was outside the region or the limits."""
-    clamp_deg: float
-    """Largest distance a target was moved by the projection, deg (≤ 2·margin_deg when
-    not clamped)."""
-    cost: float
-    """Objective value on the predicted trajectory."""
-    terminal_error_deg: float
-    """‖θ(H) − target‖∞, deg (inf when not ok)."""
-    seconds: float
-    """Wall time of the whole solve call, s."""
-    iterations: int
-    warm: bool
-    """Warm-started from the previous solution."""
-    reason: str = ""
-    """Why a result is not ok; empty otherwise."""
-    detail: str = ""
-    """Solver status text."""
-
-    @property
-    def ok(self) -> bool:
-        return self.status in ("reached", "tracking")
-
-    @property
-    def horizon(self) -> int:
-        return int(self.reference_deg.shape[0])
-
-    @property
-    def first_reference_deg(self) -> F:
-        """θ*(0): the reference to send this period."""
-        if not self.ok:
-            raise ValueError(f"no reference: the follow solve is {self.status} ({self.reason})")
-        return np.asarray(self.reference_deg[0])
-
-    def reference_at(self, periods: int) -> F:
-        """The reference ``periods`` periods after this solve (0 = the first), held at θ(H)
-        past the horizon: what to stream when later solves miss their deadline."""
-        if not self.ok:
-            raise ValueError(f"no reference: the follow solve is {self.status} ({self.reason})")
-        if periods < self.horizon:
-            return np.asarray(self.reference_deg[max(periods, 0)])
-        return np.asarray(self.position_deg[-1])
-
-
 @dataclass
 class _Warm:
     x: F
     y: F
+
+
+@dataclass(frozen=True)
+class _Solved:
+    """What :meth:`FollowSolver._run`'s OSQP passes ended with."""
+
+    status: str
+    """OSQP's status of the last pass."""
+    iterations: int
+    """Of every pass together."""
+    x: F
+    y: F
+    theta_deg: F
+    """(H+1, 3) the model's θ under ``reference_deg``."""
+    omega_degps: F
+    """(H+1, 3) … its θ̇."""
+    reference_deg: F
+    """(H, 3) θ*."""
+    reason: str
+    """Empty when the answer passed the check; 'infeasible'; or why it failed."""
 
 
 @dataclass
@@ -286,18 +244,24 @@ class FollowSolver:
         except ProjectionError as exc:  # refused: the plan in use goes on, no substitute
             self._warm = None
             empty = np.zeros((0, 3))
-            return FollowResult("failed", empty, empty, empty, requested.copy(), th0.copy(),
-                                False, float("inf"), float("inf"), float("inf"),
-                                time.perf_counter() - t0, 0, False, exc.message, TARGET_REFUSED)
+            return FollowResult(
+                status="failed", reference_deg=empty, position_deg=empty, velocity_degps=empty,
+                requested_deg=requested.copy(), target_deg=th0.copy(), clamped=False,
+                clamp_deg=float("inf"), cost=float("inf"), terminal_error_deg=float("inf"),
+                seconds=time.perf_counter() - t0, iterations=0, warm=False, reason=exc.message,
+                detail=TARGET_REFUSED)
         terminal = targets[-1]
         clamped = moved > 0.0 and self._outside(tg.reshape(-1, 3))
 
         def refuse(status: FollowStatus, reason: str, detail: str = "", it: int = 0,
                    used_warm: bool = False) -> FollowResult:
             empty = np.zeros((0, 3))
-            return FollowResult(status, empty, empty, empty, requested.copy(), terminal, clamped,
-                                moved, float("inf"), float("inf"), time.perf_counter() - t0, it,
-                                used_warm, reason, detail)
+            return FollowResult(
+                status=status, reference_deg=empty, position_deg=empty, velocity_degps=empty,
+                requested_deg=requested.copy(), target_deg=terminal, clamped=clamped,
+                clamp_deg=moved, cost=float("inf"), terminal_error_deg=float("inf"),
+                seconds=time.perf_counter() - t0, iterations=it, warm=used_warm, reason=reason,
+                detail=detail)
 
         viol = float(self.region.violation_deg(th0))
         if viol > FOLLOW_TOL_DEG:
@@ -316,7 +280,8 @@ class FollowSolver:
                                   y=self.layout.shift_dual(self._warm.y, elapsed))
         else:
             self._osqp.warm_start(x=np.zeros(self.layout.n), y=np.zeros(self.layout.m))
-        st, it, x, y, th, om, ref, reason = self._run(th0, om0, t0, timed)
+        run = self._run(th0, om0, t0, timed)
+        st, it, reason = run.status, run.iterations, run.reason
         if reason == "infeasible":
             self._warm = None
             return refuse("infeasible", "no reference keeps the wrist inside the region under the "
@@ -325,22 +290,25 @@ class FollowSolver:
         if reason:
             self._warm = None
             return refuse("failed", reason, st, it, used_warm)
-        self._warm = _Warm(x, y)
+        self._warm = _Warm(run.x, run.y)
+        th, om, ref = run.theta_deg, run.omega_degps, run.reference_deg
         w = self.weights
         err = np.abs(th[-1] - terminal)
         cost = float((om[1:] ** 2).sum() + w.track * ((th[1:] - targets) ** 2).sum()
                      + w.terminal * err.sum())
         status: FollowStatus = "reached" if err.max() <= REACH_TOL_DEG else "tracking"
-        return FollowResult(status, ref, th, om, requested.copy(), terminal, clamped, moved, cost,
-                            float(err.max()), time.perf_counter() - t0, it, used_warm, "", st)
+        return FollowResult(
+            status=status, reference_deg=ref, position_deg=th, velocity_degps=om,
+            requested_deg=requested.copy(), target_deg=terminal, clamped=clamped, clamp_deg=moved,
+            cost=cost, terminal_error_deg=float(err.max()), seconds=time.perf_counter() - t0,
+            iterations=it, warm=used_warm, reason="", detail=st)
 
-    def _run(self, th0: F, om0: F, t0: float, timed: bool = True
-             ) -> tuple[str, int, F, F, F, F, F, str]:
+    def _run(self, th0: F, om0: F, t0: float, timed: bool = True) -> _Solved:
         """OSQP at the loose tolerance, then — only while its answer does not pass the check
         (polishing failed) — on from the same iterate at the tighter ones (within the time
         limit when ``timed``).
 
-        Returns (OSQP status, iterations, x, y, θ (H+1, 3), θ̇ (H+1, 3), θ* (H, 3), reason)."""
+        Returns the last pass's answer (or the best checked one)."""
         tols = self.settings.tolerances
         it = 0
         status = ""
@@ -385,7 +353,7 @@ class FollowSolver:
         if reason and reason != "infeasible" and best is not None:
             status, x, y, th, om, ref = best
             reason = ""
-        return status, it, x, y, th, om, ref, reason
+        return _Solved(status, it, x, y, th, om, ref, reason)
 
     def _project_rows(self, targets: F) -> tuple[F, float]:
         """Targets projected row by row where outside; (targets, largest move in deg)."""
