@@ -55,10 +55,10 @@ def run() -> list[Row]:
             run = load_run(ex.log_dir) if ex.log_dir else None
             # baseline: a planned motion of similar length through the same runtime
             home = np.asarray(s.theta_deg, float)
-            s.solve_plan("mvn", PoseSpec("theta", tuple(timed.theta_deg[0])),
-                         PoseSpec("theta", tuple(home + np.array([6.0, -6.0, 6.0]))),
-                         int(SECONDS / prof.servo.ts_s), prof.limits.vmax_degps)
-            base = s.execute(skip_homing="")
+            plan = s.solve_plan("mvn", PoseSpec("theta", tuple(timed.theta_deg[0])),
+                                PoseSpec("theta", tuple(home + np.array([6.0, -6.0, 6.0]))),
+                                int(SECONDS / prof.servo.ts_s), prof.limits.vmax_degps)
+            base = s.execute(plan, skip_homing="")
             # a live step
             out: list[object] = []
             th = threading.Thread(target=lambda: out.append(s.follow(initial_deg=s.theta_deg)),

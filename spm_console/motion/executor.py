@@ -99,6 +99,7 @@ class Executor:
         log: RunLog | None = None,
         on_sample: Callable[[Sample], None] | None = None,
         on_start: Callable[[], None] | None = None,
+        on_planned: Callable[[Sequence[Segment]], None] | None = None,
         read_retries: int = 1,
         hw_poll_every: int = 25,
         start_tolerance_deg: float | None = None,
@@ -120,6 +121,9 @@ class Executor:
         self.log = log
         self.on_sample = on_sample
         self.on_start = on_start
+        self.on_planned = on_planned
+        """Told the segments once they are verified and the wrist is at their start, before
+        anything moves (the motion process sends their duration to its front end)."""
         self.read_retries = read_retries
         self.hw_poll_every = max(1, hw_poll_every)
         self.start_tolerance_deg = (profile.safety.approach_tolerance_deg
@@ -214,6 +218,8 @@ class Executor:
                 f"{fmt_deg(start)} ({gap:.2f}° away, tolerance "
                 f"{self.start_tolerance_deg}°); move there first (execute adds an approach move)"
             )
+        if self.on_planned is not None:
+            self.on_planned(segments)
         # verified within 1e-9° of the servo limits: on them exactly (the bus refuses any goal past)
         refs = np.clip(np.vstack([s.plan.reference_deg for s in segments]), self.lo, self.hi)
         offsets = load_offsets(self.profile, self.model, refs, theta0)

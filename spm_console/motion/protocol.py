@@ -219,6 +219,17 @@ class Failed:
 
 
 @dataclass(frozen=True)
+class Planned:
+    """The motion the runtime is about to run, as it built it and verified it (an approach
+    or homing move included), sent before its first cycle: what a front end counts down."""
+
+    duration_s: float
+    """Every segment's samples together, s."""
+    phases: tuple[str, ...]
+    """The segments' phases in order ('homing', 'approach', 'plan')."""
+
+
+@dataclass(frozen=True)
 class Telemetry:
     """The loop's samples since the last message (one message per TELEMETRY_S at most)."""
 

@@ -54,6 +54,7 @@ from spm_console.motion.protocol import (
     Home,
     Nudge,
     Ping,
+    Planned,
     Query,
     ReadPosition,
     Reboot,
@@ -73,6 +74,7 @@ from spm_console.motion.runs import (
     verify_before_motion,
 )
 from spm_console.motion.sample import Sample
+from spm_console.motion.segments import Segment
 from spm_console.motion.servo_query import answer
 from spm_console.refusals import Refusal
 from spm_console.store.workspace_cache import load_or_build
@@ -337,8 +339,13 @@ class _Server:
             self.executor.request_estop(self.pending_estop, self.pending_clock,
                                         self.pending_by_signal)
 
+    def _planned(self, segments: Sequence[Segment]) -> None:
+        self.send(Planned(sum((s.plan.N + 1) * s.plan.Ts for s in segments),
+                          tuple(s.phase for s in segments)))
+
     def _attach(self, ex: Executor) -> None:
         self.executor = ex
+        ex.on_planned = self._planned
         if self.pending_estop:
             ex.request_estop(self.pending_estop, self.pending_clock, self.pending_by_signal)
 

@@ -266,7 +266,7 @@ class ScriptRunner:
 
     def _step_execute(self, step: ExecuteStep) -> tuple[dict[str, Any], str]:
         self._ensure_bus()
-        return self._motion(self.session.execute(), step.allow_stop, "execution")
+        return self._motion(self.session.execute(self.session.plan), step.allow_stop, "execution")
 
     def _step_follow(self, step: FollowStep) -> tuple[dict[str, Any], str]:
         if (step.targets is None) == (step.file is None):

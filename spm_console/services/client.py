@@ -43,6 +43,7 @@ from spm_console.motion.protocol import (
     Home,
     Nudge,
     Ping,
+    Planned,
     Query,
     ReadPosition,
     Reboot,
@@ -100,6 +101,9 @@ class MotionClient:
         """Whether the motion process has the wrist homed (from its latest answer): the one
         flag; the front ends read it, never keep their own."""
         self.on_sample: Callable[[Sample], None] | None = None
+        self.on_planned: Callable[[Planned], None] | None = None
+        """Told what the runtime is about to run (its duration, approach included) before
+        the motion's first cycle (called on the reading thread: keep it short)."""
         self.telemetry_dropped = 0
         """Samples the motion process left out of the telemetry because this client read
         too slowly (the run logs have them all)."""
@@ -146,6 +150,12 @@ class MotionClient:
                 if not self._closed:
                     self._mark_lost()
                 return
+            if isinstance(msg, Planned):
+                cb = self.on_planned
+                if cb is not None:
+                    with contextlib.suppress(Exception):
+                        cb(msg)
+                continue
             if isinstance(msg, Telemetry):  # handed on: a slow callback never stops the reading
                 self.telemetry_dropped += msg.dropped
                 self._telemetry.put(msg)

@@ -185,9 +185,9 @@ def execute_once(profile: Profile, plan: Plan, req: RunRequest,
                     f"start {fmt_deg(start)} (approach move disabled)")
                 refused_run(profile, "execute", run_context(profile, req), away)
                 raise away
-        session.plan = plan
         try:
-            result = session.execute(req.on_sample, skip_homing=req.skip_homing, source=source)
+            result = session.execute(plan, req.on_sample, skip_homing=req.skip_homing,
+                                     source=source)
         except SpmError as exc:
             raise _after_homing(exc, homing) from None
         return OneShotResult(result, homing)

@@ -41,7 +41,7 @@ from spm_console.errors import (
 )
 from spm_console.formatting import fmt_deg
 from spm_console.motion.plan_check import PlanCheck, verify_plan
-from spm_console.motion.plans import line_plan
+from spm_console.motion.protocol import Planned
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult
 from spm_console.motion.servo_tools import ServoHealth
@@ -250,6 +250,7 @@ class Session(ServoTools, FollowTools):
                                   sim=self.sim, faults=[str(f) for f in self.faults],
                                   sim_clock=sim, preview=self.preview)
             self.bus = client
+            client.on_planned = self._planned
             placed = place_beside_loop()  # the loop's children started: off their CPU
             rt, granted = self._emulator_realtime()
             self.bus_state = BusState(port=port, emulated=self.sim,
@@ -330,9 +331,7 @@ class Session(ServoTools, FollowTools):
         assembly mode first and logs a refusal); ``self.homing`` keeps the whole result."""
 
         client = self.require_bus()
-        theta0 = self.read_position()
-        self.motion_total_s = line_plan(self.profile, theta0, np.asarray(self.profile.home.theta_deg),
-                                        self.profile.safety.home_speed_degps).duration_s
+        self.motion_total_s = float("nan")  # until the runtime says how long its move is
 
         def run() -> ExecutionResult:
             self.homing = client.home(on_sample)
@@ -340,28 +339,32 @@ class Session(ServoTools, FollowTools):
 
         return self._run_motion(run)
 
-    def execute(self, on_sample: SampleCallback | None = None,
+    def execute(self, plan: Plan | None, on_sample: SampleCallback | None = None,
                 skip_homing: str = "", source: str | None = None) -> ExecutionResult:
-        """Execute the current plan (with a straight approach move to its start if needed), in
-        the motion process, which verifies it against this profile's workspace first.
+        """Execute ``plan`` (refused when None: none was solved), with a straight approach
+        move to its start if needed, in the motion process, which verifies it against this
+        profile's workspace first and says how long the whole run is
+        (:attr:`motion_total_s`, from its :class:`~spm_console.motion.protocol.Planned`).
 
         The motion process refuses it (:class:`~spm_console.errors.RefusedError`) unless it
         homed the wrist, or ``skip_homing`` gives the operator's reason to override that
-        (written to the run log)."""
-        from spm_console.motion.homing import plan_segments
-
-        if self.plan is None:
+        (written to the run log). ``source``: where the plan came from (default: the current
+        plan's file, when ``plan`` is the current plan)."""
+        if plan is None:
             raise BadInputError("no plan to execute: solve one first", Issue.NO_PLAN)
-        client, plan = self.require_bus(), self.plan
-        theta0 = self.read_position()
+        client = self.require_bus()
+        self.motion_total_s = plan.duration_s  # the approach is the runtime's: it says later
+        current = plan is self.plan
+        src = source if source is not None else (self.plan_source if current else None)
         tol = self.profile.safety.approach_tolerance_deg
-        segments = plan_segments(self.profile, theta0, plan, tol)
-        self.motion_total_s = sum((s.plan.N + 1) * s.plan.Ts for s in segments)
-        src = source if source is not None else self.plan_source
         result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, src))
-        if self.plan_info is not None:
+        if current and self.plan_info is not None:
             self.plan_info = replace(self.plan_info, executed=True, executed_ok=result.ok)
         return result
+
+    def _planned(self, planned: Planned) -> None:
+        """The runtime's word on the motion it is about to run (the reading thread)."""
+        self.motion_total_s = planned.duration_s
 
     def verify(self, plan: Plan) -> PlanCheck:
         """``plan`` verified by the motion process exactly as :meth:`execute` will verify it,

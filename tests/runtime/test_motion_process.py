@@ -21,6 +21,7 @@ from spm_console.devices.emulator.bus import start_emulator
 from spm_console.errors import BadInputError, ExitCode, MotionProcessLostError
 from spm_console.motion.logs.runlog import list_runs, load_run
 from spm_console.motion.plans import synthetic_plan
+from spm_console.motion.protocol import Planned
 from spm_console.motion.server import DEADMAN_S
 from spm_console.services.client import MotionClient
 from spm_console.store.plan_file import save_plan
@@ -66,9 +67,17 @@ def test_drive_the_loop_process_and_estop_by_message(agile: Profile, tmp_path: P
         refused = load_run("last", tmp_path)
         assert refused.meta["outcome"] == "refused" and refused.rows == 0
         got: list[int] = []
-        res = client.execute(plan, lambda s: got.append(s.k), skip_homing="test")
+        told: list[tuple[Planned, int]] = []  # what the runtime said it runs, samples seen then
+        client.on_planned = lambda p: told.append((p, len(got)))
+        away = synthetic_plan(agile, PAPER_START + np.array([2.0, -2.0, 1.0]), GOAL, 1.5)
+        res = client.execute(away, lambda s: got.append(s.k), skip_homing="test")
         assert res.ok, res.message
         assert got == list(range(res.stats.samples))  # every sample reached the client
+        # before the first sample, the runtime said what it would run: its approach, the plan
+        (planned, seen), = told
+        assert seen == 0 and planned.phases == ("approach", "plan")
+        assert planned.duration_s == pytest.approx(res.stats.samples * agile.servo.ts_s)
+        assert planned.duration_s > (away.N + 1) * away.Ts  # the approach counted once, there
         # a long motion, stopped by a message
         timer = threading.Timer(0.8, lambda: client.estop("test E-stop"))
         timer.start()

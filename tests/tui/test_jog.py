@@ -347,7 +347,7 @@ async def _jog_after_a_plan_to(app: Any, pilot: Any, goal: Any) -> tuple[Any, An
     await asyncio.to_thread(s.home)
     s.ensure_workspace()
     await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"), PoseSpec("theta", goal), 150)
-    done = await asyncio.to_thread(s.execute)
+    done = await asyncio.to_thread(s.execute, s.plan)
     assert done.ok, done.message
     settled = await asyncio.to_thread(_settled_deg, s)
     await pilot.press("5")

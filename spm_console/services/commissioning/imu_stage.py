@@ -146,10 +146,10 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
         moving += time.monotonic() - t0
         for k, theta in enumerate(design.theta_deg):
             if np.abs(np.asarray(theta) - session.read_position()).max() > 0.05:
-                session.solve_plan("mintime", PoseSpec("current"), PoseSpec("theta", theta),
-                                   vmax_degps=POSE_SPEED_DEGPS)
+                plan = session.solve_plan("mintime", PoseSpec("current"), PoseSpec("theta", theta),
+                                          vmax_degps=POSE_SPEED_DEGPS)
                 t0 = time.monotonic()
-                _ok(session.execute(), f"the move to pose {k + 1}")
+                _ok(session.execute(plan), f"the move to pose {k + 1}")
                 moving += time.monotonic() - t0
             time.sleep(SETTLE_S)
             thetas.append(np.mean([session.read_position() for _ in range(THETA_READS)], axis=0))
@@ -157,10 +157,10 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
             poses.append(theta)
             on_stage(f"imu: pose {k + 1}/{len(design.theta_deg)} θ = "
                      f"{', '.join(f'{x:.2f}' for x in thetas[-1])}°")
-        session.solve_plan("mintime", PoseSpec("current"), PoseSpec("home"),
-                           vmax_degps=POSE_SPEED_DEGPS)
+        plan = session.solve_plan("mintime", PoseSpec("current"), PoseSpec("home"),
+                                  vmax_degps=POSE_SPEED_DEGPS)
         t0 = time.monotonic()
-        _ok(session.execute(), "the move back home")
+        _ok(session.execute(plan), "the move back home")
         moving += time.monotonic() - t0
     finally:
         if stop is not None:

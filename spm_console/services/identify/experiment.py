@@ -121,17 +121,12 @@ def experiment_in_session(session: Session, on_sample: SampleCallback | None = N
     if not session.homed:
         raise RefusedError(Refusal.NOT_HOMED)
     ex, plan = experiment_plan(session.profile, session.cache_dir, session.ensure_workspace())
-    kept, info = session.plan, session.plan_info
-    try:
-        return _execute(session, ex, plan, on_sample, None)
-    finally:
-        session.plan, session.plan_info = kept, info
+    return _execute(session, ex, plan, on_sample, None)
 
 
 def _execute(session: Session, ex: Excitation, plan: Plan, on_sample: SampleCallback | None,
              homing: HomingResult | None) -> ExperimentRun:
-    session.plan = plan
-    result = session.execute(on_sample, source="identification experiment")
+    result = session.execute(plan, on_sample, source="identification experiment")
     if not result.ok or result.log_dir is None:
         return ExperimentRun(homing, result, ex)
     t, ref, meas = _record(Path(result.log_dir), len(plan.reference_deg))

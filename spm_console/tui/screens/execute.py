@@ -192,7 +192,8 @@ class ExecuteScreen(StepScreen):
         on_sample = self.console.telemetry_sink(self)
         self.console.moving = True
         if not self.run_blocking("execute",
-                                 lambda: MotionDone("execute", self.session.execute(on_sample)),
+                                 lambda: MotionDone("execute", self.session.execute(
+                                     self.session.plan, on_sample)),
                              "executing … SPACE stops the wrist"):
             self.console.moving = False
 
