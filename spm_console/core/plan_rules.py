@@ -170,7 +170,7 @@ def check_motion(p: Pole, ts: float, x0: F, references_deg: F, lo_deg: F, hi_deg
                  vmax_degps: float, certified: Membership | None, *,
                  rules: Rules = EXECUTE_RULES, previous_reference_deg: F | None = None,
                  hold_samples: int = 0, speed_floor_degps: F | None = None,
-                 lead_max_deg: float | None = None) -> MotionCheck:
+                 lead_max_deg: float | None = None, samples: F | None = None) -> MotionCheck:
     """Check the motion of (27) with pole ``p`` (rad/s; or ωn, ζ as :class:`Dynamics`) and period ``ts`` (s) from state
     ``x0`` ((3, 2): θ deg, θ̇ deg/s) under ``references_deg`` ((N+1, 3)) against the rules
     (module docstring).
@@ -180,7 +180,9 @@ def check_motion(p: Pole, ts: float, x0: F, references_deg: F, lo_deg: F, hi_deg
     ``previous_reference_deg``: the reference in use before (its step counts);
     ``hold_samples``: samples the last reference is held after the plan (a settling tail,
     simulated and checked like the plan); ``speed_floor_degps``: per joint, a speed the
-    bounds never fall below (a joint already faster may not get faster).
+    bounds never fall below (a joint already faster may not get faster); ``samples``: the
+    exact (ZOH) states at the samples ((N+1, 3, 2)) from ``x0`` under ``references_deg``
+    when the caller computed them already (a planner's report; never with ``hold_samples``).
     """
     ref = np.asarray(references_deg, float)
     lo, hi = np.asarray(lo_deg, float), np.asarray(hi_deg, float)
@@ -204,7 +206,9 @@ def check_motion(p: Pole, ts: float, x0: F, references_deg: F, lo_deg: F, hi_deg
         return refused(Violation(Rule.STEP, k - shift, i, float(steps[k, i]), MAX_REFERENCE_STEP_DEG))
 
     full = np.concatenate([ref, np.repeat(ref[-1:], hold_samples, axis=0)])
-    _, xs = simulate_continuous(p, ts, np.asarray(x0, float), full, POINTS_PER_INTERVAL)
+    if samples is not None and (hold_samples or np.shape(samples) != (len(ref), 3, 2)):
+        raise ValueError("samples: the (N+1, 3, 2) states at the samples, without a hold")
+    _, xs = simulate_continuous(p, ts, np.asarray(x0, float), full, POINTS_PER_INTERVAL, samples)
     pos, speed = xs[..., 0], np.abs(xs[..., 1])
     floor = np.zeros(3) if speed_floor_degps is None else np.asarray(speed_floor_degps, float)
     violation = (

@@ -86,6 +86,8 @@ def finish(problem: PlanProblem, eq: Equalities, out: QpOutcome, t0: float,
     assert out.z is not None
     ref, pos_z, vel_z = eq.layout.unpack(out.z, problem.goal_deg)
     ref = clamp_round_off(problem, ref)
+    if problem.hold_first and float(np.abs(ref[0] - problem.start_deg).max()) <= ROUND_OFF_DEG:
+        ref[0] = problem.start_deg  # θ*(0) = θ(0), met by the solver to round-off: exactly
     report, pos, vel = check(problem, ref, pos_z, vel_z)
     if not report.ok:
         raise SolverError(

@@ -8,6 +8,7 @@ is printed — θ*(0) = θ(0) (``hold_first``; set False to let the first refere
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 from fractions import Fraction
 
@@ -18,7 +19,7 @@ from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan_rules import BETWEEN_SPEED_ALLOWANCE, POINTS_PER_INTERVAL, SAMPLE_TOL
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.route import RegionRoute
-from spm_console.core.servo.model import ServoModel, exact_step, substeps
+from spm_console.core.servo.model import Dynamics, ServoModel, exact_step, substeps
 from spm_console.errors import BadInputError, InfeasibleError, Issue
 from spm_console.formatting import fmt_deg
 
@@ -196,6 +197,18 @@ class SubInstants:
         return len(self.fractions)
 
 
+@functools.lru_cache(maxsize=32)
+def _instant_matrices(dynamics: Dynamics, ts: float, fractions: tuple[Fraction, ...]
+                      ) -> tuple[F, F]:
+    """(Φ (M, 2, 2), Γ (M, 2)) of :func:`exact_step` at each fraction of the period (kept
+    per servo model: every plan of a session asks for the same; read-only)."""
+    mats = [exact_step(dynamics, float(f) * ts) for f in fractions]
+    phis = np.array([m[0] for m in mats]).reshape(len(mats), 2, 2)
+    gams = np.array([m[1] for m in mats]).reshape(len(mats), 2)
+    phis.flags.writeable = gams.flags.writeable = False
+    return phis, gams
+
+
 def sub_instants(problem: PlanProblem) -> SubInstants:
     """The :class:`SubInstants` of ``problem``: ``intersample``'s, and with the exact (zoh)
     model the runtime's ``check_points`` (those not already among them). Their speed bound
@@ -206,9 +219,7 @@ def sub_instants(problem: PlanProblem) -> SubInstants:
     runtime = ({Fraction(j, c) for j in range(1, c)} - asked
                if problem.model.method == "zoh" else set())
     fractions = tuple(sorted(asked | runtime))
-    mats = [exact_step(problem.model.dynamics, float(f) * problem.model.ts) for f in fractions]
-    phis = np.array([m[0] for m in mats]).reshape(len(mats), 2, 2)
-    gams = np.array([m[1] for m in mats]).reshape(len(mats), 2)
+    phis, gams = _instant_matrices(problem.model.dynamics, float(problem.model.ts), fractions)
     requested = np.array([f in asked for f in fractions], bool)
     v = np.inf if problem.vmax_degps is None else float(problem.vmax_degps)
     between = v * (1.0 + BETWEEN_SPEED_ALLOWANCE) - SAMPLE_TOL

@@ -30,21 +30,22 @@ def simulate_plan(problem: PlanProblem, reference: F) -> tuple[F, F]:
     return xs[..., 0].copy(), xs[..., 1].copy()
 
 
-def runtime_check(problem: PlanProblem, reference: F) -> MotionCheck:
+def runtime_check(problem: PlanProblem, reference: F, samples: F | None = None) -> MotionCheck:
     """The runtime's rules (:func:`~spm_console.core.plan_rules.check_motion`) on
     ``reference`` as the runtime applies them to a planned segment: from rest at θ*(0), with
     the reference limits as the servo limits, the problem's speed bound and linear range.
     All but the certification (rule 7): that is the workspace's certified set, which a pure
     planner does not have (:func:`spm_console.services.plan_request.plan_motion` checks it
     with the runtime's own verification; the regions a planner uses lie in it, and the
-    report's ``region_violation_between_deg`` says how far the motion leaves them)."""
+    report's ``region_violation_between_deg`` says how far the motion leaves them).
+    ``samples``: the model's states at the samples from rest at θ*(0), when known."""
     inf = np.full(3, np.inf)
     lo = -inf if problem.ref_lo_deg is None else problem.ref_lo_deg
     hi = inf if problem.ref_hi_deg is None else problem.ref_hi_deg
     vmax = np.inf if problem.vmax_degps is None else float(problem.vmax_degps)
     x0 = np.column_stack([reference[0], np.zeros(3)])
     return check_motion(problem.model.dynamics, problem.model.ts, x0, reference, lo, hi, vmax,
-                        None, lead_max_deg=problem.lead_max_deg)
+                        None, lead_max_deg=problem.lead_max_deg, samples=samples)
 
 
 def check(problem: PlanProblem, reference: F, position: F | None = None,
@@ -76,10 +77,12 @@ def check(problem: PlanProblem, reference: F, position: F | None = None,
     goal_err = max(float(np.abs(pos[-1] - problem.goal_deg).max()),
                    float(np.abs(reference[-1] - problem.goal_deg).max()))
 
-    runtime = runtime_check(problem, reference)
     pts = problem.intersample * int(np.ceil(BETWEEN_POINTS / problem.intersample))
     x0 = np.column_stack([problem.start_deg, np.zeros(3)])
     known = np.stack([pos, vel], axis=-1) if problem.model.method == "zoh" else None
+    # the runtime starts from rest at θ*(0): the same states when θ*(0) is the start exactly
+    same_start = known is not None and bool(np.array_equal(reference[0], problem.start_deg))
+    runtime = runtime_check(problem, reference, known if same_start else None)
     _, xs = simulate_continuous(problem.model.dynamics, problem.model.ts, x0, reference, pts, known)
     vb = float(np.abs(xs[..., 1]).max())
     # the continuous motion: point m lies in interval min(m // pts, N − 1)
