@@ -93,8 +93,7 @@ def _peak_speed(problem: PlanProblem) -> float:
     z = out[0]
     om = z[: 6 * (problem.N + 1)].reshape(problem.N + 1, 6)[:, 3:]
     peak = float(np.abs(om).max())
-    # intersample's own instants only (the runtime's check instants have a looser bound)
-    sub = (pool.family == 2) & np.isin(pool.sub_instant, np.flatnonzero(pool.sub.requested))
+    sub = pool.requested_speed_rows()  # the runtime's check instants have a looser bound
     if sub.any():
         peak = max(peak, float(np.abs(pool.values(z)[sub]).max()))
     return peak

@@ -169,13 +169,15 @@ class Pool:
             np.ones(sizes[2] + sizes[3] + sizes[4] + sizes[5] + sizes[6])])
         self.family = np.repeat(np.arange(len(sizes)), sizes)
         """Each row's family (module docstring)."""
-        self.sub_instant = np.full(self.m, -1, np.int64)
-        """Rows of families 1 and 2: their instant's index in :attr:`sub`; −1 elsewhere."""
-        if self.KR:
-            self.sub_instant[self.offsets[1]:self.offsets[2]] = self.req[
-                (np.arange(sizes[1]) // self.nr) % self.KR]
-        if self.K1:
-            self.sub_instant[self.offsets[2]:self.offsets[3]] = (np.arange(sizes[2]) // 3) % self.K1
+
+    def requested_speed_rows(self) -> NDArray[np.bool_]:
+        """(m,) mask of the speed rows between samples at ``intersample``'s own instants
+        (bound v_max; not the runtime's check instants, bound 10 % above)."""
+        mask = np.zeros(self.m, bool)
+        if self.sizes[2]:
+            instant = (np.arange(self.sizes[2]) // 3) % self.K1  # row order: k, instant, joint
+            mask[self.offsets[2]:self.offsets[3]] = self.sub.requested[instant]
+        return mask
 
     def _split(self, z: F) -> tuple[F, F, F]:
         N = self.pb.N
