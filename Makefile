@@ -80,7 +80,7 @@ test-newest: $(UV)
 	VIRTUAL_ENV=$(NEWEST) UV_PYTHON_DOWNLOADS=never $(UV) pip install --quiet --compile-bytecode \
 		--resolution highest -e ".[dev]"
 	VIRTUAL_ENV=$(NEWEST) $(UV) pip freeze > $(NEWEST)/versions.txt
-	grep -iE '^(numpy|scipy|cvxpy|osqp|clarabel|highspy|control|textual|pydantic|mujoco)==' $(NEWEST)/versions.txt
+	grep -iE '^(numpy|scipy|cvxpy|osqp|clarabel|daqp|highspy|control|textual|pydantic|mujoco)==' $(NEWEST)/versions.txt
 	SPM_TESTS_HOST_STALLS=0 $(NEWEST)/bin/python -m pytest -m '' -p no:cacheprovider -n 2 \
 		tests/e2e/test_json_contract.py tests/e2e/test_json_stdout.py tests/unit/core tests/unit/cli
 

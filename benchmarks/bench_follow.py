@@ -36,8 +36,9 @@ from spm_console.config.load import load_profile
 from spm_console.config.models import model_of, servo_limits_deg, servo_model_of
 from spm_console.core.kinematics.ik import ik_rpy
 from spm_console.core.kinematics.model import SpmModel
+from spm_console.core.planning.follow.osqp_follow import FollowSettings
 from spm_console.core.planning.follow.result import FollowResult
-from spm_console.core.planning.follow.solver import FollowSettings, FollowSolver
+from spm_console.core.planning.follow.solver import FollowSolver
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import ServoModel, simulate_continuous
 from spm_console.errors import SpmError

@@ -38,8 +38,9 @@ from numpy.typing import NDArray
 
 from spm_console.config.models import servo_tick_deg
 from spm_console.core.plan_rules import FOLLOW_RULES, MotionCheck, check_motion
+from spm_console.core.planning.follow.osqp_follow import FollowSettings
 from spm_console.core.planning.follow.result import FollowResult
-from spm_console.core.planning.follow.solver import TARGET_REFUSED, FollowSettings, FollowSolver
+from spm_console.core.planning.follow.solver import TARGET_REFUSED, FollowSolver
 from spm_console.core.planning.follow.target import TargetProjector
 from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
 from spm_console.core.polytope.region import Region

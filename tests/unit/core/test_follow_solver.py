@@ -91,10 +91,14 @@ def _assert_safe(r: FollowResult, solver: FollowSolver) -> None:
     (_at(-40.0, 30.0, -35.0), (HOME, np.zeros(3))),  # beyond a face and too far for 1 s
     (_at(5.0, 5.0, 5.0), (_at(-3.0, -1.0, -2.0), np.array([30.0, -20.0, 10.0]))),  # moving
 ])
-def test_first_solve_matches_cvxpy(target: np.ndarray, state: tuple[np.ndarray, np.ndarray]) -> None:
-    s = _solver(settings=TIGHT)
+@pytest.mark.parametrize("backend", ["daqp", "osqp"])
+def test_first_solve_matches_cvxpy(target: np.ndarray, state: tuple[np.ndarray, np.ndarray],
+                                   backend: str) -> None:
+    """Either backend (DAQP on the condensed QP, OSQP on the sparse one) gives cvxpy's optimum."""
+    s = _solver(settings=FollowSettings(tolerances=(1e-7,), backend=backend))  # type: ignore[arg-type]
     r = s.solve(state[0], state[1], target)
     assert r.ok, r.reason
+    assert r.detail.startswith("daqp") == (backend == "daqp")  # the backend asked answered
     if r.clamped:  # compare against the same (projected) target
         target = r.target_deg
     cost, ref = _cvxpy(s, state[0], state[1], target)
@@ -115,8 +119,10 @@ def test_pure_mvn_terminal_equals_the_offline_planner() -> None:
     assert r.cost == pytest.approx(plan.cost, rel=1e-5)
 
 
-def test_warm_start_gives_the_cold_answers() -> None:
-    warm, cold = _solver(settings=TIGHT), _solver(settings=TIGHT)
+@pytest.mark.parametrize("backend", ["daqp", "osqp"])
+def test_warm_start_gives_the_cold_answers(backend: str) -> None:
+    st = FollowSettings(tolerances=(1e-7,), backend=backend)  # type: ignore[arg-type]
+    warm, cold = _solver(settings=st), _solver(settings=st)
     x = np.stack([HOME, np.zeros(3)], 1)
     for k in range(40):
         target = HOME + 8.0 * np.sin(np.pi * 0.02 * k) * np.array([1.0, -1.0, 0.5])

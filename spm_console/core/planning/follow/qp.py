@@ -258,13 +258,16 @@ def fill_bounds(mats: FollowMatrices, model: ServoModel, theta_deg: F, omega_deg
 
 def predict(model: ServoModel, theta_deg: F, omega_degps: F, reference_deg: F) -> tuple[F, F]:
     """Exact model prediction (θ (H+1, 3), θ̇ (H+1, 3)) from the state under the references."""
-    H = reference_deg.shape[0]
-    th = np.empty((H + 1, 3))
-    om = np.empty((H + 1, 3))
-    th[0], om[0] = theta_deg, omega_degps
     (a, b), (c, d) = model.A.tolist()
     b0, b1 = model.B.tolist()
-    for k in range(H):  # vectorized over the joints
-        th[k + 1] = a * th[k] + b * om[k] + b0 * reference_deg[k]
-        om[k + 1] = c * th[k] + d * om[k] + b1 * reference_deg[k]
+    th = np.empty((reference_deg.shape[0] + 1, 3))
+    om = np.empty_like(th)
+    for i in range(3):  # scalar recursion per joint: far faster than tiny numpy ops
+        x, v = float(theta_deg[i]), float(omega_degps[i])
+        xs, vs = [x], [v]
+        for u in reference_deg[:, i].tolist():
+            x, v = a * x + b * v + b0 * u, c * x + d * v + b1 * u
+            xs.append(x)
+            vs.append(v)
+        th[:, i], om[:, i] = xs, vs
     return th, om

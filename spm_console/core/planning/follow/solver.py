@@ -27,6 +27,10 @@ Kalman estimate) toward the target t (one (3,) point, or a preview t(1..H))::
   true (untightened) constraints before it is returned as ok.
 * Only the samples are constrained (as in (30) with K = 1), not the motion between them
   (benchmarks/bench_follow.py counts the exact continuous response outside P).
+* By default the QP is solved condensed onto the references by DAQP, a dense dual
+  active-set solver (:mod:`spm_console.core.planning.follow.dense`): exact on its active set,
+  factored once per solver, each solve starting from the previous active set. When it gives
+  no answer that passes the check (or says infeasible), OSQP on the sparse QP decides.
 * OSQP runs at tolerance 1e-3 with polishing (exact when it finds the active set); only
   when that answer is unpolished or fails the check does it go on, from the same iterate,
   at 1e-4 and then 1e-6 (``FollowSettings.tolerances``), within ``time_limit_s`` if set.
@@ -49,12 +53,23 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
-import osqp
 from numpy.typing import NDArray
 
+from spm_console.core.planning.follow.dense import (
+    DAQP_OPTIMAL,
+    DENSE_MAX_ENTRIES,
+    DaqpFollow,
+    build_dense,
+    dense_entries,
+)
+from spm_console.core.planning.follow.osqp_follow import (
+    FollowSettings,
+    FollowWeights,
+    OsqpFollow,
+    Solved,
+)
 from spm_console.core.planning.follow.qp import FollowLayout, build, fill_bounds, linear_cost, predict
 from spm_console.core.planning.follow.result import FollowResult, FollowStatus
 from spm_console.core.planning.follow.target import ProjectionError, TargetProjector
@@ -75,67 +90,12 @@ REACH_TOL_DEG = 1e-2
 RULE_MARGIN_DEG = 0.01
 """The QP holds the runtime's reference step and lead this far inside their bounds: its
 loosest pass answers to 1e-3, and an answer over a bound by that is one the runtime refuses."""
-#: OSQP's own "no time limit" (its default), s.
-NO_TIME_LIMIT_S = 1e10
-
-
-@dataclass(frozen=True)
-class FollowWeights:
-    """Weights of the follow cost (the MVN term Σ‖θ̇‖² has weight 1, in (deg/s)²)."""
-
-    track: float = 400.0
-    """w, 1/s²: stage tracking Σ‖θ(k) − t(k)‖²; √w ≈ tracking bandwidth in rad/s."""
-    terminal: float = 1e4
-    """ρ, deg/s²: exact L1 penalty on θ(H) − t; above the terminal multiplier, θ(H) = t
-    whenever reachable."""
-
-
-@dataclass(frozen=True)
-class FollowSettings:
-    """OSQP settings of the follow solver."""
-
-    tolerances: tuple[float, ...] = (1e-3, 1e-4, 1e-6)
-    """OSQP eps_abs = eps_rel of the passes: the first (loose: polishing makes its answer
-    exact when it finds the active set), then each next one only when the answer so far
-    fails the check, continuing from the same iterate."""
-    polish: bool = True
-    """Polish the ADMM point on its active set (exact answers, a factorization more)."""
-    max_iter: int = 4000
-    time_limit_s: float | None = None
-    """Wall-time budget of one :meth:`FollowSolver.solve` call's OSQP passes together, s
-    (None: none); a solve that runs out of it fails (status 'failed', the previous plan goes on)."""
-    check_every: int = 5
-    """Iterations between OSQP termination checks."""
-    rho: float = 0.1
-    """OSQP's initial ADMM step."""
-    adapt_every: int = 25
-    """Iterations between OSQP's step (ρ) adaptations."""
 
 
 @dataclass
 class _Warm:
     x: F
     y: F
-
-
-@dataclass(frozen=True)
-class _Solved:
-    """What :meth:`FollowSolver._run`'s OSQP passes ended with."""
-
-    status: str
-    """OSQP's status of the last pass."""
-    iterations: int
-    """Of every pass together."""
-    x: F
-    y: F
-    theta_deg: F
-    """(H+1, 3) the model's θ under ``reference_deg``."""
-    omega_degps: F
-    """(H+1, 3) … its θ̇."""
-    reference_deg: F
-    """(H, 3) θ*."""
-    reason: str
-    """Empty when the answer passed the check; 'infeasible'; or why it failed."""
 
 
 @dataclass
@@ -179,27 +139,27 @@ class FollowSolver:
         self._lo, self._hi = lo, hi
         lead = np.inf if self.lead_max_deg is None else max(
             float(self.lead_max_deg) - RULE_MARGIN_DEG, 0.5 * float(self.lead_max_deg))
-        self._mats = build(self.model, self.region, self.vmax_degps, self.horizon, lo, hi,
-                           self.weights.track, self.margin_deg, self.speed_margin_degps,
-                           PLAN_STEP_DEG - RULE_MARGIN_DEG, lead)
+        rows = (self.model, self.region, self.vmax_degps, self.horizon, lo, hi,
+                self.weights.track, self.margin_deg, self.speed_margin_degps,
+                PLAN_STEP_DEG - RULE_MARGIN_DEG, lead)
+        self._mats = build(*rows)
         self._projector = TargetProjector(self.region, lo, hi, 2.0 * self.margin_deg)
-        self._osqp = osqp.OSQP()
-        m = self._mats
-        st = self.settings
-        opts: dict[str, Any] = {
-            "verbose": False, "eps_abs": st.tolerances[0], "eps_rel": st.tolerances[0],
-            "eps_prim_inf": 1e-7, "eps_dual_inf": 1e-7, "polishing": st.polish,
-            "polish_refine_iter": 3, "max_iter": st.max_iter, "warm_starting": True,
-            "check_termination": st.check_every, "adaptive_rho_interval": st.adapt_every, "rho": st.rho,
-            "scaled_termination": False,
-        }
-        if st.time_limit_s is not None:
-            opts["time_limit"] = float(st.time_limit_s)
-        q0 = linear_cost(m.layout, np.zeros((self.horizon, 3)), self.weights.track,
-                         self.weights.terminal)
-        lo0, hi0 = fill_bounds(m, self.model, np.zeros(3), np.zeros(3), np.zeros(3))
-        self._osqp.setup(m.P, q0, m.A, lo0, hi0, **opts)
+        dense = self.settings.backend == "daqp" and dense_entries(
+            self.horizon, self.region.halfspaces) <= DENSE_MAX_ENTRIES
+        self._daqp = DaqpFollow(build_dense(*rows), self.weights.terminal) if dense else None
+        self._daqp_warm = False
         self._warm: _Warm | None = None
+        self._osqp_solver: OsqpFollow | None = None
+        if self._daqp is None:
+            self._osqp_solver = self._osqp
+
+    @property
+    def _osqp(self) -> OsqpFollow:
+        """OSQP on the sparse QP, set up when first needed."""
+        if self._osqp_solver is None:
+            self._osqp_solver = OsqpFollow(self._mats, self.model, self.settings, self.weights,
+                                           self._check, self._lo, self._hi)
+        return self._osqp_solver
 
     @property
     def layout(self) -> FollowLayout:
@@ -212,6 +172,7 @@ class FollowSolver:
     def reset(self) -> None:
         """Forget the previous solution (the next solve starts cold)."""
         self._warm = None
+        self._daqp_warm = False
 
     def project(self, target_deg: F) -> tuple[F, float]:
         """(nearest admissible point, distance moved in deg) for a (3,) target."""
@@ -265,32 +226,38 @@ class FollowSolver:
 
         viol = float(self.region.violation_deg(th0))
         if viol > FOLLOW_TOL_DEG:
-            self._warm = None
+            self.reset()
             return refuse("infeasible", f"the state θ = {fmt_deg(th0, 3)} is outside the "
                           f"region by {viol:.3g}°: following starts only inside it")
-        q = linear_cost(self.layout, targets, self.weights.track, self.weights.terminal)
         prev = None if previous_reference_deg is None else np.asarray(
             previous_reference_deg, float).reshape(3)
-        lo, hi = fill_bounds(self._mats, self.model, th0, om0, terminal, prev)
-        self._osqp.update(q=q, l=lo, u=hi)
-        used_warm = warm and self._warm is not None
-        if used_warm:
-            assert self._warm is not None
-            self._osqp.warm_start(x=self.layout.shift_primal(self._warm.x, elapsed),
-                                  y=self.layout.shift_dual(self._warm.y, elapsed))
-        else:
-            self._osqp.warm_start(x=np.zeros(self.layout.n), y=np.zeros(self.layout.m))
-        run = self._run(th0, om0, t0, timed)
+        run: Solved | None = None
+        if self._daqp is not None:
+            used_warm = warm and self._daqp_warm
+            run = self._run_daqp(th0, om0, targets, th0 if prev is None else prev, t0, timed,
+                                 cold=not used_warm)
+            # no answer that passes the check, or "infeasible": OSQP decides
+            self._daqp_warm = not run.reason
+            run = None if run.reason else run
+        if run is None:
+            q = linear_cost(self.layout, targets, self.weights.track, self.weights.terminal)
+            lo, hi = fill_bounds(self._mats, self.model, th0, om0, terminal, prev)
+            used_warm = warm and self._warm is not None
+            start = self._warm if used_warm else None
+            self._osqp.prepare(q, lo, hi,
+                               None if start is None else self.layout.shift_primal(start.x, elapsed),
+                               None if start is None else self.layout.shift_dual(start.y, elapsed))
+            run = self._osqp.run(th0, om0, t0, timed)
         st, it, reason = run.status, run.iterations, run.reason
         if reason == "infeasible":
-            self._warm = None
+            self.reset()
             return refuse("infeasible", "no reference keeps the wrist inside the region under the "
                           f"speed bound from θ = {fmt_deg(th0, 3)}, θ̇ = "
                           f"{fmt_deg(om0)}/s", st, it, used_warm)
         if reason:
-            self._warm = None
+            self.reset()
             return refuse("failed", reason, st, it, used_warm)
-        self._warm = _Warm(run.x, run.y)
+        self._warm = _Warm(run.x, run.y) if run.x.size else None
         th, om, ref = run.theta_deg, run.omega_degps, run.reference_deg
         w = self.weights
         err = np.abs(th[-1] - terminal)
@@ -303,57 +270,27 @@ class FollowSolver:
             cost=cost, terminal_error_deg=float(err.max()), seconds=time.perf_counter() - t0,
             iterations=it, warm=used_warm, reason="", detail=st)
 
-    def _run(self, th0: F, om0: F, t0: float, timed: bool = True) -> _Solved:
-        """OSQP at the loose tolerance, then — only while its answer does not pass the check
-        (polishing failed) — on from the same iterate at the tighter ones (within the time
-        limit when ``timed``).
-
-        Returns the last pass's answer (or the best checked one)."""
-        tols = self.settings.tolerances
-        it = 0
-        status = ""
-        reason = ""
-        x = y = th = om = ref = np.zeros(0)
-        best: tuple[str, F, F, F, F, F] | None = None  # a checked but unpolished answer
-        limit = self.settings.time_limit_s if timed else None
-        if not timed and self.settings.time_limit_s is not None:
-            self._osqp.update_settings(time_limit=NO_TIME_LIMIT_S)
-        for n, tol in enumerate(tols):
-            if n:
-                self._osqp.update_settings(eps_abs=tol, eps_rel=tol)
-            if limit is not None:
-                left = limit - (time.perf_counter() - t0)
-                if left <= 0:
-                    reason = f"out of time ({limit * 1e3:g} ms) after {it} iterations"
-                    break
-                self._osqp.update_settings(time_limit=left)
-            res = self._osqp.solve(raise_error=False)
-            status = str(res.info.status)
-            it += int(res.info.iter)
-            if status.startswith("primal infeasible"):
-                reason = "infeasible"
-                break
-            if status not in ("solved", "solved inaccurate"):
-                reason = f"the follow QP did not converge ({status})"
-                continue
-            x = np.asarray(res.x, float)
-            y = np.asarray(res.y, float)
-            ref, _, _ = self.layout.unpack(x)
-            ref = np.clip(ref, self._lo, self._hi)  # round-off beyond a servo limit
-            th, om = predict(self.model, th0, om0, ref)
-            reason = self._check(th, om)
-            if reason:
-                continue
-            # the loosest pass's raw point is rough: prefer a polished or a tighter answer
-            if int(res.info.status_polish) == 1 or n > 0 or not self.settings.polish:
-                break
-            best = (status, x, y, th, om, ref)
-        if len(tols) > 1:
-            self._osqp.update_settings(eps_abs=tols[0], eps_rel=tols[0])
-        if reason and reason != "infeasible" and best is not None:
-            status, x, y, th, om, ref = best
-            reason = ""
-        return _Solved(status, it, x, y, th, om, ref, reason)
+    def _run_daqp(self, th0: F, om0: F, targets: F, prev: F, t0: float, timed: bool,
+                  cold: bool) -> Solved:
+        """The condensed QP by DAQP (see :mod:`~spm_console.core.planning.follow.dense`),
+        within what is left of the time limit when ``timed``; checked like OSQP's answers."""
+        left = None
+        if timed and self.settings.time_limit_s is not None:
+            left = self.settings.time_limit_s - (time.perf_counter() - t0)
+            if left <= 0:
+                return Solved("", 0, *(np.zeros(0),) * 5,
+                               f"out of time ({self.settings.time_limit_s * 1e3:g} ms) "
+                               "after 0 iterations")
+        assert self._daqp is not None
+        ans = self._daqp.solve(th0, om0, targets, prev, cold=cold, time_limit_s=left)
+        empty = np.zeros(0)
+        if ans.flag != DAQP_OPTIMAL:
+            return Solved(ans.status, ans.iterations, empty, empty, empty, empty, empty,
+                           ans.status)
+        ref = np.clip(ans.reference_deg, self._lo, self._hi)  # round-off beyond a servo limit
+        th, om = predict(self.model, th0, om0, ref)
+        return Solved(ans.status, ans.iterations, empty, empty, th, om, ref,
+                       self._check(th, om))
 
     def _project_rows(self, targets: F) -> tuple[F, float]:
         """Targets projected row by row where outside; (targets, largest move in deg)."""
