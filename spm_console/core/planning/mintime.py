@@ -83,37 +83,47 @@ def estimate_steps(problem: PlanProblem) -> int:
     return max(2, math.ceil(t / problem.model.ts) + (1 if problem.hold_first else 0))
 
 
-def _peak_speed(problem: PlanProblem) -> float:
-    """Largest |θ̇| (samples and sub-samples) of the unconstrained MVN optimum at this N."""
+def _peaks(problem: PlanProblem) -> tuple[float, float]:
+    """(largest |θ̇| at the samples and sub-samples, largest lead |θ*(k) − θ(k)|) of the
+    unconstrained MVN optimum at this N, deg/s and deg."""
     eq = equalities(problem)
     pool = Pool(problem)
     out = eqp(eq, pool, np.zeros(0, np.int64), np.zeros(0, np.int64))
     if out is None:
-        return float("nan")
+        return float("nan"), float("nan")
     z = out[0]
-    om = z[: 6 * (problem.N + 1)].reshape(problem.N + 1, 6)[:, 3:]
-    peak = float(np.abs(om).max())
+    N = problem.N
+    x = z[: 6 * (N + 1)].reshape(N + 1, 6)
+    peak = float(np.abs(x[:, 3:]).max())
     sub = pool.requested_speed_rows()  # the runtime's check instants have a looser bound
     if sub.any():
         peak = max(peak, float(np.abs(pool.values(z)[sub]).max()))
-    return peak
+    lead = float(np.abs(z[6 * (N + 1):].reshape(N, 3) - x[:N, :3]).max())
+    return peak, lead
 
 
 def predict_steps(problem: PlanProblem, n1: int, gap: int = 6) -> int:
-    """Where the unconstrained MVN peak speed meets v_max.
+    """Where the unconstrained MVN optimum's peak speed meets v_max, or its peak lead the
+    servo's linear range, whichever is later.
 
     The peak speed behaves like α / (N − c) (a fixed distance over the cruise time), so
-    1/peak is nearly linear in N: two probes at n1 and n1 + gap give the line. At that N
-    the MVN optimum usually has no active constraint, so the prediction is most often N*.
+    1/peak is nearly linear in N: two probes at n1 and n1 + gap give the line. The lead
+    (an acceleration: distance over time squared) behaves like β / (N − c)², so
+    1/√lead is nearly linear too. At that N the MVN optimum usually has no active
+    constraint, so the prediction is most often N* or close to it.
     """
     assert problem.vmax_degps is not None
     n1 = max(n1, problem.min_steps)
-    v1 = _peak_speed(problem.with_steps(n1))
-    v2 = _peak_speed(problem.with_steps(n1 + gap))
+    v1, l1 = _peaks(problem.with_steps(n1))
+    v2, l2 = _peaks(problem.with_steps(n1 + gap))
     if not (np.isfinite(v1) and np.isfinite(v2) and v1 > v2 > 0):
         return n1
     slope = (1 / v2 - 1 / v1) / gap
     n = n1 + (1 / problem.vmax_degps - 1 / v1) / slope
+    L = problem.lead_max_deg
+    if L is not None and np.isfinite(L) and l1 > l2 > 0 and l1 > L:
+        y1, y2 = 1 / math.sqrt(l1), 1 / math.sqrt(l2)
+        n = max(n, n1 + (1 / math.sqrt(L) - y1) / ((y2 - y1) / gap))
     return max(2, math.ceil(n - 1e-9))
 
 

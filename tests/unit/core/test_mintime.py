@@ -100,3 +100,21 @@ def test_an_infeasibility_whose_certificate_does_not_check_out_is_searched_past(
     res = solve_mintime(MODEL, START_MT, GOAL, BOX, 50.0)
     assert res.N == honest.N and res.plan.check.ok
     assert res.certificate is not None and not res.certificate.valid
+
+
+def test_a_lead_limited_speed_is_predicted_without_galloping() -> None:
+    """An identified servo (ζ = 0.79) with a 3.57° linear range at 200°/s: the lead, not the
+    speed bound, sets N*. The prediction takes the lead's scaling too, so the search decides
+    N* and N*−1 only; an independent formulation agrees on both."""
+    from spm_console.core.servo.model import Dynamics, discretize
+
+    model = discretize(Dynamics(44.03, 0.786, 0.0053), 0.02)
+    lo, hi = np.full(3, 60.0), np.full(3, 160.0)
+    pb = PlanProblem(model, START_MT, GOAL, 2, BOX, 200.0, 1, True, lo, hi, lead_max_deg=3.57)
+    res = solve_mintime_problem(pb)
+    assert res.plan.check.ok and res.certificate is not None and res.certificate.valid
+    lead = np.abs(res.plan.reference_deg[:-1] - res.plan.position_deg[:-1]).max()
+    assert lead == pytest.approx(3.57, abs=1e-3)  # the lead binds
+    assert float(np.abs(res.plan.velocity_degps).max()) < 150.0  # the speed bound does not
+    assert res.qp_count <= 3, [(e.N, e.verdict) for e in res.trace]
+    _cross_check(pb, res.N)
