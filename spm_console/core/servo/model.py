@@ -16,6 +16,7 @@ runtime's model of what it will measure (:func:`delayed_spans`) applies it.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Literal
@@ -175,13 +176,21 @@ def exact_coeffs(pole: Pole, tau: float) -> tuple[float, float, float, float, fl
 def substeps(pole: Pole, ts: float, k: int) -> tuple[F, F]:
     """Exact ZOH matrices at the sub-sample instants j·Ts/k, j = 1..k−1.
 
-    Returns (Phis (k−1, 2, 2), Gams (k−1, 2)); empty for k = 1.
+    Returns (Phis (k−1, 2, 2), Gams (k−1, 2)), read-only (kept for the next call with the
+    same arguments); empty for k = 1.
     """
     if k < 1:
         raise ValueError(f"sub-samples per interval must be ≥ 1, got {k}")
+    return _substeps(pole, float(ts), int(k))
+
+
+@functools.lru_cache(maxsize=64)
+def _substeps(pole: Pole, ts: float, k: int) -> tuple[F, F]:
     mats = [exact_step(pole, j * ts / k) for j in range(1, k)]
     Phis = np.array([m[0] for m in mats]).reshape(k - 1, 2, 2)
     Gams = np.array([m[1] for m in mats]).reshape(k - 1, 2)
+    Phis.setflags(write=False)
+    Gams.setflags(write=False)
     return Phis, Gams
 
 
@@ -222,11 +231,13 @@ def simulate_continuous(pole: Pole, ts: float, x0: F, reference: F, points: int,
     else:
         xk = np.asarray(samples, float)
     Phis, Gams = substeps(pole, ts, points)
-    # inside interval k: x = Φ_j x(k) + Γ_j θ*(k); shapes (k, j, i, a)
-    xa = xk[:n, None, :, None, :]  # (n, 1, J, 1, 2)
-    inner = ((Phis[None, :, None, :, :] * xa).sum(-1)
-             + Gams[None, :, None, :] * ref[:n, None, :, None])
-    xs = np.concatenate([xk[:n, None], inner], axis=1).reshape(n * points, ref.shape[1], 2)
-    xs = np.concatenate([xs, xk[n:]], axis=0)
+    # inside interval k: x = Φ_j x(k) + Γ_j θ*(k); each component as outer products (k, j, i)
+    th, om, u = xk[:n, None, :, 0], xk[:n, None, :, 1], ref[:n, None, :]
+    P, G = Phis[None, :, :, :, None], Gams[None, :, :, None]  # (1, j, 2, 2, 1), (1, j, 2, 1)
+    xs = np.empty((n, points, ref.shape[1], 2))
+    xs[:, 0] = xk[:n]
+    for a in range(2):
+        xs[:, 1:, :, a] = P[:, :, a, 0] * th + P[:, :, a, 1] * om + G[:, :, a] * u
+    xs = np.concatenate([xs.reshape(n * points, ref.shape[1], 2), xk[n:]], axis=0)
     t = np.arange(n * points + 1) * (ts / points)
     return t, xs
