@@ -19,6 +19,7 @@ samples, 3 speed at samples, 4 reference bounds, 5 reference steps, 6 the refere
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,10 +54,28 @@ class Equalities:
 
 
 def equalities(problem: PlanProblem) -> Equalities:
+    """The cost and equality rows of (30) for ``problem``: the matrices depend only on the
+    servo model, N and whether θ*(0) is held (kept for the next call: minimum time's probes
+    and searches ask for the same N again), the right-hand sides on the start and goal."""
     N = problem.N
+    A, B = problem.model.A, problem.model.B
+    P, C = _equality_matrices(np.ascontiguousarray(A, float).tobytes(),
+                              np.ascontiguousarray(B, float).tobytes(), N, problem.hold_first)
+    rhs = [problem.start_deg, np.zeros(3), problem.goal_deg, np.zeros(3)]
+    if problem.hold_first:  # (30b) as printed: θ*(0) = θ(0)
+        rhs.append(problem.start_deg)
+    rhs.append(np.zeros(6 * N))
+    return Equalities(Layout(N), P, C, np.concatenate(rhs))
+
+
+@functools.lru_cache(maxsize=32)
+def _equality_matrices(a_bytes: bytes, b_bytes: bytes, N: int,
+                       hold_first: bool) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """(P, C) of :func:`equalities` for the model (A, B given as their float64 bytes)."""
+    Am = np.frombuffer(a_bytes, float).reshape(2, 2)
+    Bm = np.frombuffer(b_bytes, float).reshape(2)
     L = Layout(N)
     n = L.n
-    Am, Bm = problem.model.A, problem.model.B
     J = np.arange(3)
     om_all = L.om(np.repeat(np.arange(N + 1), 3), np.tile(J, N + 1)).ravel()
     P = sp.csc_matrix((np.full(om_all.size, 2.0), (om_all, om_all)), shape=(n, n))
@@ -64,7 +83,6 @@ def equalities(problem: PlanProblem) -> Equalities:
     rows: list[I] = []
     cols: list[I] = []
     vals: list[F] = []
-    rhs: list[F] = []
     m = 0
 
     def add(r: I, c: I, v: F | float) -> None:
@@ -75,11 +93,9 @@ def equalities(problem: PlanProblem) -> Equalities:
 
     # θ(0) = start, θ̇(0) = 0, θ(N) = goal, θ̇(N) = 0
     add(m + np.arange(12), np.concatenate([L.th(0, J), L.om(0, J), L.th(N, J), L.om(N, J)]), 1.0)
-    rhs.append(np.concatenate([problem.start_deg, np.zeros(3), problem.goal_deg, np.zeros(3)]))
     m += 12
-    if problem.hold_first:  # (30b) as printed: θ*(0) = θ(0)
+    if hold_first:  # θ*(0) = θ(0)
         add(m + J, L.u(0, J), 1.0)
-        rhs.append(problem.start_deg)
         m += 3
     # dynamics x_i(k+1) − A x_i(k) − B θ*_i(k) = 0; rows ordered (k, i, component)
     kg, ig = np.meshgrid(np.arange(N), J, indexing="ij")
@@ -90,11 +106,10 @@ def equalities(problem: PlanProblem) -> Equalities:
         add(base + c, L.th(kk, ii), -Am[c, 0])
         add(base + c, L.om(kk, ii), -Am[c, 1])
         add(base + c, L.u(kk, ii), -Bm[c])
-    rhs.append(np.zeros(6 * N))
     m += 6 * N
     C = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(m, n))
-    return Equalities(L, P, C, np.concatenate(rhs))
+    return P, C
 
 
 class Pool:
