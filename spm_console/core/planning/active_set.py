@@ -72,8 +72,11 @@ def eqp(eq: Equalities, pool: Pool, active: I, side: I) -> tuple[F, F] | None:
     cols = np.concatenate([Pc.col, Cc.col, Cc.row + n, diag])
     regv = np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)])
     vals = np.concatenate([Pc.data, Cc.data, Cc.data])
-    K = sp.csc_matrix((vals, (rows[:-n - m], cols[:-n - m])), shape=(n + m, n + m))
     Kr = sp.csc_matrix((np.concatenate([vals, regv]), (rows, cols)), shape=(n + m, n + m))
+
+    def residual(x: F) -> F:  # rhs − K x, with K = Kr less its regularization diagonal
+        return np.asarray(rhs - (Kr @ x - regv * x))
+
     rhs = np.concatenate([np.zeros(n), eq.d, rhs_w])
     try:
         lu = spla.splu(Kr, permc_spec="COLAMD")
@@ -82,11 +85,11 @@ def eqp(eq: Equalities, pool: Pool, active: I, side: I) -> tuple[F, F] | None:
     sol = lu.solve(rhs)
     scale = max(1.0, float(np.abs(rhs).max()))
     for _ in range(REFINE_STEPS):
-        res = rhs - K @ sol
+        res = residual(sol)
         if float(np.abs(res).max()) <= 1e-12 * scale:
             break
         sol = sol + lu.solve(res)
-    res = rhs - K @ sol
+    res = residual(sol)
     if not np.all(np.isfinite(sol)) or float(np.abs(res).max()) > 1e-9 * scale:
         return None
     return sol[:n], sol[n + eq.C.shape[0]:]
