@@ -129,7 +129,7 @@ class Follower(Executor):
                     else self._approach_point(theta0, regions[self.hopper.current]))
         begin = theta0 if approach is None else approach
         vmax = self.profile.limits.vmax_degps
-        # one solver per region, built before torque-on (about 15 ms each: not in the loop)
+        # one solver per region, factored before torque-on (10–25 ms each: not in the loop)
         self.solvers = [FollowSolver(self.model, r, vmax, HORIZON, self.lo, self.hi,
                                      settings=FollowSettings(time_limit_s=SOLVE_BUDGET_S),
                                      lead_max_deg=self.profile.servo.linear_range_deg)

@@ -186,7 +186,7 @@ def build_dense(model: ServoModel, region: Region, vmax_degps: float, H: int, re
     else:
         r_lead = slice(r_step.stop, r_step.stop)
     Ar = np.asarray(region.A, float)
-    reg = np.einsum("kj,ri->krji", Tth, Ar).reshape(H * Ar.shape[0], nu)
+    reg = np.asarray(np.kron(Tth, Ar), float)  # row (k, r), column (j, i): T_θ[k, j]·A[r, i]
     b_tight = region.b - margin_deg * np.linalg.norm(Ar, axis=1)
     r_region = rows(reg, -np.inf, np.tile(b_tight, H))
     t_row = r_region.stop
