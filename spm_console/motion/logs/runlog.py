@@ -56,7 +56,7 @@ FLUSH_EVERY = 3
 FLUSH_EVERY − 1 rows written since the last flush (a flush costs a few µs, one
 ``write`` system call; no fsync — the OS keeps what it was given when the process dies)."""
 
-PACKAGES = ("spm_console", "numpy", "scipy", "filterpy", "control", "pyserial", "osqp")
+PACKAGES = ("spm_console", "numpy", "scipy", "filterpy", "control", "pyserial", "osqp", "daqp")
 
 _VEC = ("ref", "meas", "pred", "pred_vel", "filt", "vel", "fd_vel")
 COLUMNS: tuple[str, ...] = (
