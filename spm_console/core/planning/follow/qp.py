@@ -40,7 +40,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from spm_console.core.polytope.region import Region
-from spm_console.core.servo.model import ServoModel
+from spm_console.core.servo.model import ServoModel, simulate
 
 F = NDArray[np.float64]
 I = NDArray[np.int64]
@@ -258,16 +258,6 @@ def fill_bounds(mats: FollowMatrices, model: ServoModel, theta_deg: F, omega_deg
 
 def predict(model: ServoModel, theta_deg: F, omega_degps: F, reference_deg: F) -> tuple[F, F]:
     """Exact model prediction (θ (H+1, 3), θ̇ (H+1, 3)) from the state under the references."""
-    (a, b), (c, d) = model.A.tolist()
-    b0, b1 = model.B.tolist()
-    th = np.empty((reference_deg.shape[0] + 1, 3))
-    om = np.empty_like(th)
-    for i in range(3):  # scalar recursion per joint: far faster than tiny numpy ops
-        x, v = float(theta_deg[i]), float(omega_degps[i])
-        xs, vs = [x], [v]
-        for u in reference_deg[:, i].tolist():
-            x, v = a * x + b * v + b0 * u, c * x + d * v + b1 * u
-            xs.append(x)
-            vs.append(v)
-        th[:, i], om[:, i] = xs, vs
-    return th, om
+    x0 = np.column_stack([theta_deg, omega_degps])
+    xs = simulate(model, x0, np.vstack([reference_deg, reference_deg[-1:]]))  # last row: unused
+    return xs[..., 0].copy(), xs[..., 1].copy()
