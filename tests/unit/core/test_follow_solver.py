@@ -292,6 +292,15 @@ def test_an_untimed_solve_ignores_the_time_limit_and_the_next_timed_one_keeps_it
     assert not again.ok and "out of time" in again.reason
 
 
+def test_a_daqp_solve_out_of_time_fails_without_setting_osqp_up() -> None:
+    """When DAQP's time is up there is none left for OSQP: the solve fails as out of time
+    and the sparse QP is never assembled (setting OSQP up would only make the answer later)."""
+    s = _solver(settings=FollowSettings(time_limit_s=1e-9, backend="daqp"))
+    res = s.solve(HOME, np.zeros(3), _at(5.0, 5.0, -5.0), warm=False)
+    assert not res.ok and res.reason.startswith("out of time"), res.reason
+    assert s._mats_built is None and s._osqp_solver is None
+
+
 def test_the_linear_range_and_the_step_from_the_reference_in_use_hold_as_in_cvxpy() -> None:
     """An identified servo (ζ = 0.8) with a 2° linear range, the reference in use 6° off the
     state: the first reference steps at most 10° from it, every reference leads the position by

@@ -212,7 +212,7 @@ def build_dense(model: ServoModel, region: Region, vmax_degps: float, H: int, re
 
 
 #: DAQP's exit flags this module tells apart (daqp's ``exitflag``).
-DAQP_OPTIMAL, DAQP_INFEASIBLE = 1, -1
+DAQP_OPTIMAL, DAQP_INFEASIBLE, DAQP_TIME_LIMIT = 1, -1, -7
 
 
 @dataclass(frozen=True)
@@ -228,7 +228,7 @@ class DenseAnswer:
     @property
     def status(self) -> str:
         words = {DAQP_OPTIMAL: "optimal", DAQP_INFEASIBLE: "infeasible", -2: "cycling",
-                 -3: "unbounded", -4: "iteration limit", -7: "time limit"}
+                 -3: "unbounded", -4: "iteration limit", DAQP_TIME_LIMIT: "time limit"}
         return f"daqp: {words.get(self.flag, f'exit flag {self.flag}')}"
 
 

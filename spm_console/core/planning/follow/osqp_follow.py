@@ -24,6 +24,13 @@ F = NDArray[np.float64]
 
 #: OSQP's own "no time limit" (its default), s.
 NO_TIME_LIMIT_S = 1e10
+#: How every ``Solved.reason`` of a solve that ran out of its time limit begins.
+OUT_OF_TIME = "out of time"
+
+
+def out_of_time(limit_s: float, iterations: int) -> str:
+    """The reason of a solve stopped by its ``limit_s`` time limit (s) after ``iterations``."""
+    return f"{OUT_OF_TIME} ({limit_s * 1e3:g} ms) after {iterations} iterations"
 
 
 @dataclass(frozen=True)
@@ -79,6 +86,8 @@ class Solved:
     """(H, 3) θ*."""
     reason: str
     """Empty when the answer passed the check; 'infeasible'; or why it failed."""
+    timed_out: bool = False
+    """Stopped by the time limit (``reason`` then begins with :data:`OUT_OF_TIME`)."""
 
 
 class OsqpFollow:
@@ -121,6 +130,7 @@ class OsqpFollow:
         it = 0
         status = ""
         reason = ""
+        timed_out = False
         x = y = th = om = ref = np.zeros(0)
         best: tuple[str, F, F, F, F, F] | None = None  # a checked but unpolished answer
         limit = self.settings.time_limit_s if timed else None
@@ -132,7 +142,8 @@ class OsqpFollow:
             if limit is not None:
                 left = limit - (time.perf_counter() - t0)
                 if left <= 0:
-                    reason = f"out of time ({limit * 1e3:g} ms) after {it} iterations"
+                    reason = out_of_time(limit, it)
+                    timed_out = True
                     break
                 self.solver.update_settings(time_limit=left)
             res = self.solver.solve(raise_error=False)
@@ -161,5 +172,5 @@ class OsqpFollow:
         if reason and reason != "infeasible" and best is not None:
             status, x, y, th, om, ref = best
             reason = ""
-        return Solved(status, it, x, y, th, om, ref, reason)
+        return Solved(status, it, x, y, th, om, ref, reason, timed_out and bool(reason))
 

@@ -59,6 +59,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.planning.follow.dense import (
     DAQP_OPTIMAL,
+    DAQP_TIME_LIMIT,
     DENSE_MAX_ENTRIES,
     DaqpFollow,
     build_dense,
@@ -69,8 +70,16 @@ from spm_console.core.planning.follow.osqp_follow import (
     FollowWeights,
     OsqpFollow,
     Solved,
+    out_of_time,
 )
-from spm_console.core.planning.follow.qp import FollowLayout, build, fill_bounds, linear_cost, predict
+from spm_console.core.planning.follow.qp import (
+    FollowLayout,
+    FollowMatrices,
+    build,
+    fill_bounds,
+    linear_cost,
+    predict,
+)
 from spm_console.core.planning.follow.result import FollowResult, FollowStatus
 from spm_console.core.planning.follow.target import ProjectionError, TargetProjector
 from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
@@ -142,7 +151,8 @@ class FollowSolver:
         rows = (self.model, self.region, self.vmax_degps, self.horizon, lo, hi,
                 self.weights.track, self.margin_deg, self.speed_margin_degps,
                 PLAN_STEP_DEG - RULE_MARGIN_DEG, lead)
-        self._mats = build(*rows)
+        self._rows = rows
+        self._mats_built: FollowMatrices | None = None
         self._projector = TargetProjector(self.region, lo, hi, 2.0 * self.margin_deg)
         dense = self.settings.backend == "daqp" and dense_entries(
             self.horizon, self.region.halfspaces) <= DENSE_MAX_ENTRIES
@@ -152,6 +162,13 @@ class FollowSolver:
         self._osqp_solver: OsqpFollow | None = None
         if self._daqp is None:
             self._osqp_solver = self._osqp
+
+    @property
+    def _mats(self) -> FollowMatrices:
+        """The sparse QP (OSQP's), assembled when first needed."""
+        if self._mats_built is None:
+            self._mats_built = build(*self._rows)
+        return self._mats_built
 
     @property
     def _osqp(self) -> OsqpFollow:
@@ -236,9 +253,10 @@ class FollowSolver:
             used_warm = warm and self._daqp_warm
             run = self._run_daqp(th0, om0, targets, th0 if prev is None else prev, t0, timed,
                                  cold=not used_warm)
-            # no answer that passes the check, or "infeasible": OSQP decides
+            # no answer that passes the check, or "infeasible": OSQP decides, unless the
+            # time is up (the answer would come too late anyway)
             self._daqp_warm = not run.reason
-            run = None if run.reason else run
+            run = None if run.reason and not run.timed_out else run
         if run is None:
             q = linear_cost(self.layout, targets, self.weights.track, self.weights.terminal)
             lo, hi = fill_bounds(self._mats, self.model, th0, om0, terminal, prev)
@@ -275,15 +293,17 @@ class FollowSolver:
         """The condensed QP by DAQP (see :mod:`~spm_console.core.planning.follow.dense`),
         within what is left of the time limit when ``timed``; checked like OSQP's answers."""
         left = None
-        if timed and self.settings.time_limit_s is not None:
-            left = self.settings.time_limit_s - (time.perf_counter() - t0)
+        limit = self.settings.time_limit_s
+        empty = np.zeros(0)
+        if timed and limit is not None:
+            left = limit - (time.perf_counter() - t0)
             if left <= 0:
-                return Solved("", 0, *(np.zeros(0),) * 5,
-                               f"out of time ({self.settings.time_limit_s * 1e3:g} ms) "
-                               "after 0 iterations")
+                return Solved("", 0, *(empty,) * 5, out_of_time(limit, 0), timed_out=True)
         assert self._daqp is not None
         ans = self._daqp.solve(th0, om0, targets, prev, cold=cold, time_limit_s=left)
-        empty = np.zeros(0)
+        if ans.flag == DAQP_TIME_LIMIT and limit is not None:
+            return Solved(ans.status, ans.iterations, *(empty,) * 5,
+                          out_of_time(limit, ans.iterations), timed_out=True)
         if ans.flag != DAQP_OPTIMAL:
             return Solved(ans.status, ans.iterations, empty, empty, empty, empty, empty,
                            ans.status)
