@@ -25,7 +25,8 @@ from benchmarks.common import Row
 from spm_console.config.load import load_profile
 from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.motion.logs.runlog import load_run
-from spm_console.services.session import PoseSpec, Session
+from spm_console.services.session import Session
+from spm_console.services.wrist_service import PoseSpec
 
 ROOT = Path(__file__).resolve().parent.parent
 PROFILE = ROOT / "profiles" / "agile_wrist.toml"
@@ -48,16 +49,16 @@ def run() -> list[Row]:
         s = Session(prof, sim=True, logs_root=Path(d), emulator_process=True)
         s.connect()
         try:
-            s.ensure_workspace()
+            s.wrist.ensure_workspace()
             s.home()
             fo = s.follow(timed, source="bench: 0.5 Hz roll")
             ex = fo.execution
             run = load_run(ex.log_dir) if ex.log_dir else None
             # baseline: a planned motion of similar length through the same runtime
             home = np.asarray(s.theta_deg, float)
-            plan = s.solve_plan("mvn", PoseSpec("theta", tuple(timed.theta_deg[0])),
-                                PoseSpec("theta", tuple(home + np.array([6.0, -6.0, 6.0]))),
-                                int(SECONDS / prof.servo.ts_s), prof.limits.vmax_degps)
+            plan = s.plans.solve("mvn", PoseSpec("theta", tuple(timed.theta_deg[0])),
+                                 PoseSpec("theta", tuple(home + np.array([6.0, -6.0, 6.0]))),
+                                 None, int(SECONDS / prof.servo.ts_s), prof.limits.vmax_degps)
             base = s.execute(plan, skip_homing="")
             # a live step
             out: list[object] = []
@@ -73,7 +74,7 @@ def run() -> list[Row]:
             live_run = load_run(live.log_dir) if live is not None and live.log_dir else None
         finally:
             s.close()
-        ws = s.workspace
+        ws = s.wrist.workspace
     rows: list[Row] = []
     st = fo.stats
     assert st is not None and run is not None and ws is not None

@@ -204,7 +204,7 @@ async def _link_runs(cache: Path, link: str, n: int) -> list[Any]:
 
 
 async def _latency_rows(cache: Path) -> list[Row]:
-    from spm_console.services.session import PoseSpec
+    from spm_console.services.wrist_service import PoseSpec
     from spm_console.tui.app import make_app
 
     profile = console_profile()
@@ -233,8 +233,8 @@ async def _latency_rows(cache: Path) -> list[Row]:
 
             n = 0
             while time.perf_counter() < t_end:
-                session.solve_plan("mvn", PoseSpec("home"), PoseSpec("theta", (95, 110, 105)),
-                                   1500, 50.0)
+                session.plans.solve("mvn", PoseSpec("home"), PoseSpec("theta", (95, 110, 105)),
+                                    None, 1500, 50.0)
                 n += 1
             return BenchmarkDone(n)
 

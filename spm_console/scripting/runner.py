@@ -91,7 +91,8 @@ from spm_console.scripting.steps import (
     WorkspaceStep,
 )
 from spm_console.services.kin_record import FkRecord
-from spm_console.services.session import PoseSpec, Session
+from spm_console.services.session import Session
+from spm_console.services.wrist_service import PoseSpec
 from spm_console.store.target_file import read_target_csv, timed_targets
 from spm_console.system.signals import SignalInterrupt, stop_signals
 
@@ -223,8 +224,8 @@ class ScriptRunner:
     def _step_fk(self, step: FkStep) -> tuple[dict[str, Any], str]:
         if (step.theta is None) == (step.rpy is None):
             raise BadInputError("fk step: give exactly one of theta or rpy")
-        theta = step.theta if step.theta is not None else self.session.ik(step.rpy)  # type: ignore[arg-type]
-        rec = self.session.fk(theta, all_modes=step.all_modes)
+        theta = step.theta if step.theta is not None else self.session.wrist.ik(step.rpy)  # type: ignore[arg-type]
+        rec = self.session.wrist.fk(theta, all_modes=step.all_modes)
         self.last_fk = rec
         out = {"theta_deg": _vec(rec.theta_deg), "v": [_vec(r) for r in rec.v],
                "n": _vec(rec.n), "zeta": float(rec.zeta), "residual": float(rec.residual),
@@ -236,8 +237,8 @@ class ScriptRunner:
         return out, f"θ = {out['theta_deg']}° -> n = {out['n']}, ζ = {out['zeta']:.3f}, {verdict}"
 
     def _step_workspace(self, step: WorkspaceStep) -> tuple[dict[str, Any], str]:
-        ws = self.session.load_workspace(force=step.rebuild)
-        info = self.session.cache_info
+        ws = self.session.wrist.load_workspace(force=step.rebuild)
+        info = self.session.wrist.cache_info
         assert info is not None  # set with the workspace
         out: dict[str, Any] = {**ws.counts(), "halfspaces": ws.region.halfspaces,
                                "cache": str(info.path), "cache_hit": bool(info.hit),
@@ -245,7 +246,7 @@ class ScriptRunner:
         text = (f"{out['feasible']} of {out['nodes']} nodes feasible, P has "
                 f"{out['halfspaces']} half-spaces ({'cached' if info.hit else 'built'})")
         if step.check is not None:
-            chk = self.session.check_theta(step.check)
+            chk = self.session.wrist.check_theta(step.check)
             out["check"] = {"theta_deg": _vec(chk.theta_deg), "feasible": bool(chk.feasible),
                             "in_region": bool(chk.in_region), "plannable": bool(chk.plannable),
                             "verdict": chk.verdict, "reason": chk.reason}
@@ -253,20 +254,22 @@ class ScriptRunner:
         return out, text
 
     def _step_plan(self, step: PlanStep) -> tuple[dict[str, Any], str]:
-        if self.session.workspace is None:
-            self.session.load_workspace()
+        if self.session.wrist.workspace is None:
+            self.session.wrist.load_workspace()
         if "current" in (step.start, step.goal):
             self._ensure_bus()
             self.session.read_position()
-        s = self.session.solve_plan(step.method, _pose(step.start), _pose(step.goal),
-                                    step.steps, step.vmax).summary()
+        s = self.session.plans.solve(step.method, _pose(step.start), _pose(step.goal),
+                                     self.session.theta_deg, step.steps, step.vmax).summary()
         out = {**s.figures(), "start_deg": _vec(s.start_deg), "goal_deg": _vec(s.goal_deg),
                "max_speed_degps": s.max_speed_degps}
         return out, f"{s.kind} N = {s.N} ({s.duration_s:.2f} s), solved in {s.solve_seconds:.2f} s"
 
     def _step_execute(self, step: ExecuteStep) -> tuple[dict[str, Any], str]:
         self._ensure_bus()
-        return self._motion(self.session.execute(self.session.plan), step.allow_stop, "execution")
+        plans = self.session.plans
+        return self._motion(self.session.execute(plans.require(), source=plans.source),
+                            step.allow_stop, "execution")
 
     def _step_follow(self, step: FollowStep) -> tuple[dict[str, Any], str]:
         if (step.targets is None) == (step.file is None):
@@ -324,10 +327,10 @@ class ScriptRunner:
                 checks.append(("zeta_min", float(fk.zeta) >= step.zeta_min,
                                f"ζ = {float(fk.zeta):.4f}, expected ≥ {step.zeta_min}"))
         if step.max_duration_s is not None:
-            if s.plan is None:
+            if s.plans.plan is None:
                 raise ScriptAssertionError("assert max_duration_s: no plan step has run yet")
-            checks.append(("max_duration_s", s.plan.duration_s <= step.max_duration_s + 1e-9,
-                           f"plan lasts {s.plan.duration_s:.3f} s, expected ≤ {step.max_duration_s} s"))
+            checks.append(("max_duration_s", s.plans.plan.duration_s <= step.max_duration_s + 1e-9,
+                           f"plan lasts {s.plans.plan.duration_s:.3f} s, expected ≤ {step.max_duration_s} s"))
         if not checks:
             raise BadInputError("assert step: no condition given")
         failed = [msg for _, ok, msg in checks if not ok]

@@ -164,7 +164,7 @@ def preview_in_session(session: Session, source: str | None = None) -> Preview:
     wrist now (through its own connection: the bus has one owner), the homing the session
     made taken as done. Runs in the caller's thread; the session's bus is not touched
     beyond that one read."""
-    plan = session.plan
+    plan = session.plans.plan
     if plan is None:
         raise BadInputError("no plan to preview: solve one first", Issue.NO_PLAN)
     if not session.homed:

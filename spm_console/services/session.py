@@ -13,21 +13,15 @@ import contextlib
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.models import link_model_of, model_of
 from spm_console.config.schema import Profile
-from spm_console.core.kinematics.ik import ik_rpy
-from spm_console.core.kinematics.modes import assembly_modes
 from spm_console.core.plan import Plan
-from spm_console.core.workspace.build import check_theta
-from spm_console.core.workspace.check import ThetaCheck
-from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoStatus
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
 from spm_console.devices.emulator.child import EmulatorChild
@@ -37,22 +31,18 @@ from spm_console.errors import (
     BusError,
     Issue,
     SpmError,
-    UnreachableError,
 )
-from spm_console.formatting import fmt_deg
-from spm_console.motion.plan_check import PlanCheck, verify_plan
+from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import Planned
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult
 from spm_console.motion.servo_tools import ServoHealth
-from spm_console.services.kin_record import FkGraphSource, FkRecord, fk_result, fk_route
-from spm_console.services.plan_info import PlanInfo
+from spm_console.services.plan_store import PlanStore
 from spm_console.services.session_follow import FollowTools
 from spm_console.services.session_tools import ServoTools
 from spm_console.services.warm_start import fork_helper
 from spm_console.services.wrist_events import log_wrist_events, start_window
-from spm_console.store.plan_file import load_plan
-from spm_console.store.workspace_cache import CacheInfo, load_or_build
+from spm_console.services.wrist_service import PoseSpec, WristService
 from spm_console.system.cpus import cpu_plan, place_beside_loop
 from spm_console.system.env import clock_override
 from spm_console.system.simclock import SimClock
@@ -64,33 +54,6 @@ if TYPE_CHECKING:
 F = NDArray[np.float64]
 
 SampleCallback = Callable[["Sample"], None]
-
-ProgressCallback = Callable[[str, float], None]
-
-
-def theta3(values: Sequence[float] | F, what: str) -> F:
-    """Three finite angles (deg) or BadInputError naming ``what``."""
-    try:
-        a = np.asarray(values, float).reshape(-1)
-    except (TypeError, ValueError):
-        raise BadInputError(f"{what}: expected three angles in degrees, got {values!r}") from None
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise BadInputError(f"{what}: expected three finite angles in degrees, got {values!r}")
-    return a
-
-
-@dataclass(frozen=True)
-class PoseSpec:
-    """How the operator gave a configuration: motor angles, an orientation, or 'current'."""
-
-    kind: Literal["theta", "rpy", "current", "home"]
-    values: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    """θ1..θ3 (deg) for 'theta'; roll, pitch, yaw from home (deg) for 'rpy'."""
-
-    def describe(self) -> str:
-        v = fmt_deg(self.values)  # the format of every other message
-        return {"theta": f"θ = {v}", "rpy": f"roll/pitch/yaw = {v}",
-                "current": "current pose", "home": "home"}[self.kind]
 
 
 @dataclass
@@ -138,8 +101,10 @@ class Session(ServoTools, FollowTools):
         preview: bool = False,
     ) -> None:
         self.profile = profile
-        self.model = model_of(profile)
-        self.links = link_model_of(profile)
+        self.wrist = WristService(profile, cache_dir)
+        """FK, IK and the workspace (no bus)."""
+        self.plans = PlanStore(self.wrist)
+        """The current plan (solved or opened), passed to :meth:`execute` as an argument."""
         self.port = port or (None if sim else (profile.bus.port or None))
         if not sim and not self.port:
             raise BadInputError("no serial port: give --port DEV, set bus.port in the profile, "
@@ -175,15 +140,6 @@ class Session(ServoTools, FollowTools):
         self.before_motion: Callable[[], None] | None = None
         """Called once a motion is marked as running, before it is sent (a signal that came
         earlier refuses it here; one that comes later finds the motion and stops it)."""
-        self.workspace: Workspace | None = None
-        self.cache_info: CacheInfo | None = None
-        """How the loaded workspace was obtained (cache hit or build)."""
-        self._fk_graph = FkGraphSource(profile, self.model, cache_dir, lambda: self.workspace)
-        self.plan: Plan | None = None
-        self.plan_info: PlanInfo | None = None
-        """How the current plan was asked for and whether it ran (None without a plan)."""
-        self.plan_source: str | None = None
-        """The file the current plan was loaded from (None: solved in this session)."""
         self.last_run: ExecutionResult | None = None
         self.motion_total_s = 0.0
         """Planned duration of the running (or last) motion, s."""
@@ -339,27 +295,22 @@ class Session(ServoTools, FollowTools):
 
         return self._run_motion(run)
 
-    def execute(self, plan: Plan | None, on_sample: SampleCallback | None = None,
+    def execute(self, plan: Plan, on_sample: SampleCallback | None = None,
                 skip_homing: str = "", source: str | None = None) -> ExecutionResult:
-        """Execute ``plan`` (refused when None: none was solved), with a straight approach
-        move to its start if needed, in the motion process, which verifies it against this
-        profile's workspace first and says how long the whole run is
-        (:attr:`motion_total_s`, from its :class:`~spm_console.motion.protocol.Planned`).
+        """Execute ``plan``, with a straight approach move to its start if needed, in the
+        motion process, which verifies it against this profile's workspace first and says how
+        long the whole run is (:attr:`motion_total_s`, from its
+        :class:`~spm_console.motion.protocol.Planned`).
 
         The motion process refuses it (:class:`~spm_console.errors.RefusedError`) unless it
         homed the wrist, or ``skip_homing`` gives the operator's reason to override that
-        (written to the run log). ``source``: where the plan came from (default: the current
-        plan's file, when ``plan`` is the current plan)."""
-        if plan is None:
-            raise BadInputError("no plan to execute: solve one first", Issue.NO_PLAN)
+        (written to the run log). ``source``: where the plan came from (its file, for the run
+        log). The plan store hears how it ended (:meth:`PlanStore.ran`)."""
         client = self.require_bus()
         self.motion_total_s = plan.duration_s  # the approach is the runtime's: it says later
-        current = plan is self.plan
-        src = source if source is not None else (self.plan_source if current else None)
         tol = self.profile.safety.approach_tolerance_deg
-        result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, src))
-        if current and self.plan_info is not None:
-            self.plan_info = replace(self.plan_info, executed=True, executed_ok=result.ok)
+        result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, source))
+        self.plans.ran(plan, result.ok)
         return result
 
     def _planned(self, planned: Planned) -> None:
@@ -384,99 +335,10 @@ class Session(ServoTools, FollowTools):
             self.bus.estop(reason, by_signal)
         return True
 
-    # ------------------------------------------------------------------ kinematics
-    def fk(self, theta_deg: Sequence[float] | F, all_modes: bool = False) -> FkRecord:
-        """Unique FK of θ (deg) with its path and quality, around singularities if need be;
-        ``all_modes``: with every assembly mode at θ."""
-
-        th = theta3(theta_deg, "θ")
-        r = fk_route(self.profile, self.model, th, self._fk_graph)
-        if not r.ok or r.pose is None:
-            raise UnreachableError(f"θ = {fmt_deg(th)}: {r.reason}")
-        modes = tuple(assembly_modes(self.model, r.pose.theta, r.pose.R)) if all_modes else None
-        return fk_result(self.profile, self.model, self.links, r, modes)
-
-    def ik(self, rpy_deg: Sequence[float] | F) -> F:
-        """θ (deg) for roll, pitch, yaw (deg) from the home orientation."""
-        r, p, y = np.radians(theta3(rpy_deg, "roll/pitch/yaw"))
-        return np.asarray(ik_rpy(self.model, r, p, y).theta_deg, float)
-
     def resolve(self, spec: PoseSpec) -> F:
-        """Motor angles (deg) of a pose given as θ, as an orientation, as home or 'current'."""
-        if spec.kind == "theta":
-            return theta3(spec.values, "θ")
-        if spec.kind == "rpy":
-            return self.ik(spec.values)
-        if spec.kind == "home":
-            return np.asarray(self.profile.home.theta_deg, float)
-        if self.theta_deg is None:
-            raise BadInputError("current pose unknown: connect to the servos first",
-                                Issue.POSE_UNKNOWN)
-        return self.theta_deg.copy()
-
-    # ------------------------------------------------------------------ workspace
-    def load_workspace(self, progress: ProgressCallback | None = None,
-                       force: bool = False) -> Workspace:
-        """Load the cached workspace of the profile, or build (and cache) it."""
-        ws, self.cache_info = load_or_build(
-            self.profile, cache_dir=self.cache_dir, force=force, progress=progress)
-        self.workspace = ws
-        return ws
-
-    def ensure_workspace(self) -> Workspace:
-        """The loaded workspace, loaded (or built) now when none is: planning and opening a
-        plan do not need the workspace step first."""
-        return self.workspace if self.workspace is not None else self.load_workspace()
-
-    def require_workspace(self) -> Workspace:
-        if self.workspace is None:
-            raise BadInputError("no workspace loaded: load or build it first", Issue.NO_WORKSPACE)
-        return self.workspace
-
-    def check_theta(self, theta_deg: Sequence[float] | F) -> ThetaCheck:
-        """Is θ (deg) feasible and inside P (``core.workspace.check_theta`` -> ThetaCheck)."""
-
-        return check_theta(self.require_workspace(), theta3(theta_deg, "θ"))
-
-    # ------------------------------------------------------------------ planning
-    def solve_plan(
-        self,
-        method: Literal["mvn", "mintime"],
-        start: PoseSpec,
-        goal: PoseSpec,
-        steps: int = 150,
-        vmax_degps: float | None = None,
-        intersample: int = 1,
-        hold_first: bool = True,
-    ) -> Plan:
-        """MVN (30) in ``steps`` intervals or minimum time (31) under ``vmax_degps``, in P or
-        a region grown around the segment, inside the servo limits
-        (:func:`~spm_console.services.plan_request.plan_motion`). Stores and returns the plan."""
-        from spm_console.services.plan_request import PlanRequest, plan_motion
-
-        ws = self.ensure_workspace()
-        s, g = self.resolve(start), self.resolve(goal)
-        vmax = self.profile.limits.vmax_degps if vmax_degps is None else vmax_degps
-        planned = plan_motion(self.profile, ws, PlanRequest(
-            method, s, g, int(steps), vmax, intersample=int(intersample), hold_first=hold_first))
-        plan = planned.plan
-        self.plan = plan
-        self.plan_source = None
-        self.plan_info = PlanInfo(method=method, start=start.describe(), goal=goal.describe(),
-                                  start_deg=s, goal_deg=g, vmax_degps=vmax,
-                                  region=planned.describe_region())
-        return plan
-
-    def load_plan_file(self, path: str | Path) -> Plan:
-        """A saved plan as the current plan: read and checked against this profile
-        (``store.plan_file.load_plan``: format, profile hash, model), then verified exactly as
-        the executor will (``run.plan_check.verify_plan``). Refused with the reason."""
-        plan = load_plan(path, self.profile)
-        verify_plan(self.profile, self.ensure_workspace(), plan)
-        self.plan = plan
-        self.plan_info = PlanInfo.of_file(plan, path)
-        self.plan_source = str(path)
-        return plan
+        """Motor angles (deg) of a pose given as θ, as an orientation, as home or 'current'
+        (the θ last measured on this session's bus)."""
+        return self.wrist.resolve(spec, self.theta_deg)
 
     def close(self, wait_s: float = 3.0) -> None:
         """E-stop any motion, let the executor finish its stop and log, then disconnect."""

@@ -417,7 +417,7 @@ def make_app(
                       cache_dir=cache_dir, faults=faults, initial_deg=initial_deg,
                       emulator_process=True)
     if kept is not None and kept.fits(profile):
-        session.workspace, session.cache_info = kept.workspace, kept.info
+        session.wrist.workspace, session.wrist.cache_info = kept.workspace, kept.info
     view: WristView = MeshcatView(profile) if viewer else NullView()
     return SpmConsoleApp(session, view, start_viewer=viewer, profile_path=profile_path,
                          note=note)

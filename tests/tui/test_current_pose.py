@@ -41,7 +41,7 @@ async def test_start_fields_show_the_pose_the_solve_uses(console: Any) -> None:
         app.screen.query_one("#steps", Input).value = "40"
         await pilot.press("s")
         await settle(pilot)
-        plan = app.session.plan
+        plan = app.session.plans.plan
         assert plan is not None, status_of(app)
         # solved from where the servos are (read before solving), and the fields say so
         np.testing.assert_allclose(plan.position_deg[0], THERE, atol=0.05)

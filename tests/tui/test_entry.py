@@ -153,7 +153,7 @@ async def test_invalid_fields_are_marked_with_the_reason_and_refuse_the_solve(co
         vmax = app.screen.query_one("#vmax-row", NumberRow)
         await pilot.press("s")  # a plan from the defaults, which a refused solve must drop
         await settle(pilot)
-        assert app.session.plan is not None, status_of(app)
+        assert app.session.plans.plan is not None, status_of(app)
         assert "F4 ✔" in text_of(app, "#steps-line")
         for widget, field, text, reason in [
             (goal, goal.fields[1], "250", "goal θ2: 250 is outside the servo limits 60…160°"),
@@ -171,7 +171,7 @@ async def test_invalid_fields_are_marked_with_the_reason_and_refuse_the_solve(co
             await settle(pilot)
             assert status_of(app).startswith(f"Solve refused (no plan now): {reason}"), \
                 status_of(app)
-            assert app.session.plan is None  # nothing solved, the previous plan dropped
+            assert app.session.plans.plan is None  # nothing solved, the previous plan dropped
             assert text_of(app, "#plan-text").startswith("No plan: the solve was refused.")
             assert "F4 ✔" not in text_of(app, "#steps-line")  # the step bar says so too
             field.value = before  # fixed: the mark and the reason go away

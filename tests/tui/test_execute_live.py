@@ -87,7 +87,7 @@ async def test_the_timing_line_follows_the_telemetry_and_no_reply_shows(console)
 
 
 async def test_during_a_real_execution_the_timing_line_updates(console) -> None:
-    from spm_console.services.session import PoseSpec
+    from spm_console.services.wrist_service import PoseSpec
 
     app = console()
     seen: list[str] = []
@@ -100,9 +100,9 @@ async def test_during_a_real_execution_the_timing_line_updates(console) -> None:
         s = app.session
         await settle(pilot)
         await asyncio.to_thread(s.home)
-        await asyncio.to_thread(s.load_workspace)
-        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
-                                PoseSpec("theta", (95.0, 110.0, 105.0)), 100)
+        await asyncio.to_thread(s.wrist.load_workspace)
+        await asyncio.to_thread(s.plans.solve, "mvn", PoseSpec("current"),
+                                PoseSpec("theta", (95.0, 110.0, 105.0)), s.theta_deg, 100)
         await pilot.press("5")
         await settle(pilot)
         await confirm_execute(pilot)

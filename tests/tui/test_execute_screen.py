@@ -21,7 +21,7 @@ SIZE = (130, 42)
 async def _homed_with_plan(pilot, steps: int) -> None:  # type: ignore[no-untyped-def]
     """Homed, workspace loaded and an MVN plan solved — through the session the screens use
     (those steps' screens have their own tests); then the execute screen."""
-    from spm_console.services.session import PoseSpec
+    from spm_console.services.wrist_service import PoseSpec
 
     app = pilot.app
     s = app.session
@@ -29,9 +29,9 @@ async def _homed_with_plan(pilot, steps: int) -> None:  # type: ignore[no-untype
     assert s.bus is not None, status_of(app)
     await asyncio.to_thread(s.home)
     assert s.homed
-    await asyncio.to_thread(s.load_workspace)
-    await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
-                            PoseSpec("theta", (95.0, 110.0, 105.0)), steps)
+    await asyncio.to_thread(s.wrist.load_workspace)
+    await asyncio.to_thread(s.plans.solve, "mvn", PoseSpec("current"),
+                            PoseSpec("theta", (95.0, 110.0, 105.0)), s.theta_deg, steps)
     await pilot.press("5")
     await pilot.pause()
 
@@ -126,15 +126,15 @@ async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
         console, tmp_path, capsys) -> None:
     """The runtime's rules through the console: homed first; the run log's metadata has the
     keys a CLI ``execute`` writes (tests/e2e/test_same_rules.py runs the CLI and scripts)."""
-    from spm_console.services.session import PoseSpec
+    from spm_console.services.wrist_service import PoseSpec
 
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         s = app.session
         await settle(pilot)
-        await asyncio.to_thread(s.load_workspace)
-        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
-                                PoseSpec("theta", (125.0, 130.0, 128.0)), 30)
+        await asyncio.to_thread(s.wrist.load_workspace)
+        await asyncio.to_thread(s.plans.solve, "mvn", PoseSpec("current"),
+                                PoseSpec("theta", (125.0, 130.0, 128.0)), s.theta_deg, 30)
         await pilot.press("5", "x")
         await settle(pilot)
         if type(app.screen).__name__ == "ConfirmScreen":
@@ -152,7 +152,7 @@ async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
     plan_file = tmp_path / "p.json"
     from spm_console.store.plan_file import save_plan
 
-    save_plan(s.plan, plan_file)
+    save_plan(s.plans.plan, plan_file)
     code = main(["execute", "--plan", str(plan_file), "--sim", "--json",
                  "--logs", str(tmp_path / "cli")])
     assert code == 0, capsys.readouterr()
@@ -186,7 +186,7 @@ async def test_x_previews_the_run_on_the_twin_before_it_asks(console, tmp_path) 
         np.testing.assert_allclose(s.read_position(), before, atol=0.1)  # nothing moved
         assert s.last_run is homing  # no run on the wrist
         pv = app.screen.preview
-        assert pv is not None and pv.plan is s.plan
+        assert pv is not None and pv.plan is s.plans.plan
         [log] = [r for r in list_runs(tmp_path / "logs") if r.info.preview]
         assert log.meta["kind"] == "execute" and log.meta["clock"] == "simulated"
         await pilot.press("x")  # from the same place: the same preview, asked at once
@@ -202,10 +202,10 @@ async def test_x_previews_the_run_on_the_twin_before_it_asks(console, tmp_path) 
         np.testing.assert_allclose(res.final_deg, pv.plan.reference_deg[-1] + pv.final_error_deg,
                                    atol=0.2)
         # another plan: the preview of the last one is no longer shown
-        from spm_console.services.session import PoseSpec
+        from spm_console.services.wrist_service import PoseSpec
 
-        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
-                                PoseSpec("theta", (100.0, 115.0, 110.0)), 40)
+        await asyncio.to_thread(s.plans.solve, "mvn", PoseSpec("current"),
+                                PoseSpec("theta", (100.0, 115.0, 110.0)), s.theta_deg, 40)
         await pilot.press("4", "5")
         await settle(pilot)
         assert app.screen.preview is None

@@ -63,7 +63,7 @@ async def test_ik_from_roll_pitch_yaw_round_trips(console) -> None:
         await pilot.press("i")
         await settle(pilot)
         theta = app.screen.query_one("#theta", AnglesInput).values()
-        expect = app.session.ik([10, -5, 20])
+        expect = app.session.wrist.ik([10, -5, 20])
         np.testing.assert_allclose(theta, expect, atol=1e-3)
         assert "FK solved" in status_of(app)
 
@@ -84,7 +84,7 @@ async def test_fk_fills_the_orientation_fields_with_the_poses_own(console) -> No
         assert "FK solved" in status_of(app)
         shown = rpy.values()  # valid now: no refusal left beside the new result
         assert not np.allclose(shown, [0, 0, 170])
-        np.testing.assert_allclose(app.session.ik(shown), [95, 110, 105], atol=0.05)
+        np.testing.assert_allclose(app.session.wrist.ik(shown), [95, 110, 105], atol=0.05)
 
 
 async def test_all_modes_flags_the_home_connected_one(console) -> None:

@@ -41,7 +41,7 @@ async def test_whole_flow_by_keys(console, tmp_path) -> None:
         steps.value = ""
         await pilot.press(*"60", "enter")  # Enter in a field solves
         await settle(pilot)
-        plan = app.session.plan
+        plan = app.session.plans.plan
         assert plan is not None and plan.N == 60, status_of(app)
         await pilot.press("escape")
         assert app.focused is None
@@ -83,8 +83,9 @@ def test_the_hint_on_the_step_it_names_says_what_to_do_there() -> None:
 
     from spm_console.tui.widgets.steps import next_hint
 
-    homed = SimpleNamespace(moving=threading.Event(), bus=object(), homed=True, workspace=None,
-                            plan=None, last_run=None, plan_info=None)
+    homed = SimpleNamespace(moving=threading.Event(), bus=object(), homed=True,
+                            wrist=SimpleNamespace(workspace=None), last_run=None,
+                            plans=SimpleNamespace(plan=None, info=None))
     elsewhere = next_hint(homed, current="connect")  # type: ignore[arg-type]
     assert elsewhere == "Next: press 2 (F2) for an FK check, or 3 (F3) for the workspace."
     here = next_hint(homed, current="fk")  # type: ignore[arg-type]

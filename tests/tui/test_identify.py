@@ -85,7 +85,7 @@ async def test_identify_then_use_the_identified_model_with_the_workspace_kept(
         body = text_of(app, "#confirm-body")
         assert all(w in body for w in ("ωn", "ζ", "delay", "held-out part RMS", "load",
                                        "linear range", "joint 3 alone")), body
-        ws = app.session.workspace
+        ws = app.session.wrist.workspace
         assert ws is not None
         await pilot.press("y")
         await settle(pilot)
@@ -100,8 +100,8 @@ async def test_identify_then_use_the_identified_model_with_the_workspace_kept(
     async with second.run_test(size=SMALL) as pilot:
         await settle(pilot)
         s = second.session
-        assert s.profile.servo == new.servo and s.plan is None
-        assert s.workspace is ws  # kept, not loaded or built again
+        assert s.profile.servo == new.servo and s.plans.plan is None
+        assert s.wrist.workspace is ws  # kept, not loaded or built again
         result = await asyncio.to_thread(s.home)  # the motion process verifies with the cache
         assert result.ok, result.message
         await pilot.press("3")
@@ -115,7 +115,7 @@ async def test_identify_then_use_the_identified_model_with_the_workspace_kept(
         steps.value = ""
         await pilot.press(*"60", "enter")
         await settle(pilot)
-        plan = s.plan
+        plan = s.plans.plan
         assert plan is not None and plan.N == 60, status_of(second)
         await pilot.press("escape", "5")  # and execute it
         await confirm_execute(pilot)

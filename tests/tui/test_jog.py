@@ -160,7 +160,7 @@ async def test_a_target_pushed_out_of_p_is_clamped_live_and_not_wound_up(console
         await _ended(app, pilot)
         res = app.session.last_run
         assert res is not None and res.ok, res.message
-        ws = app.session.workspace
+        ws = app.session.wrist.workspace
         assert float(ws.region.violation_deg(res.final_deg)) < SETTLED_DEG  # P's nearest point
         assert float(np.abs(res.final_deg - last).max()) > SETTLED_DEG  # not the target
         m = re.search(r"(\d+) periods with the target clamped", text_of(app, "#exec-outcome"))
@@ -185,7 +185,7 @@ async def test_rpy_jog_uses_ik_from_home_and_the_step_keys(console) -> None:
         await pilot.press("right", "up", "pageup")  # yaw +, pitch +, roll +
         want_rpy = np.array([big, big, big])
         np.testing.assert_allclose(jog.target.rpy_deg, want_rpy)
-        want = s.ik(want_rpy)
+        want = s.wrist.ik(want_rpy)
         np.testing.assert_allclose(jog.target.theta_deg, want)
         await pilot.press("m", "m")  # per joint and back: the same orientation
         assert jog.target.mode == "rpy"
@@ -226,13 +226,13 @@ async def test_esc_while_the_workspace_loads_closes_the_jog_and_nothing_moves(co
         s = app.session
         runs_before = s.last_run
         gate = threading.Event()
-        real = s.ensure_workspace
+        real = s.wrist.ensure_workspace
 
         def slow() -> Any:
             gate.wait(30)
             return real()
 
-        s.ensure_workspace = slow  # type: ignore[method-assign]
+        s.wrist.ensure_workspace = slow  # type: ignore[method-assign]
         await pilot.press("j")
         await until(pilot, lambda: isinstance(app.screen, JogScreen), "the jog screen")
         assert app.moving  # the steps are locked from the start
@@ -340,14 +340,14 @@ def _settled_deg(session: Any, timeout_s: float = 2.0) -> Any:
 async def _jog_after_a_plan_to(app: Any, pilot: Any, goal: Any) -> tuple[Any, Any]:
     """Home, plan (MVN) to ``goal`` (deg), execute it, wait for the wrist to settle, then start
     a jog on step 5: (the jog screen, the settled joint angles, deg)."""
-    from spm_console.services.session import PoseSpec
+    from spm_console.services.wrist_service import PoseSpec
 
     await settle(pilot)
     s = app.session
     await asyncio.to_thread(s.home)
-    s.ensure_workspace()
-    await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"), PoseSpec("theta", goal), 150)
-    done = await asyncio.to_thread(s.execute, s.plan)
+    s.wrist.ensure_workspace()
+    await asyncio.to_thread(s.plans.solve, "mvn", PoseSpec("current"), PoseSpec("theta", goal), s.theta_deg, 150)
+    done = await asyncio.to_thread(s.execute, s.plans.plan)
     assert done.ok, done.message
     settled = await asyncio.to_thread(_settled_deg, s)
     await pilot.press("5")
@@ -376,7 +376,7 @@ async def test_jog_starts_where_a_plan_to_a_boundary_pose_left_the_wrist(console
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         await _jog_after_a_plan_to(app, pilot, BOUNDARY_NODE)
-        ws = app.session.ensure_workspace()
+        ws = app.session.wrist.ensure_workspace()
         assert ws.cover is not None and not ws.cover.containing(np.asarray(BOUNDARY_NODE), tol=1e-3)
         assert "not clamped" in text_of(app, "#jog-target")
         await _end_completed(app, pilot)
@@ -410,7 +410,7 @@ async def test_jog_starts_from_the_papers_goal_a_servo_tick_beyond_the_grid(cons
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
-        edge = float(app.session.ensure_workspace().axes_deg[1][-1])
+        edge = float(app.session.wrist.ensure_workspace().axes_deg[1][-1])
         goal = (66.80, edge, 131.48)
         jog, settled = await _jog_after_a_plan_to(app, pilot, goal)
         assert settled[1] > edge  # the case: settled beyond the grid

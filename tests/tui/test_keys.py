@@ -66,7 +66,7 @@ async def test_digits_and_letters_in_a_focused_dropdown_do_nothing(console) -> N
         assert app.current_mode == "plan" and app.is_running
         assert select.value == "current" and app.focused is select
         assert status_of(app) == status  # s did not solve, w did not save
-        assert app.session.plan is None
+        assert app.session.plans.plan is None
 
 
 async def test_fkeys_and_ctrl_digits_switch_steps_from_inside_a_field(console) -> None:

@@ -69,7 +69,7 @@ async def test_a_palette_command_of_another_step_switches_there_and_runs(console
         await pilot.press("enter")
         await settle(pilot, timeout_s=60)
         assert app.current_mode == "plan"
-        assert app.session.plan is not None, status_of(app)
+        assert app.session.plans.plan is not None, status_of(app)
         assert "solved in" in status_of(app)
 
 

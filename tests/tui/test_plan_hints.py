@@ -46,7 +46,7 @@ async def test_a_failed_solve_says_which_field_to_change(
         await pilot.pause()
         await pilot.press("s")
         await settle(pilot, timeout_s=120)
-        assert app.session.plan is None
+        assert app.session.plans.plan is None
         out, status = text_of(app, "#plan-text"), status_of(app)
         kind = {"mvn": "MVN", "mintime": "minimum-time"}[method]
         assert out.startswith(f"No {kind} plan:\n"), out  # answered with its reason: no failure
@@ -77,7 +77,8 @@ def test_each_kind_of_failure_gets_its_own_advice(agile: Profile) -> None:
 def test_the_advice_follows_the_issue_not_the_words(agile: Profile) -> None:
     """The runtime's errors carry their Issue (the message names no console step); the
     console adds its words and picks its advice by the Issue."""
-    from spm_console.services.session import PoseSpec, Session
+    from spm_console.services.session import Session
+    from spm_console.services.wrist_service import PoseSpec
 
     with pytest.raises(BadInputError) as exc:
         Session(agile).resolve(PoseSpec("current"))
@@ -116,7 +117,7 @@ async def test_the_plan_step_advises_by_the_issue_whatever_the_words(
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
-        monkeypatch.setattr(app.session, "solve_plan", refuse)
+        monkeypatch.setattr(app.session.plans, "solve", refuse)
         await pilot.press("4")
         await pilot.pause()
         await pilot.press("s")

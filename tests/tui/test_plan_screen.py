@@ -29,11 +29,11 @@ async def test_mvn_from_current_pose_matches_the_core(console) -> None:
         app.screen.query_one("#steps", Input).value = "60"
         await pilot.press("s")
         await settle(pilot)
-        plan = app.session.plan
+        plan = app.session.plans.plan
         assert plan is not None and plan.kind == "mvn" and plan.N == 60, status_of(app)
         s = app.session
         ref = solve_mvn(servo_model_of(s.profile), np.full(3, 135.0), [95, 110, 105], 60,
-                        region_containing(s.workspace, np.full(3, 135.0), np.array([95, 110, 105.])),
+                        region_containing(s.wrist.workspace, np.full(3, 135.0), np.array([95, 110, 105.])),
                         s.profile.limits.vmax_degps)
         np.testing.assert_allclose(plan.reference_deg, ref.reference_deg, atol=1e-6)
         out = text_of(app, "#plan-text")
@@ -50,9 +50,9 @@ async def test_minimum_time_from_an_orientation(console) -> None:
         app.screen.query_one("#method", Select).value = "mintime"
         await pilot.press("s")
         await settle(pilot, timeout_s=120)
-        plan = app.session.plan
+        plan = app.session.plans.plan
         assert plan is not None and plan.kind == "mintime", status_of(app)
-        np.testing.assert_allclose(plan.reference_deg[-1], app.session.ik([10, 5, -15]), atol=1e-6)
+        np.testing.assert_allclose(plan.reference_deg[-1], app.session.wrist.ik([10, 5, -15]), atol=1e-6)
         assert float(np.abs(plan.velocity_degps).max()) <= 50.0 + 1e-6
         out = text_of(app, "#plan-text")
         assert out.startswith("Minimum time: ")
@@ -80,7 +80,7 @@ async def test_form_errors_are_messages(console) -> None:
         await pilot.press("s")
         await settle(pilot)
         msg = status_of(app)
-        assert app.session.plan is None
+        assert app.session.plans.plan is None
         assert "goal θ = [62.00, 135.00, 135.00]° is NOT feasible" in msg, msg
         assert "outside the workspace grid" in msg
 
@@ -90,10 +90,10 @@ async def test_solving_before_the_workspace_step_loads_the_workspace(console) ->
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
-        assert app.session.workspace is None
+        assert app.session.wrist.workspace is None
         await pilot.press("4", "s")
         await settle(pilot)
-        assert app.session.workspace is not None and app.session.plan is not None, status_of(app)
+        assert app.session.wrist.workspace is not None and app.session.plans.plan is not None, status_of(app)
 
 
 async def test_the_free_first_box_shows_its_mark_only_when_on(console) -> None:

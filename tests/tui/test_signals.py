@@ -36,7 +36,7 @@ async def _wait_exit(app, timeout_s: float = 10.0) -> None:  # type: ignore[no-u
 
 @pytest.mark.parametrize("sig", STOP_SIGNALS, ids=lambda s: s.name)
 async def test_a_signal_mid_motion_stops_the_wrist_and_the_console(console, tmp_path, sig) -> None:
-    from spm_console.services.session import PoseSpec
+    from spm_console.services.wrist_service import PoseSpec
 
     app = console()
     async with app.run_test(size=SIZE) as pilot:
@@ -44,9 +44,9 @@ async def test_a_signal_mid_motion_stops_the_wrist_and_the_console(console, tmp_
         s = app.session
         assert s.bus is not None, status_of(app)
         await asyncio.to_thread(s.home)
-        await asyncio.to_thread(s.load_workspace)
-        await asyncio.to_thread(s.solve_plan, "mvn", PoseSpec("current"),
-                                PoseSpec("theta", (95.0, 110.0, 105.0)), 150)  # 3 s
+        await asyncio.to_thread(s.wrist.load_workspace)
+        await asyncio.to_thread(s.plans.solve, "mvn", PoseSpec("current"),
+                                PoseSpec("theta", (95.0, 110.0, 105.0)), s.theta_deg, 150)  # 3 s
         await pilot.press("5")
         await confirm_execute(pilot)
         t_end = asyncio.get_running_loop().time() + 30.0

@@ -85,7 +85,7 @@ async def test_the_plan_plot_is_readable_at_80x24(console) -> None:
         await settle(pilot)
         await pilot.press("4", "s")
         await settle(pilot)
-        assert app.session.plan is not None, status_of(app)
+        assert app.session.plans.plan is not None, status_of(app)
         plot = app.screen.query_one("#plan-plot", PlotView)
         assert plot.content_size.height >= 12
         assert plot.content_size.width >= 70

@@ -39,7 +39,7 @@ async def test_a_failed_solve_clears_the_plan_it_would_have_replaced(
         app.screen.query_one("#steps", Input).value = "60"
         await pilot.press("s")
         await settle(pilot)
-        assert app.session.plan is not None and app.session.plan.N == 60, status_of(app)
+        assert app.session.plans.plan is not None and app.session.plans.plan.N == 60, status_of(app)
         assert "N = 60" in text_of(app, "#plan-text")
         assert "✔ Plan" in text_of(app, "#steps-line")
 
@@ -51,7 +51,7 @@ async def test_a_failed_solve_clears_the_plan_it_would_have_replaced(
         await settle(pilot, timeout_s=120)
 
         name = {"mvn": "MVN", "mintime": "minimum-time"}[method]
-        assert app.session.plan is None  # nothing left that "execute" could run
+        assert app.session.plans.plan is None  # nothing left that "execute" could run
         out = text_of(app, "#plan-text")
         # a goal refused with its reason is not a solver's failure
         assert out.startswith(f"No {name} plan:\n"), out
@@ -77,7 +77,7 @@ async def test_a_solver_failure_is_told_apart_from_a_refusal(console: Any) -> No
         def fail(*_: Any, **__: Any) -> None:
             raise SolverError("the QP solvers failed on the MVN problem (N = 60): a test's reason")
 
-        app.session.solve_plan = fail  # type: ignore[method-assign,assignment]
+        app.session.plans.solve = fail  # type: ignore[method-assign,assignment]
         await pilot.press("s")
         await settle(pilot)
         out = text_of(app, "#plan-text")
@@ -127,7 +127,7 @@ async def test_a_failed_check_clears_the_previous_verdict(console: Any) -> None:
         def broken(theta: Any) -> Any:
             raise SpmError("the check broke")
 
-        app.session.check_theta = broken  # type: ignore[method-assign]
+        app.session.wrist.check_theta = broken  # type: ignore[method-assign]
         await pilot.press("k")
         await settle(pilot)
         out = text_of(app, "#ws-check")
@@ -147,8 +147,8 @@ async def test_a_failed_rebuild_says_the_loaded_workspace_stays(console: Any) ->
         def broken(progress: Any = None, force: bool = False) -> Any:
             raise CacheError("disk full")
 
-        app.session.load_workspace = broken  # type: ignore[method-assign]
+        app.session.wrist.load_workspace = broken  # type: ignore[method-assign]
         await pilot.press("b", "y")
         await settle(pilot)
         assert status_of(app) == "disk full (the workspace shown, loaded before, stays in use)"
-        assert text_of(app, "#ws-info") == info and app.session.workspace is not None
+        assert text_of(app, "#ws-info") == info and app.session.wrist.workspace is not None

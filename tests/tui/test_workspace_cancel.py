@@ -96,7 +96,7 @@ async def test_cancelled_rebuild_keeps_the_workspace_and_the_cache(coarse: Profi
         await settle(pilot)
         await pilot.press("3")
         await settle(pilot)
-        loaded = app.session.workspace
+        loaded = app.session.wrist.workspace
         assert loaded is not None and text_of(app, "#ws-info").startswith("loaded from the cache")
         await pilot.press("b")
         await pilot.press("y")  # rebuild from scratch
@@ -104,7 +104,7 @@ async def test_cancelled_rebuild_keeps_the_workspace_and_the_cache(coarse: Profi
 
         # the held report, the first the console got after `c`, raised: no report followed
         assert gate.reports_after == 0
-        assert app.session.workspace is loaded  # the workspace loaded before stays in use
+        assert app.session.wrist.workspace is loaded  # the workspace loaded before stays in use
         assert app.build_cancel is None
         assert "build cancelled" in status_of(app)
         assert "stays in use" in status_of(app)
@@ -130,7 +130,7 @@ async def test_cancelled_first_build_leaves_no_workspace_and_no_cache(coarse: Pr
         await settle(pilot)
         await pilot.press("3")  # no cache: the screen starts building
         await _cancel_when_held(pilot, gate)
-        assert app.session.workspace is None
+        assert app.session.wrist.workspace is None
         assert "build cancelled" in status_of(app)
         assert "the build was cancelled" in text_of(app, "#ws-info")
         assert not cache.exists() or not any(cache.iterdir())

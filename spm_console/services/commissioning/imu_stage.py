@@ -39,7 +39,8 @@ from spm_console.services.commissioning.payload_stage import (
     payload_from_holding,
     sent_at_rest,
 )
-from spm_console.services.session import PoseSpec, Session
+from spm_console.services.session import Session
+from spm_console.services.wrist_service import PoseSpec
 
 F = NDArray[np.float64]
 
@@ -134,7 +135,7 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
         if stop is not None:
             stop.attach(session.require_bus())
         on_stage("imu: loading the workspace the poses are verified against")
-        session.load_workspace()
+        session.wrist.load_workspace()
         margin = POSE_MARGIN_DEG if zero_std_deg is None else max(
             POSE_MARGIN_DEG, ZERO_SIGMAS * max(zero_std_deg))
         design, held_flags = _design(model, profile, session, fixed, margin)
@@ -146,8 +147,9 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
         moving += time.monotonic() - t0
         for k, theta in enumerate(design.theta_deg):
             if np.abs(np.asarray(theta) - session.read_position()).max() > 0.05:
-                plan = session.solve_plan("mintime", PoseSpec("current"), PoseSpec("theta", theta),
-                                          vmax_degps=POSE_SPEED_DEGPS)
+                plan = session.plans.solve("mintime", PoseSpec("current"),
+                                           PoseSpec("theta", theta), session.theta_deg,
+                                           vmax_degps=POSE_SPEED_DEGPS)
                 t0 = time.monotonic()
                 _ok(session.execute(plan), f"the move to pose {k + 1}")
                 moving += time.monotonic() - t0
@@ -157,8 +159,8 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
             poses.append(theta)
             on_stage(f"imu: pose {k + 1}/{len(design.theta_deg)} θ = "
                      f"{', '.join(f'{x:.2f}' for x in thetas[-1])}°")
-        plan = session.solve_plan("mintime", PoseSpec("current"), PoseSpec("home"),
-                                  vmax_degps=POSE_SPEED_DEGPS)
+        plan = session.plans.solve("mintime", PoseSpec("current"), PoseSpec("home"),
+                                   session.theta_deg, vmax_degps=POSE_SPEED_DEGPS)
         t0 = time.monotonic()
         _ok(session.execute(plan), "the move back home")
         moving += time.monotonic() - t0
@@ -226,7 +228,7 @@ def _design(model: SpmModel, profile: Profile, session: Session,
     around them: at least :data:`POSE_MARGIN_DEG`, more while the zero is uncertain): P is
     convex, so every move between two of them stays in it, and so does the wrist's true path
     while its zero is off by less than the margin."""
-    region = session.ensure_workspace().region
+    region = session.wrist.ensure_workspace().region
     rng = np.random.default_rng(DESIGN_SEED)
     lo = np.array([j.min_deg for j in profile.bus.joints], float)
     hi = np.array([j.max_deg for j in profile.bus.joints], float)

@@ -120,7 +120,7 @@ def experiment_in_session(session: Session, on_sample: SampleCallback | None = N
     and kept)."""
     if not session.homed:
         raise RefusedError(Refusal.NOT_HOMED)
-    ex, plan = experiment_plan(session.profile, session.cache_dir, session.ensure_workspace())
+    ex, plan = experiment_plan(session.profile, session.cache_dir, session.wrist.ensure_workspace())
     return _execute(session, ex, plan, on_sample, None)
 
 

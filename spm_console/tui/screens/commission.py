@@ -321,7 +321,7 @@ class CommissionScreen(StepScreen):
             return
         why = (f"Commissioned profile in use: {done.written} (the console restarted on it; the "
                "workspace was kept). Home the wrist again (h).")
-        request = SwitchRequest.keeping(done.written, s.profile, s.workspace, s.cache_info, why)
+        request = SwitchRequest.keeping(done.written, s.profile, s.wrist.workspace, s.wrist.cache_info, why)
         if not self.console.restart_with(request):
             self.status.error("the console did not restart: the wrist is moving")
 

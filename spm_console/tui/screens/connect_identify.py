@@ -98,6 +98,6 @@ class IdentifyStep(StepScreen):
             return
         why = (f"Identified servo model in use: {done.profile} (the console restarted on it; "
                "the workspace was kept, the plan dropped). Home the wrist again (h).")
-        request = SwitchRequest.keeping(done.profile, s.profile, s.workspace, s.cache_info, why)
+        request = SwitchRequest.keeping(done.profile, s.profile, s.wrist.workspace, s.wrist.cache_info, why)
         if not self.console.restart_with(request):
             self.status.error("the console did not restart: the wrist is moving")

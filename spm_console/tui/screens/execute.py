@@ -109,15 +109,15 @@ class ExecuteScreen(StepScreen):
     def refresh_view(self) -> None:
         super().refresh_view()
         s = self.session
-        if s.plan is None:
+        if s.plans.plan is None:
             text = "No plan yet: press 4 to plan a motion."
         else:
-            p = s.plan
+            p = s.plans.plan
             text = (f"Plan: {KIND_WORDS.get(p.kind, p.kind)} {fmt_deg(p.reference_deg[0])} → "
                     f"{fmt_deg(p.reference_deg[-1])}, {p.duration_s:.2f} s, on the {s.bus_label}"
                     + ("" if s.homed else "   (not homed: press 1, then h)"))
         self.query_one("#exec-plan", Static).update(Content(text))
-        if self.preview is not None and self.preview.plan is not s.plan:
+        if self.preview is not None and self.preview.plan is not s.plans.plan:
             self._drop_preview()  # another plan: its preview no longer says anything
 
     def _drop_preview(self) -> None:
@@ -129,7 +129,7 @@ class ExecuteScreen(StepScreen):
     def _can_move(self) -> bool:
         """A plan, a homed wrist and nothing running (else refused with the reason)."""
         s = self.session
-        if s.plan is None:
+        if s.plans.plan is None:
             self.status.refused("no plan: press 4 and solve one first")
             return False
         if s.bus is None or not s.homed:
@@ -157,14 +157,14 @@ class ExecuteScreen(StepScreen):
             return
         s = self.session
         pv = self.preview
-        if pv is not None and s.plan is not None and still_valid(pv, s.plan, s.theta_deg):
+        if pv is not None and s.plans.plan is not None and still_valid(pv, s.plans.plan, s.theta_deg):
             self._ask(pv)
         else:
             self.action_preview(then_confirm=True)
 
     def _ask(self, pv: Preview) -> None:
         s = self.session
-        p = s.plan
+        p = s.plans.plan
         if p is None:
             return
         here = fmt_deg(s.theta_deg) if s.theta_deg is not None else "unknown"
@@ -191,9 +191,10 @@ class ExecuteScreen(StepScreen):
         self.query_one("#exec-outcome", Static).update("")
         on_sample = self.console.telemetry_sink(self)
         self.console.moving = True
+        plans = self.session.plans
         if not self.run_blocking("execute",
                                  lambda: MotionDone("execute", self.session.execute(
-                                     self.session.plan, on_sample)),
+                                     plans.require(), on_sample, source=plans.source)),
                              "executing … SPACE stops the wrist"):
             self.console.moving = False
 

@@ -100,7 +100,7 @@ class FkScreen(StepScreen):
         def go() -> FkSolved:
             from spm_console.tui.screens.jog import rpy_of
 
-            return FkSolved(s.fk(theta, all_modes=all_modes), rpy_deg=rpy_of(s, np.asarray(theta)))
+            return FkSolved(s.wrist.fk(theta, all_modes=all_modes), rpy_deg=rpy_of(s, np.asarray(theta)))
 
         self.run_blocking("fk", go, f"solving {what} of θ = {fmt_deg(theta)} …")
 
@@ -113,8 +113,8 @@ class FkScreen(StepScreen):
             return
 
         def go() -> FkSolved:
-            theta = self.session.ik(rpy)
-            return FkSolved(self.session.fk(theta), from_ik=True, rpy_deg=np.asarray(rpy, float))
+            theta = self.session.wrist.ik(rpy)
+            return FkSolved(self.session.wrist.fk(theta), from_ik=True, rpy_deg=np.asarray(rpy, float))
 
         self.run_blocking("ik", go, f"solving IK of roll/pitch/yaw = {fmt_deg(rpy)} …")
 

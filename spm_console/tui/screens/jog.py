@@ -73,10 +73,10 @@ def rpy_of(session: Session, theta_deg: F) -> F | None:
     """Roll, pitch, yaw from home (deg) of the pose at θ (deg), when θ is that orientation's
     IK in the home working mode; None otherwise (or when FK fails)."""
     try:
-        v = np.asarray(session.fk(theta_deg).v, float)
-        R = np.linalg.solve(np.asarray(session.model.v_home, float), v).T  # v = v_home Rᵀ
+        v = np.asarray(session.wrist.fk(theta_deg).v, float)
+        R = np.linalg.solve(np.asarray(session.wrist.model.v_home, float), v).T  # v = v_home Rᵀ
         rpy = np.degrees(matrix_rpy(R))
-        back = session.ik(rpy)
+        back = session.wrist.ik(rpy)
     except (SpmError, KeyError, ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(back)) or float(np.abs(back - theta_deg).max()) > RPY_ROUND_TRIP_DEG:
@@ -92,7 +92,7 @@ def outside_deg(session: Session, theta_deg: F, regions: tuple[Region, ...] | No
     th = np.asarray(theta_deg, float)
     lo, hi = servo_limits_deg(session.profile)
     over = float(max(0.0, np.max(lo - th), np.max(th - hi)))
-    ws = session.workspace
+    ws = session.wrist.workspace
     if regions is None:
         regions = () if ws is None else (ws.region,)
     if not regions:
@@ -189,7 +189,7 @@ class JogScreen(StepScreen):
         s, th0 = self.session, self.theta0_deg
 
         def prepare() -> Outcome:
-            ws = s.ensure_workspace()
+            ws = s.wrist.ensure_workspace()
             # the runtime's own choice (it repeats it from the measured start): refused here,
             # with the reason, before anything moves
             # (a wrist a servo tick beyond the grid's edge starts just inside it)
@@ -198,7 +198,7 @@ class JogScreen(StepScreen):
                                  servo_tick_deg(s.profile))
             self.regions = regions = follow_regions(ws, start).regions
             self.start_deg = start
-            self._prepared = JogTarget(start, rpy_of(s, start), s.ik,
+            self._prepared = JogTarget(start, rpy_of(s, start), s.wrist.ik,
                                        lambda t: outside_deg(s, t, regions))
             return WorkspaceLoaded()
 
@@ -337,7 +337,7 @@ class JogScreen(StepScreen):
             self.status.ok("live: move the target with the arrow keys")
 
     def _in_p(self, theta_deg: F) -> bool:
-        ws = self.session.workspace
+        ws = self.session.wrist.workspace
         return ws is None or bool(ws.region.contains(np.asarray(theta_deg, float),
                                                      tol=FOLLOW_TOL_DEG))
 

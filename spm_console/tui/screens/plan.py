@@ -17,7 +17,7 @@ from textual.message import Message
 from textual.widgets import Checkbox, Input, Label, Select, Static
 
 from spm_console.errors import BadInputError, Issue, SpmError
-from spm_console.services.session import PoseSpec
+from spm_console.services.wrist_service import PoseSpec
 from spm_console.store.plan_file import save_plan
 from spm_console.tui.messages import Failed, Outcome, PlanLoaded, PlanSaved, PlanSolved
 from spm_console.tui.screens.base import StepScreen
@@ -107,7 +107,7 @@ class PlanScreen(StepScreen):
         for which in ("start", "goal"):
             self._apply_kind(which)
         self._apply_method()
-        if self.session.plan is not None:
+        if self.session.plans.plan is not None:
             self.show_plan()
         self.set_interval(POSE_EVERY_S, self._poll_pose)
 
@@ -231,10 +231,10 @@ class PlanScreen(StepScreen):
         def solve() -> PlanSolved:
             if read:
                 s.read_position()
-            plan = s.solve_plan(method, start, goal, steps, vmax,  # type: ignore[arg-type]
-                                intersample=k, hold_first=hold_first)
-            if s.plan_info is not None:
-                s.plan_info = replace(s.plan_info, start_read=read and start.kind == "current")
+            plan = s.plans.solve(method, start, goal, s.theta_deg,  # type: ignore[arg-type]
+                                 steps, vmax, intersample=k, hold_first=hold_first)
+            if s.plans.info is not None:
+                s.plans.info = replace(s.plans.info, start_read=read and start.kind == "current")
             return PlanSolved(plan)
 
         self.run_blocking("solve", solve,
@@ -255,7 +255,7 @@ class PlanScreen(StepScreen):
             self.status.ok("open cancelled: the current plan is unchanged")
             return
         self.solving_method = "open"
-        self.run_blocking("open", lambda: PlanLoaded(self.session.load_plan_file(path), path),
+        self.run_blocking("open", lambda: PlanLoaded(self.session.plans.open(path), path),
                           f"reading and verifying {path} …")
 
     def _fields(self) -> dict[str, Input]:
@@ -299,7 +299,7 @@ class PlanScreen(StepScreen):
         self.show_plot()
 
     def action_save(self) -> None:
-        plan = self.session.plan
+        plan = self.session.plans.plan
         if plan is None:
             self.status.error("no plan yet: press s to solve one")
             return
@@ -360,22 +360,22 @@ class PlanScreen(StepScreen):
         """The plan a refused or failed solve would have replaced is gone from the screen,
         the 3D view and the session: "execute" never runs a plan the operator tried to
         replace."""
-        self.session.plan = None
-        self.session.plan_info = None
+        self.session.plans.plan = None
+        self.session.plans.info = None
         self.console.view.clear_path()
         self.query_one("#plan-text", Static).update(Content(text))
         self.query_one("#plan-plot", PlotView).plot("no plan", np.zeros(0), [])
         self.refresh_view()  # the step bar's tick and "Next:" line no longer name a plan
 
     def show_plan(self) -> None:
-        plan, info = self.session.plan, self.session.plan_info
+        plan, info = self.session.plans.plan, self.session.plans.info
         if plan is None or info is None:  # the session sets both together
             return
         self.query_one("#plan-text", Static).update(Content(plan_text(plan, info)))
         self.show_plot()
 
     def show_plot(self) -> None:
-        plan = self.session.plan
+        plan = self.session.plans.plan
         view = self.query_one("#plan-plot", PlotView)
         if plan is None:
             return

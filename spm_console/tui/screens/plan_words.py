@@ -16,7 +16,7 @@ from spm_console.core.plan import Plan
 from spm_console.core.plan_rules import BETWEEN_SPEED_ALLOWANCE
 from spm_console.errors import Issue
 from spm_console.formatting import fmt_deg
-from spm_console.services.plan_info import PlanInfo
+from spm_console.services.plan_store import PlanInfo
 from spm_console.tui.widgets.steps import keys_of
 
 #: CLI wording in planner messages → what it means on the plan step.

@@ -126,14 +126,14 @@ class WorkspaceScreen(StepScreen):
 
     def on_mount(self) -> None:
         self.query_one("#ws-progress").display = False
-        if self.session.workspace is None:
+        if self.session.wrist.workspace is None:
             self.action_load()
         else:  # already loaded (homing needs it: the runtime verifies every motion against it)
             self._ready()
 
     def _ready(self) -> None:
         self.show_workspace()
-        info = self.session.cache_info
+        info = self.session.wrist.cache_info
         self.status.ok("workspace ready (" + ("from the cache" if info is not None and info.hit else "built")
                        + "): press 4 to plan a motion")
 
@@ -160,7 +160,7 @@ class WorkspaceScreen(StepScreen):
         self.query_one("#ws-stage", Static).update("")
 
         def load() -> WorkspaceLoaded:
-            self.session.load_workspace(progress, force=force)
+            self.session.wrist.load_workspace(progress, force=force)
             return WorkspaceLoaded()
 
         self.console.build_cancel = cancel
@@ -204,10 +204,10 @@ class WorkspaceScreen(StepScreen):
                 "Next: fix the field marked invalid, then press k."))
             self.status.error(f"Check refused: {exc.message}. Fix the field, then press k.")
             return
-        if self.session.workspace is None:
+        if self.session.wrist.workspace is None:
             self.status.error("no workspace yet: press l to load it")
             return
-        self.run_blocking("check", lambda: ThetaChecked(self.session.check_theta(theta)),
+        self.run_blocking("check", lambda: ThetaChecked(self.session.wrist.check_theta(theta)),
                           f"checking θ = {fmt_deg(theta)} …")
 
     def on_failed(self, message: Failed) -> None:
@@ -225,7 +225,7 @@ class WorkspaceScreen(StepScreen):
         self.console.build_cancel = None
         self.query_one("#ws-progress").display = False
         self.query_one("#ws-stage", Static).update(Content("build cancelled"))
-        if self.session.workspace is not None:
+        if self.session.wrist.workspace is not None:
             self.status.error("build cancelled: the workspace shown, loaded before, stays in "
                               "use (nothing was cached)")
         else:
@@ -256,7 +256,7 @@ class WorkspaceScreen(StepScreen):
         if op == "load":
             self.query_one("#ws-progress").display = False
             self.query_one("#ws-stage", Static).update("")
-            if self.session.workspace is not None:  # what the screen shows is still in use
+            if self.session.wrist.workspace is not None:  # what the screen shows is still in use
                 self.status.error(f"{message} (the workspace shown, loaded before, stays in use)")
             else:
                 self.query_one("#ws-info", Static).update(Content(
@@ -267,7 +267,7 @@ class WorkspaceScreen(StepScreen):
             self.status.error(f"check failed: {message}")
 
     def show_workspace(self) -> None:
-        ws, info = self.session.workspace, self.session.cache_info
+        ws, info = self.session.wrist.workspace, self.session.wrist.cache_info
         if ws is None or info is None:
             return
         self.query_one("#ws-info", Static).update(Content(workspace_text(ws, info)))

@@ -74,7 +74,7 @@ def ik_check(session: Session, prefix: str = "") -> TripleCheck:
 
     def check(rpy_deg: Sequence[float]) -> str:
         try:
-            theta = session.ik(list(rpy_deg))
+            theta = session.wrist.ik(list(rpy_deg))
         except SpmError as exc:
             return f"{prefix}roll/pitch/yaw: IK fails: {exc.message}"
         for i, (t, b) in enumerate(zip(theta, bounds, strict=True)):

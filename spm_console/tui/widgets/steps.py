@@ -71,11 +71,11 @@ def done_steps(session: Session) -> set[str]:
     done = set()
     if session.homed:
         done.add("connect")
-    if session.workspace is not None:
+    if session.wrist.workspace is not None:
         done.add("workspace")
-    if session.plan is not None:
+    if session.plans.plan is not None:
         done.add("plan")
-    if session.plan is not None and session.plan_info is not None and session.plan_info.executed_ok:
+    if session.plans.plan is not None and session.plans.info is not None and session.plans.info.executed_ok:
         done.add("execute")  # a stopped run of the plan is no tick
     return done
 
@@ -107,17 +107,17 @@ def next_hint(session: Session, fk_done: bool = False, current: str = "") -> str
         return "Next: press c to connect to the servos."
     if not session.homed:
         return "Next: press h to home the wrist."
-    if not fk_done and session.workspace is None:
+    if not fk_done and session.wrist.workspace is None:
         return f"Next: {act('fk', ' for an FK check')}, or {alt('workspace', ' for the workspace')}."
-    if session.workspace is None:
+    if session.wrist.workspace is None:
         return f"Next: {act('workspace', ' to load the workspace')}."
-    if session.plan is None and not fk_done:
+    if session.plans.plan is None and not fk_done:
         return (f"Next: {act('fk', ' for an FK check')}, or "
                 f"{alt('plan', ' to plan a motion (s solves)')}.")
-    if session.plan is None:
+    if session.plans.plan is None:
         return f"Next: {act('plan', ' to plan a motion (s solves)')}."
     run = session.last_run
-    if run is None or session.plan_info is None or not session.plan_info.executed:
+    if run is None or session.plans.info is None or not session.plans.info.executed:
         return f"Next: {act('execute', ', then x to execute the plan')}."
     return f"Next: {act('logs', ' to look at the run log')}, or {alt('plan', ' to plan another')}."
 

@@ -32,13 +32,13 @@ def test_fk_all_modes(capsys: pytest.CaptureFixture[str]) -> None:
     assert 2 <= len(modes) <= 8 and sum(m["home_connected"] for m in modes) == 1
 
 def test_the_session_fk_is_the_cli_record(capsys: pytest.CaptureFixture[str]) -> None:
-    """The console's and scripts' FK (Session.fk) and ``fk --json`` are one record: same keys
-    in the same order, same numbers, modes included."""
+    """The console's and scripts' FK (the session's ``WristService.fk``) and ``fk --json`` are
+    one record: same keys in the same order, same numbers, modes included."""
     from spm_console.cli.common import to_jsonable
-    from spm_console.services.session import Session
+    from spm_console.services.wrist_service import WristService
     from tests.support.ws_helpers import agile_profile
 
-    rec = Session(agile_profile()).fk([108.0, 60.0, 105.0], all_modes=True)
+    rec = WristService(agile_profile()).fk([108.0, 60.0, 105.0], all_modes=True)
     code, out, _ = run(capsys, "fk", "--theta", "108", "60", "105", "--all-modes", "--json")
     assert code == 0
     assert out == json.dumps(to_jsonable(rec.as_json())) + "\n"

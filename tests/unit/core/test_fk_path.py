@@ -153,17 +153,17 @@ def test_cli_path_key_and_refusal(capsys: pytest.CaptureFixture[str]) -> None:
     assert "not connected to home" in err and "Traceback" not in err
 
 
-def test_session_fk_reports_the_path() -> None:
+def test_the_wrist_service_fk_reports_the_path() -> None:
     from spm_console.errors import UnreachableError
-    from spm_console.services.session import Session
+    from spm_console.services.wrist_service import WristService
     from tests.support.ws_helpers import agile_profile
 
-    s = Session(agile_profile())
-    rec = s.fk([100.0, 120.0, 110.0])
+    w = WristService(agile_profile())
+    rec = w.fk([100.0, 120.0, 110.0])
     assert rec.path is not None and rec.path.route == "straight" and rec.path.waypoints == 2
-    assert s.workspace is None and s._fk_graph._graph is None  # the fast path loads nothing
+    assert w.workspace is None and w._fk_graph._graph is None  # the fast path loads nothing
     with pytest.raises(UnreachableError, match="not connected to home"):
-        s.fk([70.55, 76.08, 152.62])
+        w.fk([70.55, 76.08, 152.62])
 
 
 def test_failed_shortcut_falls_back_to_grid_steps(setup: tuple[SpmModel, FkGraph],

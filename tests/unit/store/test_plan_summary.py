@@ -22,7 +22,7 @@ from spm_console.jsonutil import to_jsonable
 from spm_console.motion.plans import plan_summary, synthetic_plan
 from spm_console.scripting.runner import ScriptRunner
 from spm_console.scripting.steps import PlanStep, Script
-from spm_console.services.plan_info import PlanInfo
+from spm_console.services.plan_store import PlanInfo
 from spm_console.services.session import Session
 from spm_console.store.plan_file import plan_to_dict
 from spm_console.tui.screens.plan_words import plan_text
@@ -44,7 +44,8 @@ def plan(request: pytest.FixtureRequest, agile: Profile) -> Plan:
 def _script_record(plan: Plan) -> tuple[dict[str, Any], str]:
     """What a script's plan step reports, the session solving to ``plan``."""
     step = PlanStep.model_validate({"do": "plan", "start": "home", "goal": "home"})
-    session = SimpleNamespace(workspace=object(), solve_plan=lambda *args: plan)
+    session = SimpleNamespace(wrist=SimpleNamespace(workspace=object()), theta_deg=None,
+                              plans=SimpleNamespace(solve=lambda *args: plan))
     runner = ScriptRunner(Script(step=(step,)), cast(Session, session))
     return runner._step_plan(step)
 
