@@ -85,7 +85,9 @@ class Reporter:
 
 def dense_seed(f: B, fidx: I64, uncovered: B, candidates: B) -> int:
     """Index (into ``fidx``) of the candidate node with the most uncovered feasible nodes in
-    the (2·:data:`SEED_WINDOW`+1)³ nodes around it; ties go to the first in C order."""
+    the (2·:data:`SEED_WINDOW`+1)³ nodes around it. Equal counts are not always equal after
+    the filter's floating-point sums (they can differ in the last bit), so which of two tied
+    nodes wins is the round-off's choice, not C order (deterministic all the same)."""
     from scipy import ndimage  # here: only a build needs it (~0.4 s to import)
 
     g = np.zeros(f.shape, np.float64)
