@@ -51,7 +51,7 @@ def run() -> list[Row]:
         try:
             s.wrist.ensure_workspace()
             s.home()
-            fo = s.follow(timed, source="bench: 0.5 Hz roll")
+            fo = s.following.follow(timed, source="bench: 0.5 Hz roll")
             ex = fo.execution
             run = load_run(ex.log_dir) if ex.log_dir else None
             # baseline: a planned motion of similar length through the same runtime
@@ -62,13 +62,13 @@ def run() -> list[Row]:
             base = s.execute(plan, skip_homing="")
             # a live step
             out: list[object] = []
-            th = threading.Thread(target=lambda: out.append(s.follow(initial_deg=s.theta_deg)),
+            th = threading.Thread(target=lambda: out.append(s.following.follow(initial_deg=s.theta_deg)),
                                   daemon=True)
             th.start()
             time.sleep(0.6)
-            s.set_target(np.asarray(s.theta_deg, float) + np.array([5.0, -4.0, 3.0]))
+            s.following.set_target(np.asarray(s.theta_deg, float) + np.array([5.0, -4.0, 3.0]))
             time.sleep(1.5)
-            s.end_follow()
+            s.following.end_follow()
             th.join(30)
             live = out[0].execution if out else None  # type: ignore[attr-defined]
             live_run = load_run(live.log_dir) if live is not None and live.log_dir else None

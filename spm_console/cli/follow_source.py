@@ -106,6 +106,6 @@ class UdpTargets:
                 self.received += 1
                 with contextlib.suppress(SpmError):
                     if theta is None:
-                        session.end_follow()
+                        session.following.end_follow()
                         return
-                    session.set_target(theta)
+                    session.following.set_target(theta)

@@ -224,8 +224,9 @@ class ScriptRunner:
     def _step_fk(self, step: FkStep) -> tuple[dict[str, Any], str]:
         if (step.theta is None) == (step.rpy is None):
             raise BadInputError("fk step: give exactly one of theta or rpy")
-        theta = step.theta if step.theta is not None else self.session.wrist.ik(step.rpy)  # type: ignore[arg-type]
-        rec = self.session.wrist.fk(theta, all_modes=step.all_modes)
+        wrist = self.session.wrist
+        theta = step.theta if step.theta is not None else wrist.ik(step.rpy)  # type: ignore[arg-type]
+        rec = wrist.fk(theta, all_modes=step.all_modes)
         self.last_fk = rec
         out = {"theta_deg": _vec(rec.theta_deg), "v": [_vec(r) for r in rec.v],
                "n": _vec(rec.n), "zeta": float(rec.zeta), "residual": float(rec.residual),
@@ -280,7 +281,7 @@ class ScriptRunner:
             timed = timed_targets(self.session.profile, [
                 (f"key 'targets' row {k}", r) for k, r in enumerate(step.targets or (), 1)], step.rpy)
         self._ensure_bus()
-        out = self.session.follow(timed, source="script")
+        out = self.session.following.follow(timed, source="script")
         rec, text = self._motion(out.execution, step.allow_stop, "following")
         if out.stats is not None:
             rec["follow"] = out.stats.to_dict()
@@ -329,8 +330,9 @@ class ScriptRunner:
         if step.max_duration_s is not None:
             if s.plans.plan is None:
                 raise ScriptAssertionError("assert max_duration_s: no plan step has run yet")
-            checks.append(("max_duration_s", s.plans.plan.duration_s <= step.max_duration_s + 1e-9,
-                           f"plan lasts {s.plans.plan.duration_s:.3f} s, expected ≤ {step.max_duration_s} s"))
+            lasts = s.plans.plan.duration_s
+            checks.append(("max_duration_s", lasts <= step.max_duration_s + 1e-9,
+                           f"plan lasts {lasts:.3f} s, expected ≤ {step.max_duration_s} s"))
         if not checks:
             raise BadInputError("assert step: no condition given")
         failed = [msg for _, ok, msg in checks if not ok]

@@ -226,8 +226,8 @@ def follow_once(profile: Profile, req: RunRequest, timed: TimedTargets | None = 
                 source: str | None = None) -> FollowOneShot:
     """Home (unless overridden), then follow ``timed`` targets, or live targets that
     ``live_source(session)`` sends (from its own thread, once the following runs) with
-    ``session.set_target`` until ``session.end_follow``; the live run starts holding the
-    wrist's position."""
+    ``session.following.set_target`` until ``session.following.end_follow``; the live run
+    starts holding the wrist's position."""
 
     def body(session: Session) -> FollowOneShot:
         homing = home_first(session, req)
@@ -246,7 +246,7 @@ def follow_once(profile: Profile, req: RunRequest, timed: TimedTargets | None = 
             feeder = threading.Thread(target=feed, daemon=True, name="spm-follow-source")
             feeder.start()
         try:
-            out = session.follow(timed, initial, deadman_s, req.on_sample,
+            out = session.following.follow(timed, initial, deadman_s, req.on_sample,
                                  skip_homing=req.skip_homing, source=source)
         finally:
             if feeder is not None:

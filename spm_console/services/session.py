@@ -36,7 +36,6 @@ from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import Planned
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult
-from spm_console.motion.servo_tools import ServoHealth
 from spm_console.services.plan_store import PlanStore
 from spm_console.services.session_follow import FollowTools
 from spm_console.services.session_tools import ServoTools
@@ -82,10 +81,15 @@ def _clock_default(profile: Profile) -> tuple[bool, float]:
     return profile.emulator.clock == "simulated", profile.emulator.clock_rate
 
 
-class Session(ServoTools, FollowTools):
-    """Profile, bus, workspace, plan and runs of one operator session (thread-safe enough:
-    one motion at a time, E-stop from any thread). Servo health and tools (status, torque
-    per joint, reboot, jog): :class:`~spm_console.services.session_tools.ServoTools`."""
+class Session:
+    """One operator session on the bus (thread-safe enough: one motion at a time, E-stop from
+    any thread): connect, home, execute a plan it is given, E-stop. Its parts: ``wrist``
+    (:class:`~spm_console.services.wrist_service.WristService`: FK, IK, the workspace),
+    ``plans`` (:class:`~spm_console.services.plan_store.PlanStore`: the current plan),
+    ``tools`` (:class:`~spm_console.services.session_tools.ServoTools`: health, torque,
+    reboot, jog) and ``following``
+    (:class:`~spm_console.services.session_follow.FollowTools`); the last two run their
+    motions through :meth:`run_motion`."""
 
     def __init__(
         self,
@@ -131,7 +135,10 @@ class Session(ServoTools, FollowTools):
         self.bus: MotionClient | None = None
         """The motion process (it owns the port); None when not connected."""
         self.bus_state: BusState | None = None
-        self.health: ServoHealth | None = None
+        self.tools = ServoTools(self)
+        """Servo health, torque per joint, reboot, one-joint jog."""
+        self.following = FollowTools(self)
+        """Live and timed following."""
         self.emulator: EmulatorHandle | EmulatorChild | None = None
         self.theta_deg: F | None = None
         """Last measured motor angles, deg (None before connecting)."""
@@ -255,10 +262,10 @@ class Session(ServoTools, FollowTools):
         if clock is not None:
             clock.close()
         self.bus_state = None
-        self.health = None
+        self.tools.health = None
 
     # ------------------------------------------------------------------ motion
-    def _run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
+    def run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
         if not self._motion.acquire(blocking=False):
             raise BadInputError("a motion is already running")
         self._estop_sent = False
@@ -293,7 +300,7 @@ class Session(ServoTools, FollowTools):
             self.homing = client.home(on_sample)
             return self.homing.execution
 
-        return self._run_motion(run)
+        return self.run_motion(run)
 
     def execute(self, plan: Plan, on_sample: SampleCallback | None = None,
                 skip_homing: str = "", source: str | None = None) -> ExecutionResult:
@@ -309,7 +316,7 @@ class Session(ServoTools, FollowTools):
         client = self.require_bus()
         self.motion_total_s = plan.duration_s  # the approach is the runtime's: it says later
         tol = self.profile.safety.approach_tolerance_deg
-        result = self._run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, source))
+        result = self.run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, source))
         self.plans.ran(plan, result.ok)
         return result
 

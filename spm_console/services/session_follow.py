@@ -1,4 +1,5 @@
-"""The session's live following (a part of :class:`~spm_console.services.session.Session`).
+"""The session's live following (``session.following``, a part of
+:class:`~spm_console.services.session.Session`).
 
 A following is an ordinary motion of the runtime: the motion process runs it (homed rule,
 run log, E-stop, deadman of the client), re-planning every period
@@ -9,7 +10,6 @@ run log, E-stop, deadman of the client), re-planning every period
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -17,33 +17,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.errors import BadInputError
+from spm_console.services.session_tools import MotionHost
 
 if TYPE_CHECKING:
     from spm_console.core.planning.follow.timed import TimedTargets
     from spm_console.motion.follow.run import FollowOutcome
     from spm_console.motion.sample import Sample
     from spm_console.motion.segments import ExecutionResult
-    from spm_console.services.client import MotionClient
 
 F = NDArray[np.float64]
 
 
 class FollowTools:
-    """Mixin of Session (its attributes and motion plumbing are declared here for typing)."""
+    """The live following of the session ``host`` (``session.following``)."""
 
-    @property
-    def homed(self) -> bool:
-        """The motion process's flag (:attr:`Session.homed`)."""
-        raise NotImplementedError
-
-    moving: threading.Event
-    motion_total_s: float
-
-    def require_bus(self) -> MotionClient:
-        raise NotImplementedError
-
-    def _run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
-        raise NotImplementedError
+    def __init__(self, host: MotionHost) -> None:
+        self.host = host
 
     def follow(self, timed: TimedTargets | None = None, initial_deg: F | None = None,
                deadman_s: float | None = None,
@@ -54,8 +43,8 @@ class FollowTools:
         with a reason)."""
         if timed is None and initial_deg is None:
             raise BadInputError("live following needs an initial target")
-        client = self.require_bus()
-        self.motion_total_s = float("nan") if timed is None else float(timed.end_s)
+        client = self.host.require_bus()
+        self.host.motion_total_s = float("nan") if timed is None else float(timed.end_s)
         got: list[FollowOutcome] = []
 
         def run() -> ExecutionResult:
@@ -64,19 +53,19 @@ class FollowTools:
             got.append(out)
             return out.execution
 
-        self._run_motion(run)
+        self.host.run_motion(run)
         return got[0]
 
     def set_target(self, theta_deg: F) -> bool:
         """A new live target (deg) for the following under way; False when nothing follows."""
-        if not self.moving.is_set():
+        if not self.host.moving.is_set():
             return False
-        self.require_bus().set_target(theta_deg)
+        self.host.require_bus().set_target(theta_deg)
         return True
 
     def end_follow(self) -> bool:
         """End a live following (it settles on the current target first)."""
-        if not self.moving.is_set():
+        if not self.host.moving.is_set():
             return False
-        self.require_bus().end_follow()
+        self.host.require_bus().end_follow()
         return True

@@ -1,4 +1,5 @@
-"""The session's servo tools (a part of :class:`~spm_console.services.session.Session`): live
+"""The session's servo tools (``session.tools``, a part of
+:class:`~spm_console.services.session.Session`): live
 health, torque per joint, reboot, and a one-joint jog.
 
 Every call goes to the motion process, which owns the port and refuses all of them while a
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,34 +31,37 @@ if TYPE_CHECKING:
 F = NDArray[np.float64]
 
 
-class ServoTools:
-    """Mixin of Session (its attributes and motion plumbing are declared here for typing)."""
+class MotionHost(Protocol):
+    """What the session's tools need of the session that owns the bus: its profile, the last
+    θ measured (deg), one motion at a time and its planned duration (s)."""
 
     profile: Profile
-    @property
-    def homed(self) -> bool:
-        """The motion process's flag (:attr:`Session.homed`)."""
-        raise NotImplementedError
-
     theta_deg: F | None
     moving: threading.Event
     motion_total_s: float
-    health: ServoHealth | None
-    """The last health read (None before the first or after disconnecting)."""
 
-    def require_bus(self) -> MotionClient:
-        raise NotImplementedError
+    @property
+    def homed(self) -> bool: ...
 
-    def read_position(self) -> F:
-        raise NotImplementedError
+    def require_bus(self) -> MotionClient: ...
 
-    def _run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult:
-        raise NotImplementedError
+    def read_position(self) -> F: ...
+
+    def run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult: ...
+
+
+class ServoTools:
+    """The servo tools of the session ``host`` (``session.tools``)."""
+
+    def __init__(self, host: MotionHost) -> None:
+        self.host = host
+        self.health: ServoHealth | None = None
+        """The last health read (None before the first or after disconnecting)."""
 
     # ------------------------------------------------------------------ helpers
     def _idle(self, what: str) -> MotionClient:
-        client = self.require_bus()
-        if self.moving.is_set():
+        client = self.host.require_bus()
+        if self.host.moving.is_set():
             raise BadInputError(f"{what}: refused, the wrist is moving", Issue.MOVING)
         return client
 
@@ -71,7 +75,7 @@ class ServoTools:
         self.health = health
         pos = health.position_deg
         if pos is not None:
-            self.theta_deg = pos
+            self.host.theta_deg = pos
         return health
 
     # ------------------------------------------------------------------ tools
@@ -102,10 +106,10 @@ class ServoTools:
         servo limits). Nothing moves."""
         self._idle("jog")
         self._joint(joint)
-        if not self.homed:  # the motion process's flag: nothing is planned for a refused jog
+        if not self.host.homed:  # the motion process's flag: nothing is planned for a refused jog
             raise RefusedError(Refusal.NOT_HOMED)
-        theta0 = self.read_position()
-        return theta0, jog_target(theta0, joint, step_deg, servo_limits_deg(self.profile))
+        theta0 = self.host.read_position()
+        return theta0, jog_target(theta0, joint, step_deg, servo_limits_deg(self.host.profile))
 
     def jog(self, joint: int, step_deg: float,
             on_sample: Callable[[Sample], None] | None = None) -> ExecutionResult:
@@ -116,11 +120,11 @@ class ServoTools:
         from spm_console.motion.plans import line_plan
 
         theta0, target = self.jog_plan_target(joint, step_deg)
-        client = self.require_bus()
-        plan = line_plan(self.profile, theta0, target, self.profile.safety.home_speed_degps,
-                         kind="jog")
-        self.motion_total_s = plan.duration_s
-        tol = self.profile.safety.approach_tolerance_deg
+        client = self.host.require_bus()
+        profile = self.host.profile
+        plan = line_plan(profile, theta0, target, profile.safety.home_speed_degps, kind="jog")
+        self.host.motion_total_s = plan.duration_s
+        tol = profile.safety.approach_tolerance_deg
         source = (f"jog: joint {joint} by {step_deg:+g}° "
                   f"({theta0[joint - 1]:.2f}° to {target[joint - 1]:.2f}°)")
-        return self._run_motion(lambda: client.execute(plan, on_sample, tol, "", source))
+        return self.host.run_motion(lambda: client.execute(plan, on_sample, tol, "", source))

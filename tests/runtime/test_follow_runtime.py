@@ -135,15 +135,15 @@ def test_live_targets_deadman_and_the_change_to_reference_delay(agile: Profile, 
         out: list[object] = []
         following = threading.Event()  # the first sample: the loop runs (the deadman is armed)
         th = threading.Thread(target=lambda: out.append(
-            s.follow(initial_deg=home, deadman_s=0.4, source="test",
+            s.following.follow(initial_deg=home, deadman_s=0.4, source="test",
                      on_sample=lambda _s: following.set())), daemon=True)
         th.start()
         assert following.wait(30)
         for _ in range(12):  # a live source: the same new target every 0.1 s for 1.2 s
-            assert s.set_target(new)
+            assert s.following.set_target(new)
             time.sleep(0.1)
         time.sleep(1.0)  # then silent for > 0.4 s: the deadman holds (where the wrist is)
-        assert s.end_follow()
+        assert s.following.end_follow()
         th.join(20)
         fo = out[0]
     finally:
@@ -166,10 +166,10 @@ def test_estop_while_following(agile: Profile, tmp_path: Path) -> None:
         s.home()
         home = s.theta_deg.copy()
         out: list[object] = []
-        th = threading.Thread(target=lambda: out.append(s.follow(initial_deg=home)), daemon=True)
+        th = threading.Thread(target=lambda: out.append(s.following.follow(initial_deg=home)), daemon=True)
         th.start()
         time.sleep(0.8)
-        s.set_target(home + np.array([8.0, 8.0, -8.0]))
+        s.following.set_target(home + np.array([8.0, 8.0, -8.0]))
         time.sleep(0.3)
         assert s.estop("test stop")
         th.join(20)

@@ -161,8 +161,8 @@ def test_status_through_the_runtime_and_tools_refused_while_a_jog_runs(
     try:
         emu = s.emulator
         assert isinstance(emu, EmulatorHandle)
-        h = s.servo_status()
-        assert s.health is h and h.faulted == [] and h.position_deg is not None
+        h = s.tools.servo_status()
+        assert s.tools.health is h and h.faulted == [] and h.position_deg is not None
         np.testing.assert_allclose(h.position_deg, START, atol=0.1)
         np.testing.assert_allclose(s.theta_deg, h.position_deg)  # θ follows the status
         assert all(j.voltage_v == pytest.approx(12.0) for j in h.joints)
@@ -177,8 +177,8 @@ def test_status_through_the_runtime_and_tools_refused_while_a_jog_runs(
             moving.set()
             bus = s.bus
             assert bus is not None
-            for call in (lambda: s.set_torque(2, False), s.servo_status,
-                         lambda: s.reboot_servo(1), lambda: s.jog(1, 1.0),
+            for call in (lambda: s.tools.set_torque(2, False), s.tools.servo_status,
+                         lambda: s.tools.reboot_servo(1), lambda: s.tools.jog(1, 1.0),
                          lambda: bus.set_torque(2, False), bus.status, lambda: bus.reboot(1)):
                 try:
                     call()
@@ -186,7 +186,7 @@ def test_status_through_the_runtime_and_tools_refused_while_a_jog_runs(
                     refusals.append(exc.message)
 
         before = s.read_position()
-        res = s.jog(3, -JOG_MAX_STEP_DEG, while_moving)  # 0.5 s at 20°/s: heartbeats apply
+        res = s.tools.jog(3, -JOG_MAX_STEP_DEG, while_moving)  # 0.5 s at 20°/s: heartbeats apply
         assert res.ok, res.message
         assert moving.is_set() and len(refusals) == 7, refusals
         assert all("moving" in m or "already running" in m for m in refusals), refusals
@@ -199,10 +199,10 @@ def test_status_through_the_runtime_and_tools_refused_while_a_jog_runs(
         assert jog_run.meta["plans"][0]["source"].startswith("jog: joint 3 by -10°")
 
         # torque off un-homes the wrist, in the session and in the motion process
-        h = s.set_torque(1, False)
+        h = s.tools.set_torque(1, False)
         assert [j.torque_on for j in h.joints] == [False, True, True] and not s.homed
         with pytest.raises(BadInputError, match="not homed"):
-            s.jog(2, 1.0)
+            s.tools.jog(2, 1.0)
         assert s.bus is not None
         plan = line_plan(agile, after, after + np.array([0, 1.0, 0]), 20.0)
         with pytest.raises(BadInputError, match="not homed"):
@@ -217,11 +217,11 @@ def test_jog_refused_unless_homed_and_within_the_limits(agile: Profile, tmp_path
     s = _session(agile, tmp_path, cache, initial_deg=(hi - 2.0, 135.0, 135.0))
     try:
         with pytest.raises(BadInputError, match="not homed"):
-            s.jog(1, -1.0)
+            s.tools.jog(1, -1.0)
         assert s.bus is not None
         s.bus.homed = True  # a client that believes it is homed: its own checks come first …
         with pytest.raises(BadInputError, match="outside its servo limits"):
-            s.jog(1, 3.0)
+            s.tools.jog(1, 3.0)
         assert list_runs(tmp_path / "logs") == []  # nothing sent, nothing moved
         assert not s.homed  # … and the motion process's next answer corrected its belief
         theta0 = s.read_position()
@@ -242,16 +242,16 @@ def test_reboot_clears_an_injected_hwerror_and_unhomes(agile: Profile, tmp_path:
     s = _session(agile, tmp_path, cache, faults=[parse_fault("hwerror:1")],
                  emulator_process=True)  # the console's emulator child takes the fault
     try:
-        h = s.servo_status()
+        h = s.tools.servo_status()
         assert h.faulted == [1] and "overload" in h.joints[0].hardware_text
         with pytest.raises(BusError, match="reboot"):
-            s.set_torque(1, True)
+            s.tools.set_torque(1, True)
         assert s.bus is not None
         s.bus.homed = True  # forged: the motion process's answer to the reboot says otherwise
-        h = s.reboot_servo(1)
+        h = s.tools.reboot_servo(1)
         assert h.faulted == [] and h.joints[0].hardware_text == "none"
-        assert not s.homed and s.health is h
-        assert s.servo_status().faulted == []  # and it stays cleared
-        assert s.set_torque(1, True).joints[0].torque_on
+        assert not s.homed and s.tools.health is h
+        assert s.tools.servo_status().faulted == []  # and it stays cleared
+        assert s.tools.set_torque(1, True).joints[0].torque_on
     finally:
         s.close()

@@ -84,7 +84,7 @@ async def test_home_moves_to_home_and_logs_the_run(console, tmp_path) -> None:
         await pilot.press("f2", "f1")  # nothing ran since: the outcome stays
         assert str(runs[0].path) in status_of(app)
         await pilot.press("f2")
-        later = await asyncio.to_thread(app.session.jog, 1, 2.0)  # a later run, elsewhere
+        later = await asyncio.to_thread(app.session.tools.jog, 1, 2.0)  # a later run, elsewhere
         assert later.ok
         await pilot.press("f1")
         await settle(pilot)

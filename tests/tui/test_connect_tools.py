@@ -72,7 +72,7 @@ async def test_a_slow_status_read_never_piles_up_requests(console) -> None:
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
         session = app.session
-        real = session.servo_status
+        real = session.tools.servo_status
         started = threading.Event()
         release = threading.Event()
         calls: list[int] = []
@@ -84,7 +84,7 @@ async def test_a_slow_status_read_never_piles_up_requests(console) -> None:
                 release.wait(30)
             return real()
 
-        session.servo_status = stuck  # type: ignore[method-assign]
+        session.tools.servo_status = stuck  # type: ignore[method-assign]
         for _ in range(200):
             if started.is_set():
                 break

@@ -81,13 +81,13 @@ class ViewSpy(NullView):
 def _spy_targets(app: SpmConsoleApp) -> list[np.ndarray]:
     """Record every target the console hands to the runtime."""
     sent: list[np.ndarray] = []
-    real = app.session.set_target
+    real = app.session.following.set_target
 
     def spy(theta_deg: Any) -> bool:
         sent.append(np.asarray(theta_deg, float).copy())
         return real(theta_deg)
 
-    app.session.set_target = spy  # type: ignore[method-assign]
+    app.session.following.set_target = spy  # type: ignore[method-assign]
     return sent
 
 
@@ -392,7 +392,7 @@ async def test_a_refused_jog_keeps_its_reason_on_the_screen(console) -> None:
         def refuse(**_: Any) -> None:
             raise BadInputError("live following cannot start from here: a test's reason")
 
-        app.session.follow = refuse  # type: ignore[method-assign,assignment]
+        app.session.following.follow = refuse  # type: ignore[method-assign,assignment]
         await pilot.press("j")
         await until(pilot, lambda: isinstance(app.screen, ExecuteScreen) and not app.moving,
                     "the refusal")

@@ -114,7 +114,7 @@ class ConnectScreen(IdentifyStep):
     @work(thread=True, group="servo-health", exit_on_error=False)
     def _poll_worker(self) -> None:
         try:
-            health = self.session.servo_status()
+            health = self.session.tools.servo_status()
         except BaseException as exc:  # a message, never a traceback
             self.post_message(HealthPolled(None, describe_error(exc)))
             return
@@ -139,7 +139,7 @@ class ConnectScreen(IdentifyStep):
             restarted = s.sim and s.bus is not None
             state = s.connect()
             try:  # the table full at once (the timer keeps it fresh)
-                s.servo_status()
+                s.tools.servo_status()
             except SpmError as exc:
                 self._health_error = exc.message
             return Connected(state, restarted)
@@ -183,7 +183,7 @@ class ConnectScreen(IdentifyStep):
         if not self._ready("torque"):
             return
         s, j = self.session, self.table.joint
-        on = s.health is None or not s.health.joints[j - 1].torque_on
+        on = s.tools.health is None or not s.tools.health.joints[j - 1].torque_on
         if on:
             self._run_tool("torque on", j)
             return
@@ -202,7 +202,7 @@ class ConnectScreen(IdentifyStep):
                               "the servos to clear a hardware error")
             return
         ident = s.profile.bus.joints[j - 1].id
-        hw = "unknown" if s.health is None else s.health.joints[j - 1].hardware_text
+        hw = "unknown" if s.tools.health is None else s.tools.health.joints[j - 1].hardware_text
         body = (f"Servo id {ident} (joint {j}) restarts; a latched hardware error (now: {hw}) "
                 "clears if its cause is gone. It comes back with torque OFF: the joint goes "
                 "limp" + (" and the wrist will no longer count as homed." if s.homed else ".")
@@ -219,14 +219,14 @@ class ConnectScreen(IdentifyStep):
     def _run_tool(self, action: str, joint: int) -> None:
         s = self.session
         if action == "reboot":
-            self.run_blocking("reboot", lambda: ServoToolDone("reboot", joint, s.reboot_servo(joint)),
+            self.run_blocking("reboot", lambda: ServoToolDone("reboot", joint, s.tools.reboot_servo(joint)),
                               f"rebooting joint {joint} …")
         elif action == "torque on":
             self.run_blocking("torque", lambda: ServoToolDone(
-                "torque on", joint, s.set_torque(joint, True)), f"torque on, joint {joint} …")
+                "torque on", joint, s.tools.set_torque(joint, True)), f"torque on, joint {joint} …")
         else:
             self.run_blocking("torque", lambda: ServoToolDone(
-                "torque off", joint, s.set_torque(joint, False)), f"torque off, joint {joint} …")
+                "torque off", joint, s.tools.set_torque(joint, False)), f"torque off, joint {joint} …")
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
         if event.input.id == "jog-step":
@@ -266,7 +266,7 @@ class ConnectScreen(IdentifyStep):
             self.status.ok("jog cancelled: nothing moved")
             return
         self._start_motion("jog", f"jogging joint {joint} by {delta:+g}°",
-                           lambda on_sample: self.session.jog(joint, delta, on_sample))
+                           lambda on_sample: self.session.tools.jog(joint, delta, on_sample))
 
     # ------------------------------------------------------------------ results
     def handle_done(self, outcome: Outcome) -> None:
@@ -340,7 +340,7 @@ class ConnectScreen(IdentifyStep):
             text = f"live status: {self._health_error}"
         else:
             text = f"live status, read every {HEALTH_EVERY_S:g} s while the wrist is idle"
-            h = s.health
+            h = s.tools.health
             if h is not None and h.silent:
                 text += " · no reply from joint " + ", ".join(map(str, h.silent))
             if h is not None and h.faulted:
@@ -362,7 +362,7 @@ class ConnectScreen(IdentifyStep):
                 info += (f"\nEmulated servos NOT real-time ({s.bus_state.emulator_realtime}): "
                          "replies may be late under load")
         self.query_one("#bus-info", Static).update(Content(info))
-        self.table.show(s.bus_state, s.health, bool(self._health_error))
+        self.table.show(s.bus_state, s.tools.health, bool(self._health_error))
         self._show_health_line()
         if s.theta_deg is None:
             pose = "θ: unknown (not connected)"

@@ -1,10 +1,11 @@
 """Live jog (from step 5): the wrist follows a target the arrow keys move, live.
 
-The runtime's live following (:meth:`Session.follow <spm_console.services.session_follow.FollowTools.follow>`)
-runs in a worker thread: it re-plans every servo period inside one region of the workspace
-(P, a region of its cover, or a region the runtime grows around a start on the boundary)
-toward the latest target and streams only references it verified; a target outside every
-region is projected into the wrist's region (clamped). Each key press moves the target by the chosen step — in
+The runtime's live following (``session.following.follow``,
+:meth:`~spm_console.services.session_follow.FollowTools.follow`) runs in a worker thread:
+it re-plans every servo period inside one region of the workspace (P, a region of its
+cover, or a region the runtime grows around a start on the boundary) toward the latest
+target and streams only references it verified; a target outside every region is projected
+into the wrist's region (clamped). Each key press moves the target by the chosen step — in
 roll/pitch/yaw from home (IK in the home working mode) or per joint — and goes to the runtime
 at once, from the :class:`~spm_console.tui.screens.jog_target.TargetSender` thread. The 3D view
 shows the target as the ghost and the measured pose solid. esc (or j) ends the jog: the wrist
@@ -209,11 +210,11 @@ class JogScreen(StepScreen):
     def _start_following(self) -> None:
         s, th0 = self.session, self.start_deg
         self.phase = "starting"
-        self.sender = TargetSender(s.set_target, s.end_follow)
+        self.sender = TargetSender(s.following.set_target, s.following.end_follow)
         on_sample = self.console.telemetry_sink(self)
         self.console.live_samples.clear()
         self.console.moving = True
-        if not self.run_blocking("jog", lambda: FollowDone(s.follow(
+        if not self.run_blocking("jog", lambda: FollowDone(s.following.follow(
                 initial_deg=th0, deadman_s=None, on_sample=on_sample, source=JOG_SOURCE)),
                 "live jog: starting … SPACE stops the wrist"):
             self.console.moving = False

@@ -57,9 +57,11 @@ def test_json_decoding_refuses_nan_and_integers_beyond_a_float() -> None:
 
 
 class _FakeSession:
-    """What the UDP source drives: targets and the end of the following."""
+    """What the UDP source drives: targets and the end of the following (its ``following``
+    part is itself)."""
 
     def __init__(self) -> None:
+        self.following = self
         self.moving = threading.Event()
         self.moving.set()
         self.targets: list[np.ndarray] = []
