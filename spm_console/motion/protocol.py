@@ -113,6 +113,9 @@ class Execute(Request["ExecutionResult"]):
     override (why), written to the run log."""
     source: str | None = None
     """Where the plan came from (a file), for the run log."""
+    approach: bool = True
+    """False: no approach move; a wrist farther than the tolerance from the plan's start is
+    refused (nothing moves, the run log says why)."""
 
 
 @dataclass(frozen=True)
@@ -124,6 +127,9 @@ class Verify(Request["PlanCheck"]):
 
     id: int
     plan: Plan
+    log_kind: str = ""
+    """Non-empty: a refused plan also leaves a run folder of this kind (outcome ``refused``,
+    nothing moved), as a refusal of :class:`Execute` does."""
 
 
 @dataclass(frozen=True)

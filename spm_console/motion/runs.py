@@ -21,7 +21,8 @@ from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import ServoBus
-from spm_console.errors import PlanRefusedError, RefusedError, SpmError
+from spm_console.errors import BadInputError, PlanRefusedError, RefusedError, SpmError
+from spm_console.formatting import fmt_deg
 from spm_console.motion.executor import Executor
 from spm_console.motion.goals.load_offsets import load_offsets, sent_references
 from spm_console.motion.homing import HomingResult, home, plan_segments
@@ -136,9 +137,11 @@ def run_home(profile: Profile, bus: ServoBus, ws: Workspace, ctx: RunContext,
 def run_execute(profile: Profile, bus: ServoBus, ws: Workspace, plan: Plan, ctx: RunContext,
                 on_sample: SampleCallback | None, attach: Attach,
                 approach_tolerance_deg: float | None = None, *, homed: bool,
-                skip_homing: str = "", source: str | None = None) -> ExecutionResult:
+                skip_homing: str = "", source: str | None = None,
+                approach: bool = True) -> ExecutionResult:
     """Execute ``plan``, with a straight approach move to its start when the wrist is farther
-    than the tolerance (default: the profile's ``safety.approach_tolerance_deg``).
+    than the tolerance (default: the profile's ``safety.approach_tolerance_deg``); with
+    ``approach`` False such a wrist is refused instead (BadInputError), nothing moved.
 
     The rule of every front end: the wrist was homed first (``homed``), or the operator
     overrode it explicitly (``skip_homing``: why; written to the run log)."""
@@ -153,6 +156,9 @@ def run_execute(profile: Profile, bus: ServoBus, ws: Workspace, plan: Plan, ctx:
         tol = (profile.safety.approach_tolerance_deg if approach_tolerance_deg is None
                else approach_tolerance_deg)
         segments = plan_segments(profile, theta0, plan, tol)
+        if not approach and len(segments) > 1:
+            raise BadInputError(f"the wrist is at θ = {fmt_deg(theta0)}, not at the plan's "
+                                f"start {fmt_deg(plan.reference_deg[0])} (approach move disabled)")
         if log is not None:
             log.meta["plans"] = [plan_summary(s.plan, source if s.phase == "plan" else None)
                                  | {"phase": s.phase} for s in segments]

@@ -37,7 +37,7 @@ from spm_console.config.schema import Profile
 from spm_console.core.workspace.data import Workspace
 from spm_console.devices.base import CommError, ServoStatus, read_position_checked
 from spm_console.devices.dynamixel.bus import open_bus
-from spm_console.errors import RefusedError, SpmError
+from spm_console.errors import PlanRefusedError, RefusedError, SpmError
 from spm_console.motion import servo_tools
 from spm_console.motion.executor import Executor
 from spm_console.motion.follow.target_feed import TargetFeed
@@ -69,6 +69,7 @@ from spm_console.motion.protocol import (
 from spm_console.motion.runs import (
     RunContext,
     SampleCallback,
+    refused_run,
     run_execute,
     run_home,
     verify_before_motion,
@@ -292,6 +293,10 @@ class _Server:
         normal_priority()
         try:
             return verify_before_motion(self.profile, self.workspace, req.plan)
+        except PlanRefusedError as exc:
+            if req.log_kind:
+                refused_run(self.profile, req.log_kind, self.ctx, exc)
+            raise
         finally:
             request_realtime(HELPER_PRIORITY)
 
@@ -370,7 +375,7 @@ class _Server:
                 result = Reply(req.id, run_execute(
                     self.profile, self.bus, self.workspace, req.plan, self.ctx, on_sample,
                     self._attach, req.approach_tolerance_deg, homed=self.homed,
-                    skip_homing=req.skip_homing, source=req.source))
+                    skip_homing=req.skip_homing, source=req.source, approach=req.approach))
         except SpmError as exc:
             result = self.refused(req.id, exc)
         except Exception as exc:  # a bug: the executor already left the wrist holding

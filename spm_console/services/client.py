@@ -249,16 +249,18 @@ class MotionClient:
 
     def execute(self, plan: Plan, on_sample: Callable[[Sample], None] | None = None,
                 approach_tolerance_deg: float | None = None, skip_homing: str = "",
-                source: str | None = None) -> ExecutionResult:
+                source: str | None = None, approach: bool = True) -> ExecutionResult:
         """Execute ``plan`` (refused unless this motion process homed the wrist, or
-        ``skip_homing`` says why the operator overrides that)."""
-        return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg, skip_homing, source),
-                            on_sample)
+        ``skip_homing`` says why the operator overrides that; ``approach`` False: refused
+        unless the wrist is at its start)."""
+        return self._motion(lambda i: Execute(i, plan, approach_tolerance_deg, skip_homing, source,
+                                              approach), on_sample)
 
-    def verify(self, plan: Plan) -> PlanCheck:
+    def verify(self, plan: Plan, log_kind: str = "") -> PlanCheck:
         """The plan verified by the motion process as :meth:`execute` will verify it, moving
-        nothing (PlanRefusedError, exit 26, when refused); refused while a motion runs."""
-        check = self._call(lambda i: Verify(i, plan), VERIFY_TIMEOUT_S)
+        nothing (PlanRefusedError, exit 26, when refused; ``log_kind``: the refusal also
+        leaves a run folder of that kind); refused while a motion runs."""
+        check = self._call(lambda i: Verify(i, plan, log_kind), VERIFY_TIMEOUT_S)
         assert isinstance(check, PlanCheck)
         return check
 

@@ -9,8 +9,9 @@ rules as the console and scripts.
 * **One signal path.** SIGINT/SIGTERM/SIGHUP/SIGQUIT E-stop the motion under way (exit 20);
   before any motion they refuse the run (exit 130, nothing moved).
 * **Refusals leave a run folder.** A run refused before the runtime could start it (bus
-  unreachable, a signal while connecting, ``--no-approach`` with the wrist elsewhere) gets a
-  run folder with outcome ``refused``/``interrupted``, like the runtime's own refusals.
+  unreachable, a signal while connecting) gets a run folder with outcome
+  ``refused``/``interrupted``, like the runtime's own refusals (a plan it refuses, or
+  ``--no-approach`` with the wrist elsewhere).
 
 The emulated servos power on at the profile's home, or at ``sim_start_deg``. Degrees, seconds.
 """
@@ -32,7 +33,7 @@ from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.devices.emulator.faults import FaultSpec
-from spm_console.errors import BadInputError, InterruptedBySignalError, PlanRefusedError, SpmError
+from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.homing import HomingResult
 from spm_console.motion.runs import RunContext, refused_run
@@ -169,25 +170,14 @@ def execute_once(profile: Profile, plan: Plan, req: RunRequest,
     """Home (unless overridden), then execute ``plan`` with an approach move when needed."""
 
     def body(session: Session) -> OneShotResult:
-        try:  # nothing is powered for a plan the runtime would refuse
-            session.verify(plan)
-        except PlanRefusedError as refused:
-            refused_run(profile, "execute", run_context(profile, req), refused)
-            raise
+        # nothing is powered for a plan the runtime would refuse (it logs the refusal)
+        session.verify(plan, log_kind="execute")
         homing = home_first(session, req)
         if homing is not None and not homing.execution.ok:
             return OneShotResult(homing.execution, homing)
-        if not req.approach:  # the wrist must already be at the plan's start
-            theta0, start = session.read_position(), plan.reference_deg[0]
-            if float(np.abs(theta0 - start).max()) > profile.safety.approach_tolerance_deg:
-                away = BadInputError(
-                    f"the wrist is at θ = {fmt_deg(theta0)}, not at the plan's "
-                    f"start {fmt_deg(start)} (approach move disabled)")
-                refused_run(profile, "execute", run_context(profile, req), away)
-                raise away
         try:
             result = session.execute(plan, req.on_sample, skip_homing=req.skip_homing,
-                                     source=source)
+                                     source=source, approach=req.approach)
         except SpmError as exc:
             raise _after_homing(exc, homing) from None
         return OneShotResult(result, homing)
@@ -247,7 +237,7 @@ def follow_once(profile: Profile, req: RunRequest, timed: TimedTargets | None = 
             feeder.start()
         try:
             out = session.following.follow(timed, initial, deadman_s, req.on_sample,
-                                 skip_homing=req.skip_homing, source=source)
+                                           skip_homing=req.skip_homing, source=source)
         finally:
             if feeder is not None:
                 done.set()

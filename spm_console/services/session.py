@@ -303,7 +303,8 @@ class Session:
         return self.run_motion(run)
 
     def execute(self, plan: Plan, on_sample: SampleCallback | None = None,
-                skip_homing: str = "", source: str | None = None) -> ExecutionResult:
+                skip_homing: str = "", source: str | None = None,
+                approach: bool = True) -> ExecutionResult:
         """Execute ``plan``, with a straight approach move to its start if needed, in the
         motion process, which verifies it against this profile's workspace first and says how
         long the whole run is (:attr:`motion_total_s`, from its
@@ -312,11 +313,14 @@ class Session:
         The motion process refuses it (:class:`~spm_console.errors.RefusedError`) unless it
         homed the wrist, or ``skip_homing`` gives the operator's reason to override that
         (written to the run log). ``source``: where the plan came from (its file, for the run
-        log). The plan store hears how it ended (:meth:`PlanStore.ran`)."""
+        log). ``approach`` False: no approach move, the wrist must already be at the plan's
+        start (else refused, nothing moved). The plan store hears how it ended
+        (:meth:`PlanStore.ran`)."""
         client = self.require_bus()
         self.motion_total_s = plan.duration_s  # the approach is the runtime's: it says later
         tol = self.profile.safety.approach_tolerance_deg
-        result = self.run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, source))
+        result = self.run_motion(lambda: client.execute(plan, on_sample, tol, skip_homing, source,
+                                                        approach))
         self.plans.ran(plan, result.ok)
         return result
 
@@ -324,11 +328,12 @@ class Session:
         """The runtime's word on the motion it is about to run (the reading thread)."""
         self.motion_total_s = planned.duration_s
 
-    def verify(self, plan: Plan) -> PlanCheck:
+    def verify(self, plan: Plan, log_kind: str = "") -> PlanCheck:
         """``plan`` verified by the motion process exactly as :meth:`execute` will verify it,
         moving nothing: before homing for a plan this session did not solve (refused with
-        :class:`~spm_console.errors.PlanRefusedError`, exit 26, saying nothing moved)."""
-        return self.require_bus().verify(plan)
+        :class:`~spm_console.errors.PlanRefusedError`, exit 26, saying nothing moved;
+        ``log_kind``: the runtime also leaves a run folder of that kind for the refusal)."""
+        return self.require_bus().verify(plan, log_kind)
 
     def estop(self, reason: str = "operator E-stop", by_signal: bool = False) -> bool:
         """Stop the running motion at once (any thread, a signal handler); False when nothing
