@@ -62,7 +62,7 @@ def cmd_list(args: argparse.Namespace) -> int:
                      "message": m.get("message", "")})
     human = "\n".join(
         f"{d['run']:34} {d['kind'] or '?':8} {d['outcome'] or '?':10} "
-        f"{'' if d['exit_code'] is None else d['exit_code']:>3}  {(d['message'] or '')[:70]}"
+        f"{'' if d['exit_code'] is None else d['exit_code']:>3}  {str(d['message'] or '')[:70]}"
         for d in rows) or "no runs logged yet"
     emit(args, {"runs": rows}, human)
     return int(ExitCode.OK)
@@ -77,10 +77,12 @@ def cmd_show(args: argparse.Namespace) -> int:
         "run": run.path.name, "path": str(run.path), "meta": m, "rows": run.rows,
         "truncated": run.truncated, "events": dict(counts), "faults": faults,
     }
+    prof = m.get("profile")
+    prof = prof if isinstance(prof, dict) else {}
     lines = [
         f"run {run.path.name}: {m.get('kind')} — {m.get('outcome')} "
         f"(exit {m.get('exit_code')}) {m.get('message', '')}",
-        f"profile {m.get('profile', {}).get('name')} ({str(m.get('profile', {}).get('hash'))[:12]}…),"
+        f"profile {prof.get('name')} ({str(prof.get('hash'))[:12]}…),"
         f" started {m.get('start_time')}",
         f"{run.rows} samples{' (last line truncated)' if run.truncated else ''}; events: "
         + (", ".join(f"{k} {v}" for k, v in counts.items()) or "none"),

@@ -10,7 +10,7 @@ start), like a solved plan. Degrees, deg/s, seconds.
 from __future__ import annotations
 
 import math
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -113,7 +113,7 @@ def synthetic_plan(profile: Profile, start_deg: F, goal_deg: F, duration_s: floa
     return plan_from_references(profile, ref, "synthetic", notes={"duration_s": duration_s})
 
 
-def plan_summary(plan: Plan, source: str | None = None) -> dict[str, Any]:
+def plan_summary(plan: Plan, source: str | None = None) -> dict[str, object]:
     """What a run's meta.json records about a plan (angles in degrees): the summary's
     figures, and the ends of the references the servos were sent: θ*(0) and θ*(N), named
     for what they are (a plan's θ(0) is its start, which a reference need not equal)."""

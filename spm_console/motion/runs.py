@@ -9,10 +9,10 @@ it from then on. Degrees, seconds.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -41,6 +41,13 @@ SampleCallback = Callable[[Sample], None]
 Attach = Callable[[Executor], None]
 
 
+class Timing(TypedDict, total=False):
+    """An executor's clock and period sleep, s (absent: the wall clock's)."""
+
+    clock: Callable[[], float]
+    sleep: Callable[[float], None]
+
+
 @dataclass(frozen=True)
 class RunContext:
     """Where a run happens: the one run-log metadata schema of every front end."""
@@ -62,7 +69,7 @@ class RunContext:
     def bus_label(self) -> str:
         return "emulated bus" if self.sim else f"serial port {self.port}"
 
-    def meta(self) -> dict[str, Any]:
+    def meta(self) -> dict[str, object]:
         return {"bus": self.bus_label, "port": self.port, "sim": self.sim,
                 "faults": list(self.faults),
                 "clock": "real" if self.sim_clock is None else "simulated",
@@ -78,19 +85,19 @@ class RunContext:
         longer than the simulated run)."""
         return None if self.preview else mcap_beside(profile)
 
-    def timing(self, live: bool = False) -> dict[str, Any]:
+    def timing(self, live: bool = False) -> Timing:
         """The executor's ``clock`` and ``sleep`` (none: the wall clock's). ``live``: the run
         follows an operator's input as it comes, so simulated time runs no faster than
         real time (at the clock's own pace when it has one)."""
         sim = self.clock()
         if sim is None:
-            return {}
+            return Timing()
         rate = (sim.rate or 1.0) if live else sim.rate
-        return {"clock": sim.now, "sleep": lambda dt: sim.sleep(dt, rate)}
+        return Timing(clock=sim.now, sleep=lambda dt: sim.sleep(dt, rate))
 
 
 def _executor(profile: Profile, bus: ServoBus, ws: Workspace, kind: str,
-              plans: list[dict[str, Any]], ctx: RunContext,
+              plans: Sequence[Mapping[str, object]], ctx: RunContext,
               on_sample: SampleCallback | None) -> Executor:
     log = RunLog.create(kind, profile.name, profile.digest(), plans, root=ctx.logs_root,
                         extra=ctx.meta(), wrist=wrist_digests(profile))

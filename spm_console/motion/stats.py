@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Any
 
 import numpy as np
 
@@ -135,7 +134,7 @@ class RunStats:
     model: ModelHealth | None = None
     """The servo model against the measurement (None when nothing was read)."""
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, object]:
         """The run-log / JSON form (the keys of the fields; absent parts left out)."""
         d = asdict(self)
         d["tracking_rms_per_joint_deg"] = list(self.tracking_rms_per_joint_deg)

@@ -42,7 +42,9 @@ def plot_run(run: RunData, out: str | Path, title: str | None = None) -> Path:
         ax.set_xlabel("t (s)")
         for row in (0, 1):
             for e in stops:
-                axes[row, i].axvline(float(e.get("t", 0.0)), color="k", ls="--", lw=0.8)
+                t_stop = e.get("t", 0.0)
+                if isinstance(t_stop, int | float):
+                    axes[row, i].axvline(float(t_stop), color="k", ls="--", lw=0.8)
             axes[row, i].grid(True, alpha=0.3)
     axes[0, 0].legend(fontsize=8, loc="best")
     axes[1, 0].legend(fontsize=8, loc="best")

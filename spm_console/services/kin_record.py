@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.assess import assess
@@ -50,7 +50,7 @@ class FkGraphSource:
         return self._graph[1]
 
 
-def fk_route(profile: Profile, model: SpmModel, theta_deg: Any, graph: Callable[[], FkGraph],
+def fk_route(profile: Profile, model: SpmModel, theta_deg: ArrayLike, graph: Callable[[], FkGraph],
              start: FkResult | None = None) -> FkResult:
     """Unique FK of θ (deg) with its path: straight from home (or ``start``), else through
     the workspace grid (``graph()`` called only then, and only for θ inside the grid)."""
@@ -72,7 +72,7 @@ class FkPath:
     def waypoints(self) -> int:
         return len(self.waypoints_deg)
 
-    def as_json(self) -> dict[str, Any]:
+    def as_json(self) -> dict[str, object]:
         """The ``path`` key: route, waypoints (count), waypoints_deg."""
         return {"route": self.route, "waypoints": self.waypoints,
                 "waypoints_deg": [list(p) for p in self.waypoints_deg]}
@@ -115,7 +115,7 @@ class FkRecord:
     modes: tuple[AssemblyMode, ...] | None = None
     """Every assembly mode at θ, when asked for."""
 
-    def as_json(self) -> dict[str, Any]:
+    def as_json(self) -> dict[str, object]:
         """The ``fk --json`` record: these keys in this order after ``"ok": true``."""
         rec: dict[str, Any] = {
             "ok": True,
@@ -154,7 +154,7 @@ def fk_result(profile: Profile, model: SpmModel, links: LinkModel, r: FkResult,
                     path_min_zeta=r.path_min_zeta, path=fk_path(r), modes=modes)
 
 
-def fk_record(profile: Profile, model: SpmModel, links: LinkModel, r: FkResult) -> dict[str, Any]:
+def fk_record(profile: Profile, model: SpmModel, links: LinkModel, r: FkResult) -> dict[str, object]:
     """The JSON record of one FK result (the CLI's JSON keys, plus ``path`` when known);
     an unsolved one says why."""
     if not r.ok or r.pose is None:

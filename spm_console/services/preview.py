@@ -139,9 +139,9 @@ def _preview(twin: Profile, start: F | None, execution: ExecutionResult,
 def _peak_current(runs: list[RunData | None]) -> F | None:
     """The largest winding current per motor the twin told over these runs' logs (events
     ``peak_current``), A; None when none told one."""
-    peaks = [np.asarray(e["peak_current_a"], float) for r in runs if r is not None
-             for e in r.events if e.get("event") == "peak_current"
-             and isinstance(e.get("peak_current_a"), list) and len(e["peak_current_a"]) == 3]
+    told = [e.get("peak_current_a") for r in runs if r is not None
+            for e in r.events if e.get("event") == "peak_current"]
+    peaks = [np.asarray(p, float) for p in told if isinstance(p, list) and len(p) == 3]
     return np.max(peaks, axis=0) if peaks else None
 
 

@@ -111,7 +111,7 @@ def read_imu(run_dir: Path) -> list[ImuRow]:
     return rows
 
 
-def imu_message(stamp: dict[str, Any], row: ImuRow) -> dict[str, Any]:
+def imu_message(stamp: dict[str, object], row: ImuRow) -> dict[str, object]:
     """``row`` as a sensor_msgs/msg/Imu (``stamp``: the header, frame ``imu``)."""
     zeros = [0.0] * 9
     rad = math.pi / 180.0

@@ -39,7 +39,7 @@ import datetime as dt
 import json
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -104,7 +104,7 @@ MOTORS = ("joint1", "joint2", "joint3")
 URDF_JOINTS = JOINT_STATE_NAMES
 
 
-def start_ns(meta: dict[str, Any]) -> int:
+def start_ns(meta: Mapping[str, object]) -> int:
     """The run's wall-clock start, ns since the epoch (0 when meta.json does not say)."""
     try:
         return int(dt.datetime.fromisoformat(str(meta["start_time"])).timestamp() * 1e9)

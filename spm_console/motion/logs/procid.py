@@ -15,7 +15,6 @@ from __future__ import annotations
 import os
 import socket
 from pathlib import Path
-from typing import Any
 
 BOOT_ID = Path("/proc/sys/kernel/random/boot_id")
 
@@ -41,14 +40,14 @@ def _stat(pid: int) -> tuple[str, int] | None:
         return None
 
 
-def current_process() -> dict[str, Any]:
+def current_process() -> dict[str, object]:
     """The record of this process (stored in ``meta.json`` as ``process``)."""
     st = _stat(os.getpid())
     return {"pid": os.getpid(), "host": socket.gethostname(), "boot_id": _boot_id(),
             "start_ticks": None if st is None else st[1]}
 
 
-def writer_alive(record: Any) -> bool | None:
+def writer_alive(record: object) -> bool | None:
     """Is the process described by ``record`` still running? None when this cannot be told
     (no record, another host)."""
     if not isinstance(record, dict) or not isinstance(record.get("pid"), int) or record["pid"] <= 0:

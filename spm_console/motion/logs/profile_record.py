@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from typing import Any
+from collections.abc import Mapping
 
 from spm_console.config.schema import Profile
 
@@ -37,7 +37,7 @@ def wrist_digests(profile: Profile) -> dict[str, str]:
     return out
 
 
-def other_wrist(logged: dict[str, Any], profile: Profile) -> list[str] | None:
+def other_wrist(logged: Mapping[str, object], profile: Profile) -> list[str] | None:
     """The wrist's sections in which a run's ``profile`` record differs from ``profile`` ([]:
     none, the same wrist); None when the record has no wrist digests (a run logged before
     they were recorded)."""

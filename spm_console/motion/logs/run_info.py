@@ -177,8 +177,8 @@ def _stop_kind(meta: Mapping[str, Any], events: Sequence[Any] | None,
     return kind
 
 
-def run_info(name: str, meta: Mapping[str, Any],
-             events: Sequence[Any] | None = None) -> RunInfo:
+def run_info(name: str, meta: Mapping[str, object],
+             events: Sequence[object] | None = None) -> RunInfo:
     """The typed record of run ``name`` from its meta.json (already checked for liveness,
     see ``runlog.with_liveness``) and, optionally, its events."""
     outcome = _str(meta.get("outcome")) or "?"

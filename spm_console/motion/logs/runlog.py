@@ -30,7 +30,7 @@ import math
 import os
 import platform
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -110,7 +110,7 @@ def _fmt(x: float) -> str:
 class RunLog:
     """Writer of one run folder. Create with :meth:`create`; call :meth:`finish` at the end."""
 
-    def __init__(self, path: Path, meta: dict[str, Any], flush_every: int) -> None:
+    def __init__(self, path: Path, meta: dict[str, object], flush_every: int) -> None:
         self.path = path
         self.meta = meta
         self.flush_every = max(1, flush_every)
@@ -133,10 +133,10 @@ class RunLog:
         kind: str,
         profile_name: str,
         profile_hash: str,
-        plans: list[dict[str, Any]],
+        plans: Sequence[Mapping[str, object]],
         root: str | Path | None = None,
         flush_every: int = FLUSH_EVERY,
-        extra: dict[str, Any] | None = None,
+        extra: Mapping[str, object] | None = None,
         wrist: dict[str, str] | None = None,
     ) -> RunLog:
         """Make ``<root>/<YYYYmmdd-HHMMSS>-<kind>[-n]/`` and write the initial meta.json;
@@ -196,7 +196,7 @@ class RunLog:
         if self._pending >= self.flush_every:
             self.flush()
 
-    def event(self, name: str, t: float, /, **data: Any) -> None:
+    def event(self, name: str, t: float, /, **data: object) -> None:
         """Append one event line ``{"t", "event": name, **data}`` and flush it at once."""
         rec = {"t": round(t, 6), "event": name, **data}
         self._events.write(json.dumps(to_jsonable(rec)) + "\n")
@@ -207,7 +207,7 @@ class RunLog:
         self._samples.flush()
         self._pending = 0
 
-    def finish(self, outcome: str, exit_code: int, message: str, stats: dict[str, Any]) -> None:
+    def finish(self, outcome: str, exit_code: int, message: str, stats: Mapping[str, object]) -> None:
         """Flush everything and rewrite meta.json with the outcome."""
         self.flush()
         self.meta.update(
@@ -240,11 +240,11 @@ class RunData:
     """A run read back from disk."""
 
     path: Path
-    meta: dict[str, Any]
+    meta: dict[str, object]
     columns: dict[str, F]
     """Numeric columns by name (NaN for empty cells)."""
     phase: list[str]
-    events: list[dict[str, Any]]
+    events: list[dict[str, object]]
     truncated: bool
     """True when a partial last line was dropped (the writer was killed mid-row)."""
 
@@ -293,17 +293,18 @@ def _read_meta(path: Path) -> dict[str, Any]:
     return with_liveness(meta) if isinstance(meta, dict) else {}
 
 
-def with_liveness(meta: dict[str, Any]) -> dict[str, Any]:
+def with_liveness(meta: dict[str, object]) -> dict[str, object]:
     """``meta`` with outcome ``killed`` when it says ``running`` but its writer is gone
     (SIGKILL, power loss, crash); the file itself is left as it is."""
     if meta.get("outcome") != "running" or writer_alive(meta.get("process")) is not False:
         return meta
     proc = meta["process"]
-    msg = f"process {proc['pid']} ended without closing its log (rows up to its last flush kept)"
+    pid = proc.get("pid") if isinstance(proc, dict) else "?"  # a dict: writer_alive told
+    msg = f"process {pid} ended without closing its log (rows up to its last flush kept)"
     return {**meta, "outcome": "killed", "message": meta.get("message") or msg}
 
 
-def append_events(run_dir: Path, events: list[dict[str, Any]]) -> None:
+def append_events(run_dir: Path, events: Sequence[Mapping[str, object]]) -> None:
     """Add events seen outside the servo loop to a finished run's ``events.jsonl`` (one line
     each, ``{"t", "event", …}``): the emulated wrist's leg contacts, told by its own process
     after the run."""
@@ -360,7 +361,7 @@ def load_run(run: str | Path, root: str | Path | None = None) -> RunData:
 @dataclass(frozen=True)
 class RunSummary:
     path: Path
-    meta: dict[str, Any]
+    meta: dict[str, object]
 
     @property
     def name(self) -> str:

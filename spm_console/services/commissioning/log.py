@@ -12,9 +12,8 @@ signal), ``refused`` (an operator error, a stage that failed), ``error`` (a bug)
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 from spm_console.config.schema import Profile
 from spm_console.devices.imu.bno055 import ImuSample
@@ -36,7 +35,7 @@ class CommissionLog:
         self.imu_rows = ImuCsv(run.path, self.t0)
 
     @classmethod
-    def create(cls, profile: Profile, root: str | Path | None, **commission: Any) -> CommissionLog:
+    def create(cls, profile: Profile, root: str | Path | None, **commission: object) -> CommissionLog:
         """``commission``: what the operator asked (ports, jig, IMU stage), in ``meta.json``."""
         run = RunLog.create("commission", profile.name, profile.digest(), [], root=root,
                             extra={"commission": commission}, wrist=wrist_digests(profile))
@@ -50,7 +49,7 @@ class CommissionLog:
     def _t(self) -> float:
         return time.monotonic() - self.t0
 
-    def event(self, name: str, **data: Any) -> None:
+    def event(self, name: str, **data: object) -> None:
         if not self.run.finished:
             self.run.event(name, self._t(), **data)
 
@@ -83,7 +82,7 @@ class CommissionLog:
             self.imu_rows.add(sample)
 
     def finish(self, outcome: str, exit_code: int, message: str,
-               stats: dict[str, Any] | None = None) -> None:
+               stats: Mapping[str, object] | None = None) -> None:
         if self.run.finished:
             return
         self.event(outcome, message=message, exit_code=exit_code)

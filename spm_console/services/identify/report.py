@@ -5,7 +5,6 @@ shows), and the identified profile's text made from the profile file in use."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from spm_console.config.schema import Profile, Servo
 from spm_console.core.servo.experiment import ExperimentFit
@@ -31,7 +30,7 @@ def _fit_dict(r: IdentifyResult) -> dict[str, float]:
             "delay_s": r.delay_s, "rms_deg": r.rms_deg}
 
 
-def fit_data(run: ExperimentRun, fit: ExperimentFit, servo: Servo) -> dict[str, Any]:
+def fit_data(run: ExperimentRun, fit: ExperimentFit, servo: Servo) -> dict[str, object]:
     """The fit as JSON (``identify --experiment --json``; the front end adds what it wrote)."""
     a, s = fit.assessment, fit.shared
     return {
