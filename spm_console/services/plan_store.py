@@ -71,11 +71,15 @@ class PlanStore:
         self.source: str | None = None
         """The file the current plan was loaded from (None: solved in this session)."""
 
-    def require(self) -> Plan:
-        """The current plan, else BadInputError (none was solved or opened)."""
+    def require(self, doing: str = "execute") -> Plan:
+        """The current plan, else BadInputError saying there is none to ``doing``."""
         if self.plan is None:
-            raise BadInputError("no plan to execute: solve one first", Issue.NO_PLAN)
+            raise BadInputError(f"no plan to {doing}: solve one first", Issue.NO_PLAN)
         return self.plan
+
+    def clear(self) -> None:
+        """No current plan (a refused or failed solve took the place of the one shown)."""
+        self.plan, self.info, self.source = None, None, None
 
     def solve(
         self,
@@ -87,11 +91,13 @@ class PlanStore:
         vmax_degps: float | None = None,
         intersample: int = 1,
         hold_first: bool = True,
+        start_read: bool = False,
     ) -> Plan:
         """MVN (30) in ``steps`` intervals or minimum time (31) under ``vmax_degps`` (default
         the profile's limit), in P or a region grown around the segment, inside the servo
         limits (:func:`~spm_console.services.plan_request.plan_motion`); ``current_deg``:
-        the measured θ a 'current' start or goal stands for. Kept as the current plan."""
+        the measured θ a 'current' start or goal stands for; ``start_read``: it was read from
+        the servos just before solving (said in :class:`PlanInfo`). Kept as the current plan."""
         from spm_console.services.plan_request import PlanRequest, plan_motion
 
         wrist = self.wrist
@@ -104,7 +110,7 @@ class PlanStore:
         self.source = None
         self.info = PlanInfo(method=method, start=start.describe(), goal=goal.describe(),
                              start_deg=s, goal_deg=g, vmax_degps=vmax,
-                             region=planned.describe_region())
+                             region=planned.describe_region(), start_read=start_read)
         return self.plan
 
     def open(self, path: str | Path) -> Plan:

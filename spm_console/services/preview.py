@@ -30,7 +30,7 @@ from spm_console.core.kinematics.model import platform_axes
 from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.core.workspace.margin import certified_margin_deg
-from spm_console.errors import BadInputError, Issue
+from spm_console.errors import BadInputError
 from spm_console.motion.logs.mcap_log import platform_rotations
 from spm_console.motion.logs.runlog import RunData, load_run
 from spm_console.motion.segments import ExecutionResult
@@ -164,9 +164,7 @@ def preview_in_session(session: Session, source: str | None = None) -> Preview:
     wrist now (through its own connection: the bus has one owner), the homing the session
     made taken as done. Runs in the caller's thread; the session's bus is not touched
     beyond that one read."""
-    plan = session.plans.plan
-    if plan is None:
-        raise BadInputError("no plan to preview: solve one first", Issue.NO_PLAN)
+    plan = session.plans.require("preview")
     if not session.homed:
         raise BadInputError("the wrist is not homed: the preview starts where a homed wrist "
                             "rests")

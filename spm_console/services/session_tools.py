@@ -24,6 +24,7 @@ from spm_console.motion.servo_tools import ServoHealth, jog_target
 from spm_console.refusals import Refusal
 
 if TYPE_CHECKING:
+    from spm_console.core.plan import Plan
     from spm_console.motion.sample import Sample
     from spm_console.motion.segments import ExecutionResult
     from spm_console.services.client import MotionClient
@@ -33,7 +34,8 @@ F = NDArray[np.float64]
 
 class MotionHost(Protocol):
     """What the session's tools need of the session that owns the bus: its profile, the last
-    θ measured (deg), one motion at a time and its planned duration (s)."""
+    θ measured (deg), one motion at a time and its planned duration (s), and its execution
+    of a plan (:meth:`Session.execute <spm_console.services.session.Session.execute>`)."""
 
     profile: Profile
     theta_deg: F | None
@@ -48,6 +50,9 @@ class MotionHost(Protocol):
     def read_position(self) -> F: ...
 
     def run_motion(self, fn: Callable[[], ExecutionResult]) -> ExecutionResult: ...
+
+    def execute(self, plan: Plan, on_sample: Callable[[Sample], None] | None = None,
+                skip_homing: str = "", source: str | None = None) -> ExecutionResult: ...
 
 
 class ServoTools:
@@ -120,11 +125,8 @@ class ServoTools:
         from spm_console.motion.plans import line_plan
 
         theta0, target = self.jog_plan_target(joint, step_deg)
-        client = self.host.require_bus()
         profile = self.host.profile
         plan = line_plan(profile, theta0, target, profile.safety.home_speed_degps, kind="jog")
-        self.host.motion_total_s = plan.duration_s
-        tol = profile.safety.approach_tolerance_deg
         source = (f"jog: joint {joint} by {step_deg:+g}° "
                   f"({theta0[joint - 1]:.2f}° to {target[joint - 1]:.2f}°)")
-        return self.host.run_motion(lambda: client.execute(plan, on_sample, tol, "", source))
+        return self.host.execute(plan, on_sample, source=source)

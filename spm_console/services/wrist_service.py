@@ -1,8 +1,7 @@
 """The wrist's geometry for one profile, without a bus: unique FK with its path, IK, poses
 as the operator gives them, and the workspace (loaded from the cache or built) with its θ
 checks. A part of the operator session (:class:`~spm_console.services.session.Session`
-holds one as ``session.wrist``); the CLI's one-off commands need no more than this.
-Angles in degrees, lengths in mm.
+holds one as ``session.wrist``). Angles in degrees, lengths in mm.
 """
 
 from __future__ import annotations

@@ -3,7 +3,6 @@ minimum time, solved in a worker; result table and plots."""
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 from typing import ClassVar
 
@@ -232,9 +231,8 @@ class PlanScreen(StepScreen):
             if read:
                 s.read_position()
             plan = s.plans.solve(method, start, goal, s.theta_deg,  # type: ignore[arg-type]
-                                 steps, vmax, intersample=k, hold_first=hold_first)
-            if s.plans.info is not None:
-                s.plans.info = replace(s.plans.info, start_read=read and start.kind == "current")
+                                 steps, vmax, intersample=k, hold_first=hold_first,
+                                 start_read=read and start.kind == "current")
             return PlanSolved(plan)
 
         self.run_blocking("solve", solve,
@@ -360,8 +358,7 @@ class PlanScreen(StepScreen):
         """The plan a refused or failed solve would have replaced is gone from the screen,
         the 3D view and the session: "execute" never runs a plan the operator tried to
         replace."""
-        self.session.plans.plan = None
-        self.session.plans.info = None
+        self.session.plans.clear()
         self.console.view.clear_path()
         self.query_one("#plan-text", Static).update(Content(text))
         self.query_one("#plan-plot", PlotView).plot("no plan", np.zeros(0), [])

@@ -86,8 +86,11 @@ class Solved:
     """(H, 3) θ*."""
     reason: str
     """Empty when the answer passed the check; 'infeasible'; or why it failed."""
-    timed_out: bool = False
-    """Stopped by the time limit (``reason`` then begins with :data:`OUT_OF_TIME`)."""
+
+    @property
+    def timed_out(self) -> bool:
+        """Stopped by the time limit (its reason, from :func:`out_of_time`)."""
+        return self.reason.startswith(OUT_OF_TIME)
 
 
 class OsqpFollow:
@@ -130,7 +133,6 @@ class OsqpFollow:
         it = 0
         status = ""
         reason = ""
-        timed_out = False
         x = y = th = om = ref = np.zeros(0)
         best: tuple[str, F, F, F, F, F] | None = None  # a checked but unpolished answer
         limit = self.settings.time_limit_s if timed else None
@@ -143,7 +145,6 @@ class OsqpFollow:
                 left = limit - (time.perf_counter() - t0)
                 if left <= 0:
                     reason = out_of_time(limit, it)
-                    timed_out = True
                     break
                 self.solver.update_settings(time_limit=left)
             res = self.solver.solve(raise_error=False)
@@ -172,5 +173,5 @@ class OsqpFollow:
         if reason and reason != "infeasible" and best is not None:
             status, x, y, th, om, ref = best
             reason = ""
-        return Solved(status, it, x, y, th, om, ref, reason, timed_out and bool(reason))
+        return Solved(status, it, x, y, th, om, ref, reason)
 

@@ -298,12 +298,12 @@ class FollowSolver:
         if timed and limit is not None:
             left = limit - (time.perf_counter() - t0)
             if left <= 0:
-                return Solved("", 0, *(empty,) * 5, out_of_time(limit, 0), timed_out=True)
+                return Solved("", 0, *(empty,) * 5, out_of_time(limit, 0))
         assert self._daqp is not None
         ans = self._daqp.solve(th0, om0, targets, prev, cold=cold, time_limit_s=left)
         if ans.flag == DAQP_TIME_LIMIT and limit is not None:
             return Solved(ans.status, ans.iterations, *(empty,) * 5,
-                          out_of_time(limit, ans.iterations), timed_out=True)
+                          out_of_time(limit, ans.iterations))
         if ans.flag != DAQP_OPTIMAL:
             return Solved(ans.status, ans.iterations, empty, empty, empty, empty, empty,
                            ans.status)
