@@ -28,7 +28,7 @@ from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.route_search import RouteChoice, find_route, solve_route_mvn
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions.choice import RegionChoice, choose_region
-from spm_console.core.regions.cover import connected_graph
+from spm_console.core.regions.connect import connected_graph
 from spm_console.core.workspace.build import check_theta
 from spm_console.core.workspace.check import ThetaCheck
 from spm_console.core.workspace.data import Workspace

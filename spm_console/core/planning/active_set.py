@@ -31,6 +31,23 @@ REG_DUAL = 1e-9
 REFINE_STEPS = 12
 
 
+@dataclass(frozen=True)
+class WorkingSet:
+    """Pool rows held at a bound: ``rows`` (pool indices) and ``side`` (+1 upper, −1 lower)."""
+
+    rows: I
+    side: I
+
+    def usable(self, pool: Pool) -> WorkingSet:
+        """The rows whose bound on their side is finite in ``pool`` (a row of a region the
+        motion no longer visits at that sample has an infinite bound and cannot be held)."""
+        rows = self.rows[self.rows < pool.m]
+        side = self.side[self.rows < pool.m]
+        bound = np.where(side > 0, pool.hi[rows], pool.lo[rows])
+        keep = np.isfinite(bound)
+        return WorkingSet(rows[keep], side[keep])
+
+
 @dataclass
 class ActiveSetResult:
     """Outcome of :func:`refine`."""

@@ -171,10 +171,13 @@ def check_horizon(model: ServoModel, start_deg: F, goal_deg: F, vmax_degps: floa
         Issue.SPEED_TOO_LOW)
 
 
-def _decide(problem: PlanProblem, guess: F) -> tuple[QpOutcome, Any]:
+def _decide(problem: PlanProblem, guess: F, expect_feasible: bool) -> tuple[QpOutcome, Any]:
+    """Solve one N's QP. Where it is expected infeasible (below an N found feasible) the
+    screened Clarabel solve goes first: its certificate decides at once, where the dual active
+    set would first hold a row for each constraint the optimum would need."""
     eq = equalities(problem)
     pool = Pool(problem)
-    return solve_qp(eq, pool, guess, backend="clarabel"), eq
+    return solve_qp(eq, pool, guess, backend="clarabel", try_active_set=expect_feasible), eq
 
 
 def solve_mintime_problem(problem: PlanProblem) -> MintimeResult:
@@ -199,7 +202,7 @@ def solve_mintime_problem(problem: PlanProblem) -> MintimeResult:
         t1 = time.perf_counter()
         pb = problem.with_steps(n)
         guess = rescaled_guess(best, n) if best is not None else straight_guess(pb)
-        out, eq = _decide(pb, guess)
+        out, eq = _decide(pb, guess, expect_feasible=hi_feas is None)
         calls += out.solver_calls
         trace.append(SearchStep(N=n, verdict=out.status, method=out.method,
                                 seconds=time.perf_counter() - t1))

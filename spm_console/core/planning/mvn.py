@@ -7,6 +7,7 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.planning.active_set import WorkingSet
 from spm_console.core.planning.problem import Layout, PlanProblem
 from spm_console.core.planning.qp_build import Equalities, Pool, equalities
 from spm_console.core.planning.result import PlanResult
@@ -38,19 +39,33 @@ def straight_guess(problem: PlanProblem) -> F:
     return z
 
 
+def solution_guess(result: PlanResult) -> F:
+    """The z vector of a solved plan (screening guess for a neighbouring problem of the same N)."""
+    N = result.N
+    z = np.empty(Layout(N).n)
+    z[: 6 * (N + 1)] = np.hstack([result.position_deg, result.velocity_degps]).ravel()
+    z[6 * (N + 1):] = result.reference_deg[:N].ravel()
+    return z
+
+
 def run_qp(problem: PlanProblem, guess: F | None = None,
-           backend: Backend = "clarabel") -> tuple[Equalities, QpOutcome]:
+           backend: Backend = "clarabel",
+           warm: WorkingSet | None = None) -> tuple[Equalities, QpOutcome]:
     """Build and solve the QP of ``problem`` (after checking start and goal are in P).
 
-    ``backend`` solves the screened QP when the exact active set does not certify at
-    once (Clarabel by default: measured faster and more robust than OSQP here, see
-    benchmarks/bench_plan.py); if it fails the other backend is tried.
+    ``warm``, the working set of a neighbouring problem with the same pool, starts the
+    dual active set (its rows with an infinite bound here are left out). ``backend`` solves
+    the screened QP when the dual active set does not certify (Clarabel by default: measured
+    faster and more robust than OSQP here, see benchmarks/bench_plan.py); if it fails the
+    other backend is tried.
     """
     problem.check_endpoints()
     eq = equalities(problem)
     pool = Pool(problem)
     g = straight_guess(problem) if guess is None else guess
-    out = solve_qp(eq, pool, g, backend=backend)
+    ws = warm.usable(pool) if warm is not None else None
+    out = solve_qp(eq, pool, g, None if ws is None else ws.rows, None if ws is None else ws.side,
+                   backend=backend)
     if out.status == "failed" or (out.status == "solved" and not out.certified):
         first = out
         other: Backend = "osqp" if backend == "clarabel" else "clarabel"
@@ -97,15 +112,17 @@ def finish(problem: PlanProblem, eq: Equalities, out: QpOutcome, t0: float,
             + (f"; the runtime's rules: {report.runtime_rule}" if report.runtime_rule else "")
             + f"); method {out.method}")
     info = out.info()
+    working = WorkingSet(out.active, out.side) if out.certified else None
     return PlanResult("optimal", problem, ref, pos, vel, float((vel**2).sum()),
-                      time.perf_counter() - t0, out.qp_count + qp_extra, report, info)
+                      time.perf_counter() - t0, out.qp_count + qp_extra, report, info, working)
 
 
 def solve_problem(problem: PlanProblem, guess: F | None = None,
-                  backend: Backend = "clarabel") -> PlanResult:
-    """Solve (30) for ``problem``; raises InfeasibleError / SolverError with the reason."""
+                  backend: Backend = "clarabel", warm: WorkingSet | None = None) -> PlanResult:
+    """Solve (30) for ``problem``; raises InfeasibleError / SolverError with the reason.
+    ``warm``: see :func:`run_qp`."""
     t0 = time.perf_counter()
-    eq, out = run_qp(problem, guess, backend)
+    eq, out = run_qp(problem, guess, backend, warm)
     if out.status == "infeasible":
         extra = f" under v_max = {problem.vmax_degps}°/s" if problem.vmax_degps else ""
         raise InfeasibleError(

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.plan import Plan, PlanOptions, Vec3
 from spm_console.core.plan_report import ConstraintReport
+from spm_console.core.planning.active_set import WorkingSet
 from spm_console.core.planning.problem import PlanProblem
 
 F = NDArray[np.float64]
@@ -35,6 +36,9 @@ class PlanResult:
     check: ConstraintReport
     info: dict[str, Any] = field(default_factory=dict)
     """Solver details: screening rounds, rows used, iterations, polished."""
+    working_set: WorkingSet | None = None
+    """The pool rows at a bound at the optimum (certified by the KKT conditions): a warm
+    start for a neighbouring problem with the same pool (another switch sample)."""
 
     @property
     def N(self) -> int:

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.planning.mvn import solve_problem
+from spm_console.core.planning.mvn import solution_guess, solve_problem
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.result import PlanResult
 from spm_console.core.polytope.graph import waypoint_paths
@@ -150,7 +150,8 @@ def improve_switches(problem: PlanProblem, first: PlanResult,
                     cand_route = replace(best.problem.regions, switch=tuple(sw))
                     qps += 1
                     try:
-                        cand = solve_problem(best.problem.with_route(cand_route))
+                        cand = solve_problem(best.problem.with_route(cand_route),
+                                             solution_guess(best), warm=best.working_set)
                     except InfeasibleError:
                         break
                     if cand.cost >= best.cost - 1e-9 * max(1.0, best.cost):

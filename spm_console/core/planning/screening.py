@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.plan_report import Certificate
 from spm_console.core.planning.active_set import refine
+from spm_console.core.planning.dual_active_set import dual_active_set
 from spm_console.core.planning.qp_build import Equalities, Pool
 from spm_console.core.planning.solvers.base import QpSolution, QpSolver
 from spm_console.core.planning.solvers.clarabel_qp import ClarabelQp
@@ -94,7 +95,7 @@ def solve_qp(eq: Equalities, pool: Pool, guess: F, active: I | None = None,
     t0 = time.perf_counter()
     kkt = 0
     if try_active_set:
-        r = refine(eq, pool, active, side, max_solves=FIRST_SOLVES)
+        r = dual_active_set(eq, pool, active, side)
         kkt += r.solves
         if r.ok:
             return QpOutcome("solved", r.z, "active-set", 0, kkt, 0, r.active.size, pool.m, 0, True,

@@ -3,7 +3,7 @@ them, which regions hold a point, and the one cheapest-path search over them.
 
 A cover's regions (:class:`~spm_console.core.polytope.cover.RegionCover`), possibly with
 regions grown around points no cover region holds
-(:func:`~spm_console.core.regions.cover.connected_graph`), form a :class:`RegionGraph`: two
+(:func:`~spm_console.core.regions.connect.connected_graph`), form a :class:`RegionGraph`: two
 regions are joined when their intersection holds a ball (its centre: the switch point).
 Both ways of moving across it search it with :func:`cheapest_paths`, each with its own edge
 cost:

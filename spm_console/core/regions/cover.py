@@ -71,7 +71,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.polytope.cover import RegionCover
-from spm_console.core.polytope.graph import RegionGraph, containing
 from spm_console.core.polytope.iris import Frame, half_widths
 from spm_console.core.polytope.region import INSIDE_TOL_DEG, Region
 from spm_console.core.regions import p_build as rb
@@ -107,9 +106,6 @@ COVER_HALFSPACES = 24
 COVER_ITERS = 2
 #: Smallest inscribed-ball radius of an overlap that makes an edge, in grid steps Δ.
 MIN_OVERLAP_STEPS = 0.25
-#: Half-width, in grid steps, of the neighbourhood whose feasible nodes a connector
-#: region (grown around a plan's end outside the cover) tries to hold.
-CONNECTOR_REACH_STEPS = 8
 #: Points per membership test of P while the cover build starts (bounds the report gaps).
 CONTAINS_CHUNK = 50_000
 _S = S_CYCLIC
@@ -266,48 +262,3 @@ def uncertified_regions(ws: Workspace, cover: RegionCover, fine: FineGrid | None
     fg = FineGrid(ws) if fine is None else fine
     return [k for k, r in enumerate(cover.regions)
             if len(uncertified_cells(ws, r, fg, tol_deg))]
-
-
-def connected_graph(ws: Workspace, cover: RegionCover, points_deg: F,
-                    iters: int = COVER_ITERS) -> RegionGraph:
-    """The cover's region graph with a region grown (like cover regions, same obstacles, so
-    certified alike) around each of ``points_deg`` (k, 3) that no cover region (nor one grown
-    before it) holds — a configuration on the boundary of the certified set — joined to the
-    others by its overlaps (radius ≥ the cover's ``min_overlap_deg``). The grown regions
-    (``grown`` of them) come after the cover's. Grown on demand for a plan's ends or a
-    follower's start; never stored. InfeasibleError when a point sits inside an obstacle cube
-    (it is not certified)."""
-    lo, hi = ws.range_deg()
-    frame = Frame(np.full(3, 0.5 * (lo + hi)), 0.5 * (hi - lo))
-    theta = ws.theta_deg()
-    grower = Grower(frame, frame.to_x(rb.obstacle_nodes(ws.feasible, theta)),
-                     ws.step_deg / frame.s, COVER_HALFSPACES, iters, ws.step_deg)
-    feasible = theta[ws.feasible]
-    new: list[Region] = []
-    for p in np.asarray(points_deg, float).reshape(-1, 3):
-        if cover.containing(p) or containing(new, p):
-            continue
-        # the heuristics' objective: the feasible nodes around the point (a connector only
-        # has to reach into the cover, and the whole grid makes each step 10× slower)
-        near = feasible[np.abs(feasible - p).max(axis=1) <= CONNECTOR_REACH_STEPS * ws.step_deg]
-        new.append(grower.grow(p, near))
-    pairs, pts = _connector_overlaps(cover, new)
-    return RegionGraph((*cover.regions, *new), np.vstack([cover.edges, pairs]),
-                       np.vstack([cover.edge_points_deg, pts]), grown=len(new))
-
-
-def _connector_overlaps(cover: RegionCover, new: list[Region]) -> tuple[I64, F]:
-    """The overlaps (inscribed radius ≥ the cover's ``min_overlap_deg``) of each region of
-    ``new`` with the cover's regions and the regions of ``new`` before it: (m, 2) pairs
-    (i, j), i < j, indexing ``(*cover.regions, *new)``, and their Chebyshev centres (m, 3)."""
-    pairs: list[tuple[int, int]] = []
-    pts: list[F] = []
-    n = len(cover.regions)
-    for k, r in enumerate(new):
-        for i, other in enumerate((*cover.regions, *new[:k])):
-            both = Region(np.vstack([r.A, other.A]), np.r_[r.b, other.b])
-            c, rad = both.chebyshev()
-            if rad >= cover.min_overlap_deg:
-                pairs.append((i, n + k))
-                pts.append(c)
-    return np.asarray(pairs, np.int64).reshape(-1, 2), np.asarray(pts, float).reshape(-1, 3)

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.planning.follow.tolerance import FOLLOW_TOL_DEG
 from spm_console.core.polytope.graph import RegionGraph
-from spm_console.core.regions.cover import connected_graph
+from spm_console.core.regions.connect import connected_graph
 from spm_console.errors import BadInputError, InfeasibleError
 from spm_console.formatting import fmt_deg
 

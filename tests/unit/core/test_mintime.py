@@ -86,8 +86,9 @@ def test_an_infeasibility_whose_certificate_does_not_check_out_is_searched_past(
     honest = solve_mintime(MODEL, START_MT, GOAL, BOX, 50.0)
     real = mt._decide
 
-    def shaky(problem: PlanProblem, guess: np.ndarray):  # type: ignore[no-untyped-def]
-        out, eq = real(problem, guess)
+    def shaky(problem: PlanProblem, guess: np.ndarray,  # type: ignore[no-untyped-def]
+              expect_feasible: bool):
+        out, eq = real(problem, guess, expect_feasible)
         if out.status == "infeasible":
             assert out.certificate is not None
             forged = type(out.certificate)(out.certificate.residual_l1, 1.0, 0.0,

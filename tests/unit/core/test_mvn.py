@@ -5,9 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.core.planning.mvn import solve_mvn, solve_problem
+from spm_console.core.planning.dual_active_set import dual_active_set
+from spm_console.core.planning.mvn import finish, solve_mvn, solve_problem, straight_guess
 from spm_console.core.planning.problem import PlanProblem
-from spm_console.core.planning.qp_build import Pool
+from spm_console.core.planning.qp_build import Pool, equalities
+from spm_console.core.planning.result import PlanResult
+from spm_console.core.planning.screening import Backend, QpOutcome, solve_qp
 from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import discretize
 from spm_console.errors import BadInputError, InfeasibleError
@@ -53,15 +56,41 @@ def test_hard_cases_really_bind() -> None:
     assert {0, 1, 4} <= fams  # region at samples, region between samples, reference bounds
 
 
+def _screened(pb: PlanProblem, backend: Backend) -> tuple[QpOutcome, PlanResult]:
+    """The screened QP solver alone (no dual active set first), then its exact refinement."""
+    eq, pool = equalities(pb), Pool(pb)
+    out = solve_qp(eq, pool, straight_guess(pb), backend=backend, try_active_set=False)
+    return out, finish(pb, eq, out, 0.0)
+
+
 def test_osqp_backend_agrees() -> None:
-    """OSQP on the screened QP (falling back to Clarabel when its active set does not
-    certify: see the benchmark for how often) gives the same optimum."""
-    pb = _problem(HARD_CASES[3])
-    a = solve_problem(pb, backend="clarabel")
-    b = solve_problem(pb, backend="osqp")
-    assert b.info["solver_calls"] >= 1 and b.check.ok
+    """OSQP on the screened QP (the planner's fallback when the dual active set does not
+    certify) gives the optimum Clarabel's gives, its active set certified by refinement."""
+    pb = _problem(HARD_CASES[5])
+    out_a, a = _screened(pb, "clarabel")
+    out_b, b = _screened(pb, "osqp")
+    assert out_a.solver_calls >= 1 and out_b.solver_calls >= 1
+    assert out_b.certified and out_b.active.size > 0 and b.check.ok
     assert b.cost == pytest.approx(a.cost, rel=1e-6)
     assert np.abs(b.reference_deg - a.reference_deg).max() < 1e-3
+
+
+@pytest.mark.parametrize("case", HARD_CASES[2:], ids=lambda c: c.name)
+def test_the_dual_active_set_certifies_what_the_screened_solver_finds(case: Case) -> None:
+    """The dual active set alone (no QP solver call) ends at the optimum the screened
+    Clarabel solve and its refinement certify, with the same working set; started from
+    that working set it certifies at once."""
+    pb = _problem(case)
+    eq, pool = equalities(pb), Pool(pb)
+    dual = dual_active_set(eq, pool)
+    out, screened = _screened(pb, "clarabel")
+    assert dual.ok and dual.z is not None
+    assert set(zip(dual.active.tolist(), dual.side.tolist(), strict=True)) == \
+        set(zip(out.active.tolist(), out.side.tolist(), strict=True))
+    cost = float(dual.z @ (eq.P @ dual.z)) / 2.0
+    assert cost == pytest.approx(screened.cost, rel=1e-9)
+    warm = dual_active_set(eq, pool, dual.active, dual.side)
+    assert warm.ok and warm.solves == 0
 
 
 def test_between_samples_reported_and_intersample_enforced() -> None:

@@ -1,0 +1,275 @@
+"""The QP (30) by a dual active-set method on one factorization of its KKT matrix.
+
+Goldfarb and Idnani's dual method: start from the minimum of ½zᵀPz under the equalities
+alone (every pool row free, multipliers zero: dual feasible), then repeatedly take the most
+violated pool row p and raise its multiplier t along the direction that keeps the working
+set W held and the equalities met. The step stops when p is met (p joins W) or when a
+multiplier of W reaches zero first (that row leaves W, and p's step goes on). The cost rises
+at every step and W never repeats, so the method ends: with every row met (optimal), or with
+a violated row that no step can meet (the QP is infeasible; the caller lets a solver with
+an infeasibility certificate say so).
+
+Every solve uses one sparse LU of K₀ = [[P, Cᵀ], [C, 0]] (the equalities, kept per N: the
+matrices are the same for every start, goal, region and route of that N) and the Schur
+complement of W's rows, a |W| × |W| dense matrix: W changes by a row at a time and each row
+costs one more triangular solve, not a factorization. The end point is solved once more
+with iterative refinement on the unregularized system and checked like
+:func:`~spm_console.core.planning.active_set.refine` does: every pool row met to
+``PRIMAL_TOL`` and every multiplier of W of the right sign — the optimality certificate.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+from spm_console.core.planning.active_set import (
+    DUAL_TOL,
+    PRIMAL_TOL,
+    REG_DUAL,
+    REG_PRIMAL,
+    ActiveSetResult,
+)
+from spm_console.core.planning.qp_build import Equalities, Pool
+
+F = NDArray[np.float64]
+I = NDArray[np.int64]
+
+#: Most dual steps (added or dropped rows) before giving up (the caller falls back).
+MAX_STEPS = 400
+#: Wall-time bound of one solve, s (the caller falls back past it).
+TIME_LIMIT_S = 0.25
+#: A row whose step direction meets it by less than this fraction of its curvature with W
+#: empty is taken as dependent on W and the equalities.
+DEPENDENT = 1e-10
+REFINE_STEPS = 8
+#: Factorizations of K₀ kept (one per N, servo model and θ*(0) rule seen lately).
+CACHE = 8
+
+
+@dataclass(frozen=True)
+class _Kkt:
+    """K₀'s sparse LU and the unregularized matrices, for one (P, C)."""
+
+    P: sp.csc_matrix
+    C: sp.csc_matrix
+    lu: spla.SuperLU
+    n: int
+    m: int
+
+    def solve(self, rhs: F) -> F:
+        return np.asarray(self.lu.solve(rhs))
+
+    def apply(self, y: F) -> F:
+        """K₀ y, unregularized."""
+        z, lam = y[: self.n], y[self.n:]
+        return np.concatenate([self.P @ z + self.C.T @ lam, self.C @ z])
+
+
+_FACTORS: dict[tuple[int, int], _Kkt] = {}
+
+
+def kkt_of(eq: Equalities) -> _Kkt | None:
+    """K₀'s factorization for ``eq``'s matrices (cached by identity: ``equalities`` returns
+    the same matrices for the same N, model and θ*(0) rule); None when it does not factor."""
+    key = (id(eq.P), id(eq.C))
+    hit = _FACTORS.get(key)
+    if hit is not None and hit.P is eq.P and hit.C is eq.C:
+        return hit
+    n, m = eq.P.shape[0], eq.C.shape[0]
+    reg = sp.diags(np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)]))
+    K = sp.bmat([[eq.P, eq.C.T], [eq.C, None]], format="csc") + reg
+    try:
+        lu = spla.splu(sp.csc_matrix(K), permc_spec="COLAMD")
+    except RuntimeError:
+        return None
+    kkt = _Kkt(eq.P, eq.C, lu, n, m)
+    if len(_FACTORS) >= CACHE:
+        _FACTORS.pop(next(iter(_FACTORS)))
+    _FACTORS[key] = kkt
+    return kkt
+
+
+class _Working:
+    """The working set: signed rows a_j = s_j·g_j (dense) held at b_j, with the columns
+    X = K₀⁻¹[a_j; 0] and the Schur complement S = A X (symmetric), updated a row at a time."""
+
+    def __init__(self, kkt: _Kkt, pool: Pool) -> None:
+        self.kkt, self.pool = kkt, pool
+        self.rows: list[int] = []
+        self.side: list[int] = []
+        self.A = np.zeros((0, kkt.n))
+        self.X = np.zeros((kkt.n + kkt.m, 0))
+        self.S = np.zeros((0, 0))
+
+    def signed(self, row: int, side: int) -> tuple[F, float]:
+        """(a, b) of pool row ``row`` held at its bound on ``side``, a dense (n,)."""
+        g = self.pool.rows(np.array([row], np.int64)).toarray().ravel()
+        b = self.pool.hi[row] if side > 0 else -self.pool.lo[row]
+        return (g if side > 0 else -g), float(b)
+
+    def lifted(self, a: F) -> F:
+        return np.concatenate([a, np.zeros(self.kkt.m)])
+
+    def add(self, row: int, side: int, a: F, x: F) -> None:
+        n = self.kkt.n
+        col = self.A @ x[:n]
+        corner = np.array([[float(a @ x[:n])]])
+        self.S = np.block([[self.S, col[:, None]], [col[None, :], corner]])
+        self.A = np.vstack([self.A, a[None]])
+        self.X = np.hstack([self.X, x[:, None]])
+        self.rows.append(row)
+        self.side.append(side)
+
+    def drop(self, j: int) -> None:
+        self.S = np.delete(np.delete(self.S, j, axis=0), j, axis=1)
+        self.A = np.delete(self.A, j, axis=0)
+        self.X = np.delete(self.X, j, axis=1)
+        self.rows.pop(j)
+        self.side.pop(j)
+
+    def rhs(self) -> F:
+        pool = self.pool
+        return np.array([pool.hi[r] if s > 0 else -pool.lo[r]
+                         for r, s in zip(self.rows, self.side, strict=True)])
+
+
+def _solve_w(w: _Working, f: F, b: F) -> tuple[F, F]:
+    """[[K₀, E], [Eᵀ, 0]] [y; μ] = [f; b] through the Schur complement (regularized K₀)."""
+    y0 = w.kkt.solve(f)
+    if not w.rows:
+        return y0, np.zeros(0)
+    mu = np.asarray(np.linalg.solve(w.S, w.A @ y0[: w.kkt.n] - b), float)
+    return y0 - w.X @ mu, mu
+
+
+def _exact(w: _Working, d: F) -> tuple[F, F] | None:
+    """z and μ of W held, refined on the unregularized system; None if it does not solve."""
+    kkt = w.kkt
+    f = np.concatenate([np.zeros(kkt.n), d])
+    b = w.rhs() if w.rows else np.zeros(0)
+    A = w.A
+    try:
+        y, mu = _solve_w(w, f, b)
+        scale = max(1.0, float(np.abs(f).max()), float(np.abs(b).max()) if b.size else 0.0)
+        worst = np.inf
+        for _ in range(REFINE_STEPS + 1):
+            rf = f - kkt.apply(y)
+            if w.rows:
+                rf[: kkt.n] -= A.T @ mu
+            rb = b - A @ y[: kkt.n] if w.rows else np.zeros(0)
+            worst = max(float(np.abs(rf).max()), float(np.abs(rb).max()) if rb.size else 0.0)
+            if not worst > 1e-12 * scale:
+                break
+            dy, dmu = _solve_w(w, rf, rb)
+            y, mu = y + dy, mu + dmu
+    except np.linalg.LinAlgError:
+        return None
+    # the system solved to round-off (as refine's eqp requires), else no answer
+    if not (np.all(np.isfinite(y)) and np.all(np.isfinite(mu))) or not worst <= 1e-9 * scale:
+        return None
+    return y[: kkt.n], mu
+
+
+def _violations(pool: Pool, z: F) -> tuple[F, F]:
+    """(upper, lower) normalized violations of every pool row at z (> 0 = violated)."""
+    gz = pool.values(z)
+    with np.errstate(invalid="ignore"):
+        return (gz - pool.hi) / pool.scale, (pool.lo - gz) / pool.scale
+
+
+def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
+                    side: I | None = None) -> ActiveSetResult:
+    """Solve (30) (see the module docstring), from the working set (active, side) when given
+    (rows whose multiplier comes out negative leave it first); ``ok`` with the certificate."""
+    t0 = time.perf_counter()
+    kkt = kkt_of(eq)
+    if kkt is None:
+        return ActiveSetResult(False, None)
+    w = _Working(kkt, pool)
+    for r, s in zip(np.asarray(active if active is not None else [], np.int64).tolist(),
+                    np.asarray(side if side is not None else [], np.int64).tolist(), strict=True):
+        a, _ = w.signed(r, s)
+        w.add(r, s, a, kkt.solve(w.lifted(a)))
+    f = np.concatenate([np.zeros(kkt.n), eq.d])
+    steps = 0
+    try:
+        z, mu = _start(w, f)
+        while steps < MAX_STEPS and time.perf_counter() - t0 < TIME_LIMIT_S:
+            up, dn = _violations(pool, z)
+            up[[r for r, s in zip(w.rows, w.side, strict=True) if s > 0]] = -np.inf
+            dn[[r for r, s in zip(w.rows, w.side, strict=True) if s < 0]] = -np.inf
+            viol = np.maximum(up, dn)
+            p = int(np.argmax(viol)) if viol.size else -1
+            if p < 0 or not viol[p] > PRIMAL_TOL:
+                break
+            sp_ = 1 if up[p] >= dn[p] else -1
+            ap, bp = w.signed(p, sp_)
+            xp = kkt.solve(w.lifted(ap))
+            base = float(ap @ xp[: kkt.n])
+            t_p = 0.0
+            while True:
+                steps += 1
+                if w.rows:
+                    dmu = -np.linalg.solve(w.S, w.A @ xp[: kkt.n])
+                    dz = -xp[: kkt.n] - w.X[: kkt.n] @ dmu
+                else:
+                    dmu, dz = np.zeros(0), -xp[: kkt.n]
+                curv = -float(ap @ dz)
+                gap = float(ap @ z) - bp
+                t_full = gap / curv if curv > DEPENDENT * max(base, 1e-300) else np.inf
+                neg = np.flatnonzero(dmu < 0)
+                ratios = mu[neg] / -dmu[neg] if neg.size else np.zeros(0)
+                t_drop = float(ratios.min()) if ratios.size else np.inf
+                if not np.isfinite(t_full) and not np.isfinite(t_drop):
+                    return ActiveSetResult(False, z, np.asarray(w.rows, np.int64),
+                                           np.asarray(w.side, np.int64), solves=steps)
+                t = min(t_full, t_drop)
+                if np.isfinite(t_full):
+                    z = z + t * dz
+                mu = mu + t * dmu
+                t_p += t
+                if t_full <= t_drop:
+                    w.add(p, sp_, ap, xp)
+                    mu = np.append(mu, t_p)
+                    break
+                j = int(neg[int(np.argmin(ratios))])
+                w.drop(j)
+                mu = np.delete(mu, j)
+    except np.linalg.LinAlgError:
+        return ActiveSetResult(False, None, solves=steps)
+    return _certify(eq, pool, w, steps)
+
+
+def _start(w: _Working, f: F) -> tuple[F, F]:
+    """The solution with W held, after rows of a negative multiplier left W (dual feasible)."""
+    while True:
+        y, mu = _solve_w(w, f, w.rhs() if w.rows else np.zeros(0))
+        if not mu.size or float(mu.min()) >= 0.0:
+            return y[: w.kkt.n], mu
+        w.drop(int(np.argmin(mu)))
+
+
+def _certify(eq: Equalities, pool: Pool, w: _Working, steps: int) -> ActiveSetResult:
+    """The exact solution on W and its KKT check (as :func:`refine` checks it)."""
+    act = np.asarray(w.rows, np.int64)
+    sd = np.asarray(w.side, np.int64)
+    out = _exact(w, eq.d)
+    if out is None:
+        return ActiveSetResult(False, None, act, sd, solves=steps)
+    z, mu = out
+    up, dn = _violations(pool, z)
+    up[act[sd > 0]] = -np.inf
+    dn[act[sd < 0]] = -np.inf
+    viol = np.maximum(up, dn)
+    maxv = float(viol.max()) if viol.size else 0.0
+    lam = mu * sd  # the multiplier of g z = bound, as refine reports it
+    lam_ref = max(1.0, float(np.abs(mu).max())) if mu.size else 1.0
+    mind = float(mu.min() / lam_ref) if mu.size else 0.0
+    ok = maxv <= PRIMAL_TOL and mind >= -DUAL_TOL
+    return ActiveSetResult(ok, z, act, sd, lam, steps, maxv, mind)
