@@ -27,13 +27,16 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.planning.mvn import solution_guess, solve_problem
+from spm_console.core.planning.active_set import WorkingSet
+from spm_console.core.planning.mvn import finish, run_qp, solution_guess, solve_problem
 from spm_console.core.planning.problem import PlanProblem
+from spm_console.core.planning.qp_build import Equalities
 from spm_console.core.planning.result import PlanResult
+from spm_console.core.planning.screening import QpOutcome
 from spm_console.core.polytope.graph import waypoint_paths
 from spm_console.core.polytope.region import Region
 from spm_console.core.regions.route import RegionRoute, spread
-from spm_console.errors import InfeasibleError, Issue
+from spm_console.errors import InfeasibleError, Issue, SolverError
 
 F = NDArray[np.float64]
 
@@ -133,31 +136,43 @@ class RoutePlan:
 def improve_switches(problem: PlanProblem, first: PlanResult,
                      max_qps: int = MAX_SWITCH_QPS) -> tuple[PlanResult, int]:
     """Move each switch sample while the MVN cost falls (steps 3, then 1), at most
-    ``max_qps`` extra QPs; the best plan and the QPs spent."""
+    ``max_qps`` extra QPs; the best plan and the QPs spent.
+
+    A candidate is compared by the cost of its certified QP solution (½zᵀPz, exact to
+    round-off); only the one kept is simulated and verified (:func:`finish`)."""
     assert problem.route is not None
-    best, qps = first, 0
-    route = problem.route
+    t0 = time.perf_counter()
+    qps = 0
+    route, cost = first.problem.regions, first.cost
+    warm, guess = first.working_set, solution_guess(first)
+    kept: tuple[PlanProblem, Equalities, QpOutcome] | None = None
     for step in (3, 1):
         for i in range(len(route.switch)):
             for sign in (1, -1):
                 while qps < max_qps:
-                    sw = list(best.problem.regions.switch)
+                    sw = list(route.switch)
                     sw[i] += sign * step
                     lo = sw[i - 1] + 1 if i else 1
                     hi = sw[i + 1] - 1 if i + 1 < len(sw) else problem.N - 1
                     if not lo <= sw[i] <= hi:
                         break
-                    cand_route = replace(best.problem.regions, switch=tuple(sw))
+                    cand = problem.with_route(replace(route, switch=tuple(sw)))
                     qps += 1
-                    try:
-                        cand = solve_problem(best.problem.with_route(cand_route),
-                                             solution_guess(best), warm=best.working_set)
-                    except InfeasibleError:
+                    eq, out = run_qp(cand, guess, warm=warm)
+                    if out.status == "infeasible":
                         break
-                    if cand.cost >= best.cost - 1e-9 * max(1.0, best.cost):
+                    if out.status != "solved" or out.z is None:
+                        raise SolverError(f"the QP solvers failed on the MVN problem (N = "
+                                          f"{problem.N}): {out.status} {out.detail}")
+                    c = float(out.z @ (eq.P @ out.z)) / 2.0  # Σ θ̇ᵀθ̇: P is 2 on every θ̇
+                    if c >= cost - 1e-9 * max(1.0, cost):
                         break
-                    best = cand
-    return best, qps
+                    route, cost, kept = cand.regions, c, (cand, eq, out)
+                    warm = WorkingSet(out.active, out.side) if out.certified else None
+                    guess = out.z
+    if kept is None:
+        return first, qps
+    return finish(*kept, t0), qps
 
 
 def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: RouteChoice,
@@ -172,4 +187,7 @@ def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: Rou
     first = solve_problem(pb)
     best, extra = (improve_switches(pb, first) if improve and route.count > 1
                    else (first, 0))
-    return RoutePlan(best, choice, 1 + extra, first.cost, time.perf_counter() - t0)
+    seconds = time.perf_counter() - t0
+    # the plan reports every QP its switch search solved, and their time, not the last one's
+    best = replace(best, solve_seconds=seconds, qp_count=first.qp_count + extra)
+    return RoutePlan(best, choice, 1 + extra, first.cost, seconds)
