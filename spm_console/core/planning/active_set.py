@@ -17,6 +17,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
+from spm_console.core.plan_report import Certificate
 from spm_console.core.planning.qp_build import Equalities, Pool
 
 F = NDArray[np.float64]
@@ -65,6 +66,9 @@ class ActiveSetResult:
     """Largest pool-row violation at z (normalized units)."""
     min_dual: float = -np.inf
     """Smallest sign-corrected multiplier over W, relative to the largest (≥ −tol when ok)."""
+    certificate: Certificate | None = None
+    """A Farkas certificate of infeasibility, when the method found one (checked: see
+    :attr:`Certificate.valid`)."""
 
 
 def eqp(eq: Equalities, pool: Pool, active: I, side: I) -> tuple[F, F] | None:

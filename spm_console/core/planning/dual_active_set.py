@@ -21,13 +21,14 @@ with iterative refinement on the unregularized system and checked like
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
+from spm_console.core.plan_report import Certificate
 from spm_console.core.planning.active_set import (
     DUAL_TOL,
     PRIMAL_TOL,
@@ -36,12 +37,13 @@ from spm_console.core.planning.active_set import (
     ActiveSetResult,
 )
 from spm_console.core.planning.qp_build import Equalities, Pool
+from spm_console.core.planning.solvers.clarabel_qp import check_certificate
 
 F = NDArray[np.float64]
 I = NDArray[np.int64]
 
 #: Most dual steps (added or dropped rows) before giving up (the caller falls back).
-MAX_STEPS = 400
+MAX_STEPS = 40
 #: Wall-time bound of one solve, s (the caller falls back past it).
 TIME_LIMIT_S = 0.25
 #: A row whose step direction meets it by less than this fraction of its curvature with W
@@ -97,19 +99,36 @@ def kkt_of(eq: Equalities) -> _Kkt | None:
 
 class _Working:
     """The working set: signed rows a_j = s_j·g_j (dense) held at b_j, with the columns
-    X = K₀⁻¹[a_j; 0] and the Schur complement S = A X (symmetric), updated a row at a time."""
+    X = K₀⁻¹[a_j; 0] and the Schur complement S = A X (symmetric), updated a row at a time
+    in arrays with room for ``capacity`` rows."""
 
-    def __init__(self, kkt: _Kkt, pool: Pool) -> None:
+    def __init__(self, kkt: _Kkt, pool: Pool, capacity: int) -> None:
         self.kkt, self.pool = kkt, pool
         self.rows: list[int] = []
         self.side: list[int] = []
-        self.A = np.zeros((0, kkt.n))
-        self.X = np.zeros((kkt.n + kkt.m, 0))
-        self.S = np.zeros((0, 0))
+        self._A = np.zeros((capacity, kkt.n))
+        self._Xt = np.zeros((capacity, kkt.n + kkt.m))
+        self._S = np.zeros((capacity, capacity))
+
+    @property
+    def k(self) -> int:
+        return len(self.rows)
+
+    @property
+    def A(self) -> F:
+        return self._A[: self.k]
+
+    @property
+    def X(self) -> F:
+        return self._Xt[: self.k].T
+
+    @property
+    def S(self) -> F:
+        return self._S[: self.k, : self.k]
 
     def signed(self, row: int, side: int) -> tuple[F, float]:
         """(a, b) of pool row ``row`` held at its bound on ``side``, a dense (n,)."""
-        g = self.pool.rows(np.array([row], np.int64)).toarray().ravel()
+        g = self.pool.dense_row(row)
         b = self.pool.hi[row] if side > 0 else -self.pool.lo[row]
         return (g if side > 0 else -g), float(b)
 
@@ -117,19 +136,24 @@ class _Working:
         return np.concatenate([a, np.zeros(self.kkt.m)])
 
     def add(self, row: int, side: int, a: F, x: F) -> None:
-        n = self.kkt.n
-        col = self.A @ x[:n]
-        corner = np.array([[float(a @ x[:n])]])
-        self.S = np.block([[self.S, col[:, None]], [col[None, :], corner]])
-        self.A = np.vstack([self.A, a[None]])
-        self.X = np.hstack([self.X, x[:, None]])
+        k, n = self.k, self.kkt.n
+        if k == self._S.shape[0]:
+            raise np.linalg.LinAlgError("working set full")
+        col = self._A[:k] @ x[:n]
+        self._S[k, :k] = col
+        self._S[:k, k] = col
+        self._S[k, k] = float(a @ x[:n])
+        self._A[k] = a
+        self._Xt[k] = x
         self.rows.append(row)
         self.side.append(side)
 
     def drop(self, j: int) -> None:
-        self.S = np.delete(np.delete(self.S, j, axis=0), j, axis=1)
-        self.A = np.delete(self.A, j, axis=0)
-        self.X = np.delete(self.X, j, axis=1)
+        k = self.k
+        for arr in (self._A, self._Xt):
+            arr[j:k - 1] = arr[j + 1:k]
+        self._S[j:k - 1, :k] = self._S[j + 1:k, :k]
+        self._S[:k, j:k - 1] = self._S[:k, j + 1:k]
         self.rows.pop(j)
         self.side.pop(j)
 
@@ -184,15 +208,18 @@ def _violations(pool: Pool, z: F) -> tuple[F, F]:
 
 
 def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
-                    side: I | None = None) -> ActiveSetResult:
+                    side: I | None = None, max_steps: int = MAX_STEPS) -> ActiveSetResult:
     """Solve (30) (see the module docstring), from the working set (active, side) when given
-    (rows whose multiplier comes out negative leave it first); ``ok`` with the certificate."""
+    (rows whose multiplier comes out negative leave it first); ``ok`` with the optimality
+    certificate, or a Farkas ``certificate`` when a violated row can be met by no step.
+    At most ``max_steps`` steps: the planner's QP solvers take over past them."""
     t0 = time.perf_counter()
     kkt = kkt_of(eq)
     if kkt is None:
         return ActiveSetResult(False, None)
-    w = _Working(kkt, pool)
-    for r, s in zip(np.asarray(active if active is not None else [], np.int64).tolist(),
+    warm_rows = np.asarray(active if active is not None else [], np.int64).tolist()
+    w = _Working(kkt, pool, len(warm_rows) + max_steps)
+    for r, s in zip(warm_rows,
                     np.asarray(side if side is not None else [], np.int64).tolist(), strict=True):
         a, _ = w.signed(r, s)
         w.add(r, s, a, kkt.solve(w.lifted(a)))
@@ -200,7 +227,7 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
     steps = 0
     try:
         z, mu = _start(w, f)
-        while steps < MAX_STEPS and time.perf_counter() - t0 < TIME_LIMIT_S:
+        while steps < max_steps and time.perf_counter() - t0 < TIME_LIMIT_S:
             up, dn = _violations(pool, z)
             up[[r for r, s in zip(w.rows, w.side, strict=True) if s > 0]] = -np.inf
             dn[[r for r, s in zip(w.rows, w.side, strict=True) if s < 0]] = -np.inf
@@ -216,10 +243,11 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
             while True:
                 steps += 1
                 if w.rows:
-                    dmu = -np.linalg.solve(w.S, w.A @ xp[: kkt.n])
-                    dz = -xp[: kkt.n] - w.X[: kkt.n] @ dmu
+                    dmu = -np.asarray(np.linalg.solve(w.S, w.A @ xp[: kkt.n]), float)
+                    dy = -xp - w.X @ dmu
                 else:
-                    dmu, dz = np.zeros(0), -xp[: kkt.n]
+                    dmu, dy = np.zeros(0), -xp
+                dz = dy[: kkt.n]
                 curv = -float(ap @ dz)
                 gap = float(ap @ z) - bp
                 t_full = gap / curv if curv > DEPENDENT * max(base, 1e-300) else np.inf
@@ -228,7 +256,8 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
                 t_drop = float(ratios.min()) if ratios.size else np.inf
                 if not np.isfinite(t_full) and not np.isfinite(t_drop):
                     return ActiveSetResult(False, z, np.asarray(w.rows, np.int64),
-                                           np.asarray(w.side, np.int64), solves=steps)
+                                           np.asarray(w.side, np.int64), solves=steps,
+                                           certificate=_farkas(eq, w, ap, bp, dy[kkt.n:], dmu))
                 t = min(t_full, t_drop)
                 if np.isfinite(t_full):
                     z = z + t * dz
@@ -244,6 +273,18 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
     except np.linalg.LinAlgError:
         return ActiveSetResult(False, None, solves=steps)
     return _certify(eq, pool, w, steps)
+
+
+def _farkas(eq: Equalities, w: _Working, ap: F, bp: float, dlam: F, dmu: F) -> Certificate:
+    """The infeasibility certificate where row p can be met by no step: p depends on W and
+    the equalities (Cᵀdλ + A_Wᵀdμ + a_p = −P dz ≈ 0) with dμ ≥ 0, so y = (dλ, dμ, 1) over
+    (C; A_W; a_p) is a Farkas vector (bᵀy = b_p − a_pᵀz < 0 at the current z, which holds W
+    and the equalities). Checked like Clarabel's (:func:`check_certificate`): over these
+    rows alone it proves the whole QP infeasible."""
+    A = sp.vstack([eq.C, sp.csr_matrix(w.A), sp.csr_matrix(ap[None])], format="csc")
+    b = np.concatenate([eq.d, w.rhs() if w.rows else np.zeros(0), [bp]])
+    y = np.concatenate([dlam, dmu, [1.0]])
+    return replace(check_certificate(A, b, y, eq.C.shape[0]), solver="dual active set")
 
 
 def _start(w: _Working, f: F) -> tuple[F, F]:

@@ -235,6 +235,18 @@ class Pool:
     def rows(self, idx: I) -> sp.csr_matrix:
         """The pool rows ``idx`` as a sparse (len(idx), n) matrix."""
         idx = np.asarray(idx, np.int64)
+        r, c, v = self._triplets(idx)
+        return sp.csr_matrix((v, (r, c)), shape=(idx.size, self.L.n))
+
+    def dense_row(self, i: int) -> F:
+        """Pool row ``i`` as a dense (n,) vector (the same entries as :meth:`rows`)."""
+        _, c, v = self._triplets(np.array([i], np.int64))
+        out = np.zeros(self.L.n)
+        np.add.at(out, c, v)
+        return out
+
+    def _triplets(self, idx: I) -> tuple[I, I, F]:
+        """(row position, column, value) of the entries of the pool rows ``idx``."""
         L = self.L
         N = self.pb.N
         fam = self.family[idx]
@@ -292,9 +304,9 @@ class Pool:
                 cols += [L.u(k, i), L.th(k, i)]
                 vals += [np.ones(loc.size), -np.ones(loc.size)]
         if not rows:
-            return sp.csr_matrix((idx.size, L.n))
-        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                             shape=(idx.size, L.n))
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        return (np.concatenate(rows).astype(np.int64), np.concatenate(cols).astype(np.int64),
+                np.concatenate(vals).astype(float))
 
     def _row_name(self, r: int) -> str:
         if self.route_count == 1:

@@ -100,6 +100,10 @@ def solve_qp(eq: Equalities, pool: Pool, guess: F, active: I | None = None,
         if r.ok:
             return QpOutcome("solved", r.z, "active-set", 0, kkt, 0, r.active.size, pool.m, 0, True,
                              time.perf_counter() - t0, r.active, r.side)
+        if r.certificate is not None and r.certificate.valid:
+            return QpOutcome("infeasible", None, "active-set", 0, kkt, 0, r.active.size + 1,
+                             pool.m, 0, False, time.perf_counter() - t0,
+                             certificate=r.certificate)
         if r.z is not None:
             guess = r.z
     mg = margins(pool)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spm_console.core.planning.dual_active_set import dual_active_set
 from spm_console.core.planning.mvn import finish, solve_mvn, solve_problem, straight_guess
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.qp_build import Pool, equalities
@@ -73,24 +72,6 @@ def test_osqp_backend_agrees() -> None:
     assert out_b.certified and out_b.active.size > 0 and b.check.ok
     assert b.cost == pytest.approx(a.cost, rel=1e-6)
     assert np.abs(b.reference_deg - a.reference_deg).max() < 1e-3
-
-
-@pytest.mark.parametrize("case", HARD_CASES[2:], ids=lambda c: c.name)
-def test_the_dual_active_set_certifies_what_the_screened_solver_finds(case: Case) -> None:
-    """The dual active set alone (no QP solver call) ends at the optimum the screened
-    Clarabel solve and its refinement certify, with the same working set; started from
-    that working set it certifies at once."""
-    pb = _problem(case)
-    eq, pool = equalities(pb), Pool(pb)
-    dual = dual_active_set(eq, pool)
-    out, screened = _screened(pb, "clarabel")
-    assert dual.ok and dual.z is not None
-    assert set(zip(dual.active.tolist(), dual.side.tolist(), strict=True)) == \
-        set(zip(out.active.tolist(), out.side.tolist(), strict=True))
-    cost = float(dual.z @ (eq.P @ dual.z)) / 2.0
-    assert cost == pytest.approx(screened.cost, rel=1e-9)
-    warm = dual_active_set(eq, pool, dual.active, dual.side)
-    assert warm.ok and warm.solves == 0
 
 
 def test_between_samples_reported_and_intersample_enforced() -> None:

@@ -1,0 +1,71 @@
+"""The dual active-set method on (30) (core/planning/dual_active_set).
+
+Independent references: the screened Clarabel solve and its exact refinement (the planner's
+other path) for the optimum and its working set, and cvxpy for an infeasible horizon; the
+Farkas certificate is checked by the same check as Clarabel's."""
+
+from __future__ import annotations
+
+import pytest
+
+from spm_console.core.planning.dual_active_set import dual_active_set
+from spm_console.core.planning.mvn import finish, solve_problem, straight_guess
+from spm_console.core.planning.problem import PlanProblem
+from spm_console.core.planning.qp_build import Pool, equalities
+from spm_console.core.planning.screening import solve_qp
+from tests.support.planning_cases import GOAL, HARD_CASES, MODEL, START, Case, polytope
+from tests.support.reference_qp import solve_reference
+
+
+def _problem(c: Case) -> PlanProblem:
+    return PlanProblem(MODEL, START, GOAL, c.N, c.region, c.vmax, c.K, **c.limits())
+
+
+@pytest.mark.parametrize("case", HARD_CASES[2:], ids=lambda c: c.name)
+def test_it_certifies_what_the_screened_solver_finds(case: Case) -> None:
+    """Alone (no QP solver call) it ends at the optimum the screened Clarabel solve and its
+    refinement certify, with the same working set; started from that set it certifies at
+    once."""
+    pb = _problem(case)
+    eq, pool = equalities(pb), Pool(pb)
+    dual = dual_active_set(eq, pool)
+    out = solve_qp(eq, pool, straight_guess(pb), backend="clarabel", try_active_set=False)
+    screened = finish(pb, eq, out, 0.0)
+    assert dual.ok and dual.z is not None and out.certified
+    assert set(zip(dual.active.tolist(), dual.side.tolist(), strict=True)) == \
+        set(zip(out.active.tolist(), out.side.tolist(), strict=True))
+    cost = float(dual.z @ (eq.P @ dual.z)) / 2.0
+    assert cost == pytest.approx(screened.cost, rel=1e-9)
+    warm = dual_active_set(eq, pool, dual.active, dual.side)
+    assert warm.ok and warm.solves == 0
+
+
+def test_a_row_no_step_can_meet_gives_a_checked_farkas_certificate() -> None:
+    """Five steps cannot carry the references to the goal (the largest reference step binds):
+    the method ends with a row dependent on its working set and a valid certificate, where
+    cvxpy also finds the problem infeasible; the planner refuses it as infeasible."""
+    pb = PlanProblem(MODEL, START, GOAL, 5, polytope(), 50.0)
+    eq, pool = equalities(pb), Pool(pb)
+    r = dual_active_set(eq, pool, max_steps=100)
+    assert not r.ok and r.certificate is not None and r.certificate.valid
+    assert r.certificate.solver == "dual active set" and r.certificate.cone_violation == 0.0
+    assert solve_reference(pb).status == "infeasible"
+
+
+def test_past_its_steps_it_hands_over_and_the_plan_is_the_same(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Cut off after one step it certifies nothing and claims nothing; the planner's QP
+    solvers then take over and give the same optimum."""
+    import spm_console.core.planning.screening as screening
+
+    pb = _problem(HARD_CASES[4])
+    eq, pool = equalities(pb), Pool(pb)
+    r = dual_active_set(eq, pool, max_steps=1)
+    assert not r.ok and r.certificate is None
+    full = dual_active_set(eq, pool)
+    assert full.ok and full.z is not None
+    monkeypatch.setattr(screening, "dual_active_set",
+                        lambda eq, pool, a, s: dual_active_set(eq, pool, a, s, max_steps=1))
+    plan = solve_problem(pb)
+    assert plan.info["method"] != "active-set" and plan.info["solver_calls"] >= 1
+    assert plan.cost == pytest.approx(float(full.z @ (eq.P @ full.z)) / 2.0, rel=1e-9)
