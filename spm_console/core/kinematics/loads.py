@@ -64,12 +64,28 @@ def gravity_regressor(model: SpmModel, theta: F, R: F, up: F) -> F:
 
 def path_rotations(model: SpmModel, theta: F, R0: F | None = None,
                    theta0: F | None = None) -> F:
-    """The platform's rotation at every row of a path θ (n, 3) rad, by continuation from
-    (θ0, R0) (default home) through the rows in turn, each subdivided to steps ≤ 1°.
-    Raises ValueError where the path leaves the home modes (a singularity on the way)."""
+    """The platform's rotation at every row of a path θ (n, 3) rad, from (θ0, R0) (default
+    home). Raises ValueError where the path leaves the home modes (a singularity on the way).
+
+    In the home modes the FK is unique (eq. 1-13), so each row's pose is that of one
+    continuation straight from (θ0, R0): all rows advance together (one batched step per
+    degree of the largest move). Where a row cannot be reached so (its straight path meets a
+    singularity), the rows are followed one after the other as the path goes, each
+    subdivided to steps ≤ 1° (:func:`walk_rotations`)."""
     th = np.asarray(theta, float).reshape(-1, 3)
-    cur_t = model.theta_home if theta0 is None else np.asarray(theta0, float)
-    cur_R = np.eye(3) if R0 is None else np.asarray(R0, float)
+    start = model.theta_home if theta0 is None else np.asarray(theta0, float)
+    R_start = np.eye(3) if R0 is None else np.asarray(R0, float)
+    if th.shape[0] > 1:
+        res = model.track_batch(th, start, R_start, max_step=math.radians(1.0))
+        if all(r.ok and r.pose is not None for r in res):
+            return np.stack([r.pose.R for r in res if r.pose is not None])
+    return walk_rotations(model, th, R_start, start)
+
+
+def walk_rotations(model: SpmModel, theta: F, R0: F, theta0: F) -> F:
+    """:func:`path_rotations` row after row along the path (each from the one before)."""
+    th = np.asarray(theta, float).reshape(-1, 3)
+    cur_t, cur_R = np.asarray(theta0, float), np.asarray(R0, float)
     out = np.empty((th.shape[0], 3, 3))
     for n, target in enumerate(th):
         res = model.track(target, cur_t, cur_R, max_step=math.radians(1.0))

@@ -10,7 +10,12 @@ import pytest
 
 from spm_console.config.load import load_profile
 from spm_console.config.models import model_of
-from spm_console.core.kinematics.loads import BODIES, gravity_regressor, path_rotations
+from spm_console.core.kinematics.loads import (
+    BODIES,
+    gravity_regressor,
+    path_rotations,
+    walk_rotations,
+)
 from spm_console.devices.emulator.physical import PhysicalWrist
 from tests.support.paths import ROOT
 
@@ -63,6 +68,17 @@ def test_the_regressor_gives_mujocos_weight_torques(wrist: PhysicalWrist) -> Non
         dU = _energy_gradient(wrist, t)
         assert np.abs(dU).max() > 0.01  # the weight does load the motors here
         np.testing.assert_allclose(G * Y[n] @ s, dU, atol=2e-4 * max(1.0, np.abs(dU).max()))
+
+
+def test_a_path_is_the_same_from_the_start_at_once_as_walked_row_after_row() -> None:
+    """The unique FK (home modes): every row of a path reached straight from the start in
+    one batch is the pose the walk row after row reaches (to Newton's round-off)."""
+    spm = model_of(load_profile(ROOT / "profiles" / "agile_wrist.toml"))
+    k = np.arange(400)[:, None]
+    path = np.radians(135.0 + 18.0 * np.sin(0.031 * k * np.array([1.0, 1.3, 0.7]) + [0, 1, 2]))
+    at_once = path_rotations(spm, path)
+    walked = walk_rotations(spm, path, np.eye(3), spm.theta_home)
+    np.testing.assert_allclose(at_once, walked, atol=1e-10)
 
 
 def test_rotating_the_gravity_about_a_fixed_wrist_is_a_different_load() -> None:

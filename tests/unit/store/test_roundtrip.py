@@ -68,8 +68,8 @@ def test_seeded_solve_agrees_at_paper_point(agile_model, agile) -> None:  # type
 
 def test_zeta_matches_direct_formula_and_is_zero_at_singularity(agile_model) -> None:  # type: ignore[no-untyped-def]
     rng = np.random.default_rng(3)
-    for th in np.radians(rng.uniform(80, 140, (50, 3))):
-        r = agile_model.track(th)
+    thetas = np.radians(rng.uniform(80, 140, (50, 3)))
+    for th, r in zip(thetas, agile_model.track_batch(thetas), strict=True):
         assert r.ok
         w = agile_model.geom.w(th)
         J = jacobian(agile_model.u, r.pose.v, w)
