@@ -238,7 +238,9 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
             sp_ = 1 if up[p] >= dn[p] else -1
             ap, bp = w.signed(p, sp_)
             xp = kkt.solve(w.lifted(ap))
-            base = float(ap @ xp[: kkt.n])
+            # the curvature of p with W empty, a scale for "dependent" (never below round-off
+            # of ‖a_p‖²: a row the equalities fix has none)
+            base = max(float(ap @ xp[: kkt.n]), 1e-12 * float(ap @ ap))
             t_p = 0.0
             while True:
                 steps += 1
@@ -250,9 +252,10 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
                 dz = dy[: kkt.n]
                 curv = -float(ap @ dz)
                 gap = float(ap @ z) - bp
-                t_full = gap / curv if curv > DEPENDENT * max(base, 1e-300) else np.inf
+                t_full = gap / curv if curv > DEPENDENT * base else np.inf
                 neg = np.flatnonzero(dmu < 0)
-                ratios = mu[neg] / -dmu[neg] if neg.size else np.zeros(0)
+                # a multiplier drifted below zero by round-off leaves at once (a zero step)
+                ratios = np.maximum(mu[neg], 0.0) / -dmu[neg] if neg.size else np.zeros(0)
                 t_drop = float(ratios.min()) if ratios.size else np.inf
                 if not np.isfinite(t_full) and not np.isfinite(t_drop):
                     return ActiveSetResult(False, z, np.asarray(w.rows, np.int64),
