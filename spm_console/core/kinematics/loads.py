@@ -39,6 +39,12 @@ PARAMETERS = 3 * len(BODIES)
 """First-moment components: (body, x/y/z at home) flattened body-major."""
 DIFF_STEP_RAD = 1e-5
 """Step of the central differences, rad (errors O(h²) ≈ 1e-10 of the regressor)."""
+STEP_RAD = math.radians(1.0)
+"""Largest continuation step along a path, rad."""
+MAX_BATCH_SUBSTEPS = 8
+"""Largest gap between two rows, in steps, that the batched check follows (else the walk)."""
+SAME_POSE = 1e-8
+"""Rotations that agree to this (entries) are the same pose (Newton's tolerance is 1e-10)."""
 
 
 def gravity_regressor(model: SpmModel, theta: F, R: F, up: F) -> F:
@@ -64,22 +70,42 @@ def gravity_regressor(model: SpmModel, theta: F, R: F, up: F) -> F:
 
 def path_rotations(model: SpmModel, theta: F, R0: F | None = None,
                    theta0: F | None = None) -> F:
-    """The platform's rotation at every row of a path θ (n, 3) rad, from (θ0, R0) (default
-    home). Raises ValueError where the path leaves the home modes (a singularity on the way).
+    """The platform's rotation at every row of a path θ (n, 3) rad, by continuation from
+    (θ0, R0) (default home) through the rows in turn, each subdivided to steps ≤ 1°
+    (:func:`walk_rotations`). Raises ValueError where the path leaves the home modes (a
+    singularity on the way).
 
-    In the home modes the FK is unique (eq. 1-13), so each row's pose is that of one
-    continuation straight from (θ0, R0): all rows advance together (one batched step per
-    degree of the largest move). Where a row cannot be reached so (its straight path meets a
-    singularity), the rows are followed one after the other as the path goes, each
-    subdivided to steps ≤ 1° (:func:`walk_rotations`)."""
+    Batched where that gives the walk's answer: every row is reached straight from the start
+    at once (one batched step per degree of the largest move), then batched continuation
+    steps (≤ 1°) from each row's pose to the next row check it — the walk's own steps between
+    rows: they must converge, stay in the home modes above ζ's floor and land on the batch's
+    pose. Anything else (a gap above 8°, a row the batch cannot reach, a step that
+    disagrees) is walked row after row."""
     th = np.asarray(theta, float).reshape(-1, 3)
     start = model.theta_home if theta0 is None else np.asarray(theta0, float)
     R_start = np.eye(3) if R0 is None else np.asarray(R0, float)
-    if th.shape[0] > 1:
-        res = model.track_batch(th, start, R_start, max_step=math.radians(1.0))
+    steps = math.ceil(float(np.abs(np.diff(th, axis=0)).max(initial=0.0)) / STEP_RAD)
+    if th.shape[0] > 1 and steps <= MAX_BATCH_SUBSTEPS:
+        res = model.track_batch(th, start, R_start, max_step=STEP_RAD)
         if all(r.ok and r.pose is not None for r in res):
-            return np.stack([r.pose.R for r in res if r.pose is not None])
+            R = np.stack([r.pose.R for r in res if r.pose is not None])
+            if _walk_agrees(model, th, R, max(steps, 1)):
+                return R
     return walk_rotations(model, th, R_start, start)
+
+
+def _walk_agrees(model: SpmModel, th: F, R: F, steps: int) -> bool:
+    """Whether continuing from every row's pose R[n] to the next row, in ``steps`` equal
+    steps (each ≤ 1°), stays in the home modes above ζ's floor and lands on R[n + 1]."""
+    d = th[1:] - th[:-1]
+    cur_t, cur_R = th[:-1], R[:-1]
+    for k in range(1, steps + 1):
+        nxt = th[:-1] + d * (k / steps)
+        st = continuation_step(model, cur_t, cur_R, nxt)
+        if not bool(st.good().all()):
+            return False
+        cur_t, cur_R = nxt, st.R
+    return float(np.abs(cur_R - R[1:]).max()) <= SAME_POSE
 
 
 def walk_rotations(model: SpmModel, theta: F, R0: F, theta0: F) -> F:
@@ -88,7 +114,7 @@ def walk_rotations(model: SpmModel, theta: F, R0: F, theta0: F) -> F:
     cur_t, cur_R = np.asarray(theta0, float), np.asarray(R0, float)
     out = np.empty((th.shape[0], 3, 3))
     for n, target in enumerate(th):
-        res = model.track(target, cur_t, cur_R, max_step=math.radians(1.0))
+        res = model.track(target, cur_t, cur_R, max_step=STEP_RAD)
         if not res.ok or res.pose is None:
             raise ValueError(f"no FK along the path at row {n}: {res.reason}")
         cur_t, cur_R = target, res.pose.R

@@ -50,6 +50,8 @@ TIME_LIMIT_S = 0.25
 #: empty is taken as dependent on W and the equalities.
 DEPENDENT = 1e-10
 REFINE_STEPS = 8
+#: Refinement steps of each K₀ solve inside the iteration (the end point gets REFINE_STEPS).
+SOLVE_REFINE = 3
 #: Factorizations of K₀ kept (one per N, servo model and θ*(0) rule seen lately).
 CACHE = 8
 
@@ -65,7 +67,17 @@ class _Kkt:
     m: int
 
     def solve(self, rhs: F) -> F:
-        return np.asarray(self.lu.solve(rhs))
+        """K₀⁻¹ rhs on the unregularized K₀: the regularized LU's answer refined (the
+        regularization δ on the equalities' block would otherwise leave C dz = δ dλ, and a
+        large dλ turns that into a drift of the equalities and a false curvature)."""
+        x = np.asarray(self.lu.solve(rhs))
+        scale = max(1.0, float(np.abs(rhs).max()))
+        for _ in range(SOLVE_REFINE):
+            res = rhs - self.apply(x)
+            if not float(np.abs(res).max()) > 1e-13 * scale:
+                break
+            x = x + np.asarray(self.lu.solve(res))
+        return x
 
     def apply(self, y: F) -> F:
         """K₀ y, unregularized."""
@@ -80,8 +92,9 @@ def kkt_of(eq: Equalities) -> _Kkt | None:
     """K₀'s factorization for ``eq``'s matrices (cached by identity: ``equalities`` returns
     the same matrices for the same N, model and θ*(0) rule); None when it does not factor."""
     key = (id(eq.P), id(eq.C))
-    hit = _FACTORS.get(key)
+    hit = _FACTORS.pop(key, None)
     if hit is not None and hit.P is eq.P and hit.C is eq.C:
+        _FACTORS[key] = hit  # the most recently used goes last: the first is evicted
         return hit
     n, m = eq.P.shape[0], eq.C.shape[0]
     reg = sp.diags(np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)]))
@@ -181,17 +194,20 @@ def _exact(w: _Working, d: F) -> tuple[F, F] | None:
     try:
         y, mu = _solve_w(w, f, b)
         scale = max(1.0, float(np.abs(f).max()), float(np.abs(b).max()) if b.size else 0.0)
-        worst = np.inf
-        for _ in range(REFINE_STEPS + 1):
+        def residual(y: F, mu: F) -> tuple[F, F, float]:
             rf = f - kkt.apply(y)
             if w.rows:
                 rf[: kkt.n] -= A.T @ mu
             rb = b - A @ y[: kkt.n] if w.rows else np.zeros(0)
-            worst = max(float(np.abs(rf).max()), float(np.abs(rb).max()) if rb.size else 0.0)
+            return rf, rb, max(float(np.abs(rf).max()), float(np.abs(rb).max()) if rb.size else 0.0)
+
+        rf, rb, worst = residual(y, mu)
+        for _ in range(REFINE_STEPS):
             if not worst > 1e-12 * scale:
                 break
             dy, dmu = _solve_w(w, rf, rb)
             y, mu = y + dy, mu + dmu
+            rf, rb, worst = residual(y, mu)  # every correction is measured
     except np.linalg.LinAlgError:
         return None
     # the system solved to round-off (as refine's eqp requires), else no answer
@@ -213,10 +229,10 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
     (rows whose multiplier comes out negative leave it first); ``ok`` with the optimality
     certificate, or a Farkas ``certificate`` when a violated row can be met by no step.
     At most ``max_steps`` steps: the planner's QP solvers take over past them."""
-    t0 = time.perf_counter()
     kkt = kkt_of(eq)
     if kkt is None:
         return ActiveSetResult(False, None)
+    t0 = time.perf_counter()  # the time bound is the iteration's (a factorization is kept)
     warm_rows = np.asarray(active if active is not None else [], np.int64).tolist()
     w = _Working(kkt, pool, len(warm_rows) + max_steps)
     for r, s in zip(warm_rows,
@@ -238,9 +254,10 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
             sp_ = 1 if up[p] >= dn[p] else -1
             ap, bp = w.signed(p, sp_)
             xp = kkt.solve(w.lifted(ap))
-            # the curvature of p with W empty, a scale for "dependent" (never below round-off
-            # of ‖a_p‖²: a row the equalities fix has none)
-            base = max(float(ap @ xp[: kkt.n]), 1e-12 * float(ap @ ap))
+            # the curvature of p with W empty, dzᵀPdz of its direction: the scale for
+            # "dependent" (never below round-off of ‖a_p‖²: a row the equalities fix has none)
+            x0 = xp[: kkt.n]
+            base = max(float(x0 @ (kkt.P @ x0)), 1e-12 * float(ap @ ap))
             t_p = 0.0
             while True:
                 steps += 1
@@ -250,9 +267,12 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
                 else:
                     dmu, dy = np.zeros(0), -xp
                 dz = dy[: kkt.n]
-                curv = -float(ap @ dz)
+                # dzᵀPdz: how far p's multiplier moves the point (0: p depends on W and
+                # the equalities); −a_pᵀdz equals it on the exact system and meets p
+                curv = float(dz @ (kkt.P @ dz))
+                meet = -float(ap @ dz)
                 gap = float(ap @ z) - bp
-                t_full = gap / curv if curv > DEPENDENT * base else np.inf
+                t_full = gap / meet if curv > DEPENDENT * base and meet > 0.0 else np.inf
                 neg = np.flatnonzero(dmu < 0)
                 # a multiplier drifted below zero by round-off leaves at once (a zero step)
                 ratios = np.maximum(mu[neg], 0.0) / -dmu[neg] if neg.size else np.zeros(0)

@@ -165,14 +165,17 @@ def improve_switches(problem: PlanProblem, first: PlanResult,
                         raise SolverError(f"the QP solvers failed on the MVN problem (N = "
                                           f"{problem.N}): {out.status} {out.detail}")
                     c = float(out.z @ (eq.P @ out.z)) / 2.0  # Σ θ̇ᵀθ̇: P is 2 on every θ̇
-                    if c >= cost - 1e-9 * max(1.0, cost):
-                        break
+                    if not out.certified or c >= cost - 1e-9 * max(1.0, cost):
+                        break  # only a certified optimum that costs less replaces the best
                     route, cost, kept = cand.regions, c, (cand, eq, out)
                     warm = WorkingSet(out.active, out.side) if out.certified else None
                     guess = out.z
     if kept is None:
         return first, qps
-    return finish(*kept, t0), qps
+    try:
+        return finish(*kept, t0), qps
+    except SolverError:  # the kept switch does not verify: the first plan did
+        return first, qps
 
 
 def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: RouteChoice,

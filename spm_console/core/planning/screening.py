@@ -104,8 +104,8 @@ def solve_qp(eq: Equalities, pool: Pool, guess: F, active: I | None = None,
             return QpOutcome("infeasible", None, "active-set", 0, kkt, 0, r.active.size + 1,
                              pool.m, 0, False, time.perf_counter() - t0,
                              certificate=r.certificate)
-        if r.z is not None:
-            guess = r.z
+        if r.z is not None and float(np.abs(eq.C @ r.z - eq.d).max(initial=0.0)) <= 1e-6:
+            guess = r.z  # a point that holds the equalities seeds the screening
     mg = margins(pool)
     total = pool.m
     sl0 = pool.slack(guess)

@@ -79,6 +79,10 @@ def test_a_path_is_the_same_from_the_start_at_once_as_walked_row_after_row() -> 
     at_once = path_rotations(spm, path)
     walked = walk_rotations(spm, path, np.eye(3), spm.theta_home)
     np.testing.assert_allclose(at_once, walked, atol=1e-10)
+    # a path through a type-2 singularity is refused at the row where the walk meets it
+    beyond = np.linspace(spm.theta_home, np.radians([141.9, 83.2, 46.6]), 200)
+    with pytest.raises(ValueError, match="no FK along the path at row .*type-2"):
+        path_rotations(spm, beyond)
 
 
 def test_rotating_the_gravity_about_a_fixed_wrist_is_a_different_load() -> None:
