@@ -81,7 +81,7 @@ def test_a_path_is_the_same_from_the_start_at_once_as_walked_row_after_row() -> 
     np.testing.assert_allclose(at_once, walked, atol=1e-10)
     # a path through a type-2 singularity is refused at the row where the walk meets it
     beyond = np.linspace(spm.theta_home, np.radians([141.9, 83.2, 46.6]), 200)
-    with pytest.raises(ValueError, match="no FK along the path at row .*type-2"):
+    with pytest.raises(ValueError, match=r"no FK along the path at row .*type-2"):
         path_rotations(spm, beyond)
 
 
