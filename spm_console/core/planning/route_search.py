@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from spm_console.core.planning.active_set import WorkingSet
 from spm_console.core.planning.mvn import finish, run_qp, solution_guess, solve_problem
 from spm_console.core.planning.problem import PlanProblem
-from spm_console.core.planning.qp_build import Equalities
+from spm_console.core.planning.qp_build import Equalities, Pool
 from spm_console.core.planning.result import PlanResult
 from spm_console.core.planning.screening import QpOutcome
 from spm_console.core.polytope.graph import waypoint_paths
@@ -141,6 +141,11 @@ def improve_switches(problem: PlanProblem, first: PlanResult,
     A candidate is compared by the cost of its certified QP solution (½zᵀPz, exact to
     round-off); only the one kept is simulated and verified (:func:`finish`)."""
     assert problem.route is not None
+    if first.working_set is not None and not _holds_region_rows(first):
+        # the first optimum holds no region row: it is optimal for the problem without any
+        # region row, which every switch assignment only restricts further — no candidate
+        # can cost less
+        return first, 0
     t0 = time.perf_counter()
     qps = 0
     route, cost = first.problem.regions, first.cost
@@ -176,6 +181,14 @@ def improve_switches(problem: PlanProblem, first: PlanResult,
         return finish(*kept, t0), qps
     except SolverError:  # the kept switch does not verify: the first plan did
         return first, qps
+
+
+def _holds_region_rows(result: PlanResult) -> bool:
+    """Whether the certified working set of ``result`` holds a region row (at a sample or
+    between samples: pool families 0 and 1)."""
+    assert result.working_set is not None
+    pool = Pool(result.problem)
+    return bool(np.isin(pool.family[result.working_set.rows], (0, 1)).any())
 
 
 def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: RouteChoice,

@@ -68,6 +68,24 @@ def test_route_mvn_matches_cvxpy_and_the_motion_stays_in_the_union(vmax: float |
     assert _in_union(xs[..., 0]).mean() > 0.999  # intersample K = 4: at most a sliver
     assert res.to_plan().route == route
 
+def test_a_first_optimum_that_holds_no_region_row_ends_the_switch_search(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Wide regions: the first assignment's optimum holds no region row, so no switch sample
+    can do better — the search adds no QP, and run anyway it finds nothing cheaper."""
+    import spm_console.core.planning.route_search as rs
+
+    wide0 = Region(BOX0.A, BOX0.b + np.array([0, 60, 0, 0, 0, 0.0]))  # θ2 up to 140
+    wide1 = Region(BOX1.A, BOX1.b + np.array([0, 0, 0, 30, 0, 0.0]))  # θ1 from 60
+    two = rs.RouteChoice((0, 1), np.vstack([START, OVERLAP[0], GOAL]), 0.0)
+    pb = PlanProblem(MODEL, START, GOAL, 150, wide0, 40.0)
+    plan = solve_route_mvn(pb, [wide0, wide1], two)
+    assert plan.qps == 1 and plan.result.working_set is not None
+    monkeypatch.setattr(rs, "_holds_region_rows", lambda result: True)
+    searched = solve_route_mvn(pb, [wide0, wide1], two)
+    assert searched.qps > 1
+    assert searched.result.cost >= plan.result.cost - 1e-9 * plan.result.cost
+
+
 def test_one_region_cannot_and_too_short_a_horizon_is_refused() -> None:
     pb = PlanProblem(MODEL, START, GOAL, 150, BOX0, 40.0)
     with pytest.raises(InfeasibleError):
