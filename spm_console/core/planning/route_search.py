@@ -164,17 +164,13 @@ def improve_switches(problem: PlanProblem, first: PlanResult,
                     cand = problem.with_route(replace(route, switch=tuple(sw)))
                     qps += 1
                     eq, out = run_qp(cand, guess, warm=warm)
-                    if out.status == "infeasible":
-                        break
-                    if out.status != "solved" or out.z is None:
-                        raise SolverError(f"the QP solvers failed on the MVN problem (N = "
-                                          f"{problem.N}): {out.status} {out.detail}")
+                    if out.status != "solved" or out.z is None or not out.certified:
+                        break  # infeasible, or no certified answer: this way ends here
                     c = float(out.z @ (eq.P @ out.z)) / 2.0  # Σ θ̇ᵀθ̇: P is 2 on every θ̇
-                    if not out.certified or c >= cost - 1e-9 * max(1.0, cost):
+                    if c >= cost - 1e-9 * max(1.0, cost):
                         break  # only a certified optimum that costs less replaces the best
                     route, cost, kept = cand.regions, c, (cand, eq, out)
-                    warm = WorkingSet(out.active, out.side) if out.certified else None
-                    guess = out.z
+                    warm, guess = WorkingSet(out.active, out.side), out.z
     if kept is None:
         return first, qps
     try:

@@ -1,8 +1,9 @@
-"""Solve the QP (30) for one N: exact active set first, then a screened QP solver.
+"""Solve the QP (30) for one N: a dual active-set method first, then a screened QP solver.
 
 1. From a warm working set (empty by default: most pool rows are inactive at the
-   optimum) a few exact KKT solves (:mod:`active_set`) often end with an optimality
-   certificate already.
+   optimum) the dual active-set method (:mod:`dual_active_set`) ends, within its steps,
+   with an optimality certificate (the KKT check of :mod:`active_set`) or a checked
+   infeasibility certificate.
 2. Otherwise a QP solver (OSQP, or Clarabel when an infeasibility certificate may be
    needed) solves the QP on the *screened* pool: the rows nearly active along the
    current point, plus every row the last solution violates, round after round —
@@ -43,8 +44,6 @@ SPEED_MARGIN_DEGPS = 0.5
 #: A pool row violated by more than this (deg or deg/s) triggers another round.
 SCREEN_TOL = 1e-7
 MAX_ROUNDS = 10
-#: Exact KKT solves tried before calling the QP solver.
-FIRST_SOLVES = 4
 
 
 @dataclass
