@@ -116,6 +116,30 @@ def eqp(eq: Equalities, pool: Pool, active: I, side: I) -> tuple[F, F] | None:
     return sol[:n], sol[n + eq.C.shape[0]:]
 
 
+def violations(pool: Pool, z: F, act: I, sd: I) -> tuple[F, F]:
+    """(upper, lower) normalized violations of every pool row at z (> 0 = violated); the rows
+    of W = (act, sd) are −∞ on their side (held with equality by construction)."""
+    gz = pool.values(z)
+    with np.errstate(invalid="ignore"):
+        up = (gz - pool.hi) / pool.scale
+        dn = (pool.lo - gz) / pool.scale
+    up[act[sd > 0]] = -np.inf
+    dn[act[sd < 0]] = -np.inf
+    return up, dn
+
+
+def kkt_verdict(z: F, act: I, sd: I, lam: F, solves: int, up: F, dn: F) -> ActiveSetResult:
+    """The KKT check at z with W = (act, sd) held and multipliers ``lam`` of g z = bound: every
+    pool row met to :data:`PRIMAL_TOL` (``up``, ``dn`` from :func:`violations`) and every
+    multiplier of W of its side's sign to :data:`DUAL_TOL` of the largest — optimal then."""
+    viol = np.maximum(up, dn)
+    maxv = float(viol.max()) if viol.size else 0.0
+    lam_ref = max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
+    mind = float((lam * sd).min() / lam_ref) if lam.size else 0.0
+    ok = maxv <= PRIMAL_TOL and mind >= -DUAL_TOL
+    return ActiveSetResult(ok, z, act, sd, lam, solves, maxv, mind)
+
+
 def refine(eq: Equalities, pool: Pool, active: I | None = None, side: I | None = None,
            max_solves: int = 8) -> ActiveSetResult:
     """Active-set iterations from W = (active, side); see the module docstring."""
@@ -127,23 +151,14 @@ def refine(eq: Equalities, pool: Pool, active: I | None = None, side: I | None =
         if out is None:
             return ActiveSetResult(False, last.z, act, sd, solves=it)
         z, lam = out
-        gz = pool.values(z)
-        up = (gz - pool.hi) / pool.scale
-        dn = (pool.lo - gz) / pool.scale
-        up[act[sd > 0]] = -np.inf  # rows in W are satisfied with equality by construction
-        dn[act[sd < 0]] = -np.inf
-        viol = np.maximum(up, dn)
-        maxv = float(viol.max()) if viol.size else 0.0
-        signed = lam * sd
-        lam_ref = max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
-        mind = float(signed.min() / lam_ref) if lam.size else 0.0
-        last = ActiveSetResult(False, z, act, sd, lam, it, maxv, mind)
-        bad_p = np.flatnonzero(viol > PRIMAL_TOL)
-        bad_d = signed < -DUAL_TOL * lam_ref
-        if not bad_p.size and not bad_d.any():
-            last.ok = True
+        up, dn = violations(pool, z, act, sd)
+        last = kkt_verdict(z, act, sd, lam, it, up, dn)
+        if last.ok:
             return last
-        keep = ~bad_d
+        # violated rows join W, wrong-signed rows leave it
+        bad_p = np.flatnonzero(np.maximum(up, dn) > PRIMAL_TOL)
+        lam_ref = max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
+        keep = ~(lam * sd < -DUAL_TOL * lam_ref)
         new_side = np.where(up[bad_p] > dn[bad_p], 1, -1)
         act = np.concatenate([act[keep], bad_p])
         sd = np.concatenate([sd[keep], new_side])

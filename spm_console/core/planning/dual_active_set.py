@@ -30,11 +30,12 @@ from numpy.typing import NDArray
 
 from spm_console.core.plan_report import Certificate
 from spm_console.core.planning.active_set import (
-    DUAL_TOL,
     PRIMAL_TOL,
     REG_DUAL,
     REG_PRIMAL,
     ActiveSetResult,
+    kkt_verdict,
+    violations,
 )
 from spm_console.core.planning.qp_build import Equalities, Pool
 from spm_console.core.planning.solvers.clarabel_qp import check_certificate
@@ -216,13 +217,6 @@ def _exact(w: _Working, d: F) -> tuple[F, F] | None:
     return y[: kkt.n], mu
 
 
-def _violations(pool: Pool, z: F) -> tuple[F, F]:
-    """(upper, lower) normalized violations of every pool row at z (> 0 = violated)."""
-    gz = pool.values(z)
-    with np.errstate(invalid="ignore"):
-        return (gz - pool.hi) / pool.scale, (pool.lo - gz) / pool.scale
-
-
 def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
                     side: I | None = None, max_steps: int = MAX_STEPS) -> ActiveSetResult:
     """Solve (30) (see the module docstring), from the working set (active, side) when given
@@ -244,9 +238,8 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
     try:
         z, mu = _start(w, f)
         while steps < max_steps and time.perf_counter() - t0 < TIME_LIMIT_S:
-            up, dn = _violations(pool, z)
-            up[[r for r, s in zip(w.rows, w.side, strict=True) if s > 0]] = -np.inf
-            dn[[r for r, s in zip(w.rows, w.side, strict=True) if s < 0]] = -np.inf
+            up, dn = violations(pool, z, np.asarray(w.rows, np.int64),
+                                np.asarray(w.side, np.int64))
             viol = np.maximum(up, dn)
             p = int(np.argmax(viol)) if viol.size else -1
             if p < 0 or not viol[p] > PRIMAL_TOL:
@@ -320,20 +313,12 @@ def _start(w: _Working, f: F) -> tuple[F, F]:
 
 
 def _certify(eq: Equalities, pool: Pool, w: _Working, steps: int) -> ActiveSetResult:
-    """The exact solution on W and its KKT check (as :func:`refine` checks it)."""
+    """The exact solution on W and its KKT check (:func:`kkt_verdict`, as :func:`refine`)."""
     act = np.asarray(w.rows, np.int64)
     sd = np.asarray(w.side, np.int64)
     out = _exact(w, eq.d)
     if out is None:
         return ActiveSetResult(False, None, act, sd, solves=steps)
     z, mu = out
-    up, dn = _violations(pool, z)
-    up[act[sd > 0]] = -np.inf
-    dn[act[sd < 0]] = -np.inf
-    viol = np.maximum(up, dn)
-    maxv = float(viol.max()) if viol.size else 0.0
-    lam = mu * sd  # the multiplier of g z = bound, as refine reports it
-    lam_ref = max(1.0, float(np.abs(mu).max())) if mu.size else 1.0
-    mind = float(mu.min() / lam_ref) if mu.size else 0.0
-    ok = maxv <= PRIMAL_TOL and mind >= -DUAL_TOL
-    return ActiveSetResult(ok, z, act, sd, lam, steps, maxv, mind)
+    up, dn = violations(pool, z, act, sd)
+    return kkt_verdict(z, act, sd, mu * sd, steps, up, dn)  # μ·s: the multiplier of g z = bound

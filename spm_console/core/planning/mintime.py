@@ -136,11 +136,7 @@ def rescaled_guess(prev: PlanResult, n: int) -> F:
     om = np.column_stack([np.interp(t_new, t_old, prev.velocity_degps[:, i]) for i in range(3)])
     om *= n0 / n
     u = np.column_stack([np.interp(t_new, t_old, prev.reference_deg[:, i]) for i in range(3)])
-    L = Layout(n)
-    z = np.empty(L.n)
-    z[: 6 * (n + 1)] = np.hstack([th, om]).ravel()
-    z[6 * (n + 1):] = u[:n].ravel()
-    return z
+    return Layout(n).pack(u, th, om)
 
 
 def horizon_limit(problem: PlanProblem) -> int:

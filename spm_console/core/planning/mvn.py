@@ -32,20 +32,13 @@ def straight_guess(problem: PlanProblem) -> F:
     th = s + (g - s) * frac
     om = np.tile((g - s) / (N * problem.model.ts), (N + 1, 1))
     om[0] = om[-1] = 0.0
-    z = np.empty(L.n)
-    x = np.hstack([th, om])
-    z[: 6 * (N + 1)] = x.ravel()
-    z[6 * (N + 1):] = th[:N].ravel()
-    return z
+    return L.pack(th, th, om)
 
 
 def solution_guess(result: PlanResult) -> F:
     """The z vector of a solved plan (screening guess for a neighbouring problem of the same N)."""
-    N = result.N
-    z = np.empty(Layout(N).n)
-    z[: 6 * (N + 1)] = np.hstack([result.position_deg, result.velocity_degps]).ravel()
-    z[6 * (N + 1):] = result.reference_deg[:N].ravel()
-    return z
+    return Layout(result.N).pack(result.reference_deg, result.position_deg,
+                                 result.velocity_degps)
 
 
 def run_qp(problem: PlanProblem, guess: F | None = None,

@@ -161,6 +161,14 @@ class Layout:
     def u(self, k: NDArray[np.int64] | int, i: NDArray[np.int64] | int) -> NDArray[np.int64]:
         return np.asarray(6 * (self.N + 1) + 3 * np.asarray(k) + np.asarray(i))
 
+    def pack(self, reference_deg: F, position_deg: F, velocity_degps: F) -> F:
+        """The z vector of references θ*(0..N−1) and states θ, θ̇ (N+1, 3) (the inverse of
+        :meth:`unpack`, whose θ*(N) is the goal)."""
+        z = np.empty(self.n)
+        z[: 6 * (self.N + 1)] = np.hstack([position_deg, velocity_degps]).ravel()
+        z[6 * (self.N + 1):] = np.asarray(reference_deg)[: self.N].ravel()
+        return z
+
     def unpack(self, z: F, goal_deg: F) -> tuple[F, F, F]:
         """(reference (N+1, 3) with θ*(N) = goal, position (N+1, 3), velocity (N+1, 3))."""
         x = z[: 6 * (self.N + 1)].reshape(self.N + 1, 6)
