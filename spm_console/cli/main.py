@@ -21,6 +21,7 @@ from spm_console.system.childproc import prespawn
 from spm_console.system.cpus import cpu_plan
 from spm_console.system.signals import (
     SignalInterrupt,
+    first_signal,
     forget_signals,
     ignore_stop_signals,
     note_signal,
@@ -185,3 +186,11 @@ def _main(args_list: list[str]) -> int:
         return _fail(as_json, int(ExitCode.INTERRUPTED), f"interrupted{why}")
     except BrokenPipeError:
         return int(ExitCode.OK)
+    except Exception:
+        # A signal's SignalInterrupt raised inside a library that wraps what it catches (pydantic
+        # builds its validators as modules load and turns the interrupt into a SchemaError): the
+        # signal decided, as if it had arrived a bytecode earlier. Without a signal, a bug.
+        sig = first_signal()
+        if sig is None:
+            raise
+        return _fail(as_json, int(ExitCode.INTERRUPTED), f"interrupted by {sig.name}")
