@@ -14,17 +14,17 @@ from spm_console.errors import ExitCode
 from spm_console.system.signals import forget_signals, note_signal
 
 
-class Wrapped(Exception):
+class WrappedError(Exception):
     """What a library raises around the interrupt it caught."""
 
 
 def _parser_interrupted(_command: str | None = None) -> argparse.ArgumentParser:
     note_signal(signal.SIGHUP)  # what the handler records before it raises
-    raise Wrapped("SignalInterrupt: SIGHUP")
+    raise WrappedError("SignalInterrupt: SIGHUP")
 
 
 def _parser_broken(_command: str | None = None) -> argparse.ArgumentParser:
-    raise Wrapped("a bug")
+    raise WrappedError("a bug")
 
 
 def test_a_wrapped_interrupt_is_an_interruption(
@@ -43,5 +43,5 @@ def test_a_wrapped_interrupt_is_an_interruption(
 
 def test_without_a_signal_the_error_is_a_bug(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(cli_main, "build_parser", _parser_broken)
-    with pytest.raises(Wrapped):
+    with pytest.raises(WrappedError):
         cli_main.main(["fk", "--theta", "95", "110", "105"])
