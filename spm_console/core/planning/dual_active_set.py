@@ -38,7 +38,7 @@ from spm_console.core.planning.active_set import (
     violations,
 )
 from spm_console.core.planning.qp_build import Equalities, Pool
-from spm_console.core.planning.solvers.clarabel_qp import check_certificate
+from spm_console.core.planning.solvers.clarabel_qp import farkas_verdict
 
 F = NDArray[np.float64]
 I = NDArray[np.int64]
@@ -54,7 +54,7 @@ REFINE_STEPS = 8
 #: Refinement steps of each K₀ solve inside the iteration (the end point gets REFINE_STEPS).
 SOLVE_REFINE = 2
 #: Factorizations of K₀ kept (one per N, servo model and θ*(0) rule seen lately).
-CACHE = 8
+CACHE = 16
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,7 @@ class _Kkt:
     lu: spla.SuperLU
     n: int
     m: int
+    K: sp.csr_matrix  # K₀ unregularized (one product per refinement step)
 
     def solve(self, rhs: F) -> F:
         """K₀⁻¹ rhs on the unregularized K₀: the regularized LU's answer refined (the
@@ -82,8 +83,7 @@ class _Kkt:
 
     def apply(self, y: F) -> F:
         """K₀ y, unregularized."""
-        z, lam = y[: self.n], y[self.n:]
-        return np.concatenate([self.P @ z + self.C.T @ lam, self.C @ z])
+        return np.asarray(self.K @ y)
 
 
 _FACTORS: dict[tuple[int, int], _Kkt] = {}
@@ -99,16 +99,30 @@ def kkt_of(eq: Equalities) -> _Kkt | None:
         return hit
     n, m = eq.P.shape[0], eq.C.shape[0]
     reg = sp.diags(np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)]))
-    K = sp.bmat([[eq.P, eq.C.T], [eq.C, None]], format="csc") + reg
+    K0 = sp.bmat([[eq.P, eq.C.T], [eq.C, None]], format="csc")
     try:
-        lu = spla.splu(sp.csc_matrix(K), permc_spec="COLAMD")
+        lu = spla.splu(sp.csc_matrix(K0 + reg), permc_spec="COLAMD")
     except RuntimeError:
         return None
-    kkt = _Kkt(eq.P, eq.C, lu, n, m)
+    kkt = _Kkt(eq.P, eq.C, lu, n, m, K0.tocsr())
     if len(_FACTORS) >= CACHE:
         _FACTORS.pop(next(iter(_FACTORS)))
     _FACTORS[key] = kkt
     return kkt
+
+
+def free_optimum(eq: Equalities) -> F | None:
+    """The minimum of ½zᵀPz under the equalities alone (no pool row), on the kept K₀
+    factorization; None when K₀ does not factor or the solve does not reach round-off."""
+    kkt = kkt_of(eq)
+    if kkt is None:
+        return None
+    f = np.concatenate([np.zeros(kkt.n), eq.d])
+    y = kkt.solve(f)
+    scale = max(1.0, float(np.abs(f).max()))
+    if not np.all(np.isfinite(y)) or float(np.abs(f - kkt.apply(y)).max()) > 1e-9 * scale:
+        return None
+    return y[: kkt.n]
 
 
 class _Working:
@@ -295,12 +309,17 @@ def _farkas(eq: Equalities, w: _Working, ap: F, bp: float, dlam: F, dmu: F) -> C
     """The infeasibility certificate where row p can be met by no step: p depends on W and
     the equalities (Cᵀdλ + A_Wᵀdμ + a_p = −P dz ≈ 0) with dμ ≥ 0, so y = (dλ, dμ, 1) over
     (C; A_W; a_p) is a Farkas vector (bᵀy = b_p − a_pᵀz < 0 at the current z, which holds W
-    and the equalities). Checked like Clarabel's (:func:`check_certificate`): over these
+    and the equalities). Checked like Clarabel's (:func:`farkas_verdict`): over these
     rows alone it proves the whole QP infeasible."""
-    A = sp.vstack([eq.C, sp.csr_matrix(w.A), sp.csr_matrix(ap[None])], format="csc")
+    m = eq.C.shape[0]
+    dense = np.vstack([w.A, ap[None]])
     b = np.concatenate([eq.d, w.rhs() if w.rows else np.zeros(0), [bp]])
     y = np.concatenate([dlam, dmu, [1.0]])
-    return replace(check_certificate(A, b, y, eq.C.shape[0]), solver="dual active set")
+
+    def transposed(v: F) -> F:  # (C; A_W; a_p)ᵀ v
+        return np.asarray(eq.C.T @ v[:m]) + dense.T @ v[m:]
+
+    return replace(farkas_verdict(b, y, m, transposed), solver="dual active set")
 
 
 def _start(w: _Working, f: F) -> tuple[F, F]:

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from spm_console.core.bounds import MAX_INSTANTS, N_MAX
 from spm_console.core.plan import Plan
 from spm_console.core.plan_report import Certificate, InfeasibilityRecord, SearchStep
-from spm_console.core.planning.active_set import eqp
+from spm_console.core.planning.dual_active_set import free_optimum
 from spm_console.core.planning.mvn import finish, straight_guess
 from spm_console.core.planning.problem import Layout, PlanProblem
 from spm_console.core.planning.qp_build import Pool, equalities
@@ -87,17 +87,17 @@ def _peaks(problem: PlanProblem) -> tuple[float, float]:
     """(largest |θ̇| at the samples and sub-samples, largest lead |θ*(k) − θ(k)|) of the
     unconstrained MVN optimum at this N, deg/s and deg."""
     eq = equalities(problem)
-    pool = Pool(problem)
-    out = eqp(eq, pool, np.zeros(0, np.int64), np.zeros(0, np.int64))
-    if out is None:
+    z = free_optimum(eq)
+    if z is None:
         return float("nan"), float("nan")
-    z = out[0]
     N = problem.N
     x = z[: 6 * (N + 1)].reshape(N + 1, 6)
     peak = float(np.abs(x[:, 3:]).max())
-    sub = pool.requested_speed_rows()  # the runtime's check instants have a looser bound
-    if sub.any():
-        peak = max(peak, float(np.abs(pool.values(z)[sub]).max()))
+    if problem.intersample > 1:  # the runtime's check instants have a looser bound
+        pool = Pool(problem)
+        sub = pool.requested_speed_rows()
+        if sub.any():
+            peak = max(peak, float(np.abs(pool.values(z)[sub]).max()))
     lead = float(np.abs(z[6 * (N + 1):].reshape(N, 3) - x[:N, :3]).max())
     return peak, lead
 

@@ -13,6 +13,7 @@ infeasible (fewer constraints, larger feasible set).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import clarabel
@@ -43,18 +44,24 @@ def _standard_form(eq: Equalities, pool: Pool, chosen: I) -> tuple[sp.csc_matrix
 
 def check_certificate(A: sp.csc_matrix, b: F, y: F, m_eq: int) -> Certificate:
     """Verify a Farkas certificate ``y`` for {x : A x + s = b, s_eq = 0, s_ineq ≥ 0}."""
+    return farkas_verdict(b, y, m_eq, lambda v: np.asarray(A.T @ v))
+
+
+def farkas_verdict(b: F, y: F, m_eq: int, transposed: Callable[[F], F]) -> Certificate:
+    """:func:`check_certificate` with A given by ``transposed(v)`` = Aᵀv (A need not be
+    assembled: the dual active set's rows are the equalities and a few dense rows)."""
     by = float(b @ y)
     if not np.isfinite(by) or by >= 0:
-        return Certificate(np.inf, np.inf, 0.0, A.shape[0], False)
+        return Certificate(np.inf, np.inf, 0.0, len(b), False)
     ys = y / -by
-    r1 = float(np.abs(A.T @ ys).sum())
+    r1 = float(np.abs(transposed(ys)).sum())
     neg = ys[m_eq:]
     cone = float(max(0.0, -neg.min())) if neg.size else 0.0
     # a feasible x with slack s = b − A x gives 0 ≤ yᵀs + c‖s‖₁ = −1 − rᵀx + c‖s‖₁
     # so 1 ≤ ‖r‖₁‖x‖∞ + c‖s‖₁; ignoring the c term only when c is negligible:
     radius = np.inf if r1 == 0 else 1.0 / r1
     valid = cone <= 1e-9 and radius >= CERTIFIED_RADIUS
-    return Certificate(r1, cone, float(radius), A.shape[0], bool(valid))
+    return Certificate(r1, cone, float(radius), len(b), bool(valid))
 
 
 @dataclass(frozen=True)
