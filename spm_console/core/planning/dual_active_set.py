@@ -9,7 +9,7 @@ at every step and W never repeats, so the method ends: with every row met (optim
 a violated row that no step can meet (the QP is infeasible; the caller lets a solver with
 an infeasibility certificate say so).
 
-Every solve uses one sparse LU of K₀ = [[P, Cᵀ], [C, 0]] (the equalities, kept per N: the
+Every solve uses one LU of K₀ = [[P, Cᵀ], [C, 0]] (the equalities, kept per N: the
 matrices are the same for every start, goal, region and route of that N) and the Schur
 complement of W's rows, a |W| × |W| dense matrix: W changes by a row at a time and each row
 costs one more triangular solve, not a factorization. The end point is solved once more
@@ -25,7 +25,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from spm_console.core.plan_report import Certificate
@@ -38,6 +37,7 @@ from spm_console.core.planning.active_set import (
     violations,
 )
 from spm_console.core.planning.qp_build import Equalities, Pool
+from spm_console.core.planning.solvers.banded import Factor, factor
 from spm_console.core.planning.solvers.clarabel_qp import farkas_verdict
 
 F = NDArray[np.float64]
@@ -59,11 +59,12 @@ CACHE = 16
 
 @dataclass(frozen=True)
 class _Kkt:
-    """K₀'s sparse LU and the unregularized matrices, for one (P, C)."""
+    """The regularized K₀'s LU (banded where it can be: :mod:`.solvers.banded`) and the
+    unregularized matrices, for one (P, C)."""
 
     P: sp.csc_matrix
     C: sp.csc_matrix
-    lu: spla.SuperLU
+    lu: Factor
     n: int
     m: int
     K: sp.csr_matrix  # K₀ unregularized (one product per refinement step)
@@ -98,13 +99,14 @@ def kkt_of(eq: Equalities) -> _Kkt | None:
         _FACTORS[key] = hit  # the most recently used goes last: the first is evicted
         return hit
     n, m = eq.P.shape[0], eq.C.shape[0]
-    reg = sp.diags(np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)]))
-    K0 = sp.bmat([[eq.P, eq.C.T], [eq.C, None]], format="csc")
-    try:
-        lu = spla.splu(sp.csc_matrix(K0 + reg), permc_spec="COLAMD")
-    except RuntimeError:
+    Pc, Cc = eq.P.tocoo(), eq.C.tocoo()  # K₀ from triplets (sparse.bmat costs more)
+    K0 = sp.csr_matrix((np.concatenate([Pc.data, Cc.data, Cc.data]),
+                        (np.concatenate([Pc.row, Cc.row + n, Cc.col]),
+                         np.concatenate([Pc.col, Cc.col, Cc.row + n]))), shape=(n + m, n + m))
+    lu = factor(K0, np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)]))
+    if lu is None:
         return None
-    kkt = _Kkt(eq.P, eq.C, lu, n, m, K0.tocsr())
+    kkt = _Kkt(eq.P, eq.C, lu, n, m, K0)
     if len(_FACTORS) >= CACHE:
         _FACTORS.pop(next(iter(_FACTORS)))
     _FACTORS[key] = kkt
