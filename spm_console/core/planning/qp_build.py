@@ -235,17 +235,17 @@ class Pool:
     def rows(self, idx: I) -> sp.csr_matrix:
         """The pool rows ``idx`` as a sparse (len(idx), n) matrix."""
         idx = np.asarray(idx, np.int64)
-        r, c, v = self._triplets(idx)
+        r, c, v = self.triplets(idx)
         return sp.csr_matrix((v, (r, c)), shape=(idx.size, self.L.n))
 
     def dense_row(self, i: int) -> F:
         """Pool row ``i`` as a dense (n,) vector (the same entries as :meth:`rows`)."""
-        _, c, v = self._triplets(np.array([i], np.int64))
+        _, c, v = self.triplets(np.array([i], np.int64))
         out = np.zeros(self.L.n)
         np.add.at(out, c, v)
         return out
 
-    def _triplets(self, idx: I) -> tuple[I, I, F]:
+    def triplets(self, idx: I) -> tuple[I, I, F]:
         """(row position, column, value) of the entries of the pool rows ``idx``."""
         L = self.L
         N = self.pb.N
