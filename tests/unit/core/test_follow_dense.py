@@ -33,6 +33,11 @@ def test_impulse_responses_are_the_model_recursion(model: object) -> None:
     assert np.abs(fth @ x + Tth @ ref - th[1:]).max() <= 1e-9
     assert np.abs(fom @ x + Tom @ ref - om[1:]).max() <= 1e-7
     assert np.all(np.triu(Tth, 1) == 0.0) and np.all(np.triu(Tom, 1) == 0.0)  # causal
+    # the solver's prediction of a DAQP answer is this form, samples 0..H
+    d = dense.build_dense(model, REGION, 50.0, H, LO, HI, 1.0, 0.0, 0.0)  # type: ignore[arg-type]
+    rth, rom = d.response(th0, om0, ref)
+    assert rth.shape == th.shape and rom.shape == om.shape
+    assert np.abs(rth - th).max() <= 1e-9 and np.abs(rom - om).max() <= 1e-7
 
 
 def _run(backend: str, steps: int = 60, lead: float | None = 2.0) -> tuple[np.ndarray, list[str]]:

@@ -108,6 +108,14 @@ class DenseFollow:
         x = np.stack([theta_deg, omega_degps])  # (2, 3)
         return self.fth @ x, self.fom @ x
 
+    def response(self, theta_deg: F, omega_degps: F, reference_deg: F) -> tuple[F, F]:
+        """(θ (H+1, 3), θ̇ (H+1, 3)), samples 0..H, under the references θ*(0..H−1) (H, 3):
+        the model (28) as its free and impulse responses (two small products)."""
+        ft, fo = self.free(theta_deg, omega_degps)
+        th = np.vstack([theta_deg[None], ft + self.Tth @ reference_deg])
+        om = np.vstack([omega_degps[None], fo + self.Tom @ reference_deg])
+        return th, om
+
     def cost(self, free_th: F, free_om: F, targets: F, terminal_weight: float) -> F:
         """The linear cost for the free response and per-sample targets (H, 3)."""
         f = np.empty(self.n)

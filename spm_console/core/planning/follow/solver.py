@@ -78,7 +78,6 @@ from spm_console.core.planning.follow.qp import (
     build,
     fill_bounds,
     linear_cost,
-    predict,
 )
 from spm_console.core.planning.follow.result import FollowResult, FollowStatus
 from spm_console.core.planning.follow.target import ProjectionError, TargetProjector
@@ -308,7 +307,7 @@ class FollowSolver:
             return Solved(ans.status, ans.iterations, empty, empty, empty, empty, empty,
                            ans.status)
         ref = np.clip(ans.reference_deg, self._lo, self._hi)  # round-off beyond a servo limit
-        th, om = predict(self.model, th0, om0, ref)
+        th, om = self._daqp.dense.response(th0, om0, ref)
         return Solved(ans.status, ans.iterations, empty, empty, th, om, ref,
                        self._check(th, om))
 
