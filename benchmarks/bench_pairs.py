@@ -149,6 +149,7 @@ def _forget_planning_caches() -> None:
     connect._AIDS.clear()
     qp_build._equality_matrices.cache_clear()
     problem._instant_matrices.cache_clear()
+    problem._sub_instants.cache_clear()
 
 
 def _cold_solves(profile: Profile, ws: Workspace,

@@ -35,12 +35,6 @@ def straight_guess(problem: PlanProblem) -> F:
     return L.pack(th, th, om)
 
 
-def solution_guess(result: PlanResult) -> F:
-    """The z vector of a solved plan (screening guess for a neighbouring problem of the same N)."""
-    return Layout(result.N).pack(result.reference_deg, result.position_deg,
-                                 result.velocity_degps)
-
-
 def run_qp(problem: PlanProblem, guess: F | None = None,
            backend: Backend = "clarabel",
            warm: WorkingSet | None = None) -> tuple[Equalities, QpOutcome]:
@@ -115,6 +109,14 @@ def solve_problem(problem: PlanProblem, guess: F | None = None,
     """Solve (30) for ``problem``; raises InfeasibleError / SolverError with the reason.
     ``warm``: see :func:`run_qp`."""
     t0 = time.perf_counter()
+    eq, out = solved_qp(problem, guess, backend, warm)
+    return finish(problem, eq, out, t0)
+
+
+def solved_qp(problem: PlanProblem, guess: F | None = None, backend: Backend = "clarabel",
+              warm: WorkingSet | None = None) -> tuple[Equalities, QpOutcome]:
+    """:func:`run_qp`, raising InfeasibleError / SolverError unless it solved (the QP's
+    answer, before :func:`finish` simulates and verifies it)."""
     eq, out = run_qp(problem, guess, backend, warm)
     if out.status == "infeasible":
         extra = f" under v_max = {problem.vmax_degps}°/s" if problem.vmax_degps else ""
@@ -125,7 +127,7 @@ def solve_problem(problem: PlanProblem, guess: F | None = None,
     if out.status != "solved":
         raise SolverError(f"the QP solvers failed on the MVN problem (N = {problem.N}): "
                           f"{out.status} {out.detail}")
-    return finish(problem, eq, out, t0)
+    return eq, out
 
 
 def solve_mvn(model: ServoModel, start_deg: F, goal_deg: F, N: int, region: Region,

@@ -222,13 +222,23 @@ def sub_instants(problem: PlanProblem) -> SubInstants:
     model the runtime's ``check_points`` (those not already among them). Their speed bound
     is v_max at the former and v_max·(1 + BETWEEN_SPEED_ALLOWANCE) − SAMPLE_TOL at the latter
     (the runtime's rule 6, held with the planner's round-off to spare)."""
-    k, c = int(problem.intersample), int(problem.check_points)
-    asked = {Fraction(j, k) for j in range(1, k)}
-    runtime = ({Fraction(j, c) for j in range(1, c)} - asked
-               if problem.model.method == "zoh" else set())
-    fractions = tuple(sorted(asked | runtime))
-    phis, gams = _instant_matrices(problem.model.dynamics, float(problem.model.ts), fractions)
-    requested = np.array([f in asked for f in fractions], bool)
     v = np.inf if problem.vmax_degps is None else float(problem.vmax_degps)
+    return _sub_instants(problem.model.dynamics, float(problem.model.ts),
+                         problem.model.method == "zoh", int(problem.intersample),
+                         int(problem.check_points), v)
+
+
+@functools.lru_cache(maxsize=32)
+def _sub_instants(dynamics: Dynamics, ts: float, zoh: bool, k: int, c: int,
+                  v: float) -> SubInstants:
+    """:func:`sub_instants` by value (kept: a route's switch search and minimum time's probes
+    build many pools of one model and bound; the arrays are read-only)."""
+    asked = {Fraction(j, k) for j in range(1, k)}
+    runtime = {Fraction(j, c) for j in range(1, c)} - asked if zoh else set()
+    fractions = tuple(sorted(asked | runtime))
+    phis, gams = _instant_matrices(dynamics, ts, fractions)
+    requested = np.array([f in asked for f in fractions], bool)
     between = v * (1.0 + BETWEEN_SPEED_ALLOWANCE) - SAMPLE_TOL
-    return SubInstants(fractions, phis, gams, np.where(requested, v, between), requested)
+    speed = np.where(requested, v, between)
+    requested.flags.writeable = speed.flags.writeable = False
+    return SubInstants(fractions, phis, gams, speed, requested)

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.core.planning.active_set import WorkingSet
-from spm_console.core.planning.mvn import finish, run_qp, solution_guess, solve_problem
+from spm_console.core.planning.mvn import finish, run_qp, solved_qp
 from spm_console.core.planning.problem import PlanProblem
 from spm_console.core.planning.qp_build import Equalities, Pool
 from spm_console.core.planning.result import PlanResult
@@ -129,27 +129,31 @@ class RoutePlan:
     qps: int
     """QPs solved (first assignment + switch search)."""
     first_cost: float
-    """Cost with the switch samples first placed, (deg/s)²."""
+    """Cost with the switch samples first placed, (deg/s)²: ½zᵀPz of that QP's answer (the
+    measure the switch search compares)."""
     seconds: float
 
 
-def improve_switches(problem: PlanProblem, first: PlanResult,
+def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0: float,
                      max_qps: int = MAX_SWITCH_QPS) -> tuple[PlanResult, int]:
     """Move each switch sample while the MVN cost falls (steps 3, then 1), at most
-    ``max_qps`` extra QPs; the best plan and the QPs spent.
+    ``max_qps`` extra QPs, from ``first``, the solved QP of ``problem``'s own assignment;
+    the best plan and the QPs spent.
 
-    A candidate is compared by the cost of its certified QP solution (½zᵀPz, exact to
-    round-off); only the one kept is simulated and verified (:func:`finish`)."""
-    assert problem.route is not None
-    if first.working_set is not None and not _holds_region_rows(first):
+    Candidates are compared by the cost of their certified QP solution (½zᵀPz, exact to
+    round-off); only the one kept is simulated and verified (:func:`finish`), and the
+    first assignment's answer only when no candidate is kept or the kept one fails."""
+    assert problem.route is not None and first.z is not None
+    warm = WorkingSet(first.active, first.side) if first.certified else None
+    if warm is not None and not _holds_region_rows(problem, warm):
         # the first optimum holds no region row: it is optimal for the problem without any
         # region row, which every switch assignment only restricts further — no candidate
         # can cost less
-        return first, 0
-    t0 = time.perf_counter()
+        return finish(problem, eq, first, t0), 0
     qps = 0
-    route, cost = first.problem.regions, first.cost
-    warm, guess = first.working_set, solution_guess(first)
+    route = problem.regions
+    guess: F = first.z
+    cost = float(guess @ (eq.P @ guess)) / 2.0  # Σ θ̇ᵀθ̇: P is 2 on every θ̇
     kept: tuple[PlanProblem, Equalities, QpOutcome] | None = None
     for step in (3, 1):
         for i in range(len(route.switch)):
@@ -163,28 +167,27 @@ def improve_switches(problem: PlanProblem, first: PlanResult,
                         break
                     cand = problem.with_route(replace(route, switch=tuple(sw)))
                     qps += 1
-                    eq, out = run_qp(cand, guess, warm=warm)
+                    c_eq, out = run_qp(cand, guess, warm=warm)
                     if out.status != "solved" or out.z is None or not out.certified:
                         break  # infeasible, or no certified answer: this way ends here
-                    c = float(out.z @ (eq.P @ out.z)) / 2.0  # Σ θ̇ᵀθ̇: P is 2 on every θ̇
+                    c = float(out.z @ (c_eq.P @ out.z)) / 2.0
                     if c >= cost - 1e-9 * max(1.0, cost):
                         break  # only a certified optimum that costs less replaces the best
-                    route, cost, kept = cand.regions, c, (cand, eq, out)
+                    route, cost, kept = cand.regions, c, (cand, c_eq, out)
                     warm, guess = WorkingSet(out.active, out.side), out.z
-    if kept is None:
-        return first, qps
-    try:
-        return finish(*kept, t0), qps
-    except SolverError:  # the kept switch does not verify: the first plan did
-        return first, qps
+    if kept is not None:
+        try:
+            return finish(*kept, t0), qps
+        except SolverError:  # the kept switch does not verify: the first assignment decides
+            pass
+    return finish(problem, eq, first, t0), qps
 
 
-def _holds_region_rows(result: PlanResult) -> bool:
-    """Whether the certified working set of ``result`` holds a region row (at a sample or
-    between samples: pool families 0 and 1)."""
-    assert result.working_set is not None
-    pool = Pool(result.problem)
-    return bool(np.isin(pool.family[result.working_set.rows], (0, 1)).any())
+def _holds_region_rows(problem: PlanProblem, working: WorkingSet) -> bool:
+    """Whether the certified working set ``working`` of ``problem`` holds a region row (at a
+    sample or between samples: pool families 0 and 1)."""
+    pool = Pool(problem)
+    return bool(np.isin(pool.family[working.rows], (0, 1)).any())
 
 
 def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: RouteChoice,
@@ -196,10 +199,11 @@ def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: Rou
                               f"{len(choice.regions)} regions; use more steps", Issue.TOO_FEW_STEPS)
     route = choice.route(regions, problem.N, labels)
     pb = problem.with_route(route)
-    first = solve_problem(pb)
-    best, extra = (improve_switches(pb, first) if improve and route.count > 1
-                   else (first, 0))
+    eq, first = solved_qp(pb)
+    first_cost = float(first.z @ (eq.P @ first.z)) / 2.0 if first.z is not None else np.inf
+    best, extra = (improve_switches(pb, eq, first, t0) if improve and route.count > 1
+                   else (finish(pb, eq, first, t0), 0))
     seconds = time.perf_counter() - t0
     # the plan reports every QP its switch search solved, and their time, not the last one's
     best = replace(best, solve_seconds=seconds, qp_count=first.qp_count + extra)
-    return RoutePlan(best, choice, 1 + extra, first.cost, seconds)
+    return RoutePlan(best, choice, 1 + extra, first_cost, seconds)
