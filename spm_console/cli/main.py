@@ -21,7 +21,6 @@ from spm_console.system.childproc import prespawn
 from spm_console.system.cpus import cpu_plan
 from spm_console.system.signals import (
     SignalInterrupt,
-    first_signal,
     forget_signals,
     ignore_stop_signals,
     note_signal,
@@ -92,8 +91,14 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+#: The signal whose SignalInterrupt the start-up handler raised in this command (none yet:
+#: empty). A command's own stop handler (a run's E-stop) raises nothing and is not recorded.
+_RAISED: list[signal.Signals] = []
+
+
 def _interrupt(signum: int, _frame: FrameType | None) -> None:
     if note_signal(signal.Signals(signum)):  # the first decides; a second changes nothing
+        _RAISED.append(signal.Signals(signum))
         raise SignalInterrupt(signal.Signals(signum).name)
 
 
@@ -123,6 +128,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """The command line ``argv`` (default: the process's, as its entry point); the exit code.
     As the entry point, once the code is decided a terminating signal no longer changes it."""
     forget_signals()
+    _RAISED.clear()
     _interrupt_on_signals()
     common = sys.modules.get("spm_console.cli.common")
     if common is not None:  # in-process callers (tests) run main() more than once
@@ -187,10 +193,10 @@ def _main(args_list: list[str]) -> int:
     except BrokenPipeError:
         return int(ExitCode.OK)
     except Exception:
-        # A signal's SignalInterrupt raised inside a library that wraps what it catches (pydantic
-        # builds its validators as modules load and turns the interrupt into a SchemaError): the
-        # signal decided, as if it had arrived a bytecode earlier. Without a signal, a bug.
-        sig = first_signal()
-        if sig is None:
+        # The start-up handler's SignalInterrupt raised inside a library that wraps what it
+        # catches (pydantic builds its validators as modules load and turns the interrupt into
+        # a SchemaError): the signal decided, as if it had arrived a bytecode earlier. Anything
+        # else — no signal, or a signal a command's own stop handler took — is a bug.
+        if not _RAISED:
             raise
-        return _fail(as_json, int(ExitCode.INTERRUPTED), f"interrupted by {sig.name}")
+        return _fail(as_json, int(ExitCode.INTERRUPTED), f"interrupted by {_RAISED[0].name}")

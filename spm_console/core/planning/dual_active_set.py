@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from spm_console.core.plan_report import Certificate
+from spm_console.core.planning import active_set
 from spm_console.core.planning.active_set import (
     PRIMAL_TOL,
     REG_DUAL,
@@ -69,15 +70,16 @@ class _Kkt:
     m: int
     K: sp.csr_matrix  # K₀ unregularized (one product per refinement step)
 
-    def solve(self, rhs: F) -> F:
+    def solve(self, rhs: F, steps: int = SOLVE_REFINE, tol: float = 1e-11) -> F:
         """K₀⁻¹ rhs on the unregularized K₀: the regularized LU's answer refined (the
         regularization δ on the equalities' block would otherwise leave C dz = δ dλ, and a
-        large dλ turns that into a drift of the equalities and a false curvature)."""
+        large dλ turns that into a drift of the equalities and a false curvature), at most
+        ``steps`` corrections, until the residual is below ``tol``·max(1, ‖rhs‖∞)."""
         x = np.asarray(self.lu.solve(rhs))
         scale = max(1.0, float(np.abs(rhs).max()))
-        for _ in range(SOLVE_REFINE):
+        for _ in range(steps):
             res = rhs - self.apply(x)
-            if not float(np.abs(res).max()) > 1e-11 * scale:  # one correction gets ~1e-12
+            if not float(np.abs(res).max()) > tol * scale:  # one correction gets ~1e-12
                 break
             x = x + np.asarray(self.lu.solve(res))
         return x
@@ -120,7 +122,8 @@ def free_optimum(eq: Equalities) -> F | None:
     if kkt is None:
         return None
     f = np.concatenate([np.zeros(kkt.n), eq.d])
-    y = kkt.solve(f)
+    # refined as far as refine's eqp goes: a stiff or slow servo's K₀ is ill-conditioned
+    y = kkt.solve(f, steps=active_set.REFINE_STEPS, tol=1e-12)
     scale = max(1.0, float(np.abs(f).max()))
     if not np.all(np.isfinite(y)) or float(np.abs(f - kkt.apply(y)).max()) > 1e-9 * scale:
         return None

@@ -78,3 +78,26 @@ def test_past_its_steps_it_hands_over_and_the_plan_is_the_same(
     plan = solve_problem(pb)
     assert plan.info["method"] != "active-set" and plan.info["solver_calls"] >= 1
     assert plan.cost == pytest.approx(float(full.z @ (eq.P @ full.z)) / 2.0, rel=1e-9)
+
+
+@pytest.mark.parametrize(("p", "ts"), [(1.0, 0.001), (43.0, 0.02), (1000.0, 0.02)],
+                         ids=["slow", "paper-like", "stiff"])
+def test_the_free_optimum_is_the_one_refine_solves(p: float, ts: float) -> None:
+    """Minimum time's prediction solves the equalities alone on the kept factorization; it
+    must be as exact as :func:`eqp` with no row held (a slow or stiff servo's K₀ is badly
+    conditioned: p·Ts from 1e-3 to 20)."""
+    import numpy as np
+
+    from spm_console.core.planning.active_set import eqp
+    from spm_console.core.planning.dual_active_set import free_optimum
+    from spm_console.core.servo.model import discretize
+
+    model = discretize(p, ts)
+    for N in (3, 7, 40):
+        pb = PlanProblem(model, START, GOAL, N, polytope(), hold_first=False)
+        eq = equalities(pb)
+        ref = eqp(eq, Pool(pb), np.zeros(0, np.int64), np.zeros(0, np.int64))
+        z = free_optimum(eq)
+        assert ref is not None and z is not None
+        scale = max(1.0, float(np.abs(ref[0]).max()))
+        assert float(np.abs(z - ref[0]).max()) <= 1e-6 * scale
