@@ -62,8 +62,10 @@ def plot_workspace(ws: Workspace, path: Path | str, title: str = "") -> None:
     ax.scatter(*pts[inP].T, s=1, c="tab:green", alpha=0.15, label="feasible, inside P")
     faces = region_faces(ws.region)
     if faces:
+        # no autoscale: _axes3 sets the limits, and matplotlib's autoscale over ragged
+        # faces (padded) overflows
         ax.add_collection3d(Poly3DCollection(faces, facecolor="tab:blue", alpha=0.25,
-                                             edgecolor="k", linewidths=0.3))
+                                             edgecolor="k", linewidths=0.3), autolim=False)
     ax.set_title(f"P: {ws.region.halfspaces} half-spaces, {100 * ws.coverage():.1f} % of feasible")
     _axes3(ax, ws)
     ax.legend(loc="upper left", fontsize=7, markerscale=6)

@@ -85,6 +85,7 @@ def test_verify_small(capsys: pytest.CaptureFixture[str]) -> None:
     assert code == ExitCode.BAD_INPUT and "--samples" in err
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # matplotlib's autoscale overflowed once
 def test_show_plot(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     png = tmp_path / "ws.png"
     code, _, _ = run(capsys, "workspace", "show", "--plot", str(png))
