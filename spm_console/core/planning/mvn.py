@@ -37,18 +37,20 @@ def straight_guess(problem: PlanProblem) -> F:
 
 def run_qp(problem: PlanProblem, guess: F | None = None,
            backend: Backend = "clarabel",
-           warm: WorkingSet | None = None) -> tuple[Equalities, QpOutcome]:
+           warm: WorkingSet | None = None,
+           pool: Pool | None = None) -> tuple[Equalities, QpOutcome]:
     """Build and solve the QP of ``problem`` (after checking start and goal are in P).
 
     ``warm``, the working set of a neighbouring problem with the same pool, starts the
     dual active set (its rows with an infinite bound here are left out). ``backend`` solves
     the screened QP when the dual active set does not certify (Clarabel by default: measured
     faster and more robust than OSQP here, see benchmarks/bench_plan.py); if it fails the
-    other backend is tried.
+    other backend is tried. ``pool``: the problem's own, when the caller has it.
     """
     problem.check_endpoints()
     eq = equalities(problem)
-    pool = Pool(problem)
+    if pool is None:
+        pool = Pool(problem)
     g = straight_guess(problem) if guess is None else guess
     ws = warm.usable(pool) if warm is not None else None
     out = solve_qp(eq, pool, g, None if ws is None else ws.rows, None if ws is None else ws.side,

@@ -19,8 +19,9 @@ samples, 3 speed at samples, 4 reference bounds, 5 reference steps, 6 the refere
 
 from __future__ import annotations
 
+import copy
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import scipy.sparse as sp
@@ -112,6 +113,15 @@ def _equality_matrices(a_bytes: bytes, b_bytes: bytes, N: int,
     return P, C
 
 
+def _same(a: object, b: object) -> bool:
+    """The same field value: the same object, equal arrays or equal plain values."""
+    if a is b:
+        return True
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+    return type(a) in (int, float, bool, str) and a == b
+
+
 class Pool:
     """The inequality rows of (30d, e) (and their sub-sample versions), evaluated lazily."""
 
@@ -184,6 +194,28 @@ class Pool:
             np.ones(sizes[2] + sizes[3] + sizes[4] + sizes[5] + sizes[6])])
         self.family = np.repeat(np.arange(len(sizes)), sizes)
         """Each row's family (module docstring)."""
+
+    def switched(self, problem: PlanProblem) -> Pool:
+        """This pool for ``problem``, the same problem through the same regions with other
+        switch samples (a route's switch search): only the region rows' bounds change, which
+        samples and intervals each region binds."""
+        old, new = self.pb.regions, problem.regions
+        same_regions = len(new.regions) == len(old.regions) and all(
+            a is b for a, b in zip(new.regions, old.regions, strict=True))
+        others = [f.name for f in fields(problem) if f.name not in ("region", "route")]
+        if not same_regions or any(not _same(getattr(problem, f), getattr(self.pb, f))
+                                   for f in others):
+            raise ValueError("switched: only the switch samples may differ")
+        pool = copy.copy(self)
+        pool.pb = problem
+        N = problem.N
+        at_samples = new.sample_mask(N)[1:N][:, self.owner]
+        between = np.repeat(new.interval_mask(N)[:, self.owner], self.KR, axis=0)
+        pool.hi = self.hi.copy()
+        pool.hi[: self.offsets[2]] = np.concatenate([
+            np.where(at_samples, self.bp, np.inf).ravel(),
+            np.where(between, self.bp, np.inf).ravel()])
+        return pool
 
     def requested_speed_rows(self) -> NDArray[np.bool_]:
         """(m,) mask of the speed rows between samples at ``intersample``'s own instants

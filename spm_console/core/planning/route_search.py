@@ -145,7 +145,8 @@ def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0:
     first assignment's answer only when no candidate is kept or the kept one fails."""
     assert problem.route is not None and first.z is not None
     warm = WorkingSet(first.active, first.side) if first.certified else None
-    if warm is not None and not _holds_region_rows(problem, warm):
+    pool = Pool(problem)  # each candidate's is this one with other region bounds
+    if warm is not None and not _holds_region_rows(pool, warm):
         # the first optimum holds no region row: it is optimal for the problem without any
         # region row, which every switch assignment only restricts further — no candidate
         # can cost less
@@ -167,7 +168,7 @@ def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0:
                         break
                     cand = problem.with_route(replace(route, switch=tuple(sw)))
                     qps += 1
-                    c_eq, out = run_qp(cand, guess, warm=warm)
+                    c_eq, out = run_qp(cand, guess, warm=warm, pool=pool.switched(cand))
                     if out.status != "solved" or out.z is None or not out.certified:
                         break  # infeasible, or no certified answer: this way ends here
                     c = float(out.z @ (c_eq.P @ out.z)) / 2.0
@@ -183,10 +184,9 @@ def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0:
     return finish(problem, eq, first, t0), qps
 
 
-def _holds_region_rows(problem: PlanProblem, working: WorkingSet) -> bool:
-    """Whether the certified working set ``working`` of ``problem`` holds a region row (at a
-    sample or between samples: pool families 0 and 1)."""
-    pool = Pool(problem)
+def _holds_region_rows(pool: Pool, working: WorkingSet) -> bool:
+    """Whether the certified working set ``working`` of ``pool``'s problem holds a region row
+    (at a sample or between samples: pool families 0 and 1)."""
     return bool(np.isin(pool.family[working.rows], (0, 1)).any())
 
 

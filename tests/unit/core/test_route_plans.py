@@ -80,7 +80,7 @@ def test_a_first_optimum_that_holds_no_region_row_ends_the_switch_search(
     pb = PlanProblem(MODEL, START, GOAL, 150, wide0, 40.0)
     plan = solve_route_mvn(pb, [wide0, wide1], two)
     assert plan.qps == 1 and plan.result.working_set is not None
-    monkeypatch.setattr(rs, "_holds_region_rows", lambda problem, working: True)
+    monkeypatch.setattr(rs, "_holds_region_rows", lambda pool, working: True)
     searched = solve_route_mvn(pb, [wide0, wide1], two)
     assert searched.qps > 1
     assert searched.result.cost >= plan.result.cost - 1e-9 * plan.result.cost
@@ -169,3 +169,27 @@ def test_pairs_one_region_refuses_plan_through_the_cover_and_every_point_is_feas
     _, xs = simulate_continuous(agile.servo.p, agile.servo.ts_s, x0, plan.reference_deg, 20)
     pc = check_points(ws, model_of(agile), link_model_of(agile), xs[..., 0])
     assert pc.pointwise_ok(ws.zeta_min, ws.min_distance_mm).all()
+
+
+def test_a_switched_pool_is_the_candidates_own_pool() -> None:
+    """The switch search reuses the first assignment's pool with other region bounds: row for
+    row the pool a candidate would build itself; any other difference is refused."""
+    from dataclasses import replace
+
+    from spm_console.core.planning.qp_build import Pool
+
+    choice = find_route([BOX0, BOX1], OVERLAP, START, GOAL)
+    assert choice is not None
+    pb = PlanProblem(MODEL, START, GOAL, 80, BOX0, 40.0, intersample=4)
+    first = pb.with_route(choice.route([BOX0, BOX1], 80))
+    cand = first.with_route(replace(first.regions, switch=(first.regions.switch[0] + 3,)))
+    own, switched = Pool(cand), Pool(first).switched(cand)
+    for name in ("lo", "hi", "scale", "family", "offsets"):
+        np.testing.assert_array_equal(getattr(switched, name), getattr(own, name))
+    z = np.random.default_rng(1).normal(90.0, 10.0, own.L.n)
+    np.testing.assert_array_equal(switched.values(z), own.values(z))
+    assert not np.array_equal(switched.hi, Pool(first).hi)  # the switch moved a bound
+    with pytest.raises(ValueError, match="only the switch"):
+        Pool(first).switched(replace(cand, vmax_degps=45.0))
+    with pytest.raises(ValueError, match="only the switch"):
+        Pool(first).switched(cand.with_route(RegionRoute((BOX1, BOX0), cand.regions.switch)))
