@@ -23,7 +23,9 @@ from spm_console.system.signals import (
     SignalInterrupt,
     forget_signals,
     ignore_stop_signals,
+    note_raised,
     note_signal,
+    raised_interrupt,
 )
 
 #: Command name -> the module that registers it (``register(subparsers)`` setting ``func``).
@@ -91,14 +93,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-#: The signal whose SignalInterrupt the start-up handler raised in this command (none yet:
-#: empty). A command's own stop handler (a run's E-stop) raises nothing and is not recorded.
-_RAISED: list[signal.Signals] = []
-
-
 def _interrupt(signum: int, _frame: FrameType | None) -> None:
     if note_signal(signal.Signals(signum)):  # the first decides; a second changes nothing
-        _RAISED.append(signal.Signals(signum))
+        # recorded: a command's own stop handler (a run's E-stop) raises nothing and is not
+        note_raised(signal.Signals(signum))
         raise SignalInterrupt(signal.Signals(signum).name)
 
 
@@ -128,7 +126,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     """The command line ``argv`` (default: the process's, as its entry point); the exit code.
     As the entry point, once the code is decided a terminating signal no longer changes it."""
     forget_signals()
-    _RAISED.clear()
     _interrupt_on_signals()
     common = sys.modules.get("spm_console.cli.common")
     if common is not None:  # in-process callers (tests) run main() more than once
@@ -197,6 +194,7 @@ def _main(args_list: list[str]) -> int:
         # catches (pydantic builds its validators as modules load and turns the interrupt into
         # a SchemaError): the signal decided, as if it had arrived a bytecode earlier. Anything
         # else — no signal, or a signal a command's own stop handler took — is a bug.
-        if not _RAISED:
+        sig = raised_interrupt()
+        if sig is None:
             raise
-        return _fail(as_json, int(ExitCode.INTERRUPTED), f"interrupted by {_RAISED[0].name}")
+        return _fail(as_json, int(ExitCode.INTERRUPTED), f"interrupted by {sig.name}")

@@ -46,6 +46,7 @@ from spm_console.services.oneshot import RunRequest, execute_once, home_once
 from spm_console.services.preview import Preview, preview_execute
 from spm_console.services.session import Session
 from spm_console.store.plan_file import load_plan
+from spm_console.system.signals import raised_interrupt
 
 
 def _bus_opts(p: argparse.ArgumentParser) -> None:
@@ -115,7 +116,8 @@ def _request(args: argparse.Namespace, profile: Profile) -> RunRequest:
     skip = _skip_reason(getattr(args, "skip_homing", ""))
     return RunRequest(port=args.port, sim=args.sim, faults=faults, sim_start_deg=start,
                       approach=not getattr(args, "no_approach", False), skip_homing=skip,
-                      log_root=args.logs, on_late_signal=_late_signal)
+                      log_root=args.logs, on_late_signal=_late_signal,
+                      lost_signal=raised_interrupt)
 
 
 def with_progress(args: argparse.Namespace, req: RunRequest, verifies: bool = False) -> RunProgress:

@@ -77,6 +77,9 @@ class RunRequest:
     """The emulated bus in simulated time (None: as the environment or profile says)."""
     preview: bool = False
     """A preview on the wrist's twin (the run logs say so)."""
+    lost_signal: Callable[[], signal.Signals | None] | None = None
+    """A signal that came before the run's own handling and whose interrupt was lost (a
+    library caught it): the run is refused as interrupted (the CLI's start-up record)."""
 
     def emulated(self, profile: Profile) -> bool:
         """Whether the run drives the emulated bus: ``--sim``, or no port given here or in the
@@ -133,6 +136,9 @@ def one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Sessi
     on_signal = _SignalStop(session)
     session.before_motion = on_signal.check
     with stop_signals(on_signal) if req.handle_signals else contextlib.nullcontext():
+        lost = req.lost_signal() if req.lost_signal is not None else None
+        if lost is not None:
+            on_signal.pending = on_signal.pending or lost
         try:
             try:
                 on_signal.check()

@@ -63,9 +63,25 @@ def first_signal() -> signal.Signals | None:
     return _received[0] if _received else None
 
 
+_raised: list[signal.Signals] = []
+"""The signal whose interrupt the CLI's start-up handler raised (empty: none)."""
+
+
+def note_raised(sig: signal.Signals) -> None:
+    """The CLI's start-up handler raises the interrupt of ``sig`` (lock-free)."""
+    _raised.append(sig)
+
+
+def raised_interrupt() -> signal.Signals | None:
+    """The signal whose interrupt the start-up handler raised in this command (None: none).
+    A command still running after it had that interrupt lost: a library caught it."""
+    return _raised[0] if _raised else None
+
+
 def forget_signals() -> None:
     """A new command starts (callers of the CLI's ``main`` in one process, such as tests)."""
     _received.clear()
+    _raised.clear()
 
 
 def ignore_stop_signals() -> None:

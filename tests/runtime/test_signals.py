@@ -134,6 +134,20 @@ def test_a_signal_before_the_motion_interrupts_with_nothing_moved(
     assert run.rows == 0 and "torque_on" not in [e["event"] for e in run.events]
 
 
+def test_a_signal_whose_interrupt_a_library_lost_refuses_the_run(
+        tmp_path: Path, agile: Profile) -> None:
+    """A signal before the run's own handling, whose interrupt a library caught (the CLI's
+    start-up record keeps it): the run is refused as interrupted, nothing moves, 130."""
+    plan = synthetic_plan(agile, PAPER_START, GOAL, 1.5)
+    req = RunRequest(sim=True, log_root=tmp_path, lost_signal=lambda: signal.SIGQUIT)
+    with pytest.raises(Exception, match="interrupted by SIGQUIT before any motion") as exc:
+        execute_once(agile, plan, req)
+    assert getattr(exc.value, "exit_code", None) == ExitCode.INTERRUPTED
+    run = load_run("last", tmp_path)
+    assert run.meta["outcome"] == "interrupted" and run.meta["exit_code"] == 130
+    assert run.rows == 0 and "torque_on" not in [e["event"] for e in run.events]
+
+
 def test_sigkill_of_the_loop_loses_at_most_three_cycles_and_the_run_is_listed_killed(
         tmp_path: Path, long_plan: Path, agile: Profile) -> None:
     """SIGKILL of the motion process (the loop and the log's writer): the CLI reports it (27),
