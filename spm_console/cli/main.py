@@ -95,7 +95,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
 def _interrupt(signum: int, _frame: FrameType | None) -> None:
     if note_signal(signal.Signals(signum)):  # the first decides; a second changes nothing
-        # recorded: a command's own stop handler (a run's E-stop) raises nothing and is not
+        # kept, so that an interrupt a library catches still decides (a run's own stop
+        # handler raises nothing and keeps nothing here)
         note_raised(signal.Signals(signum))
         raise SignalInterrupt(signal.Signals(signum).name)
 
