@@ -206,6 +206,7 @@ def test_viewer_url_shown_loopback_only_and_stopped_on_quit(tmux_console) -> Non
     _wait_gone(port)
 
 
+@pytest.mark.realtime  # "the hold within two periods" is a claim on the wall clock
 @pytest.mark.parametrize("sig", [
     signal.SIGTERM,
     pytest.param(signal.SIGINT, marks=pytest.mark.slow),
@@ -236,6 +237,7 @@ def test_a_signal_to_its_group_mid_motion_stops_the_wrist_the_console_and_its_vi
     assert_estopped(tmp_path / "logs", runs[-1].path, sig, agile.servo.ts_s, loop_pid)
 
 
+@pytest.mark.realtime  # as above: the E-stop's latency is measured on the wall clock
 def test_closing_the_terminal_mid_motion_stops_the_wrist_and_closes_the_log(  # type: ignore[no-untyped-def]
         tmux_console, tmp_path, agile) -> None:
     """The terminal goes away (tmux closes the pty: SIGHUP, as a dropped SSH session)."""
