@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import time
 
+import pytest
+
 from spm_console.tui.screens.base import StepScreen
 from spm_console.tui.widgets.confirm import QuitConfirm
 from tests.support.console_helpers import burst, settle
@@ -45,6 +47,7 @@ async def test_q_then_y_quits_and_so_does_a_burst_of_two_q(console) -> None:
     assert again.return_code == 0
 
 
+@pytest.mark.usefixtures("paced_clock")  # it acts while the wrist moves: real-time pace
 async def test_q_while_the_wrist_moves_is_refused_and_the_motion_ends_normally(console) -> None:
     app = console(initial_deg=(85.0, 150.0, 110.0))  # 50° from home: 2.5 s at 20°/s
     said: list[str] = []
