@@ -134,10 +134,19 @@ def kkt_verdict(z: F, act: I, sd: I, lam: F, solves: int, up: F, dn: F) -> Activ
     multiplier of W of its side's sign to :data:`DUAL_TOL` of the largest — optimal then."""
     viol = np.maximum(up, dn)
     maxv = float(viol.max()) if viol.size else 0.0
-    lam_ref = max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
-    mind = float((lam * sd).min() / lam_ref) if lam.size else 0.0
-    ok = maxv <= PRIMAL_TOL and mind >= -DUAL_TOL
+    mind = float((lam * sd).min() / _lam_ref(lam)) if lam.size else 0.0
+    ok = maxv <= PRIMAL_TOL and not wrong_signed(lam, sd).any()
     return ActiveSetResult(ok, z, act, sd, lam, solves, maxv, mind)
+
+
+def _lam_ref(lam: F) -> float:
+    return max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
+
+
+def wrong_signed(lam: F, sd: I) -> NDArray[np.bool_]:
+    """The rows of W whose multiplier has the wrong sign for their side by more than
+    :data:`DUAL_TOL` of the largest (they leave W; a NaN multiplier counts as wrong)."""
+    return np.asarray(~(lam * sd >= -DUAL_TOL * _lam_ref(lam)))
 
 
 def refine(eq: Equalities, pool: Pool, active: I | None = None, side: I | None = None,
@@ -157,8 +166,7 @@ def refine(eq: Equalities, pool: Pool, active: I | None = None, side: I | None =
             return last
         # violated rows join W, wrong-signed rows leave it
         bad_p = np.flatnonzero(np.maximum(up, dn) > PRIMAL_TOL)
-        lam_ref = max(1.0, float(np.abs(lam).max())) if lam.size else 1.0
-        keep = ~(lam * sd < -DUAL_TOL * lam_ref)
+        keep = ~wrong_signed(lam, sd)
         new_side = np.where(up[bad_p] > dn[bad_p], 1, -1)
         act = np.concatenate([act[keep], bad_p])
         sd = np.concatenate([sd[keep], new_side])

@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from spm_console.core.plan_rules import MAX_REFERENCE_STEP_DEG
 from spm_console.core.planning.problem import Layout, PlanProblem, sub_instants
+from spm_console.core.regions.route import RegionRoute
 
 #: The largest reference step a plan may take, deg: the runtime's bound less a margin above
 #: the solver's tolerance (a step the QP holds at its bound must pass the runtime's check).
@@ -183,11 +184,8 @@ class Pool:
             np.full(sizes[0], -inf), np.full(sizes[1], -inf), -sub_speed,
             np.full(sizes[3], -vv), np.tile(rlo, sizes[4] // 3), step_lo.ravel(),
             np.full(sizes[6], -lead)])
-        at_samples = route.sample_mask(N)[1:N][:, self.owner]  # (N−1, nr)
-        between = np.repeat(route.interval_mask(N)[:, self.owner], self.KR, axis=0)  # (N·KR, nr)
         self.hi = np.concatenate([
-            np.where(at_samples, self.bp, inf).ravel(), np.where(between, self.bp, inf).ravel(),
-            sub_speed, np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3), step_hi.ravel(),
+            self._region_bounds(route), sub_speed, np.full(sizes[3], vv), np.tile(rhi, sizes[4] // 3), step_hi.ravel(),
             np.full(sizes[6], lead)])
         self.scale = np.concatenate([
             np.tile(anorm, N - 1), np.tile(anorm, N * self.KR),
@@ -208,14 +206,18 @@ class Pool:
             raise ValueError("switched: only the switch samples may differ")
         pool = copy.copy(self)
         pool.pb = problem
-        N = problem.N
-        at_samples = new.sample_mask(N)[1:N][:, self.owner]
-        between = np.repeat(new.interval_mask(N)[:, self.owner], self.KR, axis=0)
         pool.hi = self.hi.copy()
-        pool.hi[: self.offsets[2]] = np.concatenate([
-            np.where(at_samples, self.bp, np.inf).ravel(),
-            np.where(between, self.bp, np.inf).ravel()])
+        pool.hi[: self.offsets[2]] = self._region_bounds(new)
         return pool
+
+    def _region_bounds(self, route: RegionRoute) -> F:
+        """Upper bounds of the region rows (families 0 and 1) for ``route``: a row binds
+        only the samples and intervals of its region (elsewhere +∞, never active)."""
+        N = self.pb.N
+        at_samples = route.sample_mask(N)[1:N][:, self.owner]  # (N−1, nr)
+        between = np.repeat(route.interval_mask(N)[:, self.owner], self.KR, axis=0)  # (N·KR, nr)
+        return np.concatenate([np.where(at_samples, self.bp, np.inf).ravel(),
+                               np.where(between, self.bp, np.inf).ravel()])
 
     def requested_speed_rows(self) -> NDArray[np.bool_]:
         """(m,) mask of the speed rows between samples at ``intersample``'s own instants

@@ -154,7 +154,7 @@ def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0:
     qps = 0
     route = problem.regions
     guess: F = first.z
-    cost = float(guess @ (eq.P @ guess)) / 2.0  # Σ θ̇ᵀθ̇: P is 2 on every θ̇
+    cost = qp_cost(eq, guess)
     kept: tuple[PlanProblem, Equalities, QpOutcome] | None = None
     for step in (3, 1):
         for i in range(len(route.switch)):
@@ -171,7 +171,7 @@ def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0:
                     c_eq, out = run_qp(cand, guess, warm=warm, pool=pool.switched(cand))
                     if out.status != "solved" or out.z is None or not out.certified:
                         break  # infeasible, or no certified answer: this way ends here
-                    c = float(out.z @ (c_eq.P @ out.z)) / 2.0
+                    c = qp_cost(c_eq, out.z)
                     if c >= cost - 1e-9 * max(1.0, cost):
                         break  # only a certified optimum that costs less replaces the best
                     route, cost, kept = cand.regions, c, (cand, c_eq, out)
@@ -182,6 +182,11 @@ def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0:
         except SolverError:  # the kept switch does not verify: the first assignment decides
             pass
     return finish(problem, eq, first, t0), qps
+
+
+def qp_cost(eq: Equalities, z: F) -> float:
+    """½zᵀPz, the MVN cost Σ θ̇ᵀθ̇ of a QP answer (P is 2 on every θ̇), (deg/s)²."""
+    return float(z @ (eq.P @ z)) / 2.0
 
 
 def _holds_region_rows(pool: Pool, working: WorkingSet) -> bool:
@@ -200,7 +205,7 @@ def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: Rou
     route = choice.route(regions, problem.N, labels)
     pb = problem.with_route(route)
     eq, first = solved_qp(pb)
-    first_cost = float(first.z @ (eq.P @ first.z)) / 2.0 if first.z is not None else np.inf
+    first_cost = qp_cost(eq, first.z) if first.z is not None else np.inf
     best, extra = (improve_switches(pb, eq, first, t0) if improve and route.count > 1
                    else (finish(pb, eq, first, t0), 0))
     seconds = time.perf_counter() - t0
