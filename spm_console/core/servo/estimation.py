@@ -3,7 +3,8 @@
 Per joint, state x = [θ, θ̇] (deg, deg/s), the servo model (28)
 ``x(k+1) = A x(k) + B θ*(k)`` from :func:`~spm_console.core.servo.model.discretize`,
 the reference θ*(k) as the known input and the measured position θ(k) as the
-measurement. Three independent ``filterpy`` Kalman filters, one per joint.
+measurement. The joints are independent: one ``filterpy`` Kalman filter on their stacked
+states, whose matrices are block diagonal (the three joints' filters in one call).
 
 Noise model (profile section ``estimation``):
 
@@ -74,26 +75,36 @@ class KalmanVelocity:
 
         self.model = model
         theta0 = np.asarray(theta0_deg, float).reshape(3)
-        self.filters: list[KalmanFilter] = []
+        eye = np.eye(3)
+        # one filter on the stacked state (θ1, θ̇1, θ2, θ̇2, θ3, θ̇3): every matrix is block
+        # diagonal, so it is the three joints' filters exactly (the off-diagonal blocks stay
+        # 0), in one filterpy call per step instead of three
+        self._F = np.zeros((6, 6))
+        self._B = np.zeros((6, 3))
+        self._blocks(model.A, model.B)
+        kf = KalmanFilter(dim_x=6, dim_z=3, dim_u=3)
+        kf.F = self._F.copy()
+        kf.B = self._B.copy()
+        kf.H = np.kron(eye, np.array([[1.0, 0.0]]))
+        kf.R = measurement_noise_deg**2 * eye
+        kf.Q = self._q = np.kron(eye, process_noise(model.ts, process_noise_deg))
+        kf.x = np.stack([theta0, np.zeros(3)], axis=1).reshape(6, 1)
+        kf.P = np.kron(eye, np.diag([measurement_noise_deg**2, velocity0_std_degps**2]))
+        self.filter: KalmanFilter = kf
+
+    def _blocks(self, Phi: F, Gam: F) -> None:
+        """Put one joint's transition (2, 2) and input (2,) on each joint's diagonal block."""
+        gam = np.asarray(Gam, float).reshape(2)
         for i in range(3):
-            kf = KalmanFilter(dim_x=2, dim_z=1, dim_u=1)
-            kf.F = model.A.copy()
-            kf.B = model.B.reshape(2, 1).copy()
-            kf.H = np.array([[1.0, 0.0]])
-            kf.R = np.array([[measurement_noise_deg**2]])
-            kf.Q = self._q = process_noise(model.ts, process_noise_deg)
-            kf.x = np.array([[theta0[i]], [0.0]])
-            kf.P = np.diag([measurement_noise_deg**2, velocity0_std_degps**2])
-            self.filters.append(kf)
+            j = 2 * i
+            self._F[j:j + 2, j:j + 2] = Phi
+            self._B[j:j + 2, i] = gam
 
     def step(self, reference_prev_deg: F, measured_deg: F | None) -> tuple[F, F]:
         """Ideal timing: predict over Ts with θ*(k−1), update with θ(k) measured at k·Ts."""
-        ref = np.asarray(reference_prev_deg, float).reshape(3)
-        z = None if measured_deg is None else np.asarray(measured_deg, float).reshape(3)
-        for i, kf in enumerate(self.filters):
-            kf.predict(u=ref[i])
-            if z is not None:
-                kf.update(z[i])
+        self.filter.predict(u=np.asarray(reference_prev_deg, float).reshape(3, 1))
+        if measured_deg is not None:
+            self.filter.update(np.asarray(measured_deg, float).reshape(3, 1))
         return self.position_deg, self.velocity_degps
 
     def step_timed(self, spans: Sequence[tuple[float, F]], measured_deg: F | None
@@ -104,28 +115,26 @@ class KalmanVelocity:
         The state then lives at the measurement instant; process noise scales with the
         elapsed time (Q per Ts). Returns (θ̂, θ̇̂) there, deg and deg/s.
         """
-        z = None if measured_deg is None else np.asarray(measured_deg, float).reshape(3)
         for dt, u in spans:
             if dt <= 0.0:
                 continue
             Phi, Gam = exact_step(self.model.dynamics, dt)
-            u3 = np.asarray(u, float).reshape(3)
-            for i, kf in enumerate(self.filters):
-                kf.predict(u=u3[i], B=Gam.reshape(2, 1), F=Phi, Q=self._q * (dt / self.model.ts))
-        if z is not None:
-            for i, kf in enumerate(self.filters):
-                kf.update(z[i])
+            self._blocks(Phi, Gam)
+            self.filter.predict(u=np.asarray(u, float).reshape(3, 1), B=self._B, F=self._F,
+                                Q=self._q * (dt / self.model.ts))
+        if measured_deg is not None:
+            self.filter.update(np.asarray(measured_deg, float).reshape(3, 1))
         return self.position_deg, self.velocity_degps
 
     @property
     def position_deg(self) -> F:
         """Filtered positions θ̂ at the last estimate's instant (3,), deg."""
-        return np.array([kf.x[0, 0] for kf in self.filters])
+        return np.array(self.filter.x[0::2, 0], float)
 
     @property
     def velocity_degps(self) -> F:
         """Filtered velocities θ̇̂ at the last estimate's instant (3,), deg/s."""
-        return np.array([kf.x[1, 0] for kf in self.filters])
+        return np.array(self.filter.x[1::2, 0], float)
 
 @dataclass
 class FiniteDifference:

@@ -148,3 +148,50 @@ def test_actual_write_and_read_instants_are_modelled() -> None:
     fd = FiniteDifference(TS)
     fdv = [fd.step(z[k], float(read[k]))[0] for k in range(n)]
     assert rms_t < 0.5 * float(np.sqrt(np.mean((np.array(fdv) - truth_v) ** 2)))
+
+
+def test_the_stacked_filter_is_three_independent_joint_filters() -> None:
+    """The one filter on the three joints' stacked states gives what three filterpy filters,
+    one per joint, give (the reference): exact timing with spans, a lost read, noise."""
+    from filterpy.kalman import KalmanFilter
+
+    from spm_console.core.servo.model import exact_step
+
+    model = discretize(P, TS)
+    rng = np.random.default_rng(3)
+    theta0 = np.array([80.0, 110.0, 135.0])
+    sigma_m, sigma_q = 0.05, 0.02
+    stacked = KalmanVelocity(model, theta0, sigma_m, sigma_q, velocity0_std_degps=2.0)
+    joints = []
+    for i in range(3):
+        kf = KalmanFilter(dim_x=2, dim_z=1, dim_u=1)
+        kf.F, kf.B = model.A.copy(), model.B.reshape(2, 1).copy()
+        kf.H, kf.R = np.array([[1.0, 0.0]]), np.array([[sigma_m**2]])
+        kf.Q = process_noise(TS, sigma_q)
+        kf.x = np.array([[theta0[i]], [0.0]])
+        kf.P = np.diag([sigma_m**2, 2.0**2])
+        joints.append(kf)
+    ref = theta0.copy()
+    for k in range(120):
+        new_ref = ref + rng.normal(0.0, 0.8, 3)
+        spans = [(0.001 + 0.004 * rng.random(), ref), (0.018 + 0.003 * rng.random(), new_ref)]
+        z = None if k % 17 == 5 else ref + rng.normal(0.0, 0.3, 3)
+        got = stacked.step_timed(spans, z)
+        for i, kf in enumerate(joints):
+            for dt, u in spans:
+                Phi, Gam = exact_step(model.dynamics, dt)
+                kf.predict(u=u[i], B=Gam.reshape(2, 1), F=Phi, Q=process_noise(TS, sigma_q) * (dt / TS))
+            if z is not None:
+                kf.update(z[i])
+        want = (np.array([kf.x[0, 0] for kf in joints]), np.array([kf.x[1, 0] for kf in joints]))
+        np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-7)
+        ref = new_ref
+    # the ideal step too
+    for _ in range(30):
+        z = ref + rng.normal(0.0, 0.3, 3)
+        got = stacked.step(ref, z)
+        for i, kf in enumerate(joints):
+            kf.predict(u=ref[i])
+            kf.update(z[i])
+        np.testing.assert_allclose(got[1], [kf.x[1, 0] for kf in joints], rtol=0, atol=1e-7)
