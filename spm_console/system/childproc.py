@@ -27,6 +27,8 @@ START_TIMEOUT_S = 15.0
 
 _spares: dict[str, subprocess.Popen[bytes]] = {}
 """Children started ahead by :func:`prespawn`, by module, waiting for their request."""
+_spare_env: dict[str, dict[str, str]] = {}
+"""The environment each spare started with (it reads its settings from it)."""
 _spares_lock = threading.Lock()
 
 
@@ -42,6 +44,7 @@ def _kill_spares() -> None:
     with _spares_lock:
         spares = list(_spares.values())
         _spares.clear()
+        _spare_env.clear()
     for proc in spares:
         _discard(proc)
 
@@ -63,7 +66,9 @@ def _discard(proc: subprocess.Popen[bytes]) -> None:
 def prespawn(module: str) -> None:
     """Start the child ``python -m module`` (no extra arguments) now, so that its imports
     overlap this process's own; the next :meth:`ChildProcess.start` of that module takes it.
-    One spare per module; an unused spare is ended when this process exits."""
+    One spare per module; an unused spare is ended when this process exits. A spare is taken
+    only while this process's environment is the one it started with (the child reads its
+    settings there: real-time scheduling, the clock); else it is ended and a child started."""
     with _spares_lock:
         if module in _spares:
             return
@@ -71,6 +76,7 @@ def prespawn(module: str) -> None:
             _spares[module] = _spawn(module, ())
         except OSError:
             return  # started when it is needed, as without a spare
+        _spare_env[module] = dict(os.environ)
     atexit.register(_kill_spares)
 
 
@@ -79,7 +85,8 @@ def _take_spare(module: str, args: Sequence[str]) -> subprocess.Popen[bytes] | N
         return None
     with _spares_lock:
         proc = _spares.pop(module, None)
-    if proc is not None and proc.poll() is not None:
+        env = _spare_env.pop(module, None)
+    if proc is not None and (proc.poll() is not None or env != dict(os.environ)):
         _discard(proc)
         return None
     return proc

@@ -10,6 +10,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+from spm_console.config.schema import Profile
 from spm_console.system import childproc
 from spm_console.system.childproc import ChildProcess
 
@@ -52,3 +55,24 @@ def test_an_unused_spare_ends_with_its_command(tmp_path: Path) -> None:
     out, _ = proc.communicate(timeout=60)
     assert proc.returncode != 0 and json.loads(out.splitlines()[-1])["ok"] is False
     assert _children_of(proc.pid) == []
+
+
+def test_a_spare_started_under_another_environment_is_not_taken(
+        agile: Profile, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The child reads its settings from its environment: a spare started before the
+    environment changed (an in-process command before a console test, here real-time
+    scheduling switched off since) is ended, and a child started under the new one serves."""
+    monkeypatch.delenv("SPM_CONSOLE_REALTIME", raising=False)
+    childproc.prespawn(EMULATOR)
+    spare = childproc._spares[EMULATOR]
+    monkeypatch.setenv("SPM_CONSOLE_REALTIME", "0")
+    child = ChildProcess(EMULATOR, what="emulated servo bus")
+    try:
+        info = child.start(json.dumps({"profile": agile.model_dump(mode="json"),
+                                       "faults": []}).encode())
+        assert child._proc is not None and child._proc.pid != spare.pid
+        assert info["realtime_granted"] is False and "SPM_CONSOLE_REALTIME=0" in info["realtime"]
+    finally:
+        child.stop()
+    assert spare.wait(5) is not None  # ended, never served
+    assert EMULATOR not in childproc._spares
