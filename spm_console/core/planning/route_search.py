@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,6 +44,8 @@ F = NDArray[np.float64]
 EUCLID_WEIGHT = 1e-3
 #: Most QPs the switch-sample search may add to the first one.
 MAX_SWITCH_QPS = 4
+#: The first move of a switch sample in the search, samples.
+FIRST_SWITCH_STEP = 3
 
 
 @dataclass(frozen=True)
@@ -136,9 +138,13 @@ class RoutePlan:
 
 def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0: float,
                      max_qps: int = MAX_SWITCH_QPS) -> tuple[PlanResult, int]:
-    """Move each switch sample while the MVN cost falls (steps 3, then 1), at most
-    ``max_qps`` extra QPs, from ``first``, the solved QP of ``problem``'s own assignment;
-    the best plan and the QPs spent.
+    """Move each switch sample while the MVN cost falls, at most ``max_qps`` extra QPs, from
+    ``first``, the solved QP of ``problem``'s own assignment; the best plan and the QPs spent.
+
+    Each switch is moved by a line search along the samples (:func:`_line_search`): the cost
+    of a route as a function of one switch sample is smooth and has one minimum in the cases
+    measured (docs/decisions/solver-choice.md), often tens of samples away, so steps grow
+    while the cost falls and shrink once it rises.
 
     Candidates are compared by the cost of their certified QP solution (½zᵀPz, exact to
     round-off); only the one kept is simulated and verified (:func:`finish`), and the
@@ -151,37 +157,93 @@ def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0:
         # region row, which every switch assignment only restricts further — no candidate
         # can cost less
         return finish(problem, eq, first, t0), 0
-    qps = 0
-    route = problem.regions
-    guess: F = first.z
-    cost = qp_cost(eq, guess)
-    kept: tuple[PlanProblem, Equalities, QpOutcome] | None = None
-    for step in (3, 1):
-        for i in range(len(route.switch)):
-            for sign in (1, -1):
-                while qps < max_qps:
-                    sw = list(route.switch)
-                    sw[i] += sign * step
-                    lo = sw[i - 1] + 1 if i else 1
-                    hi = sw[i + 1] - 1 if i + 1 < len(sw) else problem.N - 1
-                    if not lo <= sw[i] <= hi:
-                        break
-                    cand = problem.with_route(replace(route, switch=tuple(sw)))
-                    qps += 1
-                    c_eq, out = run_qp(cand, guess, warm=warm, pool=pool.switched(cand))
-                    if out.status != "solved" or out.z is None or not out.certified:
-                        break  # infeasible, or no certified answer: this way ends here
-                    c = qp_cost(c_eq, out.z)
-                    if c >= cost - 1e-9 * max(1.0, cost):
-                        break  # only a certified optimum that costs less replaces the best
-                    route, cost, kept = cand.regions, c, (cand, c_eq, out)
-                    warm, guess = WorkingSet(out.active, out.side), out.z
-    if kept is not None:
+    search = _SwitchSearch(problem, pool, first.z, qp_cost(eq, first.z), warm, max_qps)
+    for i in range(len(problem.regions.switch)):
+        if not any(_line_search(search, i, sign, FIRST_SWITCH_STEP) for sign in (1, -1)):
+            for sign in (1, -1):  # neither way by the first step: the samples beside it
+                if _line_search(search, i, sign, 1):
+                    break
+    if search.kept is not None:
         try:
-            return finish(*kept, t0), qps
+            return finish(*search.kept, t0), search.qps
         except SolverError:  # the kept switch does not verify: the first assignment decides
             pass
-    return finish(problem, eq, first, t0), qps
+    return finish(problem, eq, first, t0), search.qps
+
+
+@dataclass
+class _SwitchSearch:
+    """The state of a route's switch search: the best assignment so far and its answer."""
+
+    problem: PlanProblem
+    pool: Pool
+    guess: F
+    cost: float
+    warm: WorkingSet | None
+    max_qps: int
+    qps: int = 0
+    kept: tuple[PlanProblem, Equalities, QpOutcome] | None = None
+    tried: set[tuple[int, ...]] = field(default_factory=set)
+    """The assignments solved (and the first one)."""
+
+    def __post_init__(self) -> None:
+        self.tried.add(tuple(int(x) for x in self.problem.regions.switch))
+
+    @property
+    def route(self) -> RegionRoute:
+        """The best assignment so far."""
+        return self.problem.regions if self.kept is None else self.kept[0].regions
+
+    def at(self, i: int) -> int:
+        """Switch ``i``'s sample in the best assignment."""
+        return int(self.route.switch[i])
+
+    def bounds(self, i: int) -> tuple[int, int]:
+        """The samples switch ``i`` may take, the others where they are (each region keeps
+        at least one interval)."""
+        sw = self.route.switch
+        return (sw[i - 1] + 1 if i else 1,
+                sw[i + 1] - 1 if i + 1 < len(sw) else self.problem.N - 1)
+
+    def better(self, i: int, sample: int) -> bool:
+        """Solve with switch ``i`` at ``sample`` clipped to its range (one QP, none for an
+        assignment tried before: it cost no less than a best that only falls since); True,
+        and kept, when it costs less than the best."""
+        lo, hi = self.bounds(i)
+        switch = tuple(min(max(sample, lo), hi) if j == i else int(x)
+                       for j, x in enumerate(self.route.switch))
+        if switch in self.tried or self.qps >= self.max_qps:
+            return False
+        self.tried.add(switch)
+        cand = self.problem.with_route(replace(self.route, switch=switch))
+        self.qps += 1
+        c_eq, out = run_qp(cand, self.guess, warm=self.warm, pool=self.pool.switched(cand))
+        if out.status != "solved" or out.z is None or not out.certified:
+            return False  # infeasible, or no certified answer
+        c = qp_cost(c_eq, out.z)
+        if c >= self.cost - 1e-9 * max(1.0, self.cost):
+            return False  # only a certified optimum that costs less replaces the best
+        self.cost, self.kept = c, (cand, c_eq, out)
+        self.warm, self.guess = WorkingSet(out.active, out.side), out.z
+        return True
+
+
+def _line_search(search: _SwitchSearch, i: int, sign: int, step: int) -> bool:
+    """Move switch ``i`` from the best assignment, while the budget lasts: first the way
+    ``sign``, the step doubling while the cost falls; then, around the best sample, a step
+    each way, halved whenever neither costs less, down to one sample (a move past the
+    switch's range stops at its end). Whether the switch moved."""
+    moved = False
+    while search.qps < search.max_qps and search.better(i, search.at(i) + sign * step):
+        moved = True
+        step *= 2
+    if not moved:
+        return False
+    step //= 2
+    while step >= 1 and search.qps < search.max_qps:
+        if not any(search.better(i, search.at(i) + way * step) for way in (sign, -sign)):
+            step //= 2
+    return True
 
 
 def qp_cost(eq: Equalities, z: F) -> float:

@@ -86,6 +86,32 @@ def test_a_first_optimum_that_holds_no_region_row_ends_the_switch_search(
     assert searched.result.cost >= plan.result.cost - 1e-9 * plan.result.cost
 
 
+@pytest.mark.parametrize("corner", [(109.0, 79.0, 80.0), (91.0, 61.0, 80.0)],
+                         ids=["switch-late", "switch-early"])
+def test_the_switch_search_finds_the_best_switch_sample(corner: tuple[float, ...]) -> None:
+    """A waypoint far from where the motion crosses puts the first switch sample several
+    samples off; the search ends at the cheapest switch sample, found independently by
+    solving the QP at every sample."""
+    from dataclasses import replace
+
+    import spm_console.core.planning.route_search as rs
+    from spm_console.core.planning.mvn import run_qp
+
+    N = 60
+    choice = rs.RouteChoice((0, 1), np.vstack([START, corner, GOAL]), 0.0)
+    pb = PlanProblem(MODEL, START, GOAL, N, BOX0, None)
+    plan = solve_route_mvn(pb, [BOX0, BOX1], choice)
+    first = pb.with_route(choice.route([BOX0, BOX1], N))
+    costs = {}
+    for s in range(1, N):
+        eq, out = run_qp(first.with_route(replace(first.regions, switch=(s,))))
+        if out.status == "solved" and out.z is not None:
+            costs[s] = rs.qp_cost(eq, out.z)
+    best = min(costs, key=costs.__getitem__)
+    assert abs(best - first.regions.switch[0]) >= 4  # the first assignment is off
+    assert plan.result.cost == pytest.approx(costs[best], rel=1e-6)
+
+
 def test_one_region_cannot_and_too_short_a_horizon_is_refused() -> None:
     pb = PlanProblem(MODEL, START, GOAL, 150, BOX0, 40.0)
     with pytest.raises(InfeasibleError):
@@ -193,3 +219,46 @@ def test_a_switched_pool_is_the_candidates_own_pool() -> None:
         Pool(first).switched(replace(cand, vmax_degps=45.0))
     with pytest.raises(ValueError, match="only the switch"):
         Pool(first).switched(cand.with_route(RegionRoute((BOX1, BOX0), cand.regions.switch)))
+
+
+class _CostCurve:
+    """What the line search sees of a route with one switch: a cost per switch sample (an
+    exact curve here instead of a QP per sample), the best sample, a budget of solves."""
+
+    def __init__(self, cost: dict[int, float], start: int, budget: int, n: int = 150) -> None:
+        self.cost, self.best, self.max_qps, self.n = cost, start, budget, n
+        self.qps = 0
+        self.tried = {start}
+
+    def at(self, i: int) -> int:
+        return self.best
+
+    def bounds(self, i: int) -> tuple[int, int]:
+        return 1, self.n - 1
+
+    def better(self, i: int, sample: int) -> bool:
+        s = min(max(sample, 1), self.n - 1)
+        if s in self.tried or self.qps >= self.max_qps:
+            return False
+        self.tried.add(s)
+        self.qps += 1
+        if self.cost[s] < self.cost[self.best]:
+            self.best = s
+            return True
+        return False
+
+
+@pytest.mark.parametrize(("minimum", "budget", "reached"), [
+    (20, 4, 21),   # far away: steps of 3, 6, 12, 24 (a walk of 3-sample steps ends at 54)
+    (28, 12, 28),  # passed by the growing steps: found back on the other side
+    (64, 6, 64),   # passed at the first step: closed in from the other side
+])
+def test_the_line_search_grows_its_steps_then_closes_in(minimum: int, budget: int,
+                                                        reached: int) -> None:
+    import spm_console.core.planning.route_search as rs
+
+    curve = _CostCurve({s: float((s - minimum) ** 2) for s in range(1, 150)}, 66, budget)
+    if not rs._line_search(curve, 0, -1, rs.FIRST_SWITCH_STEP):  # type: ignore[arg-type]
+        rs._line_search(curve, 0, 1, rs.FIRST_SWITCH_STEP)  # type: ignore[arg-type]
+    assert curve.best == reached
+    assert curve.qps <= budget
