@@ -194,6 +194,11 @@ class _SwitchSearch:
         """The best assignment so far."""
         return self.problem.regions if self.kept is None else self.kept[0].regions
 
+    @property
+    def spent(self) -> bool:
+        """Whether the search has solved all the QPs it may."""
+        return self.qps >= self.max_qps
+
     def at(self, i: int) -> int:
         """Switch ``i``'s sample in the best assignment."""
         return int(self.route.switch[i])
@@ -212,7 +217,7 @@ class _SwitchSearch:
         lo, hi = self.bounds(i)
         switch = tuple(min(max(sample, lo), hi) if j == i else int(x)
                        for j, x in enumerate(self.route.switch))
-        if switch in self.tried or self.qps >= self.max_qps:
+        if switch in self.tried or self.spent:
             return False
         self.tried.add(switch)
         cand = self.problem.with_route(replace(self.route, switch=switch))
@@ -234,13 +239,13 @@ def _line_search(search: _SwitchSearch, i: int, sign: int, step: int) -> bool:
     each way, halved whenever neither costs less, down to one sample (a move past the
     switch's range stops at its end). Whether the switch moved."""
     moved = False
-    while search.qps < search.max_qps and search.better(i, search.at(i) + sign * step):
+    while search.better(i, search.at(i) + sign * step):
         moved = True
         step *= 2
     if not moved:
         return False
     step //= 2
-    while step >= 1 and search.qps < search.max_qps:
+    while step >= 1 and not search.spent:
         if not any(search.better(i, search.at(i) + way * step) for way in (sign, -sign)):
             step //= 2
     return True

@@ -230,6 +230,10 @@ class _CostCurve:
         self.qps = 0
         self.tried = {start}
 
+    @property
+    def spent(self) -> bool:
+        return self.qps >= self.max_qps
+
     def at(self, i: int) -> int:
         return self.best
 
@@ -238,7 +242,7 @@ class _CostCurve:
 
     def better(self, i: int, sample: int) -> bool:
         s = min(max(sample, 1), self.n - 1)
-        if s in self.tried or self.qps >= self.max_qps:
+        if s in self.tried or self.spent:
             return False
         self.tried.add(s)
         self.qps += 1
