@@ -57,17 +57,20 @@ class LinkModel:
     def pair_distances(self, u: F, w: F, v: F) -> F:
         """Distance of every checked segment pair: (..., n_pairs), mm."""
         pts = self.points(u, w, v)
-        P1, Q1, P2, Q2 = [], [], [], []
-        for i, s1, j, s2 in self.pairs():
-            a1, b1 = SEGMENT_ENDS[s1]
-            a2, b2 = SEGMENT_ENDS[s2]
-            P1.append(pts[a1][..., i, :])
-            Q1.append(pts[b1][..., i, :])
-            P2.append(pts[a2][..., j, :])
-            Q2.append(pts[b2][..., j, :])
-        return segment_distance(
-            np.stack(P1, -2), np.stack(Q1, -2), np.stack(P2, -2), np.stack(Q2, -2)
-        )
+        segs = [(i, s) for i in range(3) for s in self.segments]
+        col = {key: k for k, key in enumerate(segs)}
+        pairs = self.pairs()
+        c1 = np.array([col[(i, s1)] for i, s1, _, _ in pairs], np.intp)
+        c2 = np.array([col[(j, s2)] for _, _, j, s2 in pairs], np.intp)
+        # per segment (..., n_segments), per axis: its start and its direction
+        start = [np.stack([pts[SEGMENT_ENDS[s][0]][..., i, a] for i, s in segs], -1)
+                 for a in range(3)]
+        along = [np.stack([pts[SEGMENT_ENDS[s][1]][..., i, a] for i, s in segs], -1) - start[a]
+                 for a in range(3)]
+        length2 = _dot(along, along)
+        return _segment_distance_xyz(
+            [x[..., c1] for x in start], [x[..., c1] for x in along], length2[..., c1],
+            [x[..., c2] for x in start], [x[..., c2] for x in along], length2[..., c2], 1e-12)
 
     def apart(self, u: F, w: list[list[F]], v: list[list[F]], dist_mm: float) -> NDArray[np.bool_]:
         """(n,) True where every checked pair is at least ``dist_mm`` apart: the verdict
@@ -115,12 +118,25 @@ def segment_distance(p1: F, q1: F, p2: F, q2: F, eps: float = 1e-12) -> F:
     Minimizes ‖(p1 + s d1) − (p2 + t d2)‖ over s, t ∈ [0, 1] in closed form,
     handling zero-length and parallel segments (the QP (24) without a solver).
     """
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a = np.einsum("...k,...k->...", d1, d1)
-    e = np.einsum("...k,...k->...", d2, d2)
-    f = np.einsum("...k,...k->...", d2, r)
-    c = np.einsum("...k,...k->...", d1, r)
-    b = np.einsum("...k,...k->...", d1, d2)
+    start1 = [p1[..., k] for k in range(3)]
+    start2 = [p2[..., k] for k in range(3)]
+    d1 = [q1[..., k] - start1[k] for k in range(3)]
+    d2 = [q2[..., k] - start2[k] for k in range(3)]
+    return _segment_distance_xyz(start1, d1, _dot(d1, d1), start2, d2, _dot(d2, d2), eps)
+
+
+def _dot(x: list[F], y: list[F]) -> F:
+    """x·y of vectors given per axis (three arrays of one shape)."""
+    return np.asarray(x[0] * y[0] + x[1] * y[1] + x[2] * y[2])
+
+
+def _segment_distance_xyz(p1: list[F], d1: list[F], a: F, p2: list[F], d2: list[F], e: F,
+                          eps: float) -> F:
+    """:func:`segment_distance` of the segments p1 + s·d1 and p2 + t·d2, given per axis
+    (three arrays of one shape each; a = ‖d1‖², e = ‖d2‖²): the products stay elementwise on
+    contiguous arrays."""
+    r = [p1[k] - p2[k] for k in range(3)]
+    f, c, b = _dot(d2, r), _dot(d1, r), _dot(d1, d2)
     a_pt, e_pt = a <= eps, e <= eps
     a_s = np.where(a_pt, 1.0, a)
     e_s = np.where(e_pt, 1.0, e)
@@ -134,5 +150,5 @@ def segment_distance(p1: F, q1: F, p2: F, q2: F, eps: float = 1e-12) -> F:
     # degenerate segments
     s = np.where(a_pt, 0.0, np.where(e_pt, np.clip(-c / a_s, 0.0, 1.0), s))
     t = np.where(a_pt, np.where(e_pt, 0.0, np.clip(f / e_s, 0.0, 1.0)), np.where(e_pt, 0.0, t))
-    diff = (p1 + s[..., None] * d1) - (p2 + t[..., None] * d2)
-    return np.asarray(np.linalg.norm(diff, axis=-1))
+    diff = [(r[k] + s * d1[k]) - t * d2[k] for k in range(3)]
+    return np.asarray(np.sqrt(_dot(diff, diff)))

@@ -89,7 +89,7 @@ def tilt_torsion_deg(R: F, n_home: F) -> tuple[F, F, F]:
     e1 = seed - n * float(seed @ n)
     e1 /= np.linalg.norm(e1)
     H = np.stack([e1, np.cross(n, e1), n], axis=1)
-    Q = np.einsum("ai,...ab,bj->...ij", H, R, H)
+    Q = (H.T @ R) @ H  # Hᵀ R H for every rotation
     tilt = np.degrees(np.arccos(np.clip(Q[..., 2, 2], -1.0, 1.0)))
     azimuth = np.degrees(np.arctan2(Q[..., 1, 2], Q[..., 0, 2]))
     torsion = np.degrees(np.arctan2(Q[..., 1, 0] - Q[..., 0, 1], Q[..., 0, 0] + Q[..., 1, 1]))

@@ -97,3 +97,31 @@ def test_brute_force_upper_bound() -> None:
         d = float(segment_distance(p1, q1, p2, q2))
         assert d <= brute + 1e-9
         assert brute - d < 1.0  # 0.5 % grid on ~100 mm segments
+
+
+def test_every_link_pair_is_the_distance_of_its_two_segments() -> None:
+    """``LinkModel.pair_distances`` (per axis, per segment, gathered into pairs) gives, for
+    every pair of :meth:`pairs`, the segment distance of that pair's end points (18)-(23)."""
+    from spm_console.config.load import load_profile
+    from spm_console.config.models import link_model_of, model_of
+    from spm_console.core.kinematics.links import SEGMENT_ENDS, LinkModel
+    from spm_console.core.kinematics.model import platform_axes
+    from spm_console.core.kinematics.rotations import random_rotations
+
+    prof = load_profile("profiles/agile_wrist.toml")
+    model = model_of(prof)
+    rng = np.random.default_rng(17)
+    w = model.geom.w(rng.uniform(-np.pi, np.pi, (300, 3)))
+    v = platform_axes(random_rotations(300, 17), model.v_home)
+    for segments in (link_model_of(prof).segments, ("AB", "BC", "DE", "EF")):
+        links = LinkModel(**{**link_model_of(prof).__dict__, "segments": segments})
+        pts = links.points(model.u, w, v)
+        got = links.pair_distances(model.u, w, v)
+        pairs = links.pairs()
+        assert got.shape == (300, len(pairs))
+        for k, (i, s1, j, s2) in enumerate(pairs):
+            (a1, b1), (a2, b2) = SEGMENT_ENDS[s1], SEGMENT_ENDS[s2]
+            ref = segment_distance(pts[a1][:, i], pts[b1][:, i], pts[a2][:, j], pts[b2][:, j])
+            assert np.abs(got[:, k] - ref).max() <= 1e-9, (i, s1, j, s2)
+        d, at = links.min_distance(model.u, w, v)
+        assert np.array_equal(d, got.min(-1)) and np.array_equal(at, got.argmin(-1))
