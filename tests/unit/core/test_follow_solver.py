@@ -98,7 +98,7 @@ def test_first_solve_matches_cvxpy(target: np.ndarray, state: tuple[np.ndarray, 
     s = _solver(settings=FollowSettings(tolerances=(1e-7,), backend=backend))  # type: ignore[arg-type]
     r = s.solve(state[0], state[1], target)
     assert r.ok, r.reason
-    assert r.detail.startswith("daqp") == (backend == "daqp")  # the backend asked answered
+    assert r.detail.startswith(("daqp", "kept")) == (backend == "daqp")  # the backend asked answered
     if r.clamped:  # compare against the same (projected) target
         target = r.target_deg
     cost, ref = _cvxpy(s, state[0], state[1], target)

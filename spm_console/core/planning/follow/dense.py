@@ -27,7 +27,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import daqp
 import numpy as np
 from numpy.typing import NDArray
 
@@ -125,6 +124,21 @@ class DenseFollow:
         f[3 * self.H:] = terminal_weight
         return f
 
+    def rows_of(self, z: F) -> F:
+        """A z, the general rows at the variables z (n,), through the responses (a few (H, H)
+        by (H, 3) products instead of the (m_A, n) matrix); the data parts are in the bounds."""
+        H = self.H
+        Z = z[: 3 * H].reshape(H, 3)
+        th = self.Tth @ Z  # θ(1..H) − free response
+        parts = [(self.Tom @ Z).ravel()]
+        if self.rows_step.stop > self.rows_step.start:
+            parts.append((Z[1:] - Z[:-1]).ravel())
+        if self.rows_lead.stop > self.rows_lead.start:
+            parts.append((Z[1:] - th[:-1]).ravel())
+        slack = z[3 * H:]
+        parts += [(th @ self.region_A.T).ravel(), slack - th[-1], slack + th[-1], th[-1]]
+        return np.concatenate(parts)
+
     def bounds(self, theta_deg: F, omega_degps: F, terminal_deg: F, previous_deg: F,
                free_th: F, free_om: F) -> tuple[F, F]:
         """(lo, hi) for the state, the reference in use and the terminal target."""
@@ -217,61 +231,3 @@ def build_dense(model: ServoModel, region: Region, vmax_degps: float, H: int, re
         fom=fom, track_weight=float(track_weight), step_deg=float(step_deg),
         lead_deg=float(lead_deg), rows_speed=r_speed, rows_step=r_step, rows_lead=r_lead,
         rows_region=r_region, rows_terminal=t_row, region_A=Ar)
-
-
-#: DAQP's exit flags this module tells apart (daqp's ``exitflag``).
-DAQP_OPTIMAL, DAQP_INFEASIBLE, DAQP_TIME_LIMIT = 1, -1, -7
-
-
-@dataclass(frozen=True)
-class DenseAnswer:
-    """One DAQP solve of the condensed follow QP."""
-
-    flag: int
-    """DAQP's exit flag (1: optimal; −1: infeasible; others: failed)."""
-    reference_deg: F
-    """(H, 3) θ*(0..H−1) (empty unless optimal)."""
-    iterations: int
-
-    @property
-    def status(self) -> str:
-        words = {DAQP_OPTIMAL: "optimal", DAQP_INFEASIBLE: "infeasible", -2: "cycling",
-                 -3: "unbounded", -4: "iteration limit", DAQP_TIME_LIMIT: "time limit"}
-        return f"daqp: {words.get(self.flag, f'exit flag {self.flag}')}"
-
-
-class DaqpFollow:
-    """The condensed follow QP in one DAQP workspace: factored once here (before the loop:
-    the first solve in the loop costs no more than the next), vectors updated per solve, and
-    each solve starts from the previous one's active set unless told to start cold."""
-
-    def __init__(self, dense: DenseFollow, terminal_weight: float) -> None:
-        self.dense = dense
-        self.terminal_weight = float(terminal_weight)
-        self._model = daqp.Model()
-        # the constant bounds (the data's parts at 0: consistent, lo ≤ hi); each solve sets its own
-        flag = self._model.setup(dense.H_cost, np.zeros(dense.n), dense.A, dense.hi, dense.lo,
-                                 dense.sense.copy())
-        code = int(flag[0] if isinstance(flag, tuple) else flag)
-        if code < 0:
-            raise ValueError(f"DAQP could not set up the follow QP (exit flag {code})")
-
-    def solve(self, theta_deg: F, omega_degps: F, targets: F, previous_deg: F,
-              cold: bool = False, time_limit_s: float | None = None) -> DenseAnswer:
-        """Solve for the state, per-sample targets (H, 3) (the last is the terminal one), the
-        reference in use; ``time_limit_s``: DAQP's own budget (None: none)."""
-        d = self.dense
-        ft, fo = d.free(theta_deg, omega_degps)
-        f = d.cost(ft, fo, targets, self.terminal_weight)
-        lo, hi = d.bounds(theta_deg, omega_degps, targets[-1], previous_deg, ft, fo)
-        self._model.settings = {"time_limit": 0.0 if time_limit_s is None
-                                else max(float(time_limit_s), 1e-9)}
-        if cold:
-            self._model.update(f=f, bupper=hi, blower=lo, sense=d.sense.copy())
-        else:
-            self._model.update(f=f, bupper=hi, blower=lo)
-        z, _, flag, info = self._model.solve()
-        it = int(info["iterations"])
-        if int(flag) != DAQP_OPTIMAL:
-            return DenseAnswer(int(flag), np.zeros((0, 3)), it)
-        return DenseAnswer(DAQP_OPTIMAL, np.asarray(z, float)[: 3 * d.H].reshape(d.H, 3), it)

@@ -57,11 +57,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.planning.follow.daqp_follow import DAQP_OPTIMAL, DAQP_TIME_LIMIT, DaqpFollow
 from spm_console.core.planning.follow.dense import (
-    DAQP_OPTIMAL,
-    DAQP_TIME_LIMIT,
     DENSE_MAX_ENTRIES,
-    DaqpFollow,
     build_dense,
     dense_entries,
 )
@@ -251,7 +249,7 @@ class FollowSolver:
         if self._daqp is not None:
             used_warm = warm and self._daqp_warm
             run = self._run_daqp(th0, om0, targets, th0 if prev is None else prev, t0, timed,
-                                 cold=not used_warm)
+                                 cold=not used_warm, elapsed=elapsed)
             # no answer that passes the check, or "infeasible": OSQP decides, unless the
             # time is up (the answer would come too late anyway)
             self._daqp_warm = not run.reason
@@ -288,7 +286,7 @@ class FollowSolver:
             iterations=it, warm=used_warm, reason="", detail=st)
 
     def _run_daqp(self, th0: F, om0: F, targets: F, prev: F, t0: float, timed: bool,
-                  cold: bool) -> Solved:
+                  cold: bool, elapsed: int = 1) -> Solved:
         """The condensed QP by DAQP (see :mod:`~spm_console.core.planning.follow.dense`),
         within what is left of the time limit when ``timed``; checked like OSQP's answers."""
         left = None
@@ -299,7 +297,8 @@ class FollowSolver:
             if left <= 0:
                 return Solved("", 0, *(empty,) * 5, out_of_time(limit, 0))
         assert self._daqp is not None
-        ans = self._daqp.solve(th0, om0, targets, prev, cold=cold, time_limit_s=left)
+        ans = self._daqp.solve(th0, om0, targets, prev, cold=cold, time_limit_s=left,
+                               elapsed=elapsed)
         if ans.flag == DAQP_TIME_LIMIT and limit is not None:
             return Solved(ans.status, ans.iterations, *(empty,) * 5,
                           out_of_time(limit, ans.iterations))
