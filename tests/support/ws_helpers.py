@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import fcntl
 import functools
 
 from spm_console.config.load import load_profile
 from spm_console.config.models import build_workspace
 from spm_console.config.schema import Profile
 from spm_console.core.workspace.data import Workspace
+from spm_console.store.workspace_cache import default_cache_dir, load_or_build
 from tests.support.paths import ROOT as PROJECT_ROOT
 
 ROOT = PROJECT_ROOT
@@ -28,10 +30,22 @@ def with_step(profile: Profile, step_deg: float) -> Profile:
     return profile.model_copy(update={"workspace": ws})
 
 
+def _built_once(profile: Profile, refined_cover: bool) -> Workspace:
+    """The profile's workspace, built by whichever test process asks first and saved in the
+    session's workspace cache (``SPM_CONSOLE_CACHE``, shared by the workers); the others wait
+    for it and load that file (15 ms against 1–3 s for a build)."""
+    folder = default_cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / f".tests-{profile.name}-{refined_cover}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        ws, _ = load_or_build(profile, refined_cover=refined_cover)
+    return ws
+
+
 @functools.lru_cache(maxsize=1)
 def agile_workspace() -> Workspace:
     """The Agile Wrist workspace on the profile's own 2° grid."""
-    return build_workspace(agile_profile())
+    return _built_once(agile_profile(), False)
 
 
 @functools.lru_cache(maxsize=1)
@@ -43,4 +57,4 @@ def coarse_workspace() -> Workspace:
 @functools.lru_cache(maxsize=1)
 def agile_workspace_refined() -> Workspace:
     """The Agile Wrist workspace on the 2° grid with the refined region cover (~2× the default build)."""
-    return build_workspace(agile_profile(), refined_cover=True)
+    return _built_once(agile_profile(), True)
