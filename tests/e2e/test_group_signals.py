@@ -171,15 +171,18 @@ def test_every_group_signal_on_every_front_end(
 
 
 @pytest.mark.skipif(shutil.which("timeout") is None, reason="coreutils timeout is missing")
-def test_timeout_stops_the_run_with_an_estop(tmp_path: Path, agile: Profile) -> None:
+def test_timeout_stops_the_run_with_an_estop(tmp_path: Path, agile: Profile,
+                                             start_up_s: float) -> None:
     """``timeout -s TERM`` signals its command, then its own process group. The command's
-    motion starts 2.6–4.3 s after launch here (a slow CI machine took longer than 4.5 s once):
-    the signal comes at 7 s, inside a 10 s motion."""
+    motion starts about when a homing's would (``start_up_s``: 2.0 s here today, over 4.5 s on
+    a slow CI machine once): the signal comes at 1.5 times that plus a second, inside a 10 s
+    motion."""
     logs = tmp_path / "logs"
     longer = tmp_path / "longer.json"
     save_plan(synthetic_plan(agile, PAPER_START, GOAL, 10.0), longer)
     args = _front_end("execute", tmp_path, longer)
-    proc = subprocess.Popen(["timeout", "--preserve-status", "-s", "TERM", "7", sys.executable,
+    after = f"{1.5 * start_up_s + 1.0:.1f}"
+    proc = subprocess.Popen(["timeout", "--preserve-status", "-s", "TERM", after, sys.executable,
                              "-m", "spm_console", *args, "--json"], env=_env(logs),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out, err = proc.communicate(timeout=60)
