@@ -339,8 +339,11 @@ class PhysicalWrist:
         """Step the wrist to time ``t`` (s), the drives sampled every step.
 
         The inner loop works on Python floats read once per step (``tolist``): MuJoCo's step
-        takes about 15 µs here, and NumPy's per-element indexing and rounding of its scalars
-        took five times that, so the emulated servos answered late under load."""
+        takes about 7 µs here, and NumPy's per-element indexing and rounding of its scalars
+        took five times that, so the emulated servos answered late under load. The drives'
+        firmware sample (:meth:`Drive.duty`, :meth:`Drive.torque`, :meth:`Drive.current`) is
+        inlined with its coefficients computed once per call: the same operations on the same
+        numbers, without three method calls per joint and step."""
         dt = self.params.timestep_s
         if self.t + dt > t + 1e-12:
             return
@@ -353,41 +356,56 @@ class PhysicalWrist:
         goal = [float(x) * self.ticks_per_rad for x in self.goal]
         tpr = self.ticks_per_rad
         drives, enabled, blocked = self.drives, self.enabled, self.blocked
+        kp = [d.gains.p / 128.0 for d in drives]
+        ki = [d.gains.i / 65536.0 for d in drives]
+        kd = [d.gains.d / 16.0 for d in drives]
+        lim = [min(float(d.gains.pwm_limit), PWM_FULL) for d in drives]
+        integral = [d.integral for d in drives]
+        last = [d.last_error for d in drives]
+        pwm_out = [d.pwm for d in drives]
         duty = [0.0, 0.0, 0.0]
         torque = [0.0, 0.0, 0.0]
         strain = [float(x) for x in self.strain_s]
         peak = [float(x) for x in self.peak_current_a]
         p = self.params
         volts, kt, ohm = p.supply_v, p.kt_nm_per_a, p.resistance_ohm
+        kt_ohm = kt / ohm
+        play = bool(motor_q)
         while self.t + dt <= t + 1e-12:
             qp = qpos.tolist()
             qv = qvel.tolist()
-            om = [qv[k] for k in motor_dof]
             for i in range(3):
+                om = qv[motor_dof[i]]
                 tau = 0.0
                 du = 0.0
                 if enabled[i]:
-                    q = qp[out_q[i]] + qp[motor_q[i]] if motor_q else qp[out_q[i]]
-                    present = round((home[i] + q) * tpr)
-                    du = drives[i].duty(goal[i], present)
-                    tau = drives[i].torque(du, om[i])
-                    amps = abs(du * volts - kt * om[i]) / ohm  # Drive.current, inlined
+                    q = qp[out_q[i]] + qp[motor_q[i]] if play else qp[out_q[i]]
+                    e = goal[i] - round((home[i] + q) * tpr)  # Drive.duty
+                    integral[i] += e
+                    pwm = kp[i] * e + ki[i] * integral[i] + kd[i] * (e - last[i])
+                    last[i] = e
+                    pwm = max(-lim[i], min(lim[i], pwm))
+                    pwm_out[i] = pwm
+                    du = pwm / PWM_FULL
+                    tau = kt_ohm * (du * volts - kt * om)  # Drive.torque
+                    amps = abs(du * volts - kt * om) / ohm  # Drive.current
                     if amps > peak[i]:
                         peak[i] = amps
                 lock = blocked[i]
                 if lock is not None:  # a blocked shaft: a stiff, damped stop where it stuck
-                    tau += -BLOCK_STIFFNESS * (qp[drive_q[i]] - lock) - BLOCK_DAMPING * om[i]
+                    tau += -BLOCK_STIFFNESS * (qp[drive_q[i]] - lock) - BLOCK_DAMPING * om
                 duty[i] = du
                 torque[i] = tau
-            ctrl[:] = torque
+                straining = abs(du) >= OVERLOAD_DUTY and abs(om) < OVERLOAD_RAD_S
+                strain[i] = strain[i] + dt if straining else 0.0
+            ctrl[0], ctrl[1], ctrl[2] = torque
             mujoco.mj_step(mj, data)
             self.t += dt
-            for i in range(3):
-                straining = abs(duty[i]) >= OVERLOAD_DUTY and abs(om[i]) < OVERLOAD_RAD_S
-                strain[i] = strain[i] + dt if straining else 0.0
             if self.t >= self._next_contact_check:
                 self._next_contact_check = self.t + CONTACT_CHECK_S
                 self.contacts.check(self.data, self.t, self.theta())
+        for i, d in enumerate(drives):
+            d.integral, d.last_error, d.pwm = integral[i], last[i], pwm_out[i]
         self.duty = np.array(duty)
         self.strain_s = np.array(strain)
         self.peak_current_a = np.array(peak)

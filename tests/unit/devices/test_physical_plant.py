@@ -13,7 +13,7 @@ from spm_console.config.schema import Plant, Profile
 from spm_console.description.mjcf import plant_params
 from spm_console.devices.dynamixel.control_table import ControlTable, table_for
 from spm_console.devices.dynamixel.tick_map import JointMap, joint_maps
-from spm_console.devices.emulator.physical import PWM_FULL, Drive, PhysicalWrist
+from spm_console.devices.emulator.physical import PWM_FULL, Drive, DriveGains, PhysicalWrist
 from spm_console.devices.emulator.plant_joint import PlantJoint
 from spm_console.devices.emulator.servo import OVERLOAD, EmulatedServo
 from tests.support.paths import ROOT
@@ -227,3 +227,27 @@ def test_the_peak_current_is_the_largest_drive_current_step_by_step() -> None:
     stall_a = P.supply_v / P.resistance_ohm
     assert (peak < 2 * stall_a).all()
     assert not wrist.take_peak_current().any()  # taken: a new window starts
+
+
+def test_each_step_samples_the_firmware_as_the_drive_does() -> None:
+    """The step loop inlines :meth:`Drive.duty`, :meth:`Drive.torque` and :meth:`Drive.current`
+    (coefficients computed once per call): step by step, drives of the same gains fed the same
+    goal and measured position give the same duty, the same motor torque (the actuator's
+    control) and the same integral, to the last bit, also across a change of gains."""
+    wrist = PhysicalWrist(model_of(load_profile(ROOT / "profiles" / "agile_wrist.toml")))
+    assert wrist._motor_q  # the default plant has a gear play: the drive turns the rotor
+    ref = [Drive(P, wrist.ticks_per_rad) for _ in range(3)]
+    _drive(wrist, wrist.theta() + np.radians([12.0, -9.0, 5.0]))
+    goal = [float(g) * wrist.ticks_per_rad for g in wrist.goal]
+    for k in range(240):
+        if k == 120:
+            wrist.drives[1].gains = ref[1].gains = DriveGains(900, 300, 40, 600)
+        present = [round(float(x) * wrist.ticks_per_rad) for x in wrist.theta()]
+        omega = wrist.motor_omega()
+        wrist.advance(wrist.t + P.timestep_s)
+        for i in range(3):
+            du = ref[i].duty(goal[i], present[i])
+            assert float(wrist.duty[i]) == du, (k, i)
+            assert float(wrist.data.ctrl[i]) == ref[i].torque(du, float(omega[i])), (k, i)
+    assert [(d.integral, d.last_error, d.pwm) for d in wrist.drives] == \
+        [(d.integral, d.last_error, d.pwm) for d in ref]
