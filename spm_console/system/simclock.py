@@ -42,8 +42,10 @@ import numpy as np
 CATCH_UP_S = 2.0
 #: Wall-clock poll of that wait, s, after its first SPIN_S, when it only yields the core
 #: (a sleep of 0.1 ms takes about 0.16 ms, and a servo period waits on the emulator a few times).
+#: With a single core to run on, the waiter never spins: a real-time waiter would keep the
+#: emulator it waits for off that core.
 POLL_S = 0.0001
-SPIN_S = 0.002
+SPIN_S = 0.002 if len(os.sched_getaffinity(0)) > 1 else 0.0
 #: A wait that starts this long (wall clock) after the last paced one starts a new run of
 #: paced waits: time spent idle between motions is not made up for, s.
 PACE_GAP_S = 0.25
