@@ -66,7 +66,8 @@ def run() -> list[Row]:
                  f"designs, same run); the ratio is the speed-up, on {cores} allowed cores; "
                  f"{two.failed} designs could not be built"),
         Row("design: one design (2° grid), 1 worker", per_design, "s", target="≤ 1 s",
-            passed=per_design <= 1.0, note="grid (Algorithm 2), P (eq. 30) and the figures of merit; the cost a "
+            passed=per_design <= 1.0,
+            note="grid (Algorithm 2), P (eq. 30) and the figures of merit; the cost a "
                  "sweep of N designs multiplies"),
         Row("design: peak memory per worker", peak, "MB", target="≤ 1024 MB",
             passed=peak <= 1024.0,

@@ -77,6 +77,12 @@ class DriveGains:
         return cls(*(int(t[name].initial or 0) for name in
                      ("position_p_gain", "position_i_gain", "position_d_gain", "pwm_limit")))
 
+    def scaled(self) -> tuple[float, float, float, float]:
+        """(K_P, K_I, K_D, PWM bound): the firmware's PWM per tick of error, of its sum and of
+        its change, and the PWM it never exceeds (the e-manual's gain scaling: P/128, I/65536,
+        D/16)."""
+        return self.p / 128.0, self.i / 65536.0, self.d / 16.0, min(float(self.pwm_limit), PWM_FULL)
+
 
 @dataclass
 class Drive:
@@ -93,10 +99,9 @@ class Drive:
         """One firmware sample: the PWM duty (−1..1) for this error."""
         e = goal_ticks - present_ticks
         self.integral += e
-        g = self.gains
-        pwm = g.p / 128.0 * e + g.i / 65536.0 * self.integral + g.d / 16.0 * (e - self.last_error)
+        kp, ki, kd, lim = self.gains.scaled()
+        pwm = kp * e + ki * self.integral + kd * (e - self.last_error)
         self.last_error = e
-        lim = min(float(g.pwm_limit), PWM_FULL)
         self.pwm = max(-lim, min(lim, pwm))
         return self.pwm / PWM_FULL
 
@@ -356,10 +361,7 @@ class PhysicalWrist:
         goal = [float(x) * self.ticks_per_rad for x in self.goal]
         tpr = self.ticks_per_rad
         drives, enabled, blocked = self.drives, self.enabled, self.blocked
-        kp = [d.gains.p / 128.0 for d in drives]
-        ki = [d.gains.i / 65536.0 for d in drives]
-        kd = [d.gains.d / 16.0 for d in drives]
-        lim = [min(float(d.gains.pwm_limit), PWM_FULL) for d in drives]
+        kp, ki, kd, lim = (list(k) for k in zip(*(d.gains.scaled() for d in drives), strict=True))
         integral = [d.integral for d in drives]
         last = [d.last_error for d in drives]
         pwm_out = [d.pwm for d in drives]
