@@ -21,7 +21,7 @@ with iterative refinement on the unregularized system and checked like
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -56,12 +56,18 @@ REFINE_STEPS = 8
 SOLVE_REFINE = 2
 #: Factorizations of K₀ kept (one per N, servo model and θ*(0) rule seen lately).
 CACHE = 16
+#: Free optima (one per start and goal) kept per factorization.
+FREE_POINTS = 8
+#: Columns K₀⁻¹[g; 0] kept per factorization (2,271 entries each at N = 150).
+COLUMNS = 256
 
 
 @dataclass(frozen=True)
 class _Kkt:
-    """The regularized K₀'s LU (banded where it can be: :mod:`.solvers.banded`) and the
-    unregularized matrices, for one (P, C)."""
+    """K₀'s LU (banded where it can be: :mod:`.solvers.banded`) and the unregularized
+    matrices, for one (P, C). K₀ itself is factored (partial pivoting needs no
+    regularization: K₀ is nonsingular when C has full row rank and P is positive definite on
+    C's null space, as (30)'s are); only a K₀ that does not factor is regularized."""
 
     P: sp.csc_matrix
     C: sp.csc_matrix
@@ -69,12 +75,16 @@ class _Kkt:
     n: int
     m: int
     K: sp.csr_matrix  # K₀ unregularized (one product per refinement step)
+    free: dict[bytes, F] = field(default_factory=dict)
+    """K₀⁻¹[0; d] (refined) by the bytes of d: every QP of one start and goal starts there."""
+    columns: dict[bytes, F] = field(default_factory=dict)
+    """K₀⁻¹[g; 0] by g's entries: a route's switch search asks again for the same rows."""
 
     def solve(self, rhs: F, steps: int = SOLVE_REFINE, tol: float = 1e-11) -> F:
-        """K₀⁻¹ rhs on the unregularized K₀: the regularized LU's answer refined (the
-        regularization δ on the equalities' block would otherwise leave C dz = δ dλ, and a
-        large dλ turns that into a drift of the equalities and a false curvature), at most
-        ``steps`` corrections, until the residual is below ``tol``·max(1, ‖rhs‖∞)."""
+        """K₀⁻¹ rhs on the unregularized K₀: the LU's answer refined (a regularized LU's
+        would otherwise leave C dz = δ dλ, and a large dλ turns that into a drift of the
+        equalities and a false curvature; an exact LU's needs no correction but round-off),
+        at most ``steps`` corrections, until the residual is below ``tol``·max(1, ‖rhs‖∞)."""
         x = np.asarray(self.lu.solve(rhs))
         scale = max(1.0, float(np.abs(rhs).max()))
         for _ in range(steps):
@@ -87,6 +97,36 @@ class _Kkt:
     def apply(self, y: F) -> F:
         """K₀ y, unregularized."""
         return np.asarray(self.K @ y)
+
+    def column(self, a: F) -> F:
+        """K₀⁻¹[a; 0] for a signed pool row a (n,), kept for the next QP that holds it."""
+        nz = np.flatnonzero(a)
+        key = nz.tobytes() + a[nz].tobytes()
+        x = self.columns.get(key)
+        if x is None:
+            x = self.solve(np.concatenate([a, np.zeros(self.m)]))
+            if len(self.columns) >= COLUMNS:
+                self.columns.pop(next(iter(self.columns)))
+            self.columns[key] = x
+        return x
+
+    def free_point(self, d: F) -> F | None:
+        """K₀⁻¹[0; d], the minimum of ½zᵀPz under C z = d alone, refined as far as refine's
+        eqp goes (a stiff or slow servo's K₀ is ill-conditioned) and kept for the next QP of
+        the same d; None when the solve does not reach round-off."""
+        key = np.ascontiguousarray(d, float).tobytes()
+        hit = self.free.get(key)
+        if hit is not None:
+            return hit
+        f = np.concatenate([np.zeros(self.n), d])
+        y = self.solve(f, steps=active_set.REFINE_STEPS, tol=1e-12)
+        scale = max(1.0, float(np.abs(f).max()))
+        if not np.all(np.isfinite(y)) or float(np.abs(f - self.apply(y)).max()) > 1e-9 * scale:
+            return None
+        if len(self.free) >= FREE_POINTS:
+            self.free.pop(next(iter(self.free)))
+        self.free[key] = y
+        return y
 
 
 _FACTORS: dict[tuple[int, int], _Kkt] = {}
@@ -105,7 +145,9 @@ def kkt_of(eq: Equalities) -> _Kkt | None:
     K0 = sp.csr_matrix((np.concatenate([Pc.data, Cc.data, Cc.data]),
                         (np.concatenate([Pc.row, Cc.row + n, Cc.col]),
                          np.concatenate([Pc.col, Cc.col, Cc.row + n]))), shape=(n + m, n + m))
-    lu = factor(K0, np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)]))
+    lu = factor(K0, np.zeros(n + m))
+    if lu is None:  # singular as built: the quasi-definite regularization, refined away
+        lu = factor(K0, np.concatenate([np.full(n, REG_PRIMAL), np.full(m, -REG_DUAL)]))
     if lu is None:
         return None
     kkt = _Kkt(eq.P, eq.C, lu, n, m, K0)
@@ -121,13 +163,8 @@ def free_optimum(eq: Equalities) -> F | None:
     kkt = kkt_of(eq)
     if kkt is None:
         return None
-    f = np.concatenate([np.zeros(kkt.n), eq.d])
-    # refined as far as refine's eqp goes: a stiff or slow servo's K₀ is ill-conditioned
-    y = kkt.solve(f, steps=active_set.REFINE_STEPS, tol=1e-12)
-    scale = max(1.0, float(np.abs(f).max()))
-    if not np.all(np.isfinite(y)) or float(np.abs(f - kkt.apply(y)).max()) > 1e-9 * scale:
-        return None
-    return y[: kkt.n]
+    y = kkt.free_point(eq.d)
+    return None if y is None else y[: kkt.n].copy()
 
 
 class _Working:
@@ -165,9 +202,6 @@ class _Working:
         b = self.pool.hi[row] if side > 0 else -self.pool.lo[row]
         return (g if side > 0 else -g), float(b)
 
-    def lifted(self, a: F) -> F:
-        return np.concatenate([a, np.zeros(self.kkt.m)])
-
     def add(self, row: int, side: int, a: F, x: F) -> None:
         k, n = self.k, self.kkt.n
         if k == self._S.shape[0]:
@@ -196,11 +230,12 @@ class _Working:
                          for r, s in zip(self.rows, self.side, strict=True)])
 
 
-def _solve_w(w: _Working, f: F, b: F) -> tuple[F, F]:
-    """[[K₀, E], [Eᵀ, 0]] [y; μ] = [f; b] through the Schur complement (regularized K₀)."""
-    y0 = w.kkt.solve(f)
+def _solve_w(w: _Working, f: F, b: F, y0: F | None = None) -> tuple[F, F]:
+    """[[K₀, E], [Eᵀ, 0]] [y; μ] = [f; b] through the Schur complement; ``y0``: K₀⁻¹f when
+    the caller has it (a kept free point)."""
+    y0 = w.kkt.solve(f) if y0 is None else y0
     if not w.rows:
-        return y0, np.zeros(0)
+        return y0.copy(), np.zeros(0)
     mu = np.asarray(np.linalg.solve(w.S, w.A @ y0[: w.kkt.n] - b), float)
     return y0 - w.X @ mu, mu
 
@@ -212,7 +247,7 @@ def _exact(w: _Working, d: F) -> tuple[F, F] | None:
     b = w.rhs() if w.rows else np.zeros(0)
     A = w.A
     try:
-        y, mu = _solve_w(w, f, b)
+        y, mu = _solve_w(w, f, b, kkt.free_point(d))
         scale = max(1.0, float(np.abs(f).max()), float(np.abs(b).max()) if b.size else 0.0)
         def residual(y: F, mu: F) -> tuple[F, F, float]:
             rf = f - kkt.apply(y)
@@ -251,11 +286,11 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
     for r, s in zip(warm_rows,
                     np.asarray(side if side is not None else [], np.int64).tolist(), strict=True):
         a, _ = w.signed(r, s)
-        w.add(r, s, a, kkt.solve(w.lifted(a)))
+        w.add(r, s, a, kkt.column(a))
     f = np.concatenate([np.zeros(kkt.n), eq.d])
     steps = 0
     try:
-        z, mu = _start(w, f)
+        z, mu = _start(w, f, kkt.free_point(eq.d))
         while steps < max_steps and time.perf_counter() - t0 < TIME_LIMIT_S:
             up, dn = violations(pool, z, np.asarray(w.rows, np.int64),
                                 np.asarray(w.side, np.int64))
@@ -265,7 +300,7 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
                 break
             sp_ = 1 if up[p] >= dn[p] else -1
             ap, bp = w.signed(p, sp_)
-            xp = kkt.solve(w.lifted(ap))
+            xp = kkt.column(ap)
             # the curvature of p with W empty, dzᵀPdz of its direction: the scale for
             # "dependent" (never below round-off of ‖a_p‖²: a row the equalities fix has none)
             x0 = xp[: kkt.n]
@@ -327,10 +362,11 @@ def _farkas(eq: Equalities, w: _Working, ap: F, bp: float, dlam: F, dmu: F) -> C
     return replace(farkas_verdict(b, y, m, transposed), solver="dual active set")
 
 
-def _start(w: _Working, f: F) -> tuple[F, F]:
-    """The solution with W held, after rows of a negative multiplier left W (dual feasible)."""
+def _start(w: _Working, f: F, y0: F | None) -> tuple[F, F]:
+    """The solution with W held, after rows of a negative multiplier left W (dual feasible);
+    ``y0``: K₀⁻¹f when kept."""
     while True:
-        y, mu = _solve_w(w, f, w.rhs() if w.rows else np.zeros(0))
+        y, mu = _solve_w(w, f, w.rhs() if w.rows else np.zeros(0), y0)
         if not mu.size or float(mu.min()) >= 0.0:
             return y[: w.kkt.n], mu
         w.drop(int(np.argmin(mu)))
