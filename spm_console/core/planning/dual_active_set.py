@@ -170,15 +170,27 @@ def free_optimum(eq: Equalities) -> F | None:
 class _Working:
     """The working set: signed rows a_j = s_j·g_j (dense) held at b_j, with the columns
     X = K₀⁻¹[a_j; 0] and the Schur complement S = A X (symmetric), updated a row at a time
-    in arrays with room for ``capacity`` rows."""
+    in arrays that grow as rows join, up to ``capacity`` rows (most working sets hold a few)."""
 
-    def __init__(self, kkt: _Kkt, pool: Pool, capacity: int) -> None:
+    def __init__(self, kkt: _Kkt, pool: Pool, capacity: int, first: int = 8) -> None:
         self.kkt, self.pool = kkt, pool
+        self.capacity = capacity
         self.rows: list[int] = []
         self.side: list[int] = []
-        self._A = np.zeros((capacity, kkt.n))
-        self._Xt = np.zeros((capacity, kkt.n + kkt.m))
-        self._S = np.zeros((capacity, capacity))
+        room = min(capacity, first)
+        self._A = np.zeros((room, kkt.n))
+        self._Xt = np.zeros((room, kkt.n + kkt.m))
+        self._S = np.zeros((room, room))
+
+    def _grow(self) -> None:
+        """Room for twice the rows (at most ``capacity``)."""
+        k = self.k
+        room = min(self.capacity, 2 * k)
+        A, Xt, S = self._A, self._Xt, self._S
+        self._A = np.zeros((room, A.shape[1]))
+        self._Xt = np.zeros((room, Xt.shape[1]))
+        self._S = np.zeros((room, room))
+        self._A[:k], self._Xt[:k], self._S[:k, :k] = A[:k], Xt[:k], S[:k, :k]
 
     @property
     def k(self) -> int:
@@ -204,8 +216,10 @@ class _Working:
 
     def add(self, row: int, side: int, a: F, x: F) -> None:
         k, n = self.k, self.kkt.n
-        if k == self._S.shape[0]:
+        if k == self.capacity:
             raise np.linalg.LinAlgError("working set full")
+        if k == self._S.shape[0]:
+            self._grow()
         col = self._A[:k] @ x[:n]
         self._S[k, :k] = col
         self._S[:k, k] = col
@@ -282,7 +296,7 @@ def dual_active_set(eq: Equalities, pool: Pool, active: I | None = None,
         return ActiveSetResult(False, None)
     t0 = time.perf_counter()  # the time bound is the iteration's (a factorization is kept)
     warm_rows = np.asarray(active if active is not None else [], np.int64).tolist()
-    w = _Working(kkt, pool, len(warm_rows) + max_steps)
+    w = _Working(kkt, pool, len(warm_rows) + max_steps, len(warm_rows) + 8)
     for r, s in zip(warm_rows,
                     np.asarray(side if side is not None else [], np.int64).tolist(), strict=True):
         a, _ = w.signed(r, s)

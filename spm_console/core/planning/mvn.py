@@ -116,10 +116,10 @@ def solve_problem(problem: PlanProblem, guess: F | None = None,
 
 
 def solved_qp(problem: PlanProblem, guess: F | None = None, backend: Backend = "clarabel",
-              warm: WorkingSet | None = None) -> tuple[Equalities, QpOutcome]:
+              warm: WorkingSet | None = None, pool: Pool | None = None) -> tuple[Equalities, QpOutcome]:
     """:func:`run_qp`, raising InfeasibleError / SolverError unless it solved (the QP's
     answer, before :func:`finish` simulates and verifies it)."""
-    eq, out = run_qp(problem, guess, backend, warm)
+    eq, out = run_qp(problem, guess, backend, warm, pool)
     if out.status == "infeasible":
         extra = f" under v_max = {problem.vmax_degps}°/s" if problem.vmax_degps else ""
         raise InfeasibleError(

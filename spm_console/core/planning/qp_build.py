@@ -140,6 +140,8 @@ class Pool:
         anorm = np.linalg.norm(self.Ap, axis=1)
         self.sub = sub_instants(problem)
         self.Phis, self.Gams = self.sub.phis, self.sub.gams
+        self._speed_weights = np.stack([self.Phis[:, 1, 0], self.Phis[:, 1, 1], self.Gams[:, 1]])
+        """(3, K1): the speed at each instant between samples from [θ, θ̇, θ*] at the sample."""
         self.K1 = self.sub.count
         """Instants between samples with speed rows: intersample's and the runtime's."""
         self.req = np.flatnonzero(self.sub.requested)
@@ -245,10 +247,9 @@ class Pool:
                 ths = (th[:N, None, :] * Pr[None, :, 0, 0, None] + om[:N, None, :] * Pr[None, :, 0, 1, None]
                        + u[:, None, :] * Gr[None, :, 0, None])
                 parts.append((ths @ self.ApT).ravel())
-            if self.sizes[2]:
-                oms = (th[:N, None, :] * Ph[None, :, 1, 0, None]
-                       + om[:N, None, :] * Ph[None, :, 1, 1, None] + u[:, None, :] * Ga[None, :, 1, None])
-                parts.append(oms.ravel())
+            if self.sizes[2]:  # θ̇ at instant j of interval k: [θ, θ̇, θ*](k) · (Φ_j[1], Γ_j[1])
+                oms = np.stack([th[:N], om[:N], u], axis=-1) @ self._speed_weights
+                parts.append(oms.transpose(0, 2, 1).ravel())
         if self.sizes[3]:
             parts.append(om[1:N].ravel())
         if self.sizes[4]:

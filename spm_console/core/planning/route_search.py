@@ -137,7 +137,7 @@ class RoutePlan:
 
 
 def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0: float,
-                     max_qps: int = MAX_SWITCH_QPS) -> tuple[PlanResult, int]:
+                     max_qps: int = MAX_SWITCH_QPS, pool: Pool | None = None) -> tuple[PlanResult, int]:
     """Move each switch sample while the MVN cost falls, at most ``max_qps`` extra QPs, from
     ``first``, the solved QP of ``problem``'s own assignment; the best plan and the QPs spent.
 
@@ -148,10 +148,11 @@ def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0:
 
     Candidates are compared by the cost of their certified QP solution (½zᵀPz, exact to
     round-off); only the one kept is simulated and verified (:func:`finish`), and the
-    first assignment's answer only when no candidate is kept or the kept one fails."""
+    first assignment's answer only when no candidate is kept or the kept one fails.
+    ``pool``: ``problem``'s, when the caller has it."""
     assert problem.route is not None and first.z is not None
     warm = WorkingSet(first.active, first.side) if first.certified else None
-    pool = Pool(problem)  # each candidate's is this one with other region bounds
+    pool = Pool(problem) if pool is None else pool  # each candidate's: this one, other bounds
     if warm is not None and not _holds_region_rows(pool, warm):
         # the first optimum holds no region row: it is optimal for the problem without any
         # region row, which every switch assignment only restricts further — no candidate
@@ -271,9 +272,10 @@ def solve_route_mvn(problem: PlanProblem, regions: Sequence[Region], choice: Rou
                               f"{len(choice.regions)} regions; use more steps", Issue.TOO_FEW_STEPS)
     route = choice.route(regions, problem.N, labels)
     pb = problem.with_route(route)
-    eq, first = solved_qp(pb)
+    pool = Pool(pb)
+    eq, first = solved_qp(pb, pool=pool)
     first_cost = qp_cost(eq, first.z) if first.z is not None else np.inf
-    best, extra = (improve_switches(pb, eq, first, t0) if improve and route.count > 1
+    best, extra = (improve_switches(pb, eq, first, t0, pool=pool) if improve and route.count > 1
                    else (finish(pb, eq, first, t0), 0))
     seconds = time.perf_counter() - t0
     # the plan reports every QP its switch search solved, and their time, not the last one's
