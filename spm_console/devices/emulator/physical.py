@@ -19,7 +19,6 @@ an IMU whose truth :meth:`PhysicalWrist.truth` reads, and a home jig
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import dataclass, field
 
 import mujoco
@@ -34,14 +33,13 @@ from spm_console.description import names
 from spm_console.description.mjcf import (
     AsBuiltBody,
     PlantParams,
-    envelope_name,
     plant_params,
     wrist_mjcf,
 )
 from spm_console.devices.dynamixel.control_table import table_for
 from spm_console.devices.emulator.as_built_parts import AsBuiltParts, WristTruth
 from spm_console.devices.emulator.bno055 import ImuTruth
-from spm_console.devices.emulator.contacts import Collision
+from spm_console.devices.emulator.leg_contacts import CONTACT_CHECK_S, LegContacts
 
 F = NDArray[np.float64]
 
@@ -119,51 +117,6 @@ class Drive:
         self.integral = 0.0
         self.last_error = 0.0
         self.pwm = 0.0
-
-
-CONTACT_CHECK_S = 0.002
-"""How often the legs' envelopes are checked for contact, s of simulated time."""
-CONTACT_DISTMAX_M = 0.01
-"""Distances beyond this are not computed exactly (only their sign matters), m."""
-
-
-class LegContacts:
-    """Contact between two legs' envelope capsules, told once when it begins: MuJoCo's
-    capsule–capsule distance (``mj_geomDistance``), independent of the workspace's own
-    segment distances."""
-
-    def __init__(self, mj: mujoco.MjModel, links: LinkModel | None) -> None:
-        self.mj = mj
-        self.pairs: list[tuple[int, int, int, str, int, str]] = []
-        """(geom, geom, leg i, segment, leg j, segment) for every checked pair."""
-        if links is not None:
-            for i, s1, j, s2 in links.pairs():
-                self.pairs.append((mj.geom(envelope_name(i, s1)).id,
-                                   mj.geom(envelope_name(j, s2)).id, i, s1, j, s2))
-        self.touching: set[int] = set()
-        self.events: list[Collision] = []
-        """Contacts begun and not yet taken (:meth:`take`)."""
-        self.lock = threading.Lock()
-
-    def check(self, data: mujoco.MjData, t: float, theta_rad: F) -> None:
-        fromto = np.zeros(6)
-        now: set[int] = set()
-        for k, (g1, g2, i, s1, j, s2) in enumerate(self.pairs):
-            d = mujoco.mj_geomDistance(self.mj, data, g1, g2, CONTACT_DISTMAX_M, fromto)
-            if d < 0.0:
-                now.add(k)
-                if k not in self.touching:
-                    th = tuple(float(x) for x in np.degrees(theta_rad))
-                    with self.lock:
-                        self.events.append(Collision(t, (i, j), (s1, s2), 1000.0 * d,
-                                                     (th[0], th[1], th[2])))
-        self.touching = now
-
-    def take(self) -> list[Collision]:
-        """The contacts begun since the last call (thread-safe)."""
-        with self.lock:
-            out, self.events = self.events, []
-        return out
 
 
 class PhysicalWrist:
@@ -405,7 +358,7 @@ class PhysicalWrist:
             self.t += dt
             if self.t >= self._next_contact_check:
                 self._next_contact_check = self.t + CONTACT_CHECK_S
-                self.contacts.check(self.data, self.t, self.theta())
+                self.contacts.check(self.data, self.t, self.theta)
         for i, d in enumerate(drives):
             d.integral, d.last_error, d.pwm = integral[i], last[i], pwm_out[i]
         self.duty = np.array(duty)

@@ -62,8 +62,8 @@ def test_a_contact_is_told_once_where_the_workspace_sees_the_legs_within_two_del
         assert fk.pose is not None
         closest = float(links.pair_distances(m.u, m.geom.w(th), fk.pose.v).min())
         wrist.contacts.touching = set()
-        wrist.contacts.check(wrist.data, 0.0, wrist.theta())
-        wrist.contacts.check(wrist.data, 0.002, wrist.theta())  # still touching: not again
+        wrist.contacts.check(wrist.data, 0.0, wrist.theta)
+        wrist.contacts.check(wrist.data, 0.002, wrist.theta)  # still touching: not again
         events = wrist.contacts.take()
         if closest < 2 * links.delta - 0.05:
             assert len(events) >= 1
@@ -74,3 +74,25 @@ def test_a_contact_is_told_once_where_the_workspace_sees_the_legs_within_two_del
         elif closest > 2 * links.delta + 0.05:
             assert events == []
     assert told > 0  # the poses reached some contacts
+
+
+def test_the_pairs_left_unasked_are_apart_by_mujocos_own_distance(setup) -> None:  # type: ignore[no-untyped-def]
+    """The contact check asks MuJoCo only for the pairs whose bounding spheres meet: every
+    other pair is apart by ``mj_geomDistance`` itself, and in every pose some pairs are
+    asked, some are not (the poses reach contacts, as above)."""
+    wrist, _ = setup
+    contacts = wrist.contacts
+    fromto = np.zeros(6)
+    asked = unasked = touching = 0
+    for th in _poses(wrist, 40, 2):
+        wrist.set_theta(th)
+        near = set(contacts.near(wrist.data))
+        for k, (g1, g2, *_) in enumerate(contacts.pairs):
+            d = mujoco.mj_geomDistance(wrist.mj, wrist.data, g1, g2, 1.0, fromto)
+            touching += d < 0.0
+            if k in near:
+                asked += 1
+            else:
+                unasked += 1
+                assert d > 0.0, (k, np.degrees(th))
+    assert asked > 0 and unasked > asked and touching > 0
