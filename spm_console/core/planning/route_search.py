@@ -222,8 +222,11 @@ class _SwitchSearch:
             return False
         self.tried.add(switch)
         cand = self.problem.with_route(replace(self.route, switch=switch))
+        pool = self.pool.switched(cand)
+        if not self.frees_a_held_row(pool):
+            return False  # it cannot cost less than the best: no QP
         self.qps += 1
-        c_eq, out = run_qp(cand, self.guess, warm=self.warm, pool=self.pool.switched(cand))
+        c_eq, out = run_qp(cand, self.guess, warm=self.warm, pool=pool)
         if out.status != "solved" or out.z is None or not out.certified:
             return False  # infeasible, or no certified answer
         c = qp_cost(c_eq, out.z)
@@ -232,6 +235,18 @@ class _SwitchSearch:
         self.cost, self.kept = c, (cand, c_eq, out)
         self.warm, self.guess = WorkingSet(out.active, out.side), out.z
         return True
+
+
+    def frees_a_held_row(self, pool: Pool) -> bool:
+        """Whether the assignment of ``pool`` frees a row the best optimum holds (its bound
+        is +∞ there: the sample or interval left that row's region). When it frees none, the
+        best optimum and its multipliers meet the KKT conditions of the assignment's problem
+        less the rows it frees, and the assignment's problem only adds rows to that one: it
+        cannot cost less than the best. True when the best's working set is not known."""
+        if self.warm is None:
+            return True
+        held = self.warm.rows[self.warm.side > 0]
+        return bool((~np.isfinite(pool.hi[held])).any())
 
 
 def _line_search(search: _SwitchSearch, i: int, sign: int, step: int) -> bool:

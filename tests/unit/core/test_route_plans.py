@@ -81,6 +81,7 @@ def test_a_first_optimum_that_holds_no_region_row_ends_the_switch_search(
     plan = solve_route_mvn(pb, [wide0, wide1], two)
     assert plan.qps == 1 and plan.result.working_set is not None
     monkeypatch.setattr(rs, "_holds_region_rows", lambda pool, working: True)
+    monkeypatch.setattr(rs._SwitchSearch, "frees_a_held_row", lambda self, pool: True)
     searched = solve_route_mvn(pb, [wide0, wide1], two)
     assert searched.qps > 1
     assert searched.result.cost >= plan.result.cost - 1e-9 * plan.result.cost
@@ -110,6 +111,41 @@ def test_the_switch_search_finds_the_best_switch_sample(corner: tuple[float, ...
     best = min(costs, key=costs.__getitem__)
     assert abs(best - first.regions.switch[0]) >= 4  # the first assignment is off
     assert plan.result.cost == pytest.approx(costs[best], rel=1e-6)
+
+
+def test_an_assignment_that_frees_no_held_row_costs_no_less_and_is_not_solved() -> None:
+    """The search skips a switch sample that frees none of the rows the best optimum holds
+    (no QP): solved anyway at every sample, each such assignment costs no less than the
+    first one; the samples that can do better all free a held row."""
+    from dataclasses import replace
+
+    import spm_console.core.planning.route_search as rs
+    from spm_console.core.planning.active_set import WorkingSet
+    from spm_console.core.planning.mvn import run_qp
+    from spm_console.core.planning.qp_build import Pool
+
+    N = 60
+    choice = rs.RouteChoice((0, 1), np.vstack([START, (109.0, 79.0, 80.0), GOAL]), 0.0)
+    first = PlanProblem(MODEL, START, GOAL, N, BOX0, None).with_route(
+        choice.route([BOX0, BOX1], N))
+    eq, out = run_qp(first)
+    assert out.certified and out.z is not None
+    pool = Pool(first)
+    search = rs._SwitchSearch(first, pool, out.z, rs.qp_cost(eq, out.z),
+                              WorkingSet(out.active, out.side), max_qps=0)
+    skipped = cheaper = 0
+    for s in range(1, N):
+        cand = first.with_route(replace(first.regions, switch=(s,)))
+        c_eq, c_out = run_qp(cand)
+        if c_out.status != "solved" or c_out.z is None:
+            continue
+        cost = rs.qp_cost(c_eq, c_out.z)
+        if not search.frees_a_held_row(pool.switched(cand)):
+            skipped += 1
+            assert cost >= search.cost * (1 - 1e-9), s
+        elif cost < search.cost * (1 - 1e-9):
+            cheaper += 1
+    assert skipped > 0 and cheaper > 0
 
 
 def test_one_region_cannot_and_too_short_a_horizon_is_refused() -> None:
