@@ -20,6 +20,7 @@ with iterative refinement on the unregularized system and checked like
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field, replace
 
@@ -58,8 +59,10 @@ SOLVE_REFINE = 2
 CACHE = 16
 #: Free optima (one per start and goal) kept per factorization.
 FREE_POINTS = 8
-#: Columns K₀⁻¹[g; 0] kept per factorization (2,271 entries each at N = 150).
+#: Columns K₀⁻¹[g; 0] kept per factorization (2,271 entries each at N = 150), and the entries
+#: they may hold together (4 MB: fewer columns for a long horizon, 13 at N = 5,000).
 COLUMNS = 256
+COLUMN_ENTRIES = 1 << 19
 
 
 @dataclass(frozen=True)
@@ -75,10 +78,12 @@ class _Kkt:
     n: int
     m: int
     K: sp.csr_matrix  # K₀ unregularized (one product per refinement step)
-    free: dict[bytes, F] = field(default_factory=dict)
+    free: dict[bytes, F] = field(default_factory=dict, compare=False, repr=False)
     """K₀⁻¹[0; d] (refined) by the bytes of d: every QP of one start and goal starts there."""
-    columns: dict[bytes, F] = field(default_factory=dict)
+    columns: dict[bytes, F] = field(default_factory=dict, compare=False, repr=False)
     """K₀⁻¹[g; 0] by g's entries: a route's switch search asks again for the same rows."""
+    lock: threading.Lock = field(default_factory=threading.Lock, compare=False, repr=False)
+    """Guards the two caches (plans may be solved in several threads)."""
 
     def solve(self, rhs: F, steps: int = SOLVE_REFINE, tol: float = 1e-11) -> F:
         """K₀⁻¹ rhs on the unregularized K₀: the LU's answer refined (a regularized LU's
@@ -102,12 +107,13 @@ class _Kkt:
         """K₀⁻¹[a; 0] for a signed pool row a (n,), kept for the next QP that holds it."""
         nz = np.flatnonzero(a)
         key = nz.tobytes() + a[nz].tobytes()
-        x = self.columns.get(key)
+        with self.lock:
+            x = self.columns.get(key)
         if x is None:
             x = self.solve(np.concatenate([a, np.zeros(self.m)]))
-            if len(self.columns) >= COLUMNS:
-                self.columns.pop(next(iter(self.columns)))
-            self.columns[key] = x
+            room = min(COLUMNS, max(8, COLUMN_ENTRIES // (self.n + self.m)))
+            with self.lock:
+                _keep(self.columns, key, x, room)
         return x
 
     def free_point(self, d: F) -> F | None:
@@ -115,7 +121,8 @@ class _Kkt:
         eqp goes (a stiff or slow servo's K₀ is ill-conditioned) and kept for the next QP of
         the same d; None when the solve does not reach round-off."""
         key = np.ascontiguousarray(d, float).tobytes()
-        hit = self.free.get(key)
+        with self.lock:
+            hit = self.free.get(key)
         if hit is not None:
             return hit
         f = np.concatenate([np.zeros(self.n), d])
@@ -123,23 +130,32 @@ class _Kkt:
         scale = max(1.0, float(np.abs(f).max()))
         if not np.all(np.isfinite(y)) or float(np.abs(f - self.apply(y)).max()) > 1e-9 * scale:
             return None
-        if len(self.free) >= FREE_POINTS:
-            self.free.pop(next(iter(self.free)))
-        self.free[key] = y
+        with self.lock:
+            _keep(self.free, key, y, FREE_POINTS)
         return y
 
 
+def _keep(cache: dict[bytes, F], key: bytes, value: F, room: int) -> None:
+    """Put ``value`` in ``cache`` (its caller holds the lock), the oldest entries out first so
+    that at most ``room`` are kept."""
+    cache[key] = value
+    while len(cache) > room:
+        del cache[next(iter(cache))]
+
+
 _FACTORS: dict[tuple[int, int], _Kkt] = {}
+_FACTORS_LOCK = threading.Lock()
 
 
 def kkt_of(eq: Equalities) -> _Kkt | None:
     """K₀'s factorization for ``eq``'s matrices (cached by identity: ``equalities`` returns
     the same matrices for the same N, model and θ*(0) rule); None when it does not factor."""
     key = (id(eq.P), id(eq.C))
-    hit = _FACTORS.pop(key, None)
-    if hit is not None and hit.P is eq.P and hit.C is eq.C:
-        _FACTORS[key] = hit  # the most recently used goes last: the first is evicted
-        return hit
+    with _FACTORS_LOCK:
+        hit = _FACTORS.pop(key, None)
+        if hit is not None and hit.P is eq.P and hit.C is eq.C:
+            _FACTORS[key] = hit  # the most recently used goes last: the first is evicted
+            return hit
     n, m = eq.P.shape[0], eq.C.shape[0]
     Pc, Cc = eq.P.tocoo(), eq.C.tocoo()  # K₀ from triplets (sparse.bmat costs more)
     K0 = sp.csr_matrix((np.concatenate([Pc.data, Cc.data, Cc.data]),
@@ -151,9 +167,10 @@ def kkt_of(eq: Equalities) -> _Kkt | None:
     if lu is None:
         return None
     kkt = _Kkt(eq.P, eq.C, lu, n, m, K0)
-    if len(_FACTORS) >= CACHE:
-        _FACTORS.pop(next(iter(_FACTORS)))
-    _FACTORS[key] = kkt
+    with _FACTORS_LOCK:
+        _FACTORS[key] = kkt
+        while len(_FACTORS) > CACHE:
+            del _FACTORS[next(iter(_FACTORS))]
     return kkt
 
 

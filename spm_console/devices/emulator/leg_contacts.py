@@ -25,9 +25,9 @@ CONTACT_DISTMAX_M = 0.01
 class LegContacts:
     """Contact between two legs' envelope capsules, told once when it begins: MuJoCo's
     capsule–capsule distance (``mj_geomDistance``), independent of the workspace's own
-    segment distances. Only the pairs whose bounding spheres meet are asked: a capsule lies
-    within its half-length plus its radius of its centre, so two whose centres are farther
-    apart than the sum cannot touch (most pairs, most of the time)."""
+    segment distances. Only the pairs whose bounding spheres meet are asked (MuJoCo's
+    ``geom_rbound`` about the geom's centre: a capsule's half-length plus its radius): two whose
+    centres are farther apart than the sum cannot touch (most pairs, most of the time)."""
 
     def __init__(self, mj: mujoco.MjModel, links: LinkModel | None) -> None:
         self.mj = mj
@@ -40,8 +40,7 @@ class LegContacts:
         first = np.array([p[0] for p in self.pairs], np.int64)
         second = np.array([p[1] for p in self.pairs], np.int64)
         self._first, self._second = first, second
-        # a capsule's size is (radius, half-length): its bounding sphere's radius is the sum
-        ball = mj.geom_size[:, 0] + mj.geom_size[:, 1]
+        ball = mj.geom_rbound  # each geom's bounding sphere (a capsule's: half-length + radius)
         self._reach2 = (ball[first] + ball[second]) ** 2
         """Squared distance between centres beyond which a pair cannot touch, m²."""
         self.touching: set[int] = set()

@@ -148,6 +148,45 @@ def test_an_assignment_that_frees_no_held_row_costs_no_less_and_is_not_solved() 
     assert skipped > 0 and cheaper > 0
 
 
+def test_the_search_solves_no_skipped_assignment_and_none_was_cheaper(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """In the search itself, from first switch samples far off the best one: an assignment
+    it skips is never solved, and solved here it costs no less than the best of that
+    moment."""
+    from dataclasses import replace
+
+    import spm_console.core.planning.route_search as rs
+    from spm_console.core.planning.mvn import solved_qp
+
+    solved: list[tuple[int, tuple[int, ...]]] = []
+    skipped: list[tuple[PlanProblem, float]] = []
+    run_qp, frees = rs.run_qp, rs._SwitchSearch.frees_a_held_row
+
+    def spy_run(problem, *a, **k):  # type: ignore[no-untyped-def]
+        solved.append((problem.N, problem.regions.switch))
+        return run_qp(problem, *a, **k)
+
+    def spy_frees(self, pool):  # type: ignore[no-untyped-def]
+        out = frees(self, pool)
+        if not out:
+            skipped.append((pool.pb, self.cost))
+        return out
+
+    monkeypatch.setattr(rs, "run_qp", spy_run)
+    monkeypatch.setattr(rs._SwitchSearch, "frees_a_held_row", spy_frees)
+    choice = rs.RouteChoice((0, 1), np.vstack([START, (109.0, 79.0, 80.0), GOAL]), 0.0)
+    for N, first in ((60, 12), (60, 48), (100, 90), (150, 15)):
+        route = replace(choice.route([BOX0, BOX1], N), switch=(first,))
+        pb = PlanProblem(MODEL, START, GOAL, N, BOX0, None).with_route(route)
+        eq, out = solved_qp(pb)
+        rs.improve_switches(pb, eq, out, 0.0)
+    assert skipped
+    for pb, best in skipped:
+        assert (pb.N, pb.regions.switch) not in solved
+        eq, out = run_qp(pb)
+        assert out.status != "solved" or out.z is None or rs.qp_cost(eq, out.z) >= best * (1 - 1e-9)
+
+
 def test_one_region_cannot_and_too_short_a_horizon_is_refused() -> None:
     pb = PlanProblem(MODEL, START, GOAL, 150, BOX0, 40.0)
     with pytest.raises(InfeasibleError):
