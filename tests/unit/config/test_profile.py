@@ -366,3 +366,29 @@ def test_an_identified_servo_model_loads_and_a_p_alone_means_the_paper(agile) ->
     prof = parse_profile(doc, "profile")
     assert prof.servo.zeta == 0.79 and prof.servo.identified is not None
     assert prof.digest() != agile.digest()
+
+
+@pytest.mark.parametrize("step_deg", [2.0, 12.0, 20.0, 30.0])
+def test_the_room_at_home_check_clears_only_what_assess_finds_feasible(agile, step_deg: float) -> None:  # type: ignore[no-untyped-def]
+    """The load-time check of the nodes one grid step around home clears them all at once;
+    each node it clears is feasible by :func:`assess` itself, and each it leaves is not
+    (steps from 2° to 30°: both verdicts occur)."""
+    import itertools
+
+    from spm_console.config.load import _clear_nodes
+    from spm_console.config.models import link_model_of, model_of
+    from spm_console.core.kinematics.assess import assess
+
+    model, links, ws = model_of(agile), link_model_of(agile), agile.workspace
+    home = np.asarray(agile.home.theta_deg, float)
+    cube = np.array([d for d in itertools.product((-1.0, 0.0, 1.0), repeat=3) if any(d)])
+    results = model.track_batch(np.radians(home + step_deg * cube))
+    clear = _clear_nodes(model, links, results, ws.zeta_min, (ws.theta_min_deg, ws.theta_max_deg))
+    for r, sure in zip(results, clear, strict=True):
+        feasible = r.ok and r.pose is not None and assess(
+            model, links, r.pose, ws.zeta_min, (ws.theta_min_deg, ws.theta_max_deg)).feasible
+        assert sure == feasible
+    if step_deg == 30.0:
+        assert not all(clear)
+    if step_deg == 2.0:
+        assert all(clear)
