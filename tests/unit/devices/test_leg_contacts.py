@@ -23,6 +23,12 @@ def setup():  # type: ignore[no-untyped-def]
     return PhysicalWrist(model_of(profile), links=links), links
 
 
+@pytest.fixture(scope="module")
+def contact_poses(setup) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
+    """40 random poses, some of which bring legs into contact (seeded; tracked once)."""
+    return _poses(setup[0], 40, 2)
+
+
 def _poses(wrist: PhysicalWrist, n: int, seed: int) -> list[np.ndarray]:
     """Random joint angles near home the continuation FK reaches (rad)."""
     rng = np.random.default_rng(seed)
@@ -52,11 +58,11 @@ def test_mujocos_capsule_distance_is_the_segment_distance_less_two_delta(setup) 
             assert d == pytest.approx(ours[k] - 2 * links.delta, abs=0.02), (k, np.degrees(th))
 
 
-def test_a_contact_is_told_once_where_the_workspace_sees_the_legs_within_two_delta(setup) -> None:  # type: ignore[no-untyped-def]
+def test_a_contact_is_told_once_where_the_workspace_sees_the_legs_within_two_delta(setup, contact_poses) -> None:  # type: ignore[no-untyped-def]
     wrist, links = setup
     m = wrist.spm
     told = 0
-    for th in _poses(wrist, 40, 2):
+    for th in contact_poses:
         wrist.set_theta(th)
         fk = m.track(th)
         assert fk.pose is not None
@@ -76,7 +82,7 @@ def test_a_contact_is_told_once_where_the_workspace_sees_the_legs_within_two_del
     assert told > 0  # the poses reached some contacts
 
 
-def test_the_pairs_left_unasked_are_apart_by_mujocos_own_distance(setup) -> None:  # type: ignore[no-untyped-def]
+def test_the_pairs_left_unasked_are_apart_by_mujocos_own_distance(setup, contact_poses) -> None:  # type: ignore[no-untyped-def]
     """The contact check asks MuJoCo only for the pairs whose bounding spheres meet: every
     other pair is apart by ``mj_geomDistance`` itself, and in every pose some pairs are
     asked, some are not (the poses reach contacts, as above)."""
@@ -84,7 +90,7 @@ def test_the_pairs_left_unasked_are_apart_by_mujocos_own_distance(setup) -> None
     contacts = wrist.contacts
     fromto = np.zeros(6)
     asked = unasked = touching = 0
-    for th in _poses(wrist, 40, 2):
+    for th in contact_poses:
         wrist.set_theta(th)
         near = set(contacts.near(wrist.data))
         for k, (g1, g2, *_) in enumerate(contacts.pairs):
