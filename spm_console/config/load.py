@@ -184,7 +184,9 @@ def _clear_nodes(model: Any, links: Any, results: list[Any], zeta_min: float,
         return clear
     poses = [results[k].pose for k in solved]
     theta = np.stack([p.theta for p in poses])
-    dmin = links.pair_distances(model.u, model.geom.w(theta), np.stack([p.v for p in poses])).min(-1)
+    with np.errstate(all="ignore"):  # a degenerate pose gives NaN: not cleared, assess says why
+        dmin = links.pair_distances(model.u, model.geom.w(theta),
+                                    np.stack([p.v for p in poses])).min(-1)
     lo, hi = theta_range_deg
     deg = np.degrees(theta)
     for k, p, d, th in zip(solved, poses, dmin, deg, strict=True):
