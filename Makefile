@@ -43,12 +43,13 @@ venv: $(STAMP)
 run: $(STAMP)
 	$(BIN)/spm-console tui $(if $(PROFILE),--profile $(PROFILE)) $(if $(GRID),--grid-step $(GRID))
 
-# The unit tests (no process, no terminal: tests/unit) on every core, then the rest on two
+# The unit tests (no process, no terminal: tests/unit) on every core, then the rest on three
 # workers, each test module a group: their motions run in simulated time (tests/conftest.py
-# sets SPM_CONSOLE_CLOCK=simulated), so nothing waits on the wall clock and two runs beside
-# each other do not disturb one another. The unit tests are not run beside the rest:
-# docs/decisions/test-suite-time.md says what that did. The tests about real time (marked
-# realtime) are left to test-realtime.
+# sets SPM_CONSOLE_CLOCK=simulated), so nothing waits on the wall clock, and a third worker
+# fills the time the other two spend waiting on their processes and on the console's idle
+# checks (two workers kept the two cores 54 % busy). The unit tests are not run beside the
+# rest: docs/decisions/test-suite-time.md says what that did. The tests about real time
+# (marked realtime) are left to test-realtime.
 test: test-unit test-runtime
 
 test-unit: $(STAMP)
@@ -56,7 +57,7 @@ test-unit: $(STAMP)
 
 test-runtime: $(STAMP)
 	$(BIN)/python -m pytest tests/runtime tests/tui tests/e2e -m 'not slow and not realtime' \
-		-n 2 --dist loadgroup --durations=25
+		-n 3 --dist loadgroup --durations=25
 
 # The tests about real time (marked realtime: jitter, scheduling, reply timing, runs on the
 # wall clock), one at a time with nothing beside them.
