@@ -29,6 +29,12 @@ os.environ.setdefault("SPM_CONSOLE_WARM_START", "command")
 # run. Tests about real time take the wall clock (``real_clock``, marked ``realtime``); tests
 # that act while a motion runs pace it at real time (``paced_clock``).
 os.environ.setdefault("SPM_CONSOLE_CLOCK", "simulated")
+# NumPy's and SciPy's OpenBLAS on one thread in every test process and the processes they
+# start (set before anything imports NumPy). Each xdist worker would otherwise start a BLAS
+# thread per core, and on two cores the workers' idle BLAS threads spin against the other
+# worker's work: the unit tests took 77 s (143 CPU-s) on two workers, 60 s (109 CPU-s) on one
+# BLAS thread each. No test's matrices are large enough to gain from a second BLAS thread.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 # Property tests draw the same examples on every run and machine (a failure found once is
 # found again, and CI cannot fail on a draw the last run did not make); set
