@@ -97,11 +97,9 @@ def env(tmp_path: Path, ws_cache_dir: Path) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def ws_cache_dir(tmp_path_factory: pytest.TempPathFactory, agile) -> Path:  # type: ignore[no-untyped-def]
-    from spm_console.store.workspace_cache import load_or_build
+    from tests.support.ws_helpers import cache_folder_holding
 
-    d = tmp_path_factory.mktemp("tmux-cache")
-    load_or_build(agile, cache_dir=d)
-    return d
+    return cache_folder_holding(agile, tmp_path_factory.mktemp("tmux-cache"))
 
 
 @pytest.fixture

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import fcntl
 import functools
+import shutil
+from pathlib import Path
 
 from spm_console.config.load import load_profile
 from spm_console.config.models import build_workspace
 from spm_console.config.schema import Profile
 from spm_console.core.workspace.data import Workspace
-from spm_console.store.workspace_cache import default_cache_dir, load_or_build
+from spm_console.store.workspace_cache import cache_path, default_cache_dir, load_or_build
 from tests.support.paths import ROOT as PROJECT_ROOT
 
 ROOT = PROJECT_ROOT
@@ -40,6 +42,16 @@ def _built_once(profile: Profile, refined_cover: bool) -> Workspace:
         fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
         ws, _ = load_or_build(profile, refined_cover=refined_cover)
     return ws
+
+
+def cache_folder_holding(profile: Profile, folder: Path) -> Path:
+    """``folder``, made, holding the profile's workspace cache file (default cover): a copy of
+    the session's, built once by whichever process asks first (:func:`_built_once`), for tests
+    whose commands need a cache folder of their own."""
+    _built_once(profile, False)
+    folder.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(cache_path(profile), cache_path(profile, folder))
+    return folder
 
 
 @functools.lru_cache(maxsize=1)

@@ -16,11 +16,9 @@ from spm_console.tui.app import SpmConsoleApp, make_app
 @pytest.fixture(scope="session")
 def ws_cache(tmp_path_factory: pytest.TempPathFactory, agile: Profile) -> Path:
     """A workspace cache folder holding the Agile Wrist workspace (built once per run)."""
-    from spm_console.store.workspace_cache import load_or_build
+    from tests.support.ws_helpers import cache_folder_holding
 
-    d = tmp_path_factory.mktemp("ws-cache")
-    load_or_build(agile, cache_dir=d)
-    return d
+    return cache_folder_holding(agile, tmp_path_factory.mktemp("ws-cache"))
 
 
 @pytest.fixture
