@@ -19,7 +19,7 @@ from spm_console.design.spec import load_spec
 from spm_console.design.sweep import run_sweep
 from spm_console.design.table import JOURNAL, load_table, read_info, read_rows
 from spm_console.errors import BadInputError, ExitCode
-from tests.support.ws_helpers import cache_folder_holding
+from tests.support.ws_helpers import agile_profile, cache_folder_holding
 from tests.unit.design.conftest import AGILE, GRID
 
 PAIR = "[[pairs]]\nstart_deg = [105.0, 105.0, 105.0]\ngoal_deg = [135.0, 125.0, 115.0]"
@@ -160,7 +160,7 @@ def test_the_agile_wrist_design_has_the_figures_workspace_build_reports(
     assert main(["design", "sweep", str(spec), "--out", str(tmp_path / "s"), "--workers", "0"]) == 0
     capsys.readouterr()
     # the build's figures as the command reports them, from the session's cache of that build
-    cache = cache_folder_holding(load_profile(AGILE), tmp_path / "cache")
+    cache = cache_folder_holding(agile_profile(), tmp_path / "cache")
     assert main(["workspace", "build", "--profile", str(AGILE), "--cache-dir", str(cache),
                  "--json"]) == 0
     ws = json.loads(capsys.readouterr().out)
