@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +22,10 @@ INTERIOR_MARGIN = 1e-4
 #: also far below anything the wrist can tell apart (a servo tick is 0.088°), so no point
 #: counted inside is measurably outside.
 INSIDE_TOL_DEG = 1e-7
+#: Points per block of the membership tests: the (points × half-spaces) slacks of one block
+#: stay in the cache. The whole 2° grid's feasible nodes at once made a 26 MB array whose
+#: fresh pages cost 4–12× the arithmetic.
+BLOCK_POINTS = 4096
 
 
 @dataclass(frozen=True)
@@ -43,12 +49,27 @@ class Region:
     def contains(self, theta_deg: F, tol: float = INSIDE_TOL_DEG) -> NDArray[np.bool_]:
         """True where A θ ≤ b + tol (each point of (..., 3)); ``tol``: :data:`INSIDE_TOL_DEG`
         (a negative one asks for a point that far inside)."""
-        return np.asarray((self.slack(theta_deg) >= -tol).all(-1))
+        return np.asarray(self._per_point(theta_deg, lambda s: np.asarray((s >= -tol).all(-1)),
+                                          bool), bool)
 
     def violation_deg(self, theta_deg: F) -> F:
         """Largest Euclidean excursion outside any half-space (0 inside), deg: (...,)."""
         norms = np.linalg.norm(self.A, axis=1)
-        return np.asarray(np.maximum(0.0, (-self.slack(theta_deg) / norms).max(-1)))
+        return np.asarray(self._per_point(
+            theta_deg, lambda s: np.asarray(np.maximum(0.0, (-s / norms).max(-1))), float), float)
+
+    def _per_point(self, theta_deg: F, reduce: Callable[[F], NDArray[Any]],
+                   dtype: type) -> NDArray[Any]:
+        """``reduce(slacks)`` → one value per point of (..., 3), in blocks of
+        :data:`BLOCK_POINTS` points (each point's slacks are the same as :meth:`slack`'s)."""
+        t = np.asarray(theta_deg, float)
+        if t.size <= 3 * BLOCK_POINTS:
+            return np.asarray(reduce(self.slack(t)))
+        flat = t.reshape(-1, 3)
+        out: NDArray[Any] = np.empty(len(flat), dtype)
+        for s in range(0, len(flat), BLOCK_POINTS):
+            out[s:s + BLOCK_POINTS] = reduce(self.slack(flat[s:s + BLOCK_POINTS]))
+        return out.reshape(t.shape[:-1])
 
     @classmethod
     def box(cls, lo_deg: float, hi_deg: float) -> Region:

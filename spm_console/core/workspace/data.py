@@ -123,8 +123,8 @@ class Workspace:
         return lo, hi
 
     def coverage(self) -> float:
-        """Fraction of the feasible nodes that lie in P (computed once per workspace: 25–90 ms
-        on the 2° grid, and the console shows it on every visit of its workspace step)."""
+        """Fraction of the feasible nodes that lie in P (computed once per workspace: the console
+        shows it on every visit of its workspace step)."""
         return self._p_coverage
 
     @cached_property
