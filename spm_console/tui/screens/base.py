@@ -122,6 +122,12 @@ class StepScreen(Screen[None]):
 
     def __init__(self) -> None:
         super().__init__()
+        # Textual re-parses every stylesheet of the app and restyles every widget, twice, on
+        # the first visit of a mode whose screen has not seen the app's latest CSS update
+        # (private to Textual 8). A new step's widgets are styled from the current stylesheet
+        # as they mount, so the step starts up to date; a theme change restyles every screen
+        # of the app, shown or not.
+        self._css_update_count = self.app._css_update_count
         self.busy_op = ""
         self._made_compact: WeakSet[Widget] = WeakSet()
 
