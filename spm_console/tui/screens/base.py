@@ -167,13 +167,12 @@ class StepScreen(Screen[None]):
         line each, Textual's compact style), so forms fit 80×24; below
         ``COMPACT_BELOW_COLUMNS`` columns the footer drops its padding. Only widgets made
         compact here are restored when the terminal grows again."""
-        wanted: list[tuple[Input | Select[object] | Footer, bool]] = []
         short = self.size.height < COMPACT_BELOW_ROWS
-        wanted += [(w, short) for w in self.query(Input).results()]
-        wanted += [(w, short) for w in self.query(Select).results()]
-        wanted += [(w, self.size.width < COMPACT_BELOW_COLUMNS)
-                   for w in self.query(Footer).results()]
-        for w, compact in wanted:
+        narrow = self.size.width < COMPACT_BELOW_COLUMNS
+        for w in self.query("Input, Select, Footer").results():  # one walk of the DOM
+            if not isinstance(w, (Input, Select, Footer)):
+                continue
+            compact = narrow if isinstance(w, Footer) else short
             if compact and not w.compact:
                 w.compact = True
                 self._made_compact.add(w)
