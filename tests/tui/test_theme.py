@@ -1,9 +1,12 @@
-"""A theme chosen in the palette styles every step: the one shown, the ones visited before and
-the ones first visited after (new steps start from the current stylesheet)."""
+"""A theme chosen in the palette styles every step: the one shown, one visited before and one
+first visited after (a new step starts from the current stylesheet)."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from textual.color import Color
+from textual.pilot import Pilot
 from textual.widgets import Footer
 
 from spm_console.tui.app import SpmConsoleApp
@@ -18,32 +21,29 @@ def _theme_colours(app: SpmConsoleApp) -> tuple[Color, Color]:
     return app.screen.styles.background, app.screen.query_one(Footer).styles.background
 
 
+async def _show(app: SpmConsoleApp, pilot: Pilot[Any], mode: str) -> tuple[Color, Color]:
+    await pilot.press(next(s.fkey for s in STEPS if s.mode == mode))
+    await settle(pilot)
+    assert app.current_mode == mode
+    return _theme_colours(app)
+
+
 async def test_a_new_theme_styles_steps_visited_before_and_after(console) -> None:
     app = console()
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
         first = app.current_mode
-        for s in STEPS[: len(STEPS) // 2]:  # some steps visited before the change
-            await pilot.press(s.fkey)
-            await settle(pilot)
-        await pilot.press(next(s.fkey for s in STEPS if s.mode == first))
-        await settle(pilot)
-        before = _theme_colours(app)
+        before = await _show(app, pilot, "fk")  # a step visited before the change
         assert before[0] == Color.parse(app.get_css_variables()["background"])
+        await _show(app, pilot, first)
         light = next(n for n, t in app.available_themes.items() if not t.dark)
         app.theme = light
         await settle(pilot)
         want = Color.parse(app.get_css_variables()["background"])
         assert want != before[0]
         seen = {first: _theme_colours(app)}
-        for s in STEPS:  # every step, most of them first visited now
-            await pilot.press(s.fkey)
-            await settle(pilot)
-            assert app.current_mode == s.mode
-            seen[s.mode] = _theme_colours(app)
-        await pilot.press(next(s.fkey for s in STEPS if s.mode == first))
-        await settle(pilot)
-        seen["again"] = _theme_colours(app)
+        for mode in ("fk", "logs", first):  # visited before; first visited now; shown at the change
+            seen[f"{mode} after"] = await _show(app, pilot, mode)
         assert {m: c[0] for m, c in seen.items()} == {m: want for m in seen}
         footers = {c[1] for c in seen.values()}
         assert len(footers) == 1 and before[1] not in footers
