@@ -233,6 +233,16 @@ async def _next_question(pilot, timeout_s: float = 60.0) -> AnswerScreen | None:
     raise TimeoutError("no question and the worker still runs")
 
 
+async def _closed(pilot, screen: AnswerScreen, timeout_s: float = 10.0) -> None:  # type: ignore[no-untyped-def]
+    """Wait until ``screen`` is no longer shown (TimeoutError after ``timeout_s``)."""
+    loop = asyncio.get_running_loop()
+    t_end = loop.time() + timeout_s
+    while pilot.app.screen is screen:
+        if loop.time() >= t_end:
+            raise TimeoutError("the question is still shown")
+        await pilot.pause(0.02)
+
+
 def _profile_in_use(tmp_path: Path) -> Path:
     folder = tmp_path / "profiles"
     folder.mkdir()
@@ -304,7 +314,10 @@ async def test_space_or_esc_at_a_question_ends_commissioning_and_writes_nothing(
         asked = await _next_question(pilot)
         assert asked is not None and "which leg" in asked.question
         await pilot.press(key)
-        assert await _next_question(pilot) is None  # the dialog closed, the worker ended
+        # esc closes the dialog at once; after SPACE the worker closes it when it next looks
+        # at the E-stop (every 0.1 s)
+        await _closed(pilot, asked)
+        assert await _next_question(pilot) is None  # no other question: the worker ended
         await settle(pilot)
         assert isinstance(app.screen, CommissionScreen)
         assert said in status_of(app), status_of(app)
