@@ -8,9 +8,20 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from textual import constants
 
 from spm_console.config.schema import Profile
 from spm_console.tui.app import SpmConsoleApp, make_app
+
+
+@pytest.fixture(autouse=True)
+def _no_animations(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Apps made in a console test do not animate: a field focused below the fold is scrolled
+    to at once, not over a few frames. Textual's pilot waits for a 20 ms window with under
+    1 ms of CPU, which the frames of a cheap animation leave, so a test could read the screen
+    mid-scroll. (``TEXTUAL_ANIMATIONS`` in the environment comes too late: the snapshot plugin
+    loads Textual before any conftest; an app reads the constant when it is made.)"""
+    monkeypatch.setattr(constants, "TEXTUAL_ANIMATIONS", "none")
 
 
 @pytest.fixture(scope="session")
