@@ -169,7 +169,7 @@ class StepScreen(Screen[None]):
         compact here are restored when the terminal grows again."""
         short = self.size.height < COMPACT_BELOW_ROWS
         narrow = self.size.width < COMPACT_BELOW_COLUMNS
-        for w in self.query("Input, Select, Footer").results():  # one walk of the DOM
+        for w in list(self.query("Input, Select, Footer").results()):  # one walk of the DOM
             if not isinstance(w, (Input, Select, Footer)):
                 continue
             compact = narrow if isinstance(w, Footer) else short
