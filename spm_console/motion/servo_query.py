@@ -74,23 +74,41 @@ def check_ids(ids: list[int]) -> list[int]:
 #: 0.5 ms by default; an absent id costs this much).
 SCAN_TIMEOUT_S = 0.004
 
+#: Quiet time on the line after a silent id, s: a late reply is let in, and is not the next id's.
+SCAN_QUIET_S = 0.002
+
 
 def _scan(bus: object, ids: tuple[int, ...]) -> BusReport:
     """One ping per id, any model (a scan lists what is on the bus; ``ping`` checks the
-    profile's servos with retries): about a second for every id on an empty bus."""
+    profile's servos with retries): about a second for every id on an empty bus. An id whose
+    reply came after its ping's timeout (seen on the line later) is pinged again with the
+    set-up tries: a slow answer is a servo, not a gap."""
     from spm_console.devices.dynamixel.bus import DynamixelBus
 
     assert isinstance(bus, DynamixelBus)
-    found = []
+    found: dict[int, PingedServo] = {}
+    again: set[int] = set()
+    """Silent ids that saw traffic during their ping (an earlier id's late reply)."""
+    bus.link.take_answered_late()  # what came late before this scan is not its business
     for ident in ids:
+        stale = bus.link.stale_replies
         try:
             with bus.transport.patience(SCAN_TIMEOUT_S):
                 model, fw, _r = bus.link.ping(ident)
         except CommError:
-            bus.drain_input(0.002)  # a late reply is not the next id's
+            if bus.drain_input(SCAN_QUIET_S) or bus.link.stale_replies != stale:
+                again.add(ident)
             continue
-        found.append(PingedServo(ident, int(model), fw))
-    return BusReport(bus.port, bus.protocol, ids, found=tuple(found))
+        found[ident] = PingedServo(ident, int(model), fw)
+    bus.drain_input(SCAN_QUIET_S)  # the last ids' late replies
+    again |= bus.link.take_answered_late() & set(ids)
+    for ident in sorted(again - found.keys()):
+        try:
+            model, fw, _r = bus.ping_any(ident)
+        except CommError:
+            continue
+        found[ident] = PingedServo(ident, int(model), fw)
+    return BusReport(bus.port, bus.protocol, ids, found=tuple(found[i] for i in ids if i in found))
 
 
 def answer(bus: object, q: BusQuery) -> BusReport:

@@ -140,7 +140,7 @@ class DynamixelBus:
         """Ping one id; BusError if it does not answer (after the tries of
         :data:`SETUP_TIMEOUTS_S`: one lost reply is not a missing servo) or is not the profile's model."""
         try:
-            model, fw, r = _retry(lambda: self.link.ping(ident), self.transport, self.drain_input)
+            model, fw, r = self.ping_any(ident)
         except CommError as exc:
             raise BusError(
                 f"no status packet from servo id {ident} on {self.port} ({exc}). Check power, "
@@ -154,6 +154,11 @@ class DynamixelBus:
                            f"expects {want} ({self.table.model})")
         return ServoStatus(id=ident, model_number=model, firmware=fw,
                            hardware_error=r.hardware & 0x7F if self.protocol == "1.0" else 0)
+
+    def ping_any(self, ident: int) -> tuple[int, int | None, Reply]:
+        """Ping one id with the tries of :data:`SETUP_TIMEOUTS_S`, whatever its model:
+        (model number, firmware, status); CommError if it does not answer."""
+        return _retry(lambda: self.link.ping(ident), self.transport, self.drain_input)
 
     def ping_all(self) -> list[ServoStatus]:
         """Ping every joint's servo and read its hardware error status."""

@@ -57,6 +57,7 @@ class Link(Protocol):
 
     @property
     def stale_replies(self) -> int: ...
+    def take_answered_late(self) -> set[int]: ...
     def late_input(self, data: bytes) -> None: ...
     def ping(self, ident: int) -> tuple[int, int | None, Reply]: ...
     def read(self, ident: int, address: int, length: int) -> Reply: ...
@@ -100,6 +101,12 @@ class _LedgerLink(Generic[P]):
     def stale_replies(self) -> int:
         """Status packets that were not the answer to the request in flight."""
         return self.ledger.stale
+
+    def take_answered_late(self) -> set[int]:
+        """Ids whose status answered one of our requests late, since the last call."""
+        ids = set(self.ledger.answered_late)
+        self.ledger.answered_late.clear()
+        return ids
 
     # --- protocol specifics --------------------------------------------------------------
 

@@ -134,6 +134,9 @@ class ReplyLedger:
         """Status packets that were not the answer to the request in flight."""
         self.refused = 0
         """Requests not sent: every reply length they could use was still reserved."""
+        self.answered_late: set[int] = set()
+        """Ids whose status answered one of our requests after its transaction ended (a scan
+        asks them again with more patience). At most one entry per id; the reader clears it."""
         self._seq = 0
 
     def expire(self, now: float) -> None:
@@ -203,6 +206,7 @@ class ReplyLedger:
         for j in range(len(reqs) - 1, -1, -1):
             o = reqs[j]
             if o.length == length and ident in o.pending:
+                self.answered_late.add(ident)
                 del o.pending[: o.pending.index(ident) + 1]
                 self._retire(ident, reqs[: j + 1], keep=None if among is None else
                              self.requests[-1])

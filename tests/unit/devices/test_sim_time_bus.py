@@ -118,3 +118,17 @@ def test_a_torque_query_outlasts_replies_later_than_the_links_timeout(agile: Pro
         report = answer(bus, BusQuery("torque", on=True))
         assert report.torque_on is True
         assert bus.set_up(bus.torque) == [True, True, True]
+
+
+@pytest.mark.parametrize(("protocol", "model"), [("2.0", 321), ("1.0", 320)])
+def test_a_scan_lists_servos_whose_replies_come_after_its_ping_timeout(
+        agile: Profile, protocol: str, model: int) -> None:
+    """Every reply 6 ms late (a scan waits 4 ms per id): each servo's reply is seen on the
+    line after its ping failed, so it is pinged again with more patience and listed."""
+    from spm_console.motion.servo_query import BusQuery, answer
+
+    profile = agile.model_copy(update={"bus": agile.bus.model_copy(
+        update={"protocol": protocol, "model_number": model})})
+    with lockstep(profile, ("delay:0.006@0",)) as (_clock, _em, bus):
+        report = answer(bus, BusQuery("scan", ids=(0, 1, 2, 3, 4)))
+        assert [(f.id, f.model_number) for f in report.found] == [(i, model) for i in bus.ids]
