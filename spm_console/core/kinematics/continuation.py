@@ -7,17 +7,22 @@ over all rows instead of a batched call over tiny matrices (about ten times fewe
 instructions per row). 3×3 systems are solved by Cramer's rule and rotations are
 orthonormalized by one Newton–Schulz step (their drift from orthogonality is at rounding
 level, where that step equals the polar factor); results agree with the matrix form to
-rounding. Radians.
+rounding. One pose steps on Python floats instead (:class:`OneRowKernel`, the same code with
+the operations of :mod:`~spm_console.core.kinematics.component_ops`): numpy's cost per call
+would dominate its few hundred operations. Radians.
 """
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
+from spm_console.core.kinematics.component_ops import ARRAY_OPS, FLOAT_OPS, C, Mat, Ops, Vec
 from spm_console.core.kinematics.geometry import SpmGeometry
 
 
@@ -42,10 +47,6 @@ class ModeledSpm(Protocol):
 
 F = NDArray[np.float64]
 B = NDArray[np.bool_]
-Vec = list[F]
-"""Three (n,) arrays: x, y, z."""
-Mat = list[list[F]]
-"""Nine (n,) arrays: M[row][col]."""
 
 #: Residual below which Newton stops (max |w·v − cos α2|).
 NEWTON_TOL = 1e-14
@@ -83,46 +84,45 @@ class Step:
                           & (self.zeta >= zeta_floor))
 
 
-def _dot(a: Vec, b: Vec) -> F:
-    return np.asarray(a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+def _rows(x: C, idx: NDArray[np.int64]) -> C:
+    """The rows ``idx`` of one component array."""
+    return np.asarray(x)[idx]
 
 
-def _cross(a: Vec, b: Vec) -> Vec:
+def _dot(a: Vec, b: Vec) -> C:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: Vec, b: Vec) -> list[C]:
     return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
 
-def _matmul(X: Mat, Y: Mat) -> Mat:
+def _matmul(X: Mat, Y: Mat) -> list[list[C]]:
     return [[X[i][0] * Y[0][j] + X[i][1] * Y[1][j] + X[i][2] * Y[2][j] for j in range(3)]
             for i in range(3)]
 
 
-def _adjugate(rows: list[Vec]) -> tuple[list[Vec], F]:
+def _adjugate(rows: Sequence[Vec]) -> tuple[Sequence[Vec], C]:
     """(columns of adj(M), det M) of the matrix with these rows."""
     cols = [_cross(rows[1], rows[2]), _cross(rows[2], rows[0]), _cross(rows[0], rows[1])]
     return cols, _dot(rows[0], cols[0])
 
 
-def _solve(rows: list[Vec], r: Vec) -> Vec:
+def _solve(rows: Sequence[Vec], r: Vec, ops: Ops) -> Vec:
     """x with rows·x = r (Cramer); 0 where the system is singular or not finite."""
     cols, det = _adjugate(rows)
-    return _solve_adj(cols, det, r)
+    return _solve_adj(cols, det, r, ops)
 
 
-def _solve_adj(cols: list[Vec], det: F, r: Vec) -> Vec:
+def _solve_adj(cols: Sequence[Vec], det: C, r: Vec, ops: Ops) -> Vec:
     c0, c1, c2 = cols
-    with np.errstate(all="ignore"):
-        x = [(c0[k] * r[0] + c1[k] * r[1] + c2[k] * r[2]) / det for k in range(3)]
-    return [np.where(np.isfinite(xk), xk, 0.0) for xk in x]
+    return [ops.div0(c0[k] * r[0] + c1[k] * r[1] + c2[k] * r[2], det) for k in range(3)]
 
 
-def _expm(w: Vec) -> Mat:
+def _expm(w: Vec, ops: Ops) -> list[list[C]]:
     """Rodrigues: exp([w]×) = I + a [w]× + b [w]×², [w]×² = w wᵀ − |w|² I."""
     t2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2]
-    th = np.sqrt(t2)
-    small = th < 1e-8
-    ths = np.where(small, 1.0, th)
-    a = np.where(small, 1.0 - t2 / 6.0, np.sin(ths) / ths)
-    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(ths)) / (ths * ths))
+    a, b = ops.expm_coeffs(t2)
     bw = [b * w[0], b * w[1], b * w[2]]
     aw = [a * w[0], a * w[1], a * w[2]]
     d = 1.0 - b * t2
@@ -138,15 +138,16 @@ class Local:
     """What a pose's mode check computes and the next predictor needs (component arrays):
     w(θ), the rows of J1, the columns of adj(J1), det J1 and the diagonal of J2."""
 
-    w: list[Vec]
-    cols: list[Vec]
-    det: F
+    w: Sequence[Vec]
+    cols: Sequence[Vec]
+    det: C
     j2: Vec
 
     def take(self, idx: NDArray[np.int64]) -> Local:
         """The rows ``idx``."""
-        return Local([[x[idx] for x in v] for v in self.w], [[x[idx] for x in v] for v in self.cols],
-                     self.det[idx], [x[idx] for x in self.j2])
+        return Local([[_rows(x, idx) for x in v] for v in self.w],
+                     [[_rows(x, idx) for x in v] for v in self.cols], _rows(self.det, idx),
+                     [_rows(x, idx) for x in self.j2])
 
 
 @dataclass(frozen=True, slots=True)
@@ -156,13 +157,13 @@ class KernelStep:
 
     R: Mat
     """Corrected rotations, orthonormalized (identity where not finite)."""
-    residual: F
+    residual: C
     """Max |f| after Newton (n,)."""
-    correction: F
+    correction: C
     """‖R_corrected − R_predicted‖_F (n,)."""
-    zeta: F
+    zeta: C
     """ζ at the new pose (n,)."""
-    det_side: F
+    det_side: C
     """det J1 times its home sign (n,): positive = same assembly mode."""
     leg_sides: Vec
     """J2 diagonal times the home signs (three (n,) arrays): positive = same working modes."""
@@ -179,7 +180,10 @@ class KernelStep:
 
 
 class Kernel:
-    """The constant part of the model as Python floats, and the step on component arrays."""
+    """The constant part of the model as Python floats, and the step on component arrays
+    (:class:`OneRowKernel`: on floats, for one pose)."""
+
+    ops: Ops = ARRAY_OPS
 
     def __init__(self, model: ModeledSpm) -> None:
         P, Q, S = model.geom.ik_coeffs()
@@ -190,21 +194,21 @@ class Kernel:
         self.det_sign = float(model.det_j1_sign)
         self.signs = np.asarray(model.working_signs, float).tolist()
 
-    def w(self, th: Vec) -> list[Vec]:
+    def w(self, th: Vec) -> Sequence[Vec]:
         """w_i(θ_i), eq. (2): three vectors."""
-        out = []
+        out: list[Vec] = []
         for i in range(3):
-            c, s = np.cos(th[i]), np.sin(th[i])
+            c, s = self.ops.cos_sin(th[i])
             P, Q, S = self.P[i], self.Q[i], self.S[i]
             out.append([P[a] + Q[a] * c + S[a] * s for a in range(3)])
         return out
 
-    def axes(self, R: Mat) -> list[Vec]:
+    def axes(self, R: Mat) -> Sequence[Vec]:
         """v_i = R v_i⁰: three vectors."""
         return [[R[a][0] * vh[0] + R[a][1] * vh[1] + R[a][2] * vh[2] for a in range(3)]
                 for vh in self.vh]
 
-    def j2(self, v: list[Vec], w: list[Vec]) -> Vec:
+    def j2(self, v: Sequence[Vec], w: Sequence[Vec]) -> Vec:
         """Diagonal of J2 (12): (u_i × w_i)·v_i."""
         out = []
         for i in range(3):
@@ -214,38 +218,39 @@ class Kernel:
             out.append(_dot(uw, v[i]))
         return out
 
-    def _residual(self, v: list[Vec], w: list[Vec]) -> tuple[Vec, F]:
+    def _residual(self, v: Sequence[Vec], w: Sequence[Vec]) -> tuple[Vec, C]:
         f = [_dot(w[i], v[i]) - self.cos_a2[i] for i in range(3)]
-        return f, np.maximum(np.maximum(np.abs(f[0]), np.abs(f[1])), np.abs(f[2]))
+        return f, self.ops.max_abs3(f[0], f[1], f[2])
 
-    def newton(self, w: list[Vec], R: Mat) -> tuple[Mat, F]:
+    def newton(self, w: Sequence[Vec], R: Mat) -> tuple[Mat, C]:
         """Newton on (4) over rotations (R ← exp([ω]×) R) until max |f| ≤ NEWTON_TOL, at most
         NEWTON_ITERS times per row. Returns (R, max |f|)."""
-        n = len(R[0][0])
+        n = len(np.asarray(R[0][0]))
+        Rl = [list(row) for row in R]
         for _ in range(NEWTON_ITERS):
-            v = self.axes(R)
+            v = self.axes(Rl)
             f, res = self._residual(v, w)
-            todo = res > NEWTON_TOL
-            k = np.flatnonzero(todo)
+            k = np.flatnonzero(np.greater(res, NEWTON_TOL))
             if len(k) == 0:
                 break
             sub = len(k) < n
-            Rk = [[x[k] for x in row] for row in R] if sub else R
-            wk = [[x[k] for x in wi] for wi in w] if sub else w
-            vk = [[x[k] for x in vi] for vi in v] if sub else v
+            Rk = [[_rows(x, k) for x in row] for row in Rl] if sub else Rl
+            wk = [[_rows(x, k) for x in wi] for wi in w] if sub else w
+            vk = [[_rows(x, k) for x in vi] for vi in v] if sub else v
             J1 = [_cross(vk[i], wk[i]) for i in range(3)]
-            om = _solve(J1, [-(fi[k] if sub else fi) for fi in f])
-            Rn = _matmul(_expm(om), Rk)
+            om = _solve(J1, [-(_rows(fi, k) if sub else fi) for fi in f], self.ops)
+            Rn = _matmul(_expm(om, self.ops), Rk)
             if sub:
                 for a in range(3):
                     for b in range(3):
-                        R[a][b] = R[a][b].copy()
-                        R[a][b][k] = Rn[a][b]
+                        Rab = np.array(Rl[a][b])
+                        Rab[k] = Rn[a][b]
+                        Rl[a][b] = Rab
             else:
-                R = Rn
-        return R, self._residual(self.axes(R), w)[1]
+                Rl = Rn
+        return Rl, self._residual(self.axes(Rl), w)[1]
 
-    def modes(self, w: list[Vec], R: Mat) -> tuple[F, F, Vec, Local]:
+    def modes(self, w: Sequence[Vec], R: Mat) -> tuple[C, C, Vec, Local]:
         """(ζ, det J1 · home sign, J2 diagonal · home signs, the Jacobians) at (θ, R),
         w = w(θ)."""
         v = self.axes(R)
@@ -256,11 +261,10 @@ class Kernel:
         nM2 = sum(d[j] * d[j] * _dot(cols[j], cols[j]) for j in range(3))
         adj2 = [d[1] * d[2], d[0] * d[2], d[0] * d[1]]
         nMp2 = sum(adj2[i] * adj2[i] * _dot(rows[i], rows[i]) for i in range(3))
-        den = np.sqrt(nM2 / 3.0) * np.sqrt(nMp2 / 3.0)
-        num = np.abs(det) * np.abs(d[0] * d[1] * d[2])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0)
-        z = np.clip(z, 0.0, 1.0)
+        ops = self.ops
+        den = ops.sqrt(nM2 / 3.0) * ops.sqrt(nMp2 / 3.0)
+        num = ops.abs(det) * ops.abs(d[0] * d[1] * d[2])
+        z = ops.ratio01(num, den)
         return z, det * self.det_sign, [d[i] * self.signs[i] for i in range(3)], Local(w, cols, det, d)
 
     def step(self, th_old: Vec, R_old: Mat, th_new: Vec, at_old: Local | None = None
@@ -274,16 +278,13 @@ class Kernel:
             cols, det = _adjugate([_cross(v_old[i], w_old[i]) for i in range(3)])
             at_old = Local(w_old, cols, det, self.j2(v_old, w_old))
         rhs = [at_old.j2[i] * (th_new[i] - th_old[i]) for i in range(3)]
-        om = _solve_adj(at_old.cols, at_old.det, rhs)
-        Rp = _matmul(_expm(om), R_old)
+        om = _solve_adj(at_old.cols, at_old.det, rhs, self.ops)
+        Rp = _matmul(_expm(om, self.ops), R_old)
         w_new = self.w(th_new)
         Rc, res = self.newton(w_new, [row[:] for row in Rp])
-        corr = np.sqrt(sum((Rc[a][b] - Rp[a][b]) ** 2 for a in range(3) for b in range(3)))
-        fin = np.ones(len(corr), bool)
-        for row in Rc:
-            for x in row:
-                fin &= np.isfinite(x)
-        X = [[np.where(fin, Rc[a][b], float(a == b)) for b in range(3)] for a in range(3)]
+        dR = [Rc[a][b] - Rp[a][b] for a in range(3) for b in range(3)]
+        corr = self.ops.sqrt(sum(x * x for x in dR))
+        X = self.ops.finite_or_identity(Rc)
         # polar factor of a rotation off by rounding: X (3I − XᵀX) / 2
         G = [[X[0][a] * X[0][b] + X[1][a] * X[1][b] + X[2][a] * X[2][b] for b in range(3)]
              for a in range(3)]
@@ -293,12 +294,48 @@ class Kernel:
         return KernelStep(Rc, res, corr, z, d1, d2, at_new)
 
 
-def to_vec(x: F) -> Vec:
+class OneRowKernel(Kernel):
+    """:class:`Kernel` on Python floats: one pose's step without numpy's per-call cost (about
+    twenty times faster than on (1,) arrays; the same arithmetic, so the same result up to
+    the last bits of sin and cos)."""
+
+    ops: Ops = FLOAT_OPS
+
+    def newton(self, w: Sequence[Vec], R: Mat) -> tuple[Mat, C]:
+        for _ in range(NEWTON_ITERS):
+            v = self.axes(R)
+            f, res = self._residual(v, w)
+            if not res > NEWTON_TOL:  # (NaN stops too, as in the array form)
+                break
+            J1 = [_cross(v[i], w[i]) for i in range(3)]
+            R = _matmul(_expm(_solve(J1, [-fi for fi in f], self.ops), self.ops), R)
+        return R, self._residual(self.axes(R), w)[1]
+
+
+_ONE_ROW: dict[int, tuple[ModeledSpm, OneRowKernel]] = {}
+_ONE_ROW_LOCK = threading.Lock()
+
+
+def one_row_kernel(model: ModeledSpm) -> OneRowKernel:
+    """The :class:`OneRowKernel` of ``model``, kept for the last few models (building one
+    costs as much as a step)."""
+    with _ONE_ROW_LOCK:
+        hit = _ONE_ROW.get(id(model))
+        if hit is not None and hit[0] is model:
+            return hit[1]
+        kern = OneRowKernel(model)
+        if len(_ONE_ROW) >= 8:
+            del _ONE_ROW[next(iter(_ONE_ROW))]
+        _ONE_ROW[id(model)] = (model, kern)  # (the model held: its id is not reused)
+        return kern
+
+
+def to_vec(x: F) -> list[F]:
     """(n, 3) → three (n,) arrays (contiguous copies)."""
     return [np.ascontiguousarray(x[:, k], dtype=float) for k in range(3)]
 
 
-def to_mat(R: F) -> Mat:
+def to_mat(R: F) -> list[list[F]]:
     """(n, 3, 3) → nine (n,) arrays."""
     return [[np.ascontiguousarray(R[:, a, b], dtype=float) for b in range(3)] for a in range(3)]
 
@@ -314,6 +351,12 @@ def continuation_step(model: ModeledSpm, th_old: F, R_old: F, th_new: F) -> Step
     th_old = np.asarray(th_old, float).reshape(-1, 3)
     th_new = np.asarray(th_new, float).reshape(-1, 3)
     R_old = np.asarray(R_old, float).reshape(-1, 3, 3)
+    if len(th_old) == 1:
+        one = one_row_kernel(model).step(th_old[0].tolist(), R_old[0].tolist(), th_new[0].tolist())
+        return Step(np.array(one.R, float)[None], np.array([one.residual], float),
+                    np.array([one.correction], float), np.array([one.zeta], float),
+                    np.array([one.det_side], float), np.array([one.leg_sides], float))
     st = Kernel(model).step(to_vec(th_old), to_mat(R_old), to_vec(th_new))
-    return Step(from_mat(st.R), st.residual, st.correction, st.zeta, st.det_side,
+    return Step(from_mat(st.R), np.asarray(st.residual, float), np.asarray(st.correction, float),
+                np.asarray(st.zeta, float), np.asarray(st.det_side, float),
                 np.stack(st.leg_sides, -1))

@@ -16,12 +16,20 @@ folds and changes working mode), or when ζ along the path drops below a floor.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics.continuation import NEWTON_TOL, PATH_ZETA_FLOOR, continuation_step
+from spm_console.core.kinematics.component_ops import Mat
+from spm_console.core.kinematics.continuation import (
+    NEWTON_TOL,
+    PATH_ZETA_FLOOR,
+    Local,
+    continuation_step,
+    one_row_kernel,
+)
 from spm_console.core.kinematics.geometry import SpmGeometry
 from spm_console.core.kinematics.jacobian import conditioning_index, j1_matrix, j2_diag
 from spm_console.core.kinematics.rotations import expm_so3
@@ -235,6 +243,8 @@ class SpmModel:
         self, T: F, t0: F, R0: F, max_step: float, keep_path: bool
     ) -> list[FkResult]:
         B = len(T)
+        if B == 1:
+            return [self._march_one(T[0], t0, R0, max_step, keep_path)]
         d = T - t0
         n = max(1, math.ceil(float(np.abs(d).max()) / max_step)) if B else 1
         R = np.broadcast_to(R0, (B, 3, 3)).copy()
@@ -256,25 +266,9 @@ class SpmModel:
             crossed = ~conv | (s1 <= 0.0) | (z < PATH_ZETA_FLOOR) | (s2 <= 0.0).any(axis=-1)
             for j in np.flatnonzero(crossed):  # the rows that stop here, each with its reason
                 b = a[j]
-                if not conv[j]:
-                    alive[b] = False
-                    reason[b] = (
-                        f"corrector did not converge near θ = {_fmt(th_new[j])}° "
-                        f"(residual {res[j]:.1e}); try a smaller step"
-                    )
-                elif s1[j] <= 0.0 or z[j] < PATH_ZETA_FLOOR:
-                    alive[b] = False
-                    reason[b] = (
-                        f"crosses a type-2 singularity (assembly-mode change) near θ = "
-                        f"{_fmt(th_new[j])}° (ζ = {z[j]:.2e}); approach it from another known pose"
-                    )
-                elif (s2[j] <= 0.0).any():
-                    leg = int(np.argmin(s2[j])) + 1
-                    alive[b] = False
-                    reason[b] = (
-                        f"crosses a type-1 singularity (leg {leg} folds, working-mode change) near "
-                        f"θ = {_fmt(th_new[j])}° (ζ = {z[j]:.2e})"
-                    )
+                alive[b] = False
+                reason[b] = _stop_reason(bool(conv[j]), float(res[j]), float(s1[j]), float(z[j]),
+                                         s2[j], th_new[j])
             ok = alive[a]
             R[a[ok]] = st.R[ok]
             th[a[ok]] = th_new[ok]
@@ -286,6 +280,50 @@ class SpmModel:
                      path_min_zeta=float(minz[row]), steps=n, path_theta_deg=paths[row])
             for row, pose in enumerate(self.poses(th, R))
         ]
+
+    def _march_one(self, target: F, t0: F, R0: F, max_step: float, keep_path: bool) -> FkResult:
+        """:meth:`_march` of one row, on Python floats (:class:`OneRowKernel`, each step's
+        Jacobians reused by the next): the same steps, verdicts and reasons."""
+        kern = one_row_kernel(self)
+        d = target - t0
+        n = max(1, math.ceil(float(np.abs(d).max()) / max_step))
+        start, dl = t0.tolist(), d.tolist()
+        th: list[float] = list(start)
+        R: Mat = R0.tolist()
+        at: Local | None = None
+        ok, reason, minz = True, "", 1.0
+        path = [np.degrees(t0).tolist()] if keep_path else []
+        for k in range(1, n + 1):
+            th_new = [start[i] + dl[i] * (k / n) for i in range(3)]
+            st = kern.step(th, R, th_new, at)
+            z = float(st.zeta)
+            minz = z if (z < minz or z != z) else minz  # (NaN kept, as np.minimum does)
+            s1, s2 = float(st.det_side), [float(x) for x in st.leg_sides]
+            conv = bool(st.residual <= 1e-10 and st.correction <= 0.05)
+            if not conv or s1 <= 0.0 or z < PATH_ZETA_FLOOR or any(x <= 0.0 for x in s2):
+                ok = False
+                reason = _stop_reason(conv, float(st.residual), s1, z, s2, np.array(th_new))
+                break
+            th, R, at = th_new, st.R, st.at
+            if keep_path:
+                path.append(np.degrees(th).tolist())
+        pose = self.poses(np.array([th], float), np.array([R], float))[0]
+        return FkResult(ok=ok, pose=pose, reason=reason, path_min_zeta=minz, steps=n,
+                        path_theta_deg=path)
+
+
+def _stop_reason(conv: bool, res: float, s1: float, z: float, s2: Sequence[float] | F,
+                 th_new: F) -> str:
+    """Why a continuation stops at θ_new (rad): not converged, or a mode changed."""
+    if not conv:
+        return (f"corrector did not converge near θ = {_fmt(th_new)}° (residual {res:.1e}); "
+                "try a smaller step")
+    if s1 <= 0.0 or z < PATH_ZETA_FLOOR:
+        return (f"crosses a type-2 singularity (assembly-mode change) near θ = {_fmt(th_new)}° "
+                f"(ζ = {z:.2e}); approach it from another known pose")
+    leg = int(np.argmin(s2)) + 1
+    return (f"crosses a type-1 singularity (leg {leg} folds, working-mode change) near "
+            f"θ = {_fmt(th_new)}° (ζ = {z:.2e})")
 
 
 def _fmt(theta_rad: F) -> str:
