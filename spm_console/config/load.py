@@ -17,7 +17,7 @@ import numpy as np
 from pydantic import ValidationError
 
 from spm_console.config.checks import Problem, check_physics, num, show, validation_message
-from spm_console.config.models import link_model_of, model_of
+from spm_console.config.models import geometry_of, link_model_of, model_of
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.core.kinematics.assess import assess
 from spm_console.errors import ProfileError
@@ -90,11 +90,29 @@ def seed_mismatches(seed: Sequence[int], v_home: Sequence[Sequence[float]]) -> l
     return [k for k, (s, h) in enumerate(zip(seed, signs, strict=True)) if h != 0 and s != h]
 
 
+#: Wrists whose home passed :func:`check_home_mode` in this process (its inputs: geometry, home,
+#: links, grid), so loading one profile again does not solve its kinematics again.
+_HOME_CHECKED: set[tuple[object, ...]] = set()
+_HOME_CHECKED_MAX = 256
+
+
 def check_home_mode(prof: Profile, source: str) -> None:
     """The home pose exists and is not singular, its signs are those of ``home.sign_seed``, and
-    it is feasible (ζ ≥ ζ_min, links apart, inside the grid range: the workspace grows from it)."""
+    it is feasible (ζ ≥ ζ_min, links apart, inside the grid range: the workspace grows from it).
+    A wrist that passed once in this process passes again without solving (a failure is
+    checked, and worded, every time)."""
+    ws = prof.workspace
+    key = (geometry_of(prof), tuple(prof.home.theta_deg), tuple(prof.home.sign_seed),
+           link_model_of(prof), ws.step_deg, ws.zeta_min, ws.theta_min_deg, ws.theta_max_deg)
+    if key in _HOME_CHECKED:
+        return
+    _check_home_mode(prof, source)
+    if len(_HOME_CHECKED) >= _HOME_CHECKED_MAX:
+        _HOME_CHECKED.clear()
+    _HOME_CHECKED.add(key)
 
 
+def _check_home_mode(prof: Profile, source: str) -> None:
     theta = list(prof.home.theta_deg)
     allowed_home = "(allowed: a home θ with a non-singular forward-kinematic solution)"
     try:

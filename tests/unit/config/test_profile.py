@@ -392,3 +392,29 @@ def test_the_room_at_home_check_clears_only_what_assess_finds_feasible(agile, st
         assert not all(clear)
     if step_deg == 2.0:
         assert all(clear)
+
+
+def test_a_wrist_whose_home_passed_is_not_solved_again_but_a_changed_one_is(
+        agile, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
+    """Loading a profile again does not solve its home again; a profile that differs in what
+    the check reads (here the grid step) is checked, and a refused one is refused every time."""
+    import spm_console.config.load as load
+
+    monkeypatch.setattr(load, "_HOME_CHECKED", set())  # (what other tests loaded: not here)
+    text = (TESTS.parent / "profiles" / "agile_wrist.toml").read_text()
+    load.parse_profile_text(text, "first")
+    calls: list[str] = []
+    real = load._check_home_mode
+    monkeypatch.setattr(load, "_check_home_mode",
+                        lambda prof, source: (calls.append(source), real(prof, source))[1])
+    load.parse_profile_text(text, "again")
+    assert calls == []
+    data = tomllib.loads(text)
+    data["workspace"]["step_deg"] = 3.0 if agile.workspace.step_deg != 3.0 else 5.0
+    load.parse_profile_text(tomli_w.dumps(data), "coarser")
+    assert calls == ["coarser"]
+    data["workspace"]["step_deg"] = 30.0
+    for k in range(2):
+        with pytest.raises(ProfileError, match="leaves no room for a region around home"):
+            load.parse_profile_text(tomli_w.dumps(data), f"no room {k}")
+    assert calls == ["coarser", "no room 0", "no room 1"]
