@@ -77,18 +77,22 @@ SCAN_TIMEOUT_S = 0.004
 #: Quiet time on the line after a silent id, s: a late reply is let in, and is not the next id's.
 SCAN_QUIET_S = 0.002
 
+#: Quiet time on the line after the last id, s: a reply this late (a USB adapter's latency timer
+#: is 16 ms by default) still shows that its servo is there.
+SCAN_LAST_QUIET_S = 0.05
+
 
 def _scan(bus: object, ids: tuple[int, ...]) -> BusReport:
     """One ping per id, any model (a scan lists what is on the bus; ``ping`` checks the
     profile's servos with retries): about a second for every id on an empty bus. An id whose
-    reply came after its ping's timeout (seen on the line later) is pinged again with the
-    set-up tries: a slow answer is a servo, not a gap."""
+    reply came after its ping's timeout (seen on the line later), or whose ping saw another
+    id's late reply, is pinged again with the set-up tries: a slow answer is a servo, not a
+    gap."""
     from spm_console.devices.dynamixel.bus import DynamixelBus
 
     assert isinstance(bus, DynamixelBus)
     found: dict[int, PingedServo] = {}
-    again: set[int] = set()
-    """Silent ids that saw traffic during their ping (an earlier id's late reply)."""
+    again: set[int] = set()  # silent ids that saw traffic during their ping
     bus.link.take_answered_late()  # what came late before this scan is not its business
     for ident in ids:
         stale = bus.link.stale_replies
@@ -100,14 +104,21 @@ def _scan(bus: object, ids: tuple[int, ...]) -> BusReport:
                 again.add(ident)
             continue
         found[ident] = PingedServo(ident, int(model), fw)
-    bus.drain_input(SCAN_QUIET_S)  # the last ids' late replies
-    again |= bus.link.take_answered_late() & set(ids)
-    for ident in sorted(again - found.keys()):
-        try:
-            model, fw, _r = bus.ping_any(ident)
-        except CommError:
-            continue
-        found[ident] = PingedServo(ident, int(model), fw)
+    tried: set[int] = set()
+    wanted = set(ids)
+    while True:
+        bus.drain_input(SCAN_LAST_QUIET_S if not tried else SCAN_QUIET_S)
+        todo = ((again | bus.link.take_answered_late()) & wanted) - found.keys() - tried
+        if not todo:  # (each id is pinged again at most once)
+            break
+        again.clear()
+        for ident in sorted(todo):
+            tried.add(ident)
+            try:
+                model, fw, _r = bus.ping_any(ident)
+            except CommError:
+                continue
+            found[ident] = PingedServo(ident, int(model), fw)
     return BusReport(bus.port, bus.protocol, ids, found=tuple(found[i] for i in ids if i in found))
 
 

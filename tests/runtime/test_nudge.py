@@ -109,6 +109,23 @@ def test_a_scan_lists_every_servo_on_the_bus_in_about_a_second(
     assert len(report.ids) == 253
 
 
+@pytest.mark.parametrize("ids", [(0, 1, 2, 3), (3,)])
+def test_a_scan_lists_servos_answering_later_than_an_adapters_latency_timer(
+        agile: Profile, ids: tuple[int, ...]) -> None:
+    """Every reply 20 ms late on the wall clock (a USB adapter's latency timer is 16 ms by
+    default; the scan waits 4 ms per id): each servo is still listed, the last one too."""
+    from spm_console.motion.servo_query import BusQuery, answer
+
+    em = start_emulator(agile, [parse_fault("delay:0.02@0")], record=False, initial_deg=START)
+    bus = open_bus(agile, em.port)  # the profile's own 4 ms reply timeout
+    try:
+        report = answer(bus, BusQuery("scan", ids=ids))
+        assert [f.id for f in report.found] == [i for i in ids if i in bus.ids]
+    finally:
+        bus.close()
+        em.stop()
+
+
 def test_a_bus_lost_before_the_release_is_a_bus_error_not_an_internal_one(
         agile: Profile) -> None:
     """The servos stop answering between the last nudge and the release: the release says

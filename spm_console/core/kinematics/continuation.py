@@ -54,6 +54,10 @@ NEWTON_TOL = 1e-14
 NEWTON_ITERS = 12
 #: Smallest ζ tolerated along a continuation path.
 PATH_ZETA_FLOOR = 1e-3
+#: A step converged: max |f| after Newton at most this, and the corrector moved R at most
+#: :data:`MAX_CORRECTION` (Frobenius) from the prediction (more means it jumped).
+CONVERGED_RESIDUAL = 1e-10
+MAX_CORRECTION = 0.05
 
 
 @dataclass(frozen=True)
@@ -75,8 +79,8 @@ class Step:
 
     @property
     def converged(self) -> B:
-        return np.asarray(np.isfinite(self.residual) & (self.residual <= 1e-10)
-                          & (self.correction <= 0.05))
+        return np.asarray(np.isfinite(self.residual) & (self.residual <= CONVERGED_RESIDUAL)
+                          & (self.correction <= MAX_CORRECTION))
 
     def good(self, zeta_floor: float = PATH_ZETA_FLOOR) -> B:
         """Converged, in the home modes, and ζ ≥ ``zeta_floor``."""
@@ -174,7 +178,8 @@ class KernelStep:
         """:meth:`Step.good` on component arrays: converged, in the home modes, ζ ≥
         ``zeta_floor``."""
         res, d2 = self.residual, self.leg_sides
-        return np.asarray(np.isfinite(res) & (res <= 1e-10) & (self.correction <= 0.05)
+        return np.asarray(np.isfinite(res) & (res <= CONVERGED_RESIDUAL)
+                          & (self.correction <= MAX_CORRECTION)
                           & (self.det_side > 0) & (d2[0] > 0) & (d2[1] > 0) & (d2[2] > 0)
                           & (self.zeta >= zeta_floor))
 
@@ -351,7 +356,7 @@ def continuation_step(model: ModeledSpm, th_old: F, R_old: F, th_new: F) -> Step
     th_old = np.asarray(th_old, float).reshape(-1, 3)
     th_new = np.asarray(th_new, float).reshape(-1, 3)
     R_old = np.asarray(R_old, float).reshape(-1, 3, 3)
-    if len(th_old) == 1:
+    if len(th_old) == len(th_new) == len(R_old) == 1:
         one = one_row_kernel(model).step(th_old[0].tolist(), R_old[0].tolist(), th_new[0].tolist())
         return Step(np.array(one.R, float)[None], np.array([one.residual], float),
                     np.array([one.correction], float), np.array([one.zeta], float),

@@ -24,6 +24,8 @@ from numpy.typing import NDArray
 
 from spm_console.core.kinematics.component_ops import Mat
 from spm_console.core.kinematics.continuation import (
+    CONVERGED_RESIDUAL,
+    MAX_CORRECTION,
     NEWTON_TOL,
     PATH_ZETA_FLOOR,
     Local,
@@ -285,11 +287,12 @@ class SpmModel:
         """:meth:`_march` of one row, on Python floats (:class:`OneRowKernel`, each step's
         Jacobians reused by the next): the same steps, verdicts and reasons."""
         kern = one_row_kernel(self)
+        t0 = np.broadcast_to(t0, (1, 3))[0]  # (as the batch march broadcasts them)
         d = target - t0
         n = max(1, math.ceil(float(np.abs(d).max()) / max_step))
         start, dl = t0.tolist(), d.tolist()
         th: list[float] = list(start)
-        R: Mat = R0.tolist()
+        R: Mat = np.broadcast_to(R0, (1, 3, 3))[0].tolist()
         at: Local | None = None
         ok, reason, minz = True, "", 1.0
         path = [np.degrees(t0).tolist()] if keep_path else []
@@ -299,7 +302,7 @@ class SpmModel:
             z = float(st.zeta)
             minz = z if (z < minz or z != z) else minz  # (NaN kept, as np.minimum does)
             s1, s2 = float(st.det_side), [float(x) for x in st.leg_sides]
-            conv = bool(st.residual <= 1e-10 and st.correction <= 0.05)
+            conv = bool(st.residual <= CONVERGED_RESIDUAL and st.correction <= MAX_CORRECTION)
             if not conv or s1 <= 0.0 or z < PATH_ZETA_FLOOR or any(x <= 0.0 for x in s2):
                 ok = False
                 reason = _stop_reason(conv, float(st.residual), s1, z, s2, np.array(th_new))

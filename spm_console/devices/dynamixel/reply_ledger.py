@@ -136,7 +136,8 @@ class ReplyLedger:
         """Requests not sent: every reply length they could use was still reserved."""
         self.answered_late: set[int] = set()
         """Ids whose status answered one of our requests after its transaction ended (a scan
-        asks them again with more patience). At most one entry per id; the reader clears it."""
+        asks them again with more patience). At most one entry per id (it is not emptied
+        between scans, so it stays that small); the reader clears it."""
         self._seq = 0
 
     def expire(self, now: float) -> None:

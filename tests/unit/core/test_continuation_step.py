@@ -92,3 +92,17 @@ def test_tracking_one_pose_on_floats_agrees_with_tracking_it_in_a_batch(agile: P
                                        np.array(both.path_theta_deg), rtol=0, atol=1e-12)
             verdicts.add("refused" if one.reason.startswith("θ =") else one.reason[:17] or "ok")
     assert verdicts == {"ok", "crosses a type-2 ", "corrector did not", "refused"}, verdicts
+
+
+def test_one_pose_takes_its_start_in_the_shapes_a_batch_takes(agile: Profile) -> None:
+    """A start θ of shape (1, 3) and R of shape (1, 3, 3) are broadcast as in a batch, and a
+    one-row step towards several targets steps every target."""
+    model = model_of(agile)
+    h = model.theta_home
+    plain = model.track(h + 0.1)
+    for kw in ({"theta_from": h[None]}, {"R_from": np.eye(3)[None]}):
+        r = model.track(h + 0.1, **kw)  # type: ignore[arg-type]
+        assert r.ok and r.steps == plain.steps
+        np.testing.assert_allclose(r.pose.R, plain.pose.R, rtol=0, atol=1e-15)
+    st = continuation_step(model, h[None], np.eye(3)[None], np.stack([h + 0.01, h - 0.01]))
+    assert st.R.shape == (2, 3, 3) and st.good().all()
