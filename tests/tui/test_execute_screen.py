@@ -100,8 +100,10 @@ async def test_space_is_an_estop_during_execution(console) -> None:
         # the key press reached the loop in its own process within a period; hold within 2
         stop = next(e for e in run.events if e["event"] == "stop")
         ts = app.session.profile.servo.ts_s
-        assert stop["detected_t"] - stop["requested_t"] <= ts
-        assert stop["done_t"] - stop["detected_t"] <= 2 * ts
+        # (the paced clock moves a period at a time: a press at one period's instant is seen at
+        # the next, exactly ts later, give or take the rounding of the two clock readings)
+        assert stop["detected_t"] - stop["requested_t"] <= ts + 1e-9
+        assert stop["done_t"] - stop["detected_t"] <= 2 * ts + 1e-9
         # stopped before the end, and it holds short of the goal
         assert res.stats.stop.detected_t < app.session.motion_total_s - 0.3
         assert np.abs(app.session.read_position() - [95, 110, 105]).max() > 2.0
