@@ -79,7 +79,10 @@ class ServoTable(DataTable[str | Text]):
                         "none" if st.hardware_error == 0 else f"0x{st.hardware_error:02x}")
             for (key, _), value in zip(_LIVE, live, strict=True):
                 alarm = value == NO_REPLY or (key == "hardware" and value not in ("none", "-"))
-                self.update_cell(str(j), key, Text(value, style="bold red") if alarm else value)
+                # (each column fits its values now: measured only on an idle moment, a new
+                # row's width depended on whether one came between its "-" and its values)
+                self.update_cell(str(j), key, Text(value, style="bold red") if alarm else value,
+                                 update_width=True)
 
 #: The jog step: more than 0°, at most the runtime's own bound; a longer text than fits the
 #: field is refused with the reason (never cut).
