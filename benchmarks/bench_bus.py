@@ -102,11 +102,17 @@ def _decoder_rate() -> float:
 
 def run() -> list[Row]:
     prof = load_profile("profiles/agile_wrist.toml")
-    with start_emulator(prof, record=False) as em:
+    # the vendor SDK opens serial ports only: both sides of the comparison go over a pty
+    with start_emulator(prof, record=False, link="pty") as em:
         _warm_up(em.port, prof)
         ours, timeouts = _ours(em.port, prof)
         sdk, sdk_fails = _sdk(em.port)
+    # the emulated bus's default link (a Unix-domain socket), ours alone
+    with start_emulator(prof, record=False, link="socket") as em:
+        _warm_up(em.port, prof)
+        sock, sock_timeouts = _ours(em.port, prof)
     p50, p99, mx = (float(np.percentile(ours, q)) * 1e3 for q in (50, 99, 100))
+    s50, s99 = (float(np.percentile(sock, q)) * 1e3 for q in (50, 99))
     b50, b99 = (float(np.percentile(sdk, q)) * 1e3 for q in (50, 99))
     rate = _decoder_rate()
     budget = prof.servo.ts_s * 1e3
@@ -122,6 +128,11 @@ def run() -> list[Row]:
         Row("bus: sync write + sync read, p99 (emulated)", p99, "ms",
             f"≤ {0.25 * budget:.1f} ms (25 % of Ts)", baseline=b99, passed=p99 <= 0.25 * budget,
             note=f"max {mx:.2f} ms; shared 2-core machine, timings move with other load"),
+        Row("bus: sync write + sync read, p99 (emulated, socket link)", s99, "ms",
+            f"≤ {0.25 * budget:.1f} ms (25 % of Ts)", baseline=p99,
+            passed=s99 <= 0.25 * budget and sock_timeouts == 0,
+            note=f"p50 {s50:.2f} ms, {sock_timeouts} of {CYCLES} replies timed out; the emulated bus's "
+                 "default link; baseline = ours over the pty above"),
         Row("bus: Decoder2 throughput", rate, "pkt/s", "≥ 20,000 pkt/s", passed=rate >= 20_000,
             note="15-byte status packets fed 45 bytes at a time (one sync-read reply burst)"),
     ]

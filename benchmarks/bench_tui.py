@@ -152,13 +152,25 @@ async def _prepare(app: Any, pilot: Any) -> None:
     await settle()
 
 
+async def _confirm_execute(app: Any, pilot: Any, wait_s: float = 60.0) -> None:
+    """5, x on the Execute step: the console previews the run on the twin first (a worker),
+    then asks "Execute the plan?"; answered y once asked (within ``wait_s``)."""
+    await pilot.press("5", "x")
+    t_end = time.perf_counter() + wait_s
+    while type(app.screen).__name__ != "LongConfirm":
+        if time.perf_counter() > t_end:
+            raise RuntimeError("the console did not ask to execute the plan")
+        await pilot.pause(0.02)
+    await pilot.press("y")
+
+
 async def _execute_runs(app: Any, pilot: Any, n: int, browser: _Browser | None = None,
                         reload_first: bool = False) -> list[Any]:
     """``n`` executions of the solved plan started by keys (approach move, then the plan);
     ``reload_first``: the 3D view's page is reloaded during the first."""
     done = []
     for i in range(n):
-        await pilot.press("5", "x", "y")
+        await _confirm_execute(app, pilot)
         if reload_first and i == 0 and browser is not None:
             await pilot.pause(0.5)
             browser.reload.set()
@@ -255,7 +267,7 @@ async def _latency_rows(cache: Path) -> list[Row]:
         await settle()
 
         # while executing the 3 s plan (telemetry every Ts, plots)
-        await pilot.press("5", "x", "y")
+        await _confirm_execute(app, pilot)
         await pilot.pause(0.2)
         executing = await _latencies(app, pilot, "p", "action_next_plot", lambda: app.moving)
         await settle()

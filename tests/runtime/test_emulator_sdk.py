@@ -153,3 +153,14 @@ def test_sdk_protocol1_ping_read_write_bulk(em1: EmulatorHandle) -> None:
         assert {i: br.getData(i, 36, 2) for i in goals} == goals
     finally:
         port.closePort()
+
+
+def test_the_bus_benchmark_compares_with_the_sdk_on_a_link_it_can_open() -> None:
+    """``python -m benchmarks bus`` runs to its end: the SDK's side of the comparison opens a
+    pty (it cannot open the default link's ``unix:`` socket), and every row has its figure."""
+    from benchmarks import bench_bus
+
+    rows = bench_bus.run()
+    sdk_row = next(r for r in rows if r.name.startswith("bus: cycles whose reply timed out"))
+    assert sdk_row.baseline == 0  # every sync read of the vendor SDK succeeded
+    assert all(np.isfinite(r.value) for r in rows)
