@@ -237,7 +237,7 @@ class Kernel:
             f, res = self._residual(v, w)
             k = np.flatnonzero(np.greater(res, NEWTON_TOL))
             if len(k) == 0:
-                break
+                return Rl, res  # (the residual of Rl as it is returned)
             sub = len(k) < n
             Rk = [[_rows(x, k) for x in row] for row in Rl] if sub else Rl
             wk = [[_rows(x, k) for x in wi] for wi in w] if sub else w

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics.continuation import PATH_ZETA_FLOOR, continuation_step
+from spm_console.core.kinematics.component_ops import C
+from spm_console.core.kinematics.continuation import PATH_ZETA_FLOOR, Kernel, Local
 from spm_console.core.kinematics.model import SpmModel, platform_axes
 
 F = NDArray[np.float64]
@@ -54,21 +55,60 @@ class GridFk:
         return np.stack(g, -1)
 
 
+def neighbour_table(shape: tuple[int, int, int]) -> NDArray[np.int64]:
+    """(n_nodes, 6) flat indices of every node's 6-neighbours in ``_DIRS`` order, −1 where
+    the neighbour lies outside the grid."""
+    idx = np.arange(shape[0] * shape[1] * shape[2], dtype=np.int64).reshape(shape)
+    out = np.full((*shape, 6), -1, np.int64)
+    for d, step in enumerate(_DIRS):
+        # node p's neighbour in direction d is p + step, where that lies inside the grid
+        at: tuple[slice, ...] = tuple(slice(max(-k, 0), n - max(k, 0)) for k, n in zip(step, shape, strict=True))
+        nb: tuple[slice, ...] = tuple(slice(max(k, 0), n - max(-k, 0)) for k, n in zip(step, shape, strict=True))
+        key: tuple[slice | int, ...] = (*at, d)
+        out[key] = idx[nb]
+    return out.reshape(-1, 6)
+
+
+def _local_rows(at: Local) -> list[C]:
+    """The 22 component arrays of a step's Jacobians (w, adj(J1)'s columns, det J1, J2's
+    diagonal), in one order."""
+    return [*(x for v in at.w for x in v), *(x for v in at.cols for x in v), at.det, *at.j2]
+
+
+def _local_of(rows: F) -> Local:
+    """:func:`_local_rows` back: a (22, n) array → :class:`Local` of its rows (views)."""
+    return Local([list(rows[0:3]), list(rows[3:6]), list(rows[6:9])],
+                 [list(rows[9:12]), list(rows[12:15]), list(rows[15:18])], rows[18],
+                 list(rows[19:22]))
+
+
 def track_grid(
     model: SpmModel,
     axes: tuple[F, F, F],
     zeta_floor: float = PATH_ZETA_FLOOR,
     progress: Callable[[float], None] | None = None,
 ) -> GridFk:
-    """Flood-fill FK over the grid ``axes`` (rad) from the home pose."""
+    """Flood-fill FK over the grid ``axes`` (rad) from the home pose.
+
+    The nodes' state is kept as component rows (θ (3, n); R and the Jacobians each validated
+    node's step computed, (9 + 22, n)), so a wave gathers its parents' rows at once and steps
+    them without recomputing their Jacobians (the predictor's J1, J2 at the parent)."""
     shape = (len(axes[0]), len(axes[1]), len(axes[2]))
     n_nodes = shape[0] * shape[1] * shape[2]
     TH = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-    R = np.full((n_nodes, 3, 3), np.nan)
+    TH3 = np.ascontiguousarray(TH.T)
+    S = np.zeros((31, n_nodes))  # rows 0-8: R (NaN where not valid); 9-30: the Jacobians
+    S[:9] = np.nan
     zeta = np.zeros(n_nodes)
     res = np.full(n_nodes, np.nan)
     valid = np.zeros(n_nodes, bool)
     tried = np.zeros(n_nodes, bool)
+
+    def result(waves: int) -> GridFk:
+        R = np.ascontiguousarray(S[:9].T).reshape(n_nodes, 3, 3)
+        v = platform_axes(R, model.v_home).reshape(*shape, 3, 3)
+        return GridFk(axes, R.reshape(*shape, 3, 3), v, zeta.reshape(shape), valid.reshape(shape),
+                      res.reshape(shape), waves)
 
     # start: the node nearest home, tracked from home by continuation
     start = tuple(int(np.argmin(np.abs(a - t))) for a, t in zip(axes, model.theta_home, strict=True))
@@ -76,41 +116,46 @@ def track_grid(
     r0 = model.track(TH[s])
     tried[s] = True
     if not r0.ok or r0.pose is None:
-        return GridFk(axes, R.reshape(*shape, 3, 3), R.reshape(*shape, 3, 3), zeta.reshape(shape),
-                      valid.reshape(shape), res.reshape(shape), 0)
-    R[s], zeta[s], res[s], valid[s] = r0.pose.R, r0.pose.zeta, r0.pose.residual, True
+        return result(0)
+    kern = Kernel(model)
+    S[:9, s] = np.asarray(r0.pose.R, float).reshape(9)
+    zeta[s], res[s], valid[s] = r0.pose.zeta, r0.pose.residual, True
+    R0 = S[:9, s:s + 1]
+    S[9:, s:s + 1] = np.array(_local_rows(kern.modes(kern.w(list(TH3[:, s:s + 1])),
+                                                     [list(R0[0:3]), list(R0[3:6]), list(R0[6:9])])[3]))
     waves = 0
-    dirs = np.asarray(_DIRS, np.int64)
-    dims = np.asarray(shape, np.int64)
+    nbr = neighbour_table(shape)
+    mark = np.zeros(n_nodes, bool)
     new = np.array([s], np.int64)  # nodes validated by the last wave
     while True:
         # candidates: untried 6-neighbours of the nodes the last wave validated (those of
-        # older valid nodes were tried before); parent: the valid neighbour with the largest
-        # ζ, the first in _DIRS order on a tie
-        ni = np.array(np.unravel_index(new, shape)).T
-        nb = (ni[:, None, :] + dirs[None]).reshape(-1, 3)
-        nb = nb[np.all((nb >= 0) & (nb < dims), axis=1)]
-        flat = np.unique(np.ravel_multi_index(nb.T, shape))
-        cand = flat[~tried[flat]]
+        # older valid nodes were tried before), in index order; parent: the valid neighbour
+        # with the largest ζ, the first in _DIRS order on a tie
+        nb = nbr[new].reshape(-1)
+        mark[nb[nb >= 0]] = True
+        mark[tried] = False
+        cand = np.flatnonzero(mark)
+        mark[cand] = False
         if len(cand) == 0:
             break
         waves += 1
         tried[cand] = True
-        ci = np.array(np.unravel_index(cand, shape)).T
-        around = ci[:, None, :] + dirs[None]  # (n, 6, 3)
-        inside = np.all((around >= 0) & (around < dims), axis=2)
-        fl = np.ravel_multi_index(tuple(np.clip(around, 0, dims - 1).reshape(-1, 3).T), shape)
-        zn = np.where(inside & valid[fl].reshape(-1, 6), zeta[fl].reshape(-1, 6), -1.0)
-        k = np.argmax(zn, axis=1)
-        par = fl.reshape(-1, 6)[np.arange(len(cand)), k]
-        st = continuation_step(model, TH[par], R[par], TH[cand])
+        fl = nbr[cand]  # (n, 6)
+        zn = np.where(fl >= 0, np.where(valid[fl], zeta[fl], -1.0), -1.0)
+        par = fl[np.arange(len(cand)), np.argmax(zn, axis=1)]
+        Sp = S[:, par]
+        st = kern.step(list(TH3[:, par]), [list(Sp[0:3]), list(Sp[3:6]), list(Sp[6:9])],
+                       list(TH3[:, cand]), at_old=_local_of(Sp[9:]))
         good = st.good(zeta_floor)
-        z, Rc, rc = st.zeta, st.R, st.residual
         g = cand[good]
-        R[g], zeta[g], res[g], valid[g] = Rc[good], z[good], rc[good], True
+        out = np.empty((31, len(cand)))
+        for i, x in enumerate([*(x for row in st.R for x in row), *_local_rows(st.at)]):
+            out[i] = x
+        S[:, g] = out[:, good]
+        zeta[g] = np.asarray(st.zeta)[good]
+        res[g] = np.asarray(st.residual)[good]
+        valid[g] = True
         new = g
         if progress is not None:
             progress(float(tried.sum()) / n_nodes)
-    Rg = R.reshape(*shape, 3, 3)
-    v = platform_axes(np.where(valid[:, None, None], R, np.nan), model.v_home).reshape(*shape, 3, 3)
-    return GridFk(axes, Rg, v, zeta.reshape(shape), valid.reshape(shape), res.reshape(shape), waves)
+    return result(waves)

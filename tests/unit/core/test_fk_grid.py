@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from spm_console.core.kinematics.fk_grid import GridFk, track_grid
+from spm_console.core.kinematics.fk_grid import _DIRS, GridFk, neighbour_table, track_grid
 from spm_console.core.kinematics.model import SpmModel
 
 
@@ -91,3 +91,17 @@ def test_progress_reports_the_tried_fraction(agile_model: SpmModel) -> None:
     assert len(seen) == g.waves > 0
     assert all(b > a for a, b in itertools.pairwise(seen))
     assert seen[-1] == pytest.approx(float(tried.mean()), abs=1e-12)
+
+
+def test_the_neighbour_table_names_each_nodes_six_neighbours_in_order() -> None:
+    """Row p of the table: the flat index of p + d for each d of the flood fill's order, −1
+    outside the grid (brute force over a grid with three different lengths)."""
+    shape = (4, 3, 5)
+    table = neighbour_table(shape)
+    assert table.shape == (60, 6)
+    for p in itertools.product(*(range(n) for n in shape)):
+        for d, step in enumerate(_DIRS):
+            q = tuple(a + b for a, b in zip(p, step, strict=True))
+            inside = all(0 <= a < n for a, n in zip(q, shape, strict=True))
+            want = int(np.ravel_multi_index(q, shape)) if inside else -1
+            assert table[np.ravel_multi_index(p, shape), d] == want, (p, step)
