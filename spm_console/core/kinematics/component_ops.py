@@ -27,6 +27,11 @@ Mat = Sequence[Sequence[C]]
 """Nine components: M[row][col]."""
 
 
+def as_array(x: C) -> NDArray[np.float64]:
+    """A component of the array form as the (n,) float array it is."""
+    return np.asarray(x, np.float64)
+
+
 class Ops(Protocol):
     """What the kernel needs beyond + − × of its components."""
 

@@ -22,7 +22,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics.component_ops import ARRAY_OPS, FLOAT_OPS, C, Mat, Ops, Vec
+from spm_console.core.kinematics.component_ops import ARRAY_OPS, FLOAT_OPS, C, Mat, Ops, Vec, as_array
 from spm_console.core.kinematics.geometry import SpmGeometry
 
 
@@ -90,7 +90,7 @@ class Step:
 
 def _rows(x: C, idx: NDArray[np.int64]) -> C:
     """The rows ``idx`` of one component array."""
-    return np.asarray(x)[idx]
+    return as_array(x)[idx]
 
 
 def _dot(a: Vec, b: Vec) -> C:

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.core.kinematics.component_ops import C, Mat
+from spm_console.core.kinematics.component_ops import Mat, as_array
 from spm_console.core.kinematics.continuation import Kernel, Local, from_mat, to_mat, to_vec
 from spm_console.core.kinematics.jacobian import conditioning_index
 from spm_console.core.kinematics.links import LinkModel
@@ -94,11 +94,6 @@ def exact_ok(ws: Workspace, model: SpmModel, links: LinkModel, theta_deg: F,
     return out
 
 
-def _arr(x: C) -> F:
-    """A component of the array form as the array it is."""
-    return np.asarray(x, np.float64)
-
-
 def _track_and_check(ws: Workspace, kern: Kernel, links: LinkModel, th0: F, R0: F, th1: F,
                      steps: int) -> B:
     """Continue rows from (th0, R0) to th1 (rad) in ``steps`` steps, then ζ and the links."""
@@ -113,14 +108,14 @@ def _track_and_check(ws: Workspace, kern: Kernel, links: LinkModel, th0: F, R0: 
         th_new = [a[i] + (b[i] - a[i]) * (k / steps) for i in range(3)]
         st = kern.step(th, R, th_new, at)
         keep = np.flatnonzero(st.good())
-        rows, z, at = rows[keep], _arr(st.zeta)[keep], st.at.take(keep)
+        rows, z, at = rows[keep], as_array(st.zeta)[keep], st.at.take(keep)
         a, b = [x[keep] for x in a], [x[keep] for x in b]
-        th = [_arr(x)[keep] for x in th_new]
-        R = [[_arr(x)[keep] for x in row] for row in st.R]
+        th = [as_array(x)[keep] for x in th_new]
+        R = [[as_array(x)[keep] for x in row] for row in st.R]
     sing = np.flatnonzero(z >= ws.zeta_min)
     R = [[x[sing] for x in row] for row in R]
-    w = [[_arr(x)[sing] for x in wi] for wi in at.w] if at is not None else []
-    v = [[_arr(x) for x in vi] for vi in kern.axes(R)]
+    w = [[as_array(x)[sing] for x in wi] for wi in at.w] if at is not None else []
+    v = [[as_array(x) for x in vi] for vi in kern.axes(R)]
     out[rows[sing]] = links.apart(np.asarray(kern.u), w, v, ws.min_distance_mm)
     return out
 
