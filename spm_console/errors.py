@@ -180,6 +180,13 @@ class EStopError(SpmError):
     exit_code = ExitCode.STOP_ESTOP
 
 
+class RunLogError(SpmError):
+    """A run's log cannot be written while the wrist moves (a full disk, its folder gone): the
+    run stops as an E-stop stops it, the wrist holding, since a run must be logged."""
+
+    exit_code = ExitCode.STOP_ESTOP
+
+
 class ClusterLostError(SpmError):
     """The Dask cluster of a design sweep went away (scheduler lost, tasks cancelled): the
     designs done are kept and the same command resumes."""

@@ -220,15 +220,22 @@ def atomic_temp(path: str | Path) -> tuple[int, Path]:
 def write_text_atomic(path: str | Path, text: str, error: type[SpmError]) -> None:
     """Write ``text`` to ``path`` atomically (a temporary file beside it, then a rename), with
     the umask's permissions. Only a regular file (or nothing) may be replaced: a device, pipe or
-    folder there raises ``error``."""
+    folder there raises ``error``, and so does a file that cannot be written (its folder
+    missing or not writable, a full disk)."""
     p = Path(path)
     if p.exists() and not p.is_file():
         raise error(f"{p}: exists and is not a regular file; not replaced")
-    fd, tmp = atomic_temp(p)
+    try:
+        fd, tmp = atomic_temp(p)
+    except OSError as exc:  # a folder this process cannot write, or none
+        raise error(f"{p}: cannot write: {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
         os.replace(tmp, p)
+    except OSError as exc:  # (a full disk)
+        tmp.unlink(missing_ok=True)
+        raise error(f"{p}: cannot write: {exc.strerror or exc}") from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

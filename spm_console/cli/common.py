@@ -19,7 +19,7 @@ from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError
 from spm_console.jsonutil import to_jsonable
 from spm_console.numbers import NotANumberError, looks_numeric, parse_integer, parse_number
-from spm_console.safe_io import check_path_names
+from spm_console.safe_io import atomic_temp, check_path_names
 
 #: The emulated wrists ``--plant`` chooses from (``[plant] model``).
 PLANTS = ("ideal", "physical")
@@ -97,8 +97,8 @@ def add_force(p: argparse.ArgumentParser) -> None:
 def output_file(path: Path | None, what: str, suffixes: tuple[str, ...] = (),
                 replace: bool = True) -> None:
     """Refuse, before any work, an output path the system cannot name, whose folder is
-    missing or whose suffix is wrong; and, unless ``replace``, one that exists (the command's
-    ``--force`` replaces it)."""
+    missing or not writable, or whose suffix is wrong; and, unless ``replace``, one that exists
+    (the command's ``--force`` replaces it)."""
     if path is None:
         return
     check_path_names(path, what, BadInputError)
@@ -117,6 +117,12 @@ def output_file(path: Path | None, what: str, suffixes: tuple[str, ...] = (),
             raise BadInputError(f"{what} {path}: the file exists; pass --force to replace it")
     except OSError as exc:
         raise BadInputError(f"{what} {path}: {exc.strerror or exc}") from None
+    try:  # the folder writable: a file made there as the result will be, then removed
+        fd, probe = atomic_temp(path)
+        os.close(fd)
+        probe.unlink()
+    except OSError as exc:
+        raise BadInputError(f"{what} {path}: cannot write there: {exc.strerror or exc}") from None
 
 
 def output_folder(path: str | Path | None, what: str) -> None:

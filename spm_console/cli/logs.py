@@ -125,7 +125,11 @@ def cmd_export(args: argparse.Namespace) -> int:
         info(f"note: {run_dir.name} was logged with another version of '{profile.name}' (digest "
              f"{str(logged.get('hash'))[:12]}…, now {profile.digest()[:12]}…): its joints are "
              f"drawn with {args.profile} as it is now")
-    done = write_run_mcap(run_dir, profile, args.out)
+    try:
+        done = write_run_mcap(run_dir, profile, args.out)
+    except OSError as exc:  # a folder this process cannot write, a full disk
+        raise BadInputError(f"--out {args.out or run_dir / MCAP_NAME}: cannot write: "
+                            f"{exc.strerror or exc}") from None
     out = done.path
     if done.first_beyond is not None:
         info(f"note: {done.beyond_limits} sample(s) of {run_dir.name}/samples.csv (the first: "

@@ -140,7 +140,7 @@ def cmd_read(args: argparse.Namespace) -> int:
              "\n".join(f"id {i:3d}  {args.register} = {v}" for i, v in values.items()))
         return int(ExitCode.OK)
     if args.ids:
-        raise BadInputError("--ids needs --register (positions are per joint)")
+        raise OptionConflictError("--ids needs --register (positions are per joint)")
     r = _query(args, BusQuery("joints"))
     joints = [asdict(j) for j in r.joints]
     human = "\n".join(

@@ -36,6 +36,8 @@ Count = Annotated[int, Strict()]
 #: An angle within one turn either way, deg.
 Angle = Annotated[float, Strict(), AfterValidator(_normal),
                   Field(ge=-ANGLE_LIMIT_DEG, le=ANGLE_LIMIT_DEG)]
+#: A boolean: true or false, never a number or a string.
+Flag = Annotated[bool, Strict()]
 #: One entry of the sign seed.
 Sign = Annotated[int, Strict(), Field(ge=-1, le=1)]
 Vec3 = tuple[Angle, Angle, Angle]

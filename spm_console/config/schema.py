@@ -22,7 +22,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from spm_console.config.fields import Angle, Count, Direction, Real, Section, Sign, Vec3
+from spm_console.config.fields import Angle, Count, Direction, Flag, Real, Section, Sign, Vec3
 from spm_console.config.plant import Plant
 
 #: The default profile, relative to the project root / working directory.
@@ -127,7 +127,7 @@ class WorkspaceGrid(Section):
     """Conditioning index threshold ζ_min below which a node is singular, 0 < ζ_min < 1."""
     max_halfspaces: Count = Field(default=64, ge=4, le=512)
     """Upper bound on the number of half-spaces of the convex region P, 4..512."""
-    refined_cover: bool = False
+    refined_cover: Flag = False
     """Refine the region cover near the workspace boundary (grid cells next to infeasible
     nodes checked exactly at Δ/4): ≥ 99 % of the feasible nodes covered instead of ~96 %,
     at the price of a slower build (about 2.5 times the default build's time on the Agile

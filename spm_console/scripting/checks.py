@@ -17,6 +17,7 @@ from spm_console.errors import BadInputError, SpmError
 from spm_console.input_rules import theta_for_fk, theta_in_grid, theta_in_servo_limits, vmax_arg
 from spm_console.scripting.steps import (
     AssertStep,
+    ExecuteStep,
     FkStep,
     FollowStep,
     PlanStep,
@@ -24,6 +25,7 @@ from spm_console.scripting.steps import (
     RpyPose,
     Script,
     ThetaPose,
+    WaitStep,
     WorkspaceStep,
 )
 from spm_console.store.target_file import read_target_csv, theta_of_rpy, timed_targets
@@ -54,7 +56,38 @@ def _follow(step: FollowStep, where: str, profile: Profile) -> None:
             raise exc.at(f"{where} 'file'") from None
 
 
+#: Longest time a script's ``wait`` steps may add up to, s (each is at most an hour).
+MAX_SCRIPT_WAIT_S = 24 * 3600.0
+_CONDITIONS = ("outcome", "exit_code", "theta_near", "feasible", "zeta_min", "max_duration_s")
+
+
+def _order(script: Script) -> None:
+    """What the steps' order alone decides: an ``execute`` (or an ``assert`` of a plan's
+    duration) needs a ``plan`` step before it, an ``assert`` a condition; the waits add up
+    to at most :data:`MAX_SCRIPT_WAIT_S`."""
+    planned = False
+    waits = 0.0
+    for i, step in enumerate(script.step, 1):
+        if isinstance(step, PlanStep):
+            planned = True
+        elif isinstance(step, ExecuteStep) and not planned:
+            raise BadInputError(f"step {i} (execute): no plan step before it: nothing to execute")
+        elif isinstance(step, AssertStep):
+            if all(getattr(step, c) is None for c in _CONDITIONS):
+                raise BadInputError(f"step {i} (assert): no condition given (one or more of "
+                                    f"{', '.join(_CONDITIONS)})")
+            if step.max_duration_s is not None and not planned:
+                raise BadInputError(f"step {i} (assert) key 'max_duration_s': no plan step "
+                                    "before it")
+        elif isinstance(step, WaitStep):
+            waits += float(step.seconds)
+    if waits > MAX_SCRIPT_WAIT_S:
+        raise BadInputError(f"the wait steps add up to {waits:.0f} s; a script waits at most "
+                            f"{MAX_SCRIPT_WAIT_S:.0f} s (24 h) in all")
+
+
 def _check(script: Script, profile: Profile) -> None:
+    _order(script)
     if script.session.initial_deg is not None:
         theta_in_servo_limits(list(script.session.initial_deg), "[session] key 'initial_deg'",
                               profile)
@@ -82,7 +115,8 @@ def _check(script: Script, profile: Profile) -> None:
 
 
 def check_script(script: Script, profile: Profile) -> None:
-    """Every profile-dependent input rule of ``script``: a refusal (BadInputError, exit 4;
+    """Every profile-dependent input rule of ``script``, and what the steps' order decides
+    (:func:`_order`): a refusal (BadInputError, exit 4;
     UnreachableError, exit 5, for an orientation IK cannot place) names the script's file,
     the step and the key."""
     try:

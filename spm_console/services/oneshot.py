@@ -33,7 +33,7 @@ from spm_console.config.schema import Profile
 from spm_console.core.plan import Plan
 from spm_console.core.planning.follow.timed import TimedTargets
 from spm_console.devices.emulator.faults import FaultSpec
-from spm_console.errors import BadInputError, InterruptedBySignalError, SpmError
+from spm_console.errors import InterruptedBySignalError, OptionConflictError, SpmError
 from spm_console.formatting import fmt_deg
 from spm_console.motion.homing import HomingResult
 from spm_console.motion.runs import RunContext, refused_run
@@ -126,7 +126,7 @@ def run_context(profile: Profile, req: RunRequest) -> RunContext:
 def one_shot(profile: Profile, kind: str, req: RunRequest, body: Callable[[Session], T]) -> T:
     sim = req.emulated(profile)
     if not sim and (req.faults or req.sim_start_deg is not None):
-        raise BadInputError("--fault and --sim-start act on the emulated bus: add --sim")
+        raise OptionConflictError("--fault and --sim-start act on the emulated bus: add --sim")
     session = Session(profile, port=req.port, sim=sim,
                       logs_root=None if req.log_root is None else Path(req.log_root),
                       cache_dir=None if req.cache_dir is None else Path(req.cache_dir),

@@ -146,7 +146,7 @@ def test_home_refuses_an_unknown_assembly_mode(tmp_path: Path,
 @pytest.mark.parametrize(("argv", "code", "text"), [
     (["--fault", "stall:9@1"], ExitCode.BAD_INPUT, "needs a joint 1, 2 or 3"),
     (["--fault", "wobble"], ExitCode.BAD_INPUT, "unknown kind"),
-    (["--port", "/dev/null", "--fault", "unplug@1"], ExitCode.BAD_INPUT, "add --sim"),
+    (["--port", "/dev/null", "--fault", "unplug@1"], ExitCode.USAGE, "add --sim"),
     (["--port", "/nonexistent/ttyUSB9"], ExitCode.BUS_ERROR, "/nonexistent/ttyUSB9"),
 ])
 def test_bad_options_are_refused_with_a_reason(plan_file: Path, tmp_path: Path,

@@ -25,10 +25,12 @@ from __future__ import annotations
 import contextlib
 import csv
 import datetime as dt
+import errno
 import json
 import math
 import os
 import platform
+import shutil
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -39,7 +41,7 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.errors import BadInputError
+from spm_console.errors import BadInputError, RunLogError
 from spm_console.jsonutil import to_jsonable
 from spm_console.motion.logs.procid import current_process, writer_alive
 from spm_console.motion.logs.run_info import RunInfo, run_info
@@ -93,14 +95,43 @@ def package_versions() -> dict[str, str]:
     return out
 
 
-def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+#: Bytes a run's first ``meta.json`` takes on disk (its JSON, then spaces): room for the
+#: outcome written over it in place when the disk is full by then.
+META_ROOM = 16384
+
+
+def _write_json_atomic(path: Path, data: dict[str, Any], room: int = 0) -> None:
+    """Replace ``path`` with ``data`` as JSON (padded with spaces to ``room`` bytes); on a
+    full disk, write it over the old file in place when it fits in the old file's size."""
+    text = (json.dumps(to_jsonable(data), indent=2) + "\n").encode()
+    text = text.ljust(room, b" ")
     tmp = path.with_suffix(".json.tmp")
-    with tmp.open("w") as fh:
-        json.dump(to_jsonable(data), fh, indent=2)
-        fh.write("\n")
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    try:
+        with tmp.open("wb") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        if exc.errno != errno.ENOSPC or not _overwrite(path, text):
+            raise
+
+
+def _overwrite(path: Path, text: bytes) -> bool:
+    """Write ``text`` over ``path``'s bytes, padded with spaces to its size (no new block
+    needed), when it fits; whether it was written."""
+    try:
+        size = path.stat().st_size
+        if len(text) > size:
+            return False
+        with path.open("r+b") as fh:
+            fh.write(text.ljust(size, b" "))
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError:
+        return False
+    return True
 
 
 def _fmt(x: float) -> str:
@@ -123,6 +154,8 @@ class RunLog:
         self.finished = False
         self.sample_count = 0
         self.event_count = 0
+        self.write_error: str | None = None
+        """Why a write failed (the rows and events after it are not in the files)."""
         self.on_finish: Callable[[Path], object] | None = None
         """Called with the run folder once :meth:`finish` has written everything (the MCAP
         beside the CSV); its failure is reported on stderr and changes nothing else."""
@@ -157,6 +190,9 @@ class RunLog:
                 break
             except FileExistsError:
                 continue
+            except OSError as exc:  # an existing folder this process cannot write, a full disk
+                raise BadInputError(f"run log folder {base}: cannot create a run folder in it "
+                                    f"({exc.strerror or exc})") from None
         else:  # pragma: no cover - a thousand runs in one second
             raise BadInputError(f"{base}: cannot create a new run folder for {stem}")
         meta: dict[str, Any] = {
@@ -177,12 +213,27 @@ class RunLog:
             "stats": {},
             **(extra or {}),
         }
-        log = cls(path, meta, flush_every)
-        _write_json_atomic(path / "meta.json", meta)
+        try:
+            log = cls(path, meta, flush_every)
+            _write_json_atomic(path / "meta.json", meta, META_ROOM)
+        except OSError as exc:  # (a full disk): no run folder is left half made
+            shutil.rmtree(path, ignore_errors=True)
+            raise BadInputError(f"run log folder {base}: cannot write a run's files in it "
+                                f"({exc.strerror or exc})") from None
         return log
 
+    def _failed(self, exc: OSError) -> RunLogError:
+        """The first write that failed: later rows and events are dropped (they cannot be
+        written), and the caller stops the run."""
+        self.write_error = f"{exc.strerror or exc}"
+        return RunLogError(f"the run log {self.path} cannot be written ({self.write_error}): "
+                           "the run stopped, the wrist holds")
+
     def sample(self, s: Sample) -> None:
-        """Append one row; flushed to the OS every ``flush_every`` rows."""
+        """Append one row; flushed to the OS every ``flush_every`` rows. A row that cannot be
+        written raises :class:`RunLogError` (once: later rows are dropped)."""
+        if self.write_error is not None:
+            return
         row: list[str] = [f"{s.t:.6f}", str(s.k), s.phase]
         for vec in (s.reference_deg, s.measured_deg, s.predicted_deg, s.predicted_velocity_degps,
                     s.filtered_deg, s.velocity_degps, s.fd_velocity_degps):
@@ -190,26 +241,44 @@ class RunLog:
         row += [_fmt(s.tracking_error_deg), _fmt(s.bus_s * 1e3), _fmt(s.late_s * 1e3),
                 str(s.retries), _fmt(s.read_offset_s * 1e3)]
         row += (["", "", ""] if s.target_deg is None else [_fmt(float(x)) for x in s.target_deg])
-        self._csv.writerow(row)
+        try:
+            self._csv.writerow(row)
+        except OSError as exc:
+            raise self._failed(exc) from None
         self.sample_count += 1
         self._pending += 1
         if self._pending >= self.flush_every:
             self.flush()
 
     def event(self, name: str, t: float, /, **data: object) -> None:
-        """Append one event line ``{"t", "event": name, **data}`` and flush it at once."""
+        """Append one event line ``{"t", "event": name, **data}`` and flush it at once
+        (:class:`RunLogError` as :meth:`sample`)."""
+        if self.write_error is not None:
+            return
         rec = {"t": round(t, 6), "event": name, **data}
-        self._events.write(json.dumps(to_jsonable(rec)) + "\n")
-        self._events.flush()
+        try:
+            self._events.write(json.dumps(to_jsonable(rec)) + "\n")
+            self._events.flush()
+        except OSError as exc:
+            raise self._failed(exc) from None
         self.event_count += 1
 
     def flush(self) -> None:
-        self._samples.flush()
+        if self.write_error is not None:
+            return
+        try:
+            self._samples.flush()
+        except OSError as exc:
+            raise self._failed(exc) from None
         self._pending = 0
 
     def finish(self, outcome: str, exit_code: int, message: str, stats: Mapping[str, object]) -> None:
-        """Flush everything and rewrite meta.json with the outcome."""
-        self.flush()
+        """Flush everything and rewrite meta.json with the outcome (and ``log_write_error``
+        when rows or events could not be written: they are missing from the files)."""
+        with contextlib.suppress(RunLogError):
+            self.flush()
+        if self.write_error is not None:
+            self.meta["log_write_error"] = self.write_error
         self.meta.update(
             end_time=dt.datetime.now(dt.UTC).isoformat(),
             outcome=outcome,

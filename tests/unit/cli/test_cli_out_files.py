@@ -3,6 +3,7 @@ existing file is replaced only with ``--force``, both before any work."""
 
 from __future__ import annotations
 
+import errno
 import json
 from pathlib import Path
 
@@ -10,7 +11,7 @@ import pytest
 
 from spm_console.cli.main import main
 from spm_console.core.polytope.region import Region
-from spm_console.errors import ExitCode
+from spm_console.errors import BadInputError, ExitCode
 from spm_console.safe_io import NAME_MAX
 
 START = ["127.53", "83.23", "85.25"]
@@ -95,3 +96,47 @@ def test_other_paths_longer_than_name_max_are_refused(
     assert main([a.replace("{long}", long) for a in argv]) == code
     err = capsys.readouterr().err
     assert "NAME_MAX" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("name", list(COMMANDS))
+def test_a_folder_this_process_cannot_write_is_refused_before_any_work(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
+        name: str) -> None:
+    """A read-only file system, or a folder of another user's (the tests run as root on CI,
+    where permissions alone refuse nothing): no file can be made there. ``identify
+    --experiment`` ran its whole experiment and then failed with a traceback (exit 1); every
+    command now refuses at once, exit 4."""
+    from spm_console.cli import common
+
+    def read_only(path: object) -> tuple[int, Path]:
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    monkeypatch.setattr(common, "atomic_temp", read_only)
+    out = tmp_path / f"new{COMMANDS[name][1]}"
+    assert main(_argv(name, tmp_path, out)) == ExitCode.BAD_INPUT
+    err = capsys.readouterr().err
+    assert "cannot write there: Read-only file system" in err and "Traceback" not in err
+    assert not out.exists() and not (tmp_path / "logs").exists()  # nothing ran, nothing moved
+
+
+def test_a_file_that_cannot_be_written_is_the_callers_error(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """write_text_atomic: a folder that refuses the temporary file, or a disk that fills while
+    it is written, raise the error class the caller gave (its exit code), never OSError."""
+    from spm_console import safe_io
+
+    with pytest.raises(BadInputError, match="cannot write: Read-only file system"):
+        monkeypatch.setattr(safe_io, "atomic_temp", lambda p: (_ for _ in ()).throw(
+            OSError(errno.EROFS, "Read-only file system")))
+        safe_io.write_text_atomic(tmp_path / "a.txt", "x", BadInputError)
+    monkeypatch.undo()
+    real_replace = safe_io.os.replace
+
+    def full(src: object, dst: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(safe_io.os, "replace", full)
+    with pytest.raises(BadInputError, match="cannot write: No space left on device"):
+        safe_io.write_text_atomic(tmp_path / "b.txt", "x", BadInputError)
+    monkeypatch.setattr(safe_io.os, "replace", real_replace)
+    assert list(tmp_path.iterdir()) == []  # no temporary file left

@@ -418,3 +418,15 @@ def test_a_wrist_whose_home_passed_is_not_solved_again_but_a_changed_one_is(
         with pytest.raises(ProfileError, match="leaves no room for a region around home"):
             load.parse_profile_text(tomli_w.dumps(data), f"no room {k}")
     assert calls == ["coarser", "no room 0", "no room 1"]
+
+
+@pytest.mark.parametrize("value", ["yes", "no", 1, 0, 1.0])
+def test_a_flag_is_true_or_false_never_a_word_or_a_number(value: object) -> None:
+    """``workspace.refined_cover = "yes"`` (or 1) turned the refined cover on, ``"no"`` (or 0)
+    off, silently: a flag is now as strict as a number (exit 3, naming the key)."""
+    data = tomllib.loads((TESTS.parent / "profiles" / "agile_wrist.toml").read_text())
+    data["workspace"]["refined_cover"] = value
+    with pytest.raises(ProfileError, match=r"workspace\.refined_cover"):
+        parse_profile(data, "lab.toml")
+    data["workspace"]["refined_cover"] = True
+    assert parse_profile(data, "lab.toml").workspace.refined_cover is True

@@ -4,6 +4,7 @@ every stop kind, refusals, homing."""
 
 from __future__ import annotations
 
+import errno
 import threading
 from pathlib import Path
 
@@ -12,7 +13,7 @@ import pytest
 
 from spm_console.config.schema import Profile
 from spm_console.core.polytope.region import Region
-from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, UnreachableError
+from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, RunLogError, UnreachableError
 from spm_console.motion.executor import Executor, Segment
 from spm_console.motion.homing import check_assembly_mode, home
 from spm_console.motion.logs.runlog import RunLog, load_run
@@ -272,3 +273,38 @@ def test_an_operator_estop_before_the_first_reference_is_a_stop_not_an_interrupt
     res = ex.run([Segment("plan", synthetic_plan(agile, START, GOAL, 1.0))])
     assert res.exit_code == ExitCode.STOP_ESTOP and "before any motion" in res.message
     assert load_run(res.log_dir).meta["outcome"] == "stopped"  # type: ignore[arg-type]
+
+
+class _FullDisk:
+    """A CSV writer whose rows stop fitting after ``rows`` (ENOSPC, as a full disk gives)."""
+
+    def __init__(self, inner, rows: int) -> None:  # type: ignore[no-untyped-def]
+        self.inner, self.left = inner, rows
+
+    def writerow(self, row: list[str]) -> None:
+        if self.left <= 0:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        self.left -= 1
+        self.inner.writerow(row)
+
+
+def test_a_run_whose_log_cannot_be_written_stops_holding_and_closes_its_log(
+        agile: Profile, tmp_path: Path) -> None:
+    """The disk fills at sample 30: the run stops at once (exit 20, the wrist holding at its
+    last reading), and meta.json says why; the rows after the failure are not written."""
+    plan = synthetic_plan(agile, START, GOAL, 1.5)
+    bus = _sim(START)
+    ex = _executor(agile, bus, tmp_path)
+    assert ex.log is not None
+    ex.log._csv = _FullDisk(ex.log._csv, 30)  # type: ignore[assignment]
+    with pytest.raises(RunLogError) as info:
+        ex.run([Segment("plan", plan)])
+    assert info.value.exit_code == ExitCode.STOP_ESTOP
+    assert len(ex.samples) == 31 < plan.N  # the row that failed was the 31st
+    hold = ex.samples[-1].measured_deg
+    assert np.allclose(bus.writes[-1][1], hold, atol=1e-9)  # the hold, after the last reference
+    run = load_run(ex.log.path)
+    assert run.rows == 30
+    assert run.meta["outcome"] == "error" and run.meta["exit_code"] == int(ExitCode.STOP_ESTOP)
+    assert run.meta["log_write_error"] == "No space left on device"
+    assert "cannot be written" in run.meta["message"]

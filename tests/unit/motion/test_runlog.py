@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import subprocess
@@ -12,10 +13,12 @@ import numpy as np
 import pytest
 
 from spm_console.errors import BadInputError
+from spm_console.motion.logs import runlog
 from spm_console.motion.logs.procid import current_process, writer_alive
 from spm_console.motion.logs.runlog import (
     FLUSH_EVERY,
     LOGS_ENV,
+    META_ROOM,
     RunLog,
     list_runs,
     load_run,
@@ -145,3 +148,51 @@ def test_runs_started_within_one_second_are_listed_in_start_order(tmp_path: Path
         assert a.path.name > b.path.name  # "home" sorts after "execute" by name alone
     assert [r.meta["kind"] for r in list_runs(tmp_path)] == ["home", "execute"]
     assert load_run("last", tmp_path).meta["kind"] == "execute"
+
+
+def test_a_log_folder_that_cannot_take_a_run_is_refused_before_anything(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An existing folder this process may not write (EACCES, EROFS, EPERM all look alike
+    here), or one whose disk is full: a bad-input refusal, and no half-made run folder."""
+    real_mkdir = Path.mkdir
+
+    def denied(self: Path, *a: object, **k: object) -> None:
+        if self.parent == tmp_path:
+            raise PermissionError(errno.EACCES, "Permission denied")
+        real_mkdir(self, *a, **k)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Path, "mkdir", denied)
+    with pytest.raises(BadInputError, match="cannot create a run folder in it"):
+        RunLog.create("execute", "agile_wrist", "abc", [], root=tmp_path)
+    monkeypatch.setattr(Path, "mkdir", real_mkdir)
+    real_open = Path.open
+
+    def full(self: Path, *a: object, **k: object):  # type: ignore[no-untyped-def]
+        if self.name == "events.jsonl":
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_open(self, *a, **k)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Path, "open", full)
+    with pytest.raises(BadInputError, match="No space left on device"):
+        RunLog.create("execute", "agile_wrist", "abc", [], root=tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_outcome_is_written_over_meta_json_when_the_disk_is_full(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """meta.json is made with room for its outcome (META_ROOM bytes): when no new file can be
+    made (ENOSPC), the outcome is written over it in place, and it stays valid JSON."""
+    log = RunLog.create("execute", "agile_wrist", "abc", [], root=tmp_path)
+    meta = log.path / "meta.json"
+    assert meta.stat().st_size == META_ROOM
+    log.sample(_sample(0))
+
+    def no_space(*a: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(runlog.os, "replace", no_space)
+    log.finish("completed", 0, "done", {"samples": 1})
+    assert meta.stat().st_size == META_ROOM
+    run = load_run(log.path)
+    assert run.meta["outcome"] == "completed" and run.rows == 1
+    assert not list(log.path.glob("*.tmp"))

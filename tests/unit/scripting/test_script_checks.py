@@ -141,3 +141,33 @@ def test_yaw_beyond_90_degrees_is_what_a_wider_wrist_follows() -> None:
     theta = theta_of_rpy(wide, [0.0, 0.0, 120.0])
     np.testing.assert_allclose(theta, [120.0, 120.0, 120.0], atol=1e-9)
     assert all(wide.workspace.theta_min_deg <= t <= wide.workspace.theta_max_deg for t in theta)
+
+
+#: Scripts whose steps' order alone is wrong, and what the refusal names.
+ORDER = [
+    ('[[step]]\ndo = "home"\n[[step]]\ndo = "assert"\n', "step 2 (assert): no condition given"),
+    ('[[step]]\ndo = "home"\n[[step]]\ndo = "execute"\n[[step]]\ndo = "plan"\ngoal = "home"\n',
+     "step 2 (execute): no plan step before it"),
+    ('[[step]]\ndo = "home"\n[[step]]\ndo = "assert"\nmax_duration_s = 3\n',
+     "step 2 (assert) key 'max_duration_s': no plan step before it"),
+    ('[[step]]\ndo = "home"\n' + '[[step]]\ndo = "wait"\nseconds = 3600\n' * 25,
+     "the wait steps add up to 90000 s"),
+]
+
+
+@pytest.mark.parametrize(("text", "words"), ORDER)
+def test_what_the_steps_order_decides_is_refused_before_the_bus_opens(
+        agile: Profile, text: str, words: str) -> None:
+    """Before these checks the wrist homed first, and only then was the script refused (or,
+    for the waits, it waited)."""
+    exc = refusal(text, agile)
+    assert exc is not None and exc.exit_code == ExitCode.BAD_INPUT
+    assert exc.message.startswith("lab/s.toml: ") and words in exc.message, exc.message
+
+
+def test_a_plan_before_the_execute_and_24_hours_of_waits_pass(agile: Profile) -> None:
+    ok = ('[[step]]\ndo = "plan"\ngoal = "home"\n[[step]]\ndo = "execute"\n'
+          '[[step]]\ndo = "assert"\nmax_duration_s = 3\n'
+          + '[[step]]\ndo = "wait"\nseconds = 3600\n' * 24)
+    assert refusal(ok, agile) is None
+    assert refusal((ROOT / "examples" / "session.toml").read_text(), agile) is None
