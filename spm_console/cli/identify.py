@@ -33,9 +33,9 @@ from spm_console.config.schema import Profile, Servo
 from spm_console.core.servo.identify import ANGLE_MAX_DEG, CLOCK_MAX_S, identify
 from spm_console.core.servo.load_fit import fit_load
 from spm_console.description.weight import holding_torque_nm
-from spm_console.errors import BadInputError, ExitCode, SolverError, SpmError
+from spm_console.errors import BadInputError, ExitCode, OptionConflictError, SolverError, SpmError
 from spm_console.formatting import fmt_deg
-from spm_console.motion.logs.profile_record import other_wrist
+from spm_console.motion.logs.profile_record import other_wrist, same_profile
 from spm_console.motion.logs.runlog import RunData, load_run
 from spm_console.numbers import NotANumberError, parse_number
 from spm_console.report.plot_identify import plot_experiment
@@ -162,7 +162,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if args.experiment:
         return _experiment(args, profile)
     if args.load and (args.delay or args.damping):
-        raise BadInputError("--load fits the delay and ζ too: leave out --delay and --damping")
+        raise OptionConflictError("--load fits the delay and ζ too: leave out --delay and --damping")
     for flag in ("out", "apply", "plot", "port", "sim_start"):
         if getattr(args, flag) not in (None, False):
             raise BadInputError(f"--{flag.replace('_', '-')} goes with --experiment")
@@ -227,7 +227,7 @@ def _same_wrist(run: RunData, profile: Profile, path: str) -> None:
     if differ:
         raise BadInputError(f"{run.path}: logged on another wrist: its {theirs} differs from {here} "
                             f"in {', '.join(differ)}; a fit would be another wrist's servos: {own}")
-    if differ is None and logged.get("hash") != profile.digest():
+    if differ is None and not same_profile(logged, profile):
         if logged.get("name") != profile.name:
             raise BadInputError(f"{run.path}: logged with {theirs}, not {here}: {own}")
         info(f"note: {run.path.name} was logged with another version of {here}, before runs "

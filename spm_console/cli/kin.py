@@ -9,10 +9,10 @@ from typing import Any
 
 import numpy as np
 
-from spm_console.cli.common import add_common, emit, number, profile_of
+from spm_console.cli.common import add_common, emit, info, number, profile_of
 from spm_console.config.models import link_model_of, model_of
 from spm_console.config.schema import Profile
-from spm_console.core.kinematics.ik import ik, ik_rpy
+from spm_console.core.kinematics.ik import ROUNDED_AXES_TOL, ik, ik_rpy, nearest_orientation
 from spm_console.core.kinematics.modes import assembly_modes
 from spm_console.errors import BadInputError, ExitCode, InfeasibleError, UnreachableError
 from spm_console.formatting import fmt_residual, fmt_vec
@@ -134,8 +134,14 @@ def cmd_ik(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     model = model_of(profile)
     if args.v is not None:
-        vals = np.asarray([finite_number(x, "--v: every value") for x in args.v])
-        res = ik(model, vals.reshape(3, 3))
+        vals = np.asarray([finite_number(x, "--v: every value") for x in args.v]).reshape(3, 3)
+        near, dev = nearest_orientation(model, vals)
+        if dev <= ROUNDED_AXES_TOL:  # (axes as fk prints them, to four decimals, among them)
+            if dev > 1e-9:
+                info(f"note: --v lies {dev:.1e} from the platform's nearest orientation: "
+                     "θ is that orientation's")
+            vals = near
+        res = ik(model, vals)
     else:
         res = ik_rpy(model, *np.radians(rpy_angles(args.rpy, "--rpy")))
     _within_servo_limits(profile, res.theta_deg)

@@ -12,6 +12,7 @@ import numpy as np
 from spm_console.cli.common import add_common, add_force, emit, info, output_file, profile_of
 from spm_console.errors import BadInputError, ExitCode
 from spm_console.motion.logs.bag import METADATA_NAME
+from spm_console.motion.logs.profile_record import same_profile
 from spm_console.motion.logs.runlog import list_runs, load_run, resolve_run
 
 
@@ -120,7 +121,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise BadInputError(f"{run_dir.name} was logged with profile '{logged.get('name')}', not "
                             f"'{profile.name}' ({args.profile}): give the run's own profile with "
                             "--profile, its wrist draws the run")
-    same = logged.get("hash") == profile.digest()
+    same = same_profile(logged, profile)
     if not same:  # the same prototype, its profile edited since (or a newer version's keys)
         info(f"note: {run_dir.name} was logged with another version of '{profile.name}' (digest "
              f"{str(logged.get('hash'))[:12]}…, now {profile.digest()[:12]}…): its joints are "

@@ -155,7 +155,7 @@ EMULATOR_CHILD = "spm_console.devices.emulator.child"
 
 
 def _main(args_list: list[str]) -> int:
-    as_json = _wants_json(args_list)
+    as_json = _wants_json(args_list) or args_list[:1] == ["script"]  # (a script's: always)
     moving = args_list[:1] and (args_list[0] in MOVING_COMMANDS or (
         args_list[0] == "identify" and "--experiment" in args_list))
     if moving and "--help" not in args_list:
@@ -180,7 +180,7 @@ def _main(args_list: list[str]) -> int:
                 out().write(json.dumps({"ok": False, "exit_code": int(ExitCode.USAGE),
                                         "error": "no command given"}) + "\n")
             return int(ExitCode.USAGE)
-        as_json = bool(getattr(args, "json", False))
+        as_json = as_json or bool(getattr(args, "json", False))
         return int(args.func(args))
     except SpmError as exc:
         message = worded(exc.reason, "cli") if isinstance(exc, RefusedError) else exc.message

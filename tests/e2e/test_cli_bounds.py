@@ -208,7 +208,8 @@ def test_bad_argument_is_refused_with_its_code_and_reason(
     out, err = capsys.readouterr()
     assert got == code, err
     assert "Traceback" not in err
-    if as_json:  # one JSON object on stdout, also on failure
+    if as_json or argv[0] == "script":  # one JSON object on stdout, also on failure (a
+        # script's summary always)
         assert json.loads(out) == {"ok": False, "exit_code": code, "error": json.loads(out)["error"]}
     else:
         assert out == ""

@@ -56,6 +56,22 @@ def check_orientation(model: SpmModel, v: F, tol: float = 1e-6) -> None:
         raise BadInputError("orientation: axes are a mirror image of the platform (wrong handedness)")
 
 
+#: How far (each row, Euclidean) given axes may lie from an orientation of the platform and
+#: still be taken as it (axes printed to four decimals lie within about 1e-4).
+ROUNDED_AXES_TOL = 1e-3
+
+
+def nearest_orientation(model: SpmModel, v: F) -> tuple[F, float]:
+    """The platform's axes R v_home (rows) closest to ``v`` (rows v1..v3) in the least-squares
+    sense (orthogonal Procrustes, R a rotation), and the largest row distance to ``v``."""
+    v = np.asarray(v, float)
+    U, _, Wt = np.linalg.svd(v.T @ model.v_home)
+    D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Wt)) or 1.0)])
+    R = U @ D @ Wt
+    out = np.asarray(model.v_home @ R.T)
+    return out, float(np.linalg.norm(out - v, axis=1).max())
+
+
 def ik(model: SpmModel, v: F) -> IkResult:
     """θ (rad) that places the top axes at ``v`` (rows v1..v3) in the home working modes."""
     v = np.asarray(v, float)

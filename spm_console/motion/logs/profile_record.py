@@ -46,3 +46,16 @@ def other_wrist(logged: Mapping[str, object], profile: Profile) -> list[str] | N
         return None
     now = wrist_digests(profile)
     return [name for name in WRIST_SECTIONS if wrist.get(name) != now[name]]
+
+
+#: The emulated plants a run may have chosen for itself (``--plant``, the console's twin).
+PLANT_MODELS = ("ideal", "physical")
+
+
+def same_profile(logged: Mapping[str, object], profile: Profile) -> bool:
+    """Whether a run's ``profile`` record has ``profile``'s hash, with the emulated plant the
+    run chose (``[plant] model``, set per run by ``--plant`` or the console): a choice of
+    emulator, not an edit of the profile."""
+    digest = logged.get("hash")
+    return any(digest == profile.model_copy(update={"plant": profile.plant.model_copy(
+        update={"model": model})}).digest() for model in (profile.plant.model, *PLANT_MODELS))

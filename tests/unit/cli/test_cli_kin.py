@@ -97,3 +97,21 @@ def test_command_table_matches_registered_parsers() -> None:
         sub = parser.add_subparsers(dest="command")
         importlib.import_module(mod).register(sub)
         assert set(sub.choices) == {c for c, m in COMMANDS.items() if m == mod}, mod
+
+
+def test_ik_takes_the_axes_fk_prints(capsys: pytest.CaptureFixture[str]) -> None:
+    """fk prints v to four decimals, and ik refused them (norms 1 ± 1e-4 against a tolerance
+    of 1e-6): axes within ROUNDED_AXES_TOL of an orientation are taken as the nearest one,
+    with a note; axes farther off are still refused."""
+    code, out, _ = run(capsys, "fk", "--theta", "120", "100", "110")
+    assert code == 0
+    rows = [line.split("=", 1)[1] for line in out.splitlines() if line.startswith(("v1", "v2", "v3"))]
+    printed = [x.strip(" []") for row in rows for x in row.split(",")]
+    assert len(printed) == 9 and all(len(x.split(".")[1]) == 4 for x in printed)
+    code, out, err = run(capsys, "ik", "--v", *printed, "--json")
+    assert code == 0, err
+    assert "nearest orientation" in err
+    np.testing.assert_allclose(json.loads(out)["theta_deg"], [120, 100, 110], atol=0.01)
+    two = [f"{float(x):.2f}" for x in printed]
+    code, _, err = run(capsys, "ik", "--v", *two)
+    assert code == 4 and "unit vectors" in err

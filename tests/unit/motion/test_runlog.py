@@ -12,9 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from spm_console.config.schema import Profile
 from spm_console.errors import BadInputError
 from spm_console.motion.logs import runlog
 from spm_console.motion.logs.procid import current_process, writer_alive
+from spm_console.motion.logs.profile_record import same_profile
 from spm_console.motion.logs.runlog import (
     FLUSH_EVERY,
     LOGS_ENV,
@@ -196,3 +198,17 @@ def test_the_outcome_is_written_over_meta_json_when_the_disk_is_full(
     run = load_run(log.path)
     assert run.meta["outcome"] == "completed" and run.rows == 1
     assert not list(log.path.glob("*.tmp"))
+
+
+def test_a_run_on_the_physical_twin_is_logged_with_its_own_profile(agile: Profile) -> None:
+    """``--plant physical`` (and the console's twin) sets ``[plant] model`` for one run: its
+    log's hash is that of the copy, and ``logs export`` said the profile had been edited. The
+    emulated plant is a choice of emulator; any other change is an edit."""
+    physical = agile.model_copy(update={"plant": agile.plant.model_copy(update={"model": "physical"})})
+    assert physical.digest() != agile.digest()
+    for logged in (agile, physical):
+        assert same_profile({"hash": logged.digest()}, agile)
+        assert same_profile({"hash": logged.digest()}, physical)
+    edited = agile.model_copy(update={"servo": agile.servo.model_copy(update={"ts_s": 0.01})})
+    assert not same_profile({"hash": edited.digest()}, agile)
+    assert not same_profile({}, agile)
