@@ -89,7 +89,9 @@ def cmd_fk(args: argparse.Namespace) -> int:
         results = [replace(r, waypoints_deg=(*head, tuple(float(x) for x in t)),
                            route=start.route if start else "straight")
                    if r.ok else fk_route(profile, model, t, graph, start) for t, r in zip(T, fast, strict=True)]
-        recs = [fk_record(profile, model, links, r) for r in results]
+        # every record names its row (from 1) and θ, a refused one too
+        recs = [{"row": k, "theta_deg": [float(x) for x in t], **fk_record(profile, model, links, r)}
+                for k, (t, r) in enumerate(zip(T, results, strict=True), 1)]
         human = "\n".join(_row_text(t, rec) for t, rec in zip(T, recs, strict=True))
         emit(args, recs, human)  # a JSON list, one record per row
         return int(ExitCode.OK if all(r["ok"] for r in recs) else ExitCode.UNREACHABLE)

@@ -13,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from spm_console.config.schema import Profile
+from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError, SpmError
 from spm_console.input_rules import theta_for_fk, theta_in_grid, theta_in_servo_limits, vmax_arg
 from spm_console.scripting.steps import (
@@ -88,6 +89,11 @@ def _order(script: Script) -> None:
 
 def _check(script: Script, profile: Profile) -> None:
     _order(script)
+    for k, text in enumerate(script.session.faults, 1):  # as the session will parse them
+        try:
+            parse_fault(text)
+        except SpmError as exc:
+            raise exc.at(f"[session] key 'faults' item {k} ({text!r})") from None
     if script.session.initial_deg is not None:
         theta_in_servo_limits(list(script.session.initial_deg), "[session] key 'initial_deg'",
                               profile)

@@ -53,6 +53,19 @@ def test_fk_theta_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> No
     assert isinstance(res, list)
     assert len(res) == 3 and all(r["ok"] for r in res)
     np.testing.assert_allclose(res[2]["n"], [0, 0, 1], atol=1e-12)
+    assert [r["row"] for r in res] == [1, 2, 3]
+
+
+def test_fk_theta_file_names_the_row_it_could_not_solve(tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """A refused row's record had only ok, reason and the path's ζ: which row, and which θ,
+    was left to the reader to count."""
+    f = tmp_path / "t.csv"
+    f.write_text("95,110,105\n10,170,20\n")
+    code, out, _ = run(capsys, "fk", "--theta-file", str(f), "--json")
+    assert code == 5
+    bad = json.loads(out)[1]
+    assert bad["ok"] is False and bad["row"] == 2 and bad["theta_deg"] == [10, 170, 20]
 
 @pytest.mark.parametrize(
     ("argv", "code", "needle"),

@@ -171,3 +171,9 @@ def test_a_plan_before_the_execute_and_24_hours_of_waits_pass(agile: Profile) ->
           + '[[step]]\ndo = "wait"\nseconds = 3600\n' * 24)
     assert refusal(ok, agile) is None
     assert refusal((ROOT / "examples" / "session.toml").read_text(), agile) is None
+
+
+def test_a_bad_fault_names_the_script_and_the_item(agile: Profile) -> None:
+    exc = refusal('[session]\nfaults = ["stall:2@1", "explode:3"]\n[[step]]\ndo = "home"\n', agile)
+    assert exc is not None and exc.exit_code == ExitCode.BAD_INPUT
+    assert exc.message.startswith("lab/s.toml: [session] key 'faults' item 2"), exc.message
