@@ -20,7 +20,7 @@ from spm_console.cli.common import (
     profile_of,
 )
 from spm_console.config.schema import Profile
-from spm_console.core.regions.choice import region_containing
+from spm_console.core.regions.choice import choose_region
 from spm_console.core.workspace.build import check_theta
 from spm_console.core.workspace.data import Workspace
 from spm_console.core.workspace.verify import verify_cover, verify_region
@@ -206,10 +206,15 @@ def cmd_region(args: argparse.Namespace) -> int:
     if args.contain is None:
         region, cached = ws.region, True
         rec: dict[str, Any] = {}
+        what = f"cached P: {region.halfspaces} half-spaces"
     else:
-        region = region_containing(ws, a, b)
-        cached = region is ws.region
-        rec = {"theta_a_deg": a, "theta_b_deg": b}
+        choice = choose_region(ws, a, b)
+        region = choice.region
+        cached = choice.kind == "P"
+        rec = {"theta_a_deg": a, "theta_b_deg": b, "kind": choice.kind,
+               "resolution_deg": choice.resolution_deg}
+        what = (f"cached P: {region.halfspaces} half-spaces" if cached
+                else f"new region: {choice.describe()}")
     feas = ws.theta_deg()[ws.feasible]
     cov = float(region.contains(feas).mean()) if len(feas) else 0.0
     rec.update({"region": region.to_dict(), "halfspaces": region.halfspaces,
@@ -219,8 +224,7 @@ def cmd_region(args: argparse.Namespace) -> int:
             write_text_atomic(args.out, json.dumps(region.to_dict()) + "\n", BadInputError)
         except OSError as exc:
             raise BadInputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
-    human = (f"{'cached P' if cached else 'new region'}: {region.halfspaces} half-spaces, "
-             f"covers {100 * cov:.1f} % of feasible nodes")
+    human = f"{what}, covers {100 * cov:.1f} % of feasible nodes"
     emit(args, rec, human)
     return int(ExitCode.OK)
 
