@@ -79,7 +79,7 @@ def test_load_needs_three_joints_and_no_other_structure_flag(
     code, _, err = _run(capsys, "identify", "--csv", str(_csv(tmp_path, joints=2)), "--load")
     assert code == ExitCode.BAD_INPUT and "three joints" in err
     code, _, err = _run(capsys, "identify", "--csv", str(_csv(tmp_path)), "--load", "--delay")
-    assert code == ExitCode.BAD_INPUT and "--load" in err
+    assert code == ExitCode.USAGE and "--load" in err  # options that do not go together
 
 
 def test_load_refuses_poses_outside_the_servo_limits_and_jumps(
