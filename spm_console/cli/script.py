@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from spm_console.cli.common import info, output_may_be_gone, to_jsonable
+from spm_console.cli.common import EMITTED, info, output_may_be_gone, to_jsonable
 from spm_console.cli.streams import stdout_guard
 from spm_console.config.load import load_profile
 from spm_console.scripting.steps import load_script
@@ -48,6 +48,7 @@ def cmd_script(args: argparse.Namespace) -> int:
 
     runner = run_script(script, session, progress)
     summary = runner.summary()
+    EMITTED.set()  # the summary is the command's one JSON object: a later failure adds none
     with output_may_be_gone():  # after SIGHUP the terminal is gone: the exit code still tells
         stdout_guard.out().write(json.dumps(to_jsonable(summary)) + "\n")
         stdout_guard.out().flush()
