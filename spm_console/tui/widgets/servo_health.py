@@ -11,6 +11,7 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal
 from textual.content import Content
 from textual.widgets import DataTable, Input, Static
+from textual.widgets.data_table import ColumnKey
 
 from spm_console.motion.servo_tools import JOG_MAX_STEP_DEG, JointHealth, ServoHealth
 from spm_console.tui.widgets.field import TextField
@@ -67,6 +68,7 @@ class ServoTable(DataTable[str | Text]):
             for j, st in enumerate(statuses, start=1):
                 self.add_row(str(j), str(st.id), str(st.model_number), *("-",) * len(_LIVE),
                              key=str(j))
+        rows: list[list[str | Text]] = []
         for j, st in enumerate(statuses, start=1):
             if silent:
                 live: tuple[str, ...] = ("-", *(NO_REPLY,) * (len(_LIVE) - 1))
@@ -77,12 +79,22 @@ class ServoTable(DataTable[str | Text]):
                         "-" if st.temperature_c is None else f"{st.temperature_c:.0f} °C",
                         "-" if st.voltage_v is None else f"{st.voltage_v:.1f} V",
                         "none" if st.hardware_error == 0 else f"0x{st.hardware_error:02x}")
-            for (key, _), value in zip(_LIVE, live, strict=True):
-                alarm = value == NO_REPLY or (key == "hardware" and value not in ("none", "-"))
-                # (each column fits its values now: measured only on an idle moment, a new
-                # row's width depended on whether one came between its "-" and its values)
-                self.update_cell(str(j), key, Text(value, style="bold red") if alarm else value,
-                                 update_width=True)
+            rows.append([Text(value, style="bold red")
+                         if value == NO_REPLY or (key == "hardware" and value not in ("none", "-"))
+                         else value for (key, _), value in zip(_LIVE, live, strict=True)])
+        # Each column fits its label and the values it is about to show, set before the cells
+        # change: every cell update then renders header and rows anew at these widths. (Left
+        # to the table, widths were measured on its next idle moment, after a render had
+        # cached the header at the old width: the header and the rows could disagree.)
+        for i, (key, _) in enumerate(_LIVE):
+            column = self.columns[ColumnKey(key)]
+            column.content_width = max([column.label.cell_len,
+                                        *(Text(v).cell_len if isinstance(v, str) else v.cell_len
+                                          for v in (r[i] for r in rows))])
+        for j, cells in enumerate(rows, start=1):
+            for (key, _), cell in zip(_LIVE, cells, strict=True):
+                self.update_cell(str(j), key, cell)
+        self.refresh(layout=True)
 
 #: The jog step: more than 0°, at most the runtime's own bound; a longer text than fits the
 #: field is refused with the reason (never cut).
