@@ -15,6 +15,7 @@ from typing import Any
 
 from spm_console.cli.streams import stdout_guard
 from spm_console.config.load import load_profile
+from spm_console.config.plant import PLANT_MODELS
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError
 from spm_console.jsonutil import to_jsonable
@@ -22,7 +23,7 @@ from spm_console.numbers import NotANumberError, looks_numeric, parse_integer, p
 from spm_console.safe_io import atomic_temp, check_path_names
 
 #: The emulated wrists ``--plant`` chooses from (``[plant] model``).
-PLANTS = ("ideal", "physical")
+PLANTS = PLANT_MODELS
 #: File names a figure may be written to.
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
@@ -78,9 +79,7 @@ def console_plant(profile: Profile, plant: str | None) -> str | None:
 
 def with_plant(profile: Profile, plant: str | None) -> Profile:
     """``profile`` with ``[plant] model`` set to ``plant`` (unchanged for None)."""
-    if plant is None or plant == profile.plant.model:
-        return profile
-    return profile.model_copy(update={"plant": profile.plant.model_copy(update={"model": plant})})
+    return profile if plant is None else profile.with_plant_model(plant)
 
 
 def profile_of(args: argparse.Namespace) -> Profile:

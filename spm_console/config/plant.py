@@ -5,7 +5,7 @@ figure still means something physical and the emulated wrist stays stable.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Literal, get_args
 
 from pydantic import Field, model_validator
 
@@ -28,6 +28,9 @@ MAX_PAYLOAD_CENTRE_MM = 300.0
 #: Largest base tilt about each axis, deg: a bench that is not level, not a wall mount.
 MAX_BASE_TILT_DEG = 10.0
 Tilt = Annotated[Real, Field(ge=-MAX_BASE_TILT_DEG, le=MAX_BASE_TILT_DEG)]
+#: The emulated wrists ``[plant] model`` (and ``--plant``) choose from.
+PlantModel = Literal["ideal", "physical"]
+PLANT_MODELS: tuple[str, ...] = get_args(PlantModel)
 
 
 class Plant(Section):
@@ -36,7 +39,7 @@ class Plant(Section):
     at the output shaft, after the 225:1 gear; each names its source. Each lower bound is a
     size below which the figure means nothing physical (or the emulated wrist goes unstable)."""
 
-    model: Literal["ideal", "physical"] = "ideal"
+    model: PlantModel = "ideal"
     """Which emulated wrist ``--sim`` runs."""
     supply_v: Real = Field(default=12.0, ge=1.0, le=30.0)
     """Supply voltage, V, 1..30: the MX-106 e-manual's 12 V rating."""

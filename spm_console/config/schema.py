@@ -361,6 +361,13 @@ class Profile(Section):
     def name(self) -> str:
         return self.profile.name
 
+    def with_plant_model(self, model: str) -> Profile:
+        """This profile with ``[plant] model`` set to ``model`` (the emulated wrist a run
+        chooses: ``--plant``, the console's twin)."""
+        if model == self.plant.model:
+            return self
+        return self.model_copy(update={"plant": self.plant.model_copy(update={"model": model})})
+
     def digest(self) -> str:
         """SHA-256 of the canonical JSON of every field (the profile's hash)."""
         blob = json.dumps(_digested(self.model_dump(mode="json")), sort_keys=True,

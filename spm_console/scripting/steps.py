@@ -11,6 +11,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, Strict, ValidationError, field_validator
 
+from spm_console.config.plant import PlantModel
 from spm_console.config.schema import Count, Real
 from spm_console.core.bounds import MX106_NO_LOAD_SPEED_DEGPS, N_MAX
 from spm_console.errors import BadInputError, ExitCode, SpmError
@@ -51,7 +52,7 @@ class SessionSpec(_Model):
     initial_deg: Vec3 | None = None
     faults: tuple[str, ...] = ()
     logs: str | None = None
-    plant: Literal["ideal", "physical"] | None = None
+    plant: PlantModel | None = None
     """The emulated wrist (as ``--plant``): None keeps the profile's ``[plant] model``."""
 
 

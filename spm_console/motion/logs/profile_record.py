@@ -16,6 +16,7 @@ import hashlib
 import json
 from collections.abc import Mapping
 
+from spm_console.config.plant import PLANT_MODELS
 from spm_console.config.schema import Profile
 
 #: The sections whose digests a run log records as its wrist.
@@ -48,14 +49,10 @@ def other_wrist(logged: Mapping[str, object], profile: Profile) -> list[str] | N
     return [name for name in WRIST_SECTIONS if wrist.get(name) != now[name]]
 
 
-#: The emulated plants a run may have chosen for itself (``--plant``, the console's twin).
-PLANT_MODELS = ("ideal", "physical")
-
-
 def same_profile(logged: Mapping[str, object], profile: Profile) -> bool:
     """Whether a run's ``profile`` record has ``profile``'s hash, with the emulated plant the
     run chose (``[plant] model``, set per run by ``--plant`` or the console): a choice of
     emulator, not an edit of the profile."""
     digest = logged.get("hash")
-    return any(digest == profile.model_copy(update={"plant": profile.plant.model_copy(
-        update={"model": model})}).digest() for model in (profile.plant.model, *PLANT_MODELS))
+    return any(digest == profile.with_plant_model(model).digest()
+               for model in (profile.plant.model, *PLANT_MODELS))
