@@ -229,6 +229,9 @@ class _Server:
             self.last_heartbeat = time.monotonic()
         elif isinstance(req, EStop):
             self.estop(req.reason, req.sent_clock, req.by_signal)
+            sim = self.ctx.clock()
+            if sim is not None:
+                sim.stop_taken()
         elif isinstance(req, SetTarget):
             feed = self.feed
             if feed is not None:
@@ -493,6 +496,9 @@ def serve(conn: Connection, start: Start) -> None:
         conn.send(Failed(0, exc.message, int(exc.exit_code)))
         return
     conn.send(Reply(0, os.getpid()))
+    sim = start.ctx.clock()
+    if sim is not None:  # this thread reads the E-stops: its own waits do not hold time for them
+        sim.takes_stops()
     _estop_on_signals(server)
     signal.signal(signal.SIGUSR1, lambda *_: server.estop("E-stop signal to the motion process"))
     _warm_up()

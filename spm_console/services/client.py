@@ -88,6 +88,8 @@ class MotionClient:
         self.conn = Connection(mine.detach())
         self._clock: Callable[[], float] = time.perf_counter if sim_clock is None else sim_clock.now
         """The motion process's clock (E-stops are stamped on it)."""
+        self._sim = sim_clock
+        """The simulated clock, which holds time until the E-stops sent are taken."""
         ctx = RunContext(port, sim, tuple(faults), None if logs_root is None else str(logs_root),
                          None if sim_clock is None else sim_clock.path, preview)
         self.conn.send(Start(profile, ctx, None if cache_dir is None else str(cache_dir)))
@@ -308,6 +310,8 @@ class MotionClient:
 
         Safe in a signal handler: when the handler interrupted this thread in the middle of
         a send, the E-stop goes out from a helper thread as soon as that send is done."""
+        if self._sim is not None:  # counted before the stamp: time waits for it from then
+            self._sim.stop_sent()
         msg = EStop(reason, self._clock(), by_signal)
         if self._lock.acquire(blocking=False):
             self._lock.release()
@@ -321,7 +325,8 @@ class MotionClient:
             self._send(msg)
             return
         except MotionProcessLostError:
-            pass
+            if self._sim is not None:
+                self._sim.stop_sent(-1)  # not sent: time does not wait for it
         if self.process.poll() is None:
             with contextlib.suppress(OSError):
                 self.process.send_signal(signal.SIGUSR1)

@@ -15,13 +15,18 @@ creates it, the motion process and the emulator attach to it by path) holds:
   fault (+inf: none), so a client waiting for it moves the clock there instead of waiting;
   the emulator writes it after each reply it sends, so ``due > now`` once every reply due by
   now is on its way.
+* ``stops sent`` and ``stops taken``: the E-stop messages the front end has sent and those
+  the motion process has handed to its loop. Time moves on only once every E-stop sent is
+  taken (bounded, as the bus's bytes): an E-stop acts at the simulated instant it was sent,
+  however long the message waited for a core.
 
 The emulator integrates its physics up to the clock's value when it handles a request
 (never on its own schedule): the twin steps exactly to the instant each request asks about.
 
 Limits, stated plainly: one bus client at a time counts its bytes (the motion process owns the
 port exclusively); values are aligned 8-byte words, written by one process each (``now`` by the
-client's side, ``rx`` and ``due`` by the emulator). Seconds throughout.
+client's side, ``rx`` and ``due`` by the emulator, ``stops sent`` by the front end, ``stops
+taken`` by the motion process). Seconds throughout.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import math
 import mmap
 import os
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -51,7 +57,7 @@ SPIN_S = 0.002 if len(os.sched_getaffinity(0)) > 1 else 0.0
 PACE_GAP_S = 0.25
 _SIZE = 64
 _NOW, _DUE, _RATE = 0, 1, 4  # float64 words
-_TX, _RX = 2, 3  # uint64 words
+_TX, _RX, _STOPS_SENT, _STOPS_TAKEN = 2, 3, 5, 6  # uint64 words
 
 
 class SimClock:
@@ -67,9 +73,14 @@ class SimClock:
         finally:
             os.close(fd)
         self._f = np.ndarray((5,), np.float64, buffer=self._mm)
-        self._u = np.ndarray((4,), np.uint64, buffer=self._mm)
+        self._u = np.ndarray((7,), np.uint64, buffer=self._mm)
         self._paced: tuple[float, float] | None = None
         """(simulated, wall-clock) instants of this process's last paced wait."""
+        self._stops_lost = 0
+        """E-stops sent that this process counts as never to be taken: not taken in time, or
+        sent before the motion process that takes them began."""
+        self._taker: int | None = None
+        """The thread that takes the E-stop messages (it never waits for them itself)."""
 
     @classmethod
     def create(cls, start_s: float = 0.0, rate: float = 0.0) -> SimClock:
@@ -109,9 +120,10 @@ class SimClock:
 
     def advance_to(self, t: float) -> None:
         """Move the clock to ``t`` (never back), once the emulator has answered everything
-        sent."""
+        sent and every E-stop sent is taken."""
         self.catch_up()
         if t > self._f[_NOW]:
+            self._take_stops()
             self._f[_NOW] = float(t)
 
     @property
@@ -162,6 +174,44 @@ class SimClock:
             if self.caught_up():
                 return True
         return False
+
+    # --- E-stops ----------------------------------------------------------------------
+    def stop_sent(self, n: int = 1) -> None:
+        """The front end is sending ``n`` E-stop messages (−1: one it sent could not go)."""
+        self._u[_STOPS_SENT] = np.uint64(max(0, int(self._u[_STOPS_SENT]) + n))
+
+    def takes_stops(self) -> None:
+        """The calling thread reads the E-stop messages: its own waits never hold time for
+        them (it could not take one while it waited)."""
+        self._taker = threading.get_ident()
+        self._stops_lost = self._stops_unseen()
+
+    def stop_taken(self) -> None:
+        """The motion process handed an E-stop message to its loop."""
+        self._u[_STOPS_TAKEN] += np.uint64(1)
+
+    def _stops_unseen(self) -> int:
+        return int(self._u[_STOPS_SENT]) - int(self._u[_STOPS_TAKEN])
+
+    def stops_pending(self) -> int:
+        """E-stops sent and not taken (nor counted lost by this process)."""
+        pending = self._stops_unseen() - self._stops_lost
+        if pending < 0:  # one counted lost was taken after all, or its send withdrawn
+            self._stops_lost = max(0, self._stops_unseen())
+            return 0
+        return pending
+
+    def _take_stops(self) -> None:
+        """Wait (wall clock, at most :data:`CATCH_UP_S`) until every E-stop sent is taken; one not
+        taken by then is counted lost (time moves on, and is not held for it again)."""
+        if not self.stops_pending() or threading.get_ident() == self._taker:
+            return
+        end = time.perf_counter() + CATCH_UP_S
+        while time.perf_counter() < end:
+            time.sleep(POLL_S)
+            if not self.stops_pending():
+                return
+        self._stops_lost = max(0, self._stops_unseen())
 
     @property
     def due(self) -> float:

@@ -92,3 +92,69 @@ def test_a_bad_pace_is_refused() -> None:
     for rate in (-1.0, math.nan, math.inf):
         with pytest.raises(ValueError):
             SimClock.create(rate=rate)
+
+
+def _advance_in_thread(clock: SimClock, t: float) -> threading.Thread:
+    th = threading.Thread(target=clock.advance_to, args=(t,))
+    th.start()
+    return th
+
+
+def test_time_waits_for_an_e_stop_sent_until_it_is_taken(clock: SimClock) -> None:
+    """The front end counts an E-stop before stamping it; the motion process counts it once
+    its loop has it: time does not move past the stamp before then."""
+    front_end = SimClock.attach(clock.path)  # as the front end's process maps it
+    front_end.stop_sent()
+    assert clock.stops_pending() == 1
+    mover = _advance_in_thread(clock, 6.0)
+    time.sleep(0.05)
+    assert mover.is_alive() and clock.now() == 5.0  # held at the stamp
+    clock.stop_taken()
+    mover.join(1.0)
+    assert not mover.is_alive() and clock.now() == 6.0 and clock.stops_pending() == 0
+
+
+def test_an_e_stop_that_could_not_be_sent_holds_nothing(clock: SimClock) -> None:
+    clock.stop_sent()
+    clock.stop_sent(-1)
+    t0 = time.perf_counter()
+    clock.advance_to(6.0)
+    assert clock.now() == 6.0 and time.perf_counter() - t0 < 0.5
+
+
+def test_the_thread_that_takes_e_stops_never_waits_for_them(clock: SimClock) -> None:
+    clock.takes_stops()
+    clock.stop_sent()
+    t0 = time.perf_counter()
+    clock.advance_to(6.0)  # (it could not take the stop while it waited)
+    assert clock.now() == 6.0 and time.perf_counter() - t0 < 0.5
+    mover = _advance_in_thread(clock, 7.0)  # any other thread waits
+    time.sleep(0.05)
+    assert mover.is_alive()
+    clock.stop_taken()
+    mover.join(1.0)
+    assert clock.now() == 7.0
+
+
+def test_an_e_stop_never_taken_holds_time_once_only(clock: SimClock,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("spm_console.system.simclock.CATCH_UP_S", 0.05)
+    clock.stop_sent()
+    t0 = time.perf_counter()
+    clock.advance_to(6.0)
+    assert clock.now() == 6.0 and 0.05 <= time.perf_counter() - t0 < 1.0
+    assert clock.stops_pending() == 0  # counted lost: the next advance does not wait
+    clock.stop_taken()  # taken late after all
+    assert clock.stops_pending() == 0
+    clock.stop_sent()  # a new one is waited for again
+    assert clock.stops_pending() == 1
+
+
+def test_a_new_motion_process_does_not_wait_for_e_stops_sent_before_it(clock: SimClock) -> None:
+    clock.stop_sent(2)
+    clock.stop_taken()
+    late = SimClock.attach(clock.path)  # a motion process started after them
+    late.takes_stops()
+    assert late.stops_pending() == 0
+    clock.stop_sent()
+    assert late.stops_pending() == 1
