@@ -12,9 +12,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from spm_console.config.schema import Profile
+from spm_console.core.workspace.build import check_theta
+from spm_console.core.workspace.data import Workspace
 from spm_console.devices.emulator.faults import parse_fault
-from spm_console.errors import BadInputError, SpmError
+from spm_console.errors import BadInputError, InfeasibleError, Issue, SpmError
+from spm_console.formatting import fmt_deg
 from spm_console.input_rules import theta_for_fk, theta_in_grid, theta_in_servo_limits, vmax_arg
 from spm_console.scripting.steps import (
     AssertStep,
@@ -38,12 +43,18 @@ def _endpoint(theta: list[float], what: str, profile: Profile) -> None:
     theta_in_grid(theta, what, profile)
 
 
-def _pose(pose: PoseIn, where: str, key: str, profile: Profile) -> None:
+def _pose(pose: PoseIn, where: str, key: str, profile: Profile) -> tuple[list[float], str] | None:
+    """(θ, how the refusal names it) of an end given as θ or as an orientation, checked
+    as ``plan --start/--goal``; None for "current" and "home"."""
     if isinstance(pose, ThetaPose):
-        _endpoint(list(pose.theta), f"{where} '{key}.theta'", profile)
+        theta, what = list(pose.theta), f"{where} '{key}.theta'"
     elif isinstance(pose, RpyPose):  # the θ the plan will start or end at, found as the step will
         what = f"{where} '{key}.rpy'"
-        _endpoint([float(x) for x in theta_of_rpy(profile, pose.rpy, what)], what, profile)
+        theta = [float(x) for x in theta_of_rpy(profile, pose.rpy, what)]
+    else:
+        return None
+    _endpoint(theta, what, profile)
+    return theta, what
 
 
 def _follow(step: FollowStep, where: str, profile: Profile) -> None:
@@ -118,6 +129,30 @@ def _check(script: Script, profile: Profile) -> None:
             _follow(step, where, profile)
         elif isinstance(step, AssertStep) and step.theta_near is not None:
             theta_for_fk(list(step.theta_near), f"{where} 'theta_near'")
+
+
+def plan_ends(script: Script, profile: Profile) -> list[tuple[list[float], str]]:
+    """The plan steps' starts and goals given as θ or orientations: (θ in degrees, how a
+    refusal names it), in step order (:func:`check_script` has checked them)."""
+    out = []
+    for i, step in enumerate(script.step, 1):
+        if isinstance(step, PlanStep):
+            for key in ("start", "goal"):
+                end = _pose(getattr(step, key), f"step {i} (plan) key", key, profile)
+                if end is not None:
+                    out.append(end)
+    return out
+
+
+def check_plan_ends(script: Script, profile: Profile, workspace: Workspace) -> None:
+    """Every plan step's start and goal given as θ or an orientation is feasible in
+    ``workspace`` (as the plan step will check them): else InfeasibleError (exit 6) naming
+    the script's file, the step and the key, before the bus is opened."""
+    for theta, what in plan_ends(script, profile):
+        chk = check_theta(workspace, np.asarray(theta, float))
+        if not chk.feasible:
+            raise InfeasibleError(f"{what}: θ = {fmt_deg(theta)} is {chk.verdict}",
+                                  Issue.END_NOT_FEASIBLE).at(script.source)
 
 
 def check_script(script: Script, profile: Profile) -> None:

@@ -74,7 +74,7 @@ from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.devices.emulator.faults import parse_fault
 from spm_console.errors import BadInputError, ExitCode, RefusedError, SpmError
 from spm_console.refusals import worded
-from spm_console.scripting.checks import check_script
+from spm_console.scripting.checks import check_plan_ends, check_script, plan_ends
 from spm_console.scripting.steps import (
     AssertStep,
     ExecuteStep,
@@ -361,8 +361,15 @@ def session_for(script: Script, profile: Profile | None = None, port: str | None
         profile = profile.model_copy(update={"plant": profile.plant.model_copy(
             update={"model": spec.plant})})
     logs_dir = logs if logs is not None else (Path(spec.logs) if spec.logs else None)
-    return Session(profile, port=dev, sim=dev is None, logs_root=logs_dir, faults=faults,
-                   initial_deg=spec.initial_deg)
+    session = Session(profile, port=dev, sim=dev is None, logs_root=logs_dir, faults=faults,
+                      initial_deg=spec.initial_deg)
+    if plan_ends(script, profile):  # a plan's given end not feasible: refused before homing
+        try:
+            check_plan_ends(script, profile, session.wrist.load_workspace())
+        except BaseException:
+            session.close()
+            raise
+    return session
 
 
 def run_script(script: Script, session: Session, progress: Callable[[str], None]) -> ScriptRunner:

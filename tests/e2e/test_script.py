@@ -205,6 +205,20 @@ def test_an_orientation_ik_cannot_place_is_refused_before_the_homing(
     assert "orientation out of reach" in err and not (tmp_path / "logs").exists()
 
 
+def test_a_plan_end_outside_the_workspace_is_refused_before_the_homing(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A plan step's goal inside the grid and servo limits but not feasible: exit 6 as
+    ``plan --goal`` gives, naming the script, step and key, before anything moves (no run
+    log: the homing before it never ran)."""
+    f = tmp_path / "s.toml"
+    f.write_text('[[step]]\ndo = "home"\n[[step]]\ndo = "plan"\n'
+                 'goal = {theta = [70.0, 155.0, 70.0]}\n')
+    assert main(["script", str(f), "--logs", str(tmp_path / "logs")]) == ExitCode.INFEASIBLE
+    err = capsys.readouterr().err
+    assert f"{f}: step 2 (plan) key 'goal.theta': θ = " in err, err
+    assert "NOT feasible" in err and not (tmp_path / "logs").exists()
+
+
 def test_bad_script_exit_code_and_no_traceback(tmp_path) -> None:
     f = tmp_path / "bad.toml"
     f.write_text('[[step]]\ndo = "dance"\n')
