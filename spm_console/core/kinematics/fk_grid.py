@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,8 +35,8 @@ class GridFk:
     """Grid values of θ1, θ2, θ3, rad."""
     R: F
     """Platform rotations (M1, M2, M3, 3, 3); NaN where unreached."""
-    v: F
-    """Top axes (M1, M2, M3, 3, 3) rows v1..v3; NaN where unreached."""
+    v_home: F
+    """The top axes at home (3, 3), rows v1⁰..v3⁰ (:attr:`v` turns them by R)."""
     zeta: F
     """Conditioning index ζ; 0 where unreached."""
     reached: B
@@ -44,6 +45,13 @@ class GridFk:
     """Max |w·v − cos α2| per node (NaN where unreached)."""
     waves: int
     """Flood-fill waves used."""
+
+    @cached_property
+    def v(self) -> F:
+        """Top axes (M1, M2, M3, 3, 3) rows v1..v3, v_i = R v_i⁰; NaN where unreached
+        (computed when first read: the workspace build takes them of the reached nodes
+        only)."""
+        return platform_axes(self.R, self.v_home)
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -105,10 +113,9 @@ def track_grid(
     tried = np.zeros(n_nodes, bool)
 
     def result(waves: int) -> GridFk:
-        R = np.ascontiguousarray(S[:9].T).reshape(n_nodes, 3, 3)
-        v = platform_axes(R, model.v_home).reshape(*shape, 3, 3)
-        return GridFk(axes, R.reshape(*shape, 3, 3), v, zeta.reshape(shape), valid.reshape(shape),
-                      res.reshape(shape), waves)
+        R = np.ascontiguousarray(S[:9].T).reshape(*shape, 3, 3)
+        return GridFk(axes, R, np.asarray(model.v_home, float), zeta.reshape(shape),
+                      valid.reshape(shape), res.reshape(shape), waves)
 
     # start: the node nearest home, tracked from home by continuation
     start = tuple(int(np.argmin(np.abs(a - t))) for a, t in zip(axes, model.theta_home, strict=True))
