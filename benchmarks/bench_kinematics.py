@@ -35,11 +35,12 @@ def run() -> list[Row]:
     idx = rng.integers(0, len(ax), (SAMPLE, 3))
     seed = np.asarray(prof.home.sign_seed, float)
     seeded_solve(model.geom, np.array([ax[0], ax[0], ax[0]]), seed)  # warm-up: scipy.optimize's import
+    gv = g.v  # (computed when first read: outside the baseline's timing)
     t0 = time.perf_counter()
     disagree = 0
     for i, j, k in idx:
         v, ok = seeded_solve(model.geom, np.array([ax[i], ax[j], ax[k]]), seed)
-        if g.reached[i, j, k] and (not ok or np.abs(v - g.v[i, j, k]).max() > 1e-6):
+        if g.reached[i, j, k] and (not ok or np.abs(v - gv[i, j, k]).max() > 1e-6):
             disagree += 1
     per_node = (time.perf_counter() - t0) / SAMPLE
     baseline = per_node * n

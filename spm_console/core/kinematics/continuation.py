@@ -272,11 +272,11 @@ class Kernel:
         z = ops.ratio01(num, den)
         return z, det * self.det_sign, [d[i] * self.signs[i] for i in range(3)], Local(w, cols, det, d)
 
-    def step(self, th_old: Vec, R_old: Mat, th_new: Vec, at_old: Local | None = None
-             ) -> KernelStep:
+    def step(self, th_old: Vec, R_old: Mat, th_new: Vec, at_old: Local | None = None,
+             w_new: Sequence[Vec] | None = None) -> KernelStep:
         """Predict from (θ_old, R_old), correct at θ_new, as component arrays.
         ``at_old``: the Jacobians at (θ_old, R_old) when the previous step returned them
-        (:attr:`KernelStep.at`)."""
+        (:attr:`KernelStep.at`); ``w_new``: :meth:`w` of θ_new when the caller has it."""
         if at_old is None:
             w_old = self.w(th_old)
             v_old = self.axes(R_old)
@@ -285,7 +285,8 @@ class Kernel:
         rhs = [at_old.j2[i] * (th_new[i] - th_old[i]) for i in range(3)]
         om = _solve_adj(at_old.cols, at_old.det, rhs, self.ops)
         Rp = _matmul(_expm(om, self.ops), R_old)
-        w_new = self.w(th_new)
+        if w_new is None:
+            w_new = self.w(th_new)
         Rc, res = self.newton(w_new, [row[:] for row in Rp])
         dR = [Rc[a][b] - Rp[a][b] for a in range(3) for b in range(3)]
         corr = self.ops.sqrt(sum(x * x for x in dR))

@@ -132,6 +132,12 @@ def track_grid(
                                                      [list(R0[0:3]), list(R0[3:6]), list(R0[6:9])])[3]))
     waves = 0
     nbr = neighbour_table(shape)
+    # w_i(θ_i) (eq. 2) of every value on axis i, (3, M_i), and each node's index on each axis
+    w_axis = [np.array(x) for x in kern.w(list(axes))]
+    at_axis = np.indices(shape).reshape(3, -1)
+    # ζ of valid nodes, −1 elsewhere and in the last slot (so a missing neighbour, −1, reads −1)
+    z_valid = np.full(n_nodes + 1, -1.0)
+    z_valid[s] = zeta[s]
     mark = np.zeros(n_nodes, bool)
     new = np.array([s], np.int64)  # nodes validated by the last wave
     while True:
@@ -139,8 +145,8 @@ def track_grid(
         # older valid nodes were tried before), in index order; parent: the valid neighbour
         # with the largest ζ, the first in _DIRS order on a tie
         nb = nbr[new].reshape(-1)
-        mark[nb[nb >= 0]] = True
-        mark[tried] = False
+        nb = nb[nb >= 0]
+        mark[nb[~tried[nb]]] = True
         cand = np.flatnonzero(mark)
         mark[cand] = False
         if len(cand) == 0:
@@ -148,18 +154,20 @@ def track_grid(
         waves += 1
         tried[cand] = True
         fl = nbr[cand]  # (n, 6)
-        zn = np.where(fl >= 0, np.where(valid[fl], zeta[fl], -1.0), -1.0)
-        par = fl[np.arange(len(cand)), np.argmax(zn, axis=1)]
+        par = fl[np.arange(len(cand)), np.argmax(z_valid[fl], axis=1)]
         Sp = S[:, par]
         st = kern.step(list(TH3[:, par]), [list(Sp[0:3]), list(Sp[3:6]), list(Sp[6:9])],
-                       list(TH3[:, cand]), at_old=_local_of(Sp[9:]))
+                       list(TH3[:, cand]), at_old=_local_of(Sp[9:]),
+                       w_new=[list(w_axis[i][:, at_axis[i, cand]]) for i in range(3)])
         good = st.good(zeta_floor)
+        S[:, cand] = np.stack([*(x for row in st.R for x in row), *_local_rows(st.at)])
+        if not good.all():  # the rejected nodes' columns back to unreached
+            bad = cand[~good]
+            S[:9, bad] = np.nan
+            S[9:, bad] = 0.0
         g = cand[good]
-        out = np.empty((31, len(cand)))
-        for i, x in enumerate([*(x for row in st.R for x in row), *_local_rows(st.at)]):
-            out[i] = x
-        S[:, g] = out[:, good]
         zeta[g] = np.asarray(st.zeta)[good]
+        z_valid[g] = zeta[g]
         res[g] = np.asarray(st.residual)[good]
         valid[g] = True
         new = g
