@@ -38,17 +38,21 @@ def straight_guess(problem: PlanProblem) -> F:
 def run_qp(problem: PlanProblem, guess: F | None = None,
            backend: Backend = "clarabel",
            warm: WorkingSet | None = None,
-           pool: Pool | None = None) -> tuple[Equalities, QpOutcome]:
+           pool: Pool | None = None,
+           eq: Equalities | None = None) -> tuple[Equalities, QpOutcome]:
     """Build and solve the QP of ``problem`` (after checking start and goal are in P).
 
     ``warm``, the working set of a neighbouring problem with the same pool, starts the
     dual active set (its rows with an infinite bound here are left out). ``backend`` solves
     the screened QP when the dual active set does not certify (Clarabel by default: measured
     faster and more robust than OSQP here, see benchmarks/bench_plan.py); if it fails the
-    other backend is tried. ``pool``: the problem's own, when the caller has it.
+    other backend is tried. ``pool``: the problem's own, when the caller has it. ``eq``: its
+    equalities, given by a caller that checked its ends (a route's switch candidates share
+    the start, goal, N and end regions of the assignment first solved).
     """
-    problem.check_endpoints()
-    eq = equalities(problem)
+    if eq is None:
+        problem.check_endpoints()
+        eq = equalities(problem)
     if pool is None:
         pool = Pool(problem)
     g = straight_guess(problem) if guess is None else guess

@@ -158,7 +158,7 @@ def improve_switches(problem: PlanProblem, eq: Equalities, first: QpOutcome, t0:
         # region row, which every switch assignment only restricts further — no candidate
         # can cost less
         return finish(problem, eq, first, t0), 0
-    search = _SwitchSearch(problem, pool, first.z, qp_cost(eq, first.z), warm, max_qps)
+    search = _SwitchSearch(problem, eq, pool, first.z, qp_cost(eq, first.z), warm, max_qps)
     for i in range(len(problem.regions.switch)):
         if not any(_line_search(search, i, sign, FIRST_SWITCH_STEP) for sign in (1, -1)):
             for sign in (1, -1):  # neither way by the first step: the samples beside it
@@ -177,6 +177,8 @@ class _SwitchSearch:
     """The state of a route's switch search: the best assignment so far and its answer."""
 
     problem: PlanProblem
+    eq: Equalities
+    """``problem``'s equalities: every candidate's (only the switch samples differ)."""
     pool: Pool
     guess: F
     cost: float
@@ -226,7 +228,7 @@ class _SwitchSearch:
         if not self.frees_a_held_row(pool):
             return False  # it cannot cost less than the best: no QP
         self.qps += 1
-        c_eq, out = run_qp(cand, self.guess, warm=self.warm, pool=pool)
+        c_eq, out = run_qp(cand, self.guess, warm=self.warm, pool=pool, eq=self.eq)
         if out.status != "solved" or out.z is None or not out.certified:
             return False  # infeasible, or no certified answer
         c = qp_cost(c_eq, out.z)

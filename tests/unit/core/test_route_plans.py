@@ -131,7 +131,7 @@ def test_an_assignment_that_frees_no_held_row_costs_no_less_and_is_not_solved() 
     eq, out = run_qp(first)
     assert out.certified and out.z is not None
     pool = Pool(first)
-    search = rs._SwitchSearch(first, pool, out.z, rs.qp_cost(eq, out.z),
+    search = rs._SwitchSearch(first, eq, pool, out.z, rs.qp_cost(eq, out.z),
                               WorkingSet(out.active, out.side), max_qps=0)
     skipped = cheaper = 0
     for s in range(1, N):
