@@ -36,10 +36,6 @@ TRACK_TOL_DEG = 1.0
 SETTLE_S = 0.3
 #: Cycle of a nudge's ramp, s.
 CYCLE_S = 0.02
-#: Reads of the servos' positions tried before the nudge gives up on the bus (a lost reply
-#: is read again, as the servo loop tolerates isolated losses). The registers' set-up reads
-#: and writes are the bus's set-up transactions (:meth:`DynamixelBus.set_up`).
-READ_TRIES = 3
 
 
 @dataclass
@@ -93,15 +89,11 @@ def check_moves(moves: Sequence[tuple[int, float]], ids: Sequence[int], speed_de
 
 
 def _ticks(bus: DynamixelBus) -> list[int]:
-    """Present Position of the joints' servos, a lost reply read again (:data:`READ_TRIES`)."""
-    for k in range(READ_TRIES):
-        try:
-            return bus.read_ticks()
-        except CommError:
-            if k == READ_TRIES - 1:
-                raise
-            bus.drain_input(0.002)
-    raise AssertionError("unreachable")
+    """Present Position of the joints' servos: a set-up read (:meth:`DynamixelBus.set_up`),
+    a lost or late reply tried again once the line is quiet, with more patience (a link that
+    answers later than its timeout, a USB adapter's latency timer, loads nothing here: the
+    ramp is timed by the clock, and a slow read only makes its steps longer)."""
+    return bus.set_up(bus.read_ticks)
 
 
 def _begin(bus: DynamixelBus, state: NudgeState) -> None:

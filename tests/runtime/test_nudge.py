@@ -144,3 +144,25 @@ def test_a_bus_lost_before_the_release_is_a_bus_error_not_an_internal_one(
     finally:
         bus.close()
         em.stop()
+
+
+def test_a_nudge_completes_on_a_link_that_answers_later_than_its_timeout(
+        agile: Profile) -> None:
+    """Every reply 20 ms late (a USB adapter's default latency timer is 16 ms), the profile's
+    own 4 ms timeout: the nudge's position reads wait out the late replies and try again with
+    the set-up transactions' patience, as its register writes do, instead of failing the
+    commissioning on the first late burst."""
+    em = start_emulator(agile, [parse_fault("delay:0.02@0")], record=False, initial_deg=START)
+    bus = open_bus(agile, em.port)
+    try:
+        state = NudgeState()
+        ident = bus.ids[0]
+        r = run_nudge(bus, state, ((ident, 1.0),), 5.0, _never)
+        assert r.ok, r.stopped
+        tpd = bus.maps[0].ticks_per_turn / 360.0
+        assert (r.reached_ticks[0] - r.rest_ticks[0]) / tpd == pytest.approx(1.0, abs=0.1)
+        release(bus, state)
+        assert all(bus.set_up(lambda i=i: bus.read(i, "pwm_limit")) == 885 for i in bus.ids)
+    finally:
+        bus.close()
+        em.stop()
