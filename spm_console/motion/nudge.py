@@ -36,6 +36,13 @@ TRACK_TOL_DEG = 1.0
 SETTLE_S = 0.3
 #: Cycle of a nudge's ramp, s.
 CYCLE_S = 0.02
+#: Most time one cycle advances the ramp by, s: a cycle that took longer (a slow read) moves
+#: the goal no farther than two cycles' worth, so no step of the goal exceeds the speed bound
+#: times this (the ramp then takes longer).
+MAX_ADVANCE_S = 2 * CYCLE_S
+#: Quick reads of the servos' positions before a patient one (a lost reply is read again at
+#: once, as the servo loop tolerates isolated losses).
+READ_TRIES = 3
 
 
 @dataclass
@@ -89,10 +96,15 @@ def check_moves(moves: Sequence[tuple[int, float]], ids: Sequence[int], speed_de
 
 
 def _ticks(bus: DynamixelBus) -> list[int]:
-    """Present Position of the joints' servos: a set-up read (:meth:`DynamixelBus.set_up`),
-    a lost or late reply tried again once the line is quiet, with more patience (a link that
-    answers later than its timeout, a USB adapter's latency timer, loads nothing here: the
-    ramp is timed by the clock, and a slow read only makes its steps longer)."""
+    """Present Position of the joints' servos: a lost reply read again at once
+    (:data:`READ_TRIES` quick tries); when they all fail (a burst of late replies), once more
+    as a set-up read (:meth:`DynamixelBus.set_up`: the line quiet first, more patience)
+    before the nudge gives up on the bus."""
+    for _ in range(READ_TRIES):
+        try:
+            return bus.read_ticks()
+        except CommError:
+            bus.drain_input(0.002)
     return bus.set_up(bus.read_ticks)
 
 
@@ -140,7 +152,8 @@ def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, f
               clock: Callable[[], float] = time.monotonic,
               sleep: Callable[[float], None] = time.sleep) -> NudgeResult:
     """Move each listed servo to ``offset`` deg from its rest (0: back to it), the others
-    holding, on a ramp at ``speed_degps``; ``stop_asked()`` returns a reason to stop (an E-stop).
+    holding, on a ramp at ``speed_degps`` (slower when the bus is: :data:`MAX_ADVANCE_S`);
+    ``stop_asked()`` returns a reason to stop (an E-stop).
     ``clock`` and ``sleep``: the wall clock's, or a simulated clock's in lockstep."""
     ids = list(bus.ids)
     check_moves(moves, ids, speed_degps)
@@ -157,13 +170,15 @@ def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, f
         ramp_s = span_deg / speed_degps
         lag = 0.0
         stopped = ""
-        t_start = clock()
+        s, t_last = 0.0, clock()
         while True:
             reason = stop_asked()
             if reason:
                 stopped = f"stopped: {reason}"
                 break
-            s = 1.0 if ramp_s <= 0 else min(1.0, (clock() - t_start) / ramp_s)
+            now = clock()
+            s = 1.0 if ramp_s <= 0 else min(1.0, s + min(now - t_last, MAX_ADVANCE_S) / ramp_s)
+            t_last = now
             goal = {i: round(start[i] + s * (target[i] - start[i])) for i in ids}
             bus.sync_write("goal_position", goal)
             state.goal_ticks = goal

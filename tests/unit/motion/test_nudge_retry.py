@@ -6,6 +6,7 @@ restore."""
 from __future__ import annotations
 
 import contextlib
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from types import SimpleNamespace
@@ -16,7 +17,14 @@ import pytest
 from spm_console.devices.base import CommError
 from spm_console.devices.dynamixel.bus import SETUP_TIMEOUTS_S, DynamixelBus
 from spm_console.errors import BusError
-from spm_console.motion.nudge import PWM_LIMIT, NudgeState, release, run_nudge
+from spm_console.motion.nudge import (
+    MAX_ADVANCE_S,
+    PWM_LIMIT,
+    READ_TRIES,
+    NudgeState,
+    release,
+    run_nudge,
+)
 
 T = TypeVar("T")
 
@@ -123,3 +131,63 @@ def test_a_begin_cut_short_begins_again_and_restores_the_limits_it_first_saved()
     assert r.ok and bus.torque_on and set(bus.pwm.values()) == {PWM_LIMIT}
     release(bus, state)  # type: ignore[arg-type]
     assert bus.pwm == dict.fromkeys((1, 2, 3), 885) and not bus.torque_on
+
+
+@dataclass
+class SlowBus(LossyBus):
+    """Replies that come late in bursts: from every ``every``-th position read, the quick
+    tries fail, and the patient set-up read that follows takes ``slow_s`` of the clock."""
+
+    every: int = 4
+    slow_s: float = 0.3
+    t: float = 0.0
+    reads: int = 0
+    patient: int = 0
+    goals: list[dict[int, int]] = field(default_factory=list)
+
+    burst: int = 0
+
+    def read_ticks(self) -> list[int]:
+        self.reads += 1
+        if self.reads % self.every == 0:
+            self.burst = READ_TRIES  # this read and the quick tries after it fail
+        if self.burst and not self.patient:
+            self.burst -= 1
+            raise CommError("stale reply from id 1: the late answer to a sync read")
+        return [self.goal[i] for i in self.ids]
+
+    def set_up(self, fn: Callable[[], T]) -> T:
+        self.patient += 1
+        self.t += self.slow_s
+        try:
+            return fn()
+        finally:
+            self.patient -= 1
+
+    def sync_write(self, name: str, values: dict[int, int]) -> None:
+        super().sync_write(name, values)
+        self.goals.append(dict(values))
+
+    def clock(self) -> float:
+        return self.t
+
+    def sleep(self, s: float) -> None:
+        self.t += s
+
+
+def test_a_burst_of_late_replies_slows_the_ramp_and_never_steps_its_goal_past_the_speed() -> None:
+    """Position reads whose quick tries all fail are read once more with patience (not a
+    BusError that ends the commissioning); a read that took 0.3 s does not let the goal jump
+    by 0.3 s of ramp: no step of the goal exceeds the speed times MAX_ADVANCE_S."""
+    bus = SlowBus(lose=0, every=READ_TRIES + 2)
+    state = NudgeState()
+    speed = 5.0
+    r = run_nudge(bus, state, ((2, 2.0),), speed, _never,  # type: ignore[arg-type]
+                  clock=bus.clock, sleep=bus.sleep)
+    assert r.ok and bus.patient == 0 and bus.t > 0.3 * 3  # three bursts at least
+    tpd = 4096 / 360.0
+    ramp = [g[2] for g in bus.goals]
+    steps = [abs(b - a) / tpd for a, b in itertools.pairwise(ramp)]
+    assert ramp[-1] - ramp[0] == round(2.0 * tpd)
+    assert max(steps) <= speed * MAX_ADVANCE_S + 1.0 / tpd  # a tick of rounding
+    assert r.duration_s > 2.0 / speed  # the slow reads made the ramp longer, not faster
