@@ -21,11 +21,13 @@ from spm_console.config.models import model_of
 from spm_console.config.schema import Profile
 from spm_console.core.kinematics.model import newton
 from spm_console.core.kinematics.rotations import expm_so3
+from spm_console.devices.dynamixel.bus import open_bus
 from spm_console.devices.dynamixel.tick_map import joint_maps
 from spm_console.devices.emulator.bno055 import EmulatedBno055, ImuTruth
 from spm_console.devices.emulator.bus import EmulatorHandle, start_emulator
 from spm_console.motion.logs.runlog import load_run
 from spm_console.motion.nudge import BALL_DEG
+from tests.runtime.test_bus_emulator import relaxed
 from tests.support.paths import ROOT
 from tests.support.wiring import IDS, Operator, as_built
 
@@ -92,6 +94,8 @@ def test_commission_maps_zeroes_and_writes_the_wrist_as_built(
         (1, 3, 1), (2, 1, -1), (3, 2, 1)]
     built = load_profile(out)
     assert [j.id for j in built.bus.joints] == list(IDS)
+    # its next commands drive this wrist, not the emulated bus the template's empty port means
+    assert built.bus.port == em.port
     # the written profile reads the true joint angles from the servos' ticks
     maps = joint_maps(built)
     truth_maps = joint_maps(truth)
@@ -226,7 +230,7 @@ def test_answers_naming_one_leg_twice_are_refused_and_nothing_is_written(
     from spm_console.services.client import EstopRelay
     from spm_console.services.commissioning.run import CommissionRequest, run_commissioning
 
-    em, _imu, _truth = wrist
+    em, _imu, truth = wrist
     req = CommissionRequest(em.port, None, jig=True, out=tmp_path / "built.toml",
                             logs_root=tmp_path / "logs")
     with pytest.raises(BusError, match="two servos drive the same leg by the answers"):
@@ -235,3 +239,10 @@ def test_answers_naming_one_leg_twice_are_refused_and_nothing_is_written(
     assert not (tmp_path / "built.toml").exists()
     (run_dir,) = (tmp_path / "logs").iterdir()
     assert load_run(run_dir).meta["outcome"] == "refused"
+    # the jig came off at "map": a refusal after the nudges began leaves the wrist holding
+    bus = open_bus(relaxed(truth), em.port)
+    try:
+        assert bus.torque() == [True, True, True]
+        assert all(bus.read(i, "pwm_limit") == 885 for i in bus.ids)  # limits restored
+    finally:
+        bus.close()

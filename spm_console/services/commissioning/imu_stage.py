@@ -146,6 +146,8 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
         _ok(session.home(), "homing")
         moving += time.monotonic() - t0
         for k, theta in enumerate(design.theta_deg):
+            if stop is not None:  # a stop that came as the last move ended starts no other
+                stop.check()
             if np.abs(np.asarray(theta) - session.read_position()).max() > 0.05:
                 plan = session.plans.solve("mintime", PoseSpec("current"),
                                            PoseSpec("theta", theta), session.theta_deg,
@@ -159,6 +161,8 @@ def refine_with_imu(profile: Profile, port: str, imu: GravitySource,
             poses.append(theta)
             on_stage(f"imu: pose {k + 1}/{len(design.theta_deg)} θ = "
                      f"{', '.join(f'{x:.2f}' for x in thetas[-1])}°")
+        if stop is not None:
+            stop.check()
         plan = session.plans.solve("mintime", PoseSpec("current"), PoseSpec("home"),
                                    session.theta_deg, vmax_degps=POSE_SPEED_DEGPS)
         t0 = time.monotonic()

@@ -8,6 +8,7 @@ import datetime as dt
 from pathlib import Path
 
 from spm_console.config.edit import Value, with_joints, with_values
+from spm_console.config.plant import MAX_PAYLOAD_CENTRE_MM
 from spm_console.config.schema import Profile
 from spm_console.errors import BadInputError
 from spm_console.safe_io import read_text, write_text_atomic
@@ -21,10 +22,13 @@ from spm_console.store.identified_profiles import write_new
 
 
 def commissioned_text(base_text: str, result: Commissioned, source: str,
-                      when: dt.datetime | None = None, run: str = "") -> tuple[str, Profile]:
+                      when: dt.datetime | None = None, run: str = "",
+                      port: str = "") -> tuple[str, Profile]:
     """The base profile's text with ``[[bus.joints]]`` as built (ids, directions and, from the
     jig, tick offsets), each changed key commented with its provenance (``run``: the
-    commissioning's run folder); parsed and read back."""
+    commissioning's run folder; ``port``: the bus the wrist was commissioned on, written as
+    ``[bus] port`` where the base has another, so that the profile's next commands drive that
+    wrist and not the emulated bus an empty port means); parsed and read back."""
     stamp = (when or dt.datetime.now(dt.UTC)).strftime("%Y-%m-%dT%H:%M:%SZ")
     joints: list[dict[str, object]] = []
     for k, m in enumerate(result.legs):
@@ -41,13 +45,16 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
     where = f", run {run}" if run else ""
     note = f"commissioned {stamp} ({how}{where})"
     text, prof = with_joints(base_text, joints, note, source)  # type: ignore[arg-type]
+    if port and port != prof.bus.port:
+        text, prof = with_values(text, {("bus", "port"): port}, note, source)
     fitted: dict[tuple[str, str], Value] = {}
     if result.refinement is not None and result.refinement.arcs_deg is not None:
         g = result.profile.geometry
         fitted.update({
             ("geometry", "alpha1_leg_offset_deg"): list(g.alpha1_leg_offset_deg),
-            ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg),
-            ("home", "sign_seed"): list(result.profile.home.sign_seed)})
+            ("geometry", "alpha2_leg_offset_deg"): list(g.alpha2_leg_offset_deg)})
+        if tuple(result.profile.home.sign_seed) != tuple(prof.home.sign_seed):
+            fitted[("home", "sign_seed")] = list(result.profile.home.sign_seed)
     if result.refinement is not None and result.refinement.tilt_deg is not None:
         fitted[("plant", "base_tilt_deg")] = list(result.profile.plant.base_tilt_deg)
     if fitted:
@@ -93,15 +100,15 @@ def commissioned_path(profile_path: Path, when: dt.datetime) -> Path:
 
 
 def write_commissioned(profile_path: Path, result: Commissioned, out: Path | None = None,
-                       when: dt.datetime | None = None, run: str = "") -> Path:
+                       when: dt.datetime | None = None, run: str = "", port: str = "") -> Path:
     """Write the commissioned profile: ``profile_path``'s text with ``[[bus.joints]]`` as
     built, to ``out`` (replaced atomically: the caller decided it may be) or beside the
-    profile (:func:`commissioned_path`, never over a file); the path written. The CLI and the
-    console both write through here."""
+    profile (:func:`commissioned_path`, never over a file); the path written; ``port``: see
+    :func:`commissioned_text`. The CLI and the console both write through here."""
     when = when or dt.datetime.now(dt.UTC)
     base = read_text(profile_path, "--profile", MAX_PROFILE_BYTES, BadInputError)
     target = out or commissioned_path(profile_path, when)
-    text, _prof = commissioned_text(base, result, str(target), when, run)
+    text, _prof = commissioned_text(base, result, str(target), when, run, port)
     if out is not None:
         write_text_atomic(out, text, BadInputError)
         return Path(out)
@@ -171,6 +178,13 @@ def commissioned_lines(result: Commissioned) -> list[str]:
                 lines.append(f"  payload {mass:g} kg (weighed) centred at [" + ", ".join(
                     f"{c:.1f} ± {e:.1f}" for c, e in zip(centre, sd, strict=True))
                     + "] mm (m·c / m): the twin and the exports carry it")
+            elif result.payload_kg_weighed is not None:
+                given = result.payload_kg_weighed
+                lines.append(f"  --payload-kg {given:g} not written: " + (
+                    "the offsets do not determine the first moment that places it"
+                    if not payload_seen(r.payload) else
+                    f"with the first moment fitted it puts the payload's centre beyond "
+                    f"±{MAX_PAYLOAD_CENTRE_MM:g} mm of the wrist's centre (check the weighing)"))
             else:
                 lines.append("  the payload's mass alone is not seen by a wrist turning about a "
                              "point (give --payload-kg, weighed): the emulated wrist carries no "

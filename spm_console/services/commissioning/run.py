@@ -91,7 +91,8 @@ def run_commissioning(profile: Profile, profile_path: Path, req: CommissionReque
             if imu is not None:
                 imu.close()
         stop.check()
-        written = write_commissioned(profile_path, result, req.out, run=log.path.name)
+        written = write_commissioned(profile_path, result, req.out, run=log.path.name,
+                                     port=req.port)
     except BaseException as exc:
         raised = _stopped(exc, stop, moved[0])
         log.failed(raised)

@@ -158,6 +158,9 @@ class Commissioned:
     the IMU stage's."""
     rest_zero: RestZero | None = None
     """The zero found at rest from the IMU (no jig), with its standard errors."""
+    payload_kg_weighed: float | None = None
+    """The payload's mass the operator gave (``--payload-kg``), kg: written beside the first
+    moment when the stage determined one that places it (None: not given)."""
 
 
 def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
@@ -212,8 +215,12 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
         matches: list[LegMatch] = []
         nudges: list[NudgeResult] = []
         swings: list[Swing] = []
+        nudges_begun = [False]
 
         def nudge(ident: int, offset: float) -> NudgeResult:
+            if stop is not None:  # a stop that came as the last nudge ended starts no other
+                stop.check()
+            nudges_begun[0] = True  # torque goes on with the first (the jig is lifted)
             r = client.nudge(((ident, offset),), MAP_SPEED_DEGPS)
             nudges.append(r)
             if on_nudge is not None:
@@ -245,8 +252,11 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
                     on_stage(f"zero: swinging leg {m.leg} (id {m.id}) ±{SWING_DEG:g}° about its "
                              "rest")
                     swings.append(swing(m.id, nudge, lambda n: _mean_quaternion(src, n)))
-        finally:  # after an E-stop the wrist holds where it stopped; else it rests as found
-            client.end_nudging(hold=stop is not None and bool(stop.reason))
+        finally:
+            # once torque went on the wrist holds where it is, whatever ended the stage (the
+            # operator lifted the jig at "map": torque off would leave the wrist unsupported);
+            # before, it rests as found
+            client.end_nudging(hold=nudges_begun[0] or (stop is not None and bool(stop.reason)))
     finally:
         if stop is not None:
             stop.detach()
@@ -341,7 +351,7 @@ def refined(result: Commissioned, refinement: Refinement,
     if refinement.payload is not None:
         profile = validated(with_load_model(profile, refinement.payload, payload_kg))
     return replace(result, tick_offsets=new, tick_trims=trims, refinement=refinement,
-                   profile=profile)
+                   profile=profile, payload_kg_weighed=payload_kg)
 
 
 def _jig_ticks(client: MotionClient, ids: Sequence[int]) -> dict[int, float]:

@@ -54,3 +54,29 @@ def test_the_fitted_tilt_is_written_with_its_provenance(agile: Profile) -> None:
     assert back.plant.base_tilt_deg == (1.235, -2.5)
     line = next(ln for ln in text.splitlines() if ln.startswith("base_tilt_deg"))
     assert "IMU fit" in line
+
+
+def test_the_port_is_written_and_an_unchanged_sign_seed_keeps_its_line(agile: Profile) -> None:
+    """The bus the wrist was commissioned on becomes ``[bus] port`` (the template's empty
+    port means the emulated bus: ``identify`` on the written profile would have identified
+    that); arcs fitted that keep the home's sign seed leave its line (and its citation) as
+    it was."""
+    joints = agile.bus.joints
+    legs = tuple(LegMatch(j.id, k + 1, j.direction, 0.0, 0.0, 0.0)
+                 for k, j in enumerate(joints))
+    offsets = (joints[0].tick_offset, joints[1].tick_offset, joints[2].tick_offset)
+    before = Commissioned(Discovery("2.0", (), (1, 2, 3)), (legs[0], legs[1], legs[2]), None,
+                          offsets, agile)
+    g = agile.geometry
+    stage = SimpleNamespace(horn_deg=(0.0, 0.0, 0.0), payload=None, tilt_deg=None,
+                            arcs_deg=((0.1, 0.1, 0.1), (0.1, 0.1, 0.1)))  # the seed holds
+    after = refined(before, stage)  # type: ignore[arg-type]
+    assert after.profile.home.sign_seed == agile.home.sign_seed
+    assert after.profile.geometry != g
+    base = AGILE.read_text()
+    text, back = commissioned_text(base, after, "test", port="/dev/ttyUSB0")
+    assert back.bus.port == "/dev/ttyUSB0"
+    seed = [ln for ln in base.splitlines() if ln.startswith("sign_seed")]
+    assert seed and seed == [ln for ln in text.splitlines() if ln.startswith("sign_seed")]
+    _text, same = commissioned_text(base, after, "test")
+    assert same.bus.port == agile.bus.port  # none given: the base's kept
