@@ -12,6 +12,7 @@ Degrees and seconds.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -102,6 +103,9 @@ def finite_number(value: float, what: str, lo: float | None = None, hi: float | 
     v = float(value)
     if not math.isfinite(v):
         raise BadInputError(f"{what} must be a finite number, got {value}")
+    if v != 0.0 and abs(v) < sys.float_info.min:  # as a profile's numbers (config.fields)
+        raise BadInputError(f"{what}: {value} is a subnormal number, too small to be a "
+                            "measurement (0 or a magnitude of at least 2.2e-308)")
     bound = Bound(-math.inf if lo is None else lo, math.inf if hi is None else hi,
                   lo_open=lo_open, hi_open=hi_open)
     if not bound.holds(v):

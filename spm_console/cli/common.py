@@ -60,10 +60,12 @@ def add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
-def add_plant(p: argparse.ArgumentParser, default: str = "the profile's [plant] model") -> None:
-    """--plant: which emulated wrist a --sim run drives (``default`` words its default)."""
+def add_plant(p: argparse.ArgumentParser, default: str = "the profile's [plant] model",
+              when: str = "with --sim: ") -> None:
+    """--plant: which emulated wrist a --sim run drives (``default`` words its default;
+    ``when``: the condition it applies under, as the command has it)."""
     p.add_argument("--plant", choices=PLANTS, default=None,
-                   help="with --sim: the emulated wrist, ideal servos (eq. 27 with the "
+                   help=f"{when}the emulated wrist, ideal servos (eq. 27 with the "
                         "profile's p) or the physical wrist (MX-106 drives on the rigid-body "
                         f"chain) (default: {default})")
 

@@ -147,9 +147,9 @@ def _human(s: PlanSummary, out: Path | None, source: str) -> str:
         f"{s.qp_count} QP(s), {1e3 * s.solve_seconds:.1f} ms",
         f"region: {source}",
         f"at the samples: max |θ̇| {c.max_speed_samples_degps if c else nan:.3f} deg/s, "
-        f"region violation {c.region_violation_deg if c else nan:.2e} deg",
+        f"region violation {(c.region_violation_deg if c else nan) + 0.0:.2e} deg",  # no −0
         f"between samples: max |θ̇| {c.max_speed_between_degps if c else nan:.3f} deg/s, "
-        f"region violation {c.region_violation_between_deg if c else nan:.3g} deg",
+        f"region violation {(c.region_violation_between_deg if c else nan) + 0.0:.3g} deg",
     ]
     if s.certificate is not None:
         lines.append(s.certificate.describe())

@@ -75,7 +75,7 @@ def register(sub: Any) -> None:
                         "delay:0.03@1, hwerror:1@2 (repeatable)")
     e.add_argument("--initial", nargs=3, type=number, metavar=("T1", "T2", "T3"),
                    help="power-on joint angles, deg (default: the profile's home)")
-    add_plant(e)
+    add_plant(e, when="")
     e.add_argument("--link", choices=("pty", "socket"), default="pty",
                    help="pty (default): a serial device any serial tool opens; socket: a "
                         "Unix-domain socket, port unix:PATH, which the spm-console commands "

@@ -254,7 +254,10 @@ class Executor:
                 stop = SafetyMonitor.estop(f"{self._estop_reason or 'E-stop'} (before any motion)",
                                            self._now(), 0)
                 self._event("stop", kind=stop.kind, action="none", detected_t=stop.t,
-                            exit_code=int(stop.exit_code), notes=["torque was never switched on"])
+                            exit_code=int(stop.exit_code),
+                            notes=["this run switched no torque on and sent no goal: the "
+                                   "servos keep what they did before it (holding, if a "
+                                   "run before left them so)"])
             else:
                 stop = self._preflight(theta0)
             if stop is None:

@@ -7,12 +7,14 @@ kg·m."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.config.models import model_of
+from spm_console.config.plant import MAX_PAYLOAD_CENTRE_MM
 from spm_console.config.schema import Profile
 from spm_console.core.commissioning.payload import (
     HoldingFit,
@@ -152,6 +154,13 @@ def friction_seen(report: PayloadReport) -> bool:
     return f is not None and abs(f) >= SETTLE_FRICTION_DEG
 
 
+def places_payload(moment_kgmm: Sequence[float], mass_kg: float) -> bool:
+    """Whether a payload of ``mass_kg`` with first moment ``moment_kgmm`` sits within
+    ±MAX_PAYLOAD_CENTRE_MM of the wrist's centre on every axis (where a profile may place it:
+    a lighter mass than weighed, or a wrong first moment, puts it beyond)."""
+    return mass_kg > 0.0 and max(abs(float(x)) for x in moment_kgmm) / mass_kg <= MAX_PAYLOAD_CENTRE_MM
+
+
 def with_load_model(profile: Profile, report: PayloadReport,
                     payload_kg: float | None = None) -> Profile:
     """``profile`` with the load model the fit determines: ``[plant] payload_moment_kgmm``
@@ -160,12 +169,15 @@ def with_load_model(profile: Profile, report: PayloadReport,
     :data:`SETTLE_S`, ``tolerance_deg`` :data:`SETTLE_TOLERANCE_DEG`) when the friction
     leaves the drives off their goals and the profile does not settle; with ``payload_kg``
     (weighed), ``[plant] payload_kg`` beside the first moment (the payload then sits at
-    m·c / m); what is not determined is kept as the profile has it."""
+    m·c / m) where that centre is one a profile may hold (:func:`places_payload`; else the
+    mass is left out, unknown); what is not determined is kept as the profile has it."""
     plant, servo, settle = profile.plant, profile.servo, profile.settle
     if payload_seen(report):
         moment = tuple(round(float(x) * 1e3, 1) for x in report.fit.first_moment_kgm)
-        plant = plant.model_copy(update={"payload_moment_kgmm": moment,
-                                         "payload_kg": payload_kg or plant.payload_kg})
+        mass = payload_kg or plant.payload_kg
+        plant = plant.model_copy(update={
+            "payload_moment_kgmm": moment,
+            "payload_kg": mass if mass is not None and places_payload(moment, mass) else None})
     if compliance_known(report):
         servo = servo.model_copy(update={
             "load_deg_per_nm": round(report.fit.compliance_deg_per_nm, 4)})

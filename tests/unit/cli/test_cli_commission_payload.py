@@ -16,6 +16,7 @@ from spm_console.errors import ExitCode
     ("-1", [], "--payload-kg must be in (0, 2] kg"),
     ("2.5", [], "--payload-kg must be in (0, 2] kg"),
     ("nan", [], "--payload-kg"),
+    ("1e-320", [], "subnormal"),  # the profile would refuse it after the whole run
     ("0.3", ["--no-imu-fit"], "needs the IMU stage"),
 ])
 def test_a_bad_payload_mass_is_refused_before_anything_opens(

@@ -169,6 +169,12 @@ def test_a_weighed_mass_is_written_beside_the_first_moment_it_places(agile: Prof
     assert built.plant.payload_centre_mm == pytest.approx((10.0, -5.0, 120.0))
     unclear = _report((0.001, 0.0, 0.002), 0.002, 0.5)
     assert with_load_model(agile, unclear, 0.3).plant.payload_kg is None
+    # a mass far lighter than weighed (or a first moment far off) would put the centre
+    # beyond what a profile holds: the mass is left out, the first moment written, and the
+    # profile validates (a whole commissioning is not lost to the typo)
+    light = with_load_model(agile, clear, 0.05)  # m·c / m: z = 720 mm
+    assert light.plant.payload_kg is None and light.plant.payload_moment_kgmm is not None
+    Profile.model_validate(light.model_dump(mode="python"))
     assert _with(agile, S_KGMM).digest() == Profile.model_validate(
         _with(agile, S_KGMM).model_dump(mode="python")).digest()
     weighed = Profile.model_validate(built.model_dump(mode="python"))
@@ -224,3 +230,32 @@ def test_poses_held_on_the_profile_before_the_fit_are_fitted_on_the_wrist_as_fit
     wrong = payload_from_holding(tilted, commanded, measured, held)
     err = np.linalg.norm(wrong.fit.first_moment_kgm * 1e3 - S_KGMM) / np.linalg.norm(S_KGMM)
     assert err > 0.01
+
+
+@pytest.mark.parametrize(("s_kgm", "std", "kg", "says"), [
+    ((0.003, -0.0015, 0.036), 0.001, 0.05, "--payload-kg 0.05 not written: with the first "
+     "moment fitted it puts the payload's centre beyond ±300 mm"),
+    ((0.001, 0.0, 0.002), 0.002, 0.3, "--payload-kg 0.3 not written: the offsets do not "
+     "determine the first moment"),
+    ((0.003, -0.0015, 0.036), 0.001, None, "give --payload-kg, weighed"),
+    ((0.003, -0.0015, 0.036), 0.001, 0.3, "payload 0.3 kg (weighed) centred at"),
+])
+def test_the_report_says_why_a_weighed_mass_was_not_written(
+        agile: Profile, s_kgm: tuple[float, float, float], std: float, kg: float | None,
+        says: str) -> None:
+    """A mass the operator gave and the profile does not carry is named, with the reason
+    (before, the report asked for the --payload-kg it had been given)."""
+    from types import SimpleNamespace
+
+    from spm_console.services.commissioning.profile_out import commissioned_lines
+
+    report = _report(s_kgm, std, 0.05)
+    refinement = SimpleNamespace(
+        horn_deg=(0.0, 0.0, 0.0), verification=SimpleNamespace(gravity_max_deg=0.05),
+        motion_s=30.0, fit=SimpleNamespace(parameters=[], undetermined_named=[]),
+        arcs_deg=None, tilt_deg=None, payload=report)
+    result = SimpleNamespace(legs=[], rest_zero=None, tick_offsets=(1, 2, 3),
+                             tick_trims=(0.0, 0.0, 0.0), refinement=refinement,
+                             profile=with_load_model(agile, report, kg), payload_kg_weighed=kg)
+    lines = commissioned_lines(result)  # type: ignore[arg-type]
+    assert any(says in line for line in lines), lines
