@@ -66,14 +66,20 @@ RETRY_QUIET_S = 0.02
 def _retry(fn: Callable[[], T], transport: Transport,
            drain: Callable[[float], object]) -> T:
     """Call ``fn``, retrying with a longer reply timeout, once the line is quiet, when a
-    reply is lost (CommError); the last CommError is raised."""
+    reply is lost (CommError). When every try fails, a CommError with the first one's
+    message (what went wrong; a retry's own refusal, such as a reply length still reserved
+    for the first try's late reply, is its consequence) and how often it was tried."""
+    first: CommError | None = None
     for k, timeout_s in enumerate(SETUP_TIMEOUTS_S):
         try:
             with transport.patience(timeout_s):
                 return fn()
-        except CommError:
+        except CommError as exc:
+            first = first or exc
             if k == len(SETUP_TIMEOUTS_S) - 1:
-                raise
+                longest = max(SETUP_TIMEOUTS_S) * 1e3
+                raise CommError(f"{first}; tried {len(SETUP_TIMEOUTS_S)} times, the last "
+                                f"waiting {longest:.0f} ms") from None
             drain(RETRY_QUIET_S)
     raise AssertionError("unreachable")
 
