@@ -17,6 +17,7 @@ from spm_console.cli.streams import stdout_guard
 from spm_console.config.load import load_profile
 from spm_console.config.plant import PLANT_MODELS
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
+from spm_console.devices.emulator.faults import FaultNumberError, parse_fault
 from spm_console.errors import BadInputError
 from spm_console.jsonutil import to_jsonable
 from spm_console.numbers import NotANumberError, looks_numeric, parse_integer, parse_number
@@ -26,6 +27,21 @@ from spm_console.safe_io import atomic_temp, check_path_names
 PLANTS = PLANT_MODELS
 #: File names a figure may be written to.
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def fault_text(text: str) -> str:
+    """The ``type`` of ``--fault``: a number in it that is no plain ASCII decimal (``drop:abc``,
+    ``drop:1_0``) is a usage error naming the option (exit 2, as in a number option); the
+    rest of the fault's rules (its kinds, ranges, non-finite numerals) are checked where the
+    command parses it (exit 4)."""
+    try:
+        parse_fault(text)
+    except FaultNumberError as exc:
+        if not looks_numeric(exc.text):
+            raise argparse.ArgumentTypeError(exc.message) from None
+    except BadInputError:
+        pass
+    return text
 
 
 def number(text: str) -> float:

@@ -27,6 +27,7 @@ from spm_console.cli.common import (
     add_plant,
     console_plant,
     emit,
+    fault_text,
     info,
     number,
     output_folder,
@@ -58,7 +59,8 @@ def _bus_opts(p: argparse.ArgumentParser) -> None:
     g.add_argument("--port", metavar="DEV",
                    help="serial device, or unix:PATH for a socket bus (default: the profile's "
                         "bus.port; empty = --sim)")
-    p.add_argument("--fault", action="append", default=[], metavar="KIND[@SECONDS]",
+    p.add_argument("--fault", action="append", default=[], type=fault_text,
+                   metavar="KIND[@SECONDS]",
                    help="with --sim: inject a fault, e.g. unplug@1.0, stall:2@0.5, drop:0.05, "
                         "corrupt:0.02, delay:0.03@1.0, hwerror:1@0.5 (repeatable; seconds "
                         "after the run starts)")

@@ -15,6 +15,7 @@ from spm_console.cli.common import (
     add_common,
     add_plant,
     emit,
+    fault_text,
     info,
     integer,
     number,
@@ -70,7 +71,8 @@ def register(sub: Any) -> None:
     e = sub.add_parser("emulate", help="serve an emulated MX-106 bus on a pseudo-terminal "
                                        "(or a socket) until SIGINT/SIGTERM")
     add_common(e)
-    e.add_argument("--fault", action="append", default=[], metavar="KIND[@SECONDS]",
+    e.add_argument("--fault", action="append", default=[], type=fault_text,
+                   metavar="KIND[@SECONDS]",
                    help="inject a fault, e.g. unplug@5, stall:2@1, drop:0.05, corrupt:0.02, "
                         "delay:0.03@1, hwerror:1@2 (repeatable)")
     e.add_argument("--initial", nargs=3, type=number, metavar=("T1", "T2", "T3"),

@@ -64,13 +64,22 @@ class FaultSpec:
         return text + (f"@{self.at_s:g}" if self.at_s else "")
 
 
+class FaultNumberError(BadInputError):
+    """A number of a fault's syntax that is not a finite plain ASCII decimal; ``text`` is it
+    (a command line calls non-decimal text a usage error, as it does in a number option)."""
+
+    def __init__(self, message: str, text: str) -> None:
+        super().__init__(message)
+        self.text = text
+
+
 def _number(text: str, what: str, whole: str) -> float:
     """A number of the fault's syntax, by the rule of every number typed
     (:func:`~spm_console.numbers.parse_number`: plain ASCII decimals, finite)."""
     try:
         return parse_number(text)
     except NotANumberError as exc:
-        raise BadInputError(f"fault {whole!r}: {what}: {exc}; {_USAGE}") from None
+        raise FaultNumberError(f"fault {whole!r}: {what}: {exc}; {_USAGE}", text) from None
 
 
 def parse_fault(text: str) -> FaultSpec:

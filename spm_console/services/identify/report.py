@@ -74,11 +74,12 @@ def fit_lines(run: ExperimentRun, fit: ExperimentFit, servo: Servo, before: Serv
 
 def order_words(o: OrderCheck) -> str:
     """The order check in words."""
+    verdict = ("the data ask for it (the planner keeps the second order; the residual bound "
+               "covers the rest)" if o.asks else "the data do not ask for a higher order")
     return (f"order: a third pole (lag {1e3 * o.tau_s:.1f} ms) gives held-out RMS "
-            f"{o.held_out_rms_3rd_deg:.3f}° against {o.held_out_rms_2nd_deg:.3f}° (same fit, "
-            f"second order): " + ("the data ask for it (the planner keeps the second order; "
-                                  "the residual bound covers the rest)" if o.asks
-                                  else "the data do not ask for a higher order"))
+            f"{o.held_out_rms_3rd_deg:.3f}° against {o.held_out_rms_2nd_deg:.3f}° for the "
+            "second order refitted alike (the load's offset taken off the reference, the "
+            f"delay held: not the identified model's held-out figure above): {verdict}")
 
 
 def servo_words(sv: Servo) -> str:

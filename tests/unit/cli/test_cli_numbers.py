@@ -56,6 +56,8 @@ def test_the_option_types_read_plain_decimals() -> None:
     (["plan", "mvn", "--start", "127", "83", "85", "--goal", "67", "155", "131",
       "--steps", "١٥٠"], "--steps"),
     (["workspace", "verify", "--samples", "1_000"], "--samples"),
+    (["emulate", "--fault", "drop:abc", "--duration", "0.1"], "--fault"),
+    (["execute", "--sim", "--fault", "stall:2@5_0", "--plan", "none.json"], "--fault"),
 ])
 def test_a_command_line_number_in_another_notation_is_a_usage_error(
         capsys: pytest.CaptureFixture[str], argv: list[str], option: str) -> None:
@@ -70,6 +72,11 @@ def test_a_numeral_that_is_not_finite_is_still_refused_by_the_options_bound(
         capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["fk", "--theta", "95", "110", "1e999"]) == ExitCode.BAD_INPUT
     assert "must be a finite number" in capsys.readouterr().err
+    # a fault's own rules (its kinds, ranges, non-finite numerals) stay the command's: exit 4
+    for fault, why in (("drop:nan", "not a finite number"), ("delay:20", "(0, 10]"),
+                       ("bogus", "unknown kind")):
+        assert main(["emulate", "--fault", fault, "--duration", "0.1"]) == ExitCode.BAD_INPUT
+        assert why in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("fault", ["stall:2@5_0", "drop:0.0_5", "hwerror:٢", "delay:٠.٠٣"])
