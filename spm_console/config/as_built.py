@@ -27,7 +27,7 @@ from typing import Annotated
 
 from pydantic import Field, ValidationError, model_validator
 
-from spm_console.config.checks import validation_message
+from spm_console.config.checks import show, validation_message
 from spm_console.config.fields import Count, Direction, Real, Section
 from spm_console.errors import BadInputError
 from spm_console.safe_io import parse_toml, read_text
@@ -95,7 +95,8 @@ class AsBuilt(Section):
     @model_validator(mode="after")
     def _three_distinct_ids(self) -> AsBuilt:
         if self.ids and (len(self.ids) != 3 or len(set(self.ids)) != 3):
-            raise ValueError(f"ids = {list(self.ids)}: three distinct ids, one per leg, please "
+            raise ValueError(f"ids = {show(list(self.ids))} ({len(self.ids)} given): three "
+                             "distinct ids, one per leg, please "
                              "(or none: the profile's)")
         return self
 

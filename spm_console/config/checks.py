@@ -210,6 +210,15 @@ def validation_message(exc: ValidationError, source: str, root: type[BaseModel])
             reason = "must be a finite number"
         elif kind in ("float_type", "int_type") and isinstance(value, bool | str):
             reason += f" (got a {'boolean' if isinstance(value, bool) else 'string'})"
+        elif kind in ("model_type", "model_attributes_type", "dict_type"):
+            reason = "must be a table ([section], or {key = value, …})"  # words of TOML
+        elif kind in ("list_type", "tuple_type"):
+            reason = "must be an array ([…])"
+        elif kind in ("too_long", "too_short"):
+            ctx = err.get("ctx") or {}
+            bound = ctx.get("max_length" if kind == "too_long" else "min_length")
+            reason = (f"must have {'at most' if kind == 'too_long' else 'at least'} {bound} "
+                      f"items, got {ctx.get('actual_length', '?')}")
         rng = None if kind in ("missing", "extra_forbidden") else allowed(root, loc)
         if rng is not None:
             reason += f" (allowed: {rng})"
