@@ -162,6 +162,16 @@ def test_a_port_that_answers_another_protocol() -> None:
         Bno055.open(port, attempts=2)
 
 
+def test_a_reply_of_the_wrong_length_is_named_so() -> None:
+    """A reply that starts as a BNO055's (0xBB) but has the wrong length is not told "a
+    BNO055 replies 0xBB or 0xEE" (which it did)."""
+    with fake_device("BB FF 01 02 03") as port, \
+            pytest.raises(ImuError, match=r"it answered bb ff 01 02 03: a read reply of the "
+                                          r"wrong length") as exc:
+        Bno055.open(port, attempts=1)
+    assert "replies 0xBB or 0xEE" not in exc.value.message
+
+
 def test_a_port_that_does_not_exist() -> None:
     with pytest.raises(ImuError, match="cannot open the IMU's serial port /dev/nonexistent-imu"):
         Bno055.open("/dev/nonexistent-imu")

@@ -140,8 +140,13 @@ class Bno055:
             chip_id = self._request(bp.read_frame(Reg.CHIP_ID, 1), 1)[0]
         except _UnansweredError as u:
             if u.garbage:
-                raise ImuError(f"not a BNO055 on {self.port}: it answered {u.garbage[:8].hex(' ')} "
-                               "(a BNO055 replies 0xBB or 0xEE)") from None
+                head = u.garbage[0]
+                why = ("a read reply of the wrong length (a BNO055 answers CHIP_ID with "
+                       "BB 01 and one byte)" if head == 0xBB else
+                       "a status that is no answer to a read" if head == 0xEE else
+                       "no BNO055 reply (a BNO055 replies 0xBB or 0xEE)")
+                raise ImuError(f"not a BNO055 on {self.port}: it answered "
+                               f"{u.garbage[:8].hex(' ')}: {why}") from None
             if u.statuses:
                 raise ImuError(f"the IMU on {self.port} failed every read of CHIP_ID "
                                f"({self.attempts} tries): {_statuses(u.statuses)}") from None
