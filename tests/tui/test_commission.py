@@ -137,7 +137,7 @@ async def test_commission_the_twin_from_step_0_and_use_the_profile(
         assert "leg 1: servo id 3" in result and "tick offsets from the jig" in result, result
         written = sorted(folder.glob("agile_wrist.commissioned-*.toml"))
         assert len(written) == 1 and re.match(
-            r"^agile_wrist\.commissioned-\d{8}T\d{6}Z\.toml$", written[0].name), written
+            r"^agile_wrist\.commissioned-\d{4}-\d{2}-\d{2}T\d{6}Z\.toml$", written[0].name), written
         built = load_profile(written[0])
         assert [j.id for j in built.bus.joints] == [3, 1, 2]
         assert [j.direction for j in built.bus.joints] == [1, -1, 1]

@@ -94,8 +94,9 @@ MAX_PROFILE_BYTES = 1 << 20
 
 def commissioned_path(profile_path: Path, when: dt.datetime) -> Path:
     """Where the commissioning of ``profile_path`` at ``when`` goes by default (before a taken
-    name's ``-2`` …): ``NAME.commissioned-YYYYmmddTHHMMSSZ.toml`` beside it."""
-    stamp = when.astimezone(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    name's ``-2`` …): ``NAME.commissioned-YYYY-mm-ddTHHMMSSZ.toml`` beside it (the stamp of
+    an identified profile's name)."""
+    stamp = when.astimezone(dt.UTC).strftime("%Y-%m-%dT%H%M%SZ")
     return profile_path.with_name(f"{profile_path.stem}.commissioned-{stamp}.toml")
 
 
