@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from spm_console.config.load import parse_profile_text
 from spm_console.config.schema import Profile
@@ -60,13 +60,14 @@ def _value_end(lines: list[str], k: int) -> int:
     return j
 
 
-def with_values(text: str, values: dict[tuple[str, str], Value], note: str,
+def with_values(text: str, values: Mapping[tuple[str, str], Value | None], note: str,
                 source: str) -> tuple[str, Profile]:
-    """``text`` with each ``(section, key)`` set to its value (commented ``note``); the new
-    text and the profile it parses to. ProfileError naming ``source`` when it does not parse,
-    or when a value read back differs from the one asked for."""
+    """``text`` with each ``(section, key)`` set to its value (commented ``note``), or, for
+    None, its line commented out (the key takes its default, with the note saying why); the
+    new text and the profile it parses to. ProfileError naming ``source`` when it does not
+    parse, or when a value read back differs from the one asked for."""
     lines = text.splitlines()
-    todo = dict(values)
+    todo: dict[tuple[str, str], Value | None] = dict(values)
     out: list[str] = []
     section = ""
     k = 0
@@ -81,8 +82,14 @@ def with_values(text: str, values: dict[tuple[str, str], Value], note: str,
             continue
         key = _key_of(line)
         if key is not None and (section, key) in todo:
-            out.append(key_line(key, todo.pop((section, key)), note))
-            k = _value_end(lines, k)
+            value = todo.pop((section, key))
+            end = _value_end(lines, k)
+            if value is None:  # the key back to its default: its lines kept, commented
+                out += [f"# {ln}" for ln in lines[k:end]]
+                out.append(f"# ({key} removed: {note})")
+            else:
+                out.append(key_line(key, value, note))
+            k = end
             continue
         out.append(line)
         k += 1
@@ -111,15 +118,20 @@ def key_line(key: str, value: Value, note: str) -> str:
     return f"{key} = {toml_value(value)}".ljust(38) + f" # {note}"
 
 
-def _flush(out: list[str], section: str, todo: dict[tuple[str, str], Value], note: str) -> None:
-    """Add the keys of ``section`` still to set at the end of its lines (before blank lines)."""
+def _flush(out: list[str], section: str, todo: dict[tuple[str, str], Value | None],
+           note: str) -> None:
+    """Add the keys of ``section`` still to set at the end of its lines (before blank lines);
+    one to remove that the section lacks is done."""
+    for gone in [(s, key) for (s, key), v in todo.items() if s == section and v is None]:
+        del todo[gone]
     mine = [(s, key) for s, key in todo if s == section]
     if not mine:
         return
     at = len(out)
     while at > 0 and not out[at - 1].strip():
         at -= 1
-    out[at:at] = [key_line(key, todo.pop((s, key)), note) for s, key in mine]
+    out[at:at] = [key_line(key, v, note) for s, key in mine
+                  if (v := todo.pop((s, key))) is not None]
 
 
 def with_joints(text: str, joints: Sequence[dict[str, Value]], note: str,

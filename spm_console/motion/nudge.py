@@ -125,21 +125,31 @@ def _begin(bus: DynamixelBus, state: NudgeState) -> None:
 
 def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
     """End the nudging: torque off, PWM Limits restored (an EEPROM register: torque off to
-    write it); then, with ``hold``, torque on again holding where each servo is (after an
-    E-stop: the wrist holds, at its full effort), else left off (the wrist rests as it was
-    found). Torque is off for the few milliseconds of the writes. BusError when the servos
-    do not answer (the PWM Limits not restored are kept, to restore at the next release)."""
+    write it); then, with ``hold``, torque on again holding where each servo was before
+    torque went off (read first, while the servos still held; the last goal sent where that
+    read fails), at its full effort, else left off (the wrist rests as it was found). Torque
+    is off for the few milliseconds of the writes. BusError when the servos do not answer
+    (the PWM Limits not restored are kept, to restore at the next release)."""
     ids = list(bus.ids)
+    last_goal = [state.goal_ticks.get(i) for i in ids]
     state.rest_ticks.clear()  # the next nudge begins again, whatever happens here
     try:
+        held: list[int] | None = None
+        if hold:
+            try:
+                held = _ticks(bus)
+            except CommError:
+                if all(g is not None for g in last_goal):
+                    held = [int(g) for g in last_goal if g is not None]
+                else:
+                    raise
         bus.set_up(lambda: bus.set_torque(False, ids))
         for ident, pwm in list(state.saved_pwm.items()):
             bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
             del state.saved_pwm[ident]
         state.goal_ticks.clear()
-        if hold:
-            ticks = _ticks(bus)
-            bus.sync_write("goal_position", dict(zip(ids, ticks, strict=True)))
+        if held is not None:
+            bus.sync_write("goal_position", dict(zip(ids, held, strict=True)))
             bus.set_up(lambda: bus.set_torque(True, ids))
     except CommError as exc:
         raise BusError(f"ending the nudges on {bus.port}: {exc}; the servos may be left with "

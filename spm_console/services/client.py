@@ -276,7 +276,8 @@ class MotionClient:
 
     def end_nudging(self, hold: bool = False) -> None:
         """The servos' PWM Limits restored after commissioning's nudges; torque off, or with
-        ``hold`` (after an E-stop) on again, holding where they are."""
+        ``hold`` (after an E-stop, or once a nudge began: the jig is off) on again, holding
+        where they were."""
         self._motion(lambda i: Nudge(i, release=True, hold=hold), None)
 
     def query(self, q: BusQuery) -> BusReport:

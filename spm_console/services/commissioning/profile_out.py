@@ -45,7 +45,7 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
     where = f", run {run}" if run else ""
     note = f"commissioned {stamp} ({how}{where})"
     text, prof = with_joints(base_text, joints, note, source)  # type: ignore[arg-type]
-    if port and port != prof.bus.port:
+    if kept_port(port) and port != prof.bus.port:
         text, prof = with_values(text, {("bus", "port"): port}, note, source)
     fitted: dict[tuple[str, str], Value] = {}
     if result.refinement is not None and result.refinement.arcs_deg is not None:
@@ -66,17 +66,23 @@ def commissioned_text(base_text: str, result: Commissioned, source: str,
     return text, prof
 
 
-def _load_values(result: Commissioned, base: Profile) -> dict[tuple[str, str], Value]:
+def kept_port(port: str) -> bool:
+    """Whether the commissioned profile keeps ``port`` as its ``[bus] port``: not a
+    pseudo-terminal's (``/dev/pts/N``: the name goes to the next terminal opened)."""
+    return bool(port) and not port.startswith("/dev/pts/")
+
+
+def _load_values(result: Commissioned, base: Profile) -> dict[tuple[str, str], Value | None]:
     """The load model's keys (the payload's first moment, the drive's compliance, settling)
     where the commissioned profile differs from ``base``: what the IMU stage determined
     (:func:`~spm_console.services.commissioning.payload_stage.with_load_model` decides)."""
     built = result.profile
-    out: dict[tuple[str, str], Value] = {}
+    out: dict[tuple[str, str], Value | None] = {}
     moment = built.plant.payload_moment_kgmm
     if moment is not None and moment != base.plant.payload_moment_kgmm:
         out[("plant", "payload_moment_kgmm")] = list(moment)
     mass = built.plant.payload_kg
-    if mass is not None and mass != base.plant.payload_kg:
+    if mass != base.plant.payload_kg:  # None: the base's mass no longer places the payload
         out[("plant", "payload_kg")] = mass
     load = built.servo.load_deg_per_nm
     if load is not None and load != base.servo.load_deg_per_nm:
@@ -181,7 +187,7 @@ def commissioned_lines(result: Commissioned) -> list[str]:
                     + "] mm (m·c / m): the twin and the exports carry it")
             elif result.payload_kg_weighed is not None:
                 given = result.payload_kg_weighed
-                lines.append(f"  --payload-kg {given:g} not written: " + (
+                lines.append(f"  payload mass {given:g} kg (weighed) not written: " + (
                     "the offsets do not determine the first moment that places it"
                     if not payload_seen(r.payload) else
                     f"with the first moment fitted it puts the payload's centre beyond "

@@ -159,8 +159,9 @@ class Commissioned:
     rest_zero: RestZero | None = None
     """The zero found at rest from the IMU (no jig), with its standard errors."""
     payload_kg_weighed: float | None = None
-    """The payload's mass the operator gave (``--payload-kg``), kg: written beside the first
-    moment when the stage determined one that places it (None: not given)."""
+    """The payload's weighed mass, kg: the operator's (``--payload-kg``), else the profile's
+    own ``[plant] payload_kg``; written beside the first moment when the stage determined one
+    that places it (None: not known)."""
 
 
 def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
@@ -191,7 +192,8 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
                ask: Ask | None = None) -> Commissioned:
     """Discover, (jig), map and zero the wrist on ``port``; the commissioned profile.
     ``stop``: the run's E-stop, attached to each motion process in turn (once pressed, the
-    nudging ends with the wrist holding where it stopped); ``on_nudge``: each nudge's
+    nudging ends with the wrist holding where it stopped, as it does once any nudge began);
+    ``on_nudge``: each nudge's
     outcome, as it comes (the run log). Without an IMU the operator says which leg each
     nudge moved, and which way (``ask``)."""
     if imu is None and ask is None:
@@ -263,7 +265,7 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
         session.close()
     legs = _distinct_legs(matches, "the IMU" if imu is not None else "the answers")
     on_stage("map: " + ", ".join(f"leg {m.leg} = id {m.id} ({'+' if m.direction > 0 else '−'})"
-                                 for m in legs))
+                                 for m in legs) + "; the wrist holds where it is, torque on")
     offsets = None
     jig_ticks = None
     trims = (0.0, 0.0, 0.0)
@@ -351,7 +353,8 @@ def refined(result: Commissioned, refinement: Refinement,
     if refinement.payload is not None:
         profile = validated(with_load_model(profile, refinement.payload, payload_kg))
     return replace(result, tick_offsets=new, tick_trims=trims, refinement=refinement,
-                   profile=profile, payload_kg_weighed=payload_kg)
+                   profile=profile,
+                   payload_kg_weighed=payload_kg or result.profile.plant.payload_kg)
 
 
 def _jig_ticks(client: MotionClient, ids: Sequence[int]) -> dict[int, float]:

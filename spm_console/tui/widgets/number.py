@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 from dataclasses import dataclass
 
 from textual.app import ComposeResult
@@ -108,6 +109,9 @@ class NumberRule:
             raise BadInputError(f"{self.name}: {s} is outside {self._range()}")
         if not math.isfinite(v):
             raise BadInputError(f"{self.name}: {s} is too large")
+        if v != 0.0 and abs(v) < sys.float_info.min:  # as the command line's and a profile's
+            raise BadInputError(f"{self.name}: {s} is too small to be a measurement "
+                                "(a subnormal number)")
         return float(int(v)) if self.integer else v
 
     def reason(self, text: str) -> str:

@@ -191,3 +191,52 @@ def test_a_burst_of_late_replies_slows_the_ramp_and_never_steps_its_goal_past_th
     assert ramp[-1] - ramp[0] == round(2.0 * tpd)
     assert max(steps) <= speed * MAX_ADVANCE_S + 1.0 / tpd  # a tick of rounding
     assert r.duration_s > 2.0 / speed  # the slow reads made the ramp longer, not faster
+
+
+@dataclass
+class RecordingBus(LossyBus):
+    """A bus that records what reached the servos, in order; ``dead_reads``: position reads
+    fail (every try)."""
+
+    dead_reads: bool = False
+    log: list[str] = field(default_factory=list)
+
+    def set_torque(self, on: bool, ids: list[int]) -> None:
+        self.log.append(f"torque {'on' if on else 'off'}")
+        super().set_torque(on, ids)
+
+    def read_ticks(self) -> list[int]:
+        self.log.append("read")
+        if self.dead_reads:
+            raise CommError("no status packet within 4.0 ms (0 of 3 received, 0 corrupt)")
+        return super().read_ticks()
+
+    def sync_write(self, name: str, values: dict[int, int]) -> None:
+        self.log.append(f"goal {values[2]}")
+        super().sync_write(name, values)
+
+
+def test_a_holding_release_reads_where_the_wrist_is_before_torque_goes_off() -> None:
+    """The wrist (its jig lifted) is unsupported only for the EEPROM writes: the position it
+    will hold is read while the servos still hold it, not after torque went off (a patient
+    read there took up to a few hundred ms, the wrist sagging); when that read fails, the
+    last goal sent is held."""
+    bus = RecordingBus(lose=0)
+    state = NudgeState()
+    assert run_nudge(bus, state, ((2, 1.0),), 5.0, _never,  # type: ignore[arg-type]
+                     clock=iter(range(10_000)).__next__, sleep=lambda _s: None).ok
+    goal = state.goal_ticks[2]
+    bus.log.clear()
+    release(bus, state, hold=True)  # type: ignore[arg-type]
+    off = bus.log.index("torque off")
+    assert "read" in bus.log[:off] and "read" not in bus.log[off:]
+    assert bus.log[-2:] == [f"goal {goal}", "torque on"] and bus.torque_on
+
+    bus = RecordingBus(lose=0)
+    state = NudgeState()
+    assert run_nudge(bus, state, ((2, 1.0),), 5.0, _never,  # type: ignore[arg-type]
+                     clock=iter(range(10_000)).__next__, sleep=lambda _s: None).ok
+    goal = state.goal_ticks[2]
+    bus.dead_reads = True
+    release(bus, state, hold=True)  # type: ignore[arg-type]
+    assert bus.log[-2:] == [f"goal {goal}", "torque on"] and bus.torque_on

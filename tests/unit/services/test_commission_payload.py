@@ -233,10 +233,10 @@ def test_poses_held_on_the_profile_before_the_fit_are_fitted_on_the_wrist_as_fit
 
 
 @pytest.mark.parametrize(("s_kgm", "std", "kg", "says"), [
-    ((0.003, -0.0015, 0.036), 0.001, 0.05, "--payload-kg 0.05 not written: with the first "
-     "moment fitted it puts the payload's centre beyond ±300 mm"),
-    ((0.001, 0.0, 0.002), 0.002, 0.3, "--payload-kg 0.3 not written: the offsets do not "
-     "determine the first moment"),
+    ((0.003, -0.0015, 0.036), 0.001, 0.05, "payload mass 0.05 kg (weighed) not written: with "
+     "the first moment fitted it puts the payload's centre beyond ±300 mm"),
+    ((0.001, 0.0, 0.002), 0.002, 0.3, "payload mass 0.3 kg (weighed) not written: the offsets "
+     "do not determine the first moment"),
     ((0.003, -0.0015, 0.036), 0.001, None, "give --payload-kg, weighed"),
     ((0.003, -0.0015, 0.036), 0.001, 0.3, "payload 0.3 kg (weighed) centred at"),
 ])

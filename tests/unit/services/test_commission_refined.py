@@ -80,3 +80,41 @@ def test_the_port_is_written_and_an_unchanged_sign_seed_keeps_its_line(agile: Pr
     assert seed and seed == [ln for ln in text.splitlines() if ln.startswith("sign_seed")]
     _text, same = commissioned_text(base, after, "test")
     assert same.bus.port == agile.bus.port  # none given: the base's kept
+
+
+def test_a_weighed_mass_the_new_first_moment_does_not_place_is_taken_out_of_the_text(
+        agile: Profile) -> None:
+    """Re-commissioning a profile that holds a weighed mass: when the newly fitted first
+    moment and that mass put the centre beyond ±300 mm, the mass's line is commented out
+    (the profile otherwise keeps an old mass beside the new moment: refused, or wrong) and
+    the report says why; a pseudo-terminal's port is not kept."""
+    import numpy as np
+
+    from spm_console.config.edit import with_values
+    from spm_console.core.commissioning.payload import HoldingFit
+    from spm_console.services.commissioning.payload_stage import PayloadReport
+    from spm_console.services.commissioning.profile_out import commissioned_lines
+
+    base_text, base = with_values(AGILE.read_text(), {
+        ("plant", "payload_moment_kgmm"): [3.0, -1.5, 36.0], ("plant", "payload_kg"): 0.3},
+        "weighed before", "base")
+    joints = base.bus.joints
+    legs = tuple(LegMatch(j.id, k + 1, j.direction, 0.0, 0.0, 0.0)
+                 for k, j in enumerate(joints))
+    offsets = (joints[0].tick_offset, joints[1].tick_offset, joints[2].tick_offset)
+    before = Commissioned(Discovery("2.0", (), (1, 2, 3)), (legs[0], legs[1], legs[2]), None,
+                          offsets, base)
+    fit = HoldingFit(np.array([0.0, 0.0, 0.12]), np.full(3, 0.001), 1.4, 0.05, 0.05,
+                     np.ones(4), 24)  # 120 kg·mm: with 0.3 kg, 400 mm above the centre
+    stage = SimpleNamespace(horn_deg=(0.0, 0.0, 0.0), arcs_deg=None, tilt_deg=None,
+                            payload=PayloadReport(fit, 0.05), fit=SimpleNamespace(
+                                parameters=[], undetermined_named=[]),
+                            verification=SimpleNamespace(gravity_max_deg=0.05), motion_s=30.0)
+    after = refined(before, stage)  # type: ignore[arg-type]
+    assert after.profile.plant.payload_kg is None and after.payload_kg_weighed == 0.3
+    text, back = commissioned_text(base_text, after, "test", port="/dev/pts/7")
+    assert back.plant.payload_kg is None and back.plant.payload_moment_kgmm == (0.0, 0.0, 120.0)
+    assert any(ln.startswith("# payload_kg = 0.3") for ln in text.splitlines()), text
+    assert back.bus.port == base.bus.port  # a pty's name goes to the next terminal
+    assert any("payload mass 0.3 kg (weighed) not written" in ln
+               for ln in commissioned_lines(after))

@@ -20,3 +20,13 @@ def test_digits_of_other_scripts_are_not_a_number(text: str) -> None:
 
 def test_plain_decimals_and_the_minus_sign_are_numbers() -> None:
     assert RULE.parse("10") == 10.0 and RULE.parse("\u22122.5") == -2.5
+
+
+def test_a_subnormal_number_is_refused_as_the_command_line_refuses_it() -> None:
+    """The console's payload mass field took 1e-320 (a commissioning then failed in the
+    profile's validation after all its motion)."""
+    from spm_console.tui.screens.commission import PAYLOAD_RULE
+
+    assert "subnormal" in PAYLOAD_RULE.reason("1e-320")
+    assert PAYLOAD_RULE.reason("0.3") == ""
+    assert "subnormal" in NumberRule("x").reason("-4e-310")
