@@ -97,9 +97,10 @@ def check_moves(moves: Sequence[tuple[int, float]], ids: Sequence[int], speed_de
 
 def _ticks(bus: DynamixelBus) -> list[int]:
     """Present Position of the joints' servos: a lost reply read again at once
-    (:data:`READ_TRIES` quick tries); when they all fail (a burst of late replies), once more
-    as a set-up read (:meth:`DynamixelBus.set_up`: the line quiet first, more patience)
-    before the nudge gives up on the bus."""
+    (:data:`READ_TRIES` quick tries); when they all fail (a burst of late replies), as a
+    set-up read (:meth:`DynamixelBus.set_up`: up to three more tries, the line quiet before
+    each, with more patience: about 0.35 s on a dead line) before the nudge gives up on the
+    bus. The goal does not advance meanwhile."""
     for _ in range(READ_TRIES):
         try:
             return bus.read_ticks()

@@ -77,9 +77,8 @@ def _retry(fn: Callable[[], T], transport: Transport,
         except CommError as exc:
             first = first or exc
             if k == len(SETUP_TIMEOUTS_S) - 1:
-                longest = max(SETUP_TIMEOUTS_S) * 1e3
-                raise CommError(f"{first}; tried {len(SETUP_TIMEOUTS_S)} times, the last "
-                                f"waiting {longest:.0f} ms") from None
+                raise CommError(f"{first}; tried {len(SETUP_TIMEOUTS_S)} times, each with "
+                                "more patience") from None
             drain(RETRY_QUIET_S)
     raise AssertionError("unreachable")
 

@@ -68,7 +68,7 @@ class FaultNumberError(BadInputError):
     """A number of a fault's syntax that is not a finite plain ASCII decimal; ``text`` is it
     (a command line calls non-decimal text a usage error, as it does in a number option)."""
 
-    def __init__(self, message: str, text: str) -> None:
+    def __init__(self, message: str, text: str = "") -> None:
         super().__init__(message)
         self.text = text
 

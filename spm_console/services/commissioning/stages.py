@@ -217,12 +217,11 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
         matches: list[LegMatch] = []
         nudges: list[NudgeResult] = []
         swings: list[Swing] = []
-        nudges_begun = [False]
+        map_begun = [False]  # the operator lifts the jig at the map stage's first line
 
         def nudge(ident: int, offset: float) -> NudgeResult:
             if stop is not None:  # a stop that came as the last nudge ended starts no other
                 stop.check()
-            nudges_begun[0] = True  # torque goes on with the first (the jig is lifted)
             r = client.nudge(((ident, offset),), MAP_SPEED_DEGPS)
             nudges.append(r)
             if on_nudge is not None:
@@ -234,6 +233,7 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
 
         try:
             for ident in disc.ids:
+                map_begun[0] = True
                 on_stage(f"map: nudging servo id {ident} by {MAP_NUDGE_DEG:g}°")
                 if imu is None:
                     assert ask is not None
@@ -255,10 +255,10 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
                              "rest")
                     swings.append(swing(m.id, nudge, lambda n: _mean_quaternion(src, n)))
         finally:
-            # once torque went on the wrist holds where it is, whatever ended the stage (the
-            # operator lifted the jig at "map": torque off would leave the wrist unsupported);
+            # once the map stage began the wrist holds where it is, whatever ended the stage
+            # (the operator lifted the jig at "map": torque off would leave it unsupported);
             # before, it rests as found
-            client.end_nudging(hold=nudges_begun[0] or (stop is not None and bool(stop.reason)))
+            client.end_nudging(hold=map_begun[0] or (stop is not None and bool(stop.reason)))
     finally:
         if stop is not None:
             stop.detach()
