@@ -192,7 +192,8 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
                ask: Ask | None = None) -> Commissioned:
     """Discover, (jig), map and zero the wrist on ``port``; the commissioned profile.
     ``stop``: the run's E-stop, attached to each motion process in turn (once pressed, the
-    nudging ends with the wrist holding where it stopped, as it does once any nudge began);
+    nudging ends with the wrist holding where it stopped, as it does at any end once the map
+    stage began: the operator lifts the jig then);
     ``on_nudge``: each nudge's
     outcome, as it comes (the run log). Without an IMU the operator says which leg each
     nudge moved, and which way (``ask``)."""
