@@ -16,6 +16,16 @@ from spm_console.services.commissioning.stages import Commissioned, Discovery, r
 AGILE = Path(__file__).resolve().parents[3] / "profiles" / "agile_wrist.toml"
 
 
+def _wired(profile: Profile) -> Commissioned:
+    """``profile``'s wiring, mapped and zeroed as the profile has it (the IMU stage's input)."""
+    joints = profile.bus.joints
+    legs = tuple(LegMatch(j.id, k + 1, j.direction, 0.0, 0.0, 0.0)
+                 for k, j in enumerate(joints))
+    offsets = (joints[0].tick_offset, joints[1].tick_offset, joints[2].tick_offset)
+    return Commissioned(Discovery("2.0", (), (1, 2, 3)), (legs[0], legs[1], legs[2]), None,
+                        offsets, profile)
+
+
 @pytest.mark.parametrize("trims", [(0.0, 0.0, 0.0), (0.31, -0.27, 0.05)])
 def test_the_horns_move_the_zero_the_stage_ran_on(agile: Profile,
                                                    trims: tuple[float, float, float]) -> None:
@@ -40,12 +50,7 @@ def test_the_horns_move_the_zero_the_stage_ran_on(agile: Profile,
 def test_the_fitted_tilt_is_written_with_its_provenance(agile: Profile) -> None:
     """A tilt the IMU stage determined goes into ``[plant] base_tilt_deg`` (the load model's
     gravity), in the profile and in the text written, commented as the IMU fit's."""
-    joints = agile.bus.joints
-    legs = tuple(LegMatch(j.id, k + 1, j.direction, 0.0, 0.0, 0.0)
-                 for k, j in enumerate(joints))
-    offsets = (joints[0].tick_offset, joints[1].tick_offset, joints[2].tick_offset)
-    before = Commissioned(Discovery("2.0", (), (1, 2, 3)), (legs[0], legs[1], legs[2]), None,
-                          offsets, agile)
+    before = _wired(agile)
     stage = SimpleNamespace(horn_deg=(0.0, 0.0, 0.0), arcs_deg=None, payload=None,
                             tilt_deg=(1.23456, -2.5))
     after = refined(before, stage)  # type: ignore[arg-type]
@@ -61,12 +66,7 @@ def test_the_port_is_written_and_an_unchanged_sign_seed_keeps_its_line(agile: Pr
     port means the emulated bus: ``identify`` on the written profile would have identified
     that); arcs fitted that keep the home's sign seed leave its line (and its citation) as
     it was."""
-    joints = agile.bus.joints
-    legs = tuple(LegMatch(j.id, k + 1, j.direction, 0.0, 0.0, 0.0)
-                 for k, j in enumerate(joints))
-    offsets = (joints[0].tick_offset, joints[1].tick_offset, joints[2].tick_offset)
-    before = Commissioned(Discovery("2.0", (), (1, 2, 3)), (legs[0], legs[1], legs[2]), None,
-                          offsets, agile)
+    before = _wired(agile)
     g = agile.geometry
     stage = SimpleNamespace(horn_deg=(0.0, 0.0, 0.0), payload=None, tilt_deg=None,
                             arcs_deg=((0.1, 0.1, 0.1), (0.1, 0.1, 0.1)))  # the seed holds
@@ -98,12 +98,7 @@ def test_a_weighed_mass_the_new_first_moment_does_not_place_is_taken_out_of_the_
     base_text, base = with_values(AGILE.read_text(), {
         ("plant", "payload_moment_kgmm"): [3.0, -1.5, 36.0], ("plant", "payload_kg"): 0.3},
         "weighed before", "base")
-    joints = base.bus.joints
-    legs = tuple(LegMatch(j.id, k + 1, j.direction, 0.0, 0.0, 0.0)
-                 for k, j in enumerate(joints))
-    offsets = (joints[0].tick_offset, joints[1].tick_offset, joints[2].tick_offset)
-    before = Commissioned(Discovery("2.0", (), (1, 2, 3)), (legs[0], legs[1], legs[2]), None,
-                          offsets, base)
+    before = _wired(base)
     fit = HoldingFit(np.array([0.0, 0.0, 0.12]), np.full(3, 0.001), 1.4, 0.05, 0.05,
                      np.ones(4), 24)  # 120 kg·mm: with 0.3 kg, 400 mm above the centre
     stage = SimpleNamespace(horn_deg=(0.0, 0.0, 0.0), arcs_deg=None, tilt_deg=None,
