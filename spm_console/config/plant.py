@@ -5,6 +5,7 @@ figure still means something physical and the emulated wrist stays stable.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Annotated, Literal, get_args
 
 from pydantic import Field, model_validator
@@ -106,7 +107,7 @@ class Plant(Section):
                                  "payload sits: commissioning fits it)")
             centre = self.payload_centre_mm
             assert centre is not None
-            if max(abs(c) for c in centre) > MAX_PAYLOAD_CENTRE_MM:
+            if not centre_within(self.payload_moment_kgmm, float(self.payload_kg)):
                 raise ValueError(
                     f"plant.payload_moment_kgmm / payload_kg puts the payload's centre at "
                     f"({', '.join(f'{c:.0f}' for c in centre)}) mm, beyond "
@@ -121,3 +122,10 @@ class Plant(Section):
         m = float(self.payload_kg)
         c = [float(x) / m for x in self.payload_moment_kgmm]
         return (c[0], c[1], c[2])
+
+
+def centre_within(moment_kgmm: Sequence[float], mass_kg: float) -> bool:
+    """Whether a payload of ``mass_kg`` with first moment ``moment_kgmm`` sits within
+    ±MAX_PAYLOAD_CENTRE_MM of the wrist's centre on every axis (the one rule of where a
+    profile may place a payload)."""
+    return mass_kg > 0.0 and max(abs(float(x)) for x in moment_kgmm) / mass_kg <= MAX_PAYLOAD_CENTRE_MM

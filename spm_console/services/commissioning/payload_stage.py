@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from spm_console.config.models import model_of
-from spm_console.config.plant import MAX_PAYLOAD_CENTRE_MM
+from spm_console.config.plant import centre_within
 from spm_console.config.schema import Profile
 from spm_console.core.commissioning.payload import (
     HoldingFit,
@@ -155,10 +155,10 @@ def friction_seen(report: PayloadReport) -> bool:
 
 
 def places_payload(moment_kgmm: Sequence[float], mass_kg: float) -> bool:
-    """Whether a payload of ``mass_kg`` with first moment ``moment_kgmm`` sits within
-    ±MAX_PAYLOAD_CENTRE_MM of the wrist's centre on every axis (where a profile may place it:
-    a lighter mass than weighed, or a wrong first moment, puts it beyond)."""
-    return mass_kg > 0.0 and max(abs(float(x)) for x in moment_kgmm) / mass_kg <= MAX_PAYLOAD_CENTRE_MM
+    """Whether a payload of ``mass_kg`` with first moment ``moment_kgmm`` sits where a profile
+    may place it (:func:`~spm_console.config.plant.centre_within`: a lighter mass than
+    weighed, or a wrong first moment, puts it beyond)."""
+    return centre_within(moment_kgmm, mass_kg)
 
 
 def with_load_model(profile: Profile, report: PayloadReport,
