@@ -21,6 +21,7 @@ from spm_console.devices.emulator.bno055 import EmulatedBno055, ImuTruth
 from spm_console.devices.imu.bno055 import Bno055
 from spm_console.devices.imu.bno055_registers import OprMode, Reg
 from spm_console.errors import BadInputError, ExitCode, ImuError
+from spm_console.system.realtime import EMULATOR_PRIORITY, HELPER_PRIORITY
 
 TILTED = ImuTruth.at_rest_rpy(10.0, -20.0, 30.0)
 G_SENSOR = TILTED.rotation.T @ [0.0, 0.0, 9.80665]
@@ -60,6 +61,24 @@ def fake_device(*answers: str) -> Iterator[str]:
         os.close(master)
         os.close(slave)
 
+
+
+def test_the_serving_thread_runs_below_the_emulated_servos_and_above_normal_threads(
+        em: EmulatedBno055) -> None:
+    """Its truth() steps the emulated wrist under the servos' lock: preempted while holding
+    it, it would hold up the servos' SCHED_FIFO thread."""
+    t_end = time.monotonic() + 2.0
+    while em.realtime.detail == "not serving yet" and time.monotonic() < t_end:
+        time.sleep(0.01)
+    (thread,) = [t for t in threading.enumerate() if t.name == "spm-bno055" and t.is_alive()]
+    assert thread.native_id is not None
+    if em.realtime.policy == "SCHED_FIFO":
+        assert os.sched_getscheduler(thread.native_id) == os.SCHED_FIFO
+        assert os.sched_getparam(thread.native_id).sched_priority == HELPER_PRIORITY
+        assert 0 < HELPER_PRIORITY < EMULATOR_PRIORITY
+    else:  # not permitted here: it says why, and the thread runs at the priority it got
+        assert em.realtime.detail and "not serving yet" not in em.realtime.detail
+        assert os.sched_getscheduler(thread.native_id) == os.SCHED_OTHER
 
 def test_open_reads_the_chip_ids_and_the_units(em: EmulatedBno055) -> None:
     with Bno055.open(em.port) as imu:

@@ -62,6 +62,7 @@ from spm_console.devices.imu import bno055_protocol as bp
 from spm_console.devices.imu import bno055_registers as br
 from spm_console.devices.imu.bno055_protocol import Status
 from spm_console.devices.imu.bno055_registers import OprMode, Reg
+from spm_console.system.realtime import HELPER_PRIORITY, RtGrant, request_realtime
 
 F = NDArray[np.float64]
 
@@ -323,6 +324,8 @@ class EmulatedBno055:
         self._channel: Channel | None = None
         self.error: Exception | None = None
         """What stopped the serving thread (an exception of ``truth()``), or None."""
+        self.realtime = RtGrant("normal", "not serving yet")
+        """The scheduling the serving thread got."""
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._serve, name="spm-bno055", daemon=True)
@@ -351,6 +354,10 @@ class EmulatedBno055:
         return self._thread.is_alive()
 
     def _serve(self) -> None:
+        # truth() of the emulated wrist steps its physics under the emulated servos' lock: at
+        # normal priority a busy machine could preempt this thread while it holds that lock,
+        # and the servos' thread (SCHED_FIFO) would wait behind it and answer late
+        self.realtime = request_realtime(HELPER_PRIORITY)
         while not self._stop.is_set():
             wait = IDLE_S
             due = self.uart.deadline()
