@@ -6,10 +6,13 @@ profile's tick map may be off by tens of degrees. What is allowed is this: each 
 moved to at most :data:`BALL_DEG` from where it rested when the first nudge began (its *rest*,
 read here, never taken from the client), at most :data:`MAX_SPEED_DEGPS`, with its PWM Limit
 lowered to :data:`PWM_LIMIT` (an EEPROM register: written with torque off; Position Control
-mode's effort bound). Every cycle the commanded and present positions are compared; a servo
-that does not follow (stalled, blocked, reversed against another leg) stops the nudge where it
-is, holding. Ticks and degrees of the servo's own counting (not joint angles: those need the
-map this stage is finding).
+mode's effort bound). Once the effort is lowered the servos are watched holding their rest:
+a wrist its load pulls more than :data:`TRACK_TOL_DEG` from it is not nudged. Every cycle the
+commanded and present positions are compared; a servo that does not follow (stalled, blocked,
+reversed against another leg, or a load too heavy for the lowered effort) stops the nudge.
+After such a stop the servos get their full effort back and go back to their rests, slowly,
+and hold there (an E-stop holds where they are instead). Ticks and degrees of the servo's own
+counting (not joint angles: those need the map this stage is finding).
 """
 
 from __future__ import annotations
@@ -34,6 +37,8 @@ PWM_LIMIT = 300
 TRACK_TOL_DEG = 1.0
 #: Wait at the end of a nudge for the servos to settle, s.
 SETTLE_S = 0.3
+#: How long the servos are watched holding their rest once their effort is lowered, s.
+HOLD_WATCH_S = 0.3
 #: Cycle of a nudge's ramp, s.
 CYCLE_S = 0.02
 #: Most time one cycle advances the ramp by, s: a cycle that took longer (a slow read) moves
@@ -70,6 +75,10 @@ class NudgeResult:
     stopped: str = ""
     """Why the nudge stopped early (empty: it completed)."""
     duration_s: float = 0.0
+    max_away_deg: float = 0.0
+    """Farthest any servo was seen from its rest, deg (the commanded offset included)."""
+    returned: bool = False
+    """After a stop: the servos went back to their rests, at full effort, and hold there."""
 
     @property
     def ok(self) -> bool:
@@ -124,6 +133,67 @@ def _begin(bus: DynamixelBus, state: NudgeState) -> None:
     bus.set_up(lambda: bus.set_torque(True, ids))
 
 
+def _away_deg(state: NudgeState, present: dict[int, int], tpd: float) -> float:
+    """Farthest servo from its rest, deg."""
+    return max(abs(present[i] - state.rest_ticks[i]) / tpd for i in present)
+
+
+def _watch_hold(bus: DynamixelBus, state: NudgeState, tpd: float, stop_asked: Callable[[], str],
+                clock: Callable[[], float], sleep: Callable[[float], None]) -> tuple[str, float]:
+    """The servos holding their rest at the lowered effort for :data:`HOLD_WATCH_S`: why not
+    (empty: they held) and how far they went from it, deg."""
+    ids = list(bus.ids)
+    away = 0.0
+    t_end = clock() + HOLD_WATCH_S
+    while True:
+        reason = stop_asked()
+        if reason:
+            return f"stopped: {reason}", away
+        away = max(away, _away_deg(state, dict(zip(ids, _ticks(bus), strict=True)), tpd))
+        if away > TRACK_TOL_DEG:
+            return (f"the wrist left its rest by {away:.2f}° (more than {TRACK_TOL_DEG:g}°) with "
+                    f"the servos' effort lowered to a PWM Limit of {PWM_LIMIT}: its load is too "
+                    "heavy for the limited nudges here (bring it nearer home, or support the "
+                    "platform)"), away
+        if clock() >= t_end:
+            return "", away
+        sleep(CYCLE_S)
+
+
+def _back_to_rest(bus: DynamixelBus, state: NudgeState, tpd: float,
+                  stop_asked: Callable[[], str], clock: Callable[[], float],
+                  sleep: Callable[[float], None]) -> bool:
+    """After a stop that was not an E-stop: the full effort back (PWM Limits restored, holding
+    where the servos are), then every servo back to its rest on a ramp at
+    :data:`MAX_SPEED_DEGPS`, holding there; an E-stop meanwhile holds where they are. Whether
+    they got back. The nudging then ends (the next nudge begins again)."""
+    ids = list(bus.ids)
+    rest = dict(state.rest_ticks)
+    present = dict(zip(ids, _ticks(bus), strict=True))
+    bus.set_up(lambda: bus.set_torque(False, ids))
+    for ident, pwm in list(state.saved_pwm.items()):
+        bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
+        del state.saved_pwm[ident]
+    bus.sync_write("goal_position", present)
+    state.goal_ticks = present
+    bus.set_up(lambda: bus.set_torque(True, ids))
+    state.rest_ticks.clear()
+    ramp_s = max(abs(rest[i] - present[i]) for i in ids) / tpd / MAX_SPEED_DEGPS
+    s, t_last = 0.0, clock()
+    while s < 1.0:
+        if stop_asked():
+            return False
+        sleep(CYCLE_S)
+        now = clock()
+        s = 1.0 if ramp_s <= 0 else min(1.0, s + min(now - t_last, MAX_ADVANCE_S) / ramp_s)
+        t_last = now
+        goal = {i: round(present[i] + s * (rest[i] - present[i])) for i in ids}
+        bus.sync_write("goal_position", goal)
+        state.goal_ticks = goal
+    sleep(SETTLE_S)
+    return True
+
+
 def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
     """End the nudging: torque off, PWM Limits restored (an EEPROM register: torque off to
     write it); then, with ``hold``, torque on again holding where each servo was before
@@ -170,47 +240,70 @@ def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, f
     check_moves(moves, ids, speed_degps)
     tpd = bus.maps[0].ticks_per_turn / 360.0
     t0 = clock()
+    lag = away = 0.0
+    stopped = ""
+    returned = False
     try:
         if not state.rest_ticks:  # the first nudge, or the first since a release
             _begin(bus, state)
-        start = dict(state.goal_ticks)
-        target = dict(start)
-        for ident, offset in moves:
-            target[ident] = round(state.rest_ticks[ident] + offset * tpd)
-        span_deg = max(abs(target[i] - start[i]) / tpd for i in ids)
-        ramp_s = span_deg / speed_degps
-        lag = 0.0
-        stopped = ""
-        s, t_last = 0.0, clock()
-        while True:
-            reason = stop_asked()
-            if reason:
-                stopped = f"stopped: {reason}"
-                break
-            now = clock()
-            s = 1.0 if ramp_s <= 0 else min(1.0, s + min(now - t_last, MAX_ADVANCE_S) / ramp_s)
-            t_last = now
-            goal = {i: round(start[i] + s * (target[i] - start[i])) for i in ids}
-            bus.sync_write("goal_position", goal)
-            state.goal_ticks = goal
-            present = dict(zip(ids, _ticks(bus), strict=True))
-            lag = max(lag, max(abs(goal[i] - present[i]) / tpd for i in ids))
-            if lag > TRACK_TOL_DEG:
-                stopped = (f"a servo lags {lag:.2f}° behind the nudge (more than "
-                           f"{TRACK_TOL_DEG:g}°): stalled, blocked or pushed by another leg")
-                break
-            if s >= 1.0:
-                break
-            sleep(CYCLE_S)
-        if stopped:  # hold where the servos are
+            stopped, away = _watch_hold(bus, state, tpd, stop_asked, clock, sleep)
+        rest = dict(state.rest_ticks)
+        if not stopped:
+            stopped, lag, away = _ramp(bus, state, moves, speed_degps, tpd, stop_asked, clock,
+                                       sleep)
+        if stopped.startswith("stopped: "):  # an E-stop: hold where the servos are
             present = dict(zip(ids, _ticks(bus), strict=True))
             bus.sync_write("goal_position", present)
             state.goal_ticks = present
+        elif stopped:
+            returned = _back_to_rest(bus, state, tpd, stop_asked, clock, sleep)
         else:
             sleep(SETTLE_S)
         reached = _ticks(bus)
     except CommError as exc:
         raise BusError(f"nudge on {bus.port}: {exc}") from None
-    return NudgeResult(tuple(ids), tuple(state.rest_ticks[i] for i in ids),
+    away = max(away, max(abs(reached[j] - rest[i]) / tpd for j, i in enumerate(ids)))
+    return NudgeResult(tuple(ids), tuple(rest[i] for i in ids),
                        tuple(state.goal_ticks[i] for i in ids), tuple(reached), lag, stopped,
-                       clock() - t0)
+                       clock() - t0, away, returned)
+
+
+def _ramp(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, float]],
+          speed_degps: float, tpd: float, stop_asked: Callable[[], str],
+          clock: Callable[[], float], sleep: Callable[[float], None]) -> tuple[str, float, float]:
+    """The nudge's ramp from the goals held to the moves' targets: why it stopped (empty: it
+    reached them), the largest lag behind it and the farthest any servo went from its rest,
+    deg."""
+    ids = list(bus.ids)
+    start = dict(state.goal_ticks)
+    target = dict(start)
+    for ident, offset in moves:
+        target[ident] = round(state.rest_ticks[ident] + offset * tpd)
+    ramp_s = max(abs(target[i] - start[i]) / tpd for i in ids) / speed_degps
+    lag = away = 0.0
+    s, t_last = 0.0, clock()
+    while True:
+        reason = stop_asked()
+        if reason:
+            return f"stopped: {reason}", lag, away
+        now = clock()
+        s = 1.0 if ramp_s <= 0 else min(1.0, s + min(now - t_last, MAX_ADVANCE_S) / ramp_s)
+        t_last = now
+        goal = {i: round(start[i] + s * (target[i] - start[i])) for i in ids}
+        bus.sync_write("goal_position", goal)
+        state.goal_ticks = goal
+        present = dict(zip(ids, _ticks(bus), strict=True))
+        lag = max(lag, max(abs(goal[i] - present[i]) / tpd for i in ids))
+        away = max(away, _away_deg(state, present, tpd))
+        if lag > TRACK_TOL_DEG:
+            return (f"a servo lags {lag:.2f}° behind the nudge (more than {TRACK_TOL_DEG:g}°): "
+                    "stalled, blocked, pushed by another leg or too heavily loaded for the "
+                    f"lowered effort (PWM Limit {PWM_LIMIT})"), lag, away
+        if away > BALL_DEG + 1.0 / tpd:  # ahead of its goal (a tick of rounding allowed): the
+            # load pulls it the nudge's way
+            return (f"a servo went {away:.2f}° from its rest, beyond the {BALL_DEG:g}° "
+                    "allowed: its load pulls it harder than the lowered effort (PWM Limit "
+                    f"{PWM_LIMIT}) holds"), lag, away
+        if s >= 1.0:
+            return "", lag, away
+        sleep(CYCLE_S)

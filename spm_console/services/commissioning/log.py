@@ -75,7 +75,8 @@ class CommissionLog:
     def nudge(self, r: NudgeResult) -> None:
         self.event("nudge", ids=list(r.ids), rest_ticks=list(r.rest_ticks),
                    goal_ticks=list(r.goal_ticks), reached_ticks=list(r.reached_ticks),
-                   max_lag_deg=r.max_lag_deg, duration_s=r.duration_s, stopped=r.stopped)
+                   max_lag_deg=r.max_lag_deg, duration_s=r.duration_s, stopped=r.stopped,
+                   max_away_deg=r.max_away_deg, returned=r.returned)
 
     def imu(self, sample: ImuSample) -> None:
         if not self.run.finished:

@@ -228,8 +228,11 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
             if on_nudge is not None:
                 on_nudge(r)
             if not r.ok:
+                where = ("the servos went back to where they rested and hold there at full "
+                         "effort" if r.returned else "the servos hold where they are")
                 raise BusError(f"commission: the nudge of servo id {ident} stopped "
-                               f"({r.stopped}); nothing else moved. Check the wrist moves freely")
+                               f"({r.stopped}); the farthest a servo went from its rest: "
+                               f"{r.max_away_deg:.2f}°; {where}. Check the wrist moves freely")
             return r
 
         try:
