@@ -23,7 +23,7 @@ from spm_console.cli.common import (
     profile_of,
 )
 from spm_console.config.plant import MAX_PAYLOAD_KG
-from spm_console.errors import BadInputError, ExitCode
+from spm_console.errors import BadInputError, ExitCode, OptionConflictError
 from spm_console.input_rules import finite_number
 from spm_console.system.signals import stop_signals
 
@@ -59,10 +59,18 @@ def register(sub: Any) -> None:
     c.set_defaults(func=cmd_commission)
 
 
+#: The options :func:`~spm_console.services.commissioning.run.options_problem` weighs.
+_OPTIONS = "--port, --imu-port, --jig, --no-imu-fit, --payload-kg"
+
+
 def cmd_commission(args: argparse.Namespace) -> int:
     from spm_console.services.client import EstopRelay
     from spm_console.services.commissioning.profile_out import commissioned_lines
-    from spm_console.services.commissioning.run import CommissionRequest, run_commissioning
+    from spm_console.services.commissioning.run import (
+        CommissionRequest,
+        options_problem,
+        run_commissioning,
+    )
 
     profile = profile_of(args)
     port = args.port or profile.bus.port
@@ -75,9 +83,9 @@ def cmd_commission(args: argparse.Namespace) -> int:
     if args.payload_kg is not None:
         payload_kg = finite_number(args.payload_kg, "--payload-kg", 0.0, MAX_PAYLOAD_KG,
                                    lo_open=True, unit="kg")
-        if args.no_imu_fit or not args.imu_port:
-            raise BadInputError("--payload-kg needs the IMU stage (--imu-port, without "
-                                "--no-imu-fit): it fits where the payload sits")
+    why = options_problem(port, args.imu_port, args.jig, not args.no_imu_fit, payload_kg)
+    if why:
+        raise OptionConflictError(f"commission: {why} ({_OPTIONS})")
     req = CommissionRequest(port, args.imu_port, args.jig, not args.no_imu_fit, args.out,
                             args.logs, payload_kg)
     relay = EstopRelay("commission")

@@ -75,3 +75,20 @@ async def test_a_bad_payload_mass_is_refused_and_nothing_starts(
         assert app.screen.busy_op == "" and not app.moving
 
 
+
+
+async def test_without_the_jig_or_the_imu_nothing_starts(console) -> None:  # type: ignore[no-untyped-def]
+    """Nothing would zero the wrist: refused before the questions (the CLI's usage error)."""
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        await pilot.press("0")
+        await settle(pilot)
+        _fill(app, "/dev/ttyUSB0", "")
+        app.screen.query_one("#jig", TickBox).value = False
+        app.screen.query_one("#imu-stage", TickBox).value = False
+        await pilot.press("s")
+        await pilot.pause()
+        assert isinstance(app.screen, CommissionScreen)  # no dialog
+        assert "nothing would zero the wrist" in text_of(app, "#commission-reason")
+        assert "nothing started" in status_of(app) and not app.moving

@@ -8,6 +8,7 @@ before (an interruption); nothing is written."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,6 +50,29 @@ class CommissionRequest:
     payload_kg: float | None = None
     """The payload's mass as weighed, kg: with the first moment the IMU stage fits, it is
     written (``[plant] payload_kg``) and places the payload (None: not known)."""
+
+
+def _same_device(a: str, b: str) -> bool:
+    """Whether two port names open one device (a symbolic link, /dev/serial/by-id/…, names
+    the device it points at)."""
+    if a.startswith("unix:") or b.startswith("unix:"):
+        return a == b
+    return os.path.realpath(a) == os.path.realpath(b)
+
+
+def options_problem(port: str, imu_port: str | None, jig: bool, imu_stage: bool,
+                    payload_kg: float | None) -> str:
+    """Why these options do not go together ("" when they do): the rules the CLI (a usage
+    error) and the console's form (the reason under its fields) both apply, before anything
+    is opened."""
+    if imu_port and _same_device(port, imu_port):
+        return f"the servo bus and the IMU need ports of their own (both name {port})"
+    if not jig and not imu_port:
+        return ("nothing would zero the wrist: give the home jig (the wrist on it, torque off) "
+                "or the IMU's port (it zeroes the wrist where it rests)")
+    if payload_kg is not None and not (imu_stage and imu_port):
+        return "the payload's mass needs the IMU stage (the IMU's port): it fits where the payload sits"
+    return ""
 
 
 @dataclass(frozen=True)

@@ -158,21 +158,19 @@ class CommissionScreen(StepScreen):
 
     def form_problem(self, f: CommissionForm) -> str:
         """Why ``f`` cannot start ("" when it can)."""
+        from spm_console.services.commissioning.run import options_problem
+
         why = port_problem(f.bus, "servo bus") or (f.imu and port_problem(f.imu, "IMU port"))
         if why:
             return why
-        if f.bus == f.imu:
-            return "the servo bus and the IMU need ports of their own"
-        if f.imu_stage and not f.imu:
+        if f.imu_stage and not f.imu and f.bus != f.imu:
             return ("the IMU stage needs the IMU: type its port, or untick the IMU stage (the "
                     "map then asks you which leg each nudge moved)")
         try:
             mass = f.payload()
         except BadInputError as exc:
             return exc.message
-        if mass is not None and not f.imu_stage:
-            return "the payload's mass needs the IMU stage (it fits where the payload sits)"
-        return ""
+        return options_problem(f.bus, f.imu or None, f.jig, f.imu_stage, mass)
 
     # ------------------------------------------------------------------ start
     def action_start(self) -> None:

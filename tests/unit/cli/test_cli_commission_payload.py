@@ -1,5 +1,5 @@
-"""``commission --payload-kg``: a weighed mass in (0, 2] kg, and only with the IMU stage that
-places it; anything else is refused (exit 4) before any port is opened."""
+"""``commission --payload-kg``: a weighed mass in (0, 2] kg (anything else is refused, exit 4,
+before any port is opened); the options it needs: ``test_cli_commission_options.py``."""
 
 from __future__ import annotations
 
@@ -17,7 +17,6 @@ from spm_console.errors import ExitCode
     ("2.5", [], "--payload-kg must be in (0, 2] kg"),
     ("nan", [], "--payload-kg"),
     ("1e-320", [], "subnormal"),  # the profile would refuse it after the whole run
-    ("0.3", ["--no-imu-fit"], "needs the IMU stage"),
 ])
 def test_a_bad_payload_mass_is_refused_before_anything_opens(
         capsys: pytest.CaptureFixture[str], value: str, extra: list[str], why: str) -> None:
@@ -27,8 +26,3 @@ def test_a_bad_payload_mass_is_refused_before_anything_opens(
     assert rc == ExitCode.BAD_INPUT, out
     assert why in json.loads(out.out)["error"]
 
-
-def test_without_an_imu_a_payload_mass_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
-    rc = main(["commission", "--port", "unix:/nonexistent/bus", "--payload-kg", "0.3", "--json"])
-    assert rc == ExitCode.BAD_INPUT
-    assert "needs the IMU stage" in json.loads(capsys.readouterr().out)["error"]
