@@ -65,7 +65,7 @@ _OPTIONS = "--port, --imu-port, --jig, --no-imu-fit, --payload-kg"
 
 def cmd_commission(args: argparse.Namespace) -> int:
     from spm_console.services.client import EstopRelay
-    from spm_console.services.commissioning.profile_out import commissioned_lines
+    from spm_console.services.commissioning.profile_out import commissioned_lines, kept_port
     from spm_console.services.commissioning.run import (
         CommissionRequest,
         options_problem,
@@ -111,12 +111,12 @@ def cmd_commission(args: argparse.Namespace) -> int:
                 "theta_std_deg": list(result.rest_zero.fit.theta_std_deg),
                 "imu_mount_rotvec_deg": list(result.rest_zero.fit.mount_rotvec_deg),
                 "residual_rms_deg": result.rest_zero.fit.residual_rms_deg},
-            "log_dir": str(done.log_dir),
+            "log_dir": str(done.log_dir), "bus_port_written": kept_port(port),
             "imu_fit": None if result.refinement is None else _fit_json(result.refinement),
             "payload_kg": result.profile.plant.payload_kg,
             "payload_centre_mm": (None if result.profile.plant.payload_centre_mm is None
                                   else list(result.profile.plant.payload_centre_mm))}
-    human = "\n".join([*commissioned_lines(result), f"profile written: {done.written}",
+    human = "\n".join([*commissioned_lines(result, port), f"profile written: {done.written}",
                        f"run log: {done.log_dir}"])
     emit(args, data, human)
     return int(ExitCode.OK)

@@ -122,9 +122,10 @@ def write_commissioned(profile_path: Path, result: Commissioned, out: Path | Non
     return write_new(target, text)
 
 
-def commissioned_lines(result: Commissioned) -> list[str]:
+def commissioned_lines(result: Commissioned, port: str = "") -> list[str]:
     """The result in words, one line each: legs, ids and directions, the jig's tick offsets,
-    the IMU stage's residuals and every fitted parameter with its status."""
+    the IMU stage's residuals and every fitted parameter with its status; with the ``port``
+    commissioned on, why it was not written as ``[bus] port`` when it was not."""
     lines = [f"leg {m.leg}: servo id {m.id}, direction {m.direction:+d} "
              + (f"(platform turned {m.rotation_deg:.2f}°, |cos| {m.cos:.2f})"
                 if m.source == "imu" else "(confirmed by the operator)") for m in result.legs]
@@ -196,4 +197,8 @@ def commissioned_lines(result: Commissioned) -> list[str]:
                 lines.append("  the payload's mass alone is not seen by a wrist turning about a "
                              "point (give --payload-kg, weighed): the emulated wrist carries no "
                              "payload")
+    if port and not kept_port(port):
+        lines.append(f"[bus] port not written: {port} is a pseudo-terminal, whose name the next "
+                     "terminal opened takes; give --port to the commands that use this profile "
+                     "(without it they drive the emulated bus), or write a stable name there")
     return lines

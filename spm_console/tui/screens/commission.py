@@ -342,4 +342,4 @@ def commission_blocking(profile: Profile, profile_path: Path | None, f: Commissi
     result, written = done.result, done.written
     ids = ", ".join(f"{m.leg}: id {m.id} ({'+' if m.direction > 0 else '−'})"
                     for m in result.legs)
-    return CommissionDone(written, tuple(commissioned_lines(result)), ids)
+    return CommissionDone(written, tuple(commissioned_lines(result, f.bus)), ids)

@@ -113,3 +113,8 @@ def test_a_weighed_mass_the_new_first_moment_does_not_place_is_taken_out_of_the_
     assert back.bus.port == base.bus.port  # a pty's name goes to the next terminal
     assert any("payload mass 0.3 kg (weighed) not written" in ln
                for ln in commissioned_lines(after))
+    # and the report says the port was not written, and what the next commands need
+    said = [ln for ln in commissioned_lines(after, "/dev/pts/7") if "[bus] port" in ln]
+    assert len(said) == 1 and "/dev/pts/7 is a pseudo-terminal" in said[0]
+    assert "give --port" in said[0]
+    assert not any("[bus] port" in ln for ln in commissioned_lines(after, "/dev/ttyUSB0"))
