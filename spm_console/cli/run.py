@@ -148,9 +148,13 @@ def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any
         "stop": st.to_dict().get("stop"), "stats": st.to_dict(),
         "realtime": {"granted": res.realtime_granted, "detail": res.realtime}, **extra,
     }
+    if res.settle is not None:
+        data["settle"] = res.settle.to_dict()
     lines = [f"{res.outcome}: {res.message}"]
     if res.final_deg is not None:
         lines.append(f"final θ = {fmt_vec(res.final_deg, 2)} deg")
+    if res.settle is not None and res.settle.text():
+        lines.append(res.settle.text())
     if st.samples and st.jitter_ms is not None and st.bus_ms is not None:
         lines.append(
             f"{st.samples} cycles; measured vs model RMS {st.tracking_rms_deg:.3f}°, max "

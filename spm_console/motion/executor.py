@@ -48,7 +48,13 @@ from spm_console.motion.plan_check import LINE_PHASES, PlanCheck, PlanVerifier
 from spm_console.motion.safety import SafetyMonitor, StopReason
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import ExecutionResult, Segment
-from spm_console.motion.stats import StopTiming, model_health, run_stats, stale_replies
+from spm_console.motion.stats import (
+    SettleOutcome,
+    StopTiming,
+    model_health,
+    run_stats,
+    stale_replies,
+)
 from spm_console.motion.stop_action import apply_stop_action
 from spm_console.system.cpus import placement
 from spm_console.system.realtime import (
@@ -150,6 +156,7 @@ class Executor:
         self._watchdog_armed = False
         self.realtime = RtGrant("normal", "not running")
         """The scheduling the loop thread got (logged as the "realtime" event)."""
+        self.settle_outcome: SettleOutcome | None = None
 
     # ------------------------------------------------------------------ control
     def request_estop(self, reason: str = "operator request", at_clock: float | None = None,
@@ -371,8 +378,13 @@ class Executor:
             s.update(self.samples[-1].measured_deg)
             if s.settled:
                 break
+        error = goal - self.samples[-1].measured_deg
         self._event("settle", settled=s.settled, periods=used, shift_deg=s.shift,
-                    error_deg=goal - self.samples[-1].measured_deg, refused_shifts=s.refused)
+                    error_deg=error, refused_shifts=s.refused)
+        law = self.profile.settle
+        self.settle_outcome = SettleOutcome(
+            s.settled, (float(error[0]), float(error[1]), float(error[2])),
+            float(law.tolerance_deg), float(law.duration_s), s.refused)
         return None
 
     def _loop_state(self, theta0: F) -> _LoopState:
@@ -550,4 +562,5 @@ class Executor:
             realtime="" if self.realtime.policy == "normal" and not self.samples
             else self.realtime.detail,
             realtime_granted=self.realtime.policy == "SCHED_FIFO",
+            settle=self.settle_outcome,
         )

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from spm_console.core.plan import Plan
 from spm_console.errors import ExitCode
 from spm_console.motion.safety import StopReason
-from spm_console.motion.stats import RunStats
+from spm_console.motion.stats import RunStats, SettleOutcome
 
 F = NDArray[np.float64]
 
@@ -41,6 +41,8 @@ class ExecutionResult:
     """The scheduling the servo loop got, e.g. "SCHED_FIFO priority 40" ("" when no loop ran)."""
     realtime_granted: bool = False
     """SCHED_FIFO was granted (else the loop ran at a raised or normal priority)."""
+    settle: SettleOutcome | None = None
+    """How the settling at the plan's goal ended (None: the run did not settle)."""
 
     @property
     def ok(self) -> bool:

@@ -194,3 +194,33 @@ def stale_replies(bus: object) -> int:
     """The bus's count of stale status packets so far (late replies to earlier requests, or
     replies nothing asked for; see ``DynamixelBus.stale_replies``); 0 when it keeps none."""
     return int(getattr(bus, "stale_replies", 0))
+
+
+@dataclass(frozen=True)
+class SettleOutcome:
+    """How a run's settling at its goal ended (degrees)."""
+
+    settled: bool
+    error_deg: tuple[float, float, float]
+    """Goal − measured position when the settling ended, per joint."""
+    tolerance_deg: float
+    duration_s: float
+    refused_shifts: int
+    """Shifts not taken: the shifted goal would have left the certified set."""
+
+    def text(self) -> str:
+        """One line for the operator: empty when it settled."""
+        if self.settled:
+            return ""
+        j = int(np.argmax(np.abs(self.error_deg)))
+        line = (f"did not settle within {self.duration_s:g} s: joint {j + 1} rests "
+                f"{abs(self.error_deg[j]):.2f}° from its goal (tolerance "
+                f"{self.tolerance_deg:g}°)")
+        if self.refused_shifts:
+            line += (f"; {self.refused_shifts} goal shifts refused, which would have left the "
+                     "workspace's certified set (a goal on its boundary)")
+        return line
+
+    def to_dict(self) -> dict[str, object]:
+        return {"settled": self.settled, "error_deg": list(self.error_deg),
+                "tolerance_deg": self.tolerance_deg, "refused_shifts": self.refused_shifts}

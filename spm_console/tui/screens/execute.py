@@ -378,6 +378,8 @@ def outcome_text(result: Any) -> str:
     lines = [f"{head} (exit code {int(result.exit_code)}): {result.message}"]
     if result.final_deg is not None:
         lines.append(f"final θ = {fmt_deg(result.final_deg)}")
+    if result.settle is not None and result.settle.text():
+        lines.append(result.settle.text())
     rms = result.stats.tracking_rms_deg
     if result.stats.samples and np.isfinite(rms):
         lines.append(f"tracking error RMS {rms:.3f}°")

@@ -116,3 +116,20 @@ def test_a_joint_at_a_face_leaves_the_others_free_to_settle() -> None:
     assert all(allowed(t) for t in sent) and s.refused > 0
     assert abs(read[0] - goal[0]) <= TICK and abs(read[2] - goal[2]) <= TICK
     assert s.shift[1] == 0.0 and np.isclose(read[1] - goal[1], -0.2, atol=TICK)
+
+
+def test_a_run_that_did_not_settle_says_which_joint_rests_how_far_and_why() -> None:
+    """What execute and the Execute step print under the final θ (the event alone was in the
+    log: a run at a goal on the certified set's face read as plainly completed)."""
+    from spm_console.motion.stats import SettleOutcome
+
+    done = SettleOutcome(True, (0.01, -0.02, 0.0), 0.05, 2.0, 0)
+    assert done.text() == ""
+    short = SettleOutcome(False, (0.0005, 0.174, -0.042), 0.05, 2.0, 100)
+    text = short.text()
+    assert text.startswith("did not settle within 2 s: joint 2 rests 0.17° from its goal")
+    assert "100 goal shifts refused" in text and "certified set" in text
+    assert "refused" not in SettleOutcome(False, (0.0, 0.0, -0.3), 0.05, 2.0, 0).text()
+    assert "joint 3 rests 0.30°" in SettleOutcome(False, (0.0, 0.0, -0.3), 0.05, 2.0, 0).text()
+    assert short.to_dict() == {"settled": False, "error_deg": [0.0005, 0.174, -0.042],
+                               "tolerance_deg": 0.05, "refused_shifts": 100}
