@@ -137,6 +137,13 @@ def commissioned_lines(result: Commissioned, port: str = "") -> list[str]:
                                                  strict=True)) + "°")
     elif result.tick_offsets is not None:
         lines.append(f"tick offsets from the jig: {list(result.tick_offsets)}")
+        if result.held_at_jig:
+            lines.append(
+                f"warning: servo ids {list(result.held_at_jig)} held the wrist (torque on) when "
+                "the jig stage began; a wrist on its jig is powered with torque off. If it was "
+                "not on its jig, the zero is where it stood: "
+                + ("the IMU stage's held-out poses checked it" if result.refinement is not None
+                   else "commission again on the jig, or with the IMU stage to check it"))
     else:
         lines.append("not zeroed: give --jig (the wrist on its home jig, torque off), or "
                      "--imu-port (the IMU zeroes it where it rests)")

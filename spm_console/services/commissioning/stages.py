@@ -162,6 +162,9 @@ class Commissioned:
     """The payload's weighed mass, kg: the operator's (``--payload-kg``), else the profile's
     own ``[plant] payload_kg``; written beside the first moment when the stage determined one
     that places it (None: not known)."""
+    held_at_jig: tuple[int, ...] = ()
+    """The servo ids whose torque was on when the jig stage began: the wrist was held where
+    it stood, maybe not on its jig (the zero is where it stood)."""
 
 
 def discover(profile: Profile, port: str, on_stage: Callable[[str], None],
@@ -208,7 +211,13 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
         if stop is not None:
             stop.attach(client)
         jig_by_id: dict[int, float] | None = None
+        held_at_jig: tuple[int, ...] = ()
         if jig:
+            held_at_jig = tuple(j.id for j in client.query(BusQuery("joints")).joints
+                                if j.torque)
+            if held_at_jig:
+                on_stage(f"jig: warning: servo ids {list(held_at_jig)} held the wrist (torque "
+                         "on); a wrist on its jig is powered with torque off")
             on_stage("jig: torque off, averaging each servo's ticks at the home jig")
             client.query(BusQuery("torque", on=False))
             jig_by_id = _jig_ticks(client, disc.ids)
@@ -290,7 +299,7 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
                     for a, b in zip(r.rest_ticks, r.reached_ticks, strict=True)), default=0.0)
     return Commissioned(disc, (legs[0], legs[1], legs[2]), jig_ticks, offsets, built,
                         nudge_s=sum(r.duration_s for r in nudges), max_nudge_deg=farthest,
-                        tick_trims=trims, rest_zero=rest)
+                        tick_trims=trims, rest_zero=rest, held_at_jig=held_at_jig)
 
 
 def _distinct_legs(matches: Sequence[LegMatch], by: str) -> list[LegMatch]:

@@ -118,3 +118,19 @@ def test_a_weighed_mass_the_new_first_moment_does_not_place_is_taken_out_of_the_
     assert len(said) == 1 and "/dev/pts/7 is a pseudo-terminal" in said[0]
     assert "give --port" in said[0]
     assert not any("[bus] port" in ln for ln in commissioned_lines(after, "/dev/ttyUSB0"))
+
+
+def test_a_jig_stage_that_found_the_servos_holding_warns_in_the_report(agile: Profile) -> None:
+    """A wrist on its jig is powered with torque off: servos found holding (a wrist left held
+    by an earlier run, not on its jig) make the jig's zero suspect; the report says so, and
+    how to check it."""
+    from dataclasses import replace
+
+    from spm_console.services.commissioning.profile_out import commissioned_lines
+
+    plain = _wired(agile)
+    assert not any("warning" in ln for ln in commissioned_lines(plain))
+    held = replace(plain, held_at_jig=(1, 3))
+    (said,) = [ln for ln in commissioned_lines(held) if ln.startswith("warning")]
+    assert "servo ids [1, 3] held the wrist (torque on)" in said
+    assert "with the IMU stage to check it" in said
