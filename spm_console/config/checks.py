@@ -361,10 +361,31 @@ def link_problems(prof: Profile) -> list[Problem]:
         f"(allowed: 0 < delta_mm < {num(radius[smallest])})")]
 
 
+#: Longest port name accepted, characters (a device path, or ``unix:`` and a socket path,
+#: which Linux bounds at 107 bytes).
+MAX_PORT_CHARS = 120
+
+
+def port_problem(text: str, what: str) -> str:
+    """Why ``text`` is no port name ("" when it is one)."""
+    if not text.strip():
+        return f"{what}: empty; type its port (e.g. /dev/ttyUSB0)"
+    if len(text) > MAX_PORT_CHARS:
+        return f"{what}: {len(text)} characters; at most {MAX_PORT_CHARS}"
+    if text != text.strip() or any(c.isspace() or not c.isprintable() for c in text):
+        return f"{what}: no spaces or control characters in a port name"
+    return ""
+
+
 def wiring_problems(prof: Profile) -> list[Problem]:
-    """Limits ordered; tick offset inside one turn; the limits map onto 0..ticks_per_turn−1; home
-    inside the limits."""
+    """The port a name (or empty: the emulated bus); limits ordered; tick offset inside one
+    turn; the limits map onto 0..ticks_per_turn−1; home inside the limits."""
     out = []
+    why = port_problem(prof.bus.port, "a port name") if prof.bus.port else ""
+    if why:
+        out.append(Problem("bus.port", prof.bus.port,
+                           f"{why} (allowed: empty for the emulated bus, or a device path such "
+                           "as /dev/ttyUSB0)"))
     tpt = prof.bus.ticks_per_turn
     for i, j in enumerate(prof.bus.joints):
         key = f"bus.joints[{i}]"

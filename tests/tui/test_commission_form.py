@@ -9,7 +9,8 @@ from __future__ import annotations
 import pytest
 from textual.widgets import RichLog
 
-from spm_console.tui.screens.commission import MAX_PORT_CHARS, CommissionScreen
+from spm_console.config.checks import MAX_PORT_CHARS
+from spm_console.tui.screens.commission import CommissionScreen
 from spm_console.tui.widgets.checkbox import TickBox
 from spm_console.tui.widgets.field import TextField
 from tests.support.console_helpers import settle, status_of, text_of

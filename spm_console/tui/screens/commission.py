@@ -31,6 +31,7 @@ from textual.content import Content
 from textual.message import Message
 from textual.widgets import Label, RichLog, Static
 
+from spm_console.config.checks import port_problem
 from spm_console.config.plant import MAX_PAYLOAD_KG
 from spm_console.config.schema import DEFAULT_PROFILE, Profile
 from spm_console.errors import BadInputError, SpmError
@@ -47,26 +48,12 @@ if TYPE_CHECKING:
     from spm_console.services.client import EstopRelay
     from spm_console.services.commissioning.stages import Ask
 
-#: Longest port name accepted, characters (a device path, or ``unix:`` and a socket path,
-#: which Linux bounds at 107 bytes).
-MAX_PORT_CHARS = 120
 #: Lines the stage log keeps.
 LOG_LINES = 500
 START_TITLE = "Commission the wrist?"
 USE_TITLE = "Use the commissioned profile now?"
 HELP_LINE = ("s starts (after a yes/no) · SPACE stops it · tab moves between the fields, esc "
              "leaves a field")
-
-
-def port_problem(text: str, what: str) -> str:
-    """Why ``text`` is no port name ("" when it is one)."""
-    if not text.strip():
-        return f"{what}: empty; type its port (e.g. /dev/ttyUSB0)"
-    if len(text) > MAX_PORT_CHARS:
-        return f"{what}: {len(text)} characters; at most {MAX_PORT_CHARS}"
-    if text != text.strip() or any(c.isspace() or not c.isprintable() for c in text):
-        return f"{what}: no spaces or control characters in a port name"
-    return ""
 
 
 #: The payload's mass field: weighed, kg (empty: not known).

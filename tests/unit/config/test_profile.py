@@ -224,6 +224,25 @@ def test_the_watchdog_is_off_only_with_a_reason() -> None:
     with pytest.raises(ProfileError, match=r"watchdog_off_reason' = .*the Bus Watchdog is on"):
         parse_profile(doc, "t.toml")
 
+@pytest.mark.parametrize(("port", "why"), [
+    ("/dev/ttyUSB0\nrm -rf", "no spaces or control characters"),
+    ("/dev/tty\u0000USB0", "no spaces or control characters"),
+    (" /dev/ttyUSB0", "no spaces or control characters"),
+    ("/dev/" + "x" * 5000, "at most 120"),
+])
+def test_the_bus_port_is_a_port_name_or_empty(port: str, why: str) -> None:
+    """A port is printed in messages and logs and opened by name: one printable word (a
+    newline split the error over lines that looked like commands)."""
+    doc = agile_doc()
+    doc["bus"]["port"] = port
+    with pytest.raises(ProfileError, match=r"key 'bus\.port'") as exc:
+        parse_profile(doc, "t.toml")
+    assert why in exc.value.message and "\n" not in exc.value.message.split(": ", 1)[1][:60]
+    for ok in ("", "/dev/serial/by-id/usb-FTDI_FT232R-if00-port0", "unix:/tmp/spm-bus-ab/bus"):
+        doc["bus"]["port"] = ok
+        assert parse_profile(doc, "t.toml").bus.port == ok
+
+
 @pytest.mark.parametrize("kind", ["fifo", "device", "directory", "huge"])
 def test_a_profile_that_is_not_a_small_regular_file_is_refused_at_once(
         tmp_path: Path, kind: str) -> None:
