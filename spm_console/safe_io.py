@@ -17,6 +17,7 @@ import json
 import os
 import secrets
 import stat
+import sys
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -132,7 +133,10 @@ def parse_json(text: str, what: str, error: type[SpmError], max_depth: int = MAX
         raise error(f"{what}: JSON nested too deeply (more than {max_depth} levels)") from None
     except json.JSONDecodeError as exc:
         raise error(f"{what}: not valid JSON: {exc}") from None
-    except ValueError as exc:  # e.g. an integer with more digits than Python converts
+    except ValueError as exc:  # an integer with more digits than Python converts
+        if "integer string conversion" in str(exc):
+            raise error(f"{what}: not valid JSON here: a number with more than "
+                        f"{sys.get_int_max_str_digits()} digits") from None
         raise error(f"{what}: not valid JSON: {exc}") from None
     if json_depth(obj) > max_depth:
         raise error(f"{what}: JSON nested too deeply (more than {max_depth} levels)")

@@ -382,8 +382,11 @@ def extra_to_dict(plan: Plan) -> dict[str, Any]:
 
 def plan_from_dict(d: Any, src: str = "plan") -> Plan:
     """Validate the structure of a decoded plan document (not its match to a profile)."""
-    if not isinstance(d, dict) or d.get("format") != FORMAT:
+    if not isinstance(d, dict) or "format" not in d:
         raise PlanMismatchError(f"{src}: not a spm_console plan file (format key missing)")
+    if d["format"] != FORMAT:
+        raise PlanMismatchError(f"{src}: not a spm_console plan file (format "
+                                f"{_describe(d['format'])}, expected {FORMAT!r})")
     if type(d.get("version")) is not int or d["version"] != VERSION:
         raise PlanMismatchError(
             f"{src}: plan format version {_describe(d.get('version'))}, expected {VERSION}")

@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -150,6 +151,9 @@ FIELD_CASES: list[tuple[str, Edit, tuple[str, ...]]] = [
      ("model.discretization must be one of zoh, tustin",)),
     ("model Ts differs from Ts", _set(("model", "Ts"), 0.01), ("model.Ts = 0.01 s",)),
     ("root is a list", lambda d: [1, 2, 3], ("not a spm_console plan file",)),
+    ("format is another", _set(("format",), "x"),
+     ("not a spm_console plan file (format 'x', expected 'spm_console.plan')",)),
+    ("format missing", _do(lambda d: d.pop("format")), ("(format key missing)",)),
 ]
 
 @pytest.mark.parametrize(("name", "edit", "words"), FIELD_CASES, ids=[c[0] for c in FIELD_CASES])
@@ -184,7 +188,8 @@ def test_binary_deep_huge_and_unreadable_files(valid: dict[str, Any], agile: Pro
     cases.append((_write(tmp_path, moderate, "moderate.json"), "nested too deeply"))
     digits = tmp_path / "digits.json"
     digits.write_text('{"format": "spm_console.plan", "N": ' + "9" * 5000 + "}")
-    cases.append((digits, "not valid JSON"))
+    cases.append((digits, "not valid JSON here: a number with more than "
+                          f"{sys.get_int_max_str_digits()} digits$"))
     rows = copy.deepcopy(valid)
     rows["reference_deg"] = [[100.0, 100.0, 100.0]] * 100_002
     cases.append((_write(tmp_path, rows, "rows.json"), "'reference_deg' must have 2..100001 rows"))
