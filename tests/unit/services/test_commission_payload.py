@@ -256,6 +256,7 @@ def test_the_report_says_why_a_weighed_mass_was_not_written(
         arcs_deg=None, tilt_deg=None, payload=report)
     result = SimpleNamespace(legs=[], rest_zero=None, tick_offsets=(1, 2, 3),
                              tick_trims=(0.0, 0.0, 0.0), refinement=refinement,
-                             profile=with_load_model(agile, report, kg), payload_kg_weighed=kg)
+                             profile=with_load_model(agile, report, kg), payload_kg_weighed=kg,
+                             held_at_jig=())
     lines = commissioned_lines(result)  # type: ignore[arg-type]
     assert any(says in line for line in lines), lines
