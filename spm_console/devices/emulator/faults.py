@@ -12,6 +12,7 @@ the emulator's clock starts: the first torque-on (the start of the first motion)
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 from spm_console.errors import BadInputError
@@ -77,9 +78,13 @@ def _number(text: str, what: str, whole: str) -> float:
     """A number of the fault's syntax, by the rule of every number typed
     (:func:`~spm_console.numbers.parse_number`: plain ASCII decimals, finite)."""
     try:
-        return parse_number(text)
+        v = parse_number(text)
     except NotANumberError as exc:
         raise FaultNumberError(f"fault {whole!r}: {what}: {exc}; {_USAGE}", text) from None
+    if v != 0.0 and abs(v) < sys.float_info.min:  # as every number typed (input_rules)
+        raise BadInputError(f"fault {whole!r}: {what}: {text.strip()} is a subnormal number, "
+                            "too small to mean anything (0 or a magnitude of at least 2.2e-308)")
+    return v + 0.0  # −0 is 0
 
 
 def parse_fault(text: str) -> FaultSpec:
@@ -103,9 +108,11 @@ def parse_fault(text: str) -> FaultSpec:
     if not arg:
         raise BadInputError(f"fault {whole!r}: {kind} needs an argument; {_USAGE}")
     if kind in ("stall", "hwerror"):
-        j = _number(arg, "joint", whole)
-        if j != int(j):
-            raise BadInputError(f"fault {whole!r}: joint must be 1, 2 or 3")
+        _number(arg, "joint", whole)  # not a decimal number: a usage error, as any number
+        j = arg.strip()
+        if j not in ("1", "2", "3"):
+            raise BadInputError(f"fault {whole!r}: joint must be 1, 2 or 3 (digits only), "
+                                f"got {j!r}")
         return FaultSpec(kind, at_s, joint=int(j))
     if kind == "delay":
         return FaultSpec(kind, at_s, delay_s=_number(arg, "delay", whole))

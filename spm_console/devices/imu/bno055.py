@@ -152,7 +152,8 @@ class Bno055:
                                f"({self.attempts} tries): {_statuses(u.statuses)}") from None
             raise ImuError(f"no reply from an IMU on {self.port} within "
                            f"{self.timeout_s * 1e3:.0f} ms ({self.attempts} tries): check its power "
-                           "and wiring (TX to RX), that PS1 is high (UART mode) and the port") from None
+                           "and wiring (TX to RX), that PS1 is high (UART mode) and the port (the "
+                           "IMU's, not the servo bus's: the two may be swapped)") from None
         if chip_id != br.CHIP_ID_VALUE:
             raise ImuError(f"not a BNO055 on {self.port}: CHIP_ID 0x{chip_id:02X} "
                            f"(a BNO055 reads 0x{br.CHIP_ID_VALUE:02X})")

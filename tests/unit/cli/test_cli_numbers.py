@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 from collections.abc import Iterator
 
 import pytest
@@ -84,6 +85,19 @@ def test_fault_numbers_follow_the_same_rule(fault: str) -> None:
     """``--fault`` and a script's ``faults`` read their numbers by the same rule."""
     with pytest.raises(BadInputError, match="not a decimal number"):
         parse_fault(fault)
+
+
+@pytest.mark.parametrize(("fault", "why"), [
+    ("drop:1e-310", "subnormal"), ("delay:1e-310", "subnormal"), ("stall:2@1e-310", "subnormal"),
+    ("stall:1.0", "joint must be 1, 2 or 3"), ("hwerror:1e0", "joint must be 1, 2 or 3"),
+    ("stall:+2", "joint must be 1, 2 or 3"), ("stall:02", "joint must be 1, 2 or 3"),
+    ("drop:-0", "got 0.0"),
+])
+def test_fault_numbers_are_bounded_as_every_number_typed(fault: str, why: str) -> None:
+    """Subnormals refused as --duration refuses them, a joint in digits only, no −0 shown."""
+    with pytest.raises(BadInputError, match=re.escape(why)) as exc:
+        parse_fault(fault)
+    assert "-0" not in exc.value.message
 
 
 def test_a_scheduler_port_is_written_in_ascii_digits() -> None:
