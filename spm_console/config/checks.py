@@ -195,9 +195,16 @@ def allowed(root: type[BaseModel], loc: Sequence[int | str]) -> str | None:
 
 def validation_message(exc: ValidationError, source: str, root: type[BaseModel]) -> str:
     """One line per pydantic error: file, key, value (when it is one) and the allowed range."""
-    lines = []
+    lines: list[str | tuple[tuple[int | str, ...], object]] = []
+    short: dict[tuple[int | str, ...], list[int]] = {}  # a fixed-length array given too few
     for err in exc.errors():
         loc = tuple(err["loc"])
+        if err["type"] == "missing" and loc and isinstance(loc[-1], int):
+            if loc[:-1] not in short:
+                short[loc[:-1]] = []
+                lines.append((loc[:-1], err.get("input")))  # said once, where it came first
+            short[loc[:-1]].append(loc[-1])
+            continue
         key = key_of(loc)
         reason = err["msg"].removeprefix("Value error, ")  # a cross-key rule says it all
         value: object = err.get("input")
@@ -226,7 +233,16 @@ def validation_message(exc: ValidationError, source: str, root: type[BaseModel])
             lines.append(f"{source}: key '{key}': {reason}")
         else:
             lines.append(f"{source}: key '{key}' = {show(value)}: {reason}")
-    return "\n".join(lines)
+    out = []
+    for line in lines:
+        if isinstance(line, tuple):
+            parent, given = line
+            idx = short[parent]
+            out.append(f"{source}: key '{key_of(parent)}' = {show(given)}: must have "
+                       f"{max(idx) + 1} items, got {min(idx)}")
+        else:
+            out.append(line)
+    return "\n".join(out)
 
 
 def key_of(loc: Sequence[int | str]) -> str:

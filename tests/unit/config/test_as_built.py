@@ -101,6 +101,8 @@ def test_a_large_file_or_a_fifo_is_refused_unread(tmp_path: Path) -> None:
     ("as_built = 5", ["key 'as_built' = 5", "must be a table"]),
     ("[as_built]\nids = 3", ["as_built.ids", "must be an array"]),
     ("[as_built]\nbase_tilt_deg = [0, 0, 0, 0]", ["base_tilt_deg", "at most 2 items, got 4"]),
+    ("[as_built]\nhorn_offset_deg = [1]",
+     ["key 'as_built.horn_offset_deg' = [1]: must have 3 items, got 1"]),
     ("[as_built]\nids = [" + ", ".join(["1"] * 30000) + "]", ["(30000 given)", "distinct"]),
 ])
 def test_a_wrong_shape_is_said_in_the_files_words_and_briefly(text: str, words: list[str]) -> None:
@@ -109,6 +111,7 @@ def test_a_wrong_shape_is_said_in_the_files_words_and_briefly(text: str, words: 
     with pytest.raises(AsBuiltError) as err:
         parse_as_built_text(text + "\n", "ab.toml")
     msg = err.value.message
+    assert "missing key" not in msg and msg.count("\n") == 0, msg  # one line, not one per item
     assert "Input should" not in msg and "after validation" not in msg and len(msg) < 500, msg
     for w in words:
         assert w in msg, msg
