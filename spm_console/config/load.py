@@ -147,7 +147,9 @@ def _check_home_mode(prof: Profile, source: str) -> None:
             "home.theta_deg", theta,
             f"the home configuration is not feasible ({home.reason}): the workspace grows from home "
             "(allowed: a home with ζ ≥ workspace.zeta_min, links of different legs at least "
-            "2·links.delta_mm apart, inside [workspace.theta_min_deg, workspace.theta_max_deg])"
+            "2·links.delta_mm apart, inside [workspace.theta_min_deg, workspace.theta_max_deg]; "
+            f"home.sign_seed = {show(list(prof.home.sign_seed))} chooses the assembly mode "
+            "there: another mode's links may collide where the wrist's do not)"
         ).line(source))
     _check_room_at_home(prof, source, model)
 

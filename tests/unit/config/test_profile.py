@@ -449,3 +449,15 @@ def test_a_flag_is_true_or_false_never_a_word_or_a_number(value: object) -> None
         parse_profile(data, "lab.toml")
     data["workspace"]["refined_cover"] = True
     assert parse_profile(data, "lab.toml").workspace.refined_cover is True
+
+
+def test_a_home_that_collides_in_the_seeds_mode_names_the_seed_too(tmp_path: Path) -> None:
+    """Every sign flipped picks the mirrored assembly mode at home, whose links collide: the
+    message blamed the home θ alone."""
+    doc = agile_doc()
+    doc["home"]["sign_seed"] = [-s for s in doc["home"]["sign_seed"]]
+    path = tmp_path / "p.toml"
+    path.write_text(tomli_w.dumps(doc))
+    with pytest.raises(ProfileError, match=r"key 'home\.theta_deg'") as exc:
+        load_profile(path)
+    assert "home.sign_seed = [" in exc.value.message and "assembly mode" in exc.value.message
