@@ -100,11 +100,15 @@ def cmd_show(args: argparse.Namespace) -> int:
     if args.plot is not None:
         if args.plot.suffix.lower() not in (".png", ".svg", ".pdf"):
             raise BadInputError(f"--plot {args.plot}: use a .png, .svg or .pdf file name")
-        from spm_console.report.plot_run import plot_run
+        if run.rows:
+            from spm_console.report.plot_run import plot_run
 
-        plot_run(run, args.plot)
-        data["plot"] = str(args.plot)
-        lines.append(f"plot: {args.plot}")
+            plot_run(run, args.plot)
+            data["plot"] = str(args.plot)
+            lines.append(f"plot: {args.plot}")
+        else:  # a commissioning's or a refused run's: its events are the record
+            data["plot"] = None
+            lines.append(f"plot: none written to {args.plot}: the run has no samples to draw")
     emit(args, data, "\n".join(lines))
     return int(ExitCode.OK)
 

@@ -212,3 +212,21 @@ def test_a_run_on_the_physical_twin_is_logged_with_its_own_profile(agile: Profil
     edited = agile.model_copy(update={"servo": agile.servo.model_copy(update={"ts_s": 0.01})})
     assert not same_profile({"hash": edited.digest()}, agile)
     assert not same_profile({}, agile)
+
+
+def test_a_run_without_samples_is_shown_and_no_empty_plot_is_drawn(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A commissioning's run holds events only: ``logs show --plot`` says there is nothing to
+    draw instead of writing six empty axes."""
+    from spm_console.cli.main import main
+
+    log = RunLog.create("commission", "agile_wrist", "abc123", [], root=tmp_path)
+    log.event("nudge", 0.1, ids=[1, 2, 3])
+    log.finish("completed", 0, "commissioned", {})
+    png = tmp_path / "f.png"
+    assert main(["logs", "--logs", str(tmp_path), "show", log.path.name, "--plot", str(png),
+                 "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["plot"] is None and not png.exists()
+    assert main(["logs", "--logs", str(tmp_path), "show", log.path.name, "--plot", str(png)]) == 0
+    assert "the run has no samples to draw" in capsys.readouterr().out
