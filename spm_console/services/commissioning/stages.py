@@ -260,9 +260,10 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
                     matches.append(match_leg(axes, ident, rotation_vector(q0, q1), MAP_NUDGE_DEG))
                 except ValueError as exc:
                     raise BusError(f"commission: {exc}") from None
+            _map_line(_distinct_legs(matches, "the IMU" if imu is not None else "the answers"),
+                      on_stage)
             if imu is not None and not jig:  # the zero at rest, inside the same ball
                 src = imu
-                _distinct_legs(matches, "the IMU")
                 for m in sorted(matches, key=lambda m: m.leg):
                     on_stage(f"zero: swinging leg {m.leg} (id {m.id}) ±{SWING_DEG:g}° about its "
                              "rest")
@@ -277,8 +278,7 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
             stop.detach()
         session.close()
     legs = _distinct_legs(matches, "the IMU" if imu is not None else "the answers")
-    on_stage("map: " + ", ".join(f"leg {m.leg} = id {m.id} ({'+' if m.direction > 0 else '−'})"
-                                 for m in legs) + "; the wrist holds where it is, torque on")
+    on_stage("map: done; the wrist holds where it is, torque on")
     offsets = None
     jig_ticks = None
     trims = (0.0, 0.0, 0.0)
@@ -300,6 +300,12 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
     return Commissioned(disc, (legs[0], legs[1], legs[2]), jig_ticks, offsets, built,
                         nudge_s=sum(r.duration_s for r in nudges), max_nudge_deg=farthest,
                         tick_trims=trims, rest_zero=rest, held_at_jig=held_at_jig)
+
+
+def _map_line(legs: Sequence[LegMatch], on_stage: Callable[[str], None]) -> None:
+    """The map found, one line, as soon as it is known (before a zero at rest's swings)."""
+    on_stage("map: " + ", ".join(f"leg {m.leg} = id {m.id} ({'+' if m.direction > 0 else '−'})"
+                                 for m in legs))
 
 
 def _distinct_legs(matches: Sequence[LegMatch], by: str) -> list[LegMatch]:
