@@ -135,7 +135,7 @@ def _begin(bus: DynamixelBus, state: NudgeState) -> None:
 
 def _away_deg(state: NudgeState, present: dict[int, int], tpd: float) -> float:
     """Farthest servo from its rest, deg."""
-    return max(abs(present[i] - state.rest_ticks[i]) / tpd for i in present)
+    return _away_from(state.rest_ticks, present, tpd)
 
 
 def _watch_hold(bus: DynamixelBus, state: NudgeState, tpd: float, stop_asked: Callable[[], str],
@@ -160,29 +160,50 @@ def _watch_hold(bus: DynamixelBus, state: NudgeState, tpd: float, stop_asked: Ca
         sleep(CYCLE_S)
 
 
+def _away_from(rest: dict[int, int], present: dict[int, int], tpd: float) -> float:
+    """Farthest servo of ``present`` from its ``rest``, deg."""
+    return max(abs(present[i] - rest[i]) / tpd for i in present)
+
+
+def _full_effort(bus: DynamixelBus, state: NudgeState, held: dict[int, int]) -> None:
+    """PWM Limits restored (an EEPROM register: torque off for the writes), then torque on
+    holding ``held``; nothing is switched when no limit is left to restore."""
+    ids = list(bus.ids)
+    if state.saved_pwm:
+        bus.set_up(lambda: bus.set_torque(False, ids))
+        for ident, pwm in list(state.saved_pwm.items()):
+            bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
+            del state.saved_pwm[ident]
+    bus.sync_write("goal_position", held)
+    state.goal_ticks = dict(held)
+    bus.set_up(lambda: bus.set_torque(True, ids))
+
+
 def _back_to_rest(bus: DynamixelBus, state: NudgeState, tpd: float,
                   stop_asked: Callable[[], str], clock: Callable[[], float],
-                  sleep: Callable[[float], None]) -> bool:
-    """After a stop that was not an E-stop: the full effort back (PWM Limits restored, holding
-    where the servos are), then every servo back to its rest on a ramp at
-    :data:`MAX_SPEED_DEGPS`, holding there; an E-stop meanwhile holds where they are. Whether
-    they got back. The nudging then ends (the next nudge begins again)."""
+                  sleep: Callable[[float], None]) -> tuple[bool, float, str]:
+    """After a stop that was not an E-stop: the full effort back, holding where the servos
+    are, then every servo back to its rest on a ramp at :data:`MAX_SPEED_DEGPS` (each goal
+    between where it was held and its rest), holding there. An E-stop meanwhile holds where
+    they are. Returns whether they got back (within :data:`TRACK_TOL_DEG`), the farthest any
+    was from its rest (deg) and what to add to the stop's reason. The nudging then ends: the
+    next nudge begins again, whatever happens here."""
     ids = list(bus.ids)
     rest = dict(state.rest_ticks)
-    present = dict(zip(ids, _ticks(bus), strict=True))
-    bus.set_up(lambda: bus.set_torque(False, ids))
-    for ident, pwm in list(state.saved_pwm.items()):
-        bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
-        del state.saved_pwm[ident]
-    bus.sync_write("goal_position", present)
-    state.goal_ticks = present
-    bus.set_up(lambda: bus.set_torque(True, ids))
     state.rest_ticks.clear()
+    present = dict(zip(ids, _ticks(bus), strict=True))
+    away = _away_from(rest, present, tpd)
+    _full_effort(bus, state, present)
     ramp_s = max(abs(rest[i] - present[i]) for i in ids) / tpd / MAX_SPEED_DEGPS
     s, t_last = 0.0, clock()
     while s < 1.0:
-        if stop_asked():
-            return False
+        reason = stop_asked()
+        if reason:  # an E-stop: hold where the servos are
+            held = dict(zip(ids, _ticks(bus), strict=True))
+            bus.sync_write("goal_position", held)
+            state.goal_ticks = held
+            return False, max(away, _away_from(rest, held, tpd)), (
+                f"; then, going back, stopped: {reason}")
         sleep(CYCLE_S)
         now = clock()
         s = 1.0 if ramp_s <= 0 else min(1.0, s + min(now - t_last, MAX_ADVANCE_S) / ramp_s)
@@ -191,21 +212,25 @@ def _back_to_rest(bus: DynamixelBus, state: NudgeState, tpd: float,
         bus.sync_write("goal_position", goal)
         state.goal_ticks = goal
     sleep(SETTLE_S)
-    return True
+    off = _away_from(rest, dict(zip(ids, _ticks(bus), strict=True)), tpd)
+    if off > TRACK_TOL_DEG:
+        return False, max(away, off), (f"; going back at full effort, a servo stayed {off:.2f}° "
+                                       "from its rest")
+    return True, away, ""
 
 
 def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
-    """End the nudging: torque off, PWM Limits restored (an EEPROM register: torque off to
-    write it); then, with ``hold``, torque on again holding where each servo was before
-    torque went off (read first, while the servos still held; the last goal sent where that
-    read fails), at its full effort, else left off (the wrist rests as it was found). Torque
-    is off for the few milliseconds of the writes. BusError when the servos do not answer
-    (the PWM Limits not restored are kept, to restore at the next release)."""
+    """End the nudging: PWM Limits restored (an EEPROM register: torque off to write it);
+    then, with ``hold``, torque on again holding where each servo was before torque went off
+    (read first, while the servos still held; the last goal sent where that read fails), at
+    its full effort (torque is not switched at all when no limit is left to restore), else
+    left off (the wrist rests as it was found). Torque is off for the few milliseconds of the
+    writes. BusError when the servos do not answer (the PWM Limits not restored are kept, to
+    restore at the next release)."""
     ids = list(bus.ids)
     last_goal = [state.goal_ticks.get(i) for i in ids]
     state.rest_ticks.clear()  # the next nudge begins again, whatever happens here
     try:
-        held: list[int] | None = None
         if hold:
             try:
                 held = _ticks(bus)
@@ -214,14 +239,13 @@ def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
                     held = [int(g) for g in last_goal if g is not None]
                 else:
                     raise
-        bus.set_up(lambda: bus.set_torque(False, ids))
-        for ident, pwm in list(state.saved_pwm.items()):
-            bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
-            del state.saved_pwm[ident]
+            _full_effort(bus, state, dict(zip(ids, held, strict=True)))
+        else:
+            bus.set_up(lambda: bus.set_torque(False, ids))
+            for ident, pwm in list(state.saved_pwm.items()):
+                bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
+                del state.saved_pwm[ident]
         state.goal_ticks.clear()
-        if held is not None:
-            bus.sync_write("goal_position", dict(zip(ids, held, strict=True)))
-            bus.set_up(lambda: bus.set_torque(True, ids))
     except CommError as exc:
         raise BusError(f"ending the nudges on {bus.port}: {exc}; the servos may be left with "
                        "torque off and their PWM Limits lowered: check the cable and power, "
@@ -256,7 +280,8 @@ def run_nudge(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, f
             bus.sync_write("goal_position", present)
             state.goal_ticks = present
         elif stopped:
-            returned = _back_to_rest(bus, state, tpd, stop_asked, clock, sleep)
+            returned, back_away, note = _back_to_rest(bus, state, tpd, stop_asked, clock, sleep)
+            away, stopped = max(away, back_away), stopped + note
         else:
             sleep(SETTLE_S)
         reached = _ticks(bus)
@@ -299,8 +324,8 @@ def _ramp(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, float
             return (f"a servo lags {lag:.2f}° behind the nudge (more than {TRACK_TOL_DEG:g}°): "
                     "stalled, blocked, pushed by another leg or too heavily loaded for the "
                     f"lowered effort (PWM Limit {PWM_LIMIT})"), lag, away
-        if away > BALL_DEG + 1.0 / tpd:  # ahead of its goal (a tick of rounding allowed): the
-            # load pulls it the nudge's way
+        if away > BALL_DEG + 1.5 / tpd:  # ahead of its goal (half a tick of the target's
+            # rounding and a tick of the servo's allowed): the load pulls it the nudge's way
             return (f"a servo went {away:.2f}° from its rest, beyond the {BALL_DEG:g}° "
                     "allowed: its load pulls it harder than the lowered effort (PWM Limit "
                     f"{PWM_LIMIT}) holds"), lag, away

@@ -39,6 +39,10 @@ class LoadedBus(LossyBus):
     goals: list[dict[int, int]] = field(default_factory=list)
     held: list[bool] = field(default_factory=list)
     """Per goal written: it was where every servo stood (a hold, not a move)."""
+    full: list[bool] = field(default_factory=list)
+    """Per goal written: at full effort (the way back), not the nudges' lowered one."""
+    jammed: set[int] = field(default_factory=set)
+    """Servos that no longer move once their full effort is back (blocked on the way back)."""
 
     def _advance(self) -> None:
         steps = int((self.t - self.t_moved) / 0.02)
@@ -48,6 +52,8 @@ class LoadedBus(LossyBus):
         if not self.torque_on:
             return
         for i in self.ids:
+            if i in self.jammed and self.pwm[i] == 885:
+                continue
             weak = self.pwm[i] < self.need.get(i, 0)
             if weak and abs(self.goal[i] - REST) >= self.loaded_from:
                 self.pos[i] -= steps * self.sag
@@ -61,6 +67,7 @@ class LoadedBus(LossyBus):
     def sync_write(self, name: str, values: dict[int, int]) -> None:
         self._advance()
         self.held.append(values == self.pos)
+        self.full.append(all(v == 885 for v in self.pwm.values()))
         super().sync_write(name, values)
         self.goals.append(dict(values))
 
@@ -76,10 +83,18 @@ def _never() -> str:
 
 
 def _ramp_ok(bus: LoadedBus) -> None:
-    """No goal beyond the ball from the rest (a tick of rounding), and no goal step faster than
-    the nudges' (a goal where the servos stand holds them there: no move)."""
-    for g, held in zip(bus.goals, bus.held, strict=True):
-        assert held or all(abs(v - REST) / TPD <= BALL_DEG + 0.5 / TPD for v in g.values()), g
+    """At the nudges' effort: no goal beyond the ball from the rest (a tick of rounding). On
+    the way back, at full effort: each goal between where the servos were held and their rest
+    (every joint's distance from its rest never grows). And no goal step faster than the
+    nudges' (a goal where the servos stand holds them there: no move)."""
+    back: dict[int, int] | None = None
+    for g, held, full in zip(bus.goals, bus.held, bus.full, strict=True):
+        if not full:
+            assert held or all(abs(v - REST) / TPD <= BALL_DEG + 0.5 / TPD for v in g.values()), g
+        elif back is not None:
+            assert all(abs(g[i] - REST) <= abs(back[i] - REST) for i in g), (back, g)
+        if full:
+            back = g
     for (a, b), held in zip(itertools.pairwise(bus.goals), bus.held[1:], strict=True):
         step = max(abs(b[i] - a[i]) for i in a) / TPD
         assert held or step <= MAX_SPEED_DEGPS * MAX_ADVANCE_S + 1.0 / TPD, (a, b)
@@ -162,3 +177,65 @@ def test_a_servo_its_load_pulls_past_the_ball_the_nudges_way_is_stopped_and_brou
     assert BALL_DEG < r.max_away_deg <= BALL_DEG + MAX_SPEED_DEGPS * MAX_ADVANCE_S + 2.0 / TPD
     assert r.returned and r.reached_ticks == (REST,) * 3
     _ramp_ok(bus)
+
+
+def test_the_way_back_past_the_ball_only_comes_nearer_the_rest() -> None:
+    """Held past the ball (a servo its load pulled ahead), the goals back start there and only
+    come nearer the rest."""
+    bus = AheadBus(lose=0, loaded_from=round(1.5 * TPD), ahead=round(0.99 * TPD))
+    state = NudgeState()
+    r = run_nudge(bus, state, ((2, 1.8),), 4.0, _never,  # type: ignore[arg-type]
+                  clock=bus.clock, sleep=bus.sleep)
+    assert not r.ok and r.returned and r.max_away_deg > BALL_DEG
+    _ramp_ok(bus)
+
+
+def test_a_servo_blocked_on_the_way_back_is_not_said_to_be_back() -> None:
+    bus = LoadedBus(lose=0, need={1: 2 * PWM_LIMIT}, jammed={1})
+    state = NudgeState()
+    r = run_nudge(bus, state, ((2, 1.8),), 4.0, _never,  # type: ignore[arg-type]
+                  clock=bus.clock, sleep=bus.sleep)
+    assert not r.ok and not r.returned and "a servo stayed" in r.stopped
+    assert r.reached_ticks[0] < REST and bus.pwm == dict.fromkeys((1, 2, 3), 885)
+
+
+def test_an_e_stop_on_the_way_back_holds_where_the_servos_are_and_says_so() -> None:
+    bus = LoadedBus(lose=0, need={1: 2 * PWM_LIMIT})
+    state = NudgeState()
+    calls = {"n": 0}
+
+    def asked() -> str:
+        calls["n"] += 1
+        return "E-stop: operator" if bus.pwm[1] == 885 and bus.goals[-1] != bus.pos else ""
+
+    r = run_nudge(bus, state, ((2, 1.8),), 4.0, asked,  # type: ignore[arg-type]
+                  clock=bus.clock, sleep=bus.sleep)
+    assert not r.ok and not r.returned and "then, going back, stopped: E-stop" in r.stopped
+    assert bus.goal == bus.pos and bus.pos[1] < REST  # held where it was, not at the rest
+
+
+def test_a_bus_lost_on_the_way_back_begins_the_next_nudge_again() -> None:
+    """The torque-on of the way back unanswered: a BusError; the state then asks the next
+    nudge to begin again (lower the effort, read the rest), never to move at full effort."""
+    import pytest
+
+    from spm_console.errors import BusError
+
+    bus = LoadedBus(lose=0, need={1: 2 * PWM_LIMIT})
+    state = NudgeState()
+    real = bus.set_torque
+
+    def dying(on: bool, ids: list[int]) -> None:
+        if on and bus.pwm[1] == 885:
+            bus.lose = 1
+        real(on, ids)
+
+    bus.set_torque = dying  # type: ignore[method-assign]
+    with pytest.raises(BusError):
+        run_nudge(bus, state, ((2, 1.8),), 4.0, _never,  # type: ignore[arg-type]
+                  clock=bus.clock, sleep=bus.sleep)
+    assert state.rest_ticks == {} and state.saved_pwm == {}
+    bus.set_torque, bus.lose, bus.need = real, 0, {}  # type: ignore[method-assign]
+    r = run_nudge(bus, state, ((2, 1.8),), 4.0, _never,  # type: ignore[arg-type]
+                  clock=bus.clock, sleep=bus.sleep)
+    assert r.ok and bus.pwm == dict.fromkeys((1, 2, 3), PWM_LIMIT)  # began again, effort lowered
