@@ -148,8 +148,7 @@ def _report(args: argparse.Namespace, res: ExecutionResult, extra: dict[str, Any
         "stop": st.to_dict().get("stop"), "stats": st.to_dict(),
         "realtime": {"granted": res.realtime_granted, "detail": res.realtime}, **extra,
     }
-    if res.settle is not None:
-        data["settle"] = res.settle.to_dict()
+    data["settle"] = None if res.settle is None else res.settle.to_dict()
     lines = [f"{res.outcome}: {res.message}"]
     if res.final_deg is not None:
         lines.append(f"final θ = {fmt_vec(res.final_deg, 2)} deg")

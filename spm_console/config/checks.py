@@ -397,9 +397,10 @@ def wiring_problems(prof: Profile) -> list[Problem]:
     """The port a name (or empty: the emulated bus); limits ordered; tick offset inside one
     turn; the limits map onto 0..ticks_per_turn−1; home inside the limits."""
     out = []
-    why = port_problem(prof.bus.port, "a port name") if prof.bus.port else ""
+    port = prof.bus.port
+    why = ("blank" if not port.strip() else port_problem(port, "a port name")) if port else ""
     if why:
-        out.append(Problem("bus.port", prof.bus.port,
+        out.append(Problem("bus.port", port,
                            f"{why} (allowed: empty for the emulated bus, or a device path such "
                            "as /dev/ttyUSB0)"))
     tpt = prof.bus.ticks_per_turn

@@ -378,7 +378,8 @@ class Executor:
             s.update(self.samples[-1].measured_deg)
             if s.settled:
                 break
-        error = goal - self.samples[-1].measured_deg
+        last = next((x.measured_deg for x in reversed(self.samples) if x.read_ok), goal)
+        error = goal - last  # the last position read (a lost read says nothing)
         self._event("settle", settled=s.settled, periods=used, shift_deg=s.shift,
                     error_deg=error, refused_shifts=s.refused)
         law = self.profile.settle

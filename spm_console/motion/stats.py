@@ -206,7 +206,8 @@ class SettleOutcome:
     tolerance_deg: float
     duration_s: float
     refused_shifts: int
-    """Shifts not taken: the shifted goal would have left the certified set."""
+    """Shifts not (wholly) taken: the shifted goal would have left the certified set or the
+    servo limits."""
 
     def text(self) -> str:
         """One line for the operator: empty when it settled."""
@@ -218,9 +219,10 @@ class SettleOutcome:
                 f"{self.tolerance_deg:g}°)")
         if self.refused_shifts:
             line += (f"; {self.refused_shifts} goal shifts refused, which would have left the "
-                     "workspace's certified set (a goal on its boundary)")
+                     "workspace's certified set or the servo limits (a goal on their boundary)")
         return line
 
     def to_dict(self) -> dict[str, object]:
         return {"settled": self.settled, "error_deg": list(self.error_deg),
-                "tolerance_deg": self.tolerance_deg, "refused_shifts": self.refused_shifts}
+                "tolerance_deg": self.tolerance_deg, "duration_s": self.duration_s,
+                "refused_shifts": self.refused_shifts}

@@ -51,7 +51,7 @@ def test_the_paper_mvn_runs_on_the_physical_wrist_and_is_not_the_model(
     (ev,) = [e for e in run.events if e["event"] == "settle"]
     assert ev["settled"] and ev["periods"] == len(settle), ev
     assert d["settle"] == {"settled": True, "error_deg": ev["error_deg"], "tolerance_deg": 0.1,
-                           "refused_shifts": ev["refused_shifts"]}
+                           "duration_s": 1.5, "refused_shifts": ev["refused_shifts"]}
     assert np.abs(np.array(ev["shift_deg"])).max() <= 0.5  # [settle] max_correction_deg
     assert np.abs(np.array(d["final_deg"]) - goal).max() <= 0.1  # [settle] tolerance_deg
 

@@ -205,7 +205,10 @@ def commissioned_lines(result: Commissioned, port: str = "") -> list[str]:
                              "point (give --payload-kg, weighed): the emulated wrist carries no "
                              "payload")
     if port and not kept_port(port):
+        kept = result.profile.bus.port
         lines.append(f"[bus] port not written: {port} is a pseudo-terminal, whose name the next "
                      "terminal opened takes; give --port to the commands that use this profile "
-                     "(without it they drive the emulated bus), or write a stable name there")
+                     + (f"(without it they open {kept}, the port it keeps)" if kept else
+                        "(without it they drive the emulated bus)")
+                     + ", or write a stable name there")
     return lines

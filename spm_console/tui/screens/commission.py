@@ -150,7 +150,7 @@ class CommissionScreen(StepScreen):
         why = port_problem(f.bus, "servo bus") or (f.imu and port_problem(f.imu, "IMU port"))
         if why:
             return why
-        if f.imu_stage and not f.imu and f.bus != f.imu:
+        if f.imu_stage and not f.imu:
             return ("the IMU stage needs the IMU: type its port, or untick the IMU stage (the "
                     "map then asks you which leg each nudge moved)")
         try:

@@ -228,6 +228,7 @@ def test_the_watchdog_is_off_only_with_a_reason() -> None:
     ("/dev/ttyUSB0\nrm -rf", "no spaces or control characters"),
     ("/dev/tty\u0000USB0", "no spaces or control characters"),
     (" /dev/ttyUSB0", "no spaces or control characters"),
+    ("   ", "blank (allowed: empty for the emulated bus"),
     ("/dev/" + "x" * 5000, "at most 120"),
 ])
 def test_the_bus_port_is_a_port_name_or_empty(port: str, why: str) -> None:

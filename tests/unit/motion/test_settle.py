@@ -132,4 +132,4 @@ def test_a_run_that_did_not_settle_says_which_joint_rests_how_far_and_why() -> N
     assert "refused" not in SettleOutcome(False, (0.0, 0.0, -0.3), 0.05, 2.0, 0).text()
     assert "joint 3 rests 0.30°" in SettleOutcome(False, (0.0, 0.0, -0.3), 0.05, 2.0, 0).text()
     assert short.to_dict() == {"settled": False, "error_deg": [0.0005, 0.174, -0.042],
-                               "tolerance_deg": 0.05, "refused_shifts": 100}
+                               "tolerance_deg": 0.05, "duration_s": 2.0, "refused_shifts": 100}

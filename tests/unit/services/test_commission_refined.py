@@ -3,6 +3,7 @@ zero at rest has one; a jig's has none): true θ = θ read + δ, so the zero mov
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -116,7 +117,13 @@ def test_a_weighed_mass_the_new_first_moment_does_not_place_is_taken_out_of_the_
     # and the report says the port was not written, and what the next commands need
     said = [ln for ln in commissioned_lines(after, "/dev/pts/7") if "[bus] port" in ln]
     assert len(said) == 1 and "/dev/pts/7 is a pseudo-terminal" in said[0]
-    assert "give --port" in said[0]
+    assert "give --port" in said[0] and "they drive the emulated bus" in said[0]
+    assert not after.profile.bus.port  # the shipped profile: the emulated bus
+    wired = after.profile.model_copy(update={"bus": after.profile.bus.model_copy(
+        update={"port": "/dev/ttyUSB0"})})
+    (kept,) = [ln for ln in commissioned_lines(dataclasses.replace(after, profile=wired), "/dev/pts/7")
+               if "[bus] port" in ln]
+    assert "they open /dev/ttyUSB0, the port it keeps" in kept
     assert not any("[bus] port" in ln for ln in commissioned_lines(after, "/dev/ttyUSB0"))
 
 
