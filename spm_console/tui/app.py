@@ -357,9 +357,7 @@ class SpmConsoleApp(App[int | SwitchRequest]):
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action == "estop":
             return self.moving
-        if action == "step" and self.moving:
-            return None  # shown dimmed: locked while moving
-        return True
+        return True  # a step key while the wrist moves is refused with a notice (_go_to)
 
     def watch_moving(self, moving: bool) -> None:
         # Nothing here touches timing: the servo loop runs in the motion process.

@@ -185,3 +185,24 @@ async def test_notices_never_cover_the_status_line_or_the_step_bar(console: Any)
         for t in toasts:
             assert not t.region.overlaps(status), (t.region, status)
             assert not t.region.overlaps(steps), (t.region, steps)
+
+
+async def test_a_step_key_while_the_wrist_moves_says_why_nothing_happens(console: Any) -> None:
+    """The steps are locked while the wrist moves: a step key says so (it was silently
+    ignored, the key disabled before its action could explain)."""
+    from textual.widgets._toast import Toast
+
+    app = console()
+    async with app.run_test(size=SMALL, notifications=True) as pilot:
+        await settle(pilot)
+        before = app.current_mode
+        app.moving = True
+        await pilot.press("2")
+        await pilot.pause(0.3)
+        assert app.current_mode == before
+        said = " ".join(str(t.render()) for t in app.screen.query(Toast))
+        assert "The wrist is moving" in said, said
+        app.moving = False
+        await pilot.press("2")
+        await settle(pilot)
+        assert app.current_mode != before

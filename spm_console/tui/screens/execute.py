@@ -385,7 +385,7 @@ def outcome_text(result: Any) -> str:
         lines.append(f"tracking error RMS {rms:.3f}°")
     if result.stats.model is not None:
         lines.append(result.stats.model.text().replace(
-            "spm-console identify --experiment --out NEW.toml", "Tools: identify the servo"))
+            "spm-console identify --experiment --out NEW.toml", "step 1 (F1), i: identify the servos"))
     if result.realtime:
         flag = "" if result.realtime_granted else "  (NOT real-time: timing may suffer under load)"
         lines.append(f"servo loop: {result.realtime}{flag}")
