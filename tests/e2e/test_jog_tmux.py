@@ -15,7 +15,7 @@ def test_walk_a_live_jog_by_keys(tmux_console, tmp_path) -> None:  # type: ignor
     t = tmux_console("--sim", "--plant", "ideal", "--no-viewer")
     t.wait_for(r"press h to home")
     t.keys("5", "j")  # not homed: refused
-    t.wait_for(r"not connected and homed")
+    t.wait_for(r"the wrist is not homed: press 1, then h")
     t.keys("1")
     t.wait_for(r"press h to home")
     t.keys("h")

@@ -142,7 +142,7 @@ async def test_execute_before_homing_is_refused_and_logs_share_the_cli_schema(
         if type(app.screen).__name__ == "ConfirmScreen":
             await pilot.press("y")
             await settle(pilot)
-        assert "not connected and homed" in status_of(app)
+        assert "the wrist is not homed: press 1, then h" in status_of(app)
         assert not s.homed and s.last_run is None
         await asyncio.to_thread(s.home)
         await confirm_execute(pilot)

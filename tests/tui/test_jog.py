@@ -207,7 +207,7 @@ async def test_jog_is_refused_before_homing_and_while_moving(console) -> None:
         await pilot.press("j")
         await pilot.pause()
         assert isinstance(app.screen, ExecuteScreen)
-        assert "not connected and homed" in status_of(app)
+        assert "the wrist is not homed: press 1, then h" in status_of(app)
         assert app.session.last_run is None  # nothing moved
         await asyncio.to_thread(app.session.home)
         app.moving = True  # another motion under way

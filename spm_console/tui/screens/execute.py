@@ -133,7 +133,7 @@ class ExecuteScreen(StepScreen):
             self.status.refused("no plan: press 4 and solve one first")
             return False
         if s.bus is None or not s.homed:
-            self.status.refused("the wrist is not connected and homed: press 1, then c and h")
+            self.status.refused(_not_ready(s.bus is not None))
             return False
         if self.busy_op or self.console.moving:
             self.status.error("busy: a motion is already running")
@@ -202,7 +202,7 @@ class ExecuteScreen(StepScreen):
         """Start the live jog from where the wrist is (homed only, nothing else moving)."""
         s = self.session
         if s.bus is None or not s.homed or s.theta_deg is None:
-            self.status.refused("the wrist is not connected and homed: press 1, then c and h")
+            self.status.refused(_not_ready(s.bus is not None))
             return
         if self.busy_op or self.console.moving:
             self.status.error("busy: a motion is already running")
@@ -371,6 +371,13 @@ class ExecuteScreen(StepScreen):
             self.console.moving = False
         elif op == "preview":
             self._show_preview_text(f"Preview failed (nothing moved): {message}")
+
+
+def _not_ready(connected: bool) -> str:
+    """Why nothing may move yet, and what to press."""
+    if connected:
+        return "the wrist is not homed: press 1, then h to home it"
+    return "the wrist is not connected: press 1, then c to connect and h to home it"
 
 
 def outcome_text(result: Any) -> str:
