@@ -111,7 +111,7 @@ def parse_fault(text: str) -> FaultSpec:
         _number(arg, "joint", whole)  # not a decimal number: a usage error, as any number
         j = arg.strip()
         if j not in ("1", "2", "3"):
-            raise BadInputError(f"fault {whole!r}: joint must be 1, 2 or 3 (digits only), "
+            raise BadInputError(f"fault {whole!r}: needs a joint 1, 2 or 3 (digits only), "
                                 f"got {j!r}")
         return FaultSpec(kind, at_s, joint=int(j))
     if kind == "delay":

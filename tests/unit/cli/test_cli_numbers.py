@@ -89,8 +89,8 @@ def test_fault_numbers_follow_the_same_rule(fault: str) -> None:
 
 @pytest.mark.parametrize(("fault", "why"), [
     ("drop:1e-310", "subnormal"), ("delay:1e-310", "subnormal"), ("stall:2@1e-310", "subnormal"),
-    ("stall:1.0", "joint must be 1, 2 or 3"), ("hwerror:1e0", "joint must be 1, 2 or 3"),
-    ("stall:+2", "joint must be 1, 2 or 3"), ("stall:02", "joint must be 1, 2 or 3"),
+    ("stall:1.0", "needs a joint 1, 2 or 3"), ("hwerror:1e0", "needs a joint 1, 2 or 3"),
+    ("stall:+2", "needs a joint 1, 2 or 3"), ("stall:02", "needs a joint 1, 2 or 3"),
     ("drop:-0", "got 0.0"),
 ])
 def test_fault_numbers_are_bounded_as_every_number_typed(fault: str, why: str) -> None:
