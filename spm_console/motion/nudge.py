@@ -133,9 +133,9 @@ def _begin(bus: DynamixelBus, state: NudgeState) -> None:
     bus.set_up(lambda: bus.set_torque(True, ids))
 
 
-def _away_deg(state: NudgeState, present: dict[int, int], tpd: float) -> float:
-    """Farthest servo from its rest, deg."""
-    return _away_from(state.rest_ticks, present, tpd)
+def _away_from(rest: dict[int, int], present: dict[int, int], tpd: float) -> float:
+    """Farthest servo of ``present`` from its ``rest``, deg."""
+    return max(abs(present[i] - rest[i]) / tpd for i in present)
 
 
 def _watch_hold(bus: DynamixelBus, state: NudgeState, tpd: float, stop_asked: Callable[[], str],
@@ -149,7 +149,8 @@ def _watch_hold(bus: DynamixelBus, state: NudgeState, tpd: float, stop_asked: Ca
         reason = stop_asked()
         if reason:
             return f"stopped: {reason}", away
-        away = max(away, _away_deg(state, dict(zip(ids, _ticks(bus), strict=True)), tpd))
+        away = max(away, _away_from(state.rest_ticks,
+                                   dict(zip(ids, _ticks(bus), strict=True)), tpd))
         if away > TRACK_TOL_DEG:
             return (f"the wrist left its rest by {away:.2f}° (more than {TRACK_TOL_DEG:g}°) with "
                     f"the servos' effort lowered to a PWM Limit of {PWM_LIMIT}: its load is too "
@@ -160,9 +161,43 @@ def _watch_hold(bus: DynamixelBus, state: NudgeState, tpd: float, stop_asked: Ca
         sleep(CYCLE_S)
 
 
-def _away_from(rest: dict[int, int], present: dict[int, int], tpd: float) -> float:
-    """Farthest servo of ``present`` from its ``rest``, deg."""
-    return max(abs(present[i] - rest[i]) / tpd for i in present)
+def _restore_limits(bus: DynamixelBus, state: NudgeState) -> None:
+    """The saved PWM Limits written back (an EEPROM register: the caller switched torque
+    off); each is forgotten once written, so a cut-short restore keeps the rest."""
+    for ident, pwm in list(state.saved_pwm.items()):
+        bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
+        del state.saved_pwm[ident]
+
+
+@dataclass
+class _Ramp:
+    """Goals (ticks by servo id) on a straight ramp from ``start`` to ``target`` taking
+    ``seconds``; each cycle advances it by the time the cycle took, at most
+    :data:`MAX_ADVANCE_S` (a slow cycle makes the ramp longer, never a goal jump)."""
+
+    start: dict[int, int]
+    target: dict[int, int]
+    seconds: float
+    t_last: float
+    s: float = 0.0
+
+    @classmethod
+    def of(cls, start: dict[int, int], target: dict[int, int], tpd: float, speed_degps: float,
+           now: float) -> _Ramp:
+        """At ``speed_degps`` for the servo that moves farthest (``tpd``: ticks per degree)."""
+        seconds = max(abs(target[i] - start[i]) / tpd for i in start) / speed_degps
+        return cls(start, target, seconds, now)
+
+    @property
+    def done(self) -> bool:
+        return self.s >= 1.0
+
+    def goal(self, now: float) -> dict[int, int]:
+        """The goal of the cycle at ``now``."""
+        step = min(now - self.t_last, MAX_ADVANCE_S) / self.seconds if self.seconds > 0 else 1.0
+        self.s, self.t_last = min(1.0, self.s + step), now
+        return {i: round(self.start[i] + self.s * (self.target[i] - self.start[i]))
+                for i in self.start}
 
 
 def _full_effort(bus: DynamixelBus, state: NudgeState, held: dict[int, int]) -> None:
@@ -171,9 +206,7 @@ def _full_effort(bus: DynamixelBus, state: NudgeState, held: dict[int, int]) -> 
     ids = list(bus.ids)
     if state.saved_pwm:
         bus.set_up(lambda: bus.set_torque(False, ids))
-        for ident, pwm in list(state.saved_pwm.items()):
-            bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
-            del state.saved_pwm[ident]
+        _restore_limits(bus, state)
     bus.sync_write("goal_position", held)
     state.goal_ticks = dict(held)
     bus.set_up(lambda: bus.set_torque(True, ids))
@@ -194,9 +227,8 @@ def _back_to_rest(bus: DynamixelBus, state: NudgeState, tpd: float,
     present = dict(zip(ids, _ticks(bus), strict=True))
     away = _away_from(rest, present, tpd)
     _full_effort(bus, state, present)
-    ramp_s = max(abs(rest[i] - present[i]) for i in ids) / tpd / MAX_SPEED_DEGPS
-    s, t_last = 0.0, clock()
-    while s < 1.0:
+    ramp = _Ramp.of(present, rest, tpd, MAX_SPEED_DEGPS, clock())
+    while not ramp.done:
         reason = stop_asked()
         if reason:  # an E-stop: hold where the servos are
             held = dict(zip(ids, _ticks(bus), strict=True))
@@ -205,10 +237,7 @@ def _back_to_rest(bus: DynamixelBus, state: NudgeState, tpd: float,
             return False, max(away, _away_from(rest, held, tpd)), (
                 f"; then, going back, stopped: {reason}")
         sleep(CYCLE_S)
-        now = clock()
-        s = 1.0 if ramp_s <= 0 else min(1.0, s + min(now - t_last, MAX_ADVANCE_S) / ramp_s)
-        t_last = now
-        goal = {i: round(present[i] + s * (rest[i] - present[i])) for i in ids}
+        goal = ramp.goal(clock())
         bus.sync_write("goal_position", goal)
         state.goal_ticks = goal
     sleep(SETTLE_S)
@@ -242,9 +271,7 @@ def release(bus: DynamixelBus, state: NudgeState, hold: bool = False) -> None:
             _full_effort(bus, state, dict(zip(ids, held, strict=True)))
         else:
             bus.set_up(lambda: bus.set_torque(False, ids))
-            for ident, pwm in list(state.saved_pwm.items()):
-                bus.set_up(partial(bus.write, ident, "pwm_limit", pwm))
-                del state.saved_pwm[ident]
+            _restore_limits(bus, state)
         state.goal_ticks.clear()
     except CommError as exc:
         raise BusError(f"ending the nudges on {bus.port}: {exc}; the servos may be left with "
@@ -304,22 +331,18 @@ def _ramp(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, float
     target = dict(start)
     for ident, offset in moves:
         target[ident] = round(state.rest_ticks[ident] + offset * tpd)
-    ramp_s = max(abs(target[i] - start[i]) / tpd for i in ids) / speed_degps
+    ramp = _Ramp.of(start, target, tpd, speed_degps, clock())
     lag = away = 0.0
-    s, t_last = 0.0, clock()
     while True:
         reason = stop_asked()
         if reason:
             return f"stopped: {reason}", lag, away
-        now = clock()
-        s = 1.0 if ramp_s <= 0 else min(1.0, s + min(now - t_last, MAX_ADVANCE_S) / ramp_s)
-        t_last = now
-        goal = {i: round(start[i] + s * (target[i] - start[i])) for i in ids}
+        goal = ramp.goal(clock())
         bus.sync_write("goal_position", goal)
         state.goal_ticks = goal
         present = dict(zip(ids, _ticks(bus), strict=True))
         lag = max(lag, max(abs(goal[i] - present[i]) / tpd for i in ids))
-        away = max(away, _away_deg(state, present, tpd))
+        away = max(away, _away_from(state.rest_ticks, present, tpd))
         if lag > TRACK_TOL_DEG:
             return (f"a servo lags {lag:.2f}° behind the nudge (more than {TRACK_TOL_DEG:g}°): "
                     "stalled, blocked, pushed by another leg or too heavily loaded for the "
@@ -329,6 +352,6 @@ def _ramp(bus: DynamixelBus, state: NudgeState, moves: Sequence[tuple[int, float
             return (f"a servo went {away:.2f}° from its rest, beyond the {BALL_DEG:g}° "
                     "allowed: its load pulls it harder than the lowered effort (PWM Limit "
                     f"{PWM_LIMIT}) holds"), lag, away
-        if s >= 1.0:
+        if ramp.done:
             return "", lag, away
         sleep(CYCLE_S)

@@ -62,7 +62,6 @@ def fake_device(*answers: str) -> Iterator[str]:
         os.close(slave)
 
 
-
 def test_the_serving_thread_runs_below_the_emulated_servos_and_above_normal_threads(
         em: EmulatedBno055) -> None:
     """Its truth() steps the emulated wrist under the servos' lock: preempted while holding
@@ -79,6 +78,7 @@ def test_the_serving_thread_runs_below_the_emulated_servos_and_above_normal_thre
     else:  # not permitted here: it says why, and the thread runs at the priority it got
         assert em.realtime.detail and "not serving yet" not in em.realtime.detail
         assert os.sched_getscheduler(thread.native_id) == os.SCHED_OTHER
+
 
 def test_open_reads_the_chip_ids_and_the_units(em: EmulatedBno055) -> None:
     with Bno055.open(em.port) as imu:

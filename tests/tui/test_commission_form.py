@@ -52,44 +52,29 @@ async def test_bad_ports_are_refused_with_the_reason_and_nothing_starts(
         assert not app.screen.query_one("#stages", RichLog).lines
 
 
-@pytest.mark.parametrize(("mass", "imu_stage", "why"), [
-    ("0", True, "payload mass"),
-    ("2.5", True, "payload mass"),
-    ("abc", True, "payload mass"),
-    ("0.3", False, "needs the IMU stage"),
+@pytest.mark.parametrize(("imu", "jig", "mass", "imu_stage", "why"), [
+    ("/dev/ttyUSB1", True, "0", True, "payload mass"),
+    ("/dev/ttyUSB1", True, "2.5", True, "payload mass"),
+    ("/dev/ttyUSB1", True, "abc", True, "payload mass"),
+    ("/dev/ttyUSB1", True, "0.3", False, "needs the IMU stage"),
+    # nothing would zero the wrist: refused before the questions (the CLI's usage error)
+    ("", False, "", False, "nothing would zero the wrist"),
 ])
-async def test_a_bad_payload_mass_is_refused_and_nothing_starts(
-        console, mass: str, imu_stage: bool, why: str) -> None:  # type: ignore[no-untyped-def]
+async def test_options_that_cannot_work_are_refused_and_nothing_starts(
+        console, imu: str, jig: bool, mass: str, imu_stage: bool,  # type: ignore[no-untyped-def]
+        why: str) -> None:
     app = console()
     async with app.run_test(size=SMALL) as pilot:
         await settle(pilot)
         await pilot.press("0")
         await settle(pilot)
-        _fill(app, "/dev/ttyUSB0", "/dev/ttyUSB1")
-        app.screen.query_one("#jig", TickBox).value = True
+        _fill(app, "/dev/ttyUSB0", imu)
+        app.screen.query_one("#jig", TickBox).value = jig
         app.screen.query_one("#imu-stage", TickBox).value = imu_stage
         app.screen.query_one("#payload-kg", TextField).value = mass
         await pilot.press("s")
         await pilot.pause()
         assert isinstance(app.screen, CommissionScreen)  # no dialog
         assert why in status_of(app) and "nothing started" in status_of(app), status_of(app)
+        assert why in text_of(app, "#commission-reason")
         assert app.screen.busy_op == "" and not app.moving
-
-
-
-
-async def test_without_the_jig_or_the_imu_nothing_starts(console) -> None:  # type: ignore[no-untyped-def]
-    """Nothing would zero the wrist: refused before the questions (the CLI's usage error)."""
-    app = console()
-    async with app.run_test(size=SMALL) as pilot:
-        await settle(pilot)
-        await pilot.press("0")
-        await settle(pilot)
-        _fill(app, "/dev/ttyUSB0", "")
-        app.screen.query_one("#jig", TickBox).value = False
-        app.screen.query_one("#imu-stage", TickBox).value = False
-        await pilot.press("s")
-        await pilot.pause()
-        assert isinstance(app.screen, CommissionScreen)  # no dialog
-        assert "nothing would zero the wrist" in text_of(app, "#commission-reason")
-        assert "nothing started" in status_of(app) and not app.moving

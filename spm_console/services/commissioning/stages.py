@@ -260,8 +260,8 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
                     matches.append(match_leg(axes, ident, rotation_vector(q0, q1), MAP_NUDGE_DEG))
                 except ValueError as exc:
                     raise BusError(f"commission: {exc}") from None
-            _map_line(_distinct_legs(matches, "the IMU" if imu is not None else "the answers"),
-                      on_stage)
+            legs = _distinct_legs(matches, "the IMU" if imu is not None else "the answers")
+            _map_line(legs, on_stage)
             if imu is not None and not jig:  # the zero at rest, inside the same ball
                 src = imu
                 for m in sorted(matches, key=lambda m: m.leg):
@@ -277,7 +277,6 @@ def commission(profile: Profile, port: str, imu: ImuSource | None, jig: bool,
         if stop is not None:
             stop.detach()
         session.close()
-    legs = _distinct_legs(matches, "the IMU" if imu is not None else "the answers")
     on_stage("map: done; the wrist holds where it is, torque on")
     offsets = None
     jig_ticks = None

@@ -18,14 +18,14 @@ from spm_console.motion.nudge import (
     release,
     run_nudge,
 )
-from tests.unit.motion.test_nudge_retry import LossyBus
+from tests.unit.motion.test_nudge_retry import ClockedBus
 
 TPD = 4096 / 360.0
 REST = 2048
 
 
 @dataclass
-class LoadedBus(LossyBus):
+class LoadedBus(ClockedBus):
     """Servos in a simulated clock that reach their goal at once when their effort suffices;
     a servo whose PWM Limit is below ``need`` (by id) while it holds more than ``loaded_from``
     ticks from its rest sags by ``sag`` ticks per 20 ms instead (torque off: it stays put)."""
@@ -33,10 +33,8 @@ class LoadedBus(LossyBus):
     need: dict[int, int] = field(default_factory=dict)
     loaded_from: int = 0
     sag: int = 6
-    t: float = 0.0
     t_moved: float = 0.0
     pos: dict[int, int] = field(default_factory=lambda: dict.fromkeys((1, 2, 3), REST))
-    goals: list[dict[int, int]] = field(default_factory=list)
     held: list[bool] = field(default_factory=list)
     """Per goal written: it was where every servo stood (a hold, not a move)."""
     full: list[bool] = field(default_factory=list)
@@ -69,13 +67,6 @@ class LoadedBus(LossyBus):
         self.held.append(values == self.pos)
         self.full.append(all(v == 885 for v in self.pwm.values()))
         super().sync_write(name, values)
-        self.goals.append(dict(values))
-
-    def clock(self) -> float:
-        return self.t
-
-    def sleep(self, s: float) -> None:
-        self.t += s
 
 
 def _never() -> str:

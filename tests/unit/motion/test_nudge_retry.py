@@ -134,16 +134,32 @@ def test_a_begin_cut_short_begins_again_and_restores_the_limits_it_first_saved()
 
 
 @dataclass
-class SlowBus(LossyBus):
+class ClockedBus(LossyBus):
+    """A bus on a simulated clock (``t``, s) that records every goal sent, in order."""
+
+    t: float = 0.0
+    goals: list[dict[int, int]] = field(default_factory=list)
+
+    def sync_write(self, name: str, values: dict[int, int]) -> None:
+        super().sync_write(name, values)
+        self.goals.append(dict(values))
+
+    def clock(self) -> float:
+        return self.t
+
+    def sleep(self, s: float) -> None:
+        self.t += s
+
+
+@dataclass
+class SlowBus(ClockedBus):
     """Replies that come late in bursts: from every ``every``-th position read, the quick
     tries fail, and the patient set-up read that follows takes ``slow_s`` of the clock."""
 
     every: int = 4
     slow_s: float = 0.3
-    t: float = 0.0
     reads: int = 0
     patient: int = 0
-    goals: list[dict[int, int]] = field(default_factory=list)
 
     burst: int = 0
 
@@ -163,16 +179,6 @@ class SlowBus(LossyBus):
             return fn()
         finally:
             self.patient -= 1
-
-    def sync_write(self, name: str, values: dict[int, int]) -> None:
-        super().sync_write(name, values)
-        self.goals.append(dict(values))
-
-    def clock(self) -> float:
-        return self.t
-
-    def sleep(self, s: float) -> None:
-        self.t += s
 
 
 def test_a_burst_of_late_replies_slows_the_ramp_and_never_steps_its_goal_past_the_speed() -> None:
