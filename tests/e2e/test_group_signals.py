@@ -264,6 +264,14 @@ def start_up_s(tmp_path_factory: pytest.TempPathFactory, long_plan: Path) -> flo
 # About the wall clock: the signals land at fractions of a start-up measured beforehand, which
 # holds only while the machine's load stays as it was then (three test workers on two cores
 # made a late signal land in the homing motion, an E-stop). make test-realtime runs it alone.
+# A later start-up can still be faster than the one measured (a warm resident process, the
+# caches): a signal that landed after the homing began is an attempt that missed start-up; its
+# outcome is checked (an E-stop or an interruption, no traceback) and the next attempt signals
+# sooner.
+#: Attempts at landing a signal in start-up, and the factor each miss applies to the estimate.
+ATTEMPTS, SOONER = 4, 0.75
+
+
 @pytest.mark.realtime
 @pytest.mark.parametrize(("sig", "fraction"), [(signal.SIGTERM, 0.2), (signal.SIGINT, 0.4),
                                                (signal.SIGHUP, 0.65), (signal.SIGQUIT, 0.9)])
@@ -272,9 +280,28 @@ def test_a_second_signal_changes_nothing(tmp_path: Path, long_plan: Path, start_
     """A double Ctrl-C (or ``timeout`` after a group signal) during start-up, early to late: the
     first signal decides (exit 130, the JSON says so too), the second one raises nothing and
     kills nothing."""
-    proc = _execute_json(long_plan, tmp_path / "logs")
+    estimate = start_up_s
+    for attempt in range(ATTEMPTS):
+        logs = tmp_path / f"logs{attempt}"
+        code, out, err = _signalled_twice(_execute_json(long_plan, logs), sig, fraction * estimate)
+        assert "Traceback" not in err, err
+        if not any(logs.glob("*-home")):
+            break
+        # missed start-up: the homing had begun, and the first signal stopped it
+        assert code in (ExitCode.STOP_ESTOP, ExitCode.INTERRUPTED), err
+        estimate *= SOONER
+    else:
+        pytest.fail(f"{ATTEMPTS} signals landed after start-up (first estimate {start_up_s:.2f} s)")
+    assert code == ExitCode.INTERRUPTED, err
+    assert json.loads(out)["exit_code"] == ExitCode.INTERRUPTED
+
+
+def _signalled_twice(proc: subprocess.Popen[str], sig: signal.Signals,
+                     after_s: float) -> tuple[int, str, str]:
+    """``sig`` to ``proc``'s group ``after_s`` after its launch, and again 30 ms later; its exit
+    code, stdout and stderr."""
     try:
-        time.sleep(fraction * start_up_s)  # start-up under way, nothing moved yet
+        time.sleep(after_s)
         os.killpg(proc.pid, sig)
         time.sleep(0.03)
         with contextlib.suppress(ProcessLookupError):
@@ -284,7 +311,4 @@ def test_a_second_signal_changes_nothing(tmp_path: Path, long_plan: Path, start_
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert "Traceback" not in err, err
-    assert proc.returncode == ExitCode.INTERRUPTED, err
-    assert not any((tmp_path / "logs").glob("*-home")), "the signal landed after start-up"
-    assert json.loads(out)["exit_code"] == ExitCode.INTERRUPTED
+    return proc.returncode, out, err
