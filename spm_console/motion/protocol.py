@@ -8,6 +8,7 @@ results are dataclasses of numpy arrays). Degrees and seconds.
 
 from __future__ import annotations
 
+import signal
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Generic, TypeVar
 
@@ -29,6 +30,9 @@ if TYPE_CHECKING:  # the replies' types (named in the requests' bases, as string
     from spm_console.motion.servo_tools import ServoHealth  # noqa: F401
 
 R = TypeVar("R", covariant=True)
+
+#: The signal a client sends the motion process for an E-stop when the connection is gone.
+ESTOP_SIGNAL = signal.SIGUSR1
 
 
 class Request(Generic[R]):
@@ -185,6 +189,10 @@ class EStop:
     by_signal: bool = False
     """A terminating signal asked for it: with nothing moved yet, the run is an interruption
     (exit 130), not a stop (20)."""
+    after: int = 0
+    """Id of the last motion request whose result the client had when it sent this (0: none):
+    the E-stop is for the motion under way or a later one. One that arrives after the motion
+    it was meant for has ended stops nothing (and never stops the next one)."""
 
 
 @dataclass(frozen=True)

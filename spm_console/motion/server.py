@@ -44,6 +44,7 @@ from spm_console.motion.follow.target_feed import TargetFeed
 from spm_console.motion.nudge import NudgeState, release, run_nudge
 from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import (
+    ESTOP_SIGNAL,
     Close,
     EndFollow,
     EStop,
@@ -77,6 +78,7 @@ from spm_console.motion.runs import (
 from spm_console.motion.sample import Sample
 from spm_console.motion.segments import Segment
 from spm_console.motion.servo_query import answer
+from spm_console.motion.stop_action import PendingStop
 from spm_console.refusals import Refusal
 from spm_console.store.workspace_cache import load_or_build
 from spm_console.system.cpus import place_on_loop_cpu
@@ -193,16 +195,14 @@ class _Server:
         self._workspace: Workspace | None = None
         self.bus = open_bus(profile, ctx.port, sim=ctx.clock())
         self.send_lock = threading.Lock()
-        self.executor: Executor | None = None
         self.motion: threading.Thread | None = None
         self.busy = threading.Event()
         """A motion runs: set when it is accepted, cleared before its result is sent (so the
         client's next request never finds the motion still winding down)."""
         self.homed = False
         """A homing run completed in this process (the rule: homed before any other motion)."""
-        self.pending_estop = ""
-        self.pending_clock: float | None = None
-        self.pending_by_signal = False
+        self.stop = PendingStop()
+        """The E-stop held for the motion under way (or the next one)."""
         self.last_heartbeat = time.monotonic()
         self.signals: list[str] = []
         """Terminating signals to this process not yet acted on (left by its handler)."""
@@ -228,7 +228,7 @@ class _Server:
         if isinstance(req, Heartbeat):
             self.last_heartbeat = time.monotonic()
         elif isinstance(req, EStop):
-            self.estop(req.reason, req.sent_clock, req.by_signal)
+            self.stop.request(req.reason, req.sent_clock, req.by_signal, req.after)
             sim = self.ctx.clock()
             if sim is not None:
                 sim.stop_taken()
@@ -251,6 +251,7 @@ class _Server:
                     self.send(self.refused(req.id, exc))
                     return
             self.last_heartbeat = time.monotonic()
+            self.stop.begin(req.id)
             self.busy.set()
             self.motion = threading.Thread(target=self._motion, args=(req,), daemon=True,
                                            name="spm-motion")
@@ -261,6 +262,7 @@ class _Server:
                 return
             self.homed = False  # the wrist leaves where homing put it (or it never was)
             self.last_heartbeat = time.monotonic()
+            self.stop.begin(req.id)
             self.busy.set()
             self.motion = threading.Thread(target=self._nudge, args=(req,), daemon=True,
                                            name="spm-nudge")
@@ -339,23 +341,17 @@ class _Server:
             self._workspace, _ = load_or_build(self.profile, cache_dir=self.cache_dir)
         return self._workspace
 
-    def estop(self, reason: str, sent_clock: float | None = None, by_signal: bool = False) -> None:
-        if not self.pending_estop:
-            self.pending_estop, self.pending_clock = reason, sent_clock
-            self.pending_by_signal = by_signal
-        if self.executor is not None:
-            self.executor.request_estop(self.pending_estop, self.pending_clock,
-                                        self.pending_by_signal)
+    def estop(self, reason: str, by_signal: bool = False) -> None:
+        """This process's own E-stop (a signal, the deadman) of the motion under way, if any."""
+        self.stop.request(reason, by_signal=by_signal)
 
     def _planned(self, segments: Sequence[Segment]) -> None:
         self.send(Planned(sum((s.plan.N + 1) * s.plan.Ts for s in segments),
                           tuple(s.phase for s in segments)))
 
     def _attach(self, ex: Executor) -> None:
-        self.executor = ex
         ex.on_planned = self._planned
-        if self.pending_estop:
-            ex.request_estop(self.pending_estop, self.pending_clock, self.pending_by_signal)
+        self.stop.attach(ex)
 
     def _motion(self, req: Home | Execute | Follow) -> None:
         normal_priority()  # set-up may load the workspace; the executor raises the loop itself
@@ -386,9 +382,8 @@ class _Server:
         finally:
             quiet_gc.stop()
             out.close()
-            self.executor = None
             self.feed = None
-            self.pending_estop, self.pending_clock, self.pending_by_signal = "", None, False
+            self.stop.ended(req.id)
             self.busy.clear()
         self.send(result)
 
@@ -401,7 +396,7 @@ class _Server:
                 result = Reply(req.id, None)
             else:
                 result = Reply(req.id, run_nudge(self.bus, self.nudging, req.moves,
-                                                 req.speed_degps, lambda: self.pending_estop,
+                                                 req.speed_degps, lambda: self.stop.reason,
                                                  **self.ctx.timing()))
         except SpmError as exc:
             result = self.refused(req.id, exc)
@@ -410,7 +405,7 @@ class _Server:
                 self.bus.hold()
             result = Failed(req.id, f"internal error in the motion process: {exc!r}", 1)
         finally:
-            self.pending_estop, self.pending_clock, self.pending_by_signal = "", None, False
+            self.stop.ended(req.id)
             self.busy.clear()
         self.send(result)
 
@@ -429,9 +424,11 @@ class _Server:
         """E-stop when the client's heartbeat stops during a motion."""
         request_realtime(HELPER_PRIORITY)
         while not stop.wait(HEARTBEAT_S / 2):
-            while self.signals:  # what the signal handler left (see _estop_on_signals)
+            while self.signals:  # what the signal handlers left (see _estop_on_signals)
                 name = self.signals.pop(0)
-                if self.moving():
+                if name == ESTOP_SIGNAL.name:  # the client's E-stop when its pipe is gone
+                    self.estop("E-stop signal to the motion process")
+                else:
                     self.estop(f"signal {name} to the motion process", by_signal=True)
             if self.moving() and time.monotonic() - self.last_heartbeat > DEADMAN_S:
                 self.estop(f"client lost: no heartbeat for more than {DEADMAN_S * 1e3:.0f} ms")
@@ -479,6 +476,7 @@ def _estop_on_signals(server: _Server | None) -> None:
         # inside Event.set of the very E-stop it would request (a client's E-stop and a
         # service stop's SIGTERM arrive together), which would wait for itself for ever. The
         # deadman thread requests the E-stop within HEARTBEAT_S / 2 (list.append takes none).
+        # The client's own E-stop signal (ESTOP_SIGNAL, when its pipe is gone) goes the same way.
         server.signals.append(signal.Signals(signum).name)
 
     for sig in STOP_SIGNALS:
@@ -500,7 +498,7 @@ def serve(conn: Connection, start: Start) -> None:
     if sim is not None:  # this thread reads the E-stops: its own waits do not hold time for them
         sim.takes_stops()
     _estop_on_signals(server)
-    signal.signal(signal.SIGUSR1, lambda *_: server.estop("E-stop signal to the motion process"))
+    signal.signal(ESTOP_SIGNAL, lambda *_: server.signals.append(ESTOP_SIGNAL.name))
     _warm_up()
     request_realtime(HELPER_PRIORITY)
     stop = threading.Event()

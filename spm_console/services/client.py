@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import contextlib
 import queue
-import signal
 import socket
 import subprocess
 import threading
@@ -33,6 +32,7 @@ from spm_console.motion.homing import HomingResult
 from spm_console.motion.nudge import NudgeResult
 from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import (
+    ESTOP_SIGNAL,
     Close,
     EndFollow,
     EStop,
@@ -97,6 +97,8 @@ class MotionClient:
         self._replies: dict[int, Reply[object] | Failed] = {}
         self._cond = threading.Condition()
         self._next_id = 1
+        self._ended_motion = 0
+        """Id of the last motion request whose result came back (0: none): E-stops say it."""
         self._closed = False
         self._lost = ""
         self.homed = False
@@ -189,12 +191,17 @@ class MotionClient:
                     self._send(Heartbeat())
                 time.sleep(HEARTBEAT_S)
 
-    def _call(self, make: Callable[[int], Request[T]], timeout_s: float | None) -> T:
-        """Send the request ``make`` builds with the next id; its reply's value (the type the
-        request names), or the error its :class:`Failed` stands for."""
+    def _new_id(self) -> int:
         with self._lock:
             rid = self._next_id
             self._next_id += 1
+        return rid
+
+    def _call(self, make: Callable[[int], Request[T]], timeout_s: float | None,
+              rid: int | None = None) -> T:
+        """Send the request ``make`` builds with ``rid`` (default: the next id); its reply's
+        value (the type the request names), or the error its :class:`Failed` stands for."""
+        rid = self._new_id() if rid is None else rid
         self._send(make(rid))
         t_end = None if timeout_s is None else time.monotonic() + timeout_s
         with self._cond:
@@ -236,10 +243,12 @@ class MotionClient:
     def _motion(self, make: Callable[[int], Request[T]],
                 on_sample: Callable[[Sample], None] | None) -> T:
         self.on_sample = on_sample
+        rid = self._new_id()
         self._moving.set()
         try:
-            return self._call(make, None)
+            return self._call(make, None, rid)
         finally:
+            self._ended_motion = rid  # its result is in: a later E-stop is not for it
             self._moving.clear()
             delivered = threading.Event()  # the motion's last samples reach on_sample first
             self._telemetry.put(delivered)
@@ -313,7 +322,7 @@ class MotionClient:
         a send, the E-stop goes out from a helper thread as soon as that send is done."""
         if self._sim is not None:  # counted before the stamp: time waits for it from then
             self._sim.stop_sent()
-        msg = EStop(reason, self._clock(), by_signal)
+        msg = EStop(reason, self._clock(), by_signal, self._ended_motion)
         if self._lock.acquire(blocking=False):
             self._lock.release()
             self._send_estop(msg)
@@ -330,7 +339,7 @@ class MotionClient:
                 self._sim.stop_sent(-1)  # not sent: time does not wait for it
         if self.process.poll() is None:
             with contextlib.suppress(OSError):
-                self.process.send_signal(signal.SIGUSR1)
+                self.process.send_signal(ESTOP_SIGNAL)
 
     def close(self, timeout_s: float = 5.0) -> None:
         if self._closed:

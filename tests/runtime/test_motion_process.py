@@ -21,7 +21,8 @@ from spm_console.devices.emulator.bus import start_emulator
 from spm_console.errors import BadInputError, ExitCode, MotionProcessLostError
 from spm_console.motion.logs.runlog import list_runs, load_run
 from spm_console.motion.plans import synthetic_plan
-from spm_console.motion.protocol import Planned
+from spm_console.motion.protocol import ESTOP_SIGNAL, EStop, Planned
+from spm_console.motion.sample import Sample
 from spm_console.motion.server import DEADMAN_S
 from spm_console.services.client import MotionClient
 from spm_console.store.plan_file import save_plan
@@ -92,6 +93,54 @@ def test_drive_the_loop_process_and_estop_by_message(agile: Profile, tmp_path: P
         client.close()
         emu.stop()
     assert client.process.poll() is not None  # the loop process ended with the client's close
+
+
+def test_an_estop_late_for_its_motion_stops_nothing_and_one_between_motions_stops_the_next(
+        agile: Profile, tmp_path: Path, cache: Path) -> None:
+    """An E-stop sent as a motion ends (its result on the way) that reaches the motion process
+    after it ended was that motion's: the next motion runs. One sent between motions, once the
+    result was in, stops the next motion before it moves."""
+    emu = start_emulator(agile, record=False, initial_deg=list(PAPER_START))
+    client = MotionClient(agile, emu.port, cache_dir=cache, logs_root=tmp_path)
+    try:
+        away = PAPER_START + np.array([1.0, -1.0, 0.5])
+        there = synthetic_plan(agile, PAPER_START, away, 0.3)
+        before = client._ended_motion
+        assert client.execute(there, skip_homing="test").ok
+        client._send(EStop("SPACE as the run ended", None, False, before))  # it came late
+        back = synthetic_plan(agile, away, PAPER_START, 0.3)
+        res = client.execute(back, skip_homing="test")
+        assert res.ok, res.message
+        client.estop("SPACE between two runs")
+        res = client.execute(there, skip_homing="test")
+        assert res.exit_code == ExitCode.STOP_ESTOP
+        assert "SPACE between two runs (before any motion)" in res.message
+        assert client.execute(there, skip_homing="test").ok  # it stopped that one only
+    finally:
+        client.close()
+        emu.stop()
+
+
+def test_the_estop_signal_stops_the_motion_under_way(agile: Profile, tmp_path: Path,
+                                                     cache: Path) -> None:
+    """The client's second path when its connection is gone (ESTOP_SIGNAL to the motion
+    process): an E-stop of the motion under way (20, not an interruption), the wrist holding."""
+    emu = start_emulator(agile, record=False, initial_deg=list(PAPER_START))
+    client = MotionClient(agile, emu.port, cache_dir=cache, logs_root=tmp_path)
+    try:
+        def on_sample(s: Sample) -> None:
+            if s.k == 20:  # the wrist moves
+                os.kill(client.pid, ESTOP_SIGNAL)
+
+        res = client.execute(synthetic_plan(agile, PAPER_START, GOAL, 4.0), on_sample,
+                             skip_homing="test")
+        assert res.exit_code == ExitCode.STOP_ESTOP
+        assert "E-stop signal to the motion process" in res.message
+        assert _stop(res.log_dir)["action"] == "hold"
+        _still(emu)
+    finally:
+        client.close()
+        emu.stop()
 
 
 CLIENT = textwrap.dedent("""
