@@ -254,19 +254,32 @@ class _SwitchSearch:
 def _line_search(search: _SwitchSearch, i: int, sign: int, step: int) -> bool:
     """Move switch ``i`` from the best assignment, while the budget lasts: first the way
     ``sign``, the step doubling while the cost falls; then, around the best sample, a step
-    each way, halved whenever neither costs less, down to one sample (a move past the
-    switch's range stops at its end). Whether the switch moved."""
+    each way, halved whenever neither costs less, down to one sample. Whether the switch
+    moved. A move past the switch's range goes halfway to its end instead (:func:`_toward`)."""
     moved = False
-    while search.better(i, search.at(i) + sign * step):
+    while search.better(i, _toward(search, i, sign, step)):
         moved = True
         step *= 2
     if not moved:
         return False
     step //= 2
     while step >= 1 and not search.spent:
-        if not any(search.better(i, search.at(i) + way * step) for way in (sign, -sign)):
+        if not any(search.better(i, _toward(search, i, way, step)) for way in (sign, -sign)):
             step //= 2
     return True
+
+
+def _toward(search: _SwitchSearch, i: int, sign: int, step: int) -> int:
+    """The sample ``step`` from switch ``i``'s best one the way ``sign``; past the end of its
+    range, halfway from the best sample to that end. At the end a region keeps one interval:
+    often infeasible (the goal's region must hold the last approach), and an infeasible QP
+    costs about two feasible ones (its certificate), while the cost's minimum lies inside."""
+    at = search.at(i)
+    end = search.bounds(i)[1 if sign > 0 else 0]
+    target = at + sign * step
+    if (target - end) * sign <= 0:
+        return target
+    return at + sign * max(1, abs(end - at) // 2)
 
 
 def qp_cost(eq: Equalities, z: F) -> float:

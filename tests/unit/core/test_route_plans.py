@@ -341,3 +341,20 @@ def test_the_line_search_grows_its_steps_then_closes_in(minimum: int, budget: in
         rs._line_search(curve, 0, 1, rs.FIRST_SWITCH_STEP)  # type: ignore[arg-type]
     assert curve.best == reached
     assert curve.qps <= budget
+
+
+def test_a_step_past_the_range_goes_halfway_to_its_end() -> None:
+    """The paper pair's shape: the cost falls toward the end of the horizon, where the last
+    sample is infeasible (the goal's region keeps one interval). The growing steps go past the
+    range; the search goes halfway to the end instead of solving the end, and lands nearer the
+    minimum than the end's neighbour it would have reached."""
+    import spm_console.core.planning.route_search as rs
+
+    minimum, start, n = 146, 105, 150
+    cost = {s: float((s - minimum) ** 2) for s in range(1, n - 1)}
+    cost[n - 1] = float("inf")  # infeasible: never better
+    curve = _CostCurve(cost, start, 4, n)
+    assert rs._line_search(curve, 0, 1, rs.FIRST_SWITCH_STEP)  # type: ignore[arg-type]
+    assert n - 1 not in curve.tried
+    assert curve.tried == {105, 108, 114, 126, 137}
+    assert curve.best == 137
