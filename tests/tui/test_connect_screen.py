@@ -40,6 +40,11 @@ async def test_reconnecting_the_emulated_bus_says_the_servos_started_again(conso
         await settle(pilot)
         assert app.session.homed, status_of(app)
         await pilot.press("c")
+        assert type(app.screen).__name__ == "ConfirmScreen"  # a connected bus: asked first
+        await pilot.press("n")
+        await settle(pilot)
+        assert "still connected: nothing restarted" in status_of(app) and app.session.homed
+        await pilot.press("c", "y")
         await settle(pilot)
         status = status_of(app)
         assert "3 servos answer" in status and "servos started again at θ = [" in status, status

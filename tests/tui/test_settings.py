@@ -169,7 +169,7 @@ async def test_apply_closes_the_session_and_exits_with_the_switch_request(consol
     app = console(profile_path=AGILE)
     async with app.run_test(size=SIZE) as pilot:
         await settle(pilot)
-        await pilot.press("c")  # connect: the motion process runs
+        await pilot.press("c", "y")  # connect again: the motion process runs
         await settle(pilot)
         assert app.session.bus is not None
         screen = await _open(pilot)

@@ -133,6 +133,24 @@ class ConnectScreen(IdentifyStep):
         if self.console.moving:
             return
         s = self.session
+        if s.bus is None:
+            self._connect()
+            return
+        restart = ("the emulated servos too: they start again at their first pose, torque off"
+                   if s.sim else "the servos keep their goal and torque")
+        body = (f"The {s.bus_label} is connected{' and the wrist homed' if s.homed else ''}. "
+                f"Connecting again restarts the motion process ({restart}); the wrist must be "
+                "homed again before it moves.")
+        self.app.push_screen(ConfirmScreen("Connect again?", body), self._reconnect_confirmed)
+
+    def _reconnect_confirmed(self, yes: bool | None) -> None:
+        if yes:
+            self._connect()
+        else:
+            self.status.ok("still connected: nothing restarted")
+
+    def _connect(self) -> None:
+        s = self.session
 
         def connect() -> Connected:
             self._health_error = ""
