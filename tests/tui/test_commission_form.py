@@ -78,3 +78,27 @@ async def test_options_that_cannot_work_are_refused_and_nothing_starts(
         assert why in status_of(app) and "nothing started" in status_of(app), status_of(app)
         assert why in text_of(app, "#commission-reason")
         assert app.screen.busy_op == "" and not app.moving
+
+
+async def test_the_reason_follows_the_form_as_it_is_mended(console) -> None:  # type: ignore[no-untyped-def]
+    """Shown by s, the reason under the form changes as the form is edited, and goes once the
+    form can start (it stayed as it was until the next s)."""
+    app = console()
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(pilot)
+        await pilot.press("0")
+        await settle(pilot)
+        _fill(app, "/dev/ttyUSB0", "/dev/ttyUSB0")
+        await pilot.press("s")
+        await pilot.pause()
+        assert "ports of their own" in text_of(app, "#commission-reason")
+        _fill(app, "/dev/ttyUSB0", "")
+        await pilot.pause()
+        reason = text_of(app, "#commission-reason")
+        assert "the IMU stage needs the IMU" in reason and "ports of their own" not in reason
+        app.screen.query_one("#imu-stage", TickBox).value = False
+        app.screen.query_one("#jig", TickBox).value = True
+        await pilot.pause()
+        assert text_of(app, "#commission-reason").strip() == ""
+        assert isinstance(app.screen, CommissionScreen)  # nothing started by editing
+        assert app.screen.busy_op == ""

@@ -29,7 +29,7 @@ from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
 from textual.content import Content
 from textual.message import Message
-from textual.widgets import Label, RichLog, Static
+from textual.widgets import Checkbox, Input, Label, RichLog, Static
 
 from spm_console.config.checks import port_problem
 from spm_console.config.plant import MAX_PAYLOAD_KG
@@ -103,6 +103,8 @@ class CommissionScreen(StepScreen):
     def __init__(self) -> None:
         super().__init__()
         self._stop: EstopRelay | None = None
+        self._reason = ""
+        """The refusal shown under the form ("" when none is)."""
 
     def compose_body(self) -> ComposeResult:
         s = self.session
@@ -159,6 +161,22 @@ class CommissionScreen(StepScreen):
             return exc.message
         return options_problem(f.bus, f.imu or None, f.jig, f.imu_stage, mass)
 
+    def on_input_changed(self, message: Input.Changed) -> None:
+        self._recheck_reason()
+
+    def on_checkbox_changed(self, message: Checkbox.Changed) -> None:
+        self._recheck_reason()
+
+    def _recheck_reason(self) -> None:
+        """A refusal shown under the form follows the form as it is edited (gone once the
+        form can start): it is shown first by ``s``."""
+        if self._reason:
+            self._show_reason(self.form_problem(self.form()))
+
+    def _show_reason(self, why: str) -> None:
+        self._reason = why
+        self.query_one("#commission-reason", Static).update(Content(why))
+
     # ------------------------------------------------------------------ start
     def action_start(self) -> None:
         if self.busy_op or self.console.moving or self.session.moving.is_set():
@@ -166,7 +184,7 @@ class CommissionScreen(StepScreen):
             return
         f = self.form()
         why = self.form_problem(f)
-        self.query_one("#commission-reason", Static).update(Content(why))
+        self._show_reason(why)
         if why:
             self.status.refused(f"commission refused: {why}; nothing started")
             return
