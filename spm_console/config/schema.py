@@ -300,8 +300,9 @@ class Settle(Section):
     duration_s: Real = Field(default=0.0, ge=0.0, le=5.0)
     """Longest settling after the plan, s, 0..5 (0: off; the run ends with the plan)."""
     max_correction_deg: Real = Field(default=0.5, gt=0.0, le=2.0)
-    """Largest shift of the goal sent, per joint, deg, 0 < shift ≤ 2; a shifted goal outside
-    the certified set is never sent."""
+    """Largest shift of the goal sent, per joint, deg, 0 < shift ≤ 2; a shifted goal is sent
+    only where the safety monitor lets the measured position be (the certified set relaxed by
+    ``[safety] region_margin_deg``)."""
     tolerance_deg: Real = Field(default=0.1, gt=0.0, le=1.0)
     """Settled when every joint is this close to the goal for 5 periods, deg (0.1: an encoder
     tick, 0.088°, and a little)."""

@@ -360,12 +360,15 @@ class Executor:
     def _settle(self, st: _LoopState, k0: int, goal: F, offset: F | None = None
                 ) -> StopReason | None:
         """Periods at the plan's goal with the goal sent shifted by the measured offset
-        (:mod:`spm_console.motion.goals.settle`), each shifted goal inside the certified set."""
+        (:mod:`spm_console.motion.goals.settle`), each shifted goal where the safety monitor
+        lets the measured position be: within the servo limits, in the certified set relaxed
+        by the region margin (the goal itself is in the strict set, as every reference)."""
         certified = self.verifier.certified
+        half_width = st.safety.region_half_width_deg
 
         def allowed(theta: F) -> bool:
             inside = bool(np.all(theta >= self.lo) and np.all(theta <= self.hi))
-            return inside and bool(certified.contains(theta[None])[0])
+            return inside and bool(certified.contains(theta[None], half_width)[0])
 
         s = Settling(self.profile.settle, goal, allowed)
         used = 0

@@ -206,8 +206,8 @@ class SettleOutcome:
     tolerance_deg: float
     duration_s: float
     refused_shifts: int
-    """Shifts not (wholly) taken: the shifted goal would have left the certified set or the
-    servo limits."""
+    """Shifts not (wholly) taken: the shifted goal would have left the certified set (as
+    relaxed by the region margin for measured positions) or the servo limits."""
 
     def text(self) -> str:
         """One line for the operator: empty when it settled."""
@@ -219,7 +219,8 @@ class SettleOutcome:
                 f"{self.tolerance_deg:g}°)")
         if self.refused_shifts:
             line += (f"; {self.refused_shifts} goal shifts refused, which would have left the "
-                     "workspace's certified set or the servo limits (a goal on their boundary)")
+                     "workspace's certified set (with the region margin) or the servo limits "
+                     "(a goal near their boundary)")
         return line
 
     def to_dict(self) -> dict[str, object]:

@@ -5,11 +5,15 @@ the shaft stops where the drive's torque balances friction and the links' weight
 ticks from the goal, on either side depending on the approach and the pose. The runtime reads
 that offset and shifts the goal it sends by a fraction of it every period (a slow integral
 outside the servo, active only at rest, after the plan): c ← c + κ·(goal − θ), each joint's
-shift bounded by ``max_correction_deg``. A shifted goal is sent only inside the workspace's
-certified set, like every position the runtime sends; when a shift would leave it, the joints
-whose new shift keeps it inside take theirs (as many as can), the others keep the previous
-one. Settled once every joint is within ``tolerance_deg`` of the goal for
-:data:`SETTLED_PERIODS` periods; otherwise the settling ends after ``duration_s``. Degrees.
+shift bounded by ``max_correction_deg``. The goal itself is a reference, in the workspace's
+certified set like every reference; a shifted goal is sent only where the safety monitor lets
+the measured position be (the certified set relaxed by the region margin, and the servo
+limits): the shift only brings the wrist onto a goal that is in the set, so at a goal on the
+set's face (the paper's θ2 = 155°, the grid's edge) a joint resting short of it is pushed
+onto it. When a shift would leave that band, the joints whose new shift keeps it inside take
+theirs (as many as can), the others keep the previous one. Settled once every joint is
+within ``tolerance_deg`` of the goal for :data:`SETTLED_PERIODS` periods; otherwise the
+settling ends after ``duration_s``. Degrees.
 """
 
 from __future__ import annotations

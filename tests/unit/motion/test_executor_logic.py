@@ -308,3 +308,40 @@ def test_a_run_whose_log_cannot_be_written_stops_holding_and_closes_its_log(
     assert run.meta["outcome"] == "error" and run.meta["exit_code"] == int(ExitCode.STOP_ESTOP)
     assert run.meta["log_write_error"] == "No space left on device"
     assert "cannot be written" in run.meta["message"]
+
+
+class _SaggingBus(FakeBus):
+    """Joint 2 rests ``sag_deg`` short of its goal (the links' weight on a P-only drive)."""
+
+    sag_deg = 0.2
+
+    def _advance(self) -> None:
+        goal = self.goal
+        self.goal = goal - np.array([0.0, self.sag_deg, 0.0])
+        try:
+            super()._advance()
+        finally:
+            self.goal = goal
+
+
+def test_settling_at_a_goal_on_the_grids_face_sends_the_shift_the_monitor_allows(
+        agile: Profile, tmp_path: Path) -> None:
+    """The paper's goal lies on the workspace grid's 155° face (θ2). A joint 2 resting short of
+    it is shifted past the face, within the band where the safety monitor lets the measured
+    position be (the region margin), and settles on the goal, which is in the set."""
+    from spm_console.report.paper_values import MVN_GOAL_DEG
+
+    goal = np.array(MVN_GOAL_DEG)
+    assert goal[1] == 155.0
+    start = goal - np.array([0.0, 3.0, 0.0])
+    settling = agile.model_copy(update={"settle": agile.settle.model_copy(
+        update={"duration_s": 1.5, "tolerance_deg": 0.1})})
+    bus = _SaggingBus(start, clock=SimClock())
+    ex, res = _run(settling, bus, synthetic_plan(settling, start, goal, 0.6), tmp_path)
+    assert res.ok, res.message
+    assert res.settle is not None and res.settle.settled, res.settle
+    assert res.settle.refused_shifts == 0
+    assert abs(res.settle.error_deg[1]) <= 0.1
+    sent = max(w[1][1] for w in bus.writes)
+    assert 155.0 < sent <= 155.0 + settling.settle.max_correction_deg
+    assert all(s.measured_deg[1] <= 155.0 + 0.1 for s in ex.samples)
