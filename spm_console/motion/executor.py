@@ -20,27 +20,30 @@ servo hardware error, position outside the region + margin or outside the servo
 limits — applies the profile's ``safety.stop_action`` at once (hold: the measured
 position becomes the goal, written again at the next deadline; torque_off) and
 ends the run with that stop's exit code. Degrees and seconds throughout.
+
+The bus transactions (set-up, steps 1–2, the hardware poll, release) and the stops are the
+executor's bases' (:mod:`spm_console.motion.cycle`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
-from typing import Any
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from spm_console.config.models import servo_limits_deg, servo_model_of, servo_tick_deg
+from spm_console.config.models import servo_model_of, servo_tick_deg
 from spm_console.config.schema import Profile
 from spm_console.core.servo.estimation import FiniteDifference, KalmanVelocity, ModelPredictor
 from spm_console.core.workspace.data import Workspace
-from spm_console.devices.base import SETUP_QUIET_S, CommError, ServoBus, read_position_checked
-from spm_console.errors import BadInputError, BusError, ExitCode, PlanRefusedError, SpmError
+from spm_console.devices.base import ServoBus
+from spm_console.errors import BadInputError, ExitCode, PlanRefusedError, SpmError
 from spm_console.formatting import fmt_deg
+from spm_console.motion.cycle.state import LoopState
+from spm_console.motion.cycle.stops import StoppableLoop
 from spm_console.motion.goals.load_offsets import load_offsets, sent_references
 from spm_console.motion.goals.settle import Settling, settle_periods
 from spm_console.motion.logs.runlog import RunLog
@@ -55,7 +58,6 @@ from spm_console.motion.stats import (
     run_stats,
     stale_replies,
 )
-from spm_console.motion.stop_action import apply_stop_action
 from spm_console.system.cpus import placement
 from spm_console.system.realtime import (
     LOOP_PRIORITY,
@@ -69,27 +71,9 @@ F = NDArray[np.float64]
 #: A cycle still busy after this fraction of the period is logged (``slow_cycle``: late start,
 #: bus, filter, hardware poll and checks, in ms).
 SLOW_CYCLE = 0.75
-BusFailure = (CommError, OSError, BusError)
-"""What counts as one failed bus transaction (a serial exception is an OSError; a status
-packet carrying an error number raises BusError)."""
 
 
-@dataclass
-class _LoopState:
-    """What the cycles of one run share: filters, predictors, the safety monitor, the last
-    good position and the reference held since the last write."""
-
-    safety: SafetyMonitor
-    kf: KalmanVelocity
-    fd: FiniteDifference
-    pred: ModelPredictor
-    pred_t: ModelPredictor
-    last_good: F
-    t_state: float
-    u_prev: F
-
-
-class Executor:
+class Executor(StoppableLoop):
     """Streams plans to a :class:`ServoBus` under the profile's safety rules.
 
     ``on_sample`` is called from the loop thread after every cycle (keep it quick);
@@ -116,80 +100,31 @@ class Executor:
         simulated_time: bool = False,
     ) -> None:
         KalmanVelocity.load()  # not after torque-on (see KalmanVelocity.load)
-        self.profile = profile
+        super().__init__(profile, bus, log=log, read_retries=read_retries, spin_s=spin_s,
+                         clock=clock, sleep=sleep)
         self.emulated = emulated
         self.simulated_time = simulated_time
         """The emulated bus runs in simulated time (its replies cannot be late)."""
         """Driving the emulated bus (said in a communication-loss stop's reason)."""
-        self.bus = bus
         self.verifier = PlanVerifier(profile, workspace)
         """Checks every plan against this profile's workspace before torque-on."""
-        self.log = log
         self.on_sample = on_sample
         self.on_start = on_start
         self.on_planned = on_planned
         """Told the segments once they are verified and the wrist is at their start, before
         anything moves (the motion process sends their duration to its front end)."""
-        self.read_retries = read_retries
         self.hw_poll_every = max(1, hw_poll_every)
         self.start_tolerance_deg = (profile.safety.approach_tolerance_deg
                                     if start_tolerance_deg is None else start_tolerance_deg)
         """How far the wrist may be from the first segment's start (default: the profile's
         approach tolerance, the rule every front end uses to add an approach move), deg."""
-        self.spin_s = spin_s
-        self.clock = clock
-        self.sleep = sleep
-        """Replaces the real waiting when given (tests drive a simulated clock with it)."""
         self.ts = profile.servo.ts_s
         self.model = servo_model_of(profile)
-        self.lo, self.hi = servo_limits_deg(profile)
-        self._estop = threading.Event()
-        self._estop_reason = ""
-        self._estop_by_signal = False
-        self._estop_clock: float | None = None
-        """Clock time of the first E-stop request (logged with the stop as ``requested_t``)."""
-        self.t0 = 0.0
-        """perf_counter time of the first deadline (t = 0 of the samples)."""
         self.samples: list[Sample] = []
         self._last_good = np.zeros(3)
-        self._torque_on = False
-        self._watchdog_armed = False
         self.realtime = RtGrant("normal", "not running")
         """The scheduling the loop thread got (logged as the "realtime" event)."""
         self.settle_outcome: SettleOutcome | None = None
-
-    # ------------------------------------------------------------------ control
-    def request_estop(self, reason: str = "operator request", at_clock: float | None = None,
-                      by_signal: bool = False) -> None:
-        """Thread-safe: stop at once (wakes the loop if it is waiting for a deadline).
-        ``at_clock``: when the request was made (this executor's clock), if earlier than now;
-        ``by_signal``: a terminating signal asked (before the first reference, the run is then
-        an interruption, exit 130, as a signal before any motion always is)."""
-        if not self._estop.is_set():
-            self._estop_clock = self.clock() if at_clock is None else at_clock
-            self._estop_by_signal = by_signal
-        self._estop_reason = reason
-        self._estop.set()
-
-    def _now(self) -> float:
-        return self.clock() - self.t0
-
-    def _event(self, name: str, /, **data: Any) -> None:
-        if self.log is not None:
-            self.log.event(name, self._now(), **data)
-
-    def _wait_until(self, deadline: float) -> None:
-        """Sleep (interruptible by E-stop), then spin the last ``spin_s`` for precision."""
-        while True:
-            rem = deadline - self.clock()
-            if rem <= 0.0 or self._estop.is_set():
-                return
-            if self.sleep is not None:
-                self.sleep(rem)
-            elif rem > self.spin_s:
-                self._estop.wait(rem - self.spin_s)
-            else:
-                time.sleep(0)
 
     # ------------------------------------------------------------------ checks
     def check_plan(self, segments: Sequence[Segment]) -> PlanCheck:
@@ -205,10 +140,6 @@ class Executor:
                     max_reference_step_deg=check.max_reference_step_deg,
                     ms=round(check.seconds * 1e3, 3))
         return check
-
-    def read_initial(self, attempts: int = 5) -> F:
-        """Measured position before any motion; BusError if the servos stay silent."""
-        return read_position_checked(self.bus, attempts)
 
     # ------------------------------------------------------------------ the loop
     def run(self, segments: Sequence[Segment], theta0_deg: F | None = None) -> ExecutionResult:
@@ -296,55 +227,6 @@ class Executor:
             return self._finish("interrupted", ExitCode.INTERRUPTED, f"{msg}; nothing moved", stop)
         return self._finish("stopped", stop.exit_code, stop.message, stop)
 
-    def _release_watchdog(self) -> None:
-        """After the run: Bus Watchdog off, so the servos keep their last goal (done or hold).
-
-        If the bus does not answer, the watchdog stays armed and stops the servos itself.
-        """
-        set_watchdog = getattr(self.bus, "set_watchdog", None)
-        if set_watchdog is None or not self._watchdog_armed:
-            return
-        try:
-            set_watchdog(0)
-            self._event("watchdog", ms=0, units=0)
-        except BusFailure as exc:
-            self._event("watchdog_left_armed", error=str(exc))
-
-    def _retry(self, what: str, fn: Callable[[], Any], attempts: int = 10) -> Any:
-        """A set-up transaction, retried on isolated losses; BusError when all fail."""
-        last: Exception | None = None
-        for _ in range(attempts):
-            try:
-                return fn()
-            except BusFailure as exc:
-                last = exc
-                self._event("comm_retry", op=what, error=str(exc))
-                self.bus.drain_input(SETUP_QUIET_S)
-        raise BusError(f"cannot {what} after {attempts} tries: {last}; nothing moved")
-
-    def _preflight(self, theta0: F) -> StopReason | None:
-        """Hardware errors before motion; watchdog; seed the goal at θ0 and torque on."""
-        hw = self._retry("read the hardware error status", self.bus.hardware_errors)
-        reason = SafetyMonitor(self.profile).hardware(hw, 0.0, 0)
-        if reason is not None:
-            self._event("fault", kind=reason.kind, message=reason.message, errors=hw)
-            return reason
-        watchdog_ms = self.profile.safety.watchdog_ms
-        set_watchdog = getattr(self.bus, "set_watchdog", None)
-        if set_watchdog is not None and watchdog_ms > 0:
-            # also clears a watchdog tripped after an earlier run (2.0; no-op on 1.0)
-            units = self._retry("set the Bus Watchdog", lambda: set_watchdog(watchdog_ms))
-            self._watchdog_armed = bool(units)
-            self._event("watchdog", ms=watchdog_ms, units=units)
-        elif watchdog_ms == 0 and self.profile.safety.watchdog_off_reason:
-            self._event("watchdog_off", reason=self.profile.safety.watchdog_off_reason)
-        # reseed the goal before torque on: no lunge (a sync write has no reply to confirm)
-        self._retry("write the goal", lambda: self.bus.write_goal_deg(theta0))
-        self._torque_on = True  # from here on a failure must apply the stop action
-        self._retry("enable torque", lambda: self.bus.set_torque(True))
-        self._event("torque_on", goal_deg=theta0)
-        return None
-
     def _loop(self, refs: F, phases: list[str], regions: list[bool], theta0: F,
               settle: bool = False, sent: F | None = None) -> StopReason | None:
         """Cycle through the verified references; ``sent`` (same shape): what goes to the
@@ -357,7 +239,7 @@ class Executor:
                 return stop
         return (self._settle(st, len(refs), refs[-1], out[-1] - refs[-1]) if settle else None)
 
-    def _settle(self, st: _LoopState, k0: int, goal: F, offset: F | None = None
+    def _settle(self, st: LoopState, k0: int, goal: F, offset: F | None = None
                 ) -> StopReason | None:
         """Periods at the plan's goal with the goal sent shifted by the measured offset
         (:mod:`spm_console.motion.goals.settle`), each shifted goal where the safety monitor
@@ -391,13 +273,13 @@ class Executor:
             float(law.tolerance_deg), float(law.duration_s), s.refused)
         return None
 
-    def _loop_state(self, theta0: F) -> _LoopState:
+    def _loop_state(self, theta0: F) -> LoopState:
         """Filters, predictors and the safety monitor of a run starting at rest at θ0; sets the
         first deadline (t0) and tells ``on_start``."""
         safety = SafetyMonitor(self.profile, self.verifier.certified, emulated=self.emulated,
                                simulated_time=self.simulated_time)
         self.safety = safety
-        st = _LoopState(
+        st = LoopState(
             safety=safety,
             kf=KalmanVelocity(self.model, theta0, self.profile.estimation.measurement_noise_deg,
                               self.profile.estimation.process_noise_deg),
@@ -411,7 +293,7 @@ class Executor:
             self.on_start()
         return st
 
-    def _cycle(self, st: _LoopState, k: int, ref: F, phase: str, region: bool,
+    def _cycle(self, st: LoopState, k: int, ref: F, phase: str, region: bool,
                target: F | None = None, sent: F | None = None,
                target_clamp_deg: float | None = None) -> StopReason | None:
         """Cycle k: wait for its deadline, write ``ref`` (or ``sent``: ``ref`` plus the load's
@@ -474,42 +356,6 @@ class Executor:
         st.pred.advance(ref)
         return None
 
-    def _cycle_io(self, ref: F) -> tuple[F | None, int, str, float]:
-        """Write θ*(k), read θ(k) with retries.
-
-        Returns (θ or None, failed attempts, last error, clock time the good read was sent).
-        """
-        detail = ""
-        try:
-            self.bus.write_goal_deg(ref)
-        except BusFailure as exc:
-            detail = f"write failed: {exc}"
-            self._event("comm_retry", op="write", error=str(exc))
-        failed = 0
-        for _ in range(1 + self.read_retries):
-            try:
-                t_read = self.clock()
-                return np.asarray(self.bus.read_position_deg(), float), failed, "", t_read
-            except BusFailure as exc:
-                failed += 1
-                detail = str(exc) or type(exc).__name__
-                self._event("comm_retry", op="read", error=detail)
-        self._event("comm_fail", error=detail, attempts=failed)
-        return None, failed, detail, float("nan")
-
-    def _alerted(self) -> bool:
-        """The alert flag of the last status packets, when the bus exposes it (``alerts``)."""
-        alerts = getattr(self.bus, "alerts", None)
-        return isinstance(alerts, dict) and any(alerts.values())
-
-    def _poll_hw(self, safety: SafetyMonitor, t: float, k: int) -> StopReason | None:
-        try:
-            errors = self.bus.hardware_errors()
-        except BusFailure as exc:
-            self._event("comm_retry", op="hardware_errors", error=str(exc))
-            return None
-        return safety.hardware(errors, t, k)
-
     def _publish(self, sample: Sample) -> None:
         self.samples.append(sample)
         if self.log is not None:
@@ -520,28 +366,6 @@ class Executor:
             except Exception as exc:  # a UI bug must not stop the servo loop
                 self._event("callback_error", error=repr(exc))
                 self.on_sample = None
-
-    # ------------------------------------------------------------------ stopping
-    def _hold_target(self, measured: F) -> F:
-        return np.clip(measured, self.lo, self.hi)
-
-    def _apply_stop(self, stop: StopReason, hold: F, deadline: float | None) -> None:
-        """The profile's stop action, issued now (and the hold goal again at ``deadline``)."""
-        self._event("fault", kind=stop.kind, message=stop.message, detected_t=stop.t, k=stop.k)
-        action = self.profile.safety.stop_action
-        repeat = None if deadline is None else (lambda: self._wait_until_plain(deadline))
-        done = apply_stop_action(self.bus, action, hold, self._now, repeat, stop.kind == "comm")
-        t_issue, t_done, notes = done.issued_t, done.done_t, done.notes
-        requested = None if self._estop_clock is None else self._estop_clock - self.t0
-        self._event("stop", kind=stop.kind, requested_t=requested if stop.kind == "estop" else None,
-                    action=action, hold_deg=hold if action == "hold"
-                    else None, detected_t=stop.t, issued_t=t_issue, done_t=t_done, notes=notes,
-                    exit_code=int(stop.exit_code))
-        self.stop_timing = (t_issue, t_done)
-
-    def _wait_until_plain(self, deadline: float) -> None:
-        while (rem := deadline - self.clock()) > 0:
-            (self.sleep or time.sleep)(min(rem, 0.002))
 
     def _finish(self, outcome: str, code: ExitCode, message: str,
                 stop: StopReason | None) -> ExecutionResult:

@@ -47,7 +47,8 @@ from spm_console.core.polytope.region import Region
 from spm_console.core.servo.model import exact_step
 from spm_console.errors import BadInputError
 from spm_console.formatting import fmt_deg
-from spm_console.motion.executor import Executor, _LoopState
+from spm_console.motion.cycle.state import LoopState
+from spm_console.motion.executor import Executor
 from spm_console.motion.follow.regions import (
     MOVE_IN,
     RegionHopper,
@@ -209,7 +210,7 @@ class Follower(Executor):
         """The servo loop; ``approach``: the point plans start from when the wrist stands just
         beyond the grid (:meth:`_start`): it is the reference until the predicted state is in
         the region, then re-planning begins."""
-        st: _LoopState = self._loop_state(theta0)
+        st: LoopState = self._loop_state(theta0)
         plan, j = first, 0
         ref = plan.reference_at(0) if approach is None else approach
         settled_since: float | None = None
