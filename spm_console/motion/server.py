@@ -15,34 +15,31 @@ a motion the client sends a heartbeat every :data:`HEARTBEAT_S`; when none arriv
 profile's stop action, "client lost" in the log. If the child itself dies, the servos'
 Bus Watchdog (armed during every run) stops them and the client raises
 :class:`MotionProcessLostError` (exit 27). Degrees and seconds.
+
+The answers to requests that move nothing, the telemetry sender and the garbage collector kept
+quiet during a motion are in :mod:`spm_console.motion.serving`.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import gc
 import os
 import signal
 import threading
 import time
-from collections import deque
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Sequence
+from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from types import FrameType
 from typing import TYPE_CHECKING
 
 from spm_console.config.schema import Profile
-from spm_console.core.workspace.data import Workspace
-from spm_console.devices.base import CommError, ServoStatus, read_position_checked
-from spm_console.devices.dynamixel.bus import open_bus
-from spm_console.errors import PlanRefusedError, RefusedError, SpmError
-from spm_console.motion import servo_tools
+from spm_console.devices.base import CommError
+from spm_console.errors import RefusedError, SpmError
 from spm_console.motion.executor import Executor
 from spm_console.motion.follow.target_feed import TargetFeed
 from spm_console.motion.nudge import NudgeState, release, run_nudge
-from spm_console.motion.plan_check import PlanCheck
 from spm_console.motion.protocol import (
     ESTOP_SIGNAL,
     Close,
@@ -62,7 +59,6 @@ from spm_console.motion.protocol import (
     Reply,
     SetTarget,
     Status,
-    Telemetry,
     Torque,
     ToServer,
     Verify,
@@ -70,17 +66,15 @@ from spm_console.motion.protocol import (
 from spm_console.motion.runs import (
     RunContext,
     SampleCallback,
-    refused_run,
     run_execute,
     run_home,
-    verify_before_motion,
 )
-from spm_console.motion.sample import Sample
 from spm_console.motion.segments import Segment
-from spm_console.motion.servo_query import answer
+from spm_console.motion.serving.idle import IdleServer
+from spm_console.motion.serving.quiet_gc import QuietGc
+from spm_console.motion.serving.telemetry import TelemetryOut
 from spm_console.motion.stop_action import PendingStop
 from spm_console.refusals import Refusal
-from spm_console.store.workspace_cache import load_or_build
 from spm_console.system.cpus import place_on_loop_cpu
 from spm_console.system.realtime import HELPER_PRIORITY, normal_priority, quick_gil_handoff, request_realtime
 from spm_console.system.signals import STOP_SIGNALS
@@ -95,112 +89,21 @@ HEARTBEAT_S = 0.1
 #: this bounds a client that hangs, with room for a front end starved by a loaded machine
 #: (every motion it lets continue was verified before torque-on).
 DEADMAN_S = 1.0
-#: Telemetry to the client at most this often, s (the loop itself runs every Ts).
-TELEMETRY_S = 0.05
-#: Most samples in one telemetry message (a pickle of this many takes well under 1 ms).
-TELEMETRY_CHUNK = 10
-#: Most samples kept for a client that does not read (10 s at Ts = 20 ms).
-MAX_PENDING = 500
 #: How long a request other than a motion may take before the child counts as hung, s.
 REQUEST_TIMEOUT_S = 30.0
 
 
 # ---------------------------------------------------------------------------------- child
-class TelemetryOut:
-    """Samples from the servo loop to the client without ever blocking the loop.
-
-    The loop only appends (:meth:`put`, O(1)); a sender thread ships what accumulated every
-    :data:`TELEMETRY_S`. A client that reads too slowly (a busy UI) makes the socket block
-    the *sender*, never the loop; beyond :data:`MAX_PENDING` samples the oldest are dropped
-    from the telemetry (never from the run log) and counted in the next message.
-    """
-
-    def __init__(self, send: Callable[[object], None]) -> None:
-        self._send = send
-        self._q: deque[Sample] = deque()
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self.dropped = 0
-        self._thread = threading.Thread(target=self._run, daemon=True, name="spm-telemetry")
-        self._thread.start()
-
-    def put(self, sample: Sample) -> None:
-        with self._lock:
-            if len(self._q) >= MAX_PENDING:
-                self._q.popleft()
-                self.dropped += 1
-            self._q.append(sample)
-
-    def _flush(self) -> None:
-        """Ship what accumulated in messages of at most :data:`TELEMETRY_CHUNK` samples:
-        pickling holds the GIL, and a backlog pickled at once kept the loop waiting for it
-        (late cycles of 5-13 ms behind a slow client)."""
-        while True:
-            with self._lock:
-                n = min(len(self._q), TELEMETRY_CHUNK)
-                batch = tuple(self._q.popleft() for _ in range(n))
-                dropped, self.dropped = self.dropped, 0
-            if not (batch or dropped):
-                return
-            self._send(Telemetry(batch, dropped))
-
-    def _run(self) -> None:
-        request_realtime(HELPER_PRIORITY)
-        while not self._stop.wait(TELEMETRY_S):
-            self._flush()
-
-    def close(self) -> None:
-        """Stop the sender and ship the rest (before the motion's result)."""
-        self._stop.set()
-        self._thread.join(timeout=5.0)
-        self._flush()
-
-
-class _QuietGc:
-    """No cyclic garbage collection in this process while the wrist moves.
-
-    A full collection holds the GIL for as long as it takes to walk every tracked object
-    (with a workspace loaded: tens of ms), stalling the loop or a bus transaction mid-way. Before
-    a motion everything alive is collected once and frozen (never walked again); during it the
-    collector is off (the loop allocates little, and reference counting frees it); after it,
-    back to normal. This process serves no UI, so this costs nothing elsewhere.
-    """
-
-    def __init__(self) -> None:
-        self.active = False
-
-    def start(self) -> None:
-        gc.collect()
-        gc.freeze()
-        gc.disable()
-        self.active = True
-
-    def stop(self) -> None:
-        if self.active:
-            gc.enable()
-            gc.unfreeze()
-            self.active = False
-
-
-class _Server:
+class _Server(IdleServer):
     """State of the child: bus, workspace, the motion under way."""
 
     def __init__(self, conn: Connection, profile: Profile, ctx: RunContext,
                  cache_dir: str | None) -> None:
-
-        self.conn = conn
-        self.profile = profile
-        self.ctx = ctx
-        self.cache_dir = cache_dir
-        self._workspace: Workspace | None = None
-        self.bus = open_bus(profile, ctx.port, sim=ctx.clock())
-        self.send_lock = threading.Lock()
+        super().__init__(conn, profile, ctx, cache_dir)
         self.motion: threading.Thread | None = None
         self.busy = threading.Event()
         """A motion runs: set when it is accepted, cleared before its result is sent (so the
         client's next request never finds the motion still winding down)."""
-        self.homed = False
-        """A homing run completed in this process (the rule: homed before any other motion)."""
         self.stop = PendingStop()
         """The E-stop held for the motion under way (or the next one)."""
         self.last_heartbeat = time.monotonic()
@@ -210,18 +113,6 @@ class _Server:
         """The target feed of the following under way (None otherwise)."""
         self.nudging = NudgeState()
         """Commissioning's nudges: each servo's rest and saved PWM Limit."""
-
-    def send(self, msg: object) -> None:
-        if isinstance(msg, (Reply, Failed)):  # every answer says whether the wrist is homed
-            msg = replace(msg, homed=self.homed)
-        with self.send_lock, contextlib.suppress(OSError, EOFError, BrokenPipeError):
-            self.conn.send(msg)
-
-    @staticmethod
-    def refused(req_id: int, exc: SpmError) -> Failed:
-        """The answer for an operator-facing error; a refusal keeps its reason code."""
-        return Failed(req_id, exc.message, int(exc.exit_code),
-                      str(exc.reason) if isinstance(exc, RefusedError) else "")
 
     # --- requests ---------------------------------------------------------------------
     def handle(self, req: ToServer) -> None:
@@ -273,74 +164,7 @@ class _Server:
                 return
             self._answer(req)
 
-    def _answer(self, req: Ping | ReadPosition | Status | Torque | Reboot | Query | Verify) -> None:
-        try:
-            if isinstance(req, Verify):  # moves nothing: answered here, the loop is idle
-                value: object = self.verify(req)
-            elif isinstance(req, ReadPosition):
-                value = read_position_checked(self.bus, 3)
-            elif isinstance(req, Ping):
-                value = self.ping()
-            elif isinstance(req, Query):
-                value = answer(self.bus, req.query)
-            else:
-                value = self.servo_tool(req)
-            self.send(Reply(req.id, value))
-        except SpmError as exc:
-            self.send(self.refused(req.id, exc))
-        except Exception as exc:  # a bug: say so, keep serving (no motion runs)
-            self.send(Failed(req.id, f"internal error in the motion process: {exc!r}", 1))
-
-    def verify(self, req: Verify) -> PlanCheck:
-        """The plan verified as an execution will verify it. At normal priority: the workspace
-        may be loaded or built first (seconds of CPU), which this real-time thread must not
-        take from the emulated servos or the front end."""
-        normal_priority()
-        try:
-            return verify_before_motion(self.profile, self.workspace, req.plan)
-        except PlanRefusedError as exc:
-            if req.log_kind:
-                refused_run(self.profile, req.log_kind, self.ctx, exc)
-            raise
-        finally:
-            request_realtime(HELPER_PRIORITY)
-
-    def servo_tool(self, req: Status | Torque | Reboot) -> servo_tools.ServoHealth:
-        """Torque per joint or a reboot (if asked), then every joint's health (ServoHealth).
-        Torque off or a reboot (torque comes back off) un-homes the wrist: the joint can be
-        moved by hand from then on."""
-        if isinstance(req, (Torque, Reboot)):
-            servo_tools.joint_index(self.bus, req.joint)  # a bad number changes nothing
-            if isinstance(req, Reboot) or not req.on:
-                self.homed = False
-            if isinstance(req, Torque):
-                servo_tools.set_joint_torque(self.bus, req.joint, req.on)
-            else:
-                servo_tools.reboot_joint(self.bus, req.joint, **self.ctx.timing())
-        return servo_tools.read_health(self.bus)
-
-    def ping(self) -> list[ServoStatus]:
-        from dataclasses import replace
-
-
-        volt = "present_input_voltage" if self.profile.bus.protocol == "2.0" else "present_voltage"
-        out = []
-        for st in self.bus.ping_all():
-            with contextlib.suppress(CommError, OSError, KeyError, SpmError):  # informative only
-                st = replace(st, temperature_c=float(self.bus.read(st.id, "present_temperature")),
-                             voltage_v=0.1 * float(self.bus.read(st.id, volt)))
-            out.append(st)
-        return out
-
     # --- motion -----------------------------------------------------------------------
-    @property
-    def workspace(self) -> Workspace:
-        """This profile's workspace (cache, or built on first use): every motion is verified
-        against it."""
-        if self._workspace is None:
-            self._workspace, _ = load_or_build(self.profile, cache_dir=self.cache_dir)
-        return self._workspace
-
     def estop(self, reason: str, by_signal: bool = False) -> None:
         """This process's own E-stop (a signal, the deadman) of the motion under way, if any."""
         self.stop.request(reason, by_signal=by_signal)
@@ -359,7 +183,7 @@ class _Server:
         on_sample = out.put
 
         result: Reply[object] | Failed
-        quiet_gc = _QuietGc()
+        quiet_gc = QuietGc()
         try:
             _ = self.workspace  # loaded (or built) before the loop, at normal priority
             quiet_gc.start()

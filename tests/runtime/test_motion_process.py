@@ -267,7 +267,7 @@ def test_telemetry_never_blocks_the_loop_and_counts_what_a_slow_client_missed() 
     """The loop's side only appends; a client that does not read blocks the sender thread."""
     from spm_console.motion.protocol import Telemetry
     from spm_console.motion.sample import Sample
-    from spm_console.motion.server import MAX_PENDING, TELEMETRY_CHUNK, TelemetryOut
+    from spm_console.motion.serving.telemetry import MAX_PENDING, TELEMETRY_CHUNK, TelemetryOut
 
     release = threading.Event()
     sent: list[Telemetry] = []
