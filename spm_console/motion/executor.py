@@ -103,9 +103,9 @@ class Executor(StoppableLoop):
         super().__init__(profile, bus, log=log, read_retries=read_retries, spin_s=spin_s,
                          clock=clock, sleep=sleep)
         self.emulated = emulated
+        """Driving the emulated bus (said in a communication-loss stop's reason)."""
         self.simulated_time = simulated_time
         """The emulated bus runs in simulated time (its replies cannot be late)."""
-        """Driving the emulated bus (said in a communication-loss stop's reason)."""
         self.verifier = PlanVerifier(profile, workspace)
         """Checks every plan against this profile's workspace before torque-on."""
         self.on_sample = on_sample

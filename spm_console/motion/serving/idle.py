@@ -109,9 +109,6 @@ class IdleServer:
         return servo_tools.read_health(self.bus)
 
     def ping(self) -> list[ServoStatus]:
-        from dataclasses import replace
-
-
         volt = "present_input_voltage" if self.profile.bus.protocol == "2.0" else "present_voltage"
         out = []
         for st in self.bus.ping_all():
