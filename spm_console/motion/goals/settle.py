@@ -4,8 +4,10 @@ The MX-106's firmware closes a P-only position loop (Position I Gain 0 by defaul
 the shaft stops where the drive's torque balances friction and the links' weight, a few encoder
 ticks from the goal, on either side depending on the approach and the pose. The runtime reads
 that offset and shifts the goal it sends by a fraction of it every period (a slow integral
-outside the servo, active only at rest, after the plan): c ← c + κ·(goal − θ), each joint's
-shift bounded by ``max_correction_deg``. The goal itself is a reference, in the workspace's
+outside the servo, active only at rest, after the plan): c ← c + κ·(goal − θ) for each joint
+outside the tolerance (one within it keeps its shift), κ halved at each of a joint's
+overshoots (friction and the encoder's ticks would make a fixed κ hunt), each joint's shift
+bounded by ``max_correction_deg``. The goal itself is a reference, in the workspace's
 certified set like every reference; a shifted goal is sent only where the safety monitor lets
 the measured position be (the certified set relaxed by the region margin, and the servo
 limits): the shift only brings the wrist onto a goal that is in the set, so at a goal on the
@@ -33,6 +35,10 @@ F = NDArray[np.float64]
 #: periods to take up an offset, slow beside the servo's own response, so the shift never
 #: chases its motion.
 GAIN = 0.3
+#: A joint whose offset changes sign (its shift carried it past the goal) goes on with half
+#: its gain, down to this fraction of :data:`GAIN`: the drive's friction and the encoder's
+#: ticks make a fixed gain hunt across a tolerance of a tick or less.
+MIN_GAIN_FRACTION = 1.0 / 8.0
 #: Periods within the tolerance that end the settling.
 SETTLED_PERIODS = 5
 
@@ -49,11 +55,18 @@ class Settling:
     within: int = 0
     refused: int = 0
     """Shifts not taken because the shifted goal was not allowed."""
+    gain: F | None = None
+    """Each joint's κ now (:data:`GAIN`, halved at each of its overshoots)."""
+    side: F | None = None
+    """Each joint's side of the goal when last outside the tolerance (+1 short, −1 past, 0
+    not yet)."""
 
     def __post_init__(self) -> None:
         self.goal = np.asarray(self.goal, float)
         if self.shift is None:
             self.shift = np.zeros(3)
+        self.gain = np.full(3, GAIN)
+        self.side = np.zeros(3)
 
     @property
     def reference(self) -> F:
@@ -75,8 +88,16 @@ class Settling:
             self.within += 1
             return
         self.within = 0
+        assert self.gain is not None and self.side is not None
+        outside = np.abs(error) > self.law.tolerance_deg
+        side = np.sign(error)
+        crossed = outside & (side * self.side < 0)
+        self.gain = np.where(crossed, np.maximum(self.gain / 2, GAIN * MIN_GAIN_FRACTION),
+                             self.gain)
+        self.side = np.where(outside, side, self.side)
+        # a joint within the tolerance keeps its shift: moving it would only move it out
         bound = self.law.max_correction_deg
-        shift = np.clip(self.shift + GAIN * error, -bound, bound)
+        shift = np.clip(self.shift + np.where(outside, self.gain * error, 0.0), -bound, bound)
         taken = self._allowed_part(shift)
         if taken is None or not np.array_equal(taken, shift):
             self.refused += 1
