@@ -243,10 +243,13 @@ class Executor(StoppableLoop):
                 ) -> StopReason | None:
         """Periods at the plan's goal with the goal sent shifted by the measured offset
         (:mod:`spm_console.motion.goals.settle`), each shifted goal where the safety monitor
-        lets the measured position be: within the servo limits, in the certified set relaxed
-        by the region margin (the goal itself is in the strict set, as every reference)."""
+        lets the measured position be, with the tolerance and a tick to spare (a joint that
+        slips onto its shifted goal stays clear of a region stop): within the servo limits,
+        in the certified set relaxed by the region margin (the goal itself is in the strict
+        set, as every reference)."""
         certified = self.verifier.certified
-        half_width = st.safety.region_half_width_deg
+        spare = float(self.profile.settle.tolerance_deg) + servo_tick_deg(self.profile)
+        half_width = min(certified.step_deg, st.safety.region_half_width_deg + spare)
 
         def allowed(theta: F) -> bool:
             inside = bool(np.all(theta >= self.lo) and np.all(theta <= self.hi))

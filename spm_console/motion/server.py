@@ -139,6 +139,7 @@ class _Server(IdleServer):
                 try:
                     self.feed = TargetFeed(req.timed, req.initial_deg, req.deadman_s)
                 except SpmError as exc:
+                    self.stop.ended(req.id)  # an E-stop held for it goes with it
                     self.send(self.refused(req.id, exc))
                     return
             self.last_heartbeat = time.monotonic()

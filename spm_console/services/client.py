@@ -248,12 +248,15 @@ class MotionClient:
         try:
             return self._call(make, None, rid)
         finally:
-            self._ended_motion = rid  # its result is in: a later E-stop is not for it
             self._moving.clear()
             delivered = threading.Event()  # the motion's last samples reach on_sample first
             self._telemetry.put(delivered)
             delivered.wait(5.0)
             self.on_sample = None
+            # its result is in and its samples delivered: a later E-stop is for a later motion
+            # (the front end marks the wrist idle at once: an E-stop sent while this waited was
+            # for this motion, and the motion process lets it go)
+            self._ended_motion = rid
 
     def home(self, on_sample: Callable[[Sample], None] | None = None) -> HomingResult:
         return self._motion(lambda i: Home(i), on_sample)

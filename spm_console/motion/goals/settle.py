@@ -9,11 +9,12 @@ outside the tolerance (one within it keeps its shift), κ halved at each of a jo
 overshoots (friction and the encoder's ticks would make a fixed κ hunt), each joint's shift
 bounded by ``max_correction_deg``. The goal itself is a reference, in the workspace's
 certified set like every reference; a shifted goal is sent only where the safety monitor lets
-the measured position be (the certified set relaxed by the region margin, and the servo
-limits): the shift only brings the wrist onto a goal that is in the set, so at a goal on the
-set's face (the paper's θ2 = 155°, the grid's edge) a joint resting short of it is pushed
-onto it. When a shift would leave that band, the joints whose new shift keeps it inside take
-theirs (as many as can), the others keep the previous one. Settled once every joint is
+the measured position be (the certified set relaxed by the region margin, less the
+tolerance and a tick, and the servo limits): the shift only brings the wrist onto a goal
+that is in the set, so at a goal on the set's face (the paper's θ2 = 155°, the grid's edge)
+a joint resting short of it is pushed onto it. When a shift would leave that band, the
+joints whose new shift keeps it inside take theirs (as many as can), the others keep the
+previous one. Settled once every joint is
 within ``tolerance_deg`` of the goal for :data:`SETTLED_PERIODS` periods; otherwise the
 settling ends after ``duration_s``. Degrees.
 """

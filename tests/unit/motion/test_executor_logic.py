@@ -345,3 +345,28 @@ def test_settling_at_a_goal_on_the_grids_face_sends_the_shift_the_monitor_allows
     sent = max(w[1][1] for w in bus.writes)
     assert 155.0 < sent <= 155.0 + settling.settle.max_correction_deg
     assert all(s.measured_deg[1] <= 155.0 + 0.1 for s in ex.samples)
+
+
+def test_a_shifted_goal_keeps_the_tolerance_and_a_tick_from_where_the_monitor_stops(
+        agile: Profile, tmp_path: Path) -> None:
+    """A sag larger than the band past the face (1.5° here, shifts allowed up to 2°): the goals
+    sent stop short of the band's edge by the tolerance and a tick, so a joint that slips onto
+    its shifted goal is no region stop; the run completes, unsettled, holding."""
+    from spm_console.config.models import servo_tick_deg
+    from spm_console.report.paper_values import MVN_GOAL_DEG
+
+    goal = np.array(MVN_GOAL_DEG)
+    start = goal - np.array([0.0, 3.0, 0.0])
+    law = agile.settle.model_copy(update={"duration_s": 1.0, "tolerance_deg": 0.1,
+                                          "max_correction_deg": 2.0})
+    settling = agile.model_copy(update={"settle": law})
+    bus = _SaggingBus(start, clock=SimClock())
+    bus.sag_deg = 1.5
+    ex, res = _run(settling, bus, synthetic_plan(settling, start, goal, 0.6), tmp_path)
+    assert res.ok, res.message
+    assert res.settle is not None and not res.settle.settled and res.settle.refused_shifts > 0
+    assert ex.safety is not None
+    edge = ex.safety.region_half_width_deg + law.tolerance_deg + servo_tick_deg(settling)
+    sent = np.array([w[1] for w in bus.writes])
+    assert sent[:, 1].max() > 155.0  # shifted past the face, into the band
+    assert ex.verifier.certified.contains(sent, edge).all()
